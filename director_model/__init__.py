@@ -1,0 +1,1 @@
+"""director_model: reference integrator of the rigid body in director form."""

@@ -1,0 +1,176 @@
+"""The one trajectory schema every engine's output is mapped into.
+
+A :class:`Trajectory` holds, at ``n`` saved times:
+
+=====================  =========  ==========================================================
+field                  shape      meaning
+=====================  =========  ==========================================================
+``t``                  (n,)       time, s
+``position``           (n, 3)     centre of mass x_G, world axes, m
+``velocity``           (n, 3)     centre-of-mass velocity v_G, world axes, m/s
+``rotation``           (n, 3, 3)  body-to-world rotation R (columns are the directors)
+``omega_body``         (n, 3)     angular velocity W in body axes, rad/s
+``energy``             (n,)       E = T + V, J (computed by the suite, see below)
+``angular_momentum``   (n, 3)     L in world axes, about the centre of mass for a free body and
+                                  about the pivot (world origin) for a pivoted one, kg m^2/s
+=====================  =========  ==========================================================
+
+Energy and angular momentum are never taken from an engine: :meth:`Trajectory.from_states`
+computes them from pose, velocity and the scenario's mass and inertia, identically for every
+engine (``E = 1/2 m |v_G|^2 + 1/2 W . I W - m g . x_G``; ``L = R I W`` about the centre of
+mass, plus ``x_G x m v_G`` about the pivot).
+
+On disk (Parquet, or CSV on request) the columns are
+``t, x, y, z, vx, vy, vz, R00 ... R22 (row-major), wx, wy, wz, energy, Lx, Ly, Lz``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+COLUMNS = (
+    ["t", "x", "y", "z", "vx", "vy", "vz"]
+    + [f"R{i}{j}" for i in range(3) for j in range(3)]
+    + ["wx", "wy", "wz", "energy", "Lx", "Ly", "Lz"]
+)
+
+
+def energy(scenario, position, velocity, rotation, omega_body) -> np.ndarray:
+    """Total energy E = T + V from states, shape (n,). Arrays as in :class:`Trajectory`."""
+    del rotation  # the rotational energy needs only body rates and principal moments
+    I = np.asarray(scenario.inertia)
+    T = 0.5 * scenario.mass * np.einsum("ni,ni->n", velocity, velocity)
+    T = T + 0.5 * np.einsum("ni,i,ni->n", omega_body, I, omega_body)
+    V = -scenario.mass * position @ np.asarray(scenario.gravity)
+    return T + V
+
+
+def angular_momentum(scenario, position, velocity, rotation, omega_body) -> np.ndarray:
+    """World-axes angular momentum, shape (n, 3): about the centre of mass for a free body,
+    about the pivot (the world origin) for a pivoted one."""
+    L = np.einsum("nij,nj->ni", rotation, omega_body * np.asarray(scenario.inertia))
+    if scenario.pivot is not None:
+        L = L + scenario.mass * np.cross(position, velocity)
+    return L
+
+
+@dataclass
+class Trajectory:
+    """Saved states of one run in the suite's schema (see the module docstring)."""
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+    energy: np.ndarray
+    angular_momentum: np.ndarray
+
+    def __post_init__(self):
+        n = len(self.t)
+        shapes = {
+            "t": (n,),
+            "position": (n, 3),
+            "velocity": (n, 3),
+            "rotation": (n, 3, 3),
+            "omega_body": (n, 3),
+            "energy": (n,),
+            "angular_momentum": (n, 3),
+        }
+        for name, shape in shapes.items():
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != shape:
+                raise ValueError(
+                    f"Trajectory field {name!r} has shape {arr.shape}, expected {shape} "
+                    f"(n = {n} saved times)"
+                )
+            setattr(self, name, arr)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @classmethod
+    def from_states(cls, scenario, t, position, velocity, rotation, omega_body) -> Trajectory:
+        """Build a trajectory from states, computing energy and momentum the suite's way.
+
+        For a pivoted scenario ``position`` and ``velocity`` may be None: they follow from the
+        rotation and body rates (x_G = -R c, v_G = -R (W x c) with c the pivot in body axes).
+        """
+        t = np.asarray(t, dtype=float)
+        R = np.asarray(rotation, dtype=float)
+        W = np.asarray(omega_body, dtype=float)
+        if scenario.pivot is not None and position is None:
+            c = np.asarray(scenario.pivot)
+            position = -R @ c
+            velocity = -np.einsum("nij,nj->ni", R, np.cross(W, c))
+        x = np.asarray(position, dtype=float)
+        v = np.asarray(velocity, dtype=float)
+        return cls(
+            t=t,
+            position=x,
+            velocity=v,
+            rotation=R,
+            omega_body=W,
+            energy=energy(scenario, x, v, R, W),
+            angular_momentum=angular_momentum(scenario, x, v, R, W),
+        )
+
+    # -- tabular form --------------------------------------------------------------------
+    def to_frame(self):
+        """A pandas DataFrame with the schema's columns (see the module docstring)."""
+        import pandas as pd
+
+        n = len(self)
+        data = np.column_stack(
+            [
+                self.t,
+                self.position,
+                self.velocity,
+                self.rotation.reshape(n, 9),
+                self.omega_body,
+                self.energy,
+                self.angular_momentum,
+            ]
+        )
+        return pd.DataFrame(data, columns=COLUMNS)
+
+    @classmethod
+    def from_frame(cls, df) -> Trajectory:
+        missing = [c for c in COLUMNS if c not in df.columns]
+        if missing:
+            raise ValueError(f"trajectory table lacks columns {missing}")
+        a = df[COLUMNS].to_numpy(dtype=float)
+        n = len(a)
+        return cls(
+            t=a[:, 0],
+            position=a[:, 1:4],
+            velocity=a[:, 4:7],
+            rotation=a[:, 7:16].reshape(n, 3, 3),
+            omega_body=a[:, 16:19],
+            energy=a[:, 19],
+            angular_momentum=a[:, 20:23],
+        )
+
+    def write(self, path: str | Path, fmt: str = "parquet") -> Path:
+        """Write to ``path`` as Parquet (default) or CSV; returns the path written."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        df = self.to_frame()
+        if fmt == "parquet":
+            df.to_parquet(path, index=False)
+        elif fmt == "csv":
+            df.to_csv(path, index=False, float_format="%.17g")
+        else:
+            raise ValueError(f"unknown trajectory format {fmt!r}: expected 'parquet' or 'csv'")
+        return path
+
+    @classmethod
+    def read(cls, path: str | Path) -> Trajectory:
+        import pandas as pd
+
+        path = Path(path)
+        df = pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
+        return cls.from_frame(df)

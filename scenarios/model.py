@@ -1,0 +1,152 @@
+"""The validated, typed form of a scenario file.
+
+A :class:`Scenario` is what every later stage receives: engines build their models from it,
+references compute exact solutions from it, metrics read its inertia and conserved quantities.
+It is immutable and carries a content hash (``scenario_hash``) that travels with every result.
+
+Conventions (SI units throughout):
+
+- ``inertia``: principal moments of inertia about the centre of mass, kg m^2, in body axes
+  (body axes are the principal axes).
+- ``rotation``: body-to-world rotation matrix R at t = 0, so a body vector b has world
+  coordinates R b. Its columns are the directors d1, d2, d3.
+- ``omega_body``: angular velocity W in body axes, rad/s. The world angular velocity is w = R W.
+- ``position``/``velocity``: centre of mass x_G and its velocity v_G in world axes, m and m/s.
+- ``pivot``: for a pivoted body, the fixed point's position in body axes relative to the centre
+  of mass, m. The fixed point is the world origin, so x_G = -R pivot at all times.
+- ``gravity``: uniform gravitational acceleration g in world axes, m/s^2; V = -m g . x_G.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Reference kinds a scenario may request; "auto" lets the suite pick (see references).
+REFERENCE_KINDS = ("auto", "free_body", "steady_precession", "numerical")
+
+
+def _frozen(a) -> np.ndarray:
+    arr = np.array(a, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """One validated scenario. Build it with :func:`scenarios.load` or directly in code.
+
+    Array fields are read-only float arrays: ``inertia`` (3,), ``rotation`` (3, 3),
+    ``omega_body`` (3,), ``position`` (3,), ``velocity`` (3,), ``gravity`` (3,),
+    ``pivot`` (3,) or None. ``dt_sweep`` is a tuple of step sizes (may be empty).
+    """
+
+    name: str
+    description: str
+    mass: float
+    inertia: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+    t_end: float
+    dt: float
+    position: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
+    velocity: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
+    gravity: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
+    pivot: np.ndarray | None = None
+    dt_sweep: tuple[float, ...] = ()
+    save_every: int = 1
+    reference: str = "auto"
+    source: str = ""
+    tags: tuple[str, ...] = ()
+    path: str | None = None
+
+    def __post_init__(self):
+        # Normalise containers so that code building a Scenario by hand gets the same object a
+        # file would give; physical validation lives in scenarios.schema.
+        for name in ("inertia", "rotation", "omega_body", "position", "velocity", "gravity"):
+            object.__setattr__(self, name, _frozen(getattr(self, name)))
+        if self.pivot is not None:
+            object.__setattr__(self, "pivot", _frozen(self.pivot))
+            # With a pivot the centre of mass is not free: it follows from the rotation.
+            R = self.rotation
+            W = self.omega_body
+            x = -R @ self.pivot
+            v = -R @ np.cross(W, self.pivot)
+            object.__setattr__(self, "position", _frozen(x))
+            object.__setattr__(self, "velocity", _frozen(v))
+        object.__setattr__(self, "dt_sweep", tuple(float(h) for h in self.dt_sweep))
+        object.__setattr__(self, "tags", tuple(self.tags))
+        object.__setattr__(self, "mass", float(self.mass))
+        object.__setattr__(self, "t_end", float(self.t_end))
+        object.__setattr__(self, "dt", float(self.dt))
+
+    # -- derived facts used by references and metrics --------------------------------------
+    @property
+    def pivoted(self) -> bool:
+        return self.pivot is not None
+
+    @property
+    def has_gravity(self) -> bool:
+        return bool(np.any(self.gravity != 0.0))
+
+    @property
+    def symmetric_axis(self) -> int | None:
+        """Index of the body axis of symmetry (the moment that differs from two equal ones),
+        or None for an asymmetric or spherical body. Equality is exact: scenario files state
+        symmetric bodies with equal numbers."""
+        I = self.inertia
+        for k in range(3):
+            i, j = [a for a in range(3) if a != k]
+            if I[i] == I[j] and I[k] != I[i]:
+                return k
+        return None
+
+    @property
+    def pivot_inertia(self) -> np.ndarray:
+        """3x3 inertia tensor about the fixed point in body axes: I + m(|c|^2 1 - c c^T)."""
+        c = self.pivot if self.pivot is not None else np.zeros(3)
+        return np.diag(self.inertia) + self.mass * (c @ c * np.eye(3) - np.outer(c, c))
+
+    def to_dict(self) -> dict:
+        """A plain-data description (lists and numbers), the basis of the hash."""
+        d = {
+            "name": self.name,
+            "description": self.description,
+            "body": {"mass": self.mass, "inertia": self.inertia.tolist()},
+            "initial": {
+                "rotation": self.rotation.tolist(),
+                "omega_body": self.omega_body.tolist(),
+            },
+            "environment": {"gravity": self.gravity.tolist()},
+            "run": {
+                "t_end": self.t_end,
+                "dt": self.dt,
+                "dt_sweep": list(self.dt_sweep),
+                "save_every": self.save_every,
+            },
+            "reference": self.reference,
+        }
+        if self.pivot is None:
+            d["initial"]["position"] = self.position.tolist()
+            d["initial"]["velocity"] = self.velocity.tolist()
+        else:
+            d["environment"]["pivot"] = self.pivot.tolist()
+        return d
+
+    @property
+    def scenario_hash(self) -> str:
+        """First 12 hex digits of the SHA-256 of the physical content (name, body, initial
+        state, environment, run settings). Text fields other than the name do not count."""
+        d = self.to_dict()
+        d.pop("description")
+        blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:12]
+
+    def replace(self, **changes) -> Scenario:
+        """A copy with some fields changed (e.g. ``t_end`` from the command line)."""
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
