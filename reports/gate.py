@@ -1,0 +1,228 @@
+"""The CI regression gate: baselines of a run's metrics and the comparison against them.
+
+A baseline is a JSON file with one entry per run (scenario, engine, integrator, dt) holding its
+status and metrics. :func:`compare` reports, for every run, each metric that got worse than the
+baseline by more than a factor, every run whose status got worse, and runs missing from or new
+to the results. Timing metrics are not gated unless a timing factor is given: shared CI
+machines vary by far more than the accuracy metrics do.
+
+Round-off floors: a metric at round-off level (e.g. an energy drift of 3e-15) may double from
+one platform or library build to another without meaning anything, so a value is compared
+against ``factor * max(baseline, floor)``; the floors are a few orders of magnitude above
+double-precision round-off accumulated over the suite's ~1e4-1e5 steps (eps * nstep ~ 1e-11).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.sax.saxutils import escape, quoteattr
+
+from reports.metrics import HIGHER_IS_BETTER, METRIC_COLUMNS
+from reports.runner import read_results, run_key
+
+FLOORS = {
+    "energy_drift_max": 1e-11,
+    "momentum_drift_max": 1e-11,
+    "orthonormality_max": 1e-11,
+    "attitude_error_max": 1e-10,
+    "omega_error_max": 1e-10,
+    "position_error_max": 1e-10,
+    "flip_interval_error": 1e-9,
+    "nutation_period_error": 1e-9,
+}
+#: A fitted convergence order may fall by this much before it counts as a regression.
+ORDER_SLACK = 0.3
+TIMING_METRICS = ("ns_per_step",)
+
+
+def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
+    """Write the baseline of the run in ``results_dir`` to ``path`` (JSON)."""
+    from reports.report import read_provenance
+
+    df = read_results(results_dir)
+    runs = []
+    for _, r in df.sort_values(["scenario", "engine", "integrator", "dt"]).iterrows():
+        entry = {k: r[k] for k in ("scenario", "engine", "integrator", "engine_version", "status")}
+        entry["dt"] = float(r["dt"])
+        for m in (*METRIC_COLUMNS, *TIMING_METRICS):
+            v = float(r[m]) if r[m] == r[m] else None  # NaN -> null
+            entry[m] = v
+        runs.append(entry)
+    prov = read_provenance(results_dir)
+    doc = {"format": 1, "provenance": prov, "runs": runs}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    return path
+
+
+def read_baseline(path: str | Path) -> dict:
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: baseline file not found") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not a baseline file (invalid JSON: {exc})") from None
+    if doc.get("format") != 1 or not isinstance(doc.get("runs"), list):
+        raise ValueError(f"{path}: not a baseline file (expected format 1 with a 'runs' list)")
+    return doc
+
+
+@dataclass
+class Finding:
+    key: tuple
+    what: str  # "metric", "status", "missing", "new"
+    metric: str = ""
+    baseline: object = None
+    current: object = None
+
+    @property
+    def ratio(self) -> float:
+        try:
+            return float(self.current) / float(self.baseline)
+        except (TypeError, ValueError, ZeroDivisionError):
+            return math.nan
+
+
+@dataclass
+class Comparison:
+    factor: float
+    findings: list[Finding] = field(default_factory=list)
+    checked: list[tuple] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.findings
+
+    def for_key(self, key) -> list[Finding]:
+        return [f for f in self.findings if f.key == key]
+
+
+def _worse(metric, base, cur, factor, timing_factor) -> bool:
+    if base is None or (isinstance(base, float) and math.isnan(base)):
+        return False  # nothing to compare against
+    if cur is None or math.isnan(cur):
+        return True  # a metric that existed is gone
+    if metric in HIGHER_IS_BETTER:
+        return cur < base - ORDER_SLACK
+    if metric in TIMING_METRICS:
+        return timing_factor is not None and cur > timing_factor * base
+    return cur > factor * max(base, FLOORS.get(metric, 0.0))
+
+
+def compare(
+    results_dir,
+    baseline_path,
+    factor: float = 2.0,
+    timing_factor: float | None = None,
+    only_present: bool = False,
+) -> Comparison:
+    """Compare the run in ``results_dir`` against the baseline file.
+
+    ``only_present``: compare only the runs present in both (a partial run, e.g. one
+    scenario); by default missing and new runs are findings too."""
+    if not factor >= 1.0:
+        raise ValueError(f"--factor {factor!r}: must be a number >= 1")
+    df = read_results(results_dir)
+    base = read_baseline(baseline_path)
+    current = {
+        run_key(r["scenario"], r["engine"], r["integrator"], r["dt"]): r for _, r in df.iterrows()
+    }
+    expected = {
+        run_key(b["scenario"], b["engine"], b["integrator"], b["dt"]): b for b in base["runs"]
+    }
+    cmp = Comparison(factor)
+    for key, b in expected.items():
+        r = current.get(key)
+        if r is None and only_present:
+            continue
+        cmp.checked.append(key)
+        if r is None:
+            cmp.findings.append(Finding(key, "missing", baseline=b["status"]))
+            continue
+        if b["status"] == "ok" and r["status"] != "ok":
+            cmp.findings.append(
+                Finding(key, "status", "status", b["status"], f"{r['status']}: {r['message']}")
+            )
+            continue
+        if r["status"] != "ok":
+            continue
+        for m in (*METRIC_COLUMNS, *TIMING_METRICS):
+            cur = float(r[m])
+            if _worse(m, b.get(m), cur, factor, timing_factor):
+                cmp.findings.append(Finding(key, "metric", m, b.get(m), cur))
+    for key in current:
+        if key not in expected and not only_present:
+            cmp.findings.append(Finding(key, "new", current=current[key]["status"]))
+    return cmp
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.3e}"
+    return str(v)
+
+
+def format_comparison(cmp: Comparison) -> str:
+    """A readable plain-text table of the findings (empty findings: a one-line summary)."""
+    if cmp.ok:
+        return f"OK: {len(cmp.checked)} runs match the baseline (factor {cmp.factor:g})."
+    head = ["scenario", "engine", "integrator", "dt", "problem", "baseline", "current", "ratio"]
+    rows = []
+    for f in cmp.findings:
+        sc, eng, integ, dt = f.key
+        problem = {
+            "metric": f.metric,
+            "status": "status got worse",
+            "missing": "missing run",
+            "new": "new run (not in baseline)",
+        }[f.what]
+        ratio = f"{f.ratio:.3g}" if f.what == "metric" and not math.isnan(f.ratio) else ""
+        rows.append([sc, eng, integ, f"{dt:g}", problem, _fmt(f.baseline), _fmt(f.current), ratio])
+    widths = [max(len(str(x)) for x in col) for col in zip(head, *rows, strict=False)]
+    line = "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True))
+    out = [
+        f"FAIL: {len(cmp.findings)} finding(s) against the baseline (factor {cmp.factor:g}):",
+        line,
+        "-" * len(line),
+    ]
+    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    return "\n".join(out)
+
+
+def write_junit(cmp: Comparison, path: str | Path, results_dir=None) -> Path:
+    """JUnit XML with one test case per run that has a tolerance (is in the baseline)."""
+    keys = list(cmp.checked) + [f.key for f in cmp.findings if f.what == "new"]
+    cases = []
+    nfail = 0
+    for key in keys:
+        sc, eng, integ, dt = key
+        name = f"{eng}/{integ}/dt={dt:g}"
+        fails = cmp.for_key(key)
+        body = ""
+        if fails:
+            nfail += 1
+            msg = "; ".join(
+                f"{f.metric or f.what}: baseline {_fmt(f.baseline)}, current {_fmt(f.current)}"
+                for f in fails
+            )
+            body = f"<failure message={quoteattr(msg)}>{escape(msg)}</failure>"
+        cases.append(
+            f"  <testcase classname={quoteattr('director_bench.' + sc)} "
+            f"name={quoteattr(name)}>{body}</testcase>"
+        )
+    xml = [
+        '<?xml version="1.0" encoding="utf-8"?>',
+        f'<testsuite name="director-bench" tests="{len(keys)}" failures="{nfail}">',
+        *cases,
+        "</testsuite>",
+    ]
+    path = Path(path)
+    path.write_text("\n".join(xml) + "\n")
+    return path
