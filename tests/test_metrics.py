@@ -13,8 +13,16 @@ from scenarios.model import Scenario
 
 def spin_scenario(**kw):
     """A symmetric body (I1 = I2) spinning about its axis 3: R(t) = Rz(w t) exactly."""
-    base = dict(name="spin", description="", mass=2.0, inertia=(1.0, 1.0, 0.5),
-                rotation=np.eye(3), omega_body=(0.0, 0.0, 3.0), t_end=1.0, dt=0.1)
+    base = dict(
+        name="spin",
+        description="",
+        mass=2.0,
+        inertia=(1.0, 1.0, 0.5),
+        rotation=np.eye(3),
+        omega_body=(0.0, 0.0, 3.0),
+        t_end=1.0,
+        dt=0.1,
+    )
     base.update(kw)
     return Scenario(**base)
 
@@ -89,8 +97,11 @@ def test_orthonormality_of_a_scaled_rotation():
 
 def test_pivoted_top_conserves_vertical_and_spin_components_only():
     """Tilted symmetric top on a pivot with gravity: the conserved set is L.e_z and L.d3."""
-    sc = spin_scenario(pivot=(0, 0, -0.5), gravity=(0, 0, -9.81),
-                       rotation=Rotation.from_rotvec([0.3, 0, 0]).as_matrix())
+    sc = spin_scenario(
+        pivot=(0, 0, -0.5),
+        gravity=(0, 0, -9.81),
+        rotation=Rotation.from_rotvec([0.3, 0, 0]).as_matrix(),
+    )
     assert metrics.conserved_momentum(sc) == "Lg+spin"
     assert metrics.conserved_momentum(spin_scenario()) == "L"
     asym = spin_scenario(inertia=(1.0, 1.2, 0.5), pivot=(0, 0, -0.5), gravity=(0, 0, -9.81))
@@ -108,8 +119,9 @@ def test_nonfinite_samples_are_reported_as_inf():
 def test_reference_on_other_times_is_refused():
     sc = spin_scenario()
     with pytest.raises(ValueError, match="other times"):
-        metrics.compute_metrics(sc, spin_traj(sc, np.linspace(0, 1, 4)),
-                                ref=spin_traj(sc, np.linspace(0, 1, 5)))
+        metrics.compute_metrics(
+            sc, spin_traj(sc, np.linspace(0, 1, 4)), ref=spin_traj(sc, np.linspace(0, 1, 5))
+        )
 
 
 @pytest.mark.parametrize("p", [1.0, 2.0, 4.0])

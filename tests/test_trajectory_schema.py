@@ -10,10 +10,19 @@ from scenarios.model import Scenario
 
 
 def scenario(**kw):
-    base = dict(name="s", description="", mass=3.0, inertia=(1.0, 2.0, 2.5),
-                rotation=Rotation.from_rotvec([0.2, -0.4, 0.9]).as_matrix(),
-                omega_body=(0.3, -1.1, 0.7), position=(1.0, 2.0, 3.0), velocity=(0.1, 0.2, -0.3),
-                gravity=(0, 0, -9.81), t_end=1.0, dt=0.1)
+    base = dict(
+        name="s",
+        description="",
+        mass=3.0,
+        inertia=(1.0, 2.0, 2.5),
+        rotation=Rotation.from_rotvec([0.2, -0.4, 0.9]).as_matrix(),
+        omega_body=(0.3, -1.1, 0.7),
+        position=(1.0, 2.0, 3.0),
+        velocity=(0.1, 0.2, -0.3),
+        gravity=(0, 0, -9.81),
+        t_end=1.0,
+        dt=0.1,
+    )
     base.update(kw)
     return Scenario(**base)
 
@@ -26,9 +35,10 @@ def test_columns_are_the_documented_schema():
 
 def test_energy_and_momentum_by_hand():
     sc = scenario()
-    tr = Trajectory.from_states(sc, [0.0], [sc.position], [sc.velocity], [sc.rotation],
-                                [sc.omega_body])
-    W, I, v = sc.omega_body, np.array([1.0, 2.0, 2.5]), sc.velocity
+    tr = Trajectory.from_states(
+        sc, [0.0], [sc.position], [sc.velocity], [sc.rotation], [sc.omega_body]
+    )
+    W, I = sc.omega_body, np.array([1.0, 2.0, 2.5])
     E = 0.5 * 3.0 * (0.01 + 0.04 + 0.09) + 0.5 * (I * W * W).sum() + 3.0 * 9.81 * 3.0
     assert tr.energy[0] == pytest.approx(E, rel=1e-15)
     np.testing.assert_allclose(tr.angular_momentum[0], sc.rotation @ (I * W), rtol=1e-14)
@@ -49,17 +59,28 @@ def test_round_trip(tmp_path, fmt):
     n = 4
     R = Rotation.random(n, random_state=1).as_matrix()
     rng = np.random.default_rng(0)
-    tr = Trajectory.from_states(sc, np.arange(n) * 0.1, rng.normal(size=(n, 3)),
-                                rng.normal(size=(n, 3)), R, rng.normal(size=(n, 3)))
+    tr = Trajectory.from_states(
+        sc,
+        np.arange(n) * 0.1,
+        rng.normal(size=(n, 3)),
+        rng.normal(size=(n, 3)),
+        R,
+        rng.normal(size=(n, 3)),
+    )
     path = tr.write(tmp_path / f"a.{fmt}", fmt)
     back = Trajectory.read(path)
-    for f in ("t", "position", "velocity", "rotation", "omega_body", "energy",
-              "angular_momentum"):
+    for f in ("t", "position", "velocity", "rotation", "omega_body", "energy", "angular_momentum"):
         np.testing.assert_array_equal(getattr(back, f), getattr(tr, f))
 
 
 def test_wrong_shape_names_the_field():
     with pytest.raises(ValueError, match="'rotation' has shape"):
-        Trajectory(t=np.zeros(2), position=np.zeros((2, 3)), velocity=np.zeros((2, 3)),
-                   rotation=np.zeros((2, 9)), omega_body=np.zeros((2, 3)), energy=np.zeros(2),
-                   angular_momentum=np.zeros((2, 3)))
+        Trajectory(
+            t=np.zeros(2),
+            position=np.zeros((2, 3)),
+            velocity=np.zeros((2, 3)),
+            rotation=np.zeros((2, 9)),
+            omega_body=np.zeros((2, 3)),
+            energy=np.zeros(2),
+            angular_momentum=np.zeros((2, 3)),
+        )
