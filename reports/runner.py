@@ -248,7 +248,7 @@ def read_results(path: Path):
     df = pd.read_csv(path, keep_default_na=True)
     for col in ("message", "settings", "trajectory", "engine_version", "family"):
         if col in df:
-            df[col] = df[col].fillna("").astype(str)
+            df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
     return df
 
 

@@ -1,0 +1,137 @@
+"""The regression gate on hand-written results tables: a clean run passes, a regression, a
+status change, a missing run and a new run each fail with a readable line."""
+
+import math
+import xml.etree.ElementTree as ET
+
+import pandas as pd
+import pytest
+
+from reports import gate
+from reports.cli import main
+from reports.metrics import METRIC_COLUMNS
+from reports.runner import RESULT_COLUMNS
+
+
+def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, status="ok", **m):
+    r = dict.fromkeys(RESULT_COLUMNS, "")
+    r.update(
+        scenario=scenario,
+        engine=engine,
+        integrator=integrator,
+        dt=dt,
+        status=status,
+        ns_per_step=1000.0,
+    )
+    for c in METRIC_COLUMNS:
+        r[c] = math.nan
+    r.update(energy_drift_max=1e-8, attitude_error_max=1e-6, convergence_order=4.0)
+    r.update(m)
+    return r
+
+
+def write(folder, rows):
+    folder.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(rows, columns=list(RESULT_COLUMNS)).to_csv(folder / "results.csv", index=False)
+    return folder
+
+
+@pytest.fixture
+def baseline(tmp_path):
+    base = write(
+        tmp_path / "base",
+        [row(), row(engine="pybullet", integrator="multibody", energy_drift_max=0.3)],
+    )
+    return gate.write_baseline(base, tmp_path / "baseline.json")
+
+
+def test_identical_run_passes(tmp_path, baseline):
+    cur = write(
+        tmp_path / "cur",
+        [row(), row(engine="pybullet", integrator="multibody", energy_drift_max=0.3)],
+    )
+    cmp = gate.compare(cur, baseline)
+    assert cmp.ok and len(cmp.checked) == 2
+    assert main(["check", str(cur), "--baseline", str(baseline)]) == 0
+
+
+def test_metric_regression_beyond_factor_fails(tmp_path, baseline, capsys):
+    # energy drift 1e-8 -> 3e-8 is 3x worse (> factor 2); 1.5x is within the factor
+    cur = write(
+        tmp_path / "cur",
+        [
+            row(energy_drift_max=3e-8),
+            row(engine="pybullet", integrator="multibody", energy_drift_max=0.45),
+        ],
+    )
+    cmp = gate.compare(cur, baseline, factor=2.0)
+    assert [(f.key[1], f.metric) for f in cmp.findings] == [("mujoco", "energy_drift_max")]
+    assert cmp.findings[0].ratio == pytest.approx(3.0)
+    assert main(["check", str(cur), "--baseline", str(baseline)]) == 1
+    out = capsys.readouterr().out
+    assert "energy_drift_max" in out and "dzhanibekov" in out and "3" in out
+
+
+def test_roundoff_floor(tmp_path):
+    """3e-15 -> 9e-15 is noise at round-off level, not a regression (floor 1e-11)."""
+    base = write(tmp_path / "b", [row(energy_drift_max=3e-15)])
+    bl = gate.write_baseline(base, tmp_path / "bl.json")
+    cur = write(tmp_path / "c", [row(energy_drift_max=9e-15)])
+    assert gate.compare(cur, bl).ok
+    cur = write(tmp_path / "d", [row(energy_drift_max=5e-11)])
+    assert not gate.compare(cur, bl).ok
+
+
+def test_order_drop_and_status_change(tmp_path, baseline):
+    cur = write(
+        tmp_path / "cur",
+        [
+            row(convergence_order=2.0),
+            row(engine="pybullet", integrator="multibody", status="failed", message="diverged"),
+        ],
+    )
+    what = {(f.key[1], f.what, f.metric) for f in gate.compare(cur, baseline).findings}
+    assert ("mujoco", "metric", "convergence_order") in what
+    assert ("pybullet", "status", "status") in what
+
+
+def test_missing_and_new_runs(tmp_path, baseline):
+    cur = write(tmp_path / "cur", [row(), row(engine="dart", integrator="semi-implicit Euler")])
+    cmp = gate.compare(cur, baseline)
+    assert {(f.key[1], f.what) for f in cmp.findings} == {("pybullet", "missing"), ("dart", "new")}
+    assert gate.compare(cur, baseline, only_present=True).ok
+
+
+def test_timing_is_gated_only_on_request(tmp_path, baseline):
+    cur = write(
+        tmp_path / "cur",
+        [
+            row(ns_per_step=5000.0),
+            row(engine="pybullet", integrator="multibody", energy_drift_max=0.3),
+        ],
+    )
+    assert gate.compare(cur, baseline).ok
+    assert not gate.compare(cur, baseline, timing_factor=3.0).ok
+
+
+def test_junit_has_one_case_per_checked_run(tmp_path, baseline):
+    cur = write(
+        tmp_path / "cur",
+        [
+            row(energy_drift_max=1.0),
+            row(engine="pybullet", integrator="multibody", energy_drift_max=0.3),
+        ],
+    )
+    path = gate.write_junit(gate.compare(cur, baseline), tmp_path / "junit.xml")
+    suite = ET.parse(path).getroot()
+    assert suite.get("tests") == "2" and suite.get("failures") == "1"
+    failed = [c for c in suite if c.find("failure") is not None]
+    assert failed[0].get("name") == "mujoco/RK4/dt=0.001"
+
+
+def test_bad_baseline_file_is_a_clear_error(tmp_path, capsys):
+    cur = write(tmp_path / "cur", [row()])
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    assert main(["check", str(cur), "--baseline", str(bad)]) == 2
+    assert "bad.json: not a baseline file" in capsys.readouterr().err
