@@ -85,6 +85,8 @@ def cmd_run(args) -> int:
         baseline=args.baseline,
         report=not args.no_report,
         progress=not args.quiet,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
     )
     df = summary.results
     counts = df["status"].value_counts().to_dict()
@@ -166,6 +168,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-report", action="store_true", help="skip plots and reports")
     s.add_argument("--strict", action="store_true", help="exit 1 if any run failed")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        help="local worker processes (default: one per core; 1 = serial, best for timings)",
+    )
+    s.add_argument(
+        "--scheduler", metavar="tcp://HOST:PORT", help="run on this Dask cluster instead of locally"
+    )
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("report", help="regenerate plots and reports from a results folder")

@@ -333,6 +333,9 @@ def run_suite(
             bar.close()
     df = read_results(results)
     df = df.drop_duplicates(subset=["scenario", "engine", "integrator", "dt"], keep="last")
+    # Rows arrive in completion order when runs execute in parallel: sort so that the table
+    # is the same whatever executed it.
+    df = df.sort_values(["scenario", "engine", "integrator", "dt"], ignore_index=True)
     df = add_convergence_orders(df)
     tmp = results.with_suffix(".csv.tmp")
     df.to_csv(tmp, index=False)

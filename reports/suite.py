@@ -45,14 +45,17 @@ def run(
     baseline: str | Path | None = None,
     report: bool = True,
     progress: bool = True,
-    mapper=None,
+    jobs: int | None = None,
+    scheduler: str | None = None,
 ) -> RunSummary:
     """Run scenarios x engines x integrators x dt into ``out`` and write the report.
 
     ``baseline``: the tolerances for ``junit.xml`` (default: the committed baseline of the
-    default suite, where it exists); runs absent from it get no test case.
+    default suite, where it exists); runs absent from it get no test case. ``jobs``: local
+    worker processes (default: one per core); ``scheduler``: a Dask scheduler address.
     """
     from reports import gate
+    from reports.parallel import make_mapper
     from reports.report import build_report, write_provenance
     from reports.runner import plan, run_suite
 
@@ -61,7 +64,14 @@ def run(
     specs = plan(scs, engines, integrators, dts, t_end, sweep=sweep)
     out.mkdir(parents=True, exist_ok=True)
     write_provenance(out)
-    df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
+    df, n_run = run_suite(
+        specs,
+        out,
+        redo=redo,
+        fmt=fmt,
+        progress=progress,
+        mapper=make_mapper(jobs, scheduler),
+    )
     rep = build_report(out) if report else {}
     baseline = (
         Path(baseline) if baseline else (DEFAULT_BASELINE if DEFAULT_BASELINE.exists() else None)
