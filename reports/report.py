@@ -235,6 +235,10 @@ def sections(df) -> list[tuple[str, str, list, list]]:
                     conv_rows,
                 )
             )
+    for scenario in sorted(df["scenario"].unique()):
+        wp = work_precision_table(df[df["scenario"] == scenario])
+        if wp:
+            out.append(("table", f"{scenario}: cheapest configuration reaching each accuracy", *wp))
     bad = df[df["status"] != "ok"].sort_values(["scenario", "engine", "integrator", "dt"])
     if not bad.empty:
         header = ["scenario", "engine", "integrator", "dt", "status", "message"]
@@ -265,6 +269,47 @@ def sections(df) -> list[tuple[str, str, list, list]]:
             )
         )
     return out
+
+
+#: Accuracy levels of the work-precision table (max attitude error, rad).
+ACCURACY_LEVELS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
+
+
+def work_precision_table(sub, metric: str = "attitude_error_max", levels=ACCURACY_LEVELS):
+    """For each accuracy level: the cheapest run (engine, integrator, dt) whose ``metric`` is
+    at or below it, by wall time of the stepping, and how many times more the cheapest run of
+    every other engine/integrator that reaches it costs. Returns (header, rows) or None."""
+    ok = sub[(sub["status"] == "ok") & (sub["engine"] != "exact")]
+    ok = ok[np.isfinite(ok[metric]) & (ok["wall_time_s"] > 0)]
+    if ok.empty:
+        return None
+    rows = []
+    for level in levels:
+        hit = ok[ok[metric] <= level]
+        if hit.empty:
+            rows.append([f"{level:.0e}", "none of the runs", "-", "-", "-"])
+            continue
+        best = hit.loc[hit.groupby(["engine", "integrator"])["wall_time_s"].idxmin()]
+        best = best.sort_values("wall_time_s")
+        first = best.iloc[0]
+        others = (
+            ", ".join(
+                f"{r['engine']} {r['integrator']} x{r['wall_time_s'] / first['wall_time_s']:.3g}"
+                for _, r in best.iloc[1:4].iterrows()
+            )
+            or "-"
+        )
+        rows.append(
+            [
+                f"{level:.0e}",
+                f"{first['engine']} {first['integrator']}",
+                f"{first['dt']:g}",
+                fmt(first["wall_time_s"]),
+                others,
+            ]
+        )
+    header = ["attitude error <=", "cheapest", "dt", "wall time [s]", "next cheapest (cost ratio)"]
+    return header, rows
 
 
 def _provenance_lines(prov: dict) -> list[tuple[str, str]]:
