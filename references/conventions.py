@@ -1,0 +1,403 @@
+"""Every convention conversion of the suite, in one place.
+
+The suite describes a rigid body by the state ``(x, v, R, W)``:
+
+- ``x``: centre of mass x_G, world axes (3,), m
+- ``v``: centre-of-mass velocity v_G, world axes (3,), m/s
+- ``R``: body-to-world rotation matrix (3, 3); its columns are the directors d1, d2, d3
+- ``W``: angular velocity in body axes (3,), rad/s; the world angular velocity is w = R W
+
+Quaternions are unit quaternions of the rotation R. Two storage orders occur in the engines:
+``wxyz`` (scalar first: MuJoCo) and ``xyzw`` (scalar last: Pinocchio, PyBullet, scipy). A
+rotation vector ``theta`` (axis times angle) is the exponential coordinate R = exp(hat(theta))
+(DART's ball and free joints).
+
+Engine state layouts (measured, see docs/engines.md; each one is tested with a non-identity
+rotation and a generic angular velocity in tests/test_conventions.py):
+
+=========================  ===============================  =============================
+engine, joint              positions                        velocities
+=========================  ===============================  =============================
+MuJoCo free joint          qpos = [x (3), q wxyz (4)]       qvel = [v world (3), W body (3)]
+MuJoCo ball joint          qpos = q wxyz (4)                qvel = W body (3)
+Pinocchio FreeFlyer        q = [x (3), q xyzw (4)]          v = [R^T v (3), W (3)] (LOCAL)
+Pinocchio Spherical        q = q xyzw (4)                   v = W (3) (LOCAL)
+DART FreeJoint             [theta (3), x (3)]               [w world (3), v world (3)]
+DART BallJoint             theta (3)                        W body (3)
+PyBullet base              pos x, orn xyzw                  v world, w world
+PyBullet spherical joint   q xyzw                           W body (child frame)
+=========================  ===============================  =============================
+
+For the free joints above the body frame is placed at the centre of mass with principal axes,
+so the joint's translation is x_G itself. For the ball joints the body frame sits at the pivot
+(the world origin) and the centre of mass is at ``-pivot`` in body axes; :func:`pivot_com`
+gives x_G and v_G from (R, W).
+
+All functions accept a single state; the ``*_batch`` helpers act on stacks of shape (n, ...).
+They are written out by hand (no scipy) so that the tests against scipy.spatial.transform are
+an independent check.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+
+class BodyState(NamedTuple):
+    """One rigid-body state in the suite's convention (see the module docstring)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+
+
+# -- skew matrices --------------------------------------------------------------------------
+def hat(w) -> np.ndarray:
+    """The skew matrix of a 3-vector: hat(a) b = a x b."""
+    x, y, z = (float(c) for c in w)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def vee(S) -> np.ndarray:
+    """The 3-vector of a skew matrix (the inverse of :func:`hat`, using the skew part)."""
+    S = np.asarray(S, dtype=float)
+    return 0.5 * np.array([S[2, 1] - S[1, 2], S[0, 2] - S[2, 0], S[1, 0] - S[0, 1]])
+
+
+# -- quaternions ----------------------------------------------------------------------------
+def _unit(q, name: str) -> np.ndarray:
+    q = np.asarray(q, dtype=float).reshape(4)
+    n = math.sqrt(float(q @ q))
+    if not (n > 0.0 and math.isfinite(n)):
+        raise ValueError(f"{name} quaternion {q.tolist()} has no direction (norm {n})")
+    return q / n
+
+
+def quat_wxyz_to_xyzw(q) -> np.ndarray:
+    """Reorder a quaternion from scalar-first (MuJoCo) to scalar-last (Pinocchio, PyBullet)."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 1:4], q[..., :1]], axis=-1)
+
+
+def quat_xyzw_to_wxyz(q) -> np.ndarray:
+    """Reorder a quaternion from scalar-last to scalar-first."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 3:4], q[..., :3]], axis=-1)
+
+
+def quat_wxyz_to_matrix(q) -> np.ndarray:
+    """Rotation matrix of a quaternion (w, x, y, z). The quaternion is normalised first, so a
+    slightly unnormalised engine quaternion maps to the rotation it stands for."""
+    w, x, y, z = _unit(q, "wxyz")
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def quat_xyzw_to_matrix(q) -> np.ndarray:
+    """Rotation matrix of a quaternion stored (x, y, z, w)."""
+    return quat_wxyz_to_matrix(quat_xyzw_to_wxyz(q))
+
+
+def matrix_to_quat_wxyz(R) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) with w >= 0 of a rotation matrix.
+
+    Uses the largest of the four candidate pivots (Shepperd's method), which keeps full
+    accuracy for every rotation angle, including angles near pi.
+    """
+    R = np.asarray(R, dtype=float)
+    if R.shape != (3, 3):
+        raise ValueError(f"rotation matrix must have shape (3, 3), got {R.shape}")
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+    tr = r00 + r11 + r22
+    k = max(range(4), key=(tr, r00, r11, r22).__getitem__)
+    if k == 0:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        q = (0.25 * s, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s)
+    elif k == 1:
+        s = 2.0 * math.sqrt(1.0 + r00 - r11 - r22)
+        q = ((r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s)
+    elif k == 2:
+        s = 2.0 * math.sqrt(1.0 + r11 - r00 - r22)
+        q = ((r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s)
+    else:
+        s = 2.0 * math.sqrt(1.0 + r22 - r00 - r11)
+        q = ((r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s)
+    n = math.sqrt(sum(c * c for c in q))
+    sign = -1.0 if q[0] < 0 else 1.0
+    return np.array([sign * c / n for c in q])
+
+
+def matrix_to_quat_xyzw(R) -> np.ndarray:
+    """Unit quaternion stored (x, y, z, w), w >= 0, of a rotation matrix."""
+    return quat_wxyz_to_xyzw(matrix_to_quat_wxyz(R))
+
+
+# -- rotation vectors (exponential coordinates) --------------------------------------------
+def rotvec_to_matrix(theta) -> np.ndarray:
+    """R = exp(hat(theta)) by Rodrigues' formula, with Taylor series for small angles.
+
+    Written as R = 1 + s K + c (theta theta^T - a^2 1) with K = hat(theta), a = |theta|,
+    s = sin(a)/a, c = (1 - cos a)/a^2, in scalar arithmetic (it runs in integrator stages).
+    """
+    x, y, z = (float(t) for t in np.ravel(theta))
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-8:
+        # Series to the last term that matters in double precision at a < 1e-4.
+        s = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
+        c = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
+    else:
+        a = math.sqrt(a2)
+        s = math.sin(a) / a
+        c = (1.0 - math.cos(a)) / a2
+    return np.array(
+        [
+            [1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
+            [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
+            [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)],
+        ]
+    )
+
+
+def matrix_to_rotvec(R) -> np.ndarray:
+    """The rotation vector theta (|theta| <= pi) with exp(hat(theta)) = R.
+
+    Goes through the quaternion, theta = 2 atan2(|u|, w) u/|u| with q = (w, u), w >= 0, which
+    is accurate for all angles (no division by sin near 0 or pi).
+    """
+    w, x, y, z = matrix_to_quat_wxyz(R).tolist()
+    n = math.sqrt(x * x + y * y + z * z)
+    if n < 1e-8:
+        # theta = 2 u (1 + |u|^2/6 + ...)/w to double precision for angles below 2e-8.
+        f = 2.0 / w
+    else:
+        f = 2.0 * math.atan2(n, w) / n
+    return np.array([f * x, f * y, f * z])
+
+
+# -- angular velocity frames ----------------------------------------------------------------
+def body_to_world_omega(R, W) -> np.ndarray:
+    """World angular velocity w = R W. Works on single states and stacks (n, 3, 3), (n, 3)."""
+    return np.einsum("...ij,...j->...i", np.asarray(R, float), np.asarray(W, float))
+
+
+def world_to_body_omega(R, w) -> np.ndarray:
+    """Body angular velocity W = R^T w. Works on single states and stacks."""
+    return np.einsum("...ji,...j->...i", np.asarray(R, float), np.asarray(w, float))
+
+
+# -- pivoted bodies -------------------------------------------------------------------------
+def pivot_com(R, W, pivot) -> tuple[np.ndarray, np.ndarray]:
+    """Centre-of-mass position and velocity of a body pivoted at the world origin.
+
+    ``pivot`` is the fixed point in body axes relative to the centre of mass c, so the centre
+    of mass sits at -c in body axes: x_G = -R c, v_G = w x x_G = -R (W x c).
+    """
+    R = np.asarray(R, dtype=float)
+    c = np.asarray(pivot, dtype=float)
+    return -R @ c, -R @ np.cross(np.asarray(W, dtype=float), c)
+
+
+# -- engine layouts -------------------------------------------------------------------------
+def _vec(a, n: int, name: str) -> np.ndarray:
+    a = np.asarray(a, dtype=float).reshape(-1)
+    if a.shape != (n,):
+        raise ValueError(f"{name} must have {n} entries, got {a.shape[0]}")
+    return a
+
+
+def mujoco_free_from_state(x, v, R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos (7,), qvel (6,)) of a MuJoCo free joint whose body frame is the COM frame."""
+    qpos = np.concatenate([_vec(x, 3, "x"), matrix_to_quat_wxyz(R)])
+    qvel = np.concatenate([_vec(v, 3, "v"), _vec(W, 3, "W")])
+    return qpos, qvel
+
+
+def mujoco_free_to_state(qpos, qvel) -> BodyState:
+    """Suite state of a MuJoCo free joint: qvel[0:3] is world, qvel[3:6] is body frame."""
+    qpos = _vec(qpos, 7, "MuJoCo free-joint qpos")
+    qvel = _vec(qvel, 6, "MuJoCo free-joint qvel")
+    return BodyState(
+        qpos[:3].copy(), qvel[:3].copy(), quat_wxyz_to_matrix(qpos[3:]), qvel[3:].copy()
+    )
+
+
+def mujoco_ball_from_state(R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos (4,), qvel (3,)) of a MuJoCo ball joint: quaternion wxyz and body rates."""
+    return matrix_to_quat_wxyz(R), _vec(W, 3, "W").copy()
+
+
+def mujoco_ball_to_state(qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
+    """(R, W) of a MuJoCo ball joint."""
+    return quat_wxyz_to_matrix(_vec(qpos, 4, "MuJoCo ball qpos")), _vec(qvel, 3, "qvel").copy()
+
+
+def pinocchio_freeflyer_from_state(x, v, R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(q (7,), v (6,)) of a Pinocchio FreeFlyer whose body frame is the COM frame.
+
+    The FreeFlyer velocity is LOCAL for both parts: the linear part is R^T v_G.
+    """
+    R = np.asarray(R, dtype=float)
+    q = np.concatenate([_vec(x, 3, "x"), matrix_to_quat_xyzw(R)])
+    vel = np.concatenate([R.T @ _vec(v, 3, "v"), _vec(W, 3, "W")])
+    return q, vel
+
+
+def pinocchio_freeflyer_to_state(q, v) -> BodyState:
+    """Suite state of a Pinocchio FreeFlyer (LOCAL velocity, quaternion xyzw)."""
+    q = _vec(q, 7, "Pinocchio FreeFlyer q")
+    v = _vec(v, 6, "Pinocchio FreeFlyer v")
+    R = quat_xyzw_to_matrix(q[3:])
+    return BodyState(q[:3].copy(), R @ v[:3], R, v[3:].copy())
+
+
+def pinocchio_spherical_from_state(R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(q (4,) xyzw, v (3,) LOCAL) of a Pinocchio spherical joint."""
+    return matrix_to_quat_xyzw(R), _vec(W, 3, "W").copy()
+
+
+def pinocchio_spherical_to_state(q, v) -> tuple[np.ndarray, np.ndarray]:
+    """(R, W) of a Pinocchio spherical joint."""
+    return quat_xyzw_to_matrix(_vec(q, 4, "Pinocchio spherical q")), _vec(v, 3, "v").copy()
+
+
+def dart_free_from_state(x, v, R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(positions (6,), velocities (6,)) of a DART FreeJoint whose body frame is the COM frame:
+    positions = [rotation vector, x], velocities = [w WORLD, v WORLD]."""
+    R = np.asarray(R, dtype=float)
+    pos = np.concatenate([matrix_to_rotvec(R), _vec(x, 3, "x")])
+    vel = np.concatenate([R @ _vec(W, 3, "W"), _vec(v, 3, "v")])
+    return pos, vel
+
+
+def dart_free_to_state(positions, velocities) -> BodyState:
+    """Suite state of a DART FreeJoint (angular velocity in WORLD axes)."""
+    p = _vec(positions, 6, "DART FreeJoint positions")
+    u = _vec(velocities, 6, "DART FreeJoint velocities")
+    R = rotvec_to_matrix(p[:3])
+    return BodyState(p[3:].copy(), u[3:].copy(), R, R.T @ u[:3])
+
+
+def dart_ball_from_state(R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(positions (3,) rotation vector, velocities (3,) BODY) of a DART BallJoint."""
+    return matrix_to_rotvec(R), _vec(W, 3, "W").copy()
+
+
+def dart_ball_to_state(positions, velocities) -> tuple[np.ndarray, np.ndarray]:
+    """(R, W) of a DART BallJoint (body-frame velocity, unlike the FreeJoint)."""
+    R = rotvec_to_matrix(_vec(positions, 3, "DART BallJoint positions"))
+    return R, _vec(velocities, 3, "DART BallJoint velocities").copy()
+
+
+def pybullet_base_from_state(x, v, R, W):
+    """(position, orientation xyzw, linear velocity, angular velocity WORLD) of a PyBullet
+    base whose inertial frame is the COM frame, as lists for the PyBullet API."""
+    R = np.asarray(R, dtype=float)
+    return (
+        _vec(x, 3, "x").tolist(),
+        matrix_to_quat_xyzw(R).tolist(),
+        _vec(v, 3, "v").tolist(),
+        (R @ _vec(W, 3, "W")).tolist(),
+    )
+
+
+def pybullet_base_to_state(position, orientation_xyzw, linear, angular_world) -> BodyState:
+    """Suite state of a PyBullet base (getBasePositionAndOrientation, getBaseVelocity)."""
+    R = quat_xyzw_to_matrix(_vec(orientation_xyzw, 4, "PyBullet base orientation"))
+    return BodyState(
+        _vec(position, 3, "PyBullet base position").copy(),
+        _vec(linear, 3, "PyBullet base linear velocity").copy(),
+        R,
+        R.T @ _vec(angular_world, 3, "PyBullet base angular velocity"),
+    )
+
+
+def pybullet_spherical_from_state(R, W):
+    """(quaternion xyzw, body rates) of a PyBullet spherical joint, as lists."""
+    return matrix_to_quat_xyzw(R).tolist(), _vec(W, 3, "W").tolist()
+
+
+def pybullet_spherical_to_state(q_xyzw, W) -> tuple[np.ndarray, np.ndarray]:
+    """(R, W) of a PyBullet spherical joint (getJointStateMultiDof: xyzw, child frame)."""
+    R = quat_xyzw_to_matrix(_vec(q_xyzw, 4, "PyBullet spherical joint quaternion"))
+    return R, _vec(W, 3, "PyBullet spherical joint velocity").copy()
+
+
+# -- checks that an engine holds what the scenario says ------------------------------------
+def check_quantity(engine: str, quantity: str, got, expected, rtol: float, atol: float = 0.0):
+    """Raise :class:`~references.engines.base.EngineError` naming ``quantity`` unless
+    |got - expected| <= atol + rtol |expected| elementwise (read-back of a built model)."""
+    from references.engines.base import EngineError
+
+    got = np.asarray(got, dtype=float)
+    expected = np.asarray(expected, dtype=float)
+    if got.shape != expected.shape or not np.all(
+        np.abs(got - expected) <= atol + rtol * np.abs(expected)
+    ):
+        raise EngineError(
+            f"{engine}: the built model holds {quantity} = {got.tolist()}, but the scenario "
+            f"says {expected.tolist()} (rtol {rtol:g}, atol {atol:g}); the adapter did not "
+            f"transfer {quantity} correctly"
+        )
+
+
+def initial_state_errors(scenario, state: BodyState) -> dict[str, float]:
+    """Relative differences of energy and angular momentum between a state read back from an
+    engine and the scenario's own initial state, both computed the suite's way
+    (:meth:`references.trajectory.Trajectory.from_states`).
+
+    Energy is scaled by T + |V| and momentum by the sum of the norms of its parts, so that a
+    total that happens to be near zero does not make the comparison meaningless.
+    """
+    from references.trajectory import Trajectory
+
+    def one(x, v, R, W):
+        return Trajectory.from_states(scenario, [0.0], [x], [v], [R], [W])
+
+    ref = one(scenario.position, scenario.velocity, scenario.rotation, scenario.omega_body)
+    got = one(*state)
+    m = scenario.mass
+    I = np.asarray(scenario.inertia)
+    W0 = np.asarray(scenario.omega_body)
+    x0 = np.asarray(scenario.position)
+    v0 = np.asarray(scenario.velocity)
+    e_scale = 0.5 * m * v0 @ v0 + 0.5 * W0 @ (I * W0) + abs(m * x0 @ np.asarray(scenario.gravity))
+    l_scale = np.linalg.norm(I * W0)
+    if scenario.pivot is not None:
+        l_scale += m * np.linalg.norm(np.cross(x0, v0))
+
+    def rel(diff, scale):
+        diff = float(np.max(np.abs(diff)))
+        if scale > 0:
+            return diff / scale
+        return 0.0 if diff == 0 else math.inf
+
+    return {
+        "energy": rel(got.energy - ref.energy, e_scale),
+        "angular momentum": rel(got.angular_momentum - ref.angular_momentum, l_scale),
+    }
+
+
+def check_initial_state(engine: str, scenario, state: BodyState, rtol: float = 1e-12) -> dict:
+    """Raise :class:`~references.engines.base.EngineError` naming the quantity if the state
+    read back from ``engine`` before the first step does not reproduce the scenario's energy
+    and angular momentum to ``rtol`` relative; returns the relative errors."""
+    from references.engines.base import EngineError
+
+    errors = initial_state_errors(scenario, state)
+    for quantity, err in errors.items():
+        if not err <= rtol:
+            raise EngineError(
+                f"{engine}: the initial state read back from the engine gives a {quantity} "
+                f"differing from the scenario's by {err:.3g} relative (allowed {rtol:g}); "
+                f"a convention conversion or the model's mass properties are wrong"
+            )
+    return errors
