@@ -1,0 +1,602 @@
+"""Compiled kernels: the step functions of every scheme and the time loops.
+
+All numba code of director_model is in this one module on purpose: numba's on-disk cache
+(``cache=True``) is invalidated by the timestamp of the file that defines the cached
+function, not by the files of the functions it calls, so kernels spread over several modules
+could silently run stale machine code after an edit.
+
+Debugging: run with the environment variable ``NUMBA_DISABLE_JIT=1`` to execute these same
+functions as plain Python (``prange`` becomes ``range``); results are the same to the last
+bit for the scalar RATTLE path (tests check a short run), only about 1e3 times slower.
+
+Data layout (float64 arrays, so one compiled signature serves every body):
+
+``P`` body parameters, length ``NP``:
+    P[0] = m; P[1:10] = Jbar (row-major); P[10:19] = Ibar; P[19:28] = Ibar^{-1};
+    P[28:31] = c (pivot in body axes rel. to the COM, zeros if none); P[31] = 1.0 if pivoted;
+    P[32] = 1.0 if Ibar is diagonal (selects the cheaper Jacobian; same equations).
+    Ibar^{-1} is the inverse of the positive definite inertia (never of the singular
+    director mass matrix): it maps body momentum to body angular velocity.
+``S`` state, length ``NS``:
+    S[0:3] x_G; S[3:6] v_G; S[6:15] D (row-major: D[r, i] = S[6 + 3 r + i], column i is the
+    director d_i); S[15:24] D' (same layout); S[24:27] Pi = Ibar W (RATTLE family);
+    S[27:30] body torque of gravity at D (RATTLE family, cached between steps);
+    S[30:36] scaled multipliers mu = h^2/4 Lambda (energy-momentum warm start; order 11, 22,
+    33, 12, 13, 23).
+
+Status codes returned by the kernels (the Python layer turns them into StepSizeError):
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+NP = 33
+NS = 36
+
+#: method codes
+RATTLE_FAMILY = 0
+ENERGY_MOMENTUM = 1
+
+#: status codes
+OK = 0
+FAIL_NEWTON = 1  # Newton did not reach the round-off tolerance within the iteration cap
+FAIL_BRANCH = 2  # no admissible solution: |v| >= 1, det(Jacobian) <= 0, or rotation >= 90 deg
+FAIL_SINGULAR = 3  # singular saddle-point matrix (energy-momentum Newton)
+FAIL_NONFINITE = 4  # a non-finite number appeared in the state
+
+STATUS_TEXT = {
+    FAIL_NEWTON: "Newton's method did not converge to round-off within the iteration cap",
+    FAIL_BRANCH: (
+        "the implicit step equation has no admissible solution (no real unit quaternion, "
+        "a fold of the solution branch, or a rotation of 90 degrees or more in one step)"
+    ),
+    FAIL_SINGULAR: "the Newton matrix of the step is singular",
+    FAIL_NONFINITE: "a non-finite number appeared in the state",
+}
+
+EPS = 2.220446049250313e-16
+#: Residual tolerance of the DMV Newton solve, relative to the sum of the magnitudes of the
+#: terms of each equation (their rounding error is about 2-3 ulps of that sum).
+DMV_TOL = 4.0 * EPS
+#: Energy-momentum residual tolerance, relative to the magnitude of the terms (9x9 products
+#: with up to 6 terms each: rounding of order 10 ulps).
+EM_TOL = 16.0 * EPS
+MAXIT = 30
+
+
+# --------------------------------------------------------------------------------------------
+# RATTLE in reduced form: the discrete Moser-Veselov equation
+# --------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _dmv_solve(P, b0, b1, b2):
+    """Solve the discrete Moser-Veselov equation Q Jbar - Jbar Q^T = 2 hat(b), b = h pi / 2,
+    for the rotation Q = D_n^T D_{n+1}.
+
+    Q is the unit quaternion (s, v), s > 0. We solve for its Gibbs vector w = v / s
+    (w = tan(theta/2) e for a rotation by theta about e), with
+    Q = 1 + 2/(1 + |w|^2) (hat(w) + hat(w)^2). Substituting the quaternion form
+    Q = (s^2 - v.v) 1 + 2 v v^T + 2 s hat(v) gives
+    Q Jbar - Jbar Q^T = 2 hat(s Ibar v + v x Ibar v) (using v x Jbar v = -v x Ibar v,
+    Ibar = tr(Jbar) 1 - Jbar), and dividing by s^2 = 1/(1 + |w|^2):
+
+        G(w) = Ibar w + w x (Ibar w) - (1 + |w|^2) b = 0,
+
+    a quadratic equation in three unknowns (no square root), solved by Newton with
+    Jacobian Ibar + hat(w) Ibar - hat(Ibar w) - 2 b w^T. For a spin about a principal axis
+    it reads sin(theta) = h |W|: the branch through Q = 1 folds at theta = 90 deg (|w| = 1),
+    beyond which the step is refused. Returns (status, w0, w1, w2).
+    """
+    diag = P[32] != 0.0
+    I00 = P[10]
+    I01 = P[11]
+    I02 = P[12]
+    I10 = P[13]
+    I11 = P[14]
+    I12 = P[15]
+    I20 = P[16]
+    I21 = P[17]
+    I22 = P[18]
+    # predictor: G linearised at w = 0 is Ibar w = b; then two fixed-point corrections
+    # w <- Ibar^{-1} ((1 + |w|^2) b - w x Ibar w) (contraction ~|w|, error O(|w|^4))
+    w0 = P[19] * b0 + P[20] * b1 + P[21] * b2
+    w1 = P[22] * b0 + P[23] * b1 + P[24] * b2
+    w2 = P[25] * b0 + P[26] * b1 + P[27] * b2
+    for _ in range(2):
+        u0 = I00 * w0 + I01 * w1 + I02 * w2
+        u1 = I10 * w0 + I11 * w1 + I12 * w2
+        u2 = I20 * w0 + I21 * w1 + I22 * w2
+        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+        r0 = q * b0 - (w1 * u2 - w2 * u1)
+        r1 = q * b1 - (w2 * u0 - w0 * u2)
+        r2 = q * b2 - (w0 * u1 - w1 * u0)
+        w0 = P[19] * r0 + P[20] * r1 + P[21] * r2
+        w1 = P[22] * r0 + P[23] * r1 + P[24] * r2
+        w2 = P[25] * r0 + P[26] * r1 + P[27] * r2
+    for _ in range(MAXIT):
+        u0 = I00 * w0 + I01 * w1 + I02 * w2
+        u1 = I10 * w0 + I11 * w1 + I12 * w2
+        u2 = I20 * w0 + I21 * w1 + I22 * w2
+        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+        c0 = w1 * u2 - w2 * u1
+        c1 = w2 * u0 - w0 * u2
+        c2 = w0 * u1 - w1 * u0
+        G0 = u0 + c0 - q * b0
+        G1 = u1 + c1 - q * b1
+        G2 = u2 + c2 - q * b2
+        sc = max(
+            abs(u0) + abs(c0) + abs(q * b0),
+            abs(u1) + abs(c1) + abs(q * b1),
+            abs(u2) + abs(c2) + abs(q * b2),
+        )
+        if max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc:
+            break
+        if not sc < math.inf:
+            return FAIL_NONFINITE, w0, w1, w2
+        # Jacobian K = Ibar + hat(w) Ibar - hat(u) - 2 b w^T
+        t0 = 2.0 * b0
+        t1 = 2.0 * b1
+        t2 = 2.0 * b2
+        if diag:
+            K00 = I00 - t0 * w0
+            K01 = w2 * (I22 - I11) - t0 * w1
+            K02 = w1 * (I22 - I11) - t0 * w2
+            K10 = w2 * (I00 - I22) - t1 * w0
+            K11 = I11 - t1 * w1
+            K12 = w0 * (I00 - I22) - t1 * w2
+            K20 = w1 * (I11 - I00) - t2 * w0
+            K21 = w0 * (I11 - I00) - t2 * w1
+            K22 = I22 - t2 * w2
+        else:
+            K00 = I00 + (-w2 * I10 + w1 * I20) - t0 * w0
+            K01 = I01 + (-w2 * I11 + w1 * I21) + u2 - t0 * w1
+            K02 = I02 + (-w2 * I12 + w1 * I22) - u1 - t0 * w2
+            K10 = I10 + (w2 * I00 - w0 * I20) - u2 - t1 * w0
+            K11 = I11 + (w2 * I01 - w0 * I21) - t1 * w1
+            K12 = I12 + (w2 * I02 - w0 * I22) + u0 - t1 * w2
+            K20 = I20 + (-w1 * I00 + w0 * I10) + u1 - t2 * w0
+            K21 = I21 + (-w1 * I01 + w0 * I11) - u0 - t2 * w1
+            K22 = I22 + (-w1 * I02 + w0 * I12) - t2 * w2
+        C00 = K11 * K22 - K12 * K21
+        C01 = K12 * K20 - K10 * K22
+        C02 = K10 * K21 - K11 * K20
+        det = K00 * C00 + K01 * C01 + K02 * C02
+        if not det > 0.0:
+            # the branch through Q = 1 has det > 0 up to its first fold; det <= 0 means the
+            # step is past the solvability limit or Newton is heading to another branch
+            return FAIL_BRANCH, w0, w1, w2
+        C10 = K02 * K21 - K01 * K22
+        C11 = K00 * K22 - K02 * K20
+        C12 = K01 * K20 - K00 * K21
+        C20 = K01 * K12 - K02 * K11
+        C21 = K02 * K10 - K00 * K12
+        C22 = K00 * K11 - K01 * K10
+        rd = 1.0 / det
+        d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
+        d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
+        d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
+        w0 -= d0
+        w1 -= d1
+        w2 -= d2
+        if max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2)):
+            break  # the correction is below one ulp of w: Newton has stagnated at round-off
+    else:
+        return FAIL_NEWTON, w0, w1, w2
+    if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
+        # rotation angle of Q >= 90 degrees: for a principal-axis spin this is exactly the
+        # second branch of sin(theta) = h|W|, theta > pi/2; refused in general (conservative)
+        return FAIL_BRANCH, w0, w1, w2
+    return OK, w0, w1, w2
+
+
+@njit(cache=True)
+def _gravity_torque(P, g, S):
+    """Body torque of gravity about the pivot, tau = m (D^T g) x c, stored in S[27:30].
+
+    From V = -m g . x_G with x_G = -D c: the director forces are f_i = -dV/dd_i = -m c_i g and
+    tau = vee(D^T F - F^T D) = -m c x (D^T g) (numerics.md section 2). Zero for a free body
+    (gravity acts at the centre of mass).
+    """
+    if P[31] == 0.0:
+        S[27] = 0.0
+        S[28] = 0.0
+        S[29] = 0.0
+        return
+    m = P[0]
+    gb0 = S[6] * g[0] + S[9] * g[1] + S[12] * g[2]
+    gb1 = S[7] * g[0] + S[10] * g[1] + S[13] * g[2]
+    gb2 = S[8] * g[0] + S[11] * g[1] + S[14] * g[2]
+    c0 = P[28]
+    c1 = P[29]
+    c2 = P[30]
+    S[27] = m * (gb1 * c2 - gb2 * c1)
+    S[28] = m * (gb2 * c0 - gb0 * c2)
+    S[29] = m * (gb0 * c1 - gb1 * c0)
+
+
+@njit(cache=True)
+def _rattle_init(P, g, S):
+    """From the director state (D, D') set Pi = Ibar vee(skew(D^T D')) and the torque."""
+    W0 = 0.0
+    W1 = 0.0
+    W2 = 0.0
+    # A = D^T D'; W = vee(skew(A)) = ((A21 - A12)/2, (A02 - A20)/2, (A10 - A01)/2)
+    A = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for r in range(3):
+                acc += S[6 + 3 * r + i] * S[15 + 3 * r + j]
+            A[i, j] = acc
+    W0 = 0.5 * (A[2, 1] - A[1, 2])
+    W1 = 0.5 * (A[0, 2] - A[2, 0])
+    W2 = 0.5 * (A[1, 0] - A[0, 1])
+    S[24] = P[10] * W0 + P[11] * W1 + P[12] * W2
+    S[25] = P[13] * W0 + P[14] * W1 + P[15] * W2
+    S[26] = P[16] * W0 + P[17] * W1 + P[18] * W2
+    _gravity_torque(P, g, S)
+
+
+@njit(cache=True)
+def _rattle_substep(P, g, S, h):
+    """One RATTLE step of size h (h may be negative inside a composition).
+
+    pi = Pi_n + h/2 tau_n; solve Q Jbar - Jbar Q^T = h hat(pi); D_{n+1} = D_n Q;
+    Pi_{n+1} = Q^T pi + h/2 tau_{n+1}; free centre of mass x += h v + h^2/2 g, v += h g.
+    """
+    hh = 0.5 * h
+    p0 = S[24] + hh * S[27]
+    p1 = S[25] + hh * S[28]
+    p2 = S[26] + hh * S[29]
+    st, w0, w1, w2 = _dmv_solve(P, hh * p0, hh * p1, hh * p2)
+    if st != OK:
+        return st
+    # Q = 1 + f (hat(w) + hat(w)^2), f = 2/(1 + |w|^2) (Cayley form of the quaternion)
+    x00 = w0 * w0
+    x11 = w1 * w1
+    x22 = w2 * w2
+    f = 2.0 / (1.0 + x00 + x11 + x22)
+    x01 = w0 * w1
+    x02 = w0 * w2
+    x12 = w1 * w2
+    Q00 = 1.0 - f * (x11 + x22)
+    Q11 = 1.0 - f * (x00 + x22)
+    Q22 = 1.0 - f * (x00 + x11)
+    Q01 = f * (x01 - w2)
+    Q10 = f * (x01 + w2)
+    Q02 = f * (x02 + w1)
+    Q20 = f * (x02 - w1)
+    Q12 = f * (x12 - w0)
+    Q21 = f * (x12 + w0)
+    for r in range(3):
+        a0 = S[6 + 3 * r]
+        a1 = S[7 + 3 * r]
+        a2 = S[8 + 3 * r]
+        S[6 + 3 * r] = a0 * Q00 + a1 * Q10 + a2 * Q20
+        S[7 + 3 * r] = a0 * Q01 + a1 * Q11 + a2 * Q21
+        S[8 + 3 * r] = a0 * Q02 + a1 * Q12 + a2 * Q22
+    _gravity_torque(P, g, S)
+    n0 = Q00 * p0 + Q10 * p1 + Q20 * p2 + hh * S[27]
+    n1 = Q01 * p0 + Q11 * p1 + Q21 * p2 + hh * S[28]
+    n2 = Q02 * p0 + Q12 * p1 + Q22 * p2 + hh * S[29]
+    if not (abs(n0) + abs(n1) + abs(n2)) < math.inf:
+        return FAIL_NONFINITE
+    S[24] = n0
+    S[25] = n1
+    S[26] = n2
+    if P[31] == 0.0:
+        for k in range(3):
+            S[k] += h * S[3 + k] + h * hh * g[k]
+            S[3 + k] += h * g[k]
+    return OK
+
+
+@njit(cache=True)
+def _rattle_director_velocity(P, S):
+    """D' = D hat(W) with W = Ibar^{-1} Pi, written to S[15:24]."""
+    W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
+    W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
+    W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
+    for r in range(3):
+        a0 = S[6 + 3 * r]
+        a1 = S[7 + 3 * r]
+        a2 = S[8 + 3 * r]
+        # row r of D hat(W); hat(W) columns: (0, W2, -W1), (-W2, 0, W0), (W1, -W0, 0)
+        S[15 + 3 * r] = a1 * W2 - a2 * W1
+        S[16 + 3 * r] = a2 * W0 - a0 * W2
+        S[17 + 3 * r] = a0 * W1 - a1 * W0
+
+
+# --------------------------------------------------------------------------------------------
+# Energy-momentum midpoint scheme in director form
+# --------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _solve_dense(A, n):
+    """Gaussian elimination with partial pivoting on the augmented n x (n+1) matrix A, in
+    place; the solution is left in A[:, n]. Returns False if a pivot is zero."""
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        if not big > 0.0:
+            return False
+        if p != k:
+            for j in range(k, n + 1):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+        rp = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] * rp
+            if f != 0.0:
+                for j in range(k + 1, n + 1):
+                    A[i, j] -= f * A[k, j]
+    for k in range(n - 1, -1, -1):
+        acc = A[k, n]
+        for j in range(k + 1, n):
+            acc -= A[k, j] * A[j, n]
+        A[k, n] = acc / A[k, k]
+    return True
+
+
+# (k, l) pairs of the six symmetric multipliers / constraints
+_PK = (0, 1, 2, 0, 0, 1)
+_PL = (0, 1, 2, 1, 2, 2)
+
+
+@njit(cache=True)
+def _em_step(P, g, S, h, A):
+    """One energy-momentum midpoint step (Gonzalez 1996; Betsch & Steinmann 2001).
+
+    Unknowns D1 = D_{n+1} (9) and mu = h^2/4 Lambda (6, symmetric):
+        (D1 - D0 - h V0) Jbar + (D0 + D1) mu - h^2/2 F = 0     (momentum balance x h/2)
+        d_k . d_l - delta_kl = 0 at D1                            (constraints, new point)
+    then V1 = 2 (D1 - D0)/h - V0. F = -m g c^T is the exact (constant) director force of
+    gravity for a pivoted body, zero for a free one. Newton on all 15 unknowns with the
+    saddle-point matrix; M = Jbar (x) 1 is never inverted, so flat bodies are fine.
+    ``A`` is a (15, 16) work array.
+    """
+    J = P[1:10]
+    m = P[0]
+    piv = P[31] != 0.0
+    # constant director force of gravity (pivoted body): F[r, j] = -m g_r c_j
+    F = np.zeros((3, 3))
+    if piv:
+        for r in range(3):
+            for j in range(3):
+                F[r, j] = -m * g[r] * P[28 + j]
+    D0 = np.empty((3, 3))
+    V0 = np.empty((3, 3))
+    for r in range(3):
+        for j in range(3):
+            D0[r, j] = S[6 + 3 * r + j]
+            V0[r, j] = S[15 + 3 * r + j]
+    # predictor: D1 = D0 cay(h W), W = vee(skew(D0^T V0)); exact for a principal-axis spin
+    B = D0.T @ V0
+    a0 = 0.5 * h * (B[2, 1] - B[1, 2])
+    a1 = 0.5 * h * (B[0, 2] - B[2, 0])
+    a2 = 0.5 * h * (B[1, 0] - B[0, 1])
+    f = 4.0 / (4.0 + a0 * a0 + a1 * a1 + a2 * a2)
+    H = np.zeros((3, 3))
+    H[0, 1] = -a2
+    H[0, 2] = a1
+    H[1, 0] = a2
+    H[1, 2] = -a0
+    H[2, 0] = -a1
+    H[2, 1] = a0
+    Cy = np.eye(3) + f * (H + 0.5 * (H @ H))
+    D1 = D0 @ Cy
+    mu = np.empty((3, 3))
+    for q in range(6):
+        mu[_PK[q], _PL[q]] = S[30 + q]
+        mu[_PL[q], _PK[q]] = S[30 + q]
+    Jm = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            Jm[i, j] = J[3 * i + j]
+    hF = 0.5 * h * h
+    scale1 = 0.0
+    for i in range(3):
+        scale1 = max(scale1, abs(Jm[i, 0]) + abs(Jm[i, 1]) + abs(Jm[i, 2]))
+    converged = False
+    for _ in range(MAXIT):
+        # residuals
+        E = D1 - D0 - h * V0
+        R1 = E @ Jm + (D0 + D1) @ mu - hF * F
+        mus = 0.0
+        for i in range(3):
+            mus = max(mus, abs(mu[i, 0]) + abs(mu[i, 1]) + abs(mu[i, 2]))
+        fs = 0.0
+        for r in range(3):
+            for j in range(3):
+                fs = max(fs, abs(hF * F[r, j]))
+        tol1 = EM_TOL * (3.0 * scale1 + 2.0 * mus + fs)
+        res1 = 0.0
+        for r in range(3):
+            for j in range(3):
+                res1 = max(res1, abs(R1[r, j]))
+        res2 = 0.0
+        R2 = np.empty(6)
+        for q in range(6):
+            k = _PK[q]
+            ll = _PL[q]
+            acc = D1[0, k] * D1[0, ll] + D1[1, k] * D1[1, ll] + D1[2, k] * D1[2, ll]
+            if k == ll:
+                acc = 0.5 * (acc - 1.0)
+            R2[q] = acc
+            res2 = max(res2, abs(acc))
+        if res1 <= tol1 and res2 <= EM_TOL:
+            converged = True
+            break
+        # Newton matrix; unknown index 3 j + r for D1[r, j], 9 + q for mu_q
+        for i in range(15):
+            for j in range(16):
+                A[i, j] = 0.0
+        Sm = D0 + D1
+        for j in range(3):
+            for r in range(3):
+                row = 3 * j + r
+                for i in range(3):
+                    A[row, 3 * i + r] = Jm[i, j] + mu[i, j]
+                A[row, 15] = R1[r, j]
+            for q in range(6):
+                k = _PK[q]
+                ll = _PL[q]
+                if ll == j:
+                    for r in range(3):
+                        A[3 * j + r, 9 + q] += Sm[r, k]
+                if k == j and k != ll:
+                    for r in range(3):
+                        A[3 * j + r, 9 + q] += Sm[r, ll]
+        for q in range(6):
+            k = _PK[q]
+            ll = _PL[q]
+            row = 9 + q
+            if k == ll:
+                for r in range(3):
+                    A[row, 3 * k + r] = D1[r, k]
+            else:
+                for r in range(3):
+                    A[row, 3 * k + r] = D1[r, ll]
+                    A[row, 3 * ll + r] = D1[r, k]
+            A[row, 15] = R2[q]
+        if not _solve_dense(A, 15):
+            return FAIL_SINGULAR
+        dmax = 0.0
+        for j in range(3):
+            for r in range(3):
+                d = A[3 * j + r, 15]
+                D1[r, j] -= d
+                dmax = max(dmax, abs(d))
+        for q in range(6):
+            d = A[9 + q, 15]
+            mu[_PK[q], _PL[q]] -= d
+            if _PK[q] != _PL[q]:
+                mu[_PL[q], _PK[q]] -= d
+        if not dmax < math.inf:
+            return FAIL_NONFINITE
+        if dmax <= 2.0 * EPS:
+            # corrections below the ulp of the O(1) director entries: round-off reached
+            converged = True
+            break
+    if not converged:
+        return FAIL_NEWTON
+    # branch rule: refuse a step rotating by 90 degrees or more (tr(D0^T D1) <= 1)
+    tr = 0.0
+    for r in range(3):
+        for j in range(3):
+            tr += D0[r, j] * D1[r, j]
+    if not tr > 1.0:
+        return FAIL_BRANCH
+    r2h = 2.0 / h
+    for r in range(3):
+        for j in range(3):
+            S[6 + 3 * r + j] = D1[r, j]
+            S[15 + 3 * r + j] = r2h * (D1[r, j] - D0[r, j]) - V0[r, j]
+    for q in range(6):
+        S[30 + q] = mu[_PK[q], _PL[q]]
+    if not piv:
+        hh = 0.5 * h
+        for k in range(3):
+            S[k] += h * S[3 + k] + h * hh * g[k]
+            S[3 + k] += h * g[k]
+    return OK
+
+
+# --------------------------------------------------------------------------------------------
+# Time loops
+# --------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _store(method, P, S, k, X, V, Dout, Dpout):
+    if method == RATTLE_FAMILY:
+        _rattle_director_velocity(P, S)
+    piv = P[31] != 0.0
+    for r in range(3):
+        for j in range(3):
+            Dout[k, r, j] = S[6 + 3 * r + j]
+            Dpout[k, r, j] = S[15 + 3 * r + j]
+    for r in range(3):
+        if piv:
+            # x_G = -D c, v_G = -D' c
+            X[k, r] = -(S[6 + 3 * r] * P[28] + S[7 + 3 * r] * P[29] + S[8 + 3 * r] * P[30])
+            V[k, r] = -(S[15 + 3 * r] * P[28] + S[16 + 3 * r] * P[29] + S[17 + 3 * r] * P[30])
+        else:
+            X[k, r] = S[r]
+            V[k, r] = S[3 + r]
+
+
+@njit(cache=True)
+def _omega_norm(method, P, S):
+    if method == RATTLE_FAMILY:
+        W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
+        W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
+        W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
+        return math.sqrt(W0 * W0 + W1 * W1 + W2 * W2)
+    # |W| = |vee(skew(D^T D'))|
+    w = np.zeros(3)
+    for r in range(3):
+        w[0] += 0.5 * (S[6 + 3 * r + 2] * S[15 + 3 * r + 1] - S[6 + 3 * r + 1] * S[15 + 3 * r + 2])
+        w[1] += 0.5 * (S[6 + 3 * r + 0] * S[15 + 3 * r + 2] - S[6 + 3 * r + 2] * S[15 + 3 * r + 0])
+        w[2] += 0.5 * (S[6 + 3 * r + 1] * S[15 + 3 * r + 0] - S[6 + 3 * r + 0] * S[15 + 3 * r + 1])
+    return math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+
+
+@njit(cache=True)
+def run_one(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, info):
+    """Integrate one body for ``nstep`` steps of size ``h`` and store the states at the step
+    indices ``saves`` (increasing, first 0 if the initial state is saved) into X, V
+    (nsave, 3) and Dout, Dpout (nsave, 3, 3). ``coef`` are the composition coefficients of
+    the RATTLE family (one RATTLE step of size coef[k] h each). Returns a status code; on
+    failure info[0] = number of steps completed and info[1] = |W| at the failing state."""
+    S = S0.copy()
+    A = np.empty((15, 16))
+    if method == RATTLE_FAMILY:
+        _rattle_init(P, g, S)
+    k = 0
+    nsave = saves.shape[0]
+    if nsave > 0 and saves[0] == 0:
+        _store(method, P, S, 0, X, V, Dout, Dpout)
+        k = 1
+    ncoef = coef.shape[0]
+    for n in range(1, nstep + 1):
+        st = OK
+        if method == RATTLE_FAMILY:
+            for c in range(ncoef):
+                st = _rattle_substep(P, g, S, coef[c] * h)
+                if st != OK:
+                    break
+        else:
+            st = _em_step(P, g, S, h, A)
+        if st != OK:
+            info[0] = n - 1
+            info[1] = _omega_norm(method, P, S)
+            return st
+        if k < nsave and saves[k] == n:
+            _store(method, P, S, k, X, V, Dout, Dpout)
+            k += 1
+    return OK
+
+
+@njit(cache=True, parallel=True)
+def run_batch_parallel(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, status, info):
+    """``run_one`` for each body i (leading axis of P, S0, X, V, Dout, Dpout, status, info),
+    bodies distributed over threads with prange."""
+    for i in prange(P.shape[0]):
+        status[i] = run_one(
+            method, coef, P[i], g, S0[i], h, nstep, saves, X[i], V[i], Dout[i], Dpout[i], info[i]
+        )
+
+
+@njit(cache=True)
+def run_batch_serial(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, status, info):
+    """Same as ``run_batch_parallel`` on one thread."""
+    for i in range(P.shape[0]):
+        status[i] = run_one(
+            method, coef, P[i], g, S0[i], h, nstep, saves, X[i], V[i], Dout[i], Dpout[i], info[i]
+        )

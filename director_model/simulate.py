@@ -1,0 +1,493 @@
+"""Entry points: :func:`simulate` (one body) and :func:`simulate_batch` (N bodies).
+
+Both validate every input before any stepping, run the compiled time loop of
+:mod:`director_model._kernels` (saved states only, memory O(nsave)), and compute the
+invariants from the saved director states with :mod:`director_model.invariants`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from director_model import _kernels as K
+from director_model import invariants as inv
+from director_model.body import Body
+from director_model.errors import (
+    InvalidBodyError,
+    InvalidRunError,
+    InvalidStateError,
+    StepSizeError,
+)
+from director_model.schemes import SCHEMES
+from director_model.schemes.base import Scheme
+from director_model.state import check_rotation, hat, omega_body_from_directors
+
+# --------------------------------------------------------------------------------------------
+# results
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(eq=False)
+class Trajectory:
+    """Saved states of one run (n = number of saved times), SI units, world axes unless said.
+
+    =======================  =========  =====================================================
+    field                    shape      meaning
+    =======================  =========  =====================================================
+    ``t``                    (n,)       time, s
+    ``position``             (n, 3)     centre of mass x_G, m (x_G = -R c with a pivot)
+    ``velocity``             (n, 3)     v_G, m/s
+    ``rotation``             (n, 3, 3)  D = R, body-to-world; columns are the directors
+    ``director_velocity``    (n, 3, 3)  D'
+    ``omega_body``           (n, 3)     W = vee(skew(D^T D')), body axes, rad/s
+    ``energy``               (n,)       E = T + V in director form (seed eq. 11), J
+    ``angular_momentum``     (n, 3)     L about the world origin (= the pivot), kg m^2/s
+    ``linear_momentum``      (n, 3)     m v_G, kg m/s
+    ``constraint_position``  (n,)       max|D^T D - I|
+    ``constraint_velocity``  (n,)       max|D^T D' + D'^T D|
+    =======================  =========  =====================================================
+
+    Scalars: ``nstep`` (steps taken), ``wall_time_s`` (wall time of the compiled stepping
+    alone; compilation and the invariants excluded), ``dt``, ``scheme`` (name).
+
+    Note: ``angular_momentum`` is about the world origin, as the director model defines it
+    (L = x_G x m v_G + sum Jbar_ij d_i x d_j'); the spin about the centre of mass alone is
+    ``angular_momentum - np.cross(position, linear_momentum)`` for a free body.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    director_velocity: np.ndarray
+    omega_body: np.ndarray
+    energy: np.ndarray
+    angular_momentum: np.ndarray
+    linear_momentum: np.ndarray
+    constraint_position: np.ndarray
+    constraint_velocity: np.ndarray
+    nstep: int
+    wall_time_s: float
+    dt: float
+    scheme: str
+
+    def __len__(self) -> int:
+        return self.t.shape[-1]
+
+    @property
+    def quat_wxyz(self) -> np.ndarray:
+        """Attitude as unit quaternions (w, x, y, z), w >= 0, shape (..., n, 4)."""
+        from director_model.state import quat_wxyz_from_rotation
+
+        return quat_wxyz_from_rotation(self.rotation)
+
+
+@dataclass(eq=False)
+class BatchTrajectory(Trajectory):
+    """Saved states of N bodies, MuJoCo-rollout style: every array of :class:`Trajectory`
+    gains a leading body axis, ``nbody x nsave x ...``:
+
+    ``t`` (nsave,) is shared; ``position``, ``velocity``, ``omega_body``,
+    ``angular_momentum``, ``linear_momentum`` (nbody, nsave, 3); ``rotation``,
+    ``director_velocity`` (nbody, nsave, 3, 3); ``energy``, ``constraint_position``,
+    ``constraint_velocity`` (nbody, nsave). ``nstep`` is per body; ``wall_time_s`` is the
+    wall time of the whole compiled batch loop. ``nbody`` is the number of bodies.
+    """
+
+    @property
+    def nbody(self) -> int:
+        return self.position.shape[0]
+
+    def __len__(self) -> int:
+        return self.t.shape[0]
+
+
+# --------------------------------------------------------------------------------------------
+# validation helpers (every message: argument, value, rule)
+# --------------------------------------------------------------------------------------------
+
+
+def step_plan(dt: float, t_end: float, save_every: int) -> tuple[int, np.ndarray]:
+    """Number of steps and the saved step indices (0, s, 2s, ... and always nstep).
+
+    nstep = round(t_end/dt); an error unless |nstep - t_end/dt| <= 1e-9 max(t_end/dt, 1)
+    and nstep >= 1 (the suite-wide rule: no silently shortened or lengthened horizon).
+    """
+    try:
+        dt = float(dt)
+        t_end = float(t_end)
+    except (TypeError, ValueError):
+        raise InvalidRunError(f"dt = {dt!r}, t_end = {t_end!r}: must be real numbers") from None
+    if not (dt > 0 and math.isfinite(dt)):
+        raise InvalidRunError(f"dt = {dt!r}: the time step must be positive and finite")
+    if not (t_end > 0 and math.isfinite(t_end)):
+        raise InvalidRunError(f"t_end = {t_end!r}: the horizon must be positive and finite")
+    if isinstance(save_every, bool) or not isinstance(save_every, int | np.integer):
+        raise InvalidRunError(f"save_every = {save_every!r}: must be a whole number >= 1")
+    if save_every < 1:
+        raise InvalidRunError(f"save_every = {save_every!r}: must be a whole number >= 1")
+    ratio = t_end / dt
+    nstep = int(round(ratio))
+    if nstep < 1 or abs(nstep - ratio) > 1e-9 * max(ratio, 1.0):
+        raise InvalidRunError(
+            f"t_end = {t_end!r} is not a whole number of steps of dt = {dt!r} "
+            f"(t_end/dt = {ratio!r}); choose dt dividing t_end"
+        )
+    saves = np.arange(0, nstep + 1, int(save_every), dtype=np.int64)
+    if saves[-1] != nstep:
+        saves = np.append(saves, np.int64(nstep))
+    return nstep, saves
+
+
+def _scheme(name) -> type[Scheme]:
+    if name not in SCHEMES:
+        raise InvalidRunError(f"scheme = {name!r}: unknown; available: {', '.join(SCHEMES)}")
+    return SCHEMES[name]
+
+
+def _vec(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidStateError(f"{name} = {value!r}: expected real numbers ({exc})") from None
+    if a.shape != shape:
+        raise InvalidStateError(f"{name}: expected shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise InvalidStateError(
+            f"{name}{list(bad)} = {a[tuple(bad)]!r}: every entry must be finite"
+        )
+    return a
+
+
+def _params(body: Body) -> np.ndarray:
+    P = np.zeros(K.NP)
+    P[0] = body.mass
+    P[1:10] = body.Jbar.ravel()
+    P[10:19] = body.Ibar.ravel()
+    P[19:28] = np.linalg.inv(body.Ibar).ravel()  # Ibar is positive definite (all I_k > 0)
+    if body.pivot is not None:
+        P[28:31] = body.pivot
+        P[31] = 1.0
+    if not np.any(body.Ibar - np.diag(np.diag(body.Ibar))):
+        P[32] = 1.0
+    return P
+
+
+def _pivot_state(name_x, name_v, x, v, R, W, c, where=""):
+    """With a pivot the COM state follows from the rotation: accept x, v only if zero (the
+    defaults) or equal to -R c and -R (W x c) to 1e-12 relative; else an error."""
+    x_p = -R @ c
+    v_p = -R @ np.cross(W, c)
+    for name, given, implied in ((name_x, x, x_p), (name_v, v, v_p)):
+        if not np.any(given):
+            continue
+        tol = 1e-12 * max(1.0, float(np.max(np.abs(implied))))
+        if float(np.max(np.abs(given - implied))) > tol:
+            raise InvalidStateError(
+                f"{name}{where} = {given.tolist()} given with a pivot: with a fixed point the "
+                f"centre of mass follows from the rotation (x_G = -R pivot, v_G = -R (W x "
+                f"pivot), here {implied.tolist()}); leave {name} at its default (zeros)"
+            )
+    return x_p, v_p
+
+
+def _state(x, v, R, W) -> np.ndarray:
+    S = np.zeros(K.NS)
+    S[0:3] = x
+    S[3:6] = v
+    S[6:15] = R.ravel()
+    S[15:24] = (R @ hat(W)).ravel()
+    return S
+
+
+def _step_error(scheme: type[Scheme], status: int, info, dt: float, body=None):
+    done = int(info[0])
+    wnorm = float(info[1])
+    t = done * dt
+    h_max = scheme.h_max(wnorm)
+    who = "" if body is None else f"body {body}: "
+    msg = (
+        f"{who}{scheme.name}: step {done + 1} starting at t = {t:.9g} s could not be solved: "
+        f"{K.STATUS_TEXT.get(status, 'unknown failure')}. dt = {dt:.6g} s, |W| = "
+        f"{wnorm:.6g} rad/s, estimated step-size limit h_max ~ {h_max:.3g} s "
+        f"({scheme.limit_rule}); reduce dt below h_max."
+    )
+    return StepSizeError(msg, time=t, step=done + 1, dt=dt, h_max=h_max, body=body)
+
+
+_COMPILED: set[str] = set()
+
+
+def _ensure_compiled(kind: str) -> None:
+    """Compile (or load from the on-disk cache) a kernel with a harmless 1-step run of a unit
+    sphere at rest, so that the timed call measures stepping only."""
+    if kind in _COMPILED:
+        return
+    P = _params(Body.make(1.0, (1.0, 1.0, 1.0)))
+    S = _state(np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3))
+    saves = np.array([0, 1], dtype=np.int64)
+    g = np.zeros(3)
+    for method in (K.RATTLE_FAMILY, K.ENERGY_MOMENTUM):
+        coef = np.ones(1)
+        if kind == "single":
+            K.run_one(
+                method, coef, P, g, S, 0.1, 1, saves, np.empty((2, 3)), np.empty((2, 3)),
+                np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(2),
+            )  # fmt: skip
+        else:
+            fn = K.run_batch_parallel if kind == "parallel" else K.run_batch_serial
+            fn(
+                method, coef, P[None], g, S[None], 0.1, 1, saves, np.empty((1, 2, 3)),
+                np.empty((1, 2, 3)), np.empty((1, 2, 3, 3)), np.empty((1, 2, 3, 3)),
+                np.zeros(1, dtype=np.int64), np.zeros((1, 2)),
+            )  # fmt: skip
+    _COMPILED.add(kind)
+
+
+def _finish(cls, scheme, t, X, V, D, Dp, mass, Jbar, pivoted, g, nstep, wall, dt):
+    return cls(
+        t=t,
+        position=X,
+        velocity=V,
+        rotation=D,
+        director_velocity=Dp,
+        omega_body=omega_body_from_directors(D, Dp),
+        energy=inv.energy(mass, Jbar, pivoted, g, X, V, Dp),
+        angular_momentum=inv.angular_momentum(mass, Jbar, pivoted, X, V, D, Dp),
+        linear_momentum=inv.linear_momentum(mass, V),
+        constraint_position=inv.constraint_position(D),
+        constraint_velocity=inv.constraint_velocity(D, Dp),
+        nstep=nstep,
+        wall_time_s=wall,
+        dt=dt,
+        scheme=scheme.name,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# public entry points
+# --------------------------------------------------------------------------------------------
+
+
+def simulate(
+    mass: float,
+    inertia,
+    *,
+    rotation,
+    omega_body,
+    position=(0.0, 0.0, 0.0),
+    velocity=(0.0, 0.0, 0.0),
+    gravity=(0.0, 0.0, 0.0),
+    pivot=None,
+    scheme: str = "rattle",
+    dt: float,
+    t_end: float,
+    save_every: int = 1,
+) -> Trajectory:
+    """Integrate one rigid body in director form and return its saved states.
+
+    Parameters (SI units)
+    ---------------------
+    mass : float
+        m > 0, kg.
+    inertia : array_like (3,)
+        Principal moments (I_1, I_2, I_3) about the centre of mass, kg m^2, in body axes;
+        must satisfy the triangle inequality; a flat body (I_i = I_j + I_k) is fine, a thin
+        rod is rejected.
+    rotation : array_like (3, 3)
+        Initial body-to-world rotation R (columns: directors d1, d2, d3); orthonormal to 1e-12
+        with det +1, never repaired. From a quaternion: :func:`rotation_from_quat_wxyz`.
+    omega_body : array_like (3,)
+        Initial angular velocity W in body axes, rad/s.
+    position, velocity : array_like (3,)
+        Initial centre of mass x_G and v_G, world axes, m and m/s. With a pivot they follow
+        from the rotation; leave them at zero (values equal to -R c and -R (W x c) to 1e-12
+        are accepted, anything else is an error).
+    gravity : array_like (3,)
+        Uniform gravity g, world axes, m/s^2; V = -m g . x_G.
+    pivot : array_like (3,) or None
+        Fixed point in body axes relative to the centre of mass, m; the fixed point is the
+        world origin.
+    scheme : str
+        A key of :data:`director_model.SCHEMES`: "rattle" (order 2), "rattle4", "rattle6",
+        "energy_momentum".
+    dt, t_end : float
+        Step and horizon, s; t_end must be a whole number of steps (see :func:`step_plan`).
+    save_every : int
+        Save every ``save_every``-th step; step 0 and the last step are always saved.
+
+    Returns
+    -------
+    Trajectory
+        Arrays of shape (nsave, ...); see :class:`Trajectory`.
+
+    Raises
+    ------
+    InvalidBodyError, InvalidStateError, InvalidRunError
+        Before any stepping, naming argument, value and rule.
+    StepSizeError
+        If a step cannot be solved; names the time reached and a step-size limit estimate.
+
+    The time loop runs in numba-compiled code (cached on disk). For debugging as plain
+    Python set ``NUMBA_DISABLE_JIT=1`` before importing director_model.
+    """
+    body = Body.make(mass, inertia, pivot)
+    R = check_rotation(rotation, "rotation")
+    W = _vec("omega_body", omega_body, (3,))
+    x = _vec("position", position, (3,))
+    v = _vec("velocity", velocity, (3,))
+    g = _vec("gravity", gravity, (3,))
+    sch = _scheme(scheme)
+    nstep, saves = step_plan(dt, t_end, save_every)
+    dt = float(dt)
+    if body.pivoted:
+        x, v = _pivot_state("position", "velocity", x, v, R, W, body.pivot)
+    P = _params(body)
+    S0 = _state(x, v, R, W)
+    nsave = saves.shape[0]
+    X = np.empty((nsave, 3))
+    V = np.empty((nsave, 3))
+    D = np.empty((nsave, 3, 3))
+    Dp = np.empty((nsave, 3, 3))
+    info = np.zeros(2)
+    _ensure_compiled("single")
+    coef = sch.coefficient_array()
+    t0 = time.perf_counter()
+    status = K.run_one(sch.method, coef, P, g, S0, dt, nstep, saves, X, V, D, Dp, info)
+    wall = time.perf_counter() - t0
+    if status != K.OK:
+        raise _step_error(sch, int(status), info, dt)
+    t = saves * dt
+    return _finish(
+        Trajectory, sch, t, X, V, D, Dp, body.mass, body.Jbar, body.pivoted, g, nstep, wall, dt
+    )
+
+
+def _batch_vec(name: str, value, n: int) -> np.ndarray:
+    """None -> zeros; (3,) shared -> broadcast; else must be (n, 3)."""
+    if value is None:
+        return np.zeros((n, 3))
+    if np.shape(value) == (3,):
+        value = np.broadcast_to(np.asarray(value, dtype=float), (n, 3))
+    return _vec(name, value, (n, 3))
+
+
+def _per_body(name: str, value, nbody: int, width: int | None) -> np.ndarray:
+    """Broadcast a shared or per-body parameter to (nbody,) or (nbody, width)."""
+    a = np.asarray(value, dtype=float)
+    shared = () if width is None else (width,)
+    if a.shape == shared:
+        return np.broadcast_to(a, (nbody,) + shared)
+    if a.shape == (nbody,) + shared:
+        return a
+    raise InvalidBodyError(
+        f"{name}: expected shape {shared} (shared) or {(nbody,) + shared} (per body), got {a.shape}"
+    )
+
+
+def simulate_batch(
+    mass,
+    inertia,
+    *,
+    rotation,
+    omega_body,
+    position=None,
+    velocity=None,
+    gravity=(0.0, 0.0, 0.0),
+    pivot=None,
+    scheme: str = "rattle",
+    dt: float,
+    t_end: float,
+    save_every: int = 1,
+    parallel: bool = True,
+) -> BatchTrajectory:
+    """Integrate N bodies with different initial conditions (and optionally different mass
+    and inertia) with the same step plan, in parallel over bodies (numba prange).
+
+    Shapes: ``rotation`` (N, 3, 3), ``omega_body`` (N, 3); ``position``/``velocity`` None
+    (zeros), (3,) shared or (N, 3); ``mass`` scalar or (N,); ``inertia`` (3,) or (N, 3);
+    ``pivot`` None, (3,) or (N, 3) (all bodies pivoted or none); ``gravity`` (3,) shared.
+    Other arguments and units as in :func:`simulate`.
+
+    Returns a :class:`BatchTrajectory`, arrays ``nbody x nsave x ...``. Each body runs through
+    the same compiled function as :func:`simulate` (``run_one``), so body i equals
+    ``simulate(...)`` of body i bit for bit. ``parallel=False`` runs on one thread.
+    Every body is validated before any stepping (messages prefixed with the body index);
+    if any body fails a step, StepSizeError names the first failing body.
+    """
+    try:
+        R_all = np.asarray(rotation, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidStateError(f"rotation: expected an (N, 3, 3) array ({exc})") from None
+    if R_all.ndim != 3 or R_all.shape[1:] != (3, 3) or R_all.shape[0] < 1:
+        raise InvalidStateError(f"rotation: expected shape (N, 3, 3), N >= 1, got {R_all.shape}")
+    n = R_all.shape[0]
+    W_all = _vec("omega_body", omega_body, (n, 3))
+    x_all = _batch_vec("position", position, n)
+    v_all = _batch_vec("velocity", velocity, n)
+    g = _vec("gravity", gravity, (3,))
+    sch = _scheme(scheme)
+    nstep, saves = step_plan(dt, t_end, save_every)
+    dt = float(dt)
+    m_all = _per_body("mass", mass, n, None)
+    I_all = _per_body("inertia", inertia, n, 3)
+    c_all = None if pivot is None else _per_body("pivot", pivot, n, 3)
+    P = np.empty((n, K.NP))
+    S0 = np.empty((n, K.NS))
+    Jbar = np.empty((n, 3, 3))
+    for i in range(n):
+        where = f"[{i}]"
+        try:
+            body = Body.make(m_all[i], I_all[i], None if c_all is None else c_all[i])
+        except InvalidBodyError as exc:
+            raise InvalidBodyError(f"body {i}: {exc}") from None
+        R = check_rotation(R_all[i], f"rotation{where}")
+        x, v = x_all[i], v_all[i]
+        if body.pivoted:
+            x, v = _pivot_state("position", "velocity", x, v, R, W_all[i], body.pivot, where)
+        P[i] = _params(body)
+        S0[i] = _state(x, v, R, W_all[i])
+        Jbar[i] = body.Jbar
+    nsave = saves.shape[0]
+    X = np.empty((n, nsave, 3))
+    V = np.empty((n, nsave, 3))
+    D = np.empty((n, nsave, 3, 3))
+    Dp = np.empty((n, nsave, 3, 3))
+    status = np.zeros(n, dtype=np.int64)
+    info = np.zeros((n, 2))
+    kind = "parallel" if parallel else "serial"
+    _ensure_compiled(kind)
+    fn = K.run_batch_parallel if parallel else K.run_batch_serial
+    coef = sch.coefficient_array()
+    t0 = time.perf_counter()
+    fn(sch.method, coef, P, g, S0, dt, nstep, saves, X, V, D, Dp, status, info)
+    wall = time.perf_counter() - t0
+    bad = np.flatnonzero(status != K.OK)
+    if bad.size:
+        i = int(bad[0])
+        err = _step_error(sch, int(status[i]), info[i], dt, body=i)
+        if bad.size > 1:
+            err.args = (f"{err.args[0]} ({bad.size} of {n} bodies failed)",)
+        raise err
+    t = saves * dt
+    return _finish(
+        BatchTrajectory,
+        sch,
+        t,
+        X,
+        V,
+        D,
+        Dp,
+        np.asarray(m_all)[:, None],
+        Jbar[:, None],
+        c_all is not None,
+        g,
+        nstep,
+        wall,
+        dt,
+    )
