@@ -1,5 +1,77 @@
-"""Scenarios: declarative descriptions of the standard cases, validated into typed objects."""
+"""Scenarios: declarative descriptions of the standard cases, validated into typed objects.
 
-from scenarios.model import Scenario
+The library is one TOML file per scenario in this package's directory (see
+``docs/scenarios.md`` for the schema)::
 
-__all__ = ["Scenario"]
+    import scenarios
+    scenarios.list_scenarios()          # ['cone_top', 'dzhanibekov', ...]
+    sc = scenarios.load("dzhanibekov")  # a library name ...
+    sc = scenarios.load("my_body.toml") # ... or the path of a user's file
+    scenarios.default_suite()           # names of the files tagged "default"
+
+Invalid files raise :class:`ScenarioError` (a ``ValueError``) naming the file, the field, the
+value and the rule.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from scenarios.model import REFERENCE_KINDS, Scenario
+from scenarios.schema import ScenarioError, load_file, validate
+
+__all__ = [
+    "REFERENCE_KINDS",
+    "Scenario",
+    "ScenarioError",
+    "default_suite",
+    "library_path",
+    "list_scenarios",
+    "load",
+    "validate",
+]
+
+
+def library_path() -> Path:
+    """The directory holding the library's scenario files."""
+    return Path(__file__).resolve().parent
+
+
+def list_scenarios() -> list[str]:
+    """Names of the library's scenarios (file stems), sorted."""
+    return sorted(p.stem for p in library_path().glob("*.toml"))
+
+
+def default_suite() -> list[str]:
+    """Names of the library scenarios tagged ``"default"``, sorted."""
+    return [name for name in list_scenarios() if "default" in load(name).tags]
+
+
+def load(name_or_path: str | Path) -> Scenario:
+    """Load a scenario: a library name (e.g. ``"dzhanibekov"``) or the path of a ``.toml`` file.
+
+    A string is taken as a path if it ends in ``.toml`` or contains a path separator; otherwise
+    as a library name. An unknown name raises :class:`ScenarioError` listing the names
+    available.
+    """
+    if isinstance(name_or_path, Path):
+        return load_file(name_or_path)
+    s = str(name_or_path)
+    if s.endswith(".toml") or "/" in s or "\\" in s:
+        return load_file(s)
+    path = library_path() / f"{s}.toml"
+    if not path.is_file():
+        names = ", ".join(list_scenarios())
+        raise ScenarioError(
+            f"no scenario named {s!r} in the library ({library_path()}); available: {names}. "
+            "To load a file of your own, pass its path (ending in .toml)."
+        )
+    sc = load_file(path)
+    if sc.name != s:
+        raise ScenarioError(
+            f"invalid scenario file {path}: name = {sc.name!r}: a library file's name must "
+            f"equal its file name ({s!r})",
+            path=str(path),
+            problems=[("name", sc.name, "must equal the file name")],
+        )
+    return sc

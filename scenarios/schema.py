@@ -1,0 +1,419 @@
+"""Reading and validating scenario files (TOML) into :class:`scenarios.model.Scenario` objects.
+
+The schema is documented in ``docs/scenarios.md``. Validation is strict and complete: every
+problem found in a file is collected and reported in one :class:`ScenarioError` whose message
+names the file, the field (dotted, e.g. ``body.inertia``), the value found and the rule broken.
+Nothing is ever repaired silently (a rotation that is not orthonormal is an error, not
+re-orthonormalised).
+
+Physical checks of the body (:func:`body_problems`) follow numerics.md section 1: all principal
+moments positive, the triangle inequality ``I_i <= I_j + I_k`` (equivalently all convected
+moments ``J_i = (I_j + I_k - I_i)/2 >= 0``), and not a thin rod (two ``J_i`` equal to zero).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from scenarios.model import REFERENCE_KINDS, Scenario
+
+#: Tolerance on the orthonormality of a given rotation matrix, max |R^T R - 1|, and on the
+#: norm of a given quaternion. Decimal input with 16-17 significant digits meets it easily; a
+#: matrix typed with 12 digits is at the edge (numerics.md's R(10) gives 7.8e-13) and one with
+#: fewer digits fails (use ``rotation_vector`` or ``quaternion_wxyz`` then).
+ROTATION_TOL = 1e-12
+
+#: Relative tolerance of the triangle inequality and of the thin-rod test, in units of the
+#: largest moment: J_i = (I_j + I_k - I_i)/2 is a difference of O(I) numbers, so its rounding
+#: is a few ulps of max(I). 16 eps, the same as ``director_model.body.FLAT_TOL``, so that a file
+#: accepted here is accepted by the director model (a test checks they agree).
+INERTIA_RTOL = 16 * float(np.finfo(float).eps)
+
+#: Tolerance of "t_end is a whole number of steps of dt", relative to t_end/dt. The same rule
+#: as :func:`references.engines.base.step_plan`, so a file that validates always runs.
+STEP_RTOL = 1e-9
+
+
+class ScenarioError(ValueError):
+    """A scenario file (or name) is invalid. ``problems`` lists ``(field, value, rule)``
+    triples; ``path`` is the file concerned (or None)."""
+
+    def __init__(self, message: str, path: str | None = None, problems=()):
+        super().__init__(message)
+        self.path = path
+        self.problems = list(problems)
+
+
+# -- rotations ------------------------------------------------------------------------------
+
+
+def rotation_from_vector(r) -> np.ndarray:
+    """R = exp(hat(r)) (Rodrigues), r = angle * unit axis, rad. Exact to round-off for any
+    angle, including 0 (series for small angles)."""
+    r = np.asarray(r, dtype=float)
+    th2 = float(r @ r)
+    th = math.sqrt(th2)
+    if th < 1e-4:
+        # Taylor series of sin(th)/th and (1 - cos th)/th^2; truncation below 1e-18.
+        a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
+        b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
+    else:
+        a = math.sin(th) / th
+        b = 2.0 * math.sin(0.5 * th) ** 2 / th2  # (1 - cos th)/th^2 without cancellation
+    K = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+def rotation_from_quaternion(q) -> np.ndarray:
+    """Rotation matrix of the quaternion (w, x, y, z). The homogeneous form used here is an
+    exact rotation for any non-zero q (it divides by |q|^2); callers check |q| = 1 first."""
+    w, x, y, z = (float(c) for c in q)
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    return np.array(
+        [
+            [1 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)],
+            [s * (x * y + w * z), 1 - s * (x * x + z * z), s * (y * z - w * x)],
+            [s * (x * z - w * y), s * (y * z + w * x), 1 - s * (x * x + y * y)],
+        ]
+    )
+
+
+# -- physical checks of a body ----------------------------------------------------------------
+
+
+def body_problems(mass, inertia, field_prefix: str = "body") -> list[tuple]:
+    """Physical-validity problems of a rigid body as ``(field, value, rule)`` triples (empty if
+    valid). ``inertia`` are the principal moments about the centre of mass; either argument may
+    be None (not checked). Self-contained so that scenario files validate without the director
+    model."""
+    probs = []
+    if mass is not None and not float(mass) > 0:
+        probs.append((f"{field_prefix}.mass", mass, "the mass must be > 0 kg"))
+    if inertia is None:
+        return probs
+    I = np.asarray(inertia, dtype=float)
+    if np.any(I <= 0):
+        pos = I[I > 0]
+        if np.count_nonzero(I == 0) == 1 and len(pos) == 2 and pos[0] == pos[1]:
+            rule = (
+                "a thin rod (zero moment about its axis; two convected moments "
+                "J_i = (I_j + I_k - I_i)/2 are zero): the spin about the rod carries no inertia "
+                "and the motion is not defined"
+            )
+        else:
+            rule = "every principal moment must be > 0 kg m^2"
+        probs.append((f"{field_prefix}.inertia", list(inertia), rule))
+        return probs
+    tol = INERTIA_RTOL * float(I.max())
+    J = 0.5 * (I.sum() - 2.0 * I)  # convected moments J_i = (I_j + I_k - I_i)/2
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        if J[i] < -tol:
+            probs.append(
+                (
+                    f"{field_prefix}.inertia",
+                    list(inertia),
+                    f"triangle inequality I_{i + 1} <= I_{j + 1} + I_{k + 1} violated "
+                    f"({I[i]!r} > {I[j] + I[k]!r}): no mass distribution has these moments",
+                )
+            )
+    if not probs and np.sum(J <= tol) >= 2:
+        probs.append(
+            (
+                f"{field_prefix}.inertia",
+                list(inertia),
+                "a thin rod (two convected moments J_i = (I_j + I_k - I_i)/2 are zero to "
+                f"{INERTIA_RTOL:.2g} relative): the spin about the rod carries no inertia and the "
+                "motion is not defined",
+            )
+        )
+    return probs
+
+
+# -- the schema -------------------------------------------------------------------------------
+
+# table -> field -> (kind, required)
+_SPEC: dict[str, dict[str, tuple[str, bool]]] = {
+    "": {
+        "name": ("name", True),
+        "description": ("str", True),
+        "source": ("str", False),
+        "tags": ("str_list", False),
+        "body": ("table", True),
+        "initial": ("table", True),
+        "environment": ("table", False),
+        "run": ("table", True),
+        "reference": ("table", False),
+    },
+    "body": {"mass": ("number", True), "inertia": ("vec3", True)},
+    "initial": {
+        "rotation": ("mat3", False),
+        "quaternion_wxyz": ("vec4", False),
+        "rotation_vector": ("vec3", False),
+        "omega_body": ("vec3", True),
+        "position": ("vec3", False),
+        "velocity": ("vec3", False),
+    },
+    "environment": {"gravity": ("vec3", False), "pivot": ("vec3", False)},
+    "run": {
+        "t_end": ("number", True),
+        "dt": ("number", True),
+        "dt_sweep": ("number_list", False),
+        "save_every": ("int", False),
+    },
+    "reference": {"kind": ("str", False)},
+}
+
+_KIND_TEXT = {
+    "name": "a non-empty string of letters, digits, '_' or '-'",
+    "str": "a string",
+    "str_list": "a list of strings",
+    "table": "a table",
+    "number": "a finite number",
+    "int": "an integer",
+    "vec3": "a list of 3 finite numbers",
+    "vec4": "a list of 4 finite numbers",
+    "mat3": "a 3x3 nested list of finite numbers (row-major)",
+    "number_list": "a non-empty list of finite numbers",
+}
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _finite_numbers(xs) -> bool:
+    return all(_is_number(x) and math.isfinite(x) for x in xs)
+
+
+def _type_ok(kind: str, v) -> bool:
+    if kind == "name":
+        return (
+            isinstance(v, str)
+            and len(v) > 0
+            and all(c.isascii() and (c.isalnum() or c in "_-") for c in v)
+        )
+    if kind == "str":
+        return isinstance(v, str)
+    if kind == "str_list":
+        return isinstance(v, list) and all(isinstance(s, str) and s for s in v)
+    if kind == "table":
+        return isinstance(v, dict)
+    if kind == "number":
+        return _is_number(v) and math.isfinite(v)
+    if kind == "int":
+        return isinstance(v, int) and not isinstance(v, bool)
+    if kind in ("vec3", "vec4"):
+        n = 3 if kind == "vec3" else 4
+        return isinstance(v, list) and len(v) == n and _finite_numbers(v)
+    if kind == "mat3":
+        return (
+            isinstance(v, list)
+            and len(v) == 3
+            and all(isinstance(r, list) and len(r) == 3 and _finite_numbers(r) for r in v)
+        )
+    if kind == "number_list":
+        return isinstance(v, list) and len(v) > 0 and _finite_numbers(v)
+    raise AssertionError(kind)
+
+
+def _whole_steps(t_end: float, dt: float) -> bool:
+    ratio = t_end / dt
+    n = round(ratio)
+    return n >= 1 and abs(n - ratio) <= STEP_RTOL * max(ratio, 1.0)
+
+
+def _fmt(v) -> str:
+    s = repr(v)
+    return s if len(s) <= 120 else s[:117] + "..."
+
+
+def validate(data: dict, path: str | None = None) -> Scenario:
+    """Validate parsed TOML ``data`` into a :class:`Scenario`; raise :class:`ScenarioError`
+    listing every problem. ``path`` is used in messages and stored on the scenario."""
+    probs: list[tuple] = []
+    where = path if path is not None else "<scenario data>"
+
+    def bad(field, value, rule):
+        probs.append((field, value, rule))
+
+    # 1. structure: unknown keys, missing keys, types
+    good: dict[str, dict] = {}
+    tables = {"": data}
+    for table in _SPEC:
+        if table == "":
+            continue
+        if isinstance(data.get(table), dict):
+            tables[table] = data[table]
+    for table, content in tables.items():
+        spec = _SPEC[table]
+        good[table] = {}
+        for key in content:
+            if key not in spec:
+                dotted = f"{table}.{key}" if table else key
+                known = ", ".join(spec)
+                bad(dotted, content[key], f"unknown key; allowed here: {known}")
+        for key, (kind, required) in spec.items():
+            dotted = f"{table}.{key}" if table else key
+            if key not in content:
+                if required:
+                    bad(dotted, "<missing>", f"required: {_KIND_TEXT[kind]}")
+                continue
+            v = content[key]
+            if not _type_ok(kind, v):
+                bad(dotted, v, f"must be {_KIND_TEXT[kind]}")
+            elif kind != "table":
+                good[table][key] = v
+    g = good
+    body, init = g.get("body", {}), g.get("initial", {})
+    env, run, ref = g.get("environment", {}), g.get("run", {}), g.get("reference", {})
+
+    # 2. the body
+    probs.extend(body_problems(body.get("mass"), body.get("inertia")))
+
+    # 3. the initial attitude: exactly one of three forms, never repaired
+    given = [k for k in ("rotation", "quaternion_wxyz", "rotation_vector") if k in init]
+    named = [
+        k
+        for k in ("rotation", "quaternion_wxyz", "rotation_vector")
+        if k in tables.get("initial", {})
+    ]
+    R = np.eye(3)
+    if len(named) > 1:
+        bad(
+            "initial",
+            named,
+            "give the initial attitude exactly once: one of rotation, quaternion_wxyz, "
+            "rotation_vector",
+        )
+    elif given == ["rotation"]:
+        R = np.array(init["rotation"], dtype=float)
+        dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
+        det = float(np.linalg.det(R))
+        if dev > ROTATION_TOL:
+            bad(
+                "initial.rotation",
+                init["rotation"],
+                f"not orthonormal: max |R^T R - 1| = {dev:.3g} > {ROTATION_TOL:g} "
+                "(give more digits, or use rotation_vector / quaternion_wxyz)",
+            )
+        elif det < 0:
+            bad("initial.rotation", init["rotation"], "det R = -1: a reflection, not a rotation")
+    elif given == ["quaternion_wxyz"]:
+        q = np.array(init["quaternion_wxyz"], dtype=float)
+        nq = float(np.linalg.norm(q))
+        if abs(nq - 1.0) > ROTATION_TOL:
+            bad(
+                "initial.quaternion_wxyz",
+                init["quaternion_wxyz"],
+                f"not a unit quaternion: |q| = {nq!r}, must be 1 to within {ROTATION_TOL:g}",
+            )
+        else:
+            R = rotation_from_quaternion(q)
+    elif given == ["rotation_vector"]:
+        R = rotation_from_vector(init["rotation_vector"])
+
+    # 4. environment and free/pivoted consistency
+    pivot = env.get("pivot")
+    if pivot is not None:
+        for key in ("position", "velocity"):
+            if key in tables.get("initial", {}):
+                bad(
+                    f"initial.{key}",
+                    tables["initial"][key],
+                    "must be omitted for a pivoted body (environment.pivot is set): the centre "
+                    "of mass follows from the rotation, x_G = -R pivot",
+                )
+
+    # 5. run settings
+    t_end, dt = run.get("t_end"), run.get("dt")
+    if t_end is not None and not t_end > 0:
+        bad("run.t_end", t_end, "the horizon must be > 0 s")
+        t_end = None
+    if dt is not None and not dt > 0:
+        bad("run.dt", dt, "the time step must be > 0 s")
+        dt = None
+    if t_end is not None and dt is not None and not _whole_steps(t_end, dt):
+        bad(
+            "run.dt",
+            dt,
+            f"t_end = {t_end!r} is not a whole number of steps (t_end/dt = {t_end / dt!r}, "
+            f"must be an integer to {STEP_RTOL:g} relative)",
+        )
+    sweep = run.get("dt_sweep", [])
+    for i, h in enumerate(sweep):
+        if not h > 0:
+            bad(f"run.dt_sweep[{i}]", h, "every step must be > 0 s")
+        elif t_end is not None and not _whole_steps(t_end, h):
+            bad(
+                f"run.dt_sweep[{i}]",
+                h,
+                f"t_end = {t_end!r} is not a whole number of steps (t_end/dt = {t_end / h!r}, "
+                f"must be an integer to {STEP_RTOL:g} relative)",
+            )
+    if len(set(sweep)) != len(sweep):
+        bad("run.dt_sweep", sweep, "the steps must be distinct")
+    save_every = run.get("save_every", 1)
+    if not save_every >= 1:
+        bad("run.save_every", save_every, "must be an integer >= 1")
+
+    kind = ref.get("kind", "auto")
+    if kind not in REFERENCE_KINDS:
+        bad("reference.kind", kind, f"must be one of {', '.join(REFERENCE_KINDS)}")
+
+    if probs:
+        raise ScenarioError(_message(where, probs), path=path, problems=probs)
+
+    return Scenario(
+        name=data["name"],
+        description=data["description"],
+        mass=float(body["mass"]),
+        inertia=np.array(body["inertia"], dtype=float),
+        rotation=R,
+        omega_body=np.array(init["omega_body"], dtype=float),
+        position=np.array(init.get("position", [0.0, 0.0, 0.0]), dtype=float),
+        velocity=np.array(init.get("velocity", [0.0, 0.0, 0.0]), dtype=float),
+        gravity=np.array(env.get("gravity", [0.0, 0.0, 0.0]), dtype=float),
+        pivot=None if pivot is None else np.array(pivot, dtype=float),
+        t_end=float(run["t_end"]),
+        dt=float(run["dt"]),
+        dt_sweep=tuple(float(h) for h in sweep),
+        save_every=int(save_every),
+        reference=kind,
+        source=data.get("source", ""),
+        tags=tuple(data.get("tags", ())),
+        path=path,
+    )
+
+
+def _message(where: str, probs: list[tuple]) -> str:
+    n = len(probs)
+    head = f"invalid scenario file {where}: {n} problem{'s' if n > 1 else ''}"
+    lines = [f"  {field} = {_fmt(value)}: {rule}" for field, value, rule in probs]
+    return "\n".join([head, *lines])
+
+
+def load_file(path: str | Path) -> Scenario:
+    """Read and validate one scenario file."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ScenarioError(f"scenario file {path} does not exist", path=str(path)) from None
+    except OSError as exc:
+        raise ScenarioError(f"scenario file {path} cannot be read: {exc}", path=str(path)) from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            f"invalid scenario file {path}: not UTF-8 text ({exc})", path=str(path)
+        ) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(
+            f"invalid scenario file {path}: not valid TOML: {exc}", path=str(path)
+        ) from None
+    return validate(data, path=str(path))
