@@ -55,6 +55,12 @@ class BodyState(NamedTuple):
     omega_body: np.ndarray
 
 
+def stack_states(states) -> BodyState:
+    """Stack a sequence of :class:`BodyState` into one with arrays (n, 3), (n, 3), (n, 3, 3),
+    (n, 3): the argument order of :meth:`references.trajectory.Trajectory.from_states`."""
+    return BodyState(*(np.array([s[k] for s in states]) for k in range(4)))
+
+
 # -- skew matrices --------------------------------------------------------------------------
 def hat(w) -> np.ndarray:
     """The skew matrix of a 3-vector: hat(a) b = a x b."""
@@ -349,13 +355,32 @@ def check_quantity(engine: str, quantity: str, got, expected, rtol: float, atol:
         )
 
 
-def initial_state_errors(scenario, state: BodyState) -> dict[str, float]:
-    """Relative differences of energy and angular momentum between a state read back from an
-    engine and the scenario's own initial state, both computed the suite's way
-    (:meth:`references.trajectory.Trajectory.from_states`).
+def _scaled(diff, scale) -> float:
+    diff = float(np.max(np.abs(diff)))
+    if scale > 0:
+        return diff / scale
+    return 0.0 if diff == 0 else math.inf
 
-    Energy is scaled by T + |V| and momentum by the sum of the norms of its parts, so that a
-    total that happens to be near zero does not make the comparison meaningless.
+
+def initial_state_errors(scenario, state: BodyState, native: dict | None = None) -> dict:
+    """Relative differences between a state read back from an engine and the scenario's own
+    initial state: energy and angular momentum computed the suite's way
+    (:meth:`references.trajectory.Trajectory.from_states`), the state itself, and, if the
+    engine computes them (``native = {"energy": E, "angular momentum": L, "COM velocity": v}``,
+    L in world axes about the COM for a free body and about the pivot for a pivoted one, v in
+    world axes; the last key optional), the engine's own energy, momentum and COM velocity.
+
+    Each difference is scaled by a characteristic size of the quantity rather than by its
+    value, so that a total that happens to be near zero (an energy with a negative potential
+    part, the COM velocity of a body spinning about its pivot axis) does not make the
+    comparison meaningless: with l the pivot distance (free body: the largest radius of
+    gyration) and u = |v0| + |W0| l, energy by 1/2 m u^2 + 1/2 W.IW + m |g| (|x0| + l),
+    momentum by |I W| + m (|x0| + l) u, position by |x0| + l, velocity by u, W by |W0|,
+    R by 1.
+
+    The round trip scenario -> engine -> suite checks that the two conversions are inverse to
+    each other; only the engine's own energy and momentum (or its own kinematics) check that
+    the engine understood the state the way we meant it.
     """
     from references.trajectory import Trajectory
 
@@ -369,35 +394,57 @@ def initial_state_errors(scenario, state: BodyState) -> dict[str, float]:
     W0 = np.asarray(scenario.omega_body)
     x0 = np.asarray(scenario.position)
     v0 = np.asarray(scenario.velocity)
-    e_scale = 0.5 * m * v0 @ v0 + 0.5 * W0 @ (I * W0) + abs(m * x0 @ np.asarray(scenario.gravity))
-    l_scale = np.linalg.norm(I * W0)
-    if scenario.pivot is not None:
-        l_scale += m * np.linalg.norm(np.cross(x0, v0))
+    # Characteristic length and speed of the body, so that a quantity that is zero in the
+    # scenario (v_G of a body spinning about its pivot axis) is compared on a sensible scale.
+    ell = (
+        float(np.linalg.norm(scenario.pivot))
+        if scenario.pivot is not None
+        else math.sqrt(float(I.max()) / m)
+    )
+    speed = float(np.linalg.norm(v0)) + float(np.linalg.norm(W0)) * ell
+    reach = float(np.linalg.norm(x0)) + ell
+    e_scale = (
+        0.5 * m * speed**2
+        + 0.5 * W0 @ (I * W0)
+        + m * float(np.linalg.norm(scenario.gravity)) * reach
+    )
+    l_scale = float(np.linalg.norm(I * W0)) + m * reach * speed
 
-    def rel(diff, scale):
-        diff = float(np.max(np.abs(diff)))
-        if scale > 0:
-            return diff / scale
-        return 0.0 if diff == 0 else math.inf
-
-    return {
-        "energy": rel(got.energy - ref.energy, e_scale),
-        "angular momentum": rel(got.angular_momentum - ref.angular_momentum, l_scale),
+    errors = {
+        "energy": _scaled(got.energy - ref.energy, e_scale),
+        "angular momentum": _scaled(got.angular_momentum - ref.angular_momentum, l_scale),
+        "COM position": _scaled(state.position - x0, reach),
+        "COM velocity": _scaled(state.velocity - v0, speed),
+        "rotation": _scaled(state.rotation - scenario.rotation, 1.0),
+        "body angular velocity": _scaled(state.omega_body - W0, np.linalg.norm(W0)),
     }
+    if native:
+        errors["engine's own energy"] = _scaled(native["energy"] - ref.energy[0], e_scale)
+        errors["engine's own angular momentum"] = _scaled(
+            np.asarray(native["angular momentum"]) - ref.angular_momentum[0], l_scale
+        )
+        if "COM velocity" in native:
+            errors["engine's own COM velocity"] = _scaled(
+                np.asarray(native["COM velocity"]) - v0, speed
+            )
+    return errors
 
 
-def check_initial_state(engine: str, scenario, state: BodyState, rtol: float = 1e-12) -> dict:
+def check_initial_state(
+    engine: str, scenario, state: BodyState, native: dict | None = None, rtol: float = 1e-12
+) -> dict:
     """Raise :class:`~references.engines.base.EngineError` naming the quantity if the state
-    read back from ``engine`` before the first step does not reproduce the scenario's energy
-    and angular momentum to ``rtol`` relative; returns the relative errors."""
+    read back from ``engine`` before the first step does not reproduce the scenario (energy,
+    angular momentum, state; the engine's own energy and momentum if given in ``native``) to
+    ``rtol`` relative (see :func:`initial_state_errors`); returns the relative errors."""
     from references.engines.base import EngineError
 
-    errors = initial_state_errors(scenario, state)
+    errors = initial_state_errors(scenario, state, native)
     for quantity, err in errors.items():
         if not err <= rtol:
             raise EngineError(
-                f"{engine}: the initial state read back from the engine gives a {quantity} "
-                f"differing from the scenario's by {err:.3g} relative (allowed {rtol:g}); "
-                f"a convention conversion or the model's mass properties are wrong"
+                f"{engine}: before the first step, the {quantity} read back from the engine "
+                f"differs from the scenario's by {err:.3g} relative (allowed {rtol:g}); a "
+                "convention conversion or the model's mass properties are wrong"
             )
     return errors

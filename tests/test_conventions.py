@@ -227,8 +227,10 @@ def _scenario(**kw):
 
 def test_check_initial_state_accepts_exact_and_names_the_wrong_quantity():
     sc = _scenario()
-    errs = cv.check_initial_state("test", sc, cv.BodyState(X0, V0, R0, W0))
-    assert errs == {"energy": 0.0, "angular momentum": 0.0}
+    exact = cv.BodyState(X0, V0, R0, W0)
+    errs = cv.check_initial_state("test", sc, exact)
+    assert set(errs) >= {"energy", "angular momentum", "rotation", "body angular velocity"}
+    assert all(e == 0.0 for e in errs.values())
     # world rates passed as body rates: |W| is kept but W . I W and R I W change
     wrong = cv.BodyState(X0, V0, R0, R0 @ W0)
     with pytest.raises(EngineError, match="energy"):
@@ -237,6 +239,18 @@ def test_check_initial_state_accepts_exact_and_names_the_wrong_quantity():
     flipped = cv.BodyState(X0, V0, R0, W0 * [-1, 1, 1])
     with pytest.raises(EngineError, match="angular momentum"):
         cv.check_initial_state("test", sc, flipped)
+    # a consistent round trip can still hide an engine that read the state differently:
+    # the engine's own energy and momentum are compared when given
+    T = 0.5 * 1.5 * V0 @ V0 + 0.5 * W0 @ (np.array([2.0, 3.0, 4.0]) * W0)
+    E = T - 1.5 * X0 @ np.array([0.0, 0.0, -9.81])
+    L = R0 @ (np.array([2.0, 3.0, 4.0]) * W0)
+    good = {"energy": E, "angular momentum": L}
+    errs = cv.check_initial_state("test", sc, exact, native=good)
+    assert errs["engine's own energy"] < 1e-15 and errs["engine's own angular momentum"] < 1e-15
+    with pytest.raises(EngineError, match="engine's own energy"):
+        cv.check_initial_state("test", sc, exact, native={**good, "energy": E * (1 + 1e-9)})
+    with pytest.raises(EngineError, match="engine's own angular momentum"):
+        cv.check_initial_state("test", sc, exact, native={**good, "angular momentum": -L})
 
 
 def test_check_quantity_names_the_quantity():
