@@ -30,6 +30,21 @@ import numpy as np
 from references.conventions import rotvec_to_matrix
 
 
+class StageRotationTooLarge(ArithmeticError):
+    """A Runge-Kutta stage asked for a rotation of half a turn or more: beyond it exp is not
+    one-to-one and dexp^{-1} becomes singular at a full turn, so the step size is far outside
+    anything meaningful (the explicit method is unstable long before). Adapters turn this into
+    a :class:`~references.engines.base.StepFailure`."""
+
+
+def check_stage_rotation(a2: float) -> None:
+    """Raise :class:`StageRotationTooLarge` unless the squared rotation angle a2 < pi^2."""
+    if not a2 < math.pi**2:
+        raise StageRotationTooLarge(
+            f"a Runge-Kutta stage rotation of {math.sqrt(a2):.3g} rad (>= pi, or not finite)"
+        )
+
+
 def so3_right_jacobian_inverse(theta) -> np.ndarray:
     """J_r(theta)^{-1} for SO(3): the matrix with theta' = J_r^{-1} W when R = R0 exp(hat theta)
     and W is the body angular velocity of R.
@@ -39,6 +54,7 @@ def so3_right_jacobian_inverse(theta) -> np.ndarray:
     """
     x, y, z = (float(t) for t in np.ravel(theta))
     a2 = x * x + y * y + z * z
+    check_stage_rotation(a2)
     if a2 < 1e-6:
         c = 1.0 / 12.0 + a2 / 720.0 + a2 * a2 / 30240.0
     else:
