@@ -185,17 +185,36 @@ def compute_metrics(scenario, traj, ref=None, expected=None) -> dict[str, float]
     return m
 
 
-def convergence_order(dts, errors, floor: float = 1e-13) -> float:
-    """Least-squares slope of log(error) against log(dt).
+def convergence_order(dts, errors, floor: float = 1e-13, min_local_slope: float = 0.5) -> float:
+    """Least-squares slope of log(error) against log(dt) over the asymptotic range.
 
-    Points whose error is below ``floor`` (round-off level: no information about the
-    truncation error) or not finite are dropped; NaN if fewer than two points remain or the
-    dt values are not distinct.
+    Points are taken from the largest dt downwards while the error keeps falling with a local
+    slope of at least ``min_local_slope``; the first point that does not is where round-off
+    (amplified by the conditioning of the problem: near the Dzhanibekov separatrix a solver
+    saturates around 1e-11..1e-9 rad, numerics.md section 4) dominates the truncation error,
+    and it and all smaller steps are dropped, as is any point within 10x of that floor.
+    Points below ``floor`` or not finite are
+    dropped too. NaN if fewer than two points remain.
     """
     dts = np.asarray(dts, dtype=float)
     errors = np.asarray(errors, dtype=float)
     ok = np.isfinite(errors) & (errors > floor) & (dts > 0)
-    if ok.sum() < 2 or np.unique(dts[ok]).size < 2:
+    order = np.argsort(-dts[ok])
+    h, e = dts[ok][order], errors[ok][order]
+    keep = 1 if h.size else 0
+    while keep < h.size:
+        if h[keep] == h[keep - 1]:
+            break
+        local = np.log(e[keep - 1] / e[keep]) / np.log(h[keep - 1] / h[keep])
+        if local < min_local_slope:
+            break
+        keep += 1
+    if keep < h.size:
+        # A floor was met at h[keep]: a point within 10x of it may already be half floor (its
+        # apparent slope exaggerated), so it does not count either.
+        while keep > 0 and e[keep - 1] < 10.0 * e[keep]:
+            keep -= 1
+    if keep < 2:
         return math.nan
-    slope, _ = np.polyfit(np.log(dts[ok]), np.log(errors[ok]), 1)
+    slope, _ = np.polyfit(np.log(h[:keep]), np.log(e[:keep]), 1)
     return float(slope)

@@ -38,6 +38,12 @@ def _plt():
     return plt
 
 
+def _legend(ax, fig) -> None:
+    """Legend to the right of the axes, so it never hides data."""
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    fig.tight_layout()
+
+
 def _label(r) -> str:
     return f"{r['engine']} {r['integrator']}"
 
@@ -66,18 +72,22 @@ def _series(root: Path, row):
 def _time_plot(df, root, out, scenario, column, ylabel, title, logy, default_dt=None):
     plt = _plt()
     rows = _default_dt_rows(df, scenario, default_dt)
-    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    fig, ax = plt.subplots(figsize=(10, 4.2))
     plotted = 0
     for _, r in rows.iterrows():
         s = _series(root, r)
         if s is None or column not in s:
             continue
         y = s[column].to_numpy()
+        if r["engine"] == "exact" and column in ("attitude_error", "omega_error"):
+            continue
         if logy:
-            if r["engine"] == "exact" and column in ("attitude_error", "omega_error"):
-                continue
             y = np.maximum(y, 1e-17)  # log axis: show exact zeros at the floor of the plot
-        ax.plot(s["t"], y, FAMILY_STYLE.get(r["family"], "-"), lw=1.1, label=_label(r))
+        if r["engine"] == "exact":
+            # the reference's own drift is the round-off floor of the measurement
+            ax.plot(s["t"], y, color="0.6", lw=0.6, label="exact reference (round-off floor)")
+        else:
+            ax.plot(s["t"], y, FAMILY_STYLE.get(r["family"], "-"), lw=1.1, label=_label(r))
         plotted += 1
     if not plotted:
         plt.close(fig)
@@ -87,8 +97,7 @@ def _time_plot(df, root, out, scenario, column, ylabel, title, logy, default_dt=
     dt = rows["dt"].iloc[0]
     ax.set(xlabel="t [s]", ylabel=ylabel, title=f"{scenario}: {title} (dt = {dt:g} s)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="best")
-    fig.tight_layout()
+    _legend(ax, fig)
     path = out / f"{slug(scenario)}__{slug(column)}.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -101,7 +110,7 @@ def rates_plot(df, root, out, scenario, default_dt=None):
     stands out against the reference (thick line)."""
     plt = _plt()
     rows = _default_dt_rows(df, scenario, default_dt)
-    fig, axes = plt.subplots(3, 1, figsize=(7.5, 6.0), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 6.0), sharex=True)
     plotted = 0
     for _, r in rows.iterrows():
         s = _series(root, r)
@@ -119,8 +128,7 @@ def rates_plot(df, root, out, scenario, default_dt=None):
         axes[k].grid(True, alpha=0.3)
     axes[0].set_title(f"{scenario}: body angular velocity")
     axes[2].set_xlabel("t [s]")
-    axes[0].legend(fontsize=6, ncol=3, loc="upper right")
-    fig.tight_layout()
+    _legend(axes[0], fig)
     path = out / f"{slug(scenario)}__rates.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -131,7 +139,7 @@ def convergence_plot(df, out, scenario, metric="attitude_error_max"):
     """Error against dt (log-log) per engine and integrator, with the fitted slope."""
     plt = _plt()
     sub = df[(df["scenario"] == scenario) & (df["status"] == "ok") & (df["engine"] != "exact")]
-    fig, ax = plt.subplots(figsize=(7.5, 4.6))
+    fig, ax = plt.subplots(figsize=(10, 4.6))
     plotted = 0
     for (eng, integ), g in sub.groupby(["engine", "integrator"]):
         g = g.sort_values("dt")
@@ -155,8 +163,7 @@ def convergence_plot(df, out, scenario, metric="attitude_error_max"):
         return None
     ax.set(xlabel="dt [s]", ylabel=f"{metric}", title=f"{scenario}: error against time step")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
+    _legend(ax, fig)
     path = out / f"{slug(scenario)}__convergence.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -170,7 +177,7 @@ def work_precision_plot(df, out, scenario, metric="attitude_error_max"):
     sub = sub[np.isfinite(sub[metric]) & (sub["wall_time_s"] > 0)]
     if sub.empty:
         return None
-    fig, ax = plt.subplots(figsize=(7.5, 4.6))
+    fig, ax = plt.subplots(figsize=(10, 4.6))
     for (eng, integ), g in sub.groupby(["engine", "integrator"]):
         g = g.sort_values("wall_time_s")
         fam = g["family"].iloc[0]
@@ -187,8 +194,7 @@ def work_precision_plot(df, out, scenario, metric="attitude_error_max"):
         xlabel="wall time of the stepping [s]", ylabel=metric, title=f"{scenario}: work-precision"
     )
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
+    _legend(ax, fig)
     path = out / f"{slug(scenario)}__work_precision.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)

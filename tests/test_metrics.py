@@ -135,3 +135,12 @@ def test_convergence_order_ignores_roundoff_points():
     assert math.isnan(metrics.convergence_order(dts, [1e-15, 2e-16, 1e-16]))
     # two informative points and one at round-off: the slope of the two
     assert metrics.convergence_order(dts, [1.6e-5, 1e-6, 1e-16]) == pytest.approx(4.0)
+
+
+def test_convergence_order_stops_at_the_error_floor():
+    """4th-order errors that saturate at 5e-11 (round-off amplified near a separatrix): the fit
+    uses only the points before the floor."""
+    dts = np.array([0.016, 0.008, 0.004, 0.002, 0.001])
+    errors = np.maximum(1e-3 * (dts / 0.016) ** 4, 5e-11)
+    errors[-2:] = [4.7e-11, 4.8e-11]  # noisy floor
+    assert metrics.convergence_order(dts, errors) == pytest.approx(4.0, abs=1e-9)
