@@ -23,10 +23,13 @@ from references.engines import (
     EngineError,
     EngineUnavailable,
     Unsupported,
+    engine_names,
     get_engine,
 )
 from scenarios.model import Scenario
 
+#: the third-party engines' adapters (the suite's own "director" and "exact" are tested with
+#: their packages); every one must be in the registry
 ENGINES = ("mujoco", "pinocchio", "dart", "pybullet")
 
 
@@ -143,6 +146,12 @@ def hand_energy_momentum(sc):
 
 
 # == interface ===============================================================================
+def test_engines_are_registered():
+    assert set(ENGINES) <= set(engine_names())
+    for name in ENGINES:
+        assert get_engine(name).name == name
+
+
 @pytest.mark.parametrize("name", ENGINES)
 def test_version_and_integrators_are_documented(name):
     engine = engine_or_skip(name)
