@@ -52,7 +52,6 @@ def pairs(families=None):
     return out
 
 
-FIRST_ORDER_EXPLICIT = {"semi-implicit Euler"}
 FOURTH_ORDER = {"4th-order Lie-group"}
 
 # -- scenarios: non-identity R0, generic W, generic gravity ---------------------------------
@@ -338,8 +337,12 @@ def test_pybullet_default_damping_is_neutralised():
         w = np.array(p.getBaseVelocity(b, physicsClientId=cid)[1])
     finally:
         p.disconnect(physicsClientId=cid)
-    # the law predicts |w| ~ 0.6 |w0| after 2 s (it slows as |w| decays); 0.85 leaves margin
-    assert np.linalg.norm(w) < 0.85 * np.linalg.norm(W0)
+    # the law d|w|/dt = -0.04 (1 + |w|) |w| gives |w|/|w0| = e/(1 + |w0| (1 - e)),
+    # e = exp(-0.04 t): 0.80 after 2 s (measured 0.82: |w| of an asymmetric body also varies
+    # without damping, by 1e-2 here, while the energy is kept to 1e-4 above)
+    e = math.exp(-0.04 * sc.t_end)
+    u0 = np.linalg.norm(W0)
+    assert np.linalg.norm(w) / u0 == pytest.approx(e / (1 + u0 * (1 - e)), abs=0.05)
 
 
 def test_pybullet_velocity_clamp_is_raised():
@@ -487,3 +490,15 @@ def test_library_scenarios_are_accepted(name, integrator, scenario_name):
     # 1e-12 relative, as in test_initial_state_read_back
     assert abs(tr.energy[0] - E) <= 1e-12 * abs(E)
     assert np.all(np.isfinite(tr.rotation[-1]))
+
+
+@pytest.mark.parametrize("name,integrator", pairs())
+def test_flat_body_runs_and_a_non_physical_inertia_is_refused_by_mujoco(name, integrator):
+    engine = engine_or_skip(name)
+    # a lamina, I_3 = I_1 + I_2 (numerics.md section 1: physical, J_3 = 0): every engine runs it
+    tr = run(engine, integrator, free_body(inertia=[1.0, 2.0, 3.0]), 1e-3, t_end=0.01).trajectory
+    assert np.all(np.isfinite(tr.omega_body))
+    if name == "mujoco":
+        # violating the triangle inequality: MuJoCo's compiler rejects it (docs/engines.md)
+        with pytest.raises(Unsupported, match="triangle inequality"):
+            engine.run(free_body(inertia=[1.0, 1.0, 2.5]), integrator, 1e-3, t_end=1e-3)
