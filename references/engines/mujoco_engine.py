@@ -122,7 +122,8 @@ class MujocoEngine(Engine):
             )
         I = np.asarray(scenario.inertia)
         for k in range(3):
-            # MuJoCo's compiler rejects inertias violating A + B >= C (docs/engines.md).
+            # MuJoCo's compiler rejects inertias violating A + B >= C, strictly: one ulp over
+            # is refused (docs/engines.md; checked with mujoco 4.0.0).
             if I[k] > I[(k + 1) % 3] + I[(k + 2) % 3]:
                 raise Unsupported(
                     f"MuJoCo rejects the inertia {I.tolist()}: it violates the triangle "
@@ -158,6 +159,8 @@ class MujocoEngine(Engine):
         try:
             m = mujoco.MjModel.from_xml_string(self.model_xml(scenario, integrator, dt))
         except ValueError as exc:
+            if "inertia must satisfy" in str(exc):
+                raise Unsupported(f"MuJoCo rejects the scenario's inertia: {exc}") from exc
             raise EngineError(f"MuJoCo could not compile the scenario's model: {exc}") from exc
         self._check_model(mujoco, m, scenario, integrator, dt)
         settings = {
