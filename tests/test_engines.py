@@ -502,3 +502,44 @@ def test_flat_body_runs_and_a_non_physical_inertia_is_refused_by_mujoco(name, in
         # violating the triangle inequality: MuJoCo's compiler rejects it (docs/engines.md)
         with pytest.raises(Unsupported, match="triangle inequality"):
             engine.run(free_body(inertia=[1.0, 1.0, 2.5]), integrator, 1e-3, t_end=1e-3)
+
+
+def test_pybullet_inertia_quirks_are_caught_by_the_read_back():
+    engine = engine_or_skip("pybullet")
+    import pybullet as p
+
+    sc = free_body()
+    cid = p.connect(p.DIRECT)
+    try:
+        p.setGravity(*sc.gravity, physicsClientId=cid)
+        p.setPhysicsEngineParameter(fixedTimeStep=1e-3, numSubSteps=0, physicsClientId=cid)
+        # maximal coordinates: setting the inertia without the mass makes the body static
+        b = p.createMultiBody(baseMass=sc.mass, useMaximalCoordinates=True, physicsClientId=cid)
+        p.changeDynamics(b, -1, localInertiaDiagonal=list(sc.inertia), physicsClientId=cid)
+        assert p.getDynamicsInfo(b, -1, physicsClientId=cid)[0] == 0.0  # the quirk (3.2.7)
+        with pytest.raises(EngineError, match="mass"):
+            engine._check_model(p, cid, b, -1, sc, True, 1e-3)
+        # a link: body-wide options in the same call as the inertia leave the inertia at 0
+        top = tilted_top()
+        b = p.createMultiBody(
+            baseMass=0.0,
+            linkMasses=[top.mass],
+            linkCollisionShapeIndices=[-1],
+            linkVisualShapeIndices=[-1],
+            linkPositions=[[0, 0, 0]],
+            linkOrientations=[[0, 0, 0, 1]],
+            linkInertialFramePositions=[[0, 0, 0.5]],
+            linkInertialFrameOrientations=[[0, 0, 0, 1]],
+            linkParentIndices=[0],
+            linkJointTypes=[p.JOINT_SPHERICAL],
+            linkJointAxis=[[0, 0, 1]],
+            physicsClientId=cid,
+        )
+        p.changeDynamics(
+            b, 0, localInertiaDiagonal=list(top.inertia), linearDamping=0.0, physicsClientId=cid
+        )
+        assert p.getDynamicsInfo(b, 0, physicsClientId=cid)[2] == (0.0, 0.0, 0.0)  # the quirk
+        with pytest.raises(EngineError, match="inertia"):
+            engine._check_model(p, cid, b, 0, top, False, 1e-3)
+    finally:
+        p.disconnect(physicsClientId=cid)

@@ -21,6 +21,7 @@ coordinates, changeDynamics(localInertiaDiagonal=...) without ``mass`` sets the 
 body becomes static), so the mass is passed again in the same call; on a btMultiBody LINK,
 passing ``mass`` to changeDynamics made the first step NaN, so it is not passed there; and on a
 link, body-wide options passed in the same call as localInertiaDiagonal zeroed the inertia.
+(The rigid body of maximal coordinates showed no default damping; it is set to 0 all the same.)
 """
 
 from __future__ import annotations
