@@ -90,7 +90,6 @@ def _dmv_solve(P, b0, b1, b2):
     it reads sin(theta) = h |W|: the branch through Q = 1 folds at theta = 90 deg (|w| = 1),
     beyond which the step is refused. Returns (status, w0, w1, w2).
     """
-    diag = P[32] != 0.0
     I00 = P[10]
     I01 = P[11]
     I02 = P[12]
@@ -140,26 +139,15 @@ def _dmv_solve(P, b0, b1, b2):
         t0 = 2.0 * b0
         t1 = 2.0 * b1
         t2 = 2.0 * b2
-        if diag:
-            K00 = I00 - t0 * w0
-            K01 = w2 * (I22 - I11) - t0 * w1
-            K02 = w1 * (I22 - I11) - t0 * w2
-            K10 = w2 * (I00 - I22) - t1 * w0
-            K11 = I11 - t1 * w1
-            K12 = w0 * (I00 - I22) - t1 * w2
-            K20 = w1 * (I11 - I00) - t2 * w0
-            K21 = w0 * (I11 - I00) - t2 * w1
-            K22 = I22 - t2 * w2
-        else:
-            K00 = I00 + (-w2 * I10 + w1 * I20) - t0 * w0
-            K01 = I01 + (-w2 * I11 + w1 * I21) + u2 - t0 * w1
-            K02 = I02 + (-w2 * I12 + w1 * I22) - u1 - t0 * w2
-            K10 = I10 + (w2 * I00 - w0 * I20) - u2 - t1 * w0
-            K11 = I11 + (w2 * I01 - w0 * I21) - t1 * w1
-            K12 = I12 + (w2 * I02 - w0 * I22) + u0 - t1 * w2
-            K20 = I20 + (-w1 * I00 + w0 * I10) + u1 - t2 * w0
-            K21 = I21 + (-w1 * I01 + w0 * I11) - u0 - t2 * w1
-            K22 = I22 + (-w1 * I02 + w0 * I12) - t2 * w2
+        K00 = I00 + (-w2 * I10 + w1 * I20) - t0 * w0
+        K01 = I01 + (-w2 * I11 + w1 * I21) + u2 - t0 * w1
+        K02 = I02 + (-w2 * I12 + w1 * I22) - u1 - t0 * w2
+        K10 = I10 + (w2 * I00 - w0 * I20) - u2 - t1 * w0
+        K11 = I11 + (w2 * I01 - w0 * I21) - t1 * w1
+        K12 = I12 + (w2 * I02 - w0 * I22) + u0 - t1 * w2
+        K20 = I20 + (-w1 * I00 + w0 * I10) + u1 - t2 * w0
+        K21 = I21 + (-w1 * I01 + w0 * I11) - u0 - t2 * w1
+        K22 = I22 + (-w1 * I02 + w0 * I12) - t2 * w2
         C00 = K11 * K22 - K12 * K21
         C01 = K12 * K20 - K10 * K22
         C02 = K10 * K21 - K11 * K20
@@ -188,6 +176,92 @@ def _dmv_solve(P, b0, b1, b2):
     if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
         # rotation angle of Q >= 90 degrees: for a principal-axis spin this is exactly the
         # second branch of sin(theta) = h|W|, theta > pi/2; refused in general (conservative)
+        return FAIL_BRANCH, w0, w1, w2
+    return OK, w0, w1, w2
+
+
+@njit(cache=True)
+def _dmv_solve_diag(P, b0, b1, b2):
+    """:func:`_dmv_solve` for a diagonal Ibar (a free body, or a pivot on a principal
+    axis): the same equations and tests with the zero products left out, which shortens the
+    latency-bound chain of the step by about a fifth."""
+    I0 = P[10]
+    I1 = P[14]
+    I2 = P[18]
+    a0 = P[19]
+    a1 = P[23]
+    a2 = P[27]
+    e0 = I2 - I1
+    e1 = I0 - I2
+    e2 = I1 - I0
+    w0 = a0 * b0
+    w1 = a1 * b1
+    w2 = a2 * b2
+    for _ in range(2):
+        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+        # w x (Ibar w) = (e0 w1 w2, e1 w2 w0, e2 w0 w1)
+        w0n = a0 * (q * b0 - e0 * w1 * w2)
+        w1n = a1 * (q * b1 - e1 * w2 * w0)
+        w2n = a2 * (q * b2 - e2 * w0 * w1)
+        w0 = w0n
+        w1 = w1n
+        w2 = w2n
+    for _ in range(MAXIT):
+        u0 = I0 * w0
+        u1 = I1 * w1
+        u2 = I2 * w2
+        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+        c0 = w1 * u2 - w2 * u1
+        c1 = w2 * u0 - w0 * u2
+        c2 = w0 * u1 - w1 * u0
+        G0 = u0 + c0 - q * b0
+        G1 = u1 + c1 - q * b1
+        G2 = u2 + c2 - q * b2
+        sc = max(
+            abs(u0) + abs(c0) + abs(q * b0),
+            abs(u1) + abs(c1) + abs(q * b1),
+            abs(u2) + abs(c2) + abs(q * b2),
+        )
+        if max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc:
+            break
+        if not sc < math.inf:
+            return FAIL_NONFINITE, w0, w1, w2
+        t0 = 2.0 * b0
+        t1 = 2.0 * b1
+        t2 = 2.0 * b2
+        K00 = I0 - t0 * w0
+        K01 = w2 * e0 - t0 * w1
+        K02 = w1 * e0 - t0 * w2
+        K10 = w2 * e1 - t1 * w0
+        K11 = I1 - t1 * w1
+        K12 = w0 * e1 - t1 * w2
+        K20 = w1 * e2 - t2 * w0
+        K21 = w0 * e2 - t2 * w1
+        K22 = I2 - t2 * w2
+        C00 = K11 * K22 - K12 * K21
+        C01 = K12 * K20 - K10 * K22
+        C02 = K10 * K21 - K11 * K20
+        det = K00 * C00 + K01 * C01 + K02 * C02
+        if not det > 0.0:
+            return FAIL_BRANCH, w0, w1, w2
+        C10 = K02 * K21 - K01 * K22
+        C11 = K00 * K22 - K02 * K20
+        C12 = K01 * K20 - K00 * K21
+        C20 = K01 * K12 - K02 * K11
+        C21 = K02 * K10 - K00 * K12
+        C22 = K00 * K11 - K01 * K10
+        rd = 1.0 / det
+        d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
+        d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
+        d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
+        w0 -= d0
+        w1 -= d1
+        w2 -= d2
+        if max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2)):
+            break
+    else:
+        return FAIL_NEWTON, w0, w1, w2
+    if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
         return FAIL_BRANCH, w0, w1, w2
     return OK, w0, w1, w2
 
@@ -251,7 +325,10 @@ def _rattle_substep(P, g, S, h):
     p0 = S[24] + hh * S[27]
     p1 = S[25] + hh * S[28]
     p2 = S[26] + hh * S[29]
-    st, w0, w1, w2 = _dmv_solve(P, hh * p0, hh * p1, hh * p2)
+    if P[32] != 0.0:
+        st, w0, w1, w2 = _dmv_solve_diag(P, hh * p0, hh * p1, hh * p2)
+    else:
+        st, w0, w1, w2 = _dmv_solve(P, hh * p0, hh * p1, hh * p2)
     if st != OK:
         return st
     # Q = 1 + f (hat(w) + hat(w)^2), f = 2/(1 + |w|^2) (Cayley form of the quaternion)
@@ -548,12 +625,25 @@ def _omega_norm(method, P, S):
 
 
 @njit(cache=True)
+def _alpha_norm(method, P, S):
+    """|Ibar^{-1} tau|, the angular acceleration of gravity at the state (RATTLE family;
+    0 for energy-momentum, whose limit estimate ignores it)."""
+    if method != RATTLE_FAMILY:
+        return 0.0
+    a0 = P[19] * S[27] + P[20] * S[28] + P[21] * S[29]
+    a1 = P[22] * S[27] + P[23] * S[28] + P[24] * S[29]
+    a2 = P[25] * S[27] + P[26] * S[28] + P[27] * S[29]
+    return math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+
+
+@njit(cache=True)
 def run_one(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, info):
     """Integrate one body for ``nstep`` steps of size ``h`` and store the states at the step
     indices ``saves`` (increasing, first 0 if the initial state is saved) into X, V
     (nsave, 3) and Dout, Dpout (nsave, 3, 3). ``coef`` are the composition coefficients of
     the RATTLE family (one RATTLE step of size coef[k] h each). Returns a status code; on
-    failure info[0] = number of steps completed and info[1] = |W| at the failing state."""
+    failure info[0] = number of steps completed, info[1] = |W| and info[2] = |Ibar^{-1} tau|
+    at the failing state."""
     S = S0.copy()
     A = np.empty((15, 16))
     if method == RATTLE_FAMILY:
@@ -576,6 +666,7 @@ def run_one(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, info):
         if st != OK:
             info[0] = n - 1
             info[1] = _omega_norm(method, P, S)
+            info[2] = _alpha_norm(method, P, S)
             return st
         if k < nsave and saves[k] == n:
             _store(method, P, S, k, X, V, Dout, Dpout)

@@ -157,10 +157,9 @@ def _vec(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     if a.shape != shape:
         raise InvalidStateError(f"{name}: expected shape {shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
-        bad = np.argwhere(~np.isfinite(a))[0]
-        raise InvalidStateError(
-            f"{name}{list(bad)} = {a[tuple(bad)]!r}: every entry must be finite"
-        )
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        idx = ", ".join(str(i) for i in bad)
+        raise InvalidStateError(f"{name}[{idx}] = {float(a[bad])!r}: every entry must be finite")
     return a
 
 
@@ -209,7 +208,7 @@ def _step_error(scheme: type[Scheme], status: int, info, dt: float, body=None):
     done = int(info[0])
     wnorm = float(info[1])
     t = done * dt
-    h_max = scheme.h_max(wnorm)
+    h_max = scheme.h_max(wnorm, float(info[2]))
     who = "" if body is None else f"body {body}: "
     msg = (
         f"{who}{scheme.name}: step {done + 1} starting at t = {t:.9g} s could not be solved: "
@@ -237,14 +236,14 @@ def _ensure_compiled(kind: str) -> None:
         if kind == "single":
             K.run_one(
                 method, coef, P, g, S, 0.1, 1, saves, np.empty((2, 3)), np.empty((2, 3)),
-                np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(2),
+                np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(3),
             )  # fmt: skip
         else:
             fn = K.run_batch_parallel if kind == "parallel" else K.run_batch_serial
             fn(
                 method, coef, P[None], g, S[None], 0.1, 1, saves, np.empty((1, 2, 3)),
                 np.empty((1, 2, 3)), np.empty((1, 2, 3, 3)), np.empty((1, 2, 3, 3)),
-                np.zeros(1, dtype=np.int64), np.zeros((1, 2)),
+                np.zeros(1, dtype=np.int64), np.zeros((1, 3)),
             )  # fmt: skip
     _COMPILED.add(kind)
 
@@ -354,7 +353,7 @@ def simulate(
     V = np.empty((nsave, 3))
     D = np.empty((nsave, 3, 3))
     Dp = np.empty((nsave, 3, 3))
-    info = np.zeros(2)
+    info = np.zeros(3)
     _ensure_compiled("single")
     coef = sch.coefficient_array()
     t0 = time.perf_counter()
@@ -459,7 +458,7 @@ def simulate_batch(
     D = np.empty((n, nsave, 3, 3))
     Dp = np.empty((n, nsave, 3, 3))
     status = np.zeros(n, dtype=np.int64)
-    info = np.zeros((n, 2))
+    info = np.zeros((n, 3))
     kind = "parallel" if parallel else "serial"
     _ensure_compiled(kind)
     fn = K.run_batch_parallel if parallel else K.run_batch_serial

@@ -7,11 +7,13 @@ kernel code) and, for the RATTLE family, by ``coefficients``: one step of the sc
 composition of RATTLE steps of sizes ``coefficients[k] * dt``.
 
 ``limit_factor`` turns the body angular velocity |W| (rad/s) at a failing state into the
-step-size estimate h_max = limit_factor / |W| quoted in :class:`StepSizeError`.
+step-size estimate h_max ~ limit_factor / |W| quoted in :class:`StepSizeError` (see
+:meth:`Scheme.h_max`, which also accounts for the torque's half-kick).
 """
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 import numpy as np
@@ -32,6 +34,16 @@ class Scheme:
         return np.array(cls.coefficients, dtype=float)
 
     @classmethod
-    def h_max(cls, omega_norm: float) -> float:
-        """Estimated largest step at body angular speed ``omega_norm`` (rad/s)."""
-        return float("inf") if omega_norm == 0 else cls.limit_factor / omega_norm
+    def h_max(cls, omega_norm: float, alpha_norm: float = 0.0) -> float:
+        """Estimated largest step at body angular speed |W| = ``omega_norm`` (rad/s) and
+        angular acceleration |Ibar^{-1} tau| = ``alpha_norm`` (rad/s^2).
+
+        RATTLE's sub-step of size c h must satisfy c h |pi|/I < 1 for a principal-axis spin,
+        with pi = Pi + c h/2 tau the half-kicked momentum, i.e. y |W| + y^2 alpha/2 < 1 for
+        y = c h; its root y = 2/(|W| + sqrt(|W|^2 + 2 alpha)) (= 1/|W| without torque),
+        divided by c (``limit_factor`` = 1/c, times 2 for energy-momentum).
+        """
+        root = math.sqrt(omega_norm * omega_norm + 2.0 * alpha_norm)
+        if omega_norm + root == 0.0:
+            return float("inf")
+        return cls.limit_factor * 2.0 / (omega_norm + root)

@@ -52,7 +52,10 @@ class Rattle6(Scheme):
     Chosen over Yoshida's 7-stage order-6 solution A (largest coefficient 1.318) because its
     error constant is much smaller and its largest sub-step is only 0.799 h, so its
     step-size limit (0.799 h |W| < 1) is even looser than that of a single RATTLE step.
-    Inherits the structure of RATTLE as :class:`Rattle4` does. Cost: 9 RATTLE steps.
+    Inherits the structure of RATTLE as :class:`Rattle4` does: symplectic, time-reversible,
+    conserves the angular momentum (its vertical component under gravity) and the
+    constraints to round-off, and the energy of the torque-free body to round-off; with
+    gravity the energy error is bounded, O(h^6). Cost: 9 RATTLE steps.
     """
 
     name = "rattle6"
