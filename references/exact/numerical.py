@@ -1,0 +1,189 @@
+"""High-accuracy numerical reference for any scenario (free or pivoted, any body), with its
+own error estimate.
+
+Equations (body axes): I_p W' = tau - W x (I_p W), with I_p the inertia about the centre of mass
+(free body) or about the pivot, I + m(|c|^2 1 - c c^T) (pivoted body, c = pivot in body axes
+relative to the centre of mass), and tau the gravity torque about the pivot,
+tau = (-c) x (m R^T g) (zero for a free body: uniform gravity does not torque about the centre
+of mass). Attitude by the unit quaternion q (w, x, y, z), q' = 1/2 q (0, W). The quaternion is
+integrated as it is (its norm drifts only by the integration error) and normalised when
+converted to R for the torque and for output: this re-normalisation happens only inside the
+reference. A free body's centre of mass follows the exact parabola x0 + v0 t + g t^2/2; a
+pivoted body's follows from the rotation, x_G = -R c.
+
+Integrator: DOP853 (scipy.integrate.solve_ivp, Dormand-Prince 8(5,3)) with dense output at the
+requested times, rtol = 1e-13 and atol = rtol times the scale of each component.
+
+Error estimate: the problem is solved four times: at rtol, 10 rtol and rtol/3 (truncation), and
+at rtol from initial rates perturbed by sqrt(nstep) eps |W| (round-off: a perturbation of the
+size of the round-off accumulated over nstep steps, propagated by the problem's own
+conditioning). The largest difference between the rtol solution and the others, and among the
+three tolerances (angle of R_a^T R_b, rad, over the saved times) is reported as ``accuracy``;
+the largest body-rate difference as ``omega_accuracy``; the solution returned is the one at
+rtol. Where truncation dominates, DOP853's error scales about linearly with the tolerance and
+the 10 rtol run bounds the others with a margin. Near an unstable motion (the Dzhanibekov
+separatrix) all runs sit on a round-off floor (~1e-11 .. 1e-10, numerics.md section 4) with
+nearly independent errors; there the tolerance spread alone was measured to fall below the true
+error by up to 2x, which is why the round-off probe is added. It is an estimate, not a bound;
+the tests check it against the closed forms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from references.exact._util import EPS, rotation_angle
+
+RTOL = 1e-13
+
+
+def quat_to_rotation(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices of quaternions (n, 4) (w, x, y, z), normalised first: (n, 3, 3)."""
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+
+
+def rotation_to_quat(R: np.ndarray) -> np.ndarray:
+    """A unit quaternion (w, x, y, z) of one rotation matrix (Shepperd's method)."""
+    tr = np.trace(R)
+    d = np.array([tr, R[0, 0], R[1, 1], R[2, 2]])
+    i = int(np.argmax(d))
+    if i == 0:
+        w = 0.5 * math.sqrt(1 + tr)
+        q = [
+            w,
+            (R[2, 1] - R[1, 2]) / (4 * w),
+            (R[0, 2] - R[2, 0]) / (4 * w),
+            (R[1, 0] - R[0, 1]) / (4 * w),
+        ]
+    else:
+        j, k = i % 3, (i + 1) % 3  # body index of the other two (0-based: i-1 is the largest)
+        a = i - 1
+        s = 0.5 * math.sqrt(1 + 2 * R[a, a] - tr)
+        v = [0.0, 0.0, 0.0]
+        v[a] = s
+        v[j] = (R[j, a] + R[a, j]) / (4 * s)
+        v[k] = (R[k, a] + R[a, k]) / (4 * s)
+        w = (R[k, j] - R[j, k]) / (4 * s)
+        q = [w, *v]
+    q = np.array(q)
+    return q / np.linalg.norm(q)
+
+
+@dataclass
+class NumericalSolution:
+    t: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+    accuracy: float
+    omega_accuracy: float
+    nfev: int
+
+
+def _solve(Ip, Ip_inv, torque_arm_mg, y0, t_eval, rtol, scale):
+    Ip = np.asarray(Ip)
+    a = torque_arm_mg  # tau = (-c) x (m R^T g) = cross(-c, R^T (m g)) : a = (-c, m g)
+    c_neg, mg = a
+    has_torque = c_neg is not None and bool(np.any(c_neg != 0)) and bool(np.any(mg != 0))
+    I00, I01, I02, I10, I11, I12, I20, I21, I22 = Ip.ravel()
+    J00, J01, J02, J10, J11, J12, J20, J21, J22 = Ip_inv.ravel()
+    if has_torque:
+        cx, cy, cz = c_neg
+        gx, gy, gz = mg
+
+    def rhs(_t, y):
+        w1, w2, w3, qw, qx, qy, qz = y
+        # angular momentum about the pivot / centre of mass, and gyroscopic torque -W x (Ip W)
+        p1 = I00 * w1 + I01 * w2 + I02 * w3
+        p2 = I10 * w1 + I11 * w2 + I12 * w3
+        p3 = I20 * w1 + I21 * w2 + I22 * w3
+        t1 = -(w2 * p3 - w3 * p2)
+        t2 = -(w3 * p1 - w1 * p3)
+        t3 = -(w1 * p2 - w2 * p1)
+        if has_torque:
+            n = qw * qw + qx * qx + qy * qy + qz * qz
+            s = 2.0 / n
+            # R^T (m g): rows of R^T are the columns of R
+            b1 = (1 - s * (qy * qy + qz * qz)) * gx + s * (qx * qy + qw * qz) * gy
+            b1 += s * (qx * qz - qw * qy) * gz
+            b2 = s * (qx * qy - qw * qz) * gx + (1 - s * (qx * qx + qz * qz)) * gy
+            b2 += s * (qy * qz + qw * qx) * gz
+            b3 = s * (qx * qz + qw * qy) * gx + s * (qy * qz - qw * qx) * gy
+            b3 += (1 - s * (qx * qx + qy * qy)) * gz
+            t1 += cy * b3 - cz * b2
+            t2 += cz * b1 - cx * b3
+            t3 += cx * b2 - cy * b1
+        return [
+            J00 * t1 + J01 * t2 + J02 * t3,
+            J10 * t1 + J11 * t2 + J12 * t3,
+            J20 * t1 + J21 * t2 + J22 * t3,
+            0.5 * (-qx * w1 - qy * w2 - qz * w3),
+            0.5 * (qw * w1 + qy * w3 - qz * w2),
+            0.5 * (qw * w2 + qz * w1 - qx * w3),
+            0.5 * (qw * w3 + qx * w2 - qy * w1),
+        ]
+
+    tmax = float(t_eval[-1])
+    if tmax == 0.0:
+        return np.array(y0)[:, None] * np.ones((1, len(t_eval))), 0
+    sol = solve_ivp(
+        rhs,
+        (0.0, tmax),
+        y0,
+        method="DOP853",
+        t_eval=t_eval,
+        rtol=rtol,
+        atol=rtol * scale,
+    )
+    if sol.status != 0:
+        raise RuntimeError(f"numerical reference failed: {sol.message}")
+    return sol.y, sol.nfev
+
+
+def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
+    """Rotation and body rates of ``scenario`` at the sorted, non-negative times ``t``, with the
+    error estimate described in the module docstring."""
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or len(t) == 0 or np.any(np.diff(t) < 0) or t[0] < 0:
+        raise ValueError("times must be a non-empty, sorted 1-D array of values >= 0")
+    Ip = scenario.pivot_inertia
+    Ip_inv = np.linalg.inv(Ip)
+    if scenario.pivot is not None:
+        arm = (-np.asarray(scenario.pivot), scenario.mass * np.asarray(scenario.gravity))
+    else:
+        arm = (None, None)
+    W0 = np.asarray(scenario.omega_body)
+    y0 = np.concatenate([W0, rotation_to_quat(np.asarray(scenario.rotation))])
+    # scale of W: the initial rate plus the rate a gravity torque can build up, sqrt(m g l/I)
+    wscale = float(np.linalg.norm(W0))
+    if arm[0] is not None:
+        tq = float(np.linalg.norm(arm[0]) * np.linalg.norm(arm[1]))
+        wscale += math.sqrt(tq / float(np.min(np.linalg.eigvalsh(Ip))))
+    wscale = max(wscale, 1e-12)
+    scale = np.array([wscale] * 3 + [1.0] * 4)
+    runs = [_solve(Ip, Ip_inv, arm, y0, t, f * rtol, scale) for f in (1.0, 10.0, 1.0 / 3.0)]
+    # round-off probe: W0 perturbed by sqrt(nstep) eps, the size of the accumulated round-off
+    nstep = max(runs[0][1] / 12.0, 1.0)  # DOP853: 12 evaluations per step
+    y0p = y0.copy()
+    y0p[:3] += math.sqrt(nstep) * EPS * wscale * np.array([1.0, -1.0, 1.0]) / math.sqrt(3.0)
+    runs.append(_solve(Ip, Ip_inv, arm, y0p, t, rtol, scale))
+    Rs = [quat_to_rotation(y[3:].T) for y, _ in runs]
+    Ws = [y[:3].T for y, _ in runs]
+    acc = wacc = 0.0
+    for i, j in ((0, 1), (0, 2), (1, 2), (0, 3)):
+        acc = max(acc, float(np.max(rotation_angle(Rs[i], Rs[j]))))
+        wacc = max(wacc, float(np.max(np.abs(Ws[i] - Ws[j]))))
+    nfev = sum(nf for _, nf in runs)
+    return NumericalSolution(t, Rs[0], Ws[0].copy(), acc, wacc, nfev)
