@@ -193,7 +193,7 @@ def test_semi_implicit_euler_engines_agree_through_a_flip(name, integrator):
     # Same algorithm (v += h a(q, v), gyroscopic term explicit; q by the exponential of the
     # new body rate) in four engines. Through the first Dzhanibekov flip (t = 18.5 s) their
     # differences are round-off amplified by the flip: engines.md measured 1e-11 .. 2e-9
-    # after 20 s (we measured 6e-13 here); the algorithm's own error is ~1e-2.
+    # after 20 s (here we measured 1e-12 .. 1.2e-11); the algorithm's own error is ~1e-2.
     sc = dzhanibekov(rotation=tilted_top().rotation, t_end=20.0)
     ref = _final("mujoco", "Euler", sc)
     tr = _final(name, integrator, sc)
@@ -205,7 +205,8 @@ def test_semi_implicit_euler_engines_agree_through_a_flip(name, integrator):
 
 @pytest.mark.parametrize("name,integrator", FIRST_ORDER_EXPLICIT)
 def test_semi_implicit_euler_engines_agree_on_a_heavy_top(name, integrator):
-    # engines.md: 1e-14 on a top after 2 s; 1e-12 leaves room for round-off of 2000 steps
+    # engines.md: 1e-14 on a top after 2 s (measured <= 8e-15); 1e-12 leaves room for
+    # round-off of 2000 steps
     sc = tilted_top(t_end=2.0)
     _assert_agree(_final("mujoco", "Euler", sc), _final(name, integrator, sc), 1e-12, name)
 
@@ -231,7 +232,8 @@ def test_implicit_gyroscopic_engines_agree_on_a_free_body(name, integrator):
     # On a free body MuJoCo implicitfast and discrete keep the gyroscopic derivative (same as
     # implicit), and Bullet's rigid body integrates its gyroscopic term implicitly in body
     # axes (default flag BT_ENABLE_GYROSCOPIC_FORCE_IMPLICIT_BODY, not exposed by pybullet):
-    # agreement to round-off shows that flag is what runs (measured 2.7e-13 after 5 s).
+    # agreement to round-off shows that flag is what runs (measured 2e-13 after 5 s; MuJoCo's
+    # three: 4e-17).
     sc = dzhanibekov(rotation=tilted_top().rotation, t_end=5.0)
     _assert_agree(_final("mujoco", "implicit", sc), _final(name, integrator, sc), 1e-10, name)
 
@@ -252,7 +254,7 @@ def test_mujoco_implicitfast_and_discrete_are_euler_on_a_ball_joint(integrator):
 @pytest.mark.parametrize("case", ["flip", "top"])
 def test_fourth_order_engines_agree(name, integrator, case):
     # MuJoCo's RK4 and our RKMK4 give the same numbers to round-off on rotations (measured
-    # <= 2e-14 after 5 s through the flip region, 5e-15 on the top after 2 s; engines.md
+    # <= 1.8e-14 after 5 s towards the flip, 5e-15 on the top after 2 s; engines.md
     # 1e-14): 1e-12 leaves room for round-off growth.
     sc = (
         dzhanibekov(rotation=tilted_top().rotation, t_end=5.0)
