@@ -37,9 +37,7 @@ def get_engine(name: str) -> type[Engine]:
     try:
         target = _REGISTRY[name]
     except KeyError:
-        raise KeyError(
-            f"unknown engine {name!r}; known engines: {', '.join(_REGISTRY)}"
-        ) from None
+        raise KeyError(f"unknown engine {name!r}; known engines: {', '.join(_REGISTRY)}") from None
     module, cls = target.split(":")
     return getattr(importlib.import_module(module), cls)
 

@@ -141,7 +141,7 @@ class Engine(ABC):
         names = ", ".join(i.name for i in cls.integrators)
         raise Unsupported(f"engine {cls.name!r} has no integrator {name!r}; it offers: {names}")
 
-    def check_supported(self, scenario, integrator: str) -> None:
+    def check_supported(self, scenario, integrator: str) -> None:  # noqa: B027 - optional hook
         """Raise :class:`Unsupported` with the reason if this scenario/integrator pair cannot
         be represented. The default accepts everything."""
 
