@@ -118,7 +118,8 @@ def body_problems(mass, inertia, field_prefix: str = "body") -> list[tuple]:
                     f"{field_prefix}.inertia",
                     list(inertia),
                     f"triangle inequality I_{i + 1} <= I_{j + 1} + I_{k + 1} violated "
-                    f"({I[i]!r} > {I[j] + I[k]!r}): no mass distribution has these moments",
+                    f"({float(I[i])!r} > {float(I[j] + I[k])!r}): no mass distribution has "
+                    "these moments",
                 )
             )
     if not probs and np.sum(J <= tol) >= 2:

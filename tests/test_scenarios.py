@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -348,6 +349,14 @@ def test_the_message_shows_the_value(tmp_path):
     with pytest.raises(ScenarioError) as err:
         scenarios.load(_write(tmp_path, text))
     assert "[1.0, 1.0, 2.5]" in str(err.value)
+    assert "(2.5 > 2.0)" in str(err.value) and "np." not in str(err.value)
+
+
+def test_the_documented_example_loads(tmp_path):
+    doc = (Path(__file__).parents[1] / "docs" / "scenarios.md").read_text()
+    example = doc.split("```toml\n")[1].split("```")[0]
+    sc = scenarios.load(_write(tmp_path, example, name="my_top.toml"))
+    assert sc.name == "my_top" and sc.pivoted and sc.dt_sweep == (4e-3, 2e-3, 1e-3)
 
 
 def test_invalid_toml_syntax(tmp_path):
