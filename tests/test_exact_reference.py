@@ -181,5 +181,8 @@ def test_single_time_and_repeated_times():
     sc = scenarios.load("simo_wong_top")
     ref = reference_trajectory(sc, [0.0])
     assert len(ref) == 1 and ref.energy[0] == pytest.approx(1269.9750052078993249, rel=1e-15)
-    ref = reference_trajectory(scenarios.load("dzhanibekov"), [1.0, 1.0, 2.0])
-    assert np.array_equal(ref.rotation[0], ref.rotation[1])
+    for name in ("dzhanibekov", "heavy_top"):  # closed form, numerical
+        ref = reference_trajectory(scenarios.load(name), [0.0, 0.1, 0.1, 0.2])
+        assert np.array_equal(ref.rotation[1], ref.rotation[2]) and len(ref) == 4
+    ref = reference_trajectory(scenarios.load("heavy_top"), [0.0, 0.0])
+    assert np.array_equal(ref.omega_body[1], scenarios.load("heavy_top").omega_body)

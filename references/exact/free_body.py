@@ -255,6 +255,8 @@ class FreeBody:
         err = 16.0 * EPS * (1.0 + wmax * tmax)
         if math.isfinite(self.period) and self.case in ("A", "B"):
             err += self.quadrature_error * (1.0 + tmax / self.period)
+        elif self.case == "separatrix":
+            err += self._G.error / self.lam  # panel estimate of the last evaluation
         return err
 
 

@@ -155,9 +155,10 @@ def _solve(Ip, Ip_inv, torque_arm_mg, y0, t_eval, rtol, scale):
 def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
     """Rotation and body rates of ``scenario`` at the sorted, non-negative times ``t``, with the
     error estimate described in the module docstring."""
-    t = np.asarray(t, dtype=float)
-    if t.ndim != 1 or len(t) == 0 or np.any(np.diff(t) < 0) or t[0] < 0:
+    t_all = np.asarray(t, dtype=float)
+    if t_all.ndim != 1 or len(t_all) == 0 or np.any(np.diff(t_all) < 0) or t_all[0] < 0:
         raise ValueError("times must be a non-empty, sorted 1-D array of values >= 0")
+    t, inverse = np.unique(t_all, return_inverse=True)  # solve_ivp wants distinct times
     Ip = scenario.pivot_inertia
     Ip_inv = np.linalg.inv(Ip)
     if scenario.pivot is not None:
@@ -186,4 +187,4 @@ def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
         acc = max(acc, float(np.max(rotation_angle(Rs[i], Rs[j]))))
         wacc = max(wacc, float(np.max(np.abs(Ws[i] - Ws[j]))))
     nfev = sum(nf for _, nf in runs)
-    return NumericalSolution(t, Rs[0], Ws[0].copy(), acc, wacc, nfev)
+    return NumericalSolution(t_all, Rs[0][inverse], Ws[0][inverse], acc, wacc, nfev)
