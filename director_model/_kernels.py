@@ -88,7 +88,10 @@ def _dmv_solve(P, b0, b1, b2):
     a quadratic equation in three unknowns (no square root), solved by Newton with
     Jacobian Ibar + hat(w) Ibar - hat(Ibar w) - 2 b w^T. For a spin about a principal axis
     it reads sin(theta) = h |W|: the branch through Q = 1 folds at theta = 90 deg (|w| = 1),
-    beyond which the step is refused. Returns (status, w0, w1, w2).
+    beyond which the step is refused. Returns (status, w0, w1, w2, c0, c1, c2, q) with
+    c = w x Ibar w and q = 1 + |w|^2 at the solution, which give the new momentum cheaply:
+    Q^T pi = vee(Jbar Q - Q^T Jbar)/h = 2 (Ibar w - c)/(q h) and pi = 2 (Ibar w + c)/(q h),
+    so Q^T pi = pi - 4 c/(q h).
     """
     I00 = P[10]
     I01 = P[11]
@@ -134,7 +137,7 @@ def _dmv_solve(P, b0, b1, b2):
         if max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc:
             break
         if not sc < math.inf:
-            return FAIL_NONFINITE, w0, w1, w2
+            return FAIL_NONFINITE, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
         # Jacobian K = Ibar + hat(w) Ibar - hat(u) - 2 b w^T
         t0 = 2.0 * b0
         t1 = 2.0 * b1
@@ -155,7 +158,7 @@ def _dmv_solve(P, b0, b1, b2):
         if not det > 0.0:
             # the branch through Q = 1 has det > 0 up to its first fold; det <= 0 means the
             # step is past the solvability limit or Newton is heading to another branch
-            return FAIL_BRANCH, w0, w1, w2
+            return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
         C10 = K02 * K21 - K01 * K22
         C11 = K00 * K22 - K02 * K20
         C12 = K01 * K20 - K00 * K21
@@ -170,14 +173,23 @@ def _dmv_solve(P, b0, b1, b2):
         w1 -= d1
         w2 -= d2
         if max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2)):
-            break  # the correction is below one ulp of w: Newton has stagnated at round-off
+            # the correction is below one ulp of w: Newton has stagnated at round-off;
+            # c = w x Ibar w and q at the final w for the momentum update
+            u0 = I00 * w0 + I01 * w1 + I02 * w2
+            u1 = I10 * w0 + I11 * w1 + I12 * w2
+            u2 = I20 * w0 + I21 * w1 + I22 * w2
+            q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+            c0 = w1 * u2 - w2 * u1
+            c1 = w2 * u0 - w0 * u2
+            c2 = w0 * u1 - w1 * u0
+            break
     else:
-        return FAIL_NEWTON, w0, w1, w2
+        return FAIL_NEWTON, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
     if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
         # rotation angle of Q >= 90 degrees: for a principal-axis spin this is exactly the
         # second branch of sin(theta) = h|W|, theta > pi/2; refused in general (conservative)
-        return FAIL_BRANCH, w0, w1, w2
-    return OK, w0, w1, w2
+        return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
+    return OK, w0, w1, w2, c0, c1, c2, q
 
 
 @njit(cache=True)
@@ -225,7 +237,7 @@ def _dmv_solve_diag(P, b0, b1, b2):
         if max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc:
             break
         if not sc < math.inf:
-            return FAIL_NONFINITE, w0, w1, w2
+            return FAIL_NONFINITE, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
         t0 = 2.0 * b0
         t1 = 2.0 * b1
         t2 = 2.0 * b2
@@ -243,7 +255,7 @@ def _dmv_solve_diag(P, b0, b1, b2):
         C02 = K10 * K21 - K11 * K20
         det = K00 * C00 + K01 * C01 + K02 * C02
         if not det > 0.0:
-            return FAIL_BRANCH, w0, w1, w2
+            return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
         C10 = K02 * K21 - K01 * K22
         C11 = K00 * K22 - K02 * K20
         C12 = K01 * K20 - K00 * K21
@@ -258,12 +270,17 @@ def _dmv_solve_diag(P, b0, b1, b2):
         w1 -= d1
         w2 -= d2
         if max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2)):
+            # stagnated at round-off; c and q at the final w for the momentum update
+            q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+            c0 = e0 * w1 * w2
+            c1 = e1 * w2 * w0
+            c2 = e2 * w0 * w1
             break
     else:
-        return FAIL_NEWTON, w0, w1, w2
+        return FAIL_NEWTON, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
     if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
-        return FAIL_BRANCH, w0, w1, w2
-    return OK, w0, w1, w2
+        return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
+    return OK, w0, w1, w2, c0, c1, c2, q
 
 
 @njit(cache=True)
@@ -316,7 +333,7 @@ def _rattle_init(P, g, S):
 
 @njit(cache=True)
 def _rattle_substep(P, g, S, h):
-    """One RATTLE step of size h (h may be negative inside a composition).
+    """One RATTLE step of size h (h may be negative inside a composition, never 0).
 
     pi = Pi_n + h/2 tau_n; solve Q Jbar - Jbar Q^T = h hat(pi); D_{n+1} = D_n Q;
     Pi_{n+1} = Q^T pi + h/2 tau_{n+1}; free centre of mass x += h v + h^2/2 g, v += h g.
@@ -326,9 +343,9 @@ def _rattle_substep(P, g, S, h):
     p1 = S[25] + hh * S[28]
     p2 = S[26] + hh * S[29]
     if P[32] != 0.0:
-        st, w0, w1, w2 = _dmv_solve_diag(P, hh * p0, hh * p1, hh * p2)
+        st, w0, w1, w2, c0, c1, c2, q = _dmv_solve_diag(P, hh * p0, hh * p1, hh * p2)
     else:
-        st, w0, w1, w2 = _dmv_solve(P, hh * p0, hh * p1, hh * p2)
+        st, w0, w1, w2, c0, c1, c2, q = _dmv_solve(P, hh * p0, hh * p1, hh * p2)
     if st != OK:
         return st
     # Q = 1 + f (hat(w) + hat(w)^2), f = 2/(1 + |w|^2) (Cayley form of the quaternion)
@@ -356,9 +373,12 @@ def _rattle_substep(P, g, S, h):
         S[7 + 3 * r] = a0 * Q01 + a1 * Q11 + a2 * Q21
         S[8 + 3 * r] = a0 * Q02 + a1 * Q12 + a2 * Q22
     _gravity_torque(P, g, S)
-    n0 = Q00 * p0 + Q10 * p1 + Q20 * p2 + hh * S[27]
-    n1 = Q01 * p0 + Q11 * p1 + Q21 * p2 + hh * S[28]
-    n2 = Q02 * p0 + Q12 * p1 + Q22 * p2 + hh * S[29]
+    # Q^T pi = pi - 4 c/(q h) (see _dmv_solve): the same quantity as the matrix product, with
+    # the small change of the momentum computed directly, off the latency chain of Q
+    r = 4.0 / (q * h)
+    n0 = p0 - r * c0 + hh * S[27]
+    n1 = p1 - r * c1 + hh * S[28]
+    n2 = p2 - r * c2 + hh * S[29]
     if not (abs(n0) + abs(n1) + abs(n2)) < math.inf:
         return FAIL_NONFINITE
     S[24] = n0

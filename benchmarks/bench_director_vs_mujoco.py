@@ -1,0 +1,157 @@
+"""Per-step cost of director_model's schemes against MuJoCo's own C loop, side by side.
+
+The body is the Dzhanibekov body of shared/docs/numerics.md: m = 1 kg, principal moments
+I = (2, 3, 4) kg m^2, no gravity, W0 = (0.01, 2, 0.01) rad/s in body axes, R0 = identity.
+MuJoCo gets it as a free body with an ellipsoid geom and an explicit ``<inertial>``
+(diaginertia = I), and is stepped with ``mujoco.mj_step(m, d, nstep=N)`` (the loop runs in C).
+director_model runs its compiled loop with only the first and last states saved.
+
+Every figure is the best of ``--repeat`` runs (the machine is shared and noisy, +-30 %).
+Compilation is excluded (director_model compiles, or loads its on-disk cache, before timing;
+``Trajectory.wall_time_s`` is the stepping alone). Also printed: each method's error in R at
+t = 10 s against the numerics.md test vector, so that cost is read next to accuracy.
+
+Usage: python benchmarks/bench_director_vs_mujoco.py [--quick] [--repeat 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+
+import director_model as dm
+
+I = (2.0, 3.0, 4.0)
+W0 = (0.01, 2.0, 0.01)
+R10 = np.array(
+    [
+        [0.601069719933, -0.479226289446, 0.639575918311],
+        [-0.541629680940, 0.344194223927, 0.766920872672],
+        [-0.587666980955, -0.807386214720, -0.052678456472],
+    ]
+)
+
+MJCF = """
+<mujoco model="dzhanibekov">
+  <option timestep="{dt}" gravity="0 0 0" integrator="{integrator}"/>
+  <worldbody>
+    <body name="body">
+      <freejoint/>
+      <geom type="ellipsoid" size="0.1 0.2 0.3"/>
+      <inertial pos="0 0 0" mass="1" diaginertia="2 3 4"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def mujoco_runs(integrator: str, dt: float, nstep: int, repeat: int):
+    """Best time per step of mj_step(m, d, nstep) and the error in R(10)."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_string(MJCF.format(dt=dt, integrator=integrator))
+    d = mujoco.MjData(m)
+    best = np.inf
+    for _ in range(repeat):
+        mujoco.mj_resetData(m, d)
+        d.qvel[3:6] = W0  # free joint: angular velocity in the body (local) frame
+        t0 = time.perf_counter()
+        mujoco.mj_step(m, d, nstep=nstep)
+        best = min(best, (time.perf_counter() - t0) / nstep)
+    # accuracy at t = 10 s with the same dt
+    mujoco.mj_resetData(m, d)
+    d.qvel[3:6] = W0
+    mujoco.mj_step(m, d, nstep=int(round(10.0 / dt)))
+    R = np.empty(9)
+    mujoco.mju_quat2Mat(R, d.qpos[3:7])  # MuJoCo quaternions are (w, x, y, z)
+    err = float(np.max(np.abs(R.reshape(3, 3) - R10)))
+    return best, err, mujoco.__version__
+
+
+def director_runs(scheme: str, dt: float, nstep: int, repeat: int):
+    best = np.inf
+    for _ in range(repeat):
+        tr = dm.simulate(1.0, I, rotation=np.eye(3), omega_body=W0, scheme=scheme, dt=dt,
+                         t_end=nstep * dt, save_every=10**12)  # fmt: skip
+        best = min(best, tr.wall_time_s / tr.nstep)
+    tr = dm.simulate(1.0, I, rotation=np.eye(3), omega_body=W0, scheme=scheme, dt=dt,
+                     t_end=10.0, save_every=10**12)  # fmt: skip
+    err = float(np.max(np.abs(tr.rotation[-1] - R10)))
+    return best, err
+
+
+def batch_rate(scheme: str, nbody: int, nstep: int, dt: float, repeat: int, parallel: bool):
+    """Best body-steps per second of simulate_batch over nbody different initial states."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(0)
+    R = Rotation.random(nbody, random_state=1).as_matrix()
+    W = np.asarray(W0) + 0.1 * rng.normal(size=(nbody, 3))
+    best = 0.0
+    for _ in range(repeat):
+        bt = dm.simulate_batch(1.0, I, rotation=R, omega_body=W, scheme=scheme, dt=dt,
+                               t_end=nstep * dt, save_every=10**12, parallel=parallel)  # fmt: skip
+        best = max(best, nbody * nstep / bt.wall_time_s)
+    return best
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer steps (a smoke run)")
+    ap.add_argument("--repeat", type=int, default=7, help="repeats; the best is kept")
+    ap.add_argument("--dt", type=float, default=1e-3, help="time step, s")
+    args = ap.parse_args(argv)
+    dt = args.dt
+    nstep = 20_000 if args.quick else 200_000
+    nbody, nstep_batch = (2_000, 200) if args.quick else (10_000, 1_000)
+    import numba
+
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+          f"numba {numba.__version__} ({numba.config.NUMBA_NUM_THREADS} threads)")  # fmt: skip
+    print(f"body: I = {I}, W0 = {W0}, no gravity; dt = {dt:g} s; {nstep} steps per timing; "
+          f"best of {args.repeat}")  # fmt: skip
+    dm.simulate(1.0, I, rotation=np.eye(3), omega_body=W0, dt=dt, t_end=dt)  # compile/load
+
+    rows = []
+    for integ in ("Euler", "implicitfast", "RK4"):
+        try:
+            cost, err, ver = mujoco_runs(integ, dt, nstep, args.repeat)
+        except ImportError:
+            print("mujoco not installed: MuJoCo rows skipped")
+            break
+        rows.append((f"MuJoCo {ver} {integ} (mj_step nstep=N)", cost, err))
+    for scheme in dm.SCHEMES:
+        n = nstep if scheme != "energy_momentum" else max(nstep // 20, 1000)
+        cost, err = director_runs(scheme, dt, n, args.repeat)
+        rows.append((f"director_model {scheme}", cost, err))
+
+    print()
+    print("Per-step cost, one free body (loop in compiled code)")
+    print(f"| {'method':44s} | {'us/step':>9s} | {'err R(10)':>9s} |")
+    print(f"|{'-' * 46}|{'-' * 11}|{'-' * 11}|")
+    for name, cost, err in rows:
+        print(f"| {name:44s} | {cost * 1e6:9.4f} | {err:9.2e} |")
+    cost = {name: c for name, c, _ in rows}
+    r = cost.get("director_model rattle")
+    print()
+    print("Ratios (MuJoCo time per step / rattle time per step)")
+    for name in cost:
+        if name.startswith("MuJoCo"):
+            print(f"  {name:44s} {cost[name] / r:6.1f} x")
+
+    print()
+    print(f"Batched path: {nbody} bodies x {nstep_batch} steps (simulate_batch)")
+    for scheme in ("rattle", "rattle4"):
+        for par in (True, False):
+            rate = batch_rate(scheme, nbody, nstep_batch, dt, args.repeat, par)
+            label = "parallel" if par else "1 thread"
+            print(f"  {scheme:8s} {label:8s}: {rate:10.3e} body-steps/s "
+                  f"({1e9 / rate:6.1f} ns per body-step)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
