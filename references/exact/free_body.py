@@ -173,7 +173,7 @@ class FreeBody:
             kp = math.sqrt(self.m1)
             if k > 0:
                 mcn = math.atan2(k, kp) / k
-                msn = 0.5 * math.log((1.0 + k) ** 2 / self.m1) / k
+                msn = (math.log1p(k) - 0.5 * math.log(self.m1)) / k  # atanh(k)/k
             else:
                 mcn = msn = 1.0
             means = [Aa * mcn, Ab * msn, Ac * 0.5 * math.pi]
