@@ -138,7 +138,7 @@ def test_cone_top_steady_precession():
 
 def test_cone_top_agrees_with_the_numerical_reference():
     # 0.5 s = 80 rad of spin; measured agreement 1.2e-10 over 2 s (the numerical reference
-    # estimates its own error at 1.3e-9 there: |W| = 141 rad/s is its hardest case)
+    # estimates its own error at 2.7e-9 there: |W| = 141 rad/s is its hardest case)
     sc = scenarios.load("cone_top")
     err = _compare_with_numerical(sc, np.linspace(0.0, 0.5, 21))
     assert err < 1e-9

@@ -15,8 +15,8 @@ Reference kinds (``scenario.reference``, or the ``kind`` argument):
 ``steady_precession``  closed-form steady precession of a Lagrange top,
                        R(t) = Rot(up, w_p t) R_0 Rot(e_k, w_s t) (:mod:`.lagrange_top`); the
                        state is verified to be a steady precession, an error otherwise.
-``numerical``          DOP853 at rtol 1e-13 with an error estimate from three tolerances and a
-                       round-off probe
+``numerical``          DOP853 at rtol 1e-13 with an error estimate from four runs (10 rtol,
+                       step halving, a round-off probe)
                        (:mod:`references.exact.numerical`); any scenario.
 ``lagrange_top``       (argument only, not a scenario-file value) the quadrature solution of a
                        symmetric heavy top pivoted on its axis (:mod:`.lagrange_top`).
@@ -26,9 +26,9 @@ Reference kinds (``scenario.reference``, or the ``kind`` argument):
 
 ``accuracy`` is the estimated maximum error of the attitude over the returned times, in rad
 (the angle of R_ref^T R_true); ``omega_accuracy`` that of the body rates, rad/s. For the
-closed forms they are round-off and quadrature estimates; for the numerical reference, the
-spread of three solutions at different tolerances. Energy and angular momentum are computed
-by :meth:`Trajectory.from_states`, exactly as for every engine.
+closed forms they are round-off and quadrature estimates; for the numerical reference, twice
+the spread of four solutions (see :mod:`references.exact.numerical`). Energy and angular
+momentum are computed by :meth:`Trajectory.from_states`, exactly as for every engine.
 """
 
 from __future__ import annotations
@@ -173,7 +173,8 @@ def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTraje
         acc = sol.accuracy
         method = (
             f"DOP853 (solve_ivp) at rtol {numerical.RTOL:g} on Euler's equations + quaternion "
-            f"kinematics; error estimate from rtol x (1, 10, 1/3) and a round-off probe; "
+            f"kinematics; error estimate: 2 x spread of runs at 10 rtol, halved steps and "
+            f"perturbed by the round-off; "
             f"{sol.nfev} evaluations"
         )
         base = Trajectory.from_states(scenario, t, x, v, R, W)
