@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: Reference kinds a scenario may request; "auto" lets the suite pick (see references).
-REFERENCE_KINDS = ("auto", "free_body", "steady_precession", "numerical")
+REFERENCE_KINDS = ("auto", "free_body", "lagrange_top", "steady_precession", "numerical")
 
 
 def _frozen(a) -> np.ndarray:
@@ -103,6 +103,22 @@ class Scenario:
             if I[i] == I[j] and I[k] != I[i]:
                 return k
         return None
+
+    @property
+    def top_axis(self) -> int | None:
+        """For a pivoted body: the body axis through the pivot and the centre of mass about
+        which the moments about the pivot are symmetric (the spin axis of a Lagrange top), or
+        None. A body with equal moments about its centre of mass (the library's cone top) has
+        one all the same: the line from the pivot to its centre of mass."""
+        if self.pivot is None:
+            return None
+        on_axis = [k for k in range(3) if self.pivot[k] != 0.0]
+        if len(on_axis) != 1:
+            return None  # pivot at the centre of mass or off the principal axes
+        k = on_axis[0]
+        i, j = [a for a in range(3) if a != k]
+        I = np.diag(self.pivot_inertia)
+        return k if I[i] == I[j] else None
 
     @property
     def pivot_inertia(self) -> np.ndarray:

@@ -1,0 +1,158 @@
+"""The runner, end to end with real engines: rows, files, failures as rows, interruption and
+resume, the CLI on a user's file, and the report rendered in a real browser."""
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import scenarios
+from reports.cli import main
+from reports.runner import RunSpec, plan, read_results, run_suite
+
+SHORT = 1.0  # s: long enough for every metric, short enough for a unit test
+
+
+@pytest.fixture(scope="module")
+def dzh():
+    return scenarios.load("dzhanibekov").replace(t_end=SHORT, dt_sweep=(4e-3, 2e-3))
+
+
+def specs_for(sc, engines=("director", "exact", "mujoco"), integrators=("rattle", "reference",
+                                                                         "Euler")):
+    return plan([sc], engines, integrators)
+
+
+def test_rows_files_and_report(tmp_path, dzh):
+    df, n = run_suite(specs_for(dzh), tmp_path, progress=False)
+    # director rattle and mujoco Euler at 3 dt each, exact once
+    assert n == 7 and len(df) == 7
+    assert set(df["status"]) == {"ok"}
+    for _, r in df.iterrows():
+        assert (tmp_path / r["trajectory"]).exists()
+        assert r["scenario_hash"] == dzh.scenario_hash and r["engine_version"]
+    # the fitted order of RATTLE on the sweep is its declared 2 (tolerance 0.15 as issue 2)
+    rattle = df[df["integrator"] == "rattle"]
+    assert rattle["convergence_order"].iloc[0] == pytest.approx(2.0, abs=0.15)
+    euler = df[df["integrator"] == "Euler"]
+    assert euler["convergence_order"].iloc[0] == pytest.approx(1.0, abs=0.15)
+    from reports.report import build_report
+
+    rep = build_report(tmp_path)
+    md = rep["markdown"].read_text()
+    assert "### dzhanibekov, dt = 0.001 s: structure-preserving director" in md
+    html = rep["html"].read_text()
+    assert html.count("data:image/png;base64,") >= 5 and "src='plots/" not in html
+
+
+def test_failing_run_is_a_row_and_the_rest_go_on(tmp_path):
+    """h |W| = 0.5 * 2.0 = 1.0: RATTLE has no solution (numerics.md, h|W| < 1); the row says
+    failed with the time and the step-size limit, and MuJoCo's run still happens."""
+    sc = scenarios.load("major_axis_spin").replace(t_end=2.0, dt_sweep=())
+    specs = [RunSpec(sc, "director", "rattle", 0.5), RunSpec(sc, "mujoco", "Euler", 0.5)]
+    df, _ = run_suite(specs, tmp_path, progress=False)
+    bad = df[df["engine"] == "director"].iloc[0]
+    assert bad["status"] == "failed"
+    assert "t = 0" in bad["message"] and "dt" in bad["message"]
+    assert df[df["engine"] == "mujoco"]["status"].iloc[0] == "ok"
+
+
+def test_unknown_integrator_is_a_row(tmp_path, dzh):
+    df, _ = run_suite([RunSpec(dzh, "mujoco", "RK45", 1e-3)], tmp_path, progress=False)
+    assert df["status"].iloc[0] == "unsupported"
+    assert "RK4" in df["message"].iloc[0]  # lists what the engine does offer
+
+
+def test_interruption_keeps_finished_runs_and_resume_skips_them(tmp_path, dzh):
+    specs = specs_for(dzh)
+
+    def interrupted(fn, todo):
+        for i, spec in enumerate(todo):
+            if i == 3:
+                raise KeyboardInterrupt
+            yield fn(spec)
+
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(specs, tmp_path, progress=False, mapper=interrupted)
+    assert len(read_results(tmp_path)) == 3
+    seen = []
+
+    def recording(fn, todo):
+        for spec in todo:
+            seen.append(spec.key)
+            yield fn(spec)
+
+    df, n = run_suite(specs, tmp_path, progress=False, mapper=recording)
+    assert n == len(specs) - 3 and len(seen) == n and len(df) == len(specs)
+    # --redo runs everything again
+    df, n = run_suite(specs, tmp_path, progress=False, redo=True)
+    assert n == len(specs) and len(df) == len(specs)
+
+
+def test_cli_run_on_a_user_file(tmp_path, capsys):
+    src = Path(scenarios.library_path()) / "free_tumbling.toml"
+    user = tmp_path / "my_body.toml"
+    text = src.read_text().replace('name = "free_tumbling"', 'name = "my_body"')
+    user.write_text(text)
+    out = tmp_path / "out"
+    code = main(["run", str(user), "--engines", "director", "--integrators", "rattle4",
+                 "--t-end", "1", "--no-sweep", "--out", str(out), "--quiet", "--jobs", "1"])
+    assert code == 0
+    df = read_results(out)
+    assert list(df["scenario"]) == ["my_body"] and df["status"].iloc[0] == "ok"
+    assert (out / "provenance.json").exists()
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["engines"]["mujoco"]
+
+
+def test_cli_malformed_file_names_file_field_and_rule(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    src = Path(scenarios.library_path()) / "free_tumbling.toml"
+    bad.write_text(src.read_text().replace("[body]\n", "[body]\ncolour = 3\n"))
+    assert main(["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "colour" in err
+    assert main(["run", "no_such_scenario", "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "dzhanibekov" in capsys.readouterr().err  # lists the available names
+
+
+def test_parallel_pool_gives_the_serial_rows(tmp_path, dzh):
+    """Runs are deterministic: a 2-process pool writes the same metrics as a serial run."""
+    from reports.parallel import process_pool
+
+    specs = specs_for(dzh, engines=("director", "mujoco"))
+    a, _ = run_suite(specs, tmp_path / "a", progress=False)
+    b, _ = run_suite(specs, tmp_path / "b", progress=False, mapper=process_pool(2))
+    cols = ["scenario", "engine", "integrator", "dt", "status", "energy_drift_max",
+            "attitude_error_max", "omega_error_max", "momentum_drift_max"]
+    pd.testing.assert_frame_equal(a[cols], b[cols])
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed "
+                    "(apt-get install chromium) - the report is not rendered in a browser")
+def test_report_renders_in_headless_chromium(tmp_path, dzh):
+    run_suite(specs_for(dzh), tmp_path, progress=False)
+    from reports.report import build_report
+
+    rep = build_report(tmp_path)
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={tmp_path / 'profile'}"]
+    # The DOM after rendering: every table and every embedded plot is there
+    dom = subprocess.run([CHROMIUM, *flags, "--dump-dom", rep["html"].as_uri()],
+                         capture_output=True, text=True, timeout=120).stdout
+    assert dom.count("<table>") >= 4 and dom.count("data:image/png") >= 5
+    shot = tmp_path / "shot.png"
+    subprocess.run([CHROMIUM, *flags, f"--screenshot={shot}", "--window-size=1200,2400",
+                    rep["html"].as_uri()], capture_output=True, timeout=120)
+    from matplotlib.image import imread
+
+    img = imread(shot)
+    # A rendered page with tables and plots is not a blank (single-colour) image
+    assert img.shape[0] == 2400 and img[..., :3].std() > 0.05
