@@ -448,7 +448,7 @@ _PL = (0, 1, 2, 1, 2, 2)
 
 
 @njit(cache=True)
-def _em_step(P, g, S, h, A):
+def _em_step(P, g, S, h, A, M):
     """One energy-momentum midpoint step (Gonzalez 1996; Betsch & Steinmann 2001).
 
     Unknowns D1 = D_{n+1} (9) and mu = h^2/4 Lambda (6, symmetric):
@@ -457,76 +457,85 @@ def _em_step(P, g, S, h, A):
     then V1 = 2 (D1 - D0)/h - V0. F = -m g c^T is the exact (constant) director force of
     gravity for a pivoted body, zero for a free one. Newton on all 15 unknowns with the
     saddle-point matrix; M = Jbar (x) 1 is never inverted, so flat bodies are fine.
-    ``A`` is a (15, 16) work array.
+    Work arrays (no allocation per step): ``A`` (15, 16) for the Newton matrix, ``M``
+    (10, 3, 3) for D0, V0, D1, mu, Jbar, F, R1, D0 + D1, D1 - D0 - h V0, R2.
     """
-    J = P[1:10]
+    # M[0] = D0, M[1] = V0, M[2] = D1, M[3] = mu, M[4] = Jbar, M[5] = F
     m = P[0]
     piv = P[31] != 0.0
-    # constant director force of gravity (pivoted body): F[r, j] = -m g_r c_j
-    F = np.zeros((3, 3))
-    if piv:
-        for r in range(3):
-            for j in range(3):
-                F[r, j] = -m * g[r] * P[28 + j]
-    D0 = np.empty((3, 3))
-    V0 = np.empty((3, 3))
     for r in range(3):
         for j in range(3):
-            D0[r, j] = S[6 + 3 * r + j]
-            V0[r, j] = S[15 + 3 * r + j]
-    # predictor: D1 = D0 cay(h W), W = vee(skew(D0^T V0)); exact for a principal-axis spin
-    B = D0.T @ V0
-    a0 = 0.5 * h * (B[2, 1] - B[1, 2])
-    a1 = 0.5 * h * (B[0, 2] - B[2, 0])
-    a2 = 0.5 * h * (B[1, 0] - B[0, 1])
-    f = 4.0 / (4.0 + a0 * a0 + a1 * a1 + a2 * a2)
-    H = np.zeros((3, 3))
-    H[0, 1] = -a2
-    H[0, 2] = a1
-    H[1, 0] = a2
-    H[1, 2] = -a0
-    H[2, 0] = -a1
-    H[2, 1] = a0
-    Cy = np.eye(3) + f * (H + 0.5 * (H @ H))
-    D1 = D0 @ Cy
-    mu = np.empty((3, 3))
+            M[0, r, j] = S[6 + 3 * r + j]
+            M[1, r, j] = S[15 + 3 * r + j]
+            M[4, r, j] = P[1 + 3 * r + j]
+            # constant director force of gravity (pivoted body): F[r, j] = -m g_r c_j
+            M[5, r, j] = -m * g[r] * P[28 + j] if piv else 0.0
     for q in range(6):
-        mu[_PK[q], _PL[q]] = S[30 + q]
-        mu[_PL[q], _PK[q]] = S[30 + q]
-    Jm = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            Jm[i, j] = J[3 * i + j]
+        M[3, _PK[q], _PL[q]] = S[30 + q]
+        M[3, _PL[q], _PK[q]] = S[30 + q]
+    # predictor: D1 = D0 cay(h W), W = vee(skew(D0^T V0)); exact for a principal-axis spin
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for r in range(3):
+        a0 += M[0, r, 2] * M[1, r, 1] - M[0, r, 1] * M[1, r, 2]
+        a1 += M[0, r, 0] * M[1, r, 2] - M[0, r, 2] * M[1, r, 0]
+        a2 += M[0, r, 1] * M[1, r, 0] - M[0, r, 0] * M[1, r, 1]
+    a0 *= 0.5 * h
+    a1 *= 0.5 * h
+    a2 *= 0.5 * h
+    f = 4.0 / (4.0 + a0 * a0 + a1 * a1 + a2 * a2)
+    # cay(a) = 1 + f (hat(a) + hat(a)^2 / 2), hat(a)^2 = a a^T - |a|^2 1
+    aa = a0 * a0 + a1 * a1 + a2 * a2
+    C00 = 1.0 + 0.5 * f * (a0 * a0 - aa)
+    C11 = 1.0 + 0.5 * f * (a1 * a1 - aa)
+    C22 = 1.0 + 0.5 * f * (a2 * a2 - aa)
+    C01 = f * (-a2 + 0.5 * a0 * a1)
+    C10 = f * (a2 + 0.5 * a0 * a1)
+    C02 = f * (a1 + 0.5 * a0 * a2)
+    C20 = f * (-a1 + 0.5 * a0 * a2)
+    C12 = f * (-a0 + 0.5 * a1 * a2)
+    C21 = f * (a0 + 0.5 * a1 * a2)
+    for r in range(3):
+        x0 = M[0, r, 0]
+        x1 = M[0, r, 1]
+        x2 = M[0, r, 2]
+        M[2, r, 0] = x0 * C00 + x1 * C10 + x2 * C20
+        M[2, r, 1] = x0 * C01 + x1 * C11 + x2 * C21
+        M[2, r, 2] = x0 * C02 + x1 * C12 + x2 * C22
     hF = 0.5 * h * h
     scale1 = 0.0
+    fs = 0.0
     for i in range(3):
-        scale1 = max(scale1, abs(Jm[i, 0]) + abs(Jm[i, 1]) + abs(Jm[i, 2]))
+        scale1 = max(scale1, abs(M[4, i, 0]) + abs(M[4, i, 1]) + abs(M[4, i, 2]))
+        for j in range(3):
+            fs = max(fs, abs(hF * M[5, i, j]))
     converged = False
     for _ in range(MAXIT):
-        # residuals
-        E = D1 - D0 - h * V0
-        R1 = E @ Jm + (D0 + D1) @ mu - hF * F
-        mus = 0.0
-        for i in range(3):
-            mus = max(mus, abs(mu[i, 0]) + abs(mu[i, 1]) + abs(mu[i, 2]))
-        fs = 0.0
+        # residuals R1 = (D1 - D0 - h V0) Jbar + (D0 + D1) mu - h^2/2 F, R2 = constraints
         for r in range(3):
             for j in range(3):
-                fs = max(fs, abs(hF * F[r, j]))
-        tol1 = EM_TOL * (3.0 * scale1 + 2.0 * mus + fs)
+                M[8, r, j] = M[2, r, j] - M[0, r, j] - h * M[1, r, j]
+                M[7, r, j] = M[0, r, j] + M[2, r, j]
         res1 = 0.0
+        mus = 0.0
         for r in range(3):
+            mus = max(mus, abs(M[3, r, 0]) + abs(M[3, r, 1]) + abs(M[3, r, 2]))
             for j in range(3):
-                res1 = max(res1, abs(R1[r, j]))
+                acc = -hF * M[5, r, j]
+                for i in range(3):
+                    acc += M[8, r, i] * M[4, i, j] + M[7, r, i] * M[3, i, j]
+                M[6, r, j] = acc
+                res1 = max(res1, abs(acc))
+        tol1 = EM_TOL * (3.0 * scale1 + 2.0 * mus + fs)
         res2 = 0.0
-        R2 = np.empty(6)
         for q in range(6):
             k = _PK[q]
             ll = _PL[q]
-            acc = D1[0, k] * D1[0, ll] + D1[1, k] * D1[1, ll] + D1[2, k] * D1[2, ll]
+            acc = M[2, 0, k] * M[2, 0, ll] + M[2, 1, k] * M[2, 1, ll] + M[2, 2, k] * M[2, 2, ll]
             if k == ll:
                 acc = 0.5 * (acc - 1.0)
-            R2[q] = acc
+            M[9, q // 3, q % 3] = acc
             res2 = max(res2, abs(acc))
         if res1 <= tol1 and res2 <= EM_TOL:
             converged = True
@@ -535,47 +544,46 @@ def _em_step(P, g, S, h, A):
         for i in range(15):
             for j in range(16):
                 A[i, j] = 0.0
-        Sm = D0 + D1
         for j in range(3):
             for r in range(3):
                 row = 3 * j + r
                 for i in range(3):
-                    A[row, 3 * i + r] = Jm[i, j] + mu[i, j]
-                A[row, 15] = R1[r, j]
+                    A[row, 3 * i + r] = M[4, i, j] + M[3, i, j]
+                A[row, 15] = M[6, r, j]
             for q in range(6):
                 k = _PK[q]
                 ll = _PL[q]
                 if ll == j:
                     for r in range(3):
-                        A[3 * j + r, 9 + q] += Sm[r, k]
+                        A[3 * j + r, 9 + q] += M[7, r, k]
                 if k == j and k != ll:
                     for r in range(3):
-                        A[3 * j + r, 9 + q] += Sm[r, ll]
+                        A[3 * j + r, 9 + q] += M[7, r, ll]
         for q in range(6):
             k = _PK[q]
             ll = _PL[q]
             row = 9 + q
             if k == ll:
                 for r in range(3):
-                    A[row, 3 * k + r] = D1[r, k]
+                    A[row, 3 * k + r] = M[2, r, k]
             else:
                 for r in range(3):
-                    A[row, 3 * k + r] = D1[r, ll]
-                    A[row, 3 * ll + r] = D1[r, k]
-            A[row, 15] = R2[q]
+                    A[row, 3 * k + r] = M[2, r, ll]
+                    A[row, 3 * ll + r] = M[2, r, k]
+            A[row, 15] = M[9, q // 3, q % 3]
         if not _solve_dense(A, 15):
             return FAIL_SINGULAR
         dmax = 0.0
         for j in range(3):
             for r in range(3):
                 d = A[3 * j + r, 15]
-                D1[r, j] -= d
+                M[2, r, j] -= d
                 dmax = max(dmax, abs(d))
         for q in range(6):
             d = A[9 + q, 15]
-            mu[_PK[q], _PL[q]] -= d
+            M[3, _PK[q], _PL[q]] -= d
             if _PK[q] != _PL[q]:
-                mu[_PL[q], _PK[q]] -= d
+                M[3, _PL[q], _PK[q]] -= d
         if not dmax < math.inf:
             return FAIL_NONFINITE
         if dmax <= 2.0 * EPS:
@@ -588,16 +596,16 @@ def _em_step(P, g, S, h, A):
     tr = 0.0
     for r in range(3):
         for j in range(3):
-            tr += D0[r, j] * D1[r, j]
+            tr += M[0, r, j] * M[2, r, j]
     if not tr > 1.0:
         return FAIL_BRANCH
     r2h = 2.0 / h
     for r in range(3):
         for j in range(3):
-            S[6 + 3 * r + j] = D1[r, j]
-            S[15 + 3 * r + j] = r2h * (D1[r, j] - D0[r, j]) - V0[r, j]
+            S[6 + 3 * r + j] = M[2, r, j]
+            S[15 + 3 * r + j] = r2h * (M[2, r, j] - M[0, r, j]) - M[1, r, j]
     for q in range(6):
-        S[30 + q] = mu[_PK[q], _PL[q]]
+        S[30 + q] = M[3, _PK[q], _PL[q]]
     if not piv:
         hh = 0.5 * h
         for k in range(3):
@@ -666,6 +674,7 @@ def run_one(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, info):
     at the failing state."""
     S = S0.copy()
     A = np.empty((15, 16))
+    M = np.empty((10, 3, 3))
     if method == RATTLE_FAMILY:
         _rattle_init(P, g, S)
     k = 0
@@ -682,7 +691,7 @@ def run_one(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, info):
                 if st != OK:
                     break
         else:
-            st = _em_step(P, g, S, h, A)
+            st = _em_step(P, g, S, h, A, M)
         if st != OK:
             info[0] = n - 1
             info[1] = _omega_norm(method, P, S)
