@@ -99,6 +99,10 @@ def batch_rate(scheme: str, nbody: int, nstep: int, dt: float, repeat: int, para
     return best
 
 
+def _load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer steps (a smoke run)")
@@ -114,6 +118,8 @@ def main(argv=None):
           f"numba {numba.__version__} ({numba.config.NUMBA_NUM_THREADS} threads)")  # fmt: skip
     print(f"body: I = {I}, W0 = {W0}, no gravity; dt = {dt:g} s; {nstep} steps per timing; "
           f"best of {args.repeat}")  # fmt: skip
+    # other jobs on the machine inflate every timing: report the load with the figures
+    print("load average at start (1, 5, 15 min): " + _load())
     dm.simulate(1.0, I, rotation=np.eye(3), omega_body=W0, dt=dt, t_end=dt)  # compile/load
 
     rows = []
@@ -151,6 +157,7 @@ def main(argv=None):
             label = "parallel" if par else "1 thread"
             print(f"  {scheme:8s} {label:8s}: {rate:10.3e} body-steps/s "
                   f"({1e9 / rate:6.1f} ns per body-step)")  # fmt: skip
+    print("load average at end (1, 5, 15 min): " + _load())
 
 
 if __name__ == "__main__":

@@ -6,8 +6,8 @@ function, not by the files of the functions it calls, so kernels spread over sev
 could silently run stale machine code after an edit.
 
 Debugging: run with the environment variable ``NUMBA_DISABLE_JIT=1`` to execute these same
-functions as plain Python (``prange`` becomes ``range``); results are the same to the last
-bit for the scalar RATTLE path (tests check a short run), only about 1e3 times slower.
+functions as plain Python (``prange`` becomes ``range``); the numbers are the same (a test
+compares short RATTLE and energy-momentum runs), only about 1e3 times slower.
 
 Data layout (float64 arrays, so one compiled signature serves every body):
 
@@ -24,7 +24,8 @@ Data layout (float64 arrays, so one compiled signature serves every body):
     S[30:36] scaled multipliers mu = h^2/4 Lambda (energy-momentum warm start; order 11, 22,
     33, 12, 13, 23).
 
-Status codes returned by the kernels (the Python layer turns them into StepSizeError):
+The kernels never raise: they return the status codes below, and the Python layer turns a
+failure into StepSizeError with the time reached and a step-size estimate.
 """
 
 from __future__ import annotations
