@@ -48,10 +48,11 @@ def process_pool(jobs: int | None = None) -> Callable:
     return mapper
 
 
-def dask_cluster(address: str) -> Callable:
+def dask_cluster(address: str, timeout: float = 20.0) -> Callable:
     """A mapper over the Dask cluster whose scheduler listens at ``address``
     (e.g. ``tcp://127.0.0.1:8786``). Needs ``pip install director-bench[dask]``; the workers
-    need the suite installed and must see the output folder (same machine or shared disk)."""
+    need the suite installed and must see the output folder (same machine or shared disk).
+    ``timeout``: seconds to wait for the scheduler before giving up with an error."""
     try:
         from distributed import Client, as_completed
     except ImportError as exc:
@@ -63,7 +64,7 @@ def dask_cluster(address: str) -> Callable:
     def mapper(fn, specs):
         specs = list(specs)
         try:
-            client = Client(address, timeout="20s")
+            client = Client(address, timeout=f"{timeout}s")
         except OSError as exc:
             raise ValueError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from exc
         try:

@@ -21,8 +21,9 @@ def dzh():
     return scenarios.load("dzhanibekov").replace(t_end=SHORT, dt_sweep=(4e-3, 2e-3))
 
 
-def specs_for(sc, engines=("director", "exact", "mujoco"), integrators=("rattle", "reference",
-                                                                         "Euler")):
+def specs_for(
+    sc, engines=("director", "exact", "mujoco"), integrators=("rattle", "reference", "Euler")
+):
     return plan([sc], engines, integrators)
 
 
@@ -98,8 +99,24 @@ def test_cli_run_on_a_user_file(tmp_path, capsys):
     text = src.read_text().replace('name = "free_tumbling"', 'name = "my_body"')
     user.write_text(text)
     out = tmp_path / "out"
-    code = main(["run", str(user), "--engines", "director", "--integrators", "rattle4",
-                 "--t-end", "1", "--no-sweep", "--out", str(out), "--quiet", "--jobs", "1"])
+    code = main(
+        [
+            "run",
+            str(user),
+            "--engines",
+            "director",
+            "--integrators",
+            "rattle4",
+            "--t-end",
+            "1",
+            "--no-sweep",
+            "--out",
+            str(out),
+            "--quiet",
+            "--jobs",
+            "1",
+        ]
+    )
     assert code == 0
     df = read_results(out)
     assert list(df["scenario"]) == ["my_body"] and df["status"].iloc[0] == "ok"
@@ -126,31 +143,58 @@ def test_parallel_pool_gives_the_serial_rows(tmp_path, dzh):
     specs = specs_for(dzh, engines=("director", "mujoco"))
     a, _ = run_suite(specs, tmp_path / "a", progress=False)
     b, _ = run_suite(specs, tmp_path / "b", progress=False, mapper=process_pool(2))
-    cols = ["scenario", "engine", "integrator", "dt", "status", "energy_drift_max",
-            "attitude_error_max", "omega_error_max", "momentum_drift_max"]
+    cols = [
+        "scenario",
+        "engine",
+        "integrator",
+        "dt",
+        "status",
+        "energy_drift_max",
+        "attitude_error_max",
+        "omega_error_max",
+        "momentum_drift_max",
+    ]
     pd.testing.assert_frame_equal(a[cols], b[cols])
 
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed "
-                    "(apt-get install chromium) - the report is not rendered in a browser")
+@pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="Debian's chromium is not installed "
+    "(apt-get install chromium) - the report is not rendered in a browser",
+)
 def test_report_renders_in_headless_chromium(tmp_path, dzh):
     run_suite(specs_for(dzh), tmp_path, progress=False)
     from reports.report import build_report
 
     rep = build_report(tmp_path)
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             f"--user-data-dir={tmp_path / 'profile'}"]
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / 'profile'}",
+    ]
     # The DOM after rendering: every table and every embedded plot is there
-    dom = subprocess.run([CHROMIUM, *flags, "--dump-dom", rep["html"].as_uri()],
-                         capture_output=True, text=True, timeout=120).stdout
+    dom = subprocess.run(
+        [CHROMIUM, *flags, "--dump-dom", rep["html"].as_uri()],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    ).stdout
     assert dom.count("<table>") >= 4 and dom.count("data:image/png") >= 5
     shot = tmp_path / "shot.png"
-    subprocess.run([CHROMIUM, *flags, f"--screenshot={shot}", "--window-size=1200,2400",
-                    rep["html"].as_uri()], capture_output=True, timeout=120)
+    subprocess.run(
+        [CHROMIUM, *flags, f"--screenshot={shot}", "--window-size=1200,2400", rep["html"].as_uri()],
+        capture_output=True,
+        timeout=120,
+    )
     from matplotlib.image import imread
 
     img = imread(shot)

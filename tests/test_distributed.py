@@ -1,0 +1,173 @@
+"""Sweeps on a real Dask cluster: a scheduler and two worker processes started here on
+loopback. The rows equal a serial run's (runs are deterministic), and an interrupted
+distributed sweep resumes without redoing finished runs."""
+
+import shutil
+import socket
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+
+import scenarios
+from reports.parallel import dask_cluster
+from reports.runner import plan, read_results, run_suite
+
+pytest.importorskip(
+    "distributed", reason="Dask's distributed is not installed (pip install 'director-bench[dask]')"
+)
+DASK = shutil.which("dask")
+pytestmark = pytest.mark.skipif(DASK is None, reason="the `dask` command is not on PATH")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [
+        subprocess.Popen(
+            [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    ]
+    for _ in range(2):
+        procs.append(
+            subprocess.Popen(
+                [
+                    DASK,
+                    "worker",
+                    address,
+                    "--nworkers",
+                    "1",
+                    "--nthreads",
+                    "1",
+                    "--no-dashboard",
+                    "--host",
+                    "127.0.0.1",
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
+    from distributed import Client
+
+    deadline = time.monotonic() + 90
+    try:
+        while True:
+            try:
+                with Client(address, timeout="5s") as c:
+                    if len(c.scheduler_info()["workers"]) == 2:
+                        break
+            except OSError:
+                pass
+            if time.monotonic() > deadline:
+                pytest.fail("the Dask scheduler and two workers did not come up in 90 s")
+            time.sleep(0.5)
+        yield address
+    finally:
+        for p in procs[::-1]:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+@pytest.fixture(scope="module")
+def specs():
+    sc = scenarios.load("dzhanibekov").replace(t_end=1.0, dt_sweep=(4e-3, 2e-3))
+    return plan(
+        [sc], ["director", "mujoco", "exact"], ["rattle", "rattle4", "Euler", "RK4", "reference"]
+    )
+
+
+COLS = [
+    "scenario",
+    "engine",
+    "integrator",
+    "dt",
+    "status",
+    "nstep",
+    "energy_drift_max",
+    "momentum_drift_max",
+    "attitude_error_max",
+    "omega_error_max",
+    "convergence_order",
+]
+
+
+def test_distributed_sweep_equals_serial(tmp_path, cluster, specs):
+    serial, _ = run_suite(specs, tmp_path / "serial", progress=False)
+    dist, n = run_suite(specs, tmp_path / "dask", progress=False, mapper=dask_cluster(cluster))
+    assert n == len(specs)
+    pd.testing.assert_frame_equal(serial[COLS], dist[COLS])
+    # the workers wrote the trajectories into the shared output folder
+    assert all((tmp_path / "dask" / p).exists() for p in dist["trajectory"])
+
+
+def test_interrupted_distributed_sweep_resumes(tmp_path, cluster, specs):
+    mapper = dask_cluster(cluster)
+
+    def interrupted(fn, todo):
+        for i, row in enumerate(mapper(fn, todo)):
+            if i == 4:
+                raise KeyboardInterrupt
+            yield row
+
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(specs, tmp_path, progress=False, mapper=interrupted)
+    assert len(read_results(tmp_path)) == 4
+    df, n = run_suite(specs, tmp_path, progress=False, mapper=mapper)
+    assert n == len(specs) - 4 and len(df) == len(specs)
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, specs):
+    port = free_port()  # nothing listens there
+    with pytest.raises(ValueError, match="cannot reach the scheduler"):
+        run_suite(
+            specs[:1],
+            tmp_path,
+            progress=False,
+            mapper=dask_cluster(f"tcp://127.0.0.1:{port}", timeout=2),
+        )
+
+
+def test_cli_accepts_scheduler(tmp_path, cluster):
+    out = tmp_path / "o"
+    code = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "reports.cli",
+            "run",
+            "major_axis_spin",
+            "--engines",
+            "director",
+            "--integrators",
+            "rattle",
+            "--t-end",
+            "1",
+            "--no-sweep",
+            "--out",
+            str(out),
+            "--scheduler",
+            cluster,
+            "--quiet",
+            "--no-report",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert code.returncode == 0, code.stderr
+    assert list(read_results(out)["status"]) == ["ok"]
