@@ -52,8 +52,9 @@ FAIL_NONFINITE = 4  # a non-finite number appeared in the state
 STATUS_TEXT = {
     FAIL_NEWTON: "Newton's method did not converge to round-off within the iteration cap",
     FAIL_BRANCH: (
-        "the implicit step equation has no admissible solution (no real unit quaternion, "
-        "a fold of the solution branch, or a rotation of 90 degrees or more in one step)"
+        "the implicit step equation has no admissible solution on the branch through the "
+        "identity (past a fold of the solution branch, or a rotation of 90 degrees or more "
+        "in one step)"
     ),
     FAIL_SINGULAR: "the Newton matrix of the step is singular",
     FAIL_NONFINITE: "a non-finite number appeared in the state",
@@ -638,19 +639,31 @@ def _store(method, P, S, k, X, V, Dout, Dpout):
 
 
 @njit(cache=True)
+def _norm3(a, b, c):
+    """|(a, b, c)| without overflow for huge components."""
+    m = max(abs(a), abs(b), abs(c))
+    if m == 0.0 or not m < math.inf:
+        return m
+    a /= m
+    b /= m
+    c /= m
+    return m * math.sqrt(a * a + b * b + c * c)
+
+
+@njit(cache=True)
 def _omega_norm(method, P, S):
     if method == RATTLE_FAMILY:
         W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
         W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
         W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
-        return math.sqrt(W0 * W0 + W1 * W1 + W2 * W2)
+        return _norm3(W0, W1, W2)
     # |W| = |vee(skew(D^T D'))|
     w = np.zeros(3)
     for r in range(3):
         w[0] += 0.5 * (S[6 + 3 * r + 2] * S[15 + 3 * r + 1] - S[6 + 3 * r + 1] * S[15 + 3 * r + 2])
         w[1] += 0.5 * (S[6 + 3 * r + 0] * S[15 + 3 * r + 2] - S[6 + 3 * r + 2] * S[15 + 3 * r + 0])
         w[2] += 0.5 * (S[6 + 3 * r + 1] * S[15 + 3 * r + 0] - S[6 + 3 * r + 0] * S[15 + 3 * r + 1])
-    return math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    return _norm3(w[0], w[1], w[2])
 
 
 @njit(cache=True)
@@ -662,7 +675,7 @@ def _alpha_norm(method, P, S):
     a0 = P[19] * S[27] + P[20] * S[28] + P[21] * S[29]
     a1 = P[22] * S[27] + P[23] * S[28] + P[24] * S[29]
     a2 = P[25] * S[27] + P[26] * S[28] + P[27] * S[29]
-    return math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    return _norm3(a0, a1, a2)
 
 
 @njit(cache=True)

@@ -43,7 +43,11 @@ class Scheme:
         y = c h; its root y = 2/(|W| + sqrt(|W|^2 + 2 alpha)) (= 1/|W| without torque),
         divided by c (``limit_factor`` = 1/c, times 2 for energy-momentum).
         """
-        root = math.sqrt(omega_norm * omega_norm + 2.0 * alpha_norm)
-        if omega_norm + root == 0.0:
+        w, a = float(omega_norm), float(alpha_norm)
+        if w > 0.0:
+            root = w * math.sqrt(1.0 + 2.0 * a / w / w)  # no overflow for huge |W|
+        else:
+            root = math.sqrt(2.0 * a)
+        if w + root == 0.0:
             return float("inf")
-        return cls.limit_factor * 2.0 / (omega_norm + root)
+        return cls.limit_factor * 2.0 / (w + root)
