@@ -23,8 +23,11 @@ def test_random_bodies_torque_free_energy_exact():
     bt = dm.simulate_batch(1.0, inertia, rotation=R,
                            omega_body=W, dt=h, t_end=n * h, save_every=10)  # fmt: skip
     rel = np.abs(bt.energy / bt.energy[:, :1] - 1)
-    # exact in exact arithmetic; round-off accumulation bound 2 n eps (see the fast tests)
-    assert rel.max() < 2 * n * EPS
+    # exact in exact arithmetic. A residual of one sign in the DMV solve makes the energy
+    # drift by ~16 |w| ulps of E per step at most; the solver's polish step brings the
+    # worst body here to 0.1 n eps (0.6 n eps without it). Bound: 0.5 n eps.
+    assert rel.max() < 0.5 * n * EPS
+    assert np.median(rel.max(axis=1)) < 10 * np.sqrt(n) * EPS  # typical body: a random walk
     Lrel = np.abs(bt.angular_momentum - bt.angular_momentum[:, :1]).max(axis=(1, 2))
     assert np.all(Lrel / np.linalg.norm(bt.angular_momentum[:, 0], axis=1) < 2 * n * EPS)
 
