@@ -3,6 +3,7 @@
     director-bench list
     director-bench run [SCENARIO_OR_FILE ...] [--engines a,b] [--integrators x,y]
                        [--dt 1e-3,5e-4] [--t-end T] [--out DIR] [--redo] [--no-sweep]
+    director-bench ensemble SCENARIO_OR_FILE [--n 64] [--seed 0] [--engines a,b] ...
     director-bench report DIR
     director-bench baseline DIR --write FILE
     director-bench check DIR --baseline FILE [--factor F]
@@ -107,6 +108,36 @@ def cmd_run(args) -> int:
     return 1 if (args.strict and len(failed)) else 0
 
 
+def cmd_ensemble(args) -> int:
+    from reports.ensemble import summary
+    from reports.suite import ensemble
+
+    df, rep = ensemble(
+        args.scenario,
+        args.n,
+        seed=args.seed,
+        engines=args.engines,
+        integrators=args.integrators,
+        dt=args.dt,
+        t_end=args.t_end,
+        out=args.out,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+        report=not args.no_report,
+    )
+    for r in summary(df):
+        print(
+            f"{r['engine']:>9} {r['integrator']:<22} members {r['members']:>7}  attitude "
+            f"error median {r['attitude_error_max median']:.2e} max "
+            f"{r['attitude_error_max max']:.2e}"
+        )
+    print(f"ensemble:     {Path(args.out) / 'ensemble.csv'}")
+    if rep:
+        print(f"report:       {rep['html']}")
+    return 0
+
+
 def cmd_report(args) -> int:
     from reports.report import build_report
 
@@ -178,6 +209,25 @@ def build_parser() -> argparse.ArgumentParser:
         "--scheduler", metavar="tcp://HOST:PORT", help="run on this Dask cluster instead of locally"
     )
     s.set_defaults(func=cmd_run)
+
+    s = sub.add_parser(
+        "ensemble",
+        help="one scenario over N initial conditions (random "
+        "directions of W at the scenario's rotational energy)",
+    )
+    s.add_argument("scenario", metavar="SCENARIO_OR_FILE")
+    s.add_argument("--n", type=int, default=64, help="number of members (default 64)")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--engines", type=_csv_list, help="comma-separated engine names")
+    s.add_argument("--integrators", type=_csv_list, help="comma-separated integrator names")
+    s.add_argument("--dt", type=_positive, help="step size (default: the scenario's)")
+    s.add_argument("--t-end", type=_positive, help="horizon in s (overrides the file)")
+    s.add_argument("--out", default="results", help="output folder (default: results)")
+    s.add_argument("--jobs", type=int, default=None, help="local worker processes")
+    s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="Dask scheduler")
+    s.add_argument("--no-report", action="store_true", help="skip the report")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_ensemble)
 
     s = sub.add_parser("report", help="regenerate plots and reports from a results folder")
     s.add_argument("dir")

@@ -231,3 +231,32 @@ def all_plots(df, root: str | Path, out: str | Path | None = None) -> dict[str, 
         ]
         made[scenario] = [p for p in paths if p is not None]
     return made
+
+
+def ensemble_plot(df, out, metric: str = "attitude_error_max"):
+    """Distribution of ``metric`` over the members of an ensemble, one box per engine and
+    integrator (log scale), ordered by median."""
+    plt = _plt()
+    ok = df[(df["status"] == "ok") & np.isfinite(df[metric].astype(float))]
+    if ok.empty:
+        return None
+    groups = sorted(
+        ok.groupby(["engine", "integrator"]), key=lambda kv: float(np.median(kv[1][metric]))
+    )
+    data = [np.maximum(g[metric].astype(float).to_numpy(), 1e-17) for _, g in groups]
+    labels = [f"{e} {i}" for (e, i), _ in groups]
+    fig, ax = plt.subplots(figsize=(10, 0.35 * len(labels) + 1.5))
+    ax.boxplot(data, vert=False, whis=(0, 100))
+    ax.set_yticks(range(1, len(labels) + 1), labels, fontsize=7)
+    ax.set_xscale("log")
+    scen = ok["scenario"].iloc[0]
+    n = ok["member"].nunique()
+    ax.set(
+        xlabel=metric, title=f"{scen}: {metric} over {n} initial conditions (whiskers: min and max)"
+    )
+    ax.grid(True, which="both", axis="x", alpha=0.3)
+    fig.tight_layout()
+    path = Path(out) / f"{slug(scen)}__ensemble_{slug(metric)}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

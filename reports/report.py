@@ -195,6 +195,8 @@ def _default_dt(sub) -> float:
 def sections(df) -> list[tuple[str, str, list, list]]:
     """The report's tables as (kind, title, header, rows); kind is 'table'."""
     out = []
+    if df.empty:
+        return out
     counts = df["status"].value_counts().to_dict()
     summary = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
     out.append(("text", f"{len(df)} runs: {summary}.", [], []))
@@ -336,10 +338,38 @@ def build_report(root: str | Path) -> dict[str, Path]:
     from reports.runner import read_results
 
     root = Path(root)
-    df = read_results(root)
+    if (root / "results.csv").exists() or not (root / "ensemble.csv").exists():
+        df = read_results(root)
+    else:  # a folder holding only an ensemble
+        import pandas as pd
+
+        from reports.runner import RESULT_COLUMNS
+
+        df = pd.DataFrame(columns=list(RESULT_COLUMNS))
     prov = read_provenance(root)
     plots = all_plots(df, root)
     secs = sections(df)
+    ens = root / "ensemble.csv"
+    if ens.exists():
+        import pandas as pd
+
+        from reports.ensemble import summary
+        from reports.plots import ensemble_plot
+
+        edf = pd.read_csv(ens)
+        for scenario, g in edf.groupby("scenario"):
+            rows = summary(g)
+            cols = [c for c in rows[0] if c != "scenario"]
+            title = (
+                f"{scenario}: ensemble of {g['member'].nunique()} initial conditions "
+                "(median, 90th percentile, max)"
+            )
+            secs.append(("table", title, cols, [[fmt(r[c]) for c in cols] for r in rows]))
+            paths = [
+                ensemble_plot(g, root / "plots", m)
+                for m in ("attitude_error_max", "energy_drift_max")
+            ]
+            plots.setdefault(f"{scenario} ensemble", []).extend(p for p in paths if p)
 
     md = ["# director-bench report", ""]
     md += [f"- {k}: {v}" for k, v in _provenance_lines(prov)]

@@ -83,6 +83,48 @@ def run(
     return RunSummary(out, n_run, len(specs) - n_run, df, rep, junit, cmp)
 
 
+def ensemble(
+    name,
+    n: int,
+    *,
+    seed: int = 0,
+    engines=None,
+    integrators=None,
+    dt=None,
+    t_end=None,
+    out="results",
+    jobs=None,
+    scheduler=None,
+    progress=True,
+    report: bool = True,
+):
+    """Run ``n`` members of one scenario on every engine/integrator into ``out/ensemble.csv``
+    (see :mod:`reports.ensemble`), and refresh the report of ``out``."""
+    from reports.ensemble import run_ensemble
+    from reports.parallel import make_mapper
+    from reports.report import build_report, write_provenance
+
+    (sc,) = resolve_scenarios([name])
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not (out / "provenance.json").exists():
+        write_provenance(out)
+    df = run_ensemble(
+        sc,
+        n,
+        out,
+        seed=seed,
+        engines=engines,
+        integrators=integrators,
+        dt=dt,
+        t_end=t_end,
+        mapper=make_mapper(jobs, scheduler),
+        progress=progress,
+    )
+    rep = build_report(out) if report else {}
+    return df, rep
+
+
 def catalog() -> dict:
     """Scenarios, engines (with version or why unavailable) and their integrators."""
     import scenarios
