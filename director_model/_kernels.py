@@ -385,9 +385,11 @@ def _rattle_substep(P, g, S, h):
     x01 = w0 * w1
     x02 = w0 * w2
     x12 = w1 * w2
-    Q00 = 1.0 - f * (x11 + x22)
-    Q11 = 1.0 - f * (x00 + x22)
-    Q22 = 1.0 - f * (x00 + x11)
+    # diagonal of Q - 1 (the increment form D + D (Q - 1) keeps the rounding of the
+    # update at the ulp of the small increment, instead of a biased rounding of 1 - O(h^2))
+    Q00 = -f * (x11 + x22)
+    Q11 = -f * (x00 + x22)
+    Q22 = -f * (x00 + x11)
     Q01 = f * (x01 - w2)
     Q10 = f * (x01 + w2)
     Q02 = f * (x02 + w1)
@@ -398,9 +400,9 @@ def _rattle_substep(P, g, S, h):
         a0 = S[6 + 3 * r]
         a1 = S[7 + 3 * r]
         a2 = S[8 + 3 * r]
-        S[6 + 3 * r] = a0 * Q00 + a1 * Q10 + a2 * Q20
-        S[7 + 3 * r] = a0 * Q01 + a1 * Q11 + a2 * Q21
-        S[8 + 3 * r] = a0 * Q02 + a1 * Q12 + a2 * Q22
+        S[6 + 3 * r] = a0 + (a0 * Q00 + a1 * Q10 + a2 * Q20)
+        S[7 + 3 * r] = a1 + (a0 * Q01 + a1 * Q11 + a2 * Q21)
+        S[8 + 3 * r] = a2 + (a0 * Q02 + a1 * Q12 + a2 * Q22)
     _gravity_torque(P, g, S)
     # Q^T pi = pi - 4 c/(q h) (see _dmv_solve): the same quantity as the matrix product, with
     # the small change of the momentum computed directly, off the latency chain of Q

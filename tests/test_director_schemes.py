@@ -164,17 +164,28 @@ def test_torque_free_conservation(name, body):
         assert np.all(np.isfinite(a))
     # Every scheme conserves E and L of the torque-free body exactly in exact arithmetic
     # (RATTLE: numerics.md section 3; energy-momentum: by construction). Each (sub)step
-    # commits a few ulps of rounding (Newton residuals at 4-16 ulps); the worst-case linear
-    # accumulation is then c * nsub * n * eps. Observed: <= 0.3 nsub n eps (mostly ~sqrt(n)).
-    bound = 2 * SUBSTEPS[name] * n * EPS
-    assert np.max(np.abs(tr.energy / tr.energy[0] - 1)) < bound
+    # commits a few ulps of rounding (Newton residuals at 4-16 ulps). Unbiased rounding adds
+    # up like a random walk, ~sqrt(nsub n) eps; a bias would add up linearly, c nsub n eps.
+    nsub = SUBSTEPS[name]
+    walk = 10 * np.sqrt(nsub * n) * EPS
+    linear = 2 * nsub * n * EPS
+    rel_E = np.max(np.abs(tr.energy / tr.energy[0] - 1))
     L = tr.angular_momentum
-    assert np.max(np.abs(L - L[0])) / np.linalg.norm(L[0]) < bound
+    rel_L = np.max(np.abs(L - L[0])) / np.linalg.norm(L[0])
+    if name == "energy_momentum":
+        # measured <= 0.5 n eps for E (a slow drift from its 16-ulp Newton tolerance)
+        assert rel_E < linear
+    else:
+        # RATTLE family: measured <= 1.1 sqrt(nsub n) eps, i.e. no drift
+        assert rel_E < walk
+        # D_{n+1} = D_n + D_n (Q - 1) with Q orthogonal to round-off: a random walk of
+        # ulps (measured <= 0.7 sqrt(nsub n) eps)
+        assert np.max(tr.constraint_position) < walk
+        assert np.max(tr.constraint_velocity) < walk * np.linalg.norm(tr.omega_body[0])
+    # L about the origin includes x_G x m v_G with |x_G| growing to ~30 m: measured
+    # <= 0.45 nsub n eps
+    assert rel_L < linear
     assert np.max(np.abs(tr.linear_momentum - tr.linear_momentum[0])) < 4 * EPS
-    # D_{n+1} = D_n Q with Q orthogonal to round-off: a random walk of ulps
-    assert np.max(tr.constraint_position) < bound
-    if name != "energy_momentum":  # EM violates the hidden constraint at O(h^2) (known)
-        assert np.max(tr.constraint_velocity) < bound * np.linalg.norm(tr.omega_body[0])
 
 
 def test_energy_momentum_velocity_constraint_defect_is_second_order():
