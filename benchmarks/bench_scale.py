@@ -1,0 +1,225 @@
+"""Scale benchmarks, measured side by side in one run on this machine.
+
+1. Ensemble throughput: director_model's batched path against ``mujoco.rollout`` on the same
+   ensemble of free bodies (the Dzhanibekov body of numerics.md with random directions of W at
+   its rotational energy), both on every core, body-steps per second and the ratio.
+2. Long horizon: 1e6 steps of the Dzhanibekov body (1000 s at dt = 1e-3), decimated storage
+   (one saved state per 1000 steps), through the suite's engine interface: wall time, peak
+   resident memory of the process (each run in a fresh subprocess so peaks do not mix), and
+   the size the full trajectory would have had.
+3. The default suite: wall time and peak memory of ``director-bench run`` (every engine and
+   integrator of the default scenarios), unless ``--skip-suite``.
+
+Every timing is the best of ``--repeat`` (the machine is shared: +-30 % noise); ratios are of
+figures measured in this same run. Usage:
+
+    python benchmarks/bench_scale.py [--quick] [--skip-suite] [--repeat 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+I = (2.0, 3.0, 4.0)
+W0 = np.array([0.01, 2.0, 0.01])
+
+
+def ensemble(nbody: int, seed: int = 0):
+    """Initial rotations (identity) and body rates of the ensemble: random directions at the
+    rotational energy of W0 (same rule as reports.ensemble)."""
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(nbody, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    Iv = np.array(I)
+    T = 0.5 * W0 @ (Iv * W0)
+    W = u * np.sqrt(2 * T / np.einsum("ni,i,ni->n", u, Iv, u))[:, None]
+    return np.repeat(np.eye(3)[None], nbody, axis=0), W
+
+
+def director_batch(nbody, nstep, dt, scheme, repeat):
+    import director_model as dm
+
+    R, W = ensemble(nbody)
+    best = np.inf
+    for _ in range(repeat + 1):  # the first call may load the compiled cache
+        out = dm.simulate_batch(
+            1.0,
+            I,
+            rotation=R,
+            omega_body=W,
+            scheme=scheme,
+            dt=dt,
+            t_end=nstep * dt,
+            save_every=nstep,
+        )
+        best = min(best, out.wall_time_s)
+    return nbody * nstep / best
+
+
+def mujoco_rollout(nbody, nstep, dt, integrator, repeat):
+    import mujoco
+    from mujoco import rollout
+
+    xml = f"""<mujoco><option timestep="{dt}" gravity="0 0 0" integrator="{integrator}"/>
+      <worldbody><body><freejoint/><geom type="sphere" size="0.1" contype="0" conaffinity="0"/>
+      <inertial pos="0 0 0" mass="1" diaginertia="2 3 4"/></body></worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    nthread = os.cpu_count() or 1
+    datas = [mujoco.MjData(m) for _ in range(nthread)]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    size = mujoco.mj_stateSize(m, spec)
+    R, W = ensemble(nbody)
+    init = np.empty((nbody, size))
+    d = datas[0]
+    for k in range(nbody):
+        mujoco.mj_resetData(m, d)
+        d.qpos[3:7] = (1, 0, 0, 0)
+        d.qvel[3:6] = W[k]  # MuJoCo's free-joint angular velocity is in body axes
+        mujoco.mj_getState(m, d, init[k], spec)
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        rollout.rollout(m, datas, init, nstep=nstep)
+        best = min(best, time.perf_counter() - t0)
+    return nbody * nstep / best
+
+
+LONG = """
+import json, resource, sys, time
+import scenarios
+from references.engines import get_engine
+engine, integ, nstep, every = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+sc = scenarios.load("dzhanibekov")
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t0 = time.perf_counter()
+out = get_engine(engine)().run(sc, integ, 1e-3, t_end=nstep * 1e-3, save_every=every)
+wall = time.perf_counter() - t0
+from reports.metrics import compute_metrics
+from references.exact import reference_trajectory
+tr = out.trajectory
+m = compute_metrics(sc, tr, reference_trajectory(sc, tr.t))
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(json.dumps(dict(wall=wall, stepping=out.wall_time_s, nsave=len(tr), before_kb=before,
+                      peak_kb=peak, energy=m["energy_drift_max"],
+                      attitude=m["attitude_error_max"])))
+"""
+
+
+def long_horizon(engine, integ, nstep, every):
+    res = subprocess.run(
+        [sys.executable, "-c", LONG, engine, integ, str(nstep), str(every)],
+        capture_output=True,
+        text=True,
+        timeout=3600,
+    )
+    if res.returncode != 0:
+        return {"error": res.stderr.strip().splitlines()[-1]}
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def default_suite():
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        res = subprocess.run(
+            ["director-bench", "run", "--out", tmp, "--quiet"], capture_output=True, text=True
+        )
+        wall = time.perf_counter() - t0
+        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        last = res.stdout.strip().splitlines()[:1]
+    return wall, peak, res.returncode, last
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run)")
+    ap.add_argument("--skip-suite", action="store_true", help="skip the default-suite timing")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    import mujoco
+    import numba
+
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores, Python "
+        f"{platform.python_version()}, numba {numba.__version__}, MuJoCo {mujoco.__version__}"
+    )
+    print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
+
+    nbody, nstep = (1000, 200) if args.quick else (4000, 1000)
+    dt = 1e-3
+    print(
+        f"1. Ensemble throughput: {nbody} bodies x {nstep} steps, dt = {dt}, best of {args.repeat}"
+    )
+    rows = [
+        (
+            "director rattle (simulate_batch)",
+            director_batch(nbody, nstep, dt, "rattle", args.repeat),
+        ),
+        (
+            "director rattle4 (simulate_batch)",
+            director_batch(nbody, nstep, dt, "rattle4", args.repeat),
+        ),
+        ("mujoco.rollout Euler", mujoco_rollout(nbody, nstep, dt, "Euler", args.repeat)),
+        ("mujoco.rollout RK4", mujoco_rollout(nbody, nstep, dt, "RK4", args.repeat)),
+    ]
+    print("| method | body-steps/s | ns per body-step |\n|---|---|---|")
+    for name, rate in rows:
+        print(f"| {name} | {rate:.3e} | {1e9 / rate:.1f} |")
+    r = dict(rows)
+    print(
+        f"ratio director rattle / mujoco.rollout Euler: "
+        f"{r['director rattle (simulate_batch)'] / r['mujoco.rollout Euler']:.1f} x"
+    )
+    print(
+        f"ratio director rattle4 / mujoco.rollout RK4: "
+        f"{r['director rattle4 (simulate_batch)'] / r['mujoco.rollout RK4']:.1f} x\n"
+    )
+
+    nlong = 100_000 if args.quick else 1_000_000
+    every = 1000
+    full_mb = nlong * 23 * 8 / 2**20
+    print(
+        f"2. Long horizon: dzhanibekov, {nlong:.0e} steps (dt = 1e-3), one state saved per "
+        f"{every} steps; the full trajectory in the suite's schema would take {full_mb:.0f} MB"
+    )
+    print(
+        "| engine integrator | wall [s] | stepping [s] | saved | peak RSS [MB] | "
+        "growth [MB] | energy drift | attitude err [rad] |\n|---|---|---|---|---|---|---|---|"
+    )
+    for engine, integ in (
+        ("director", "rattle"),
+        ("director", "rattle4"),
+        ("mujoco", "RK4"),
+        ("mujoco", "Euler"),
+    ):
+        res = long_horizon(engine, integ, nlong, every)
+        if "error" in res:
+            print(f"| {engine} {integ} | failed: {res['error']} |")
+            continue
+        print(
+            f"| {engine} {integ} | {res['wall']:.2f} | {res['stepping']:.2f} | {res['nsave']} | "
+            f"{res['peak_kb'] / 1024:.0f} | {(res['peak_kb'] - res['before_kb']) / 1024:.1f} | "
+            f"{res['energy']:.2e} | {res['attitude']:.2e} |"
+        )
+    print()
+    if not args.skip_suite:
+        wall, peak, code, last = default_suite()
+        print(
+            f"3. Default suite (director-bench run, every engine): wall {wall:.0f} s, peak RSS "
+            f"of the largest process {peak / 1024:.0f} MB, exit code {code}"
+        )
+        print("   " + " ".join(last))
+    print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
