@@ -1,14 +1,14 @@
 """Scale benchmarks, measured side by side in one run on this machine.
 
-1. Ensemble throughput: director_model's batched path against ``mujoco.rollout`` on the same
-   ensemble of free bodies (the Dzhanibekov body of numerics.md with random directions of W at
-   its rotational energy), both on every core, body-steps per second and the ratio.
+1. The default suite: wall time and peak memory of ``director-bench run`` (every engine and
+   integrator of the default scenarios), unless ``--skip-suite``.
 2. Long horizon: 1e6 steps of the Dzhanibekov body (1000 s at dt = 1e-3), decimated storage
    (one saved state per 1000 steps), through the suite's engine interface: wall time, peak
    resident memory of the process (each run in a fresh subprocess so peaks do not mix), and
    the size the full trajectory would have had.
-3. The default suite: wall time and peak memory of ``director-bench run`` (every engine and
-   integrator of the default scenarios), unless ``--skip-suite``.
+3. Ensemble throughput: director_model's batched path against ``mujoco.rollout`` on the same
+   ensemble of free bodies (the Dzhanibekov body of numerics.md with random directions of W at
+   its rotational energy), both on every core, body-steps per second and the ratio.
 
 Every timing is the best of ``--repeat`` (the machine is shared: +-30 % noise); ratios are of
 figures measured in this same run. Usage:
@@ -94,21 +94,29 @@ def mujoco_rollout(nbody, nstep, dt, integrator, repeat):
     return nbody * nstep / best
 
 
+# Peak memory is read from /proc/self/status (VmHWM): unlike ru_maxrss, which Linux carries
+# across exec from the parent, it belongs to the new address space.
 LONG = """
-import json, resource, sys, time
+import json, sys, time
 import scenarios
 from references.engines import get_engine
+from references.exact import reference_trajectory
+from reports.metrics import compute_metrics
+def hwm_kb():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
 engine, integ, nstep, every = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 sc = scenarios.load("dzhanibekov")
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+warm = get_engine(engine)().run(sc, integ, 1e-3, t_end=1e-3 * every, save_every=every)
+compute_metrics(sc, warm.trajectory, reference_trajectory(sc, warm.trajectory.t))  # warm-up
+before = hwm_kb()
 t0 = time.perf_counter()
 out = get_engine(engine)().run(sc, integ, 1e-3, t_end=nstep * 1e-3, save_every=every)
 wall = time.perf_counter() - t0
-from reports.metrics import compute_metrics
-from references.exact import reference_trajectory
+peak = hwm_kb()  # the run alone: stepping and the decimated trajectory
 tr = out.trajectory
 m = compute_metrics(sc, tr, reference_trajectory(sc, tr.t))
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print(json.dumps(dict(wall=wall, stepping=out.wall_time_s, nsave=len(tr), before_kb=before,
                       peak_kb=peak, energy=m["energy_drift_max"],
                       attitude=m["attitude_error_max"])))
@@ -153,37 +161,16 @@ def main(argv=None):
         f"{platform.python_version()}, numba {numba.__version__}, MuJoCo {mujoco.__version__}"
     )
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
+    if os.path.exists("/proc/self/status") is False:
+        print("(no /proc: peak-memory figures are not available on this platform)")
 
-    nbody, nstep = (1000, 200) if args.quick else (4000, 1000)
-    dt = 1e-3
-    print(
-        f"1. Ensemble throughput: {nbody} bodies x {nstep} steps, dt = {dt}, best of {args.repeat}"
-    )
-    rows = [
-        (
-            "director rattle (simulate_batch)",
-            director_batch(nbody, nstep, dt, "rattle", args.repeat),
-        ),
-        (
-            "director rattle4 (simulate_batch)",
-            director_batch(nbody, nstep, dt, "rattle4", args.repeat),
-        ),
-        ("mujoco.rollout Euler", mujoco_rollout(nbody, nstep, dt, "Euler", args.repeat)),
-        ("mujoco.rollout RK4", mujoco_rollout(nbody, nstep, dt, "RK4", args.repeat)),
-    ]
-    print("| method | body-steps/s | ns per body-step |\n|---|---|---|")
-    for name, rate in rows:
-        print(f"| {name} | {rate:.3e} | {1e9 / rate:.1f} |")
-    r = dict(rows)
-    print(
-        f"ratio director rattle / mujoco.rollout Euler: "
-        f"{r['director rattle (simulate_batch)'] / r['mujoco.rollout Euler']:.1f} x"
-    )
-    print(
-        f"ratio director rattle4 / mujoco.rollout RK4: "
-        f"{r['director rattle4 (simulate_batch)'] / r['mujoco.rollout RK4']:.1f} x\n"
-    )
-
+    if not args.skip_suite:
+        wall, peak, code, last = default_suite()
+        print(
+            f"1. Default suite (director-bench run, every engine): wall {wall:.0f} s, peak RSS "
+            f"of the largest process {peak / 1024:.0f} MB, exit code {code}"
+        )
+        print("   " + " ".join(last))
     nlong = 100_000 if args.quick else 1_000_000
     every = 1000
     full_mb = nlong * 23 * 8 / 2**20
@@ -211,13 +198,36 @@ def main(argv=None):
             f"{res['energy']:.2e} | {res['attitude']:.2e} |"
         )
     print()
-    if not args.skip_suite:
-        wall, peak, code, last = default_suite()
-        print(
-            f"3. Default suite (director-bench run, every engine): wall {wall:.0f} s, peak RSS "
-            f"of the largest process {peak / 1024:.0f} MB, exit code {code}"
-        )
-        print("   " + " ".join(last))
+    nbody, nstep = (1000, 200) if args.quick else (4000, 1000)
+    dt = 1e-3
+    print(
+        f"3. Ensemble throughput: {nbody} bodies x {nstep} steps, dt = {dt}, best of {args.repeat}"
+    )
+    rows = [
+        (
+            "director rattle (simulate_batch)",
+            director_batch(nbody, nstep, dt, "rattle", args.repeat),
+        ),
+        (
+            "director rattle4 (simulate_batch)",
+            director_batch(nbody, nstep, dt, "rattle4", args.repeat),
+        ),
+        ("mujoco.rollout Euler", mujoco_rollout(nbody, nstep, dt, "Euler", args.repeat)),
+        ("mujoco.rollout RK4", mujoco_rollout(nbody, nstep, dt, "RK4", args.repeat)),
+    ]
+    print("| method | body-steps/s | ns per body-step |\n|---|---|---|")
+    for name, rate in rows:
+        print(f"| {name} | {rate:.3e} | {1e9 / rate:.1f} |")
+    r = dict(rows)
+    print(
+        f"ratio director rattle / mujoco.rollout Euler: "
+        f"{r['director rattle (simulate_batch)'] / r['mujoco.rollout Euler']:.1f} x"
+    )
+    print(
+        f"ratio director rattle4 / mujoco.rollout RK4: "
+        f"{r['director rattle4 (simulate_batch)'] / r['mujoco.rollout RK4']:.1f} x\n"
+    )
+
     print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
