@@ -34,7 +34,7 @@ ROTATION_TOL = 1e-12
 INERTIA_RTOL = 16 * float(np.finfo(float).eps)
 
 #: Tolerance of "t_end is a whole number of steps of dt", relative to t_end/dt. The same rule
-#: as :func:`references.engines.base.step_plan`, so a file that validates always runs.
+#: as :func:`director_model.step_plan` (the engines use it), so a file that validates runs.
 STEP_RTOL = 1e-9
 
 

@@ -25,31 +25,21 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import (
+    READBACK_RTOL,
     Engine,
     EngineError,
-    EngineUnavailable,
     Integrator,
     RunOutput,
     StepFailure,
     Stopwatch,
+    import_engine,
 )
 from references.engines.liegroup import rkmk4_step, so3_r3_dexpinv, so3_r3_integrate
 from references.trajectory import Trajectory
 
-#: read-back tolerance, a few ulp: engines may store a number through some arithmetic (with
-#: pin 4.1.0 and pybullet 3.2.7 an inertia of 0.9 reads back as 0.8999999999999999).
-_READBACK_RTOL = 1e-15
-
 
 def _import():
-    try:
-        import dartpy
-    except ImportError as exc:  # pragma: no cover - depends on the machine
-        raise EngineUnavailable(
-            f"DART (dartpy) is not installed or does not import ({exc}); install it with "
-            "`pip install dartpy` (or `pip install director-bench[engines]`)"
-        ) from exc
-    return dartpy
+    return import_engine("dartpy", "DART (dartpy)", "dartpy")
 
 
 class DartEngine(Engine):
@@ -120,19 +110,19 @@ class DartEngine(Engine):
         chk = cv.check_quantity
         e = "DART"
         inertia = body.getInertia()
-        chk(e, "mass", inertia.getMass(), scenario.mass, _READBACK_RTOL)
+        chk(e, "mass", inertia.getMass(), scenario.mass, READBACK_RTOL)
         chk(
             e,
             "inertia tensor about the COM",
             inertia.getMoment(),
             np.diag(scenario.inertia),
-            _READBACK_RTOL,
+            READBACK_RTOL,
         )
-        chk(e, "COM position in the body frame", body.getLocalCOM(), com, _READBACK_RTOL)
-        chk(e, "gravity (world)", world.getGravity(), scenario.gravity, _READBACK_RTOL)
-        chk(e, "gravity (skeleton)", skel.getGravity(), scenario.gravity, _READBACK_RTOL)
-        chk(e, "time step (world)", world.getTimeStep(), dt, _READBACK_RTOL)
-        chk(e, "time step (skeleton)", skel.getTimeStep(), dt, _READBACK_RTOL)
+        chk(e, "COM position in the body frame", body.getLocalCOM(), com, READBACK_RTOL)
+        chk(e, "gravity (world)", world.getGravity(), scenario.gravity, READBACK_RTOL)
+        chk(e, "gravity (skeleton)", skel.getGravity(), scenario.gravity, READBACK_RTOL)
+        chk(e, "time step (world)", world.getTimeStep(), dt, READBACK_RTOL)
+        chk(e, "time step (skeleton)", skel.getTimeStep(), dt, READBACK_RTOL)
         chk(e, "body affected by gravity", float(body.getGravityMode()), 1.0, 0, 0)
         chk(
             e,

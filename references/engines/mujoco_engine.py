@@ -19,20 +19,18 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import (
+    READBACK_RTOL,
     Engine,
     EngineError,
-    EngineUnavailable,
     Integrator,
     RunOutput,
     StepFailure,
     Stopwatch,
     Unsupported,
+    import_engine,
 )
 from references.trajectory import Trajectory
 
-#: read-back tolerance, a few ulp: engines may store a number through some arithmetic (with
-#: pin 4.1.0 and pybullet 3.2.7 an inertia of 0.9 reads back as 0.8999999999999999).
-_READBACK_RTOL = 1e-15
 #: largest number of steps between two finiteness checks (bounds how late a divergence is seen)
 _CHUNK = 1000
 
@@ -46,14 +44,7 @@ _INTEGRATOR_ENUM = {
 
 
 def _import():
-    try:
-        import mujoco
-    except ImportError as exc:  # pragma: no cover - depends on the machine
-        raise EngineUnavailable(
-            f"MuJoCo is not installed or does not import ({exc}); install it with "
-            "`pip install mujoco` (or `pip install director-bench[engines]`)"
-        ) from exc
-    return mujoco
+    return import_engine("mujoco", "MuJoCo", "mujoco")
 
 
 def _num(a) -> str:
@@ -184,15 +175,15 @@ class MujocoEngine(Engine):
         """Read the compiled model back and compare it with the scenario."""
         chk = cv.check_quantity
         e = "MuJoCo"
-        chk(e, "mass", m.body_mass[1], scenario.mass, _READBACK_RTOL)
-        chk(e, "inertia diagonal", m.body_inertia[1], scenario.inertia, _READBACK_RTOL)
+        chk(e, "mass", m.body_mass[1], scenario.mass, READBACK_RTOL)
+        chk(e, "inertia diagonal", m.body_inertia[1], scenario.inertia, READBACK_RTOL)
         ipos = -np.asarray(scenario.pivot) if scenario.pivoted else np.zeros(3)
-        chk(e, "COM position in the body frame (body_ipos)", m.body_ipos[1], ipos, _READBACK_RTOL)
+        chk(e, "COM position in the body frame (body_ipos)", m.body_ipos[1], ipos, READBACK_RTOL)
         chk(e, "inertial frame orientation (body_iquat)", m.body_iquat[1], [1, 0, 0, 0], 0, 0)
         chk(e, "body frame position (body_pos)", m.body_pos[1], np.zeros(3), 0, 0)
         chk(e, "body frame orientation (body_quat)", m.body_quat[1], [1, 0, 0, 0], 0, 0)
-        chk(e, "gravity", m.opt.gravity, scenario.gravity, _READBACK_RTOL)
-        chk(e, "time step", m.opt.timestep, dt, _READBACK_RTOL)
+        chk(e, "gravity", m.opt.gravity, scenario.gravity, READBACK_RTOL)
+        chk(e, "time step", m.opt.timestep, dt, READBACK_RTOL)
         enum = getattr(mujoco.mjtIntegrator, _INTEGRATOR_ENUM[integrator])
         chk(e, "integrator", m.opt.integrator, int(enum), 0, 0)
         want_type = mujoco.mjtJoint.mjJNT_BALL if scenario.pivoted else mujoco.mjtJoint.mjJNT_FREE

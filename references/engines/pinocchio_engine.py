@@ -23,30 +23,20 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import (
+    READBACK_RTOL,
     Engine,
-    EngineUnavailable,
     Integrator,
     RunOutput,
     StepFailure,
     Stopwatch,
+    import_engine,
 )
 from references.engines.liegroup import check_stage_rotation, rkmk4_step
 from references.trajectory import Trajectory
 
-#: read-back tolerance, a few ulp: engines may store a number through some arithmetic (with
-#: pin 4.1.0 and pybullet 3.2.7 an inertia of 0.9 reads back as 0.8999999999999999).
-_READBACK_RTOL = 1e-15
-
 
 def _import():
-    try:
-        import pinocchio
-    except ImportError as exc:  # pragma: no cover - depends on the machine
-        raise EngineUnavailable(
-            f"Pinocchio is not installed or does not import ({exc}); install it with "
-            "`pip install pin` (or `pip install director-bench[engines]`)"
-        ) from exc
-    return pinocchio
+    return import_engine("pinocchio", "Pinocchio", "pin")
 
 
 class PinocchioEngine(Engine):
@@ -105,16 +95,16 @@ class PinocchioEngine(Engine):
         chk = cv.check_quantity
         e = "Pinocchio"
         body = model.inertias[1]
-        chk(e, "mass", body.mass, scenario.mass, _READBACK_RTOL)
+        chk(e, "mass", body.mass, scenario.mass, READBACK_RTOL)
         chk(
             e,
             "inertia tensor about the COM",
             body.inertia,
             np.diag(scenario.inertia),
-            _READBACK_RTOL,
+            READBACK_RTOL,
         )
-        chk(e, "COM position in the body frame (lever)", body.lever, lever, _READBACK_RTOL)
-        chk(e, "gravity", model.gravity.linear, scenario.gravity, _READBACK_RTOL)
+        chk(e, "COM position in the body frame (lever)", body.lever, lever, READBACK_RTOL)
+        chk(e, "gravity", model.gravity.linear, scenario.gravity, READBACK_RTOL)
         chk(e, "gravity (angular part)", model.gravity.angular, np.zeros(3), 0, 0)
         chk(e, "joint placement", model.jointPlacements[1].homogeneous, np.eye(4), 0, 0)
         chk(e, "joint damping", model.damping, np.zeros(model.nv), 0, 0)

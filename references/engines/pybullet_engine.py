@@ -32,33 +32,24 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import (
+    READBACK_RTOL,
     Engine,
     EngineError,
-    EngineUnavailable,
     Integrator,
     RunOutput,
     StepFailure,
     Stopwatch,
     Unsupported,
+    import_engine,
 )
 from references.trajectory import Trajectory
 
 #: the raised velocity clamp (rad/s and m/s); runs whose speeds come near it are refused
 MAX_JOINT_VELOCITY = 1e6
-#: read-back tolerance, a few ulp: engines may store a number through some arithmetic (with
-#: pin 4.1.0 and pybullet 3.2.7 an inertia of 0.9 reads back as 0.8999999999999999).
-_READBACK_RTOL = 1e-15
 
 
 def _import():
-    try:
-        import pybullet
-    except ImportError as exc:  # pragma: no cover - depends on the machine
-        raise EngineUnavailable(
-            f"PyBullet is not installed or does not import ({exc}); install it with "
-            "`pip install pybullet` (or `pip install director-bench[engines]`)"
-        ) from exc
-    return pybullet
+    return import_engine("pybullet", "PyBullet", "pybullet")
 
 
 class PybulletEngine(Engine):
@@ -204,29 +195,29 @@ class PybulletEngine(Engine):
         chk = cv.check_quantity
         e = "PyBullet"
         info = p.getDynamicsInfo(body, link, physicsClientId=cid)
-        chk(e, "mass", info[0], scenario.mass, _READBACK_RTOL)
-        chk(e, "inertia diagonal", info[2], scenario.inertia, _READBACK_RTOL)
+        chk(e, "mass", info[0], scenario.mass, READBACK_RTOL)
+        chk(e, "inertia diagonal", info[2], scenario.inertia, READBACK_RTOL)
         com = -np.asarray(scenario.pivot) if scenario.pivoted else np.zeros(3)
         chk(
             e,
             "COM position in the link frame (inertial frame position)",
             info[3],
             com,
-            _READBACK_RTOL,
+            READBACK_RTOL,
         )
         if not maximal:
             # For btRigidBody pybullet 3.2.7 returns uninitialised numbers here (read as
             # (0, 1, 6.9e-310, 1)); the rigid body is created with the identity inertial frame.
             chk(e, "inertial frame orientation", info[4], [0, 0, 0, 1], 0, 0)
         params = p.getPhysicsEngineParameters(physicsClientId=cid)
-        chk(e, "time step", params["fixedTimeStep"], dt, _READBACK_RTOL)
+        chk(e, "time step", params["fixedTimeStep"], dt, READBACK_RTOL)
         chk(e, "number of substeps", params["numSubSteps"], 0, 0, 0)
         chk(
             e,
             "gravity",
             [params[f"gravityAcceleration{a}"] for a in "XYZ"],
             scenario.gravity,
-            _READBACK_RTOL,
+            READBACK_RTOL,
         )
         if scenario.pivoted:
             j = p.getJointInfo(body, 0, physicsClientId=cid)
