@@ -211,7 +211,7 @@ def plan(
     them contributes nothing). Engines that are not installed still get specs, so that their
     absence is recorded as rows.
     """
-    from references.engines import engine_names, get_engine
+    from references.engines import engine_names, get_engine, step_plan
 
     engines = list(engines) if engines else engine_names()
     specs = []
@@ -221,6 +221,14 @@ def plan(
         else:
             steps = [sc.dt, *(sc.dt_sweep if sweep else ())]
         steps = sorted(set(steps), reverse=True)
+        horizon = sc.t_end if t_end is None else t_end
+        for h in steps:
+            # A step or horizon from the command line that does not fit the scenario is the
+            # user's input to fix, said once, not a failed row per engine and integrator.
+            try:
+                step_plan(h, horizon, sc.save_every)
+            except ValueError as exc:
+                raise ValueError(f"scenario {sc.name!r}: {exc}") from None
         for name in engines:
             cls = get_engine(name)
             names = [i.name for i in cls.integrators]

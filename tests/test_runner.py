@@ -200,3 +200,13 @@ def test_report_renders_in_headless_chromium(tmp_path, dzh):
     img = imread(shot)
     # A rendered page with tables and plots is not a blank (single-colour) image
     assert img.shape[0] == 2400 and img[..., :3].std() > 0.05
+
+
+def test_dt_that_does_not_divide_the_horizon_is_refused_up_front(tmp_path, capsys):
+    """30 s / 7e-3 is not a whole number of steps: exit 2 naming scenario, values and rule,
+    and no run starts."""
+    out = tmp_path / "o"
+    assert main(["run", "dzhanibekov", "--dt", "7e-3", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "dzhanibekov" in err and "dt = 0.007" in err and "whole number of steps" in err
+    assert not (out / "results.csv").exists()
