@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.runner import error_series_path, slug
+from reports.runner import default_dt, error_series_path, slug
 
 FAMILY_STYLE = {
     "semi-implicit Euler": "-",
@@ -48,16 +48,12 @@ def _label(r) -> str:
     return f"{r['engine']} {r['integrator']}"
 
 
-def _default_dt_rows(df, scenario: str, default_dt: float | None):
+def _default_dt_rows(df, scenario: str, dt: float | None):
     sub = df[(df["scenario"] == scenario) & (df["status"] == "ok")]
     if sub.empty:
         return sub
-    if default_dt is None:
-        # The most common largest-sample dt: the scenario's default is the one every engine
-        # ran; take the dt with the most rows, ties broken by the smaller step.
-        counts = sub.groupby("dt").size()
-        default_dt = max(counts.index, key=lambda h: (counts[h], -h))
-    return sub[np.isclose(sub["dt"], default_dt, rtol=1e-9)]
+    h = default_dt(sub) if dt is None else dt
+    return sub[np.isclose(sub["dt"], h, rtol=1e-9)]
 
 
 def _series(root: Path, row):
@@ -69,9 +65,9 @@ def _series(root: Path, row):
     return pd.read_parquet(p) if p.exists() else None
 
 
-def _time_plot(df, root, out, scenario, column, ylabel, title, logy, default_dt=None):
+def _time_plot(df, root, out, scenario, column, ylabel, title, logy, dt=None):
     plt = _plt()
-    rows = _default_dt_rows(df, scenario, default_dt)
+    rows = _default_dt_rows(df, scenario, dt)
     fig, ax = plt.subplots(figsize=(10, 4.2))
     plotted = 0
     for _, r in rows.iterrows():
@@ -104,12 +100,12 @@ def _time_plot(df, root, out, scenario, column, ylabel, title, logy, default_dt=
     return path
 
 
-def rates_plot(df, root, out, scenario, default_dt=None):
+def rates_plot(df, root, out, scenario, dt=None):
     """Body rates W_1, W_2, W_3 against time, one panel each: the Dzhanibekov flips are the
     sign changes of the intermediate-axis rate, and a stepper that misses or mistimes them
     stands out against the reference (thick line)."""
     plt = _plt()
-    rows = _default_dt_rows(df, scenario, default_dt)
+    rows = _default_dt_rows(df, scenario, dt)
     fig, axes = plt.subplots(3, 1, figsize=(10, 6.0), sharex=True)
     plotted = 0
     for _, r in rows.iterrows():

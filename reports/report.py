@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from reports.metrics import METRIC_COLUMNS
+from reports.runner import default_dt
 
 FAMILY_ORDER = [
     "structure-preserving director",
@@ -187,13 +188,9 @@ def html_table(title: str, header, rows) -> str:
     )
 
 
-def _default_dt(sub) -> float:
-    counts = sub.groupby("dt").size()
-    return max(counts.index, key=lambda h: (counts[h], -h))
-
-
 def sections(df) -> list[tuple[str, str, list, list]]:
-    """The report's tables as (kind, title, header, rows); kind is 'table'."""
+    """The report's sections as (kind, title, header, rows); kind is 'table' or 'text' (a
+    line of prose in ``title``)."""
     out = []
     if df.empty:
         return out
@@ -204,9 +201,8 @@ def sections(df) -> list[tuple[str, str, list, list]]:
         sub = df[df["scenario"] == scenario]
         ok = sub[sub["status"] == "ok"]
         if not ok.empty:
-            h = _default_dt(ok)
-            at = ok[np.isclose(ok["dt"], h, rtol=1e-9)].copy()
-            at["_fam"] = at["family"].map(_family_key)
+            h = default_dt(ok)
+            at = ok[np.isclose(ok["dt"], h, rtol=1e-9)]
             for fam, g in sorted(at.groupby("family"), key=lambda kv: _family_key(kv[0])):
                 g = g.sort_values(["engine", "integrator"])
                 cols = [

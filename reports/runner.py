@@ -244,6 +244,14 @@ def plan(
     return specs
 
 
+def default_dt(rows) -> float:
+    """The step shown in per-dt tables and time plots: the dt with the most runs (every
+    engine runs a scenario's default dt; a sweep's other steps have fewer), ties broken by
+    the smaller step."""
+    counts = rows.groupby("dt").size()
+    return max(counts.index, key=lambda h: (counts[h], -h))
+
+
 def read_results(path: Path):
     """The results table at ``path`` (a results.csv or its folder) as a pandas DataFrame."""
     import pandas as pd
