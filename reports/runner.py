@@ -245,9 +245,12 @@ def plan(
 
 
 def default_dt(rows) -> float:
-    """The step shown in per-dt tables and time plots: the dt with the most runs (every
-    engine runs a scenario's default dt; a sweep's other steps have fewer), ties broken by
-    the smaller step."""
+    """The step shown in per-dt tables and time plots: the scenario's own ``dt``, which is
+    the step of the exact reference's run (:func:`plan` runs it there only); without such a
+    row, the dt with the most runs, ties broken by the smaller step."""
+    exact = rows[rows["engine"] == "exact"]
+    if len(exact):
+        return float(exact["dt"].iloc[0])
     counts = rows.groupby("dt").size()
     return max(counts.index, key=lambda h: (counts[h], -h))
 
