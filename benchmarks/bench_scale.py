@@ -5,7 +5,8 @@
 2. Long horizon: 1e6 steps of the Dzhanibekov body (1000 s at dt = 1e-3), decimated storage
    (one saved state per 1000 steps), through the suite's engine interface: wall time, peak
    resident memory of the process (each run in a fresh subprocess so peaks do not mix), and
-   the size the full trajectory would have had.
+   the size the full trajectory would have had; then the same with streaming metrics over
+   every step (runs in segments, memory bounded by the segment).
 3. Ensemble throughput: director_model's batched path against ``mujoco.rollout`` on the same
    ensemble of free bodies (the Dzhanibekov body of numerics.md with random directions of W at
    its rotational energy), both on every core, body-steps per second and the ratio.
@@ -107,7 +108,21 @@ def hwm_kb():
         if line.startswith("VmHWM:"):
             return int(line.split()[1])
 engine, integ, nstep, every = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+segment = int(sys.argv[5]) if len(sys.argv) > 5 else 0
 sc = scenarios.load("dzhanibekov")
+if segment:  # streaming metrics over every step, segments of `segment` steps
+    from reports.runner import RunSpec, execute
+    execute(RunSpec(sc.replace(t_end=1.0), engine, integ, 1e-3, save_every=every,
+                    segment=segment))  # warm-up
+    before = hwm_kb()
+    t0 = time.perf_counter()
+    row = execute(RunSpec(sc.replace(t_end=nstep * 1e-3), engine, integ, 1e-3,
+                          save_every=every, segment=segment))
+    wall = time.perf_counter() - t0
+    print(json.dumps(dict(wall=wall, stepping=row["wall_time_s"], nsave=nstep // every + 1,
+                          before_kb=before, peak_kb=hwm_kb(), energy=row["energy_drift_max"],
+                          attitude=row["attitude_error_max"])))
+    sys.exit(0)
 warm = get_engine(engine)().run(sc, integ, 1e-3, t_end=1e-3 * every, save_every=every)
 compute_metrics(sc, warm.trajectory, reference_trajectory(sc, warm.trajectory.t))  # warm-up
 before = hwm_kb()
@@ -123,9 +138,9 @@ print(json.dumps(dict(wall=wall, stepping=out.wall_time_s, nsave=len(tr), before
 """
 
 
-def long_horizon(engine, integ, nstep, every):
+def long_horizon(engine, integ, nstep, every, segment=0):
     res = subprocess.run(
-        [sys.executable, "-c", LONG, engine, integ, str(nstep), str(every)],
+        [sys.executable, "-c", LONG, engine, integ, str(nstep), str(every), str(segment)],
         capture_output=True,
         text=True,
         timeout=3600,
@@ -189,6 +204,25 @@ def main(argv=None):
         ("mujoco", "Euler"),
     ):
         res = long_horizon(engine, integ, nlong, every)
+        if "error" in res:
+            print(f"| {engine} {integ} | failed: {res['error']} |")
+            continue
+        print(
+            f"| {engine} {integ} | {res['wall']:.2f} | {res['stepping']:.2f} | {res['nsave']} | "
+            f"{res['peak_kb'] / 1024:.0f} | {(res['peak_kb'] - res['before_kb']) / 1024:.1f} | "
+            f"{res['energy']:.2e} | {res['attitude']:.2e} |"
+        )
+    seg = 20_000
+    print(
+        f"\nSame horizon with streaming metrics (reports.streaming): segments of {seg} steps, "
+        "every step measured (energy, momentum, attitude... against the exact reference)"
+    )
+    print(
+        "| engine integrator | wall [s] | stepping [s] | saved | peak RSS [MB] | "
+        "growth [MB] | energy drift | attitude err [rad] |\n|---|---|---|---|---|---|---|---|"
+    )
+    for engine, integ in (("director", "rattle"), ("mujoco", "Euler")):
+        res = long_horizon(engine, integ, nlong, every, seg)
         if "error" in res:
             print(f"| {engine} {integ} | failed: {res['error']} |")
             continue

@@ -88,6 +88,8 @@ def cmd_run(args) -> int:
         progress=not args.quiet,
         jobs=args.jobs,
         scheduler=args.scheduler,
+        save_every=args.save_every,
+        segment=args.segment,
     )
     df = summary.results
     counts = df["status"].value_counts().to_dict()
@@ -190,6 +192,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")
     s.add_argument("--t-end", type=_positive, help="horizon in s (overrides files)")
     s.add_argument("--no-sweep", action="store_true", help="only each scenario's default dt")
+    s.add_argument("--save-every", type=int, help="keep every N-th state (overrides files)")
+    s.add_argument(
+        "--segment",
+        type=int,
+        metavar="N",
+        help="long horizons: run in segments of N steps, metrics over every step, memory O(N)",
+    )
     s.add_argument("--out", default="results", help="output folder (default: results)")
     s.add_argument("--redo", action="store_true", help="run again runs already in the results")
     s.add_argument(

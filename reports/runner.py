@@ -61,6 +61,9 @@ class RunSpec:
     dt: float
     t_end: float | None = None
     save_every: int | None = None
+    #: run in segments of this many steps with streaming metrics over every step
+    #: (see :mod:`reports.streaming`); None: one run, metrics at the saved samples
+    segment: int | None = None
 
     @property
     def horizon(self) -> float:
@@ -157,6 +160,10 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet") -> dic
     """
     from references.engines import EngineError, get_engine
 
+    if spec.segment:
+        from reports.streaming import execute_segmented
+
+        return execute_segmented(spec, spec.segment, out, fmt)
     row = _blank_row(spec)
     try:
         engine_cls = get_engine(spec.engine)
@@ -203,12 +210,16 @@ def plan(
     dts: Sequence[float] | None = None,
     t_end: float | None = None,
     sweep: bool = True,
+    save_every: int | None = None,
+    segment: int | None = None,
 ) -> list[RunSpec]:
     """The specs of a suite: every scenario x engine x integrator x dt.
 
     ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep``. ``integrators``
     None: every integrator of each engine; else only those named (an engine offering none of
-    them contributes nothing). Engines that are not installed still get specs, so that their
+    them contributes nothing). ``save_every`` overrides the scenarios' decimation;
+    ``segment`` runs long horizons in segments with streaming metrics over every step.
+    Engines that are not installed still get specs, so that their
     absence is recorded as rows.
     """
     from references.engines import engine_names, get_engine, step_plan
@@ -226,7 +237,7 @@ def plan(
             # A step or horizon from the command line that does not fit the scenario is the
             # user's input to fix, said once, not a failed row per engine and integrator.
             try:
-                step_plan(h, horizon, sc.save_every)
+                step_plan(h, horizon, sc.save_every if save_every is None else save_every)
             except ValueError as exc:
                 raise ValueError(f"scenario {sc.name!r}: {exc}") from None
         for name in engines:
@@ -240,7 +251,7 @@ def plan(
                 steps_e = steps
             for integ in names:
                 for h in steps_e:
-                    specs.append(RunSpec(sc, name, integ, h, t_end))
+                    specs.append(RunSpec(sc, name, integ, h, t_end, save_every, segment))
     return specs
 
 

@@ -47,6 +47,8 @@ def run(
     progress: bool = True,
     jobs: int | None = None,
     scheduler: str | None = None,
+    save_every: int | None = None,
+    segment: int | None = None,
 ) -> RunSummary:
     """Run scenarios x engines x integrators x dt into ``out`` and write the report.
 
@@ -61,7 +63,9 @@ def run(
 
     out = Path(out)
     scs = resolve_scenarios(names, all_scenarios)
-    specs = plan(scs, engines, integrators, dts, t_end, sweep=sweep)
+    specs = plan(
+        scs, engines, integrators, dts, t_end, sweep=sweep, save_every=save_every, segment=segment
+    )
     out.mkdir(parents=True, exist_ok=True)
     write_provenance(out)
     df, n_run = run_suite(
