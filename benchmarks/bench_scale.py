@@ -150,6 +150,24 @@ def long_horizon(engine, integ, nstep, every, segment=0):
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
+def long_table(nlong, every, configs, segment=0):
+    """Print one row per (engine, integrator) of a long-horizon run in a subprocess."""
+    print(
+        "| engine integrator | wall [s] | stepping [s] | saved | peak RSS [MB] | "
+        "growth [MB] | energy drift | attitude err [rad] |\n|---|---|---|---|---|---|---|---|"
+    )
+    for engine, integ in configs:
+        res = long_horizon(engine, integ, nlong, every, segment)
+        if "error" in res:
+            print(f"| {engine} {integ} | failed: {res['error']} |")
+            continue
+        print(
+            f"| {engine} {integ} | {res['wall']:.2f} | {res['stepping']:.2f} | {res['nsave']} | "
+            f"{res['peak_kb'] / 1024:.0f} | {(res['peak_kb'] - res['before_kb']) / 1024:.1f} | "
+            f"{res['energy']:.2e} | {res['attitude']:.2e} |"
+        )
+
+
 def default_suite():
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
@@ -193,44 +211,17 @@ def main(argv=None):
         f"2. Long horizon: dzhanibekov, {nlong:.0e} steps (dt = 1e-3), one state saved per "
         f"{every} steps; the full trajectory in the suite's schema would take {full_mb:.0f} MB"
     )
-    print(
-        "| engine integrator | wall [s] | stepping [s] | saved | peak RSS [MB] | "
-        "growth [MB] | energy drift | attitude err [rad] |\n|---|---|---|---|---|---|---|---|"
+    long_table(
+        nlong,
+        every,
+        [("director", "rattle"), ("director", "rattle4"), ("mujoco", "RK4"), ("mujoco", "Euler")],
     )
-    for engine, integ in (
-        ("director", "rattle"),
-        ("director", "rattle4"),
-        ("mujoco", "RK4"),
-        ("mujoco", "Euler"),
-    ):
-        res = long_horizon(engine, integ, nlong, every)
-        if "error" in res:
-            print(f"| {engine} {integ} | failed: {res['error']} |")
-            continue
-        print(
-            f"| {engine} {integ} | {res['wall']:.2f} | {res['stepping']:.2f} | {res['nsave']} | "
-            f"{res['peak_kb'] / 1024:.0f} | {(res['peak_kb'] - res['before_kb']) / 1024:.1f} | "
-            f"{res['energy']:.2e} | {res['attitude']:.2e} |"
-        )
     seg = 20_000
     print(
         f"\nSame horizon with streaming metrics (reports.streaming): segments of {seg} steps, "
         "every step measured (energy, momentum, attitude... against the exact reference)"
     )
-    print(
-        "| engine integrator | wall [s] | stepping [s] | saved | peak RSS [MB] | "
-        "growth [MB] | energy drift | attitude err [rad] |\n|---|---|---|---|---|---|---|---|"
-    )
-    for engine, integ in (("director", "rattle"), ("mujoco", "Euler")):
-        res = long_horizon(engine, integ, nlong, every, seg)
-        if "error" in res:
-            print(f"| {engine} {integ} | failed: {res['error']} |")
-            continue
-        print(
-            f"| {engine} {integ} | {res['wall']:.2f} | {res['stepping']:.2f} | {res['nsave']} | "
-            f"{res['peak_kb'] / 1024:.0f} | {(res['peak_kb'] - res['before_kb']) / 1024:.1f} | "
-            f"{res['energy']:.2e} | {res['attitude']:.2e} |"
-        )
+    long_table(nlong, every, [("director", "rattle"), ("mujoco", "Euler")], seg)
     print()
     nbody, nstep = (1000, 200) if args.quick else (4000, 1000)
     dt = 1e-3

@@ -37,6 +37,10 @@ POINTWISE = {
 }
 
 
+#: the arrays of a references.trajectory.Trajectory
+_FIELDS = ("t", "position", "velocity", "rotation", "omega_body", "energy", "angular_momentum")
+
+
 def _restart(scenario, traj):
     """The scenario whose initial state is the last state of ``traj``."""
     kw = {"rotation": traj.rotation[-1], "omega_body": traj.omega_body[-1], "dt_sweep": ()}
