@@ -44,6 +44,13 @@ def _legend(ax, fig) -> None:
     fig.tight_layout()
 
 
+def _save(fig, path: Path) -> Path:
+    """Write the figure as PNG and release it."""
+    fig.savefig(path, dpi=110)
+    _plt().close(fig)
+    return path
+
+
 def _label(r) -> str:
     return f"{r['engine']} {r['integrator']}"
 
@@ -94,10 +101,7 @@ def _time_plot(df, root, out, scenario, column, ylabel, title, logy, dt=None):
     ax.set(xlabel="t [s]", ylabel=ylabel, title=f"{scenario}: {title} (dt = {dt:g} s)")
     ax.grid(True, which="both", alpha=0.3)
     _legend(ax, fig)
-    path = out / f"{slug(scenario)}__{slug(column)}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / f"{slug(scenario)}__{slug(column)}.png")
 
 
 def rates_plot(df, root, out, scenario, dt=None):
@@ -125,10 +129,7 @@ def rates_plot(df, root, out, scenario, dt=None):
     axes[0].set_title(f"{scenario}: body angular velocity")
     axes[2].set_xlabel("t [s]")
     _legend(axes[0], fig)
-    path = out / f"{slug(scenario)}__rates.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / f"{slug(scenario)}__rates.png")
 
 
 def convergence_plot(df, out, scenario, metric="attitude_error_max"):
@@ -160,10 +161,7 @@ def convergence_plot(df, out, scenario, metric="attitude_error_max"):
     ax.set(xlabel="dt [s]", ylabel=f"{metric}", title=f"{scenario}: error against time step")
     ax.grid(True, which="both", alpha=0.3)
     _legend(ax, fig)
-    path = out / f"{slug(scenario)}__convergence.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / f"{slug(scenario)}__convergence.png")
 
 
 def work_precision_plot(df, out, scenario, metric="attitude_error_max"):
@@ -175,7 +173,7 @@ def work_precision_plot(df, out, scenario, metric="attitude_error_max"):
         return None
     fig, ax = plt.subplots(figsize=(10, 4.6))
     for (eng, integ), g in sub.groupby(["engine", "integrator"]):
-        g = g.sort_values("wall_time_s")
+        g = g.sort_values("dt")  # connect the points in step-size order
         fam = g["family"].iloc[0]
         ax.loglog(
             g["wall_time_s"],
@@ -191,10 +189,7 @@ def work_precision_plot(df, out, scenario, metric="attitude_error_max"):
     )
     ax.grid(True, which="both", alpha=0.3)
     _legend(ax, fig)
-    path = out / f"{slug(scenario)}__work_precision.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, out / f"{slug(scenario)}__work_precision.png")
 
 
 def all_plots(df, root: str | Path, out: str | Path | None = None) -> dict[str, list[Path]]:
@@ -252,7 +247,4 @@ def ensemble_plot(df, out, metric: str = "attitude_error_max"):
     )
     ax.grid(True, which="both", axis="x", alpha=0.3)
     fig.tight_layout()
-    path = Path(out) / f"{slug(scen)}__ensemble_{slug(metric)}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, Path(out) / f"{slug(scen)}__ensemble_{slug(metric)}.png")
