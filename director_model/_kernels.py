@@ -209,17 +209,137 @@ def _dmv_solve(P, b0, b1, b2):
     return OK, w0, w1, w2, c0, c1, c2, q
 
 
+@njit(inline="always")
+def _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2):
+    """The outcome of :func:`_dmv_solve_diag` in almost every step, as straight-line code:
+    converged after the predictor and two fixed-point corrections, or after one Newton
+    update; then the polish. Same expressions in the same order as the loop, so when it
+    returns ``ok`` its w, c, q are the loop's to the last bit; otherwise the loop decides
+    (more Newton updates, stagnation, a failure). No early exit: the tests become flags, which
+    lets the block loop of :func:`_rattle_block_substep` run it in SIMD lanes. Inlined by
+    numba into both callers. Returns (ok, w0, w1, w2, c0, c1, c2, q)."""
+    e0 = I2 - I1
+    e1 = I0 - I2
+    e2 = I1 - I0
+    w0 = a0 * b0
+    w1 = a1 * b1
+    w2 = a2 * b2
+    for _ in range(2):
+        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+        w0n = a0 * (q * b0 - e0 * w1 * w2)
+        w1n = a1 * (q * b1 - e1 * w2 * w0)
+        w2n = a2 * (q * b2 - e2 * w0 * w1)
+        w0 = w0n
+        w1 = w1n
+        w2 = w2n
+    # first entry of the Newton loop: the residual at w
+    u0 = I0 * w0
+    u1 = I1 * w1
+    u2 = I2 * w2
+    q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+    c0 = w1 * u2 - w2 * u1
+    c1 = w2 * u0 - w0 * u2
+    c2 = w0 * u1 - w1 * u0
+    G0 = u0 + c0 - q * b0
+    G1 = u1 + c1 - q * b1
+    G2 = u2 + c2 - q * b2
+    sc = max(
+        abs(u0) + abs(c0) + abs(q * b0),
+        abs(u1) + abs(c1) + abs(q * b1),
+        abs(u2) + abs(c2) + abs(q * b2),
+    )
+    conv1 = max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc
+    finite1 = sc < math.inf
+    # one Newton update from w to v
+    t0 = 2.0 * b0
+    t1 = 2.0 * b1
+    t2 = 2.0 * b2
+    K00 = I0 - t0 * w0
+    K01 = w2 * e0 - t0 * w1
+    K02 = w1 * e0 - t0 * w2
+    K10 = w2 * e1 - t1 * w0
+    K11 = I1 - t1 * w1
+    K12 = w0 * e1 - t1 * w2
+    K20 = w1 * e2 - t2 * w0
+    K21 = w0 * e2 - t2 * w1
+    K22 = I2 - t2 * w2
+    C00 = K11 * K22 - K12 * K21
+    C01 = K12 * K20 - K10 * K22
+    C02 = K10 * K21 - K11 * K20
+    det = K00 * C00 + K01 * C01 + K02 * C02
+    C10 = K02 * K21 - K01 * K22
+    C11 = K00 * K22 - K02 * K20
+    C12 = K01 * K20 - K00 * K21
+    C20 = K01 * K12 - K02 * K11
+    C21 = K02 * K10 - K00 * K12
+    C22 = K00 * K11 - K01 * K10
+    # (det == 0 only where the result is not used; the guard keeps plain Python, under
+    # NUMBA_DISABLE_JIT=1, from raising ZeroDivisionError)
+    rd = 1.0 / det if det != 0.0 else math.inf
+    d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
+    d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
+    d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
+    v0 = w0 - d0
+    v1 = w1 - d1
+    v2 = w2 - d2
+    stagnated = max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(v0), abs(v1), abs(v2))
+    # second entry: the residual at v
+    u0 = I0 * v0
+    u1 = I1 * v1
+    u2 = I2 * v2
+    q = 1.0 + v0 * v0 + v1 * v1 + v2 * v2
+    c0 = v1 * u2 - v2 * u1
+    c1 = v2 * u0 - v0 * u2
+    c2 = v0 * u1 - v1 * u0
+    H0 = u0 + c0 - q * b0
+    H1 = u1 + c1 - q * b1
+    H2 = u2 + c2 - q * b2
+    sc = max(
+        abs(u0) + abs(c0) + abs(q * b0),
+        abs(u1) + abs(c1) + abs(q * b1),
+        abs(u2) + abs(c2) + abs(q * b2),
+    )
+    conv2 = max(abs(H0), abs(H1), abs(H2)) <= DMV_TOL * sc
+    newton1 = (not conv1) & finite1 & (det > 0.0) & (not stagnated) & conv2
+    # polish from the accepted iterate (see _dmv_solve); c and q at the polished w
+    y0 = w0 if conv1 else v0
+    y1 = w1 if conv1 else v1
+    y2 = w2 if conv1 else v2
+    F0 = G0 if conv1 else H0
+    F1 = G1 if conv1 else H1
+    F2 = G2 if conv1 else H2
+    w0 = y0 - a0 * F0
+    w1 = y1 - a1 * F1
+    w2 = y2 - a2 * F2
+    q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+    u0 = I0 * w0
+    u1 = I1 * w1
+    u2 = I2 * w2
+    c0 = w1 * u2 - w2 * u1
+    c1 = w2 * u0 - w0 * u2
+    c2 = w0 * u1 - w1 * u0
+    return conv1 | newton1, w0, w1, w2, c0, c1, c2, q
+
+
 @njit(cache=True)
 def _dmv_solve_diag(P, b0, b1, b2):
     """:func:`_dmv_solve` for a diagonal Ibar (a free body, or a pivot on a principal
     axis): the same equations and tests with the zero products left out, which shortens the
-    latency-bound chain of the step by about a fifth."""
+    latency-bound chain of the step by about a fifth. The common outcome is computed by
+    :func:`_dmv_diag_fast` first; the loop below gives the same numbers in that case and
+    handles the others."""
     I0 = P[10]
     I1 = P[14]
     I2 = P[18]
     a0 = P[19]
     a1 = P[23]
     a2 = P[27]
+    ok, w0, w1, w2, c0, c1, c2, q = _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2)
+    if ok:
+        if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
+            return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
+        return OK, w0, w1, w2, c0, c1, c2, q
+    # the general loop: more Newton updates, stagnation or a failure
     e0 = I2 - I1
     e1 = I0 - I2
     e2 = I1 - I0
@@ -312,29 +432,67 @@ def _dmv_solve_diag(P, b0, b1, b2):
     return OK, w0, w1, w2, c0, c1, c2, q
 
 
-@njit(cache=True)
-def _gravity_torque(P, g, S):
-    """Body torque of gravity about the pivot, tau = m (D^T g) x c, stored in S[27:30].
+@njit(inline="always")
+def _torque(piv, m, c0, c1, c2, g0, g1, g2, D00, D01, D02, D10, D11, D12, D20, D21, D22):
+    """Body torque of gravity about the pivot, tau = m (D^T g) x c (zero for a free body).
 
     From V = -m g . x_G with x_G = -D c: the director forces are f_i = -dV/dd_i = -m c_i g and
     tau = vee(D^T F - F^T D) = -m c x (D^T g) (numerics.md section 2). Zero for a free body
-    (gravity acts at the centre of mass).
-    """
-    if P[31] == 0.0:
-        S[27] = 0.0
-        S[28] = 0.0
-        S[29] = 0.0
-        return
-    m = P[0]
-    gb0 = S[6] * g[0] + S[9] * g[1] + S[12] * g[2]
-    gb1 = S[7] * g[0] + S[10] * g[1] + S[13] * g[2]
-    gb2 = S[8] * g[0] + S[11] * g[1] + S[14] * g[2]
-    c0 = P[28]
-    c1 = P[29]
-    c2 = P[30]
-    S[27] = m * (gb1 * c2 - gb2 * c1)
-    S[28] = m * (gb2 * c0 - gb0 * c2)
-    S[29] = m * (gb0 * c1 - gb1 * c0)
+    (gravity acts at the centre of mass)."""
+    gb0 = D00 * g0 + D10 * g1 + D20 * g2
+    gb1 = D01 * g0 + D11 * g1 + D21 * g2
+    gb2 = D02 * g0 + D12 * g1 + D22 * g2
+    t0 = m * (gb1 * c2 - gb2 * c1) if piv else 0.0
+    t1 = m * (gb2 * c0 - gb0 * c2) if piv else 0.0
+    t2 = m * (gb0 * c1 - gb1 * c0) if piv else 0.0
+    return t0, t1, t2
+
+
+@njit(cache=True)
+def _gravity_torque(P, g, S):
+    """:func:`_torque` at the state's D, stored in S[27:30]."""
+    t0, t1, t2 = _torque(
+        P[31] != 0.0, P[0], P[28], P[29], P[30], g[0], g[1], g[2],
+        S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[14],
+    )  # fmt: skip
+    S[27] = t0
+    S[28] = t1
+    S[29] = t2
+
+
+@njit(inline="always")
+def _cayley_increment(w0, w1, w2, D00, D01, D02, D10, D11, D12, D20, D21, D22):
+    """D Q for Q = 1 + f (hat(w) + hat(w)^2), f = 2/(1 + |w|^2) (the Cayley form of the
+    quaternion with Gibbs vector w), computed as D + D (Q - 1): the increment form keeps the
+    rounding of the update at the ulp of the small increment, instead of a biased rounding of
+    1 - O(h^2) on the diagonal. Returns the 9 entries row by row."""
+    x00 = w0 * w0
+    x11 = w1 * w1
+    x22 = w2 * w2
+    f = 2.0 / (1.0 + x00 + x11 + x22)
+    x01 = w0 * w1
+    x02 = w0 * w2
+    x12 = w1 * w2
+    Q00 = -f * (x11 + x22)
+    Q11 = -f * (x00 + x22)
+    Q22 = -f * (x00 + x11)
+    Q01 = f * (x01 - w2)
+    Q10 = f * (x01 + w2)
+    Q02 = f * (x02 + w1)
+    Q20 = f * (x02 - w1)
+    Q12 = f * (x12 - w0)
+    Q21 = f * (x12 + w0)
+    return (
+        D00 + (D00 * Q00 + D01 * Q10 + D02 * Q20),
+        D01 + (D00 * Q01 + D01 * Q11 + D02 * Q21),
+        D02 + (D00 * Q02 + D01 * Q12 + D02 * Q22),
+        D10 + (D10 * Q00 + D11 * Q10 + D12 * Q20),
+        D11 + (D10 * Q01 + D11 * Q11 + D12 * Q21),
+        D12 + (D10 * Q02 + D11 * Q12 + D12 * Q22),
+        D20 + (D20 * Q00 + D21 * Q10 + D22 * Q20),
+        D21 + (D20 * Q01 + D21 * Q11 + D22 * Q21),
+        D22 + (D20 * Q02 + D21 * Q12 + D22 * Q22),
+    )
 
 
 @njit(cache=True)
@@ -377,32 +535,12 @@ def _rattle_substep(P, g, S, h):
         st, w0, w1, w2, c0, c1, c2, q = _dmv_solve(P, hh * p0, hh * p1, hh * p2)
     if st != OK:
         return st
-    # Q = 1 + f (hat(w) + hat(w)^2), f = 2/(1 + |w|^2) (Cayley form of the quaternion)
-    x00 = w0 * w0
-    x11 = w1 * w1
-    x22 = w2 * w2
-    f = 2.0 / (1.0 + x00 + x11 + x22)
-    x01 = w0 * w1
-    x02 = w0 * w2
-    x12 = w1 * w2
-    # diagonal of Q - 1 (the increment form D + D (Q - 1) keeps the rounding of the
-    # update at the ulp of the small increment, instead of a biased rounding of 1 - O(h^2))
-    Q00 = -f * (x11 + x22)
-    Q11 = -f * (x00 + x22)
-    Q22 = -f * (x00 + x11)
-    Q01 = f * (x01 - w2)
-    Q10 = f * (x01 + w2)
-    Q02 = f * (x02 + w1)
-    Q20 = f * (x02 - w1)
-    Q12 = f * (x12 - w0)
-    Q21 = f * (x12 + w0)
-    for r in range(3):
-        a0 = S[6 + 3 * r]
-        a1 = S[7 + 3 * r]
-        a2 = S[8 + 3 * r]
-        S[6 + 3 * r] = a0 + (a0 * Q00 + a1 * Q10 + a2 * Q20)
-        S[7 + 3 * r] = a1 + (a0 * Q01 + a1 * Q11 + a2 * Q21)
-        S[8 + 3 * r] = a2 + (a0 * Q02 + a1 * Q12 + a2 * Q22)
+    # D <- D Q
+    (
+        S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[14]
+    ) = _cayley_increment(
+        w0, w1, w2, S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[14]
+    )  # fmt: skip
     _gravity_torque(P, g, S)
     # Q^T pi = pi - 4 c/(q h) (see _dmv_solve): the same quantity as the matrix product, with
     # the small change of the momentum computed directly, off the latency chain of Q
@@ -667,50 +805,36 @@ NROW = NS + NP + 2
 def _rattle_block_substep(B, g0, g1, g2, h, nl):
     """One RATTLE substep of size h for lanes 0..nl-1 of the block array B, in place.
 
-    This is :func:`_rattle_substep` with :func:`_dmv_solve_diag` written without early exits,
-    for the outcome Newton reaches in almost every step: converged after the two fixed-point
-    corrections, or after one Newton update; then the polish. The expressions are those of
-    the scalar functions, operation for operation, so an accepted lane gets the same bits.
-    No ``fastmath``: vector and scalar IEEE operations then round alike (no contraction into
-    FMA, no reassociation). ``error_model="numpy"``: a division by zero gives inf instead of a
-    Python exception, which would be a branch that stops vectorisation; such a lane is
-    rejected below anyway.
+    :func:`_rattle_substep` for the outcome :func:`_dmv_diag_fast` covers, with its tests
+    turned into a per-lane flag: the lane loop has no branch and LLVM vectorises it. It calls
+    the same inlined functions as the scalar step, and no ``fastmath`` is used, so vector and
+    scalar IEEE operations round alike (no contraction into FMA, no reassociation) and an
+    accepted lane gets the scalar bits. ``error_model="numpy"``: a division by zero gives inf
+    instead of a Python exception, which would be a branch that stops vectorisation.
 
     A lane is accepted (B[ROW_ACC] = 1, state updated) only if it is live, its Ibar is
-    diagonal and every test the scalar code makes came out the way this straight-line code
+    diagonal and every test of the scalar step came out the way the straight-line code
     assumes. Otherwise its state is left untouched (B[ROW_ACC] = 0) and the caller runs the
     scalar :func:`_rattle_substep` on it, which gives the scalar result, failures included.
     """
     hh = 0.5 * h
     for l in range(nl):
-        live = B[ROW_LIVE * BLOCK + l] != 0.0
-        diag = B[(ROW_P + 32) * BLOCK + l] != 0.0
         piv = B[(ROW_P + 31) * BLOCK + l] != 0.0
-        m = B[ROW_P * BLOCK + l]
-        I0 = B[(ROW_P + 10) * BLOCK + l]
-        I1 = B[(ROW_P + 14) * BLOCK + l]
-        I2 = B[(ROW_P + 18) * BLOCK + l]
-        a0 = B[(ROW_P + 19) * BLOCK + l]
-        a1 = B[(ROW_P + 23) * BLOCK + l]
-        a2 = B[(ROW_P + 27) * BLOCK + l]
-        cc0 = B[(ROW_P + 28) * BLOCK + l]
-        cc1 = B[(ROW_P + 29) * BLOCK + l]
-        cc2 = B[(ROW_P + 30) * BLOCK + l]
         X0 = B[0 * BLOCK + l]
         X1 = B[1 * BLOCK + l]
         X2 = B[2 * BLOCK + l]
         U0 = B[3 * BLOCK + l]
         U1 = B[4 * BLOCK + l]
         U2 = B[5 * BLOCK + l]
-        m00 = B[6 * BLOCK + l]
-        m01 = B[7 * BLOCK + l]
-        m02 = B[8 * BLOCK + l]
-        m10 = B[9 * BLOCK + l]
-        m11 = B[10 * BLOCK + l]
-        m12 = B[11 * BLOCK + l]
-        m20 = B[12 * BLOCK + l]
-        m21 = B[13 * BLOCK + l]
-        m22 = B[14 * BLOCK + l]
+        D00 = B[6 * BLOCK + l]
+        D01 = B[7 * BLOCK + l]
+        D02 = B[8 * BLOCK + l]
+        D10 = B[9 * BLOCK + l]
+        D11 = B[10 * BLOCK + l]
+        D12 = B[11 * BLOCK + l]
+        D20 = B[12 * BLOCK + l]
+        D21 = B[13 * BLOCK + l]
+        D22 = B[14 * BLOCK + l]
         Pi0 = B[24 * BLOCK + l]
         Pi1 = B[25 * BLOCK + l]
         Pi2 = B[26 * BLOCK + l]
@@ -720,150 +844,26 @@ def _rattle_block_substep(B, g0, g1, g2, h, nl):
         p0 = Pi0 + hh * T0
         p1 = Pi1 + hh * T1
         p2 = Pi2 + hh * T2
-        b0 = hh * p0
-        b1 = hh * p1
-        b2 = hh * p2
-        # --- _dmv_solve_diag: predictor and two fixed-point corrections
-        e0 = I2 - I1
-        e1 = I0 - I2
-        e2 = I1 - I0
-        w0 = a0 * b0
-        w1 = a1 * b1
-        w2 = a2 * b2
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        w0n = a0 * (q * b0 - e0 * w1 * w2)
-        w1n = a1 * (q * b1 - e1 * w2 * w0)
-        w2n = a2 * (q * b2 - e2 * w0 * w1)
-        w0 = w0n
-        w1 = w1n
-        w2 = w2n
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        w0n = a0 * (q * b0 - e0 * w1 * w2)
-        w1n = a1 * (q * b1 - e1 * w2 * w0)
-        w2n = a2 * (q * b2 - e2 * w0 * w1)
-        w0 = w0n
-        w1 = w1n
-        w2 = w2n
-        # first Newton entry: residual at w, converged?
-        u0 = I0 * w0
-        u1 = I1 * w1
-        u2 = I2 * w2
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        c0 = w1 * u2 - w2 * u1
-        c1 = w2 * u0 - w0 * u2
-        c2 = w0 * u1 - w1 * u0
-        G0 = u0 + c0 - q * b0
-        G1 = u1 + c1 - q * b1
-        G2 = u2 + c2 - q * b2
-        sc = max(
-            abs(u0) + abs(c0) + abs(q * b0),
-            abs(u1) + abs(c1) + abs(q * b1),
-            abs(u2) + abs(c2) + abs(q * b2),
+        ok, w0, w1, w2, c0, c1, c2, q = _dmv_diag_fast(
+            B[(ROW_P + 10) * BLOCK + l], B[(ROW_P + 14) * BLOCK + l],
+            B[(ROW_P + 18) * BLOCK + l], B[(ROW_P + 19) * BLOCK + l],
+            B[(ROW_P + 23) * BLOCK + l], B[(ROW_P + 27) * BLOCK + l],
+            hh * p0, hh * p1, hh * p2,
+        )  # fmt: skip
+        ok = (
+            ok
+            & (B[ROW_LIVE * BLOCK + l] != 0.0)
+            & (B[(ROW_P + 32) * BLOCK + l] != 0.0)
+            & ((w0 * w0 + w1 * w1 + w2 * w2) < 1.0)
         )
-        conv1 = max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc
-        finite1 = sc < math.inf
-        # one Newton update from w to v
-        t0 = 2.0 * b0
-        t1 = 2.0 * b1
-        t2 = 2.0 * b2
-        K00 = I0 - t0 * w0
-        K01 = w2 * e0 - t0 * w1
-        K02 = w1 * e0 - t0 * w2
-        K10 = w2 * e1 - t1 * w0
-        K11 = I1 - t1 * w1
-        K12 = w0 * e1 - t1 * w2
-        K20 = w1 * e2 - t2 * w0
-        K21 = w0 * e2 - t2 * w1
-        K22 = I2 - t2 * w2
-        C00 = K11 * K22 - K12 * K21
-        C01 = K12 * K20 - K10 * K22
-        C02 = K10 * K21 - K11 * K20
-        det = K00 * C00 + K01 * C01 + K02 * C02
-        C10 = K02 * K21 - K01 * K22
-        C11 = K00 * K22 - K02 * K20
-        C12 = K01 * K20 - K00 * K21
-        C20 = K01 * K12 - K02 * K11
-        C21 = K02 * K10 - K00 * K12
-        C22 = K00 * K11 - K01 * K10
-        # (det == 0 only in a lane rejected below; the guard keeps NUMBA_DISABLE_JIT=1 from
-        # raising ZeroDivisionError there)
-        rd = 1.0 / det if det != 0.0 else math.inf
-        d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
-        d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
-        d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
-        v0 = w0 - d0
-        v1 = w1 - d1
-        v2 = w2 - d2
-        stagnated = max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(v0), abs(v1), abs(v2))
-        # second entry: residual at v, converged?
-        u0 = I0 * v0
-        u1 = I1 * v1
-        u2 = I2 * v2
-        q = 1.0 + v0 * v0 + v1 * v1 + v2 * v2
-        c0 = v1 * u2 - v2 * u1
-        c1 = v2 * u0 - v0 * u2
-        c2 = v0 * u1 - v1 * u0
-        H0 = u0 + c0 - q * b0
-        H1 = u1 + c1 - q * b1
-        H2 = u2 + c2 - q * b2
-        sc = max(
-            abs(u0) + abs(c0) + abs(q * b0),
-            abs(u1) + abs(c1) + abs(q * b1),
-            abs(u2) + abs(c2) + abs(q * b2),
+        n00, n01, n02, n10, n11, n12, n20, n21, n22 = _cayley_increment(
+            w0, w1, w2, D00, D01, D02, D10, D11, D12, D20, D21, D22
         )
-        conv2 = max(abs(H0), abs(H1), abs(H2)) <= DMV_TOL * sc
-        newton1 = (not conv1) & finite1 & (det > 0.0) & (not stagnated) & conv2
-        ok = live & diag & (conv1 | newton1)
-        # polish from the accepted iterate; c and q at the polished w
-        y0 = w0 if conv1 else v0
-        y1 = w1 if conv1 else v1
-        y2 = w2 if conv1 else v2
-        F0 = G0 if conv1 else H0
-        F1 = G1 if conv1 else H1
-        F2 = G2 if conv1 else H2
-        w0 = y0 - a0 * F0
-        w1 = y1 - a1 * F1
-        w2 = y2 - a2 * F2
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        u0 = I0 * w0
-        u1 = I1 * w1
-        u2 = I2 * w2
-        c0 = w1 * u2 - w2 * u1
-        c1 = w2 * u0 - w0 * u2
-        c2 = w0 * u1 - w1 * u0
-        ok = ok & ((w0 * w0 + w1 * w1 + w2 * w2) < 1.0)
-        # --- rest of _rattle_substep: D <- D + D (Q - 1), torque, momentum, centre of mass
-        x00 = w0 * w0
-        x11 = w1 * w1
-        x22 = w2 * w2
-        f = 2.0 / (1.0 + x00 + x11 + x22)
-        x01 = w0 * w1
-        x02 = w0 * w2
-        x12 = w1 * w2
-        Q00 = -f * (x11 + x22)
-        Q11 = -f * (x00 + x22)
-        Q22 = -f * (x00 + x11)
-        Q01 = f * (x01 - w2)
-        Q10 = f * (x01 + w2)
-        Q02 = f * (x02 + w1)
-        Q20 = f * (x02 - w1)
-        Q12 = f * (x12 - w0)
-        Q21 = f * (x12 + w0)
-        n00 = m00 + (m00 * Q00 + m01 * Q10 + m02 * Q20)
-        n01 = m01 + (m00 * Q01 + m01 * Q11 + m02 * Q21)
-        n02 = m02 + (m00 * Q02 + m01 * Q12 + m02 * Q22)
-        n10 = m10 + (m10 * Q00 + m11 * Q10 + m12 * Q20)
-        n11 = m11 + (m10 * Q01 + m11 * Q11 + m12 * Q21)
-        n12 = m12 + (m10 * Q02 + m11 * Q12 + m12 * Q22)
-        n20 = m20 + (m20 * Q00 + m21 * Q10 + m22 * Q20)
-        n21 = m21 + (m20 * Q01 + m21 * Q11 + m22 * Q21)
-        n22 = m22 + (m20 * Q02 + m21 * Q12 + m22 * Q22)
-        gb0 = n00 * g0 + n10 * g1 + n20 * g2
-        gb1 = n01 * g0 + n11 * g1 + n21 * g2
-        gb2 = n02 * g0 + n12 * g1 + n22 * g2
-        N0 = m * (gb1 * cc2 - gb2 * cc1) if piv else 0.0
-        N1 = m * (gb2 * cc0 - gb0 * cc2) if piv else 0.0
-        N2 = m * (gb0 * cc1 - gb1 * cc0) if piv else 0.0
+        N0, N1, N2 = _torque(
+            piv, B[ROW_P * BLOCK + l], B[(ROW_P + 28) * BLOCK + l],
+            B[(ROW_P + 29) * BLOCK + l], B[(ROW_P + 30) * BLOCK + l], g0, g1, g2,
+            n00, n01, n02, n10, n11, n12, n20, n21, n22,
+        )  # fmt: skip
         r = 4.0 / (q * h)
         Pn0 = p0 - r * c0 + hh * N0
         Pn1 = p1 - r * c1 + hh * N1
@@ -876,15 +876,15 @@ def _rattle_block_substep(B, g0, g1, g2, h, nl):
         B[3 * BLOCK + l] = U0 + h * g0 if free else U0
         B[4 * BLOCK + l] = U1 + h * g1 if free else U1
         B[5 * BLOCK + l] = U2 + h * g2 if free else U2
-        B[6 * BLOCK + l] = n00 if ok else m00
-        B[7 * BLOCK + l] = n01 if ok else m01
-        B[8 * BLOCK + l] = n02 if ok else m02
-        B[9 * BLOCK + l] = n10 if ok else m10
-        B[10 * BLOCK + l] = n11 if ok else m11
-        B[11 * BLOCK + l] = n12 if ok else m12
-        B[12 * BLOCK + l] = n20 if ok else m20
-        B[13 * BLOCK + l] = n21 if ok else m21
-        B[14 * BLOCK + l] = n22 if ok else m22
+        B[6 * BLOCK + l] = n00 if ok else D00
+        B[7 * BLOCK + l] = n01 if ok else D01
+        B[8 * BLOCK + l] = n02 if ok else D02
+        B[9 * BLOCK + l] = n10 if ok else D10
+        B[10 * BLOCK + l] = n11 if ok else D11
+        B[11 * BLOCK + l] = n12 if ok else D12
+        B[12 * BLOCK + l] = n20 if ok else D20
+        B[13 * BLOCK + l] = n21 if ok else D21
+        B[14 * BLOCK + l] = n22 if ok else D22
         B[24 * BLOCK + l] = Pn0 if ok else Pi0
         B[25 * BLOCK + l] = Pn1 if ok else Pi1
         B[26 * BLOCK + l] = Pn2 if ok else Pi2
