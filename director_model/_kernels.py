@@ -168,24 +168,11 @@ def _dmv_solve(P, b0, b1, b2):
         K20 = I20 + (-w1 * I00 + w0 * I10) + u1 - t2 * w0
         K21 = I21 + (-w1 * I01 + w0 * I11) - u0 - t2 * w1
         K22 = I22 + (-w1 * I02 + w0 * I12) - t2 * w2
-        C00 = K11 * K22 - K12 * K21
-        C01 = K12 * K20 - K10 * K22
-        C02 = K10 * K21 - K11 * K20
-        det = K00 * C00 + K01 * C01 + K02 * C02
+        det, d0, d1, d2 = _cramer3(K00, K01, K02, K10, K11, K12, K20, K21, K22, G0, G1, G2)
         if not det > 0.0:
             # the branch through Q = 1 has det > 0 up to its first fold; det <= 0 means the
             # step is past the solvability limit or Newton is heading to another branch
             return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-        C10 = K02 * K21 - K01 * K22
-        C11 = K00 * K22 - K02 * K20
-        C12 = K01 * K20 - K00 * K21
-        C20 = K01 * K12 - K02 * K11
-        C21 = K02 * K10 - K00 * K12
-        C22 = K00 * K11 - K01 * K10
-        rd = 1.0 / det
-        d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
-        d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
-        d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
         w0 -= d0
         w1 -= d1
         w2 -= d2
@@ -210,14 +197,33 @@ def _dmv_solve(P, b0, b1, b2):
 
 
 @njit(inline="always")
-def _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2):
-    """The outcome of :func:`_dmv_solve_diag` in almost every step, as straight-line code:
-    converged after the predictor and two fixed-point corrections, or after one Newton
-    update; then the polish. Same expressions in the same order as the loop, so when it
-    returns ``ok`` its w, c, q are the loop's to the last bit; otherwise the loop decides
-    (more Newton updates, stagnation, a failure). No early exit: the tests become flags, which
-    lets the block loop of :func:`_rattle_block_substep` run it in SIMD lanes. Inlined by
-    numba into both callers. Returns (ok, w0, w1, w2, c0, c1, c2, q)."""
+def _cramer3(K00, K01, K02, K10, K11, K12, K20, K21, K22, G0, G1, G2):
+    """det K and K^{-1} G by cofactors (Cramer's rule). With det == 0 the correction is inf,
+    never a ZeroDivisionError (callers test det first; the guard keeps plain Python, under
+    NUMBA_DISABLE_JIT=1, and the branch-free vector code alike)."""
+    C00 = K11 * K22 - K12 * K21
+    C01 = K12 * K20 - K10 * K22
+    C02 = K10 * K21 - K11 * K20
+    det = K00 * C00 + K01 * C01 + K02 * C02
+    C10 = K02 * K21 - K01 * K22
+    C11 = K00 * K22 - K02 * K20
+    C12 = K01 * K20 - K00 * K21
+    C20 = K01 * K12 - K02 * K11
+    C21 = K02 * K10 - K00 * K12
+    C22 = K00 * K11 - K01 * K10
+    rd = 1.0 / det if det != 0.0 else math.inf
+    d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
+    d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
+    d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
+    return det, d0, d1, d2
+
+
+# The pieces of _dmv_solve_diag, inlined by numba into it and into _dmv_diag_fast, so that the
+# loop and its straight-line form compute every quantity with the same expressions.
+@njit(inline="always")
+def _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2):
+    """Predictor Ibar w = b, then two fixed-point corrections
+    w <- Ibar^{-1} ((1 + |w|^2) b - w x Ibar w) (contraction ~|w|, error O(|w|^4))."""
     e0 = I2 - I1
     e1 = I0 - I2
     e2 = I1 - I0
@@ -226,13 +232,20 @@ def _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2):
     w2 = a2 * b2
     for _ in range(2):
         q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+        # w x (Ibar w) = (e0 w1 w2, e1 w2 w0, e2 w0 w1)
         w0n = a0 * (q * b0 - e0 * w1 * w2)
         w1n = a1 * (q * b1 - e1 * w2 * w0)
         w2n = a2 * (q * b2 - e2 * w0 * w1)
         w0 = w0n
         w1 = w1n
         w2 = w2n
-    # first entry of the Newton loop: the residual at w
+    return w0, w1, w2
+
+
+@njit(inline="always")
+def _diag_residual(I0, I1, I2, b0, b1, b2, w0, w1, w2):
+    """G(w) = Ibar w + w x Ibar w - (1 + |w|^2) b; converged when every |G_i| is within
+    DMV_TOL of the largest sum of term magnitudes; finite unless that sum overflowed."""
     u0 = I0 * w0
     u1 = I1 * w1
     u2 = I2 * w2
@@ -248,76 +261,72 @@ def _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2):
         abs(u1) + abs(c1) + abs(q * b1),
         abs(u2) + abs(c2) + abs(q * b2),
     )
-    conv1 = max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc
-    finite1 = sc < math.inf
-    # one Newton update from w to v
+    return G0, G1, G2, max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc, sc < math.inf
+
+
+@njit(inline="always")
+def _diag_newton(I0, I1, I2, b0, b1, b2, w0, w1, w2, G0, G1, G2):
+    """det K and the Newton correction K^{-1} G, K = Ibar + hat(w) Ibar - hat(Ibar w) - 2 b w^T
+    (the diagonal-Ibar entries of the Jacobian in _dmv_solve)."""
+    e0 = I2 - I1
+    e1 = I0 - I2
+    e2 = I1 - I0
     t0 = 2.0 * b0
     t1 = 2.0 * b1
     t2 = 2.0 * b2
-    K00 = I0 - t0 * w0
-    K01 = w2 * e0 - t0 * w1
-    K02 = w1 * e0 - t0 * w2
-    K10 = w2 * e1 - t1 * w0
-    K11 = I1 - t1 * w1
-    K12 = w0 * e1 - t1 * w2
-    K20 = w1 * e2 - t2 * w0
-    K21 = w0 * e2 - t2 * w1
-    K22 = I2 - t2 * w2
-    C00 = K11 * K22 - K12 * K21
-    C01 = K12 * K20 - K10 * K22
-    C02 = K10 * K21 - K11 * K20
-    det = K00 * C00 + K01 * C01 + K02 * C02
-    C10 = K02 * K21 - K01 * K22
-    C11 = K00 * K22 - K02 * K20
-    C12 = K01 * K20 - K00 * K21
-    C20 = K01 * K12 - K02 * K11
-    C21 = K02 * K10 - K00 * K12
-    C22 = K00 * K11 - K01 * K10
-    # (det == 0 only where the result is not used; the guard keeps plain Python, under
-    # NUMBA_DISABLE_JIT=1, from raising ZeroDivisionError)
-    rd = 1.0 / det if det != 0.0 else math.inf
-    d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
-    d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
-    d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
-    v0 = w0 - d0
-    v1 = w1 - d1
-    v2 = w2 - d2
-    stagnated = max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(v0), abs(v1), abs(v2))
-    # second entry: the residual at v
-    u0 = I0 * v0
-    u1 = I1 * v1
-    u2 = I2 * v2
-    q = 1.0 + v0 * v0 + v1 * v1 + v2 * v2
-    c0 = v1 * u2 - v2 * u1
-    c1 = v2 * u0 - v0 * u2
-    c2 = v0 * u1 - v1 * u0
-    H0 = u0 + c0 - q * b0
-    H1 = u1 + c1 - q * b1
-    H2 = u2 + c2 - q * b2
-    sc = max(
-        abs(u0) + abs(c0) + abs(q * b0),
-        abs(u1) + abs(c1) + abs(q * b1),
-        abs(u2) + abs(c2) + abs(q * b2),
-    )
-    conv2 = max(abs(H0), abs(H1), abs(H2)) <= DMV_TOL * sc
-    newton1 = (not conv1) & finite1 & (det > 0.0) & (not stagnated) & conv2
-    # polish from the accepted iterate (see _dmv_solve); c and q at the polished w
-    y0 = w0 if conv1 else v0
-    y1 = w1 if conv1 else v1
-    y2 = w2 if conv1 else v2
-    F0 = G0 if conv1 else H0
-    F1 = G1 if conv1 else H1
-    F2 = G2 if conv1 else H2
-    w0 = y0 - a0 * F0
-    w1 = y1 - a1 * F1
-    w2 = y2 - a2 * F2
+    return _cramer3(
+        I0 - t0 * w0, w2 * e0 - t0 * w1, w1 * e0 - t0 * w2,
+        w2 * e1 - t1 * w0, I1 - t1 * w1, w0 * e1 - t1 * w2,
+        w1 * e2 - t2 * w0, w0 * e2 - t2 * w1, I2 - t2 * w2,
+        G0, G1, G2,
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def _diag_polish(I0, I1, I2, a0, a1, a2, w0, w1, w2, G0, G1, G2):
+    """Polish (see _dmv_solve): w -= Ibar^{-1} G, then c = w x Ibar w and q = 1 + |w|^2 at
+    the new w; this takes the slow torque-free energy drift from ~0.6 to ~0.1 ulp per step.
+    Returns (w0, w1, w2, c0, c1, c2, q)."""
+    w0 -= a0 * G0
+    w1 -= a1 * G1
+    w2 -= a2 * G2
     q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
     u0 = I0 * w0
     u1 = I1 * w1
     u2 = I2 * w2
-    c0 = w1 * u2 - w2 * u1
-    c1 = w2 * u0 - w0 * u2
-    c2 = w0 * u1 - w1 * u0
+    return w0, w1, w2, w1 * u2 - w2 * u1, w2 * u0 - w0 * u2, w0 * u1 - w1 * u0, q
+
+
+@njit(inline="always")
+def _stagnated(d0, d1, d2, w0, w1, w2):
+    """The Newton correction is below one ulp of w: Newton has stagnated at round-off."""
+    return max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2))
+
+
+@njit(inline="always")
+def _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2):
+    """The outcome of :func:`_dmv_solve_diag` in almost every step, as straight-line code:
+    converged after the predictor and two fixed-point corrections, or after one Newton
+    update; then the polish. Built from the loop's own pieces, so when it returns ``ok`` its
+    w, c, q are the loop's to the last bit; otherwise the loop decides (more Newton updates,
+    stagnation, a failure). No early exit: the tests become flags, which lets the block loop
+    of :func:`_rattle_block_substep` run it in SIMD lanes. Returns (ok, w0, w1, w2, c0, c1,
+    c2, q)."""
+    w0, w1, w2 = _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2)
+    G0, G1, G2, conv1, finite1 = _diag_residual(I0, I1, I2, b0, b1, b2, w0, w1, w2)
+    det, d0, d1, d2 = _diag_newton(I0, I1, I2, b0, b1, b2, w0, w1, w2, G0, G1, G2)
+    v0 = w0 - d0
+    v1 = w1 - d1
+    v2 = w2 - d2
+    stagnated = _stagnated(d0, d1, d2, v0, v1, v2)
+    H0, H1, H2, conv2, _ = _diag_residual(I0, I1, I2, b0, b1, b2, v0, v1, v2)
+    newton1 = (not conv1) & finite1 & (det > 0.0) & (not stagnated) & conv2
+    # polish from the accepted iterate
+    w0, w1, w2, c0, c1, c2, q = _diag_polish(
+        I0, I1, I2, a0, a1, a2,
+        w0 if conv1 else v0, w1 if conv1 else v1, w2 if conv1 else v2,
+        G0 if conv1 else H0, G1 if conv1 else H1, G2 if conv1 else H2,
+    )  # fmt: skip
     return conv1 | newton1, w0, w1, w2, c0, c1, c2, q
 
 
@@ -335,98 +344,33 @@ def _dmv_solve_diag(P, b0, b1, b2):
     a1 = P[23]
     a2 = P[27]
     ok, w0, w1, w2, c0, c1, c2, q = _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2)
-    if ok:
-        if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
-            return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-        return OK, w0, w1, w2, c0, c1, c2, q
-    # the general loop: more Newton updates, stagnation or a failure
-    e0 = I2 - I1
-    e1 = I0 - I2
-    e2 = I1 - I0
-    w0 = a0 * b0
-    w1 = a1 * b1
-    w2 = a2 * b2
-    for _ in range(2):
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        # w x (Ibar w) = (e0 w1 w2, e1 w2 w0, e2 w0 w1)
-        w0n = a0 * (q * b0 - e0 * w1 * w2)
-        w1n = a1 * (q * b1 - e1 * w2 * w0)
-        w2n = a2 * (q * b2 - e2 * w0 * w1)
-        w0 = w0n
-        w1 = w1n
-        w2 = w2n
-    for _ in range(MAXIT):
-        u0 = I0 * w0
-        u1 = I1 * w1
-        u2 = I2 * w2
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        c0 = w1 * u2 - w2 * u1
-        c1 = w2 * u0 - w0 * u2
-        c2 = w0 * u1 - w1 * u0
-        G0 = u0 + c0 - q * b0
-        G1 = u1 + c1 - q * b1
-        G2 = u2 + c2 - q * b2
-        sc = max(
-            abs(u0) + abs(c0) + abs(q * b0),
-            abs(u1) + abs(c1) + abs(q * b1),
-            abs(u2) + abs(c2) + abs(q * b2),
-        )
-        if max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc:
-            # polish (see _dmv_solve): w -= Ibar^{-1} G, then c and q at the new w; this
-            # takes the slow torque-free energy drift from ~0.6 to ~0.1 ulp per step
-            w0 -= a0 * G0
-            w1 -= a1 * G1
-            w2 -= a2 * G2
-            q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-            u0 = I0 * w0
-            u1 = I1 * w1
-            u2 = I2 * w2
-            c0 = w1 * u2 - w2 * u1
-            c1 = w2 * u0 - w0 * u2
-            c2 = w0 * u1 - w1 * u0
-            break
-        if not sc < math.inf:
-            return FAIL_NONFINITE, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-        t0 = 2.0 * b0
-        t1 = 2.0 * b1
-        t2 = 2.0 * b2
-        K00 = I0 - t0 * w0
-        K01 = w2 * e0 - t0 * w1
-        K02 = w1 * e0 - t0 * w2
-        K10 = w2 * e1 - t1 * w0
-        K11 = I1 - t1 * w1
-        K12 = w0 * e1 - t1 * w2
-        K20 = w1 * e2 - t2 * w0
-        K21 = w0 * e2 - t2 * w1
-        K22 = I2 - t2 * w2
-        C00 = K11 * K22 - K12 * K21
-        C01 = K12 * K20 - K10 * K22
-        C02 = K10 * K21 - K11 * K20
-        det = K00 * C00 + K01 * C01 + K02 * C02
-        if not det > 0.0:
-            return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-        C10 = K02 * K21 - K01 * K22
-        C11 = K00 * K22 - K02 * K20
-        C12 = K01 * K20 - K00 * K21
-        C20 = K01 * K12 - K02 * K11
-        C21 = K02 * K10 - K00 * K12
-        C22 = K00 * K11 - K01 * K10
-        rd = 1.0 / det
-        d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
-        d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
-        d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
-        w0 -= d0
-        w1 -= d1
-        w2 -= d2
-        if max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2)):
-            # stagnated at round-off; c and q at the final w for the momentum update
-            q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-            c0 = e0 * w1 * w2
-            c1 = e1 * w2 * w0
-            c2 = e2 * w0 * w1
-            break
-    else:
-        return FAIL_NEWTON, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
+    if not ok:
+        # the general loop: more Newton updates, stagnation or a failure
+        w0, w1, w2 = _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2)
+        for _ in range(MAXIT):
+            G0, G1, G2, conv, finite = _diag_residual(I0, I1, I2, b0, b1, b2, w0, w1, w2)
+            if conv:
+                w0, w1, w2, c0, c1, c2, q = _diag_polish(
+                    I0, I1, I2, a0, a1, a2, w0, w1, w2, G0, G1, G2
+                )
+                break
+            if not finite:
+                return FAIL_NONFINITE, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
+            det, d0, d1, d2 = _diag_newton(I0, I1, I2, b0, b1, b2, w0, w1, w2, G0, G1, G2)
+            if not det > 0.0:
+                return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
+            w0 -= d0
+            w1 -= d1
+            w2 -= d2
+            if _stagnated(d0, d1, d2, w0, w1, w2):
+                # c and q at the final w for the momentum update
+                q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+                c0 = (I2 - I1) * w1 * w2
+                c1 = (I0 - I2) * w2 * w0
+                c2 = (I1 - I0) * w0 * w1
+                break
+        else:
+            return FAIL_NEWTON, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
     if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
         return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
     return OK, w0, w1, w2, c0, c1, c2, q
