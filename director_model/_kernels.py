@@ -24,6 +24,10 @@ Data layout (float64 arrays, so one compiled signature serves every body):
     S[30:36] scaled multipliers mu = h^2/4 Lambda (energy-momentum warm start; order 11, 22,
     33, 12, 13, 23).
 
+The batched RATTLE loop keeps a block of up to BLOCK bodies in one flat array, row-major with
+BLOCK lanes per row (the rows of S, then those of P, then two flags; see ``ROW_P``), so that
+its lane loop vectorises.
+
 The kernels never raise: they return the status codes below, and the Python layer turns a
 failure into StepSizeError with the time reached and a step-size estimate.
 """
