@@ -128,19 +128,8 @@ def _dmv_solve(P, b0, b1, b2):
         u0 = I00 * w0 + I01 * w1 + I02 * w2
         u1 = I10 * w0 + I11 * w1 + I12 * w2
         u2 = I20 * w0 + I21 * w1 + I22 * w2
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        c0 = w1 * u2 - w2 * u1
-        c1 = w2 * u0 - w0 * u2
-        c2 = w0 * u1 - w1 * u0
-        G0 = u0 + c0 - q * b0
-        G1 = u1 + c1 - q * b1
-        G2 = u2 + c2 - q * b2
-        sc = max(
-            abs(u0) + abs(c0) + abs(q * b0),
-            abs(u1) + abs(c1) + abs(q * b1),
-            abs(u2) + abs(c2) + abs(q * b2),
-        )
-        if max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc:
+        G0, G1, G2, conv, finite = _dmv_residual(b0, b1, b2, w0, w1, w2, u0, u1, u2)
+        if conv:
             # Polish: one simplified-Newton step with the leading part Ibar of the Jacobian
             # (K = Ibar (1 + O(|w|))) shrinks the accepted residual (<= 4 ulps) by a factor
             # ~|w|. The momentum update Q^T pi = pi - 4c/(qh) changes the energy by
@@ -157,7 +146,7 @@ def _dmv_solve(P, b0, b1, b2):
             c1 = w2 * u0 - w0 * u2
             c2 = w0 * u1 - w1 * u0
             break
-        if not sc < math.inf:
+        if not finite:
             return FAIL_NONFINITE, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
         # Jacobian K = Ibar + hat(w) Ibar - hat(u) - 2 b w^T
         t0 = 2.0 * b0
@@ -180,8 +169,7 @@ def _dmv_solve(P, b0, b1, b2):
         w0 -= d0
         w1 -= d1
         w2 -= d2
-        if max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2)):
-            # the correction is below one ulp of w: Newton has stagnated at round-off;
+        if _stagnated(d0, d1, d2, w0, w1, w2):
             # c = w x Ibar w and q at the final w for the momentum update
             u0 = I00 * w0 + I01 * w1 + I02 * w2
             u1 = I10 * w0 + I11 * w1 + I12 * w2
@@ -198,6 +186,27 @@ def _dmv_solve(P, b0, b1, b2):
         # second branch of sin(theta) = h|W|, theta > pi/2; refused in general (conservative)
         return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
     return OK, w0, w1, w2, c0, c1, c2, q
+
+
+@njit(inline="always")
+def _dmv_residual(b0, b1, b2, w0, w1, w2, u0, u1, u2):
+    """G(w) = u + w x u - (1 + |w|^2) b with u = Ibar w (computed by the caller, general or
+    diagonal Ibar). Returns (G0, G1, G2, converged, finite): converged when every |G_i| is
+    within DMV_TOL of the largest sum of term magnitudes, finite unless that sum overflowed.
+    Used by both DMV solvers and the straight-line form, inlined by numba."""
+    q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
+    c0 = w1 * u2 - w2 * u1
+    c1 = w2 * u0 - w0 * u2
+    c2 = w0 * u1 - w1 * u0
+    G0 = u0 + c0 - q * b0
+    G1 = u1 + c1 - q * b1
+    G2 = u2 + c2 - q * b2
+    sc = max(
+        abs(u0) + abs(c0) + abs(q * b0),
+        abs(u1) + abs(c1) + abs(q * b1),
+        abs(u2) + abs(c2) + abs(q * b2),
+    )
+    return G0, G1, G2, max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc, sc < math.inf
 
 
 @njit(inline="always")
@@ -244,28 +253,6 @@ def _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2):
         w1 = w1n
         w2 = w2n
     return w0, w1, w2
-
-
-@njit(inline="always")
-def _diag_residual(I0, I1, I2, b0, b1, b2, w0, w1, w2):
-    """G(w) = Ibar w + w x Ibar w - (1 + |w|^2) b; converged when every |G_i| is within
-    DMV_TOL of the largest sum of term magnitudes; finite unless that sum overflowed."""
-    u0 = I0 * w0
-    u1 = I1 * w1
-    u2 = I2 * w2
-    q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-    c0 = w1 * u2 - w2 * u1
-    c1 = w2 * u0 - w0 * u2
-    c2 = w0 * u1 - w1 * u0
-    G0 = u0 + c0 - q * b0
-    G1 = u1 + c1 - q * b1
-    G2 = u2 + c2 - q * b2
-    sc = max(
-        abs(u0) + abs(c0) + abs(q * b0),
-        abs(u1) + abs(c1) + abs(q * b1),
-        abs(u2) + abs(c2) + abs(q * b2),
-    )
-    return G0, G1, G2, max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc, sc < math.inf
 
 
 @njit(inline="always")
@@ -317,13 +304,13 @@ def _dmv_diag_fast(I0, I1, I2, a0, a1, a2, b0, b1, b2):
     of :func:`_rattle_block_substep` run it in SIMD lanes. Returns (ok, w0, w1, w2, c0, c1,
     c2, q)."""
     w0, w1, w2 = _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2)
-    G0, G1, G2, conv1, finite1 = _diag_residual(I0, I1, I2, b0, b1, b2, w0, w1, w2)
+    G0, G1, G2, conv1, finite1 = _dmv_residual(b0, b1, b2, w0, w1, w2, I0 * w0, I1 * w1, I2 * w2)
     det, d0, d1, d2 = _diag_newton(I0, I1, I2, b0, b1, b2, w0, w1, w2, G0, G1, G2)
     v0 = w0 - d0
     v1 = w1 - d1
     v2 = w2 - d2
     stagnated = _stagnated(d0, d1, d2, v0, v1, v2)
-    H0, H1, H2, conv2, _ = _diag_residual(I0, I1, I2, b0, b1, b2, v0, v1, v2)
+    H0, H1, H2, conv2, _ = _dmv_residual(b0, b1, b2, v0, v1, v2, I0 * v0, I1 * v1, I2 * v2)
     newton1 = (not conv1) & finite1 & (det > 0.0) & (not stagnated) & conv2
     # polish from the accepted iterate
     w0, w1, w2, c0, c1, c2, q = _diag_polish(
@@ -352,7 +339,9 @@ def _dmv_solve_diag(P, b0, b1, b2):
         # the general loop: more Newton updates, stagnation or a failure
         w0, w1, w2 = _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2)
         for _ in range(MAXIT):
-            G0, G1, G2, conv, finite = _diag_residual(I0, I1, I2, b0, b1, b2, w0, w1, w2)
+            G0, G1, G2, conv, finite = _dmv_residual(
+                b0, b1, b2, w0, w1, w2, I0 * w0, I1 * w1, I2 * w2
+            )
             if conv:
                 w0, w1, w2, c0, c1, c2, q = _diag_polish(
                     I0, I1, I2, a0, a1, a2, w0, w1, w2, G0, G1, G2
