@@ -21,12 +21,27 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 #: Reference kinds a scenario may request; "auto" lets the suite pick (see references).
 REFERENCE_KINDS = ("auto", "free_body", "lagrange_top", "steady_precession", "numerical")
+
+#: Metrics a ``[tolerances]`` table may bound (every one "lower is better"; the metrics and
+#: their units are documented in reports.metrics and docs/results.md).
+TOLERANCE_METRICS = (
+    "energy_drift_max",
+    "momentum_drift_max",
+    "orthonormality_max",
+    "constraint_velocity_max",
+    "attitude_error_max",
+    "omega_error_max",
+    "position_error_max",
+    "flip_interval_error",
+    "nutation_period_error",
+)
 
 
 def _frozen(a) -> np.ndarray:
@@ -59,6 +74,8 @@ class Scenario:
     dt_sweep: tuple[float, ...] = ()
     save_every: int = 1
     reference: str = "auto"
+    #: verdict bounds from the file's ``[tolerances]`` table: {"*" or family: {metric: bound}}
+    tolerances: dict = field(default_factory=dict)
     source: str = ""
     tags: tuple[str, ...] = ()
     path: str | None = None
@@ -82,6 +99,11 @@ class Scenario:
         object.__setattr__(self, "mass", float(self.mass))
         object.__setattr__(self, "t_end", float(self.t_end))
         object.__setattr__(self, "dt", float(self.dt))
+        object.__setattr__(
+            self,
+            "tolerances",
+            {str(f): {str(k): float(v) for k, v in b.items()} for f, b in self.tolerances.items()},
+        )
 
     # -- derived facts used by references and metrics --------------------------------------
     @property
@@ -126,6 +148,57 @@ class Scenario:
         c = self.pivot if self.pivot is not None else np.zeros(3)
         return np.diag(self.inertia) + self.mass * (c @ c * np.eye(3) - np.outer(c, c))
 
+    # -- physical scales of the metrics -----------------------------------------------------
+    @property
+    def energy_scale(self) -> float:
+        """Characteristic energy E_c (J) that energy drifts are divided by:
+        max(T0, m |g| l), the larger of the initial kinetic energy and the weight times a body
+        length l: the pivot to centre-of-mass distance for a pivoted body (the potential then
+        ranges over [-m|g|l, m|g|l]), the largest radius of gyration sqrt(I_max/m) for a free
+        one.
+
+        Never the initial total energy E0, which depends on where the potential's zero is and
+        is 0 for a pendulum released from rest with its axis horizontal. 1 J if both terms are
+        0 (a body at rest with no force on it).
+        """
+        W = self.omega_body
+        t0 = 0.5 * float(W @ (self.pivot_inertia @ W))
+        if self.pivot is None:
+            t0 += 0.5 * self.mass * float(self.velocity @ self.velocity)
+            length = math.sqrt(float(np.max(self.inertia)) / self.mass)
+        else:
+            length = float(np.linalg.norm(self.pivot))
+        e = max(t0, self.mass * float(np.linalg.norm(self.gravity)) * length)
+        return e if e > 0 else 1.0
+
+    @property
+    def rotational_energy_scale(self) -> float:
+        """The part of :attr:`energy_scale` that can be in rotation (J): the rotational energy
+        1/2 W.IW for a free body (it is conserved; :attr:`energy_scale` if it is 0), all of
+        :attr:`energy_scale` for a pivoted one."""
+        if self.pivot is None:
+            W = self.omega_body
+            e = 0.5 * float(W @ (self.inertia * W))
+            if e > 0:
+                return e
+        return self.energy_scale
+
+    @property
+    def momentum_scale(self) -> float:
+        """Characteristic angular momentum L_c = sqrt(2 E_rot I_max) (kg m^2/s) that momentum
+        drifts are divided by: the largest |L| a body with the rotational energy scale can
+        have (|L|^2 = |I W|^2 <= I_max W.IW). Equals |L0| for a spin about the major axis and
+        is never 0 when |L0| is (a pendulum released from rest has L0 = 0)."""
+        lam = float(np.max(np.linalg.eigvalsh(self.pivot_inertia)))
+        return math.sqrt(2.0 * self.rotational_energy_scale * lam)
+
+    @property
+    def rate_scale(self) -> float:
+        """Characteristic angular rate w_c = sqrt(2 E_rot / I_min) (rad/s): the largest |W|
+        a body with the rotational energy scale can reach."""
+        lam = float(np.min(np.linalg.eigvalsh(self.pivot_inertia)))
+        return math.sqrt(2.0 * self.rotational_energy_scale / lam)
+
     def to_dict(self) -> dict:
         """A plain-data description (lists and numbers), the basis of the hash."""
         d = {
@@ -144,6 +217,7 @@ class Scenario:
                 "save_every": self.save_every,
             },
             "reference": self.reference,
+            "tolerances": self.tolerances,
         }
         if self.pivot is None:
             d["initial"]["position"] = self.position.tolist()
@@ -154,8 +228,9 @@ class Scenario:
 
     @property
     def scenario_hash(self) -> str:
-        """First 12 hex digits of the SHA-256 of the physical content (name, body, initial
-        state, environment, run settings). Text fields other than the name do not count."""
+        """First 12 hex digits of the SHA-256 of the content that determines a result (name,
+        body, initial state, environment, run settings, reference kind, tolerances). Text
+        fields other than the name do not count."""
         d = self.to_dict()
         d.pop("description")
         blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.model import REFERENCE_KINDS, Scenario
+from scenarios.model import REFERENCE_KINDS, TOLERANCE_METRICS, Scenario
 
 #: Tolerance on the orthonormality of a given rotation matrix, max |R^T R - 1|, and on the
 #: norm of a given quaternion. Decimal input with 16-17 significant digits meets it easily; a
@@ -36,6 +36,10 @@ INERTIA_RTOL = 16 * float(np.finfo(float).eps)
 #: Tolerance of "t_end is a whole number of steps of dt", relative to t_end/dt. The same rule
 #: as :func:`director_model.step_plan` (the engines use it), so a file that validates runs.
 STEP_RTOL = 1e-9
+
+#: Largest scenario file read (bytes): a guard against pointing the loader at a device or a
+#: huge file by mistake; the library's files are 1-2 KiB.
+MAX_FILE_BYTES = 1 << 20
 
 
 class ScenarioError(ValueError):
@@ -149,6 +153,7 @@ _SPEC: dict[str, dict[str, tuple[str, bool]]] = {
         "environment": ("table", False),
         "run": ("table", True),
         "reference": ("table", False),
+        "tolerances": ("table", False),
     },
     "body": {"mass": ("number", True), "inertia": ("vec3", True)},
     "initial": {
@@ -242,83 +247,11 @@ def validate(data: dict, path: str | None = None) -> Scenario:
     def bad(field, value, rule):
         probs.append((field, value, rule))
 
-    # 1. structure: unknown keys, missing keys, types
-    good: dict[str, dict] = {}
-    tables = {"": data}
-    for table in _SPEC:
-        if table == "":
-            continue
-        if isinstance(data.get(table), dict):
-            tables[table] = data[table]
-    for table, content in tables.items():
-        spec = _SPEC[table]
-        good[table] = {}
-        for key in content:
-            if key not in spec:
-                dotted = f"{table}.{key}" if table else key
-                known = ", ".join(spec)
-                bad(dotted, content[key], f"unknown key; allowed here: {known}")
-        for key, (kind, required) in spec.items():
-            dotted = f"{table}.{key}" if table else key
-            if key not in content:
-                if required:
-                    bad(dotted, "<missing>", f"required: {_KIND_TEXT[kind]}")
-                continue
-            v = content[key]
-            if not _type_ok(kind, v):
-                bad(dotted, v, f"must be {_KIND_TEXT[kind]}")
-            elif kind != "table":
-                good[table][key] = v
-    g = good
+    tables, g = _check_structure(data, bad)
     body, init = g.get("body", {}), g.get("initial", {})
     env, run, ref = g.get("environment", {}), g.get("run", {}), g.get("reference", {})
-
-    # 2. the body
     probs.extend(body_problems(body.get("mass"), body.get("inertia")))
-
-    # 3. the initial attitude: exactly one of three forms, never repaired
-    given = [k for k in ("rotation", "quaternion_wxyz", "rotation_vector") if k in init]
-    named = [
-        k
-        for k in ("rotation", "quaternion_wxyz", "rotation_vector")
-        if k in tables.get("initial", {})
-    ]
-    R = np.eye(3)
-    if len(named) > 1:
-        bad(
-            "initial",
-            named,
-            "give the initial attitude exactly once: one of rotation, quaternion_wxyz, "
-            "rotation_vector",
-        )
-    elif given == ["rotation"]:
-        R = np.array(init["rotation"], dtype=float)
-        dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
-        det = float(np.linalg.det(R))
-        if dev > ROTATION_TOL:
-            bad(
-                "initial.rotation",
-                init["rotation"],
-                f"not orthonormal: max |R^T R - 1| = {dev:.3g} > {ROTATION_TOL:g} "
-                "(give more digits, or use rotation_vector / quaternion_wxyz)",
-            )
-        elif det < 0:
-            bad("initial.rotation", init["rotation"], "det R = -1: a reflection, not a rotation")
-    elif given == ["quaternion_wxyz"]:
-        q = np.array(init["quaternion_wxyz"], dtype=float)
-        nq = float(np.linalg.norm(q))
-        if abs(nq - 1.0) > ROTATION_TOL:
-            bad(
-                "initial.quaternion_wxyz",
-                init["quaternion_wxyz"],
-                f"not a unit quaternion: |q| = {nq!r}, must be 1 to within {ROTATION_TOL:g}",
-            )
-        else:
-            R = rotation_from_quaternion(q)
-    elif given == ["rotation_vector"]:
-        R = rotation_from_vector(init["rotation_vector"])
-
-    # 4. environment and free/pivoted consistency
+    R = _check_attitude(init, tables.get("initial", {}), bad)
     pivot = env.get("pivot")
     if pivot is not None:
         for key in ("position", "velocity"):
@@ -329,43 +262,11 @@ def validate(data: dict, path: str | None = None) -> Scenario:
                     "must be omitted for a pivoted body (environment.pivot is set): the centre "
                     "of mass follows from the rotation, x_G = -R pivot",
                 )
-
-    # 5. run settings
-    t_end, dt = run.get("t_end"), run.get("dt")
-    if t_end is not None and not t_end > 0:
-        bad("run.t_end", t_end, "the horizon must be > 0 s")
-        t_end = None
-    if dt is not None and not dt > 0:
-        bad("run.dt", dt, "the time step must be > 0 s")
-        dt = None
-    if t_end is not None and dt is not None and not _whole_steps(t_end, dt):
-        bad(
-            "run.dt",
-            dt,
-            f"t_end = {t_end!r} is not a whole number of steps (t_end/dt = {t_end / dt!r}, "
-            f"must be an integer to {STEP_RTOL:g} relative)",
-        )
-    sweep = run.get("dt_sweep", [])
-    for i, h in enumerate(sweep):
-        if not h > 0:
-            bad(f"run.dt_sweep[{i}]", h, "every step must be > 0 s")
-        elif t_end is not None and not _whole_steps(t_end, h):
-            bad(
-                f"run.dt_sweep[{i}]",
-                h,
-                f"t_end = {t_end!r} is not a whole number of steps (t_end/dt = {t_end / h!r}, "
-                f"must be an integer to {STEP_RTOL:g} relative)",
-            )
-    if len(set(sweep)) != len(sweep):
-        bad("run.dt_sweep", sweep, "the steps must be distinct")
-    save_every = run.get("save_every", 1)
-    if not save_every >= 1:
-        bad("run.save_every", save_every, "must be an integer >= 1")
-
+    sweep, save_every = _check_run(run, bad)
     kind = ref.get("kind", "auto")
     if kind not in REFERENCE_KINDS:
         bad("reference.kind", kind, f"must be one of {', '.join(REFERENCE_KINDS)}")
-
+    tolerances = _check_tolerances(data.get("tolerances"), bad)
     if probs:
         raise ScenarioError(_message(where, probs), path=path, problems=probs)
 
@@ -385,10 +286,145 @@ def validate(data: dict, path: str | None = None) -> Scenario:
         dt_sweep=tuple(float(h) for h in sweep),
         save_every=int(save_every),
         reference=kind,
+        tolerances=tolerances,
         source=data.get("source", ""),
         tags=tuple(data.get("tags", ())),
         path=path,
     )
+
+
+def _check_structure(data: dict, bad) -> tuple[dict, dict]:
+    """Unknown keys, missing keys and types of every table but ``tolerances`` (checked by
+    :func:`_check_tolerances`). Returns (the tables present, {table: {key: well-typed value}})."""
+    good: dict[str, dict] = {}
+    tables = {"": data}
+    for table in _SPEC:
+        if table and isinstance(data.get(table), dict):
+            tables[table] = data[table]
+    for table, content in tables.items():
+        spec = _SPEC[table]
+        good[table] = {}
+        for key in content:
+            if key not in spec:
+                dotted = f"{table}.{key}" if table else key
+                bad(dotted, content[key], f"unknown key; allowed here: {', '.join(spec)}")
+        for key, (kind, required) in spec.items():
+            dotted = f"{table}.{key}" if table else key
+            if key not in content:
+                if required:
+                    bad(dotted, "<missing>", f"required: {_KIND_TEXT[kind]}")
+                continue
+            v = content[key]
+            if not _type_ok(kind, v):
+                bad(dotted, v, f"must be {_KIND_TEXT[kind]}")
+            elif kind != "table":
+                good[table][key] = v
+    return tables, good
+
+
+def _check_attitude(init: dict, raw_init: dict, bad) -> np.ndarray:
+    """The initial rotation: exactly one of three forms (none: identity), never repaired."""
+    forms = ("rotation", "quaternion_wxyz", "rotation_vector")
+    given = [k for k in forms if k in init]
+    named = [k for k in forms if k in raw_init]
+    if len(named) > 1:
+        bad("initial", named, "give the initial attitude exactly once: one of " + ", ".join(forms))
+        return np.eye(3)
+    if given == ["rotation"]:
+        R = np.array(init["rotation"], dtype=float)
+        dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
+        if dev > ROTATION_TOL:
+            bad(
+                "initial.rotation",
+                init["rotation"],
+                f"not orthonormal: max |R^T R - 1| = {dev:.3g} > {ROTATION_TOL:g} "
+                "(give more digits, or use rotation_vector / quaternion_wxyz)",
+            )
+        elif float(np.linalg.det(R)) < 0:
+            bad("initial.rotation", init["rotation"], "det R = -1: a reflection, not a rotation")
+        return R
+    if given == ["quaternion_wxyz"]:
+        q = np.array(init["quaternion_wxyz"], dtype=float)
+        nq = float(np.linalg.norm(q))
+        if abs(nq - 1.0) > ROTATION_TOL:
+            bad(
+                "initial.quaternion_wxyz",
+                init["quaternion_wxyz"],
+                f"not a unit quaternion: |q| = {nq!r}, must be 1 to within {ROTATION_TOL:g}",
+            )
+            return np.eye(3)
+        return rotation_from_quaternion(q)
+    if given == ["rotation_vector"]:
+        return rotation_from_vector(init["rotation_vector"])
+    return np.eye(3)
+
+
+def _check_run(run: dict, bad) -> tuple[list, int]:
+    """Horizon, step, sweep and decimation; returns (dt_sweep, save_every)."""
+    t_end, dt = run.get("t_end"), run.get("dt")
+    if t_end is not None and not t_end > 0:
+        bad("run.t_end", t_end, "the horizon must be > 0 s")
+        t_end = None
+    if dt is not None and not dt > 0:
+        bad("run.dt", dt, "the time step must be > 0 s")
+        dt = None
+    steps = [("run.dt", dt)] + [
+        (f"run.dt_sweep[{i}]", h) for i, h in enumerate(run.get("dt_sweep", []))
+    ]
+    for field, h in steps[1:]:
+        if not h > 0:
+            bad(field, h, "every step must be > 0 s")
+    for field, h in steps:
+        if t_end is not None and h is not None and h > 0 and not _whole_steps(t_end, h):
+            bad(
+                field,
+                h,
+                f"t_end = {t_end!r} is not a whole number of steps (t_end/dt = {t_end / h!r}, "
+                f"must be an integer to {STEP_RTOL:g} relative)",
+            )
+    sweep = run.get("dt_sweep", [])
+    if len(set(sweep)) != len(sweep):
+        bad("run.dt_sweep", sweep, "the steps must be distinct")
+    save_every = run.get("save_every", 1)
+    if not save_every >= 1:
+        bad("run.save_every", save_every, "must be an integer >= 1")
+    return sweep, save_every
+
+
+def _check_tolerances(table, bad) -> dict:
+    """The ``[tolerances]`` table: ``metric = bound`` for every integrator family, and
+    sub-tables ``[tolerances."<family>"]`` for one family. Returns {family or "*": {metric:
+    bound}}. Family names are checked against the engines' registry when runs are planned
+    (the scenario layer does not know the engines)."""
+    if table is None:
+        return {}
+    if not isinstance(table, dict):
+        bad("tolerances", table, "must be a table of metric = bound and family sub-tables")
+        return {}
+    out: dict[str, dict] = {}
+
+    def bounds(prefix: str, content: dict, family: str):
+        for metric, value in content.items():
+            field = f"{prefix}.{metric}"
+            if isinstance(value, dict):
+                if family != "*":
+                    bad(field, value, "a family's sub-table holds only metric = bound")
+                else:
+                    bounds(f'tolerances."{metric}"', value, metric)
+                continue
+            if metric not in TOLERANCE_METRICS:
+                bad(
+                    field,
+                    value,
+                    f"not a metric with a tolerance; known: {', '.join(TOLERANCE_METRICS)}",
+                )
+            elif not (_is_number(value) and math.isfinite(value) and value > 0):
+                bad(field, value, "a tolerance must be a finite number > 0")
+            else:
+                out.setdefault(family, {})[metric] = float(value)
+
+    bounds("tolerances", table, "*")
+    return out
 
 
 def _message(where: str, probs: list[tuple]) -> str:
@@ -399,14 +435,26 @@ def _message(where: str, probs: list[tuple]) -> str:
 
 
 def load_file(path: str | Path) -> Scenario:
-    """Read and validate one scenario file."""
+    """Read and validate one scenario file (a regular file of at most ``MAX_FILE_BYTES``)."""
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise ScenarioError(f"scenario file {path} does not exist", path=str(path)) from None
+        if not path.exists():
+            raise ScenarioError(f"scenario file {path} does not exist", path=str(path))
+        if not path.is_file():
+            raise ScenarioError(
+                f"scenario file {path} is not a regular file (a folder, a device or a pipe)",
+                path=str(path),
+            )
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ScenarioError(f"scenario file {path} cannot be read: {exc}", path=str(path)) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(
+            f"scenario file {path} is larger than {MAX_FILE_BYTES // 1024} KiB: not a scenario "
+            "file (scenario files are a few KiB of TOML)",
+            path=str(path),
+        )
     try:
         data = tomllib.loads(raw.decode("utf-8"))
     except UnicodeDecodeError as exc:
