@@ -45,6 +45,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from references.errors import EngineError
+
 
 class BodyState(NamedTuple):
     """One rigid-body state in the suite's convention (see the module docstring)."""
@@ -339,10 +341,8 @@ def pybullet_spherical_to_state(q_xyzw, W) -> tuple[np.ndarray, np.ndarray]:
 
 # -- checks that an engine holds what the scenario says ------------------------------------
 def check_quantity(engine: str, quantity: str, got, expected, rtol: float, atol: float = 0.0):
-    """Raise :class:`~references.engines.base.EngineError` naming ``quantity`` unless
+    """Raise :class:`~references.errors.EngineError` naming ``quantity`` unless
     |got - expected| <= atol + rtol |expected| elementwise (read-back of a built model)."""
-    from references.engines.base import EngineError
-
     got = np.asarray(got, dtype=float)
     expected = np.asarray(expected, dtype=float)
     if got.shape != expected.shape or not np.all(
@@ -366,9 +366,10 @@ def initial_state_errors(scenario, state: BodyState, native: dict | None = None)
     """Relative differences between a state read back from an engine and the scenario's own
     initial state: energy and angular momentum computed the suite's way
     (:meth:`references.trajectory.Trajectory.from_states`), the state itself, and, if the
-    engine computes them (``native = {"energy": E, "angular momentum": L, "COM velocity": v}``,
-    L in world axes about the COM for a free body and about the pivot for a pivoted one, v in
-    world axes; the last key optional), the engine's own energy, momentum and COM velocity.
+    engine computes them (``native = {"energy": E, "angular momentum": L, "rotation": R,
+    "COM velocity": v}``, L in world axes about the COM for a free body and about the pivot
+    for a pivoted one, v in world axes; rotation and COM velocity optional), the engine's own
+    energy, momentum, rotation and COM velocity.
 
     Each difference is scaled by a characteristic size of the quantity rather than by its
     value, so that a total that happens to be near zero (an energy with a negative potential
@@ -419,10 +420,18 @@ def initial_state_errors(scenario, state: BodyState, native: dict | None = None)
         "body angular velocity": _scaled(state.omega_body - W0, np.linalg.norm(W0)),
     }
     if native:
+        if "rotation" in native:
+            errors["engine's own rotation"] = _scaled(
+                np.asarray(native["rotation"], dtype=float) - scenario.rotation, 1.0
+            )
         errors["engine's own energy"] = _scaled(native["energy"] - ref.energy[0], e_scale)
         errors["engine's own angular momentum"] = _scaled(
             np.asarray(native["angular momentum"]) - ref.angular_momentum[0], l_scale
         )
+        if "COM position" in native:
+            errors["engine's own COM position"] = _scaled(
+                np.asarray(native["COM position"]) - x0, reach
+            )
         if "COM velocity" in native:
             errors["engine's own COM velocity"] = _scaled(
                 np.asarray(native["COM velocity"]) - v0, speed
@@ -433,12 +442,10 @@ def initial_state_errors(scenario, state: BodyState, native: dict | None = None)
 def check_initial_state(
     engine: str, scenario, state: BodyState, native: dict | None = None, rtol: float = 1e-12
 ) -> dict:
-    """Raise :class:`~references.engines.base.EngineError` naming the quantity if the state
+    """Raise :class:`~references.errors.EngineError` naming the quantity if the state
     read back from ``engine`` before the first step does not reproduce the scenario (energy,
     angular momentum, state; the engine's own energy and momentum if given in ``native``) to
     ``rtol`` relative (see :func:`initial_state_errors`); returns the relative errors."""
-    from references.engines.base import EngineError
-
     errors = initial_state_errors(scenario, state, native)
     for quantity, err in errors.items():
         if not err <= rtol:

@@ -13,7 +13,16 @@ field                  shape      meaning
 ``energy``             (n,)       E = T + V, J (computed by the suite, see below)
 ``angular_momentum``   (n, 3)     L in world axes, about the centre of mass for a free body and
                                   about the pivot (world origin) for a pivoted one, kg m^2/s
+``constraint_velocity`` (n,)      velocity-constraint residual ||D^T D' + D'^T D||_F, 1/s: the
+                                  director velocities' departure from the tangent space (see
+                                  below)
 =====================  =========  ==========================================================
+
+The velocity constraint of the director form (D^T D' skew) holds by construction for an
+engine whose state is (R, W): there D' = R hat(W) and the residual is R^T R hat(W) -
+hat(W) R^T R, of the size of the orthonormality error times |W|, which is what is computed
+when an adapter gives nothing else. The director model's energy-momentum scheme updates D'
+itself and violates the constraint at O(h^2); its adapter records the residual of its own D'.
 
 Energy and angular momentum are never taken from an engine: :meth:`Trajectory.from_states`
 computes them from pose, velocity and the scenario's mass and inertia, identically for every
@@ -21,7 +30,8 @@ engine (``E = 1/2 m |v_G|^2 + 1/2 W . I W - m g . x_G``; ``L = R I W`` about the
 mass, plus ``x_G x m v_G`` about the pivot).
 
 On disk (Parquet, or CSV on request) the columns are
-``t, x, y, z, vx, vy, vz, R00 ... R22 (row-major), wx, wy, wz, energy, Lx, Ly, Lz``.
+``t, x, y, z, vx, vy, vz, R00 ... R22 (row-major), wx, wy, wz, energy, Lx, Ly, Lz,
+constraint_velocity``.
 """
 
 from __future__ import annotations
@@ -34,8 +44,32 @@ import numpy as np
 COLUMNS = (
     ["t", "x", "y", "z", "vx", "vy", "vz"]
     + [f"R{i}{j}" for i in range(3) for j in range(3)]
-    + ["wx", "wy", "wz", "energy", "Lx", "Ly", "Lz"]
+    + ["wx", "wy", "wz", "energy", "Lx", "Ly", "Lz", "constraint_velocity"]
 )
+
+#: unit of each column of the on-disk table
+UNITS = {
+    "t": "s",
+    **dict.fromkeys(["x", "y", "z"], "m"),
+    **dict.fromkeys(["vx", "vy", "vz"], "m/s"),
+    **{f"R{i}{j}": "1" for i in range(3) for j in range(3)},
+    **dict.fromkeys(["wx", "wy", "wz"], "rad/s"),
+    "energy": "J",
+    **dict.fromkeys(["Lx", "Ly", "Lz"], "kg m^2/s"),
+    "constraint_velocity": "1/s",
+}
+
+
+def velocity_constraint(rotation, omega_body) -> np.ndarray:
+    """||R^T R hat(W) - hat(W) R^T R||_F for stacks (n, 3, 3), (n, 3): the director-form
+    velocity-constraint residual of D' = R hat(W), shape (n,)."""
+    R = np.asarray(rotation, dtype=float)
+    W = np.asarray(omega_body, dtype=float)
+    Wh = np.zeros(W.shape[:-1] + (3, 3))
+    Wh[..., 0, 1], Wh[..., 0, 2], Wh[..., 1, 2] = -W[..., 2], W[..., 1], -W[..., 0]
+    Wh[..., 1, 0], Wh[..., 2, 0], Wh[..., 2, 1] = W[..., 2], -W[..., 1], W[..., 0]
+    M = np.einsum("...ki,...kj->...ij", R, R)
+    return np.linalg.norm(M @ Wh - Wh @ M, axis=(-2, -1))
 
 
 def energy(scenario, position, velocity, rotation, omega_body) -> np.ndarray:
@@ -68,6 +102,7 @@ class Trajectory:
     omega_body: np.ndarray
     energy: np.ndarray
     angular_momentum: np.ndarray
+    constraint_velocity: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.t)
@@ -79,8 +114,11 @@ class Trajectory:
             "omega_body": (n, 3),
             "energy": (n,),
             "angular_momentum": (n, 3),
+            "constraint_velocity": (n,),
         }
         for name, shape in shapes.items():
+            if name == "constraint_velocity" and self.constraint_velocity is None:
+                self.constraint_velocity = velocity_constraint(self.rotation, self.omega_body)
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.shape != shape:
                 raise ValueError(
@@ -93,7 +131,9 @@ class Trajectory:
         return len(self.t)
 
     @classmethod
-    def from_states(cls, scenario, t, position, velocity, rotation, omega_body) -> Trajectory:
+    def from_states(
+        cls, scenario, t, position, velocity, rotation, omega_body, constraint_velocity=None
+    ) -> Trajectory:
         """Build a trajectory from states, computing energy and momentum the suite's way.
 
         For a pivoted scenario ``position`` and ``velocity`` may be None: they follow from the
@@ -116,6 +156,7 @@ class Trajectory:
             omega_body=W,
             energy=energy(scenario, x, v, R, W),
             angular_momentum=angular_momentum(scenario, x, v, R, W),
+            constraint_velocity=constraint_velocity,
         )
 
     # -- tabular form --------------------------------------------------------------------
@@ -133,6 +174,7 @@ class Trajectory:
                 self.omega_body,
                 self.energy,
                 self.angular_momentum,
+                self.constraint_velocity,
             ]
         )
         return pd.DataFrame(data, columns=COLUMNS)
@@ -152,6 +194,7 @@ class Trajectory:
             omega_body=a[:, 16:19],
             energy=a[:, 19],
             angular_momentum=a[:, 20:23],
+            constraint_velocity=a[:, 23],
         )
 
     def write(self, path: str | Path, fmt: str = "parquet") -> Path:

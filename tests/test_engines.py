@@ -1,9 +1,9 @@
 """Engine adapters (MuJoCo, Pinocchio, DART, PyBullet), tests generated from the registry.
 
-Layers: the initial state read back (non-identity R0, generic W), frame mistakes caught by the
-adapters' own checks, the traps of docs/engines.md neutralised, exact-solution oracles, the
-declared order of every integrator, order 4 against the numerics.md section 5 test vector,
-agreement between engines where the algorithm is the same, failures reported as statuses.
+Layers: the initial state read back (non-identity R0, generic W), the model read back, the
+traps of docs/engines.md neutralised and each shown to be real, failures reported as statuses.
+The planted mistakes and declared orders of every adapter are the conformance kit's
+(tests/test_conformance.py).
 
 A missing engine is skipped with the reason its adapter gives (never faked).
 """
@@ -20,12 +20,15 @@ import scenarios
 from references import conventions as cv
 from references.engines import (
     FAMILIES,
+    BodyModel,
     EngineError,
     EngineUnavailable,
+    RunContext,
     Unsupported,
     engine_names,
     get_engine,
 )
+from references.engines.base import check_readback
 from scenarios.model import Scenario
 
 #: the third-party engines' adapters (the suite's own "director" and "exact" are tested with
@@ -192,116 +195,34 @@ def test_initial_state_read_back(name, integrator, kind):
     assert s["integrator"] == integrator
 
 
-def _swap_rates(orig_from, orig_to):
-    """A consistent frame mistake: the from-conversion puts R W where W belongs and the
-    to-conversion undoes it, so the round trip alone cannot see it."""
-
-    def bad_from(*args):
-        *head, R, W = args
-        return orig_from(*head, R, np.asarray(R) @ np.asarray(W))
-
-    def bad_to(*args):
-        st = orig_to(*args)
-        if isinstance(st, cv.BodyState):
-            return st._replace(omega_body=st.rotation.T @ st.omega_body)
-        R, W = st
-        return R, R.T @ W
-
-    return bad_from, bad_to
-
-
-FRAME_MISTAKES = {
-    # engine: (scenario kind, conversion pair whose angular rates get the wrong frame)
-    "mujoco": ("free", "mujoco_free_from_state", "mujoco_free_to_state"),
-    "pinocchio": ("free", "pinocchio_freeflyer_from_state", "pinocchio_freeflyer_to_state"),
-    "dart": ("pivoted", "dart_ball_from_state", "dart_ball_to_state"),
-    "pybullet": ("pivoted", "pybullet_spherical_from_state", "pybullet_spherical_to_state"),
-}
-
-
-@pytest.mark.parametrize("name", ENGINES)
-def test_adapter_catches_a_consistent_frame_mistake(name, monkeypatch):
-    engine = engine_or_skip(name)
-    kind, f_from, f_to = FRAME_MISTAKES[name]
-    bad_from, bad_to = _swap_rates(getattr(cv, f_from), getattr(cv, f_to))
-    monkeypatch.setattr(cv, f_from, bad_from)
-    monkeypatch.setattr(cv, f_to, bad_to)
-    integrator = engine.integrators[0].name
-    with pytest.raises(EngineError, match="engine's own"):
-        engine.run(SCENARIOS[kind](), integrator, 1e-3, t_end=1e-3)
-
-
-def test_pinocchio_catches_a_world_frame_linear_velocity(monkeypatch):
-    # The FreeFlyer linear velocity is LOCAL. Passing v_G (world) and reading it back the
-    # same way keeps |v| and hence E and L: only Pinocchio's own COM velocity can catch it.
-    engine = engine_or_skip("pinocchio")
-    orig_from, orig_to = cv.pinocchio_freeflyer_from_state, cv.pinocchio_freeflyer_to_state
-
-    def bad_from(x, v, R, W):
-        q, vel = orig_from(x, v, R, W)
-        vel[:3] = v
-        return q, vel
-
-    def bad_to(q, v):
-        return orig_to(q, v)._replace(velocity=np.array(v[:3]))
-
-    monkeypatch.setattr(cv, "pinocchio_freeflyer_from_state", bad_from)
-    monkeypatch.setattr(cv, "pinocchio_freeflyer_to_state", bad_to)
-    with pytest.raises(EngineError, match="engine's own COM velocity"):
-        engine.run(free_body(), "semi-implicit Euler", 1e-3, t_end=1e-3)
-
-
 # == model read-back: a model that differs from the scenario is refused =====================
-def _readback_mujoco(sc, other):
-    engine = MUJOCO_CLS()
-    mujoco, m, _ = engine._build(sc, "Euler", 1e-3)
-    engine._check_model(mujoco, m, other, "Euler", 1e-3)
-
-
-def _readback_pinocchio(sc, other):
-    engine = get_engine("pinocchio")()
-    pin, model, _ = engine._build(sc)
-    engine._check_model(pin, model, other, np.zeros(3))
-
-
-def _readback_dart(sc, other):
-    engine = get_engine("dart")()
-    world, skel, joint, body, _ = engine._build(sc, 1e-3)
-    engine._check_model(world, skel, joint, body, other, np.zeros(3), 1e-3)
-
-
-def _readback_pybullet(sc, other):
-    import pybullet as p
-
-    engine = get_engine("pybullet")()
-    cid = p.connect(p.DIRECT)
-    try:
-        body, link, _ = engine._build(p, cid, sc, "multibody", 1e-3)
-        engine._check_model(p, cid, body, link, other, False, 1e-3)
-    finally:
-        p.disconnect(physicsClientId=cid)
-
-
-MUJOCO_CLS = get_engine("mujoco")
-READBACK = {
-    "mujoco": _readback_mujoco,
-    "pinocchio": _readback_pinocchio,
-    "dart": _readback_dart,
-    "pybullet": _readback_pybullet,
-}
+def built(name, sc, integrator=None, dt=1e-3):
+    """An adapter instance and the context of a model built from ``sc`` (no stepping)."""
+    engine = engine_or_skip(name)
+    integ = engine.integrator(integrator or engine.integrators[0].name)
+    ctx = RunContext(sc, BodyModel.of(sc, dt), integ, dt)
+    engine.build(ctx)
+    return engine, ctx
 
 
 @pytest.mark.parametrize("name", ENGINES)
 def test_model_read_back_names_a_wrong_quantity(name):
-    engine_or_skip(name)
     sc = free_body()
-    READBACK[name](sc, sc)  # the model built from a scenario matches it
-    with pytest.raises(EngineError, match="inertia"):
-        READBACK[name](sc, free_body(inertia=[2.0, 3.0, 4.5]))
-    with pytest.raises(EngineError, match="mass"):
-        READBACK[name](sc, free_body(mass=1.25))
-    with pytest.raises(EngineError, match="gravity"):
-        READBACK[name](sc, free_body(gravity=[0.0, 0.0, -9.80665]))
+    engine, ctx = built(name, sc)
+    try:
+        got = engine.read_model(ctx)
+        check_readback(name, got, BodyModel.of(sc, 1e-3))  # the model matches its scenario
+        for other, what in (
+            (free_body(inertia=[2.0, 3.0, 4.5]), "inertia"),
+            (free_body(mass=1.25), "mass"),
+            (free_body(gravity=[0.0, 0.0, -9.80665]), "gravity"),
+        ):
+            with pytest.raises(EngineError, match=what):
+                check_readback(name, got, BodyModel.of(other, 1e-3))
+        with pytest.raises(EngineError, match="time step"):
+            check_readback(name, got, BodyModel.of(sc, 2e-3))
+    finally:
+        engine.close(ctx)
 
 
 # == traps of docs/engines.md ==============================================================
@@ -369,21 +290,21 @@ def test_pybullet_spherical_motor_is_off_and_its_default_is_real():
     assert np.allclose(tr.rotation[-1], R_exact, rtol=0, atol=1e-12)
 
     # with the default motor left on, the same joint does not follow the free motion
-    cid = p.connect(p.DIRECT)
+    engine, ctx = built("pybullet", sc, "multibody")
+    h = ctx.handle
     try:
-        body, _, _ = engine._build(p, cid, sc, "multibody", 1e-3)
         p.setJointMotorControlMultiDof(
-            body, 0, p.POSITION_CONTROL, targetPosition=[0, 0, 0, 1], physicsClientId=cid
+            h.body, 0, p.POSITION_CONTROL, targetPosition=[0, 0, 0, 1], physicsClientId=h.cid
         )  # restores a motor with pybullet's default force
-        q, W = cv.pybullet_spherical_from_state(sc.rotation, sc.omega_body)
-        p.resetJointStateMultiDof(body, 0, q, W, physicsClientId=cid)
+        engine.set_state(ctx, cv.BodyState(sc.position, sc.velocity, sc.rotation, sc.omega_body))
         for _ in range(1000):
-            p.stepSimulation(physicsClientId=cid)
-        R_motor, _ = cv.pybullet_spherical_to_state(
-            *p.getJointStateMultiDof(body, 0, physicsClientId=cid)[:2]
-        )
+            p.stepSimulation(physicsClientId=h.cid)
+        R_motor = engine.read_state(ctx).rotation
+        # and the run-time probe of the read-back refuses such a model
+        with pytest.raises(EngineError, match="steady spin"):
+            check_readback("pybullet", engine.read_model(ctx), ctx.model)
     finally:
-        p.disconnect(physicsClientId=cid)
+        engine.close(ctx)
     assert np.abs(R_motor - R_exact).max() > 1e-3
 
 
@@ -405,12 +326,13 @@ def test_dart_deactivation_is_switched_off():
     assert np.allclose(out.trajectory.position[-1], sc.position + 2.0 * sc.velocity, atol=1e-14)
     assert out.settings["deactivation (sleeping)"] is False
     # the read-back refuses a World with deactivation left on
-    world, skel, joint, body, _ = engine._build(sc, 1e-3)
+    engine, ctx = built("dart", sc)
+    world = ctx.handle[0]
     opts = world.getDeactivationOptions()
     opts.mEnabled = True
     world.setDeactivationOptions(opts)
     with pytest.raises(EngineError, match="deactivation"):
-        engine._check_model(world, skel, joint, body, sc, np.zeros(3), 1e-3)
+        check_readback("dart", engine.read_model(ctx), ctx.model)
 
 
 def test_mujoco_state_is_read_from_qpos_not_stale_xmat():
@@ -420,7 +342,7 @@ def test_mujoco_state_is_read_from_qpos_not_stale_xmat():
     sc = free_body(gravity=[0, 0, 0])
     dt = 1e-2
     out = engine.run(sc, "Euler", dt, t_end=dt, save_every=1)
-    m = mujoco.MjModel.from_xml_string(engine.model_xml(sc, "Euler", dt))
+    m = mujoco.MjModel.from_xml_string(engine.model_xml(BodyModel.of(sc, dt), "Euler"))
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = cv.mujoco_free_from_state(
         sc.position, sc.velocity, sc.rotation, sc.omega_body
@@ -443,7 +365,7 @@ def test_mujoco_alignment_trap_is_refused():
     # an inertial frame offset from, or rotated against, the body frame changes what
     # qpos/qvel refer to (free-joint alignment): the read-back refuses such a model
     sc = free_body()
-    xml = engine.model_xml(sc, "Euler", 1e-3)
+    xml = engine.model_xml(BodyModel.of(sc, 1e-3), "Euler")
     shifted = xml.replace(
         '<inertial pos="0.0 0.0 0.0" quat="1 0 0 0"', '<inertial pos="0.0 0.0 0.1" quat="1 0 0 0"'
     )
@@ -452,10 +374,12 @@ def test_mujoco_alignment_trap_is_refused():
         '<inertial pos="0.0 0.0 0.0" quat="0.8 0.6 0 0"',
     )
     assert shifted != xml and rotated != xml
-    for bad, what in ((shifted, "body_ipos"), (rotated, "body_iquat")):
+    for bad, what in ((shifted, "COM position"), (rotated, "body_iquat")):
+        _, ctx = built("mujoco", sc, "Euler")
         m = mujoco.MjModel.from_xml_string(bad)
+        ctx.handle = (mujoco, m, mujoco.MjData(m))
         with pytest.raises(EngineError, match=what):
-            engine._check_model(mujoco, m, sc, "Euler", 1e-3)
+            check_readback("mujoco", engine.read_model(ctx), ctx.model)
 
 
 PACKAGES = {"mujoco": "mujoco", "pinocchio": "pinocchio", "dart": "dartpy", "pybullet": "pybullet"}
@@ -505,23 +429,37 @@ def test_flat_body_runs_and_a_non_physical_inertia_is_refused_by_mujoco(name, in
 
 
 def test_pybullet_inertia_quirks_are_caught_by_the_read_back():
-    engine = engine_or_skip("pybullet")
     import pybullet as p
 
     sc = free_body()
-    cid = p.connect(p.DIRECT)
+    # maximal coordinates: setting the inertia without the mass makes the body static
+    engine, ctx = built("pybullet", sc, "maximal coordinates")
+    engine.close(ctx)
+    # a body made the naive way, in a new client: the inertia set without the mass again
+    h = ctx.handle
+    h.cid = p.connect(p.DIRECT)
     try:
-        p.setGravity(*sc.gravity, physicsClientId=cid)
-        p.setPhysicsEngineParameter(fixedTimeStep=1e-3, numSubSteps=0, physicsClientId=cid)
-        # maximal coordinates: setting the inertia without the mass makes the body static
-        b = p.createMultiBody(baseMass=sc.mass, useMaximalCoordinates=True, physicsClientId=cid)
-        p.changeDynamics(b, -1, localInertiaDiagonal=list(sc.inertia), physicsClientId=cid)
-        assert p.getDynamicsInfo(b, -1, physicsClientId=cid)[0] == 0.0  # the quirk (3.2.7)
+        p.setGravity(*sc.gravity, physicsClientId=h.cid)
+        p.setPhysicsEngineParameter(fixedTimeStep=1e-3, numSubSteps=0, physicsClientId=h.cid)
+        h.body = p.createMultiBody(
+            baseMass=sc.mass, useMaximalCoordinates=True, physicsClientId=h.cid
+        )
+        p.changeDynamics(h.body, -1, localInertiaDiagonal=list(sc.inertia), physicsClientId=h.cid)
+        assert p.getDynamicsInfo(h.body, -1, physicsClientId=h.cid)[0] == 0.0  # the quirk
         with pytest.raises(EngineError, match="mass"):
-            engine._check_model(p, cid, b, -1, sc, True, 1e-3)
-        # a link: body-wide options in the same call as the inertia leave the inertia at 0
-        top = tilted_top()
-        b = p.createMultiBody(
+            check_readback("pybullet", engine.read_model(ctx), ctx.model)
+    finally:
+        engine.close(ctx)
+    # a link: body-wide options in the same call as the inertia leave the inertia at 0
+    top = tilted_top()
+    engine, ctx = built("pybullet", top, "multibody")
+    engine.close(ctx)
+    h = ctx.handle
+    h.cid = p.connect(p.DIRECT)
+    try:
+        p.setGravity(*top.gravity, physicsClientId=h.cid)
+        p.setPhysicsEngineParameter(fixedTimeStep=1e-3, numSubSteps=0, physicsClientId=h.cid)
+        h.body = p.createMultiBody(
             baseMass=0.0,
             linkMasses=[top.mass],
             linkCollisionShapeIndices=[-1],
@@ -533,13 +471,14 @@ def test_pybullet_inertia_quirks_are_caught_by_the_read_back():
             linkParentIndices=[0],
             linkJointTypes=[p.JOINT_SPHERICAL],
             linkJointAxis=[[0, 0, 1]],
-            physicsClientId=cid,
+            physicsClientId=h.cid,
         )
         p.changeDynamics(
-            b, 0, localInertiaDiagonal=list(top.inertia), linearDamping=0.0, physicsClientId=cid
-        )
-        assert p.getDynamicsInfo(b, 0, physicsClientId=cid)[2] == (0.0, 0.0, 0.0)  # the quirk
+            h.body, 0, localInertiaDiagonal=list(top.inertia), linearDamping=0.0,
+            physicsClientId=h.cid,
+        )  # fmt: skip
+        assert p.getDynamicsInfo(h.body, 0, physicsClientId=h.cid)[2] == (0.0, 0.0, 0.0)
         with pytest.raises(EngineError, match="inertia"):
-            engine._check_model(p, cid, b, 0, top, False, 1e-3)
+            check_readback("pybullet", engine.read_model(ctx), ctx.model)
     finally:
-        p.disconnect(physicsClientId=cid)
+        engine.close(ctx)

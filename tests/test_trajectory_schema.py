@@ -30,7 +30,23 @@ def scenario(**kw):
 def test_columns_are_the_documented_schema():
     assert COLUMNS[:7] == ["t", "x", "y", "z", "vx", "vy", "vz"]
     assert COLUMNS[7:16] == ["R00", "R01", "R02", "R10", "R11", "R12", "R20", "R21", "R22"]
-    assert COLUMNS[16:] == ["wx", "wy", "wz", "energy", "Lx", "Ly", "Lz"]
+    assert COLUMNS[16:] == ["wx", "wy", "wz", "energy", "Lx", "Ly", "Lz", "constraint_velocity"]
+
+
+def test_velocity_constraint_residual_by_hand():
+    """D' = R hat(W): with R orthonormal the residual R^T R hat(W) - hat(W) R^T R vanishes (to
+    round-off); with R^T R = diag(1 + e, 1, 1) it is e |hat(W) entries of row/column 1|:
+    for W = (0, 0, w) the nonzero entries are M hat(W) - hat(W) M at (0, 1) and (1, 0), each
+    -e w, so the Frobenius norm is sqrt(2) e w."""
+    from references.trajectory import velocity_constraint
+
+    R = Rotation.from_rotvec([0.2, -0.4, 0.9]).as_matrix()
+    W = np.array([0.3, -1.1, 0.7])
+    assert velocity_constraint(R[None], W[None])[0] < 1e-15
+    e, w = 1e-6, 2.0
+    S = np.diag([np.sqrt(1 + e), 1.0, 1.0])  # R^T R = S^2 = diag(1 + e, 1, 1)
+    got = velocity_constraint((R @ S)[None], np.array([[0.0, 0.0, w]]))[0]
+    assert got == pytest.approx(np.sqrt(2) * e * w, rel=1e-9)
 
 
 def test_energy_and_momentum_by_hand():

@@ -1,23 +1,40 @@
 """Engine registry: name -> adapter class, imported lazily so a missing engine never breaks
-the suite. Adding an engine is one new module and one line here."""
+the suite.
+
+The built-in adapters are listed here; installed packages add their own through the entry-point
+group ``director_bench.engines`` (``name = "package.module:AdapterClass"``), so a user's engine
+appears in ``director-bench list`` and runs every scenario with no change to this repository
+(docs/engines.md, "Writing an adapter").
+"""
 
 from __future__ import annotations
 
+import functools
 import importlib
 
 from references.engines.base import (
     FAMILIES,
+    BodyModel,
+    Diverged,
     Engine,
+    EngineBase,
     EngineError,
     EngineUnavailable,
+    Family,
     Integrator,
+    ModelReadback,
+    RunContext,
     RunOutput,
     StepFailure,
     Unsupported,
+    register_family,
     step_plan,
 )
 
-_REGISTRY = {
+#: the entry-point group through which other packages register engine adapters
+ENTRY_POINT_GROUP = "director_bench.engines"
+
+BUILTIN = {
     "director": "references.engines.director:DirectorEngine",
     "exact": "references.engines.exact:ExactEngine",
     "mujoco": "references.engines.mujoco_engine:MujocoEngine",
@@ -27,31 +44,58 @@ _REGISTRY = {
 }
 
 
+@functools.cache
+def _registry() -> dict[str, str]:
+    """Built-in adapters plus those registered by installed packages (entry points). A
+    plug-in may not take a built-in name."""
+    from importlib.metadata import entry_points
+
+    reg = dict(BUILTIN)
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name in BUILTIN:
+            continue  # a built-in name cannot be shadowed by a plug-in
+        reg.setdefault(ep.name, ep.value)
+    return reg
+
+
 def engine_names() -> list[str]:
     """Every registered engine name, installed or not."""
-    return list(_REGISTRY)
+    return list(_registry())
 
 
-def get_engine(name: str) -> type[Engine]:
+def get_engine(name: str) -> type[EngineBase]:
     """The adapter class registered as ``name`` (its import never needs the engine itself)."""
     try:
-        target = _REGISTRY[name]
+        target = _registry()[name]
     except KeyError:
-        raise KeyError(f"unknown engine {name!r}; known engines: {', '.join(_REGISTRY)}") from None
+        known = ", ".join(_registry())
+        raise KeyError(f"unknown engine {name!r}; known engines: {known}") from None
     module, cls = target.split(":")
-    return getattr(importlib.import_module(module), cls)
+    try:
+        return getattr(importlib.import_module(module), cls)
+    except (ImportError, AttributeError) as exc:
+        raise EngineError(f"engine {name!r}: its adapter {target} does not load: {exc}") from exc
 
 
 __all__ = [
+    "BUILTIN",
+    "ENTRY_POINT_GROUP",
     "FAMILIES",
+    "BodyModel",
+    "Diverged",
     "Engine",
+    "EngineBase",
     "EngineError",
     "EngineUnavailable",
+    "Family",
     "Integrator",
+    "ModelReadback",
+    "RunContext",
     "RunOutput",
     "StepFailure",
     "Unsupported",
     "engine_names",
     "get_engine",
+    "register_family",
     "step_plan",
 ]

@@ -1,106 +1,365 @@
-"""The engine interface: one adapter per engine, selected by name from the registry.
+"""The engine interface: an adapter per engine, and the run loop they all share.
 
-An adapter turns a :class:`scenarios.model.Scenario` into the engine's own model, steps it with
-one of the engine's integrators, and maps what it reads back into the suite's
-:class:`references.trajectory.Trajectory` (energy and momentum recomputed by the suite). It
-never computes metrics: those belong to :mod:`reports.metrics`, identical for every engine.
+An adapter (a subclass of :class:`Engine`) provides only what differs between engines:
 
-Failures are exceptions of the classes below; the runner turns each into a result row with a
-status and the message, so messages must say what happened and what to do about it.
+==========================  ===============================================================
+``build(ctx)``              the engine's model of ``ctx.model`` (a :class:`BodyModel`), with
+                            the engine's distorting defaults switched off; stored in
+                            ``ctx.handle``
+``read_model(ctx)``         what the built model holds, read back from the engine
+                            (:class:`ModelReadback`); the base compares it with the scenario
+``settings(ctx)``           the settings changed from the engine's defaults (recorded)
+``set_state(ctx, state)``   write a :class:`~references.conventions.BodyState` (the suite's
+                            convention) into the engine, converting in
+                            :mod:`references.conventions`
+``read_state(ctx)``         the engine's current state as a ``BodyState``
+``native_quantities(ctx)``  the engine's OWN energy, angular momentum, rotation (and COM
+                            velocity where it has one), computed by the engine's code from its
+                            own state; they check that the engine holds the state we meant
+``advance(ctx, k)``         k steps with the engine's own integrator (``stepping="native"``)
+``forward_dynamics``        accelerations of a state, for the suite's RKMK4
+(ctx, state)                (``stepping="rkmk4"``, :mod:`references.engines.liegroup`)
+``guard(ctx, state)``       optional: a reason if the engine hit one of its own limits
+``close(ctx)``              optional: release the engine's resources
+==========================  ===============================================================
+
+:meth:`Engine.run` owns everything else, identically for every engine: the step plan, the
+read-back of the model, the initial-state check through the engine's own quantities, the loop
+(saves, chunks, progress, the stopwatch that separates time inside the engine's calls from the
+suite's glue), the divergence checks and the conversion into the suite's
+:class:`references.trajectory.Trajectory`. Adapters never compute metrics.
+
+Failures are exceptions of the classes below with a ``status``; the runner turns each into a
+result row with that status and the message, so messages say what happened and what to do.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
-from references.trajectory import Trajectory
+from references import conventions as cv
+from references.engines.liegroup import RKMK4Stepper
+from references.errors import (
+    Diverged,
+    EngineError,
+    EngineUnavailable,
+    StepFailure,
+    Unsupported,
+)
+from references.trajectory import Trajectory, energy
 
-#: Integrator families used to group results in reports, so that readers see that the
-#: algorithm matters more than the engine.
-FAMILIES = {
-    "semi-implicit Euler": "first order, gyroscopic term explicit",
-    "implicit gyroscopic": "first order, gyroscopic term linearised implicitly",
-    "4th-order Lie-group": "explicit Runge-Kutta-Munthe-Kaas class, order 4 on SO(3)",
-    "structure-preserving director": "symplectic/energy-momentum schemes of the director model",
-    "exact": "closed-form or high-accuracy reference solution",
-}
+__all__ = [
+    "CHUNK",
+    "DIVERGENCE_ENERGY",
+    "FAMILIES",
+    "READBACK_RTOL",
+    "BodyModel",
+    "Clock",
+    "Diverged",
+    "Engine",
+    "EngineBase",
+    "EngineError",
+    "EngineUnavailable",
+    "Family",
+    "Integrator",
+    "ModelReadback",
+    "Recorder",
+    "RunContext",
+    "RunOutput",
+    "StepFailure",
+    "Unsupported",
+    "import_engine",
+    "register_family",
+    "step_plan",
+]
+
+# -- integrator families ----------------------------------------------------------------------
 
 
-class EngineError(Exception):
-    """Base class; ``status`` is the value written to the results table."""
+@dataclass(frozen=True)
+class Family:
+    """A class of integrators that share an algorithm (so engines running it should agree),
+    with the default verdict tolerances its members are held to (metric -> bound; see
+    :mod:`reports.verdicts` for the defaults every family shares)."""
 
-    status = "error"
-
-
-class EngineUnavailable(EngineError):
-    """The engine's Python package is not installed or does not import."""
-
-    status = "unavailable"
-
-
-class Unsupported(EngineError):
-    """The scenario (or integrator) cannot be represented by this engine."""
-
-    status = "unsupported"
+    name: str
+    description: str
+    tolerances: Mapping[str, float] = field(default_factory=dict)
 
 
-class StepFailure(EngineError):
-    """A step could not be taken (not solvable, diverged, non-finite state)."""
+#: Integrator families, name -> :class:`Family`. Engines from other packages may add their own
+#: with :func:`register_family` (families are data, not code).
+FAMILIES: dict[str, Family] = {}
 
-    status = "failed"
+
+def register_family(family: Family) -> Family:
+    """Add ``family`` to :data:`FAMILIES` (idempotent for an equal family; a different family
+    under a taken name is an error)."""
+    old = FAMILIES.get(family.name)
+    if old is not None and old != family:
+        raise ValueError(f"integrator family {family.name!r} is already registered differently")
+    FAMILIES[family.name] = family
+    return family
+
+
+for _fam in (
+    Family("semi-implicit Euler", "first order, gyroscopic term explicit"),
+    Family("implicit gyroscopic", "first order, gyroscopic term linearised implicitly"),
+    Family("4th-order Lie-group", "explicit Runge-Kutta(-Munthe-Kaas) class, order 4 on SO(3)"),
+    Family(
+        "structure-preserving director",
+        "symplectic / energy-momentum schemes of the director model; they keep the directors "
+        "orthonormal to round-off",
+        # every scheme of the family enforces the position constraints at the nodes (docs
+        # numerics.md section 3): 1e-10 is round-off accumulated over ~1e5 steps with margin
+        {"orthonormality_max": 1e-10},
+    ),
+    Family(
+        "exact",
+        "closed-form or high-accuracy reference solution",
+        {"energy_drift_max": 1e-9, "momentum_drift_max": 1e-9, "orthonormality_max": 1e-12},
+    ),
+):
+    register_family(_fam)
+
+
+#: Energy error, relative to the scenario's energy scale, beyond which a run has diverged.
+DIVERGENCE_ENERGY = 1.0
+
+#: Largest number of steps between two checks of the state (bounds how late a divergence is
+#: seen, and the resolution of ``t_diverged``).
+CHUNK = 1000
+
+#: Read-back tolerance of the model checks, a few ulp: engines may store a number through some
+#: arithmetic (with pin 4.1.0 and pybullet 3.2.7 an inertia of 0.9 reads back as
+#: 0.8999999999999999).
+READBACK_RTOL = 1e-15
+
+
+# -- what is built ----------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class Integrator:
-    """An integrator an engine offers, named for what it is."""
+    """An integrator an engine offers, named for what it is.
+
+    ``stepping``: "native" (the engine's own time stepping, :meth:`Engine.advance`) or "rkmk4"
+    (the suite's Runge-Kutta-Munthe-Kaas around :meth:`Engine.forward_dynamics`).
+    ``evals_per_step``: dynamics evaluations per step (forward dynamics, or torque evaluations
+    of the director schemes), None if it varies (error-controlled integrators report theirs).
+    ``options``: engine-specific settings of this integrator (recorded with the run).
+    ``ours``: the time loop is the suite's code around the engine's dynamics even though the
+    adapter runs it (Pinocchio has no integrator of its own); cost tables label such
+    configurations, since their cost includes our Python.
+    ``tolerances``: verdict bounds this integrator promises beyond its family's (metric ->
+    bound), e.g. RATTLE's conservation of angular momentum to round-off.
+    ``adaptive``: an error-controlled integrator, run at target accuracies (``accuracy`` of
+    :meth:`Engine.run`); ``dt`` is then the interval of the checkpoints, not a step, and the
+    adapter reports the steps it took (``ctx.stats``, ``ctx.nevals``).
+    """
 
     name: str
     family: str
     order: int
     description: str
+    stepping: str = "native"
+    evals_per_step: float | None = 1.0
+    options: Mapping[str, Any] = field(default_factory=dict)
+    ours: bool = False
+    tolerances: Mapping[str, float] = field(default_factory=dict)
+    adaptive: bool = False
 
     def __post_init__(self):
         if self.family not in FAMILIES:
-            raise ValueError(f"integrator {self.name!r}: unknown family {self.family!r}")
+            raise ValueError(
+                f"integrator {self.name!r}: unknown family {self.family!r}; register it with "
+                "references.engines.register_family"
+            )
+        if self.stepping not in ("native", "rkmk4"):
+            raise ValueError(f"integrator {self.name!r}: stepping must be 'native' or 'rkmk4'")
+
+    @property
+    def suite_integrated(self) -> bool:
+        """True when the time integration is the suite's code around the engine's dynamics."""
+        return self.ours or self.stepping != "native"
+
+
+@dataclass(frozen=True)
+class BodyModel:
+    """The one rigid body an adapter builds, in the engine-neutral terms every engine has.
+
+    ``joint``: "free" (a free body whose body frame is its principal centre-of-mass frame) or
+    "ball" (a ball joint at the world origin, at the body frame's origin). ``com``: the centre
+    of mass in the body frame, m (zeros for a free body, ``-pivot`` for a pivoted one).
+    ``inertia``: principal moments about the centre of mass, body axes, kg m^2. ``gravity``
+    (m/s^2, world axes), ``dt`` (s).
+    """
+
+    name: str
+    mass: float
+    inertia: np.ndarray
+    com: np.ndarray
+    joint: str
+    gravity: np.ndarray
+    dt: float
+
+    @classmethod
+    def of(cls, scenario, dt: float) -> BodyModel:
+        pivoted = scenario.pivot is not None
+        return cls(
+            name=scenario.name or "body",
+            mass=float(scenario.mass),
+            inertia=np.array(scenario.inertia, dtype=float),
+            com=-np.asarray(scenario.pivot, dtype=float) if pivoted else np.zeros(3),
+            joint="ball" if pivoted else "free",
+            gravity=np.array(scenario.gravity, dtype=float),
+            dt=float(dt),
+        )
+
+    @property
+    def pivoted(self) -> bool:
+        return self.joint == "ball"
+
+    def state_from_rotation(self, R, W) -> cv.BodyState:
+        """The full state of a pivoted body from its rotation and body rates:
+        x_G = R com, v_G = R (W x com)."""
+        R = np.asarray(R, dtype=float)
+        W = np.asarray(W, dtype=float)
+        return cv.BodyState(R @ self.com, R @ np.cross(W, self.com), R, W)
+
+
+@dataclass
+class ModelReadback:
+    """What a built model holds, read back from the engine (SI units, body axes):
+    ``mass``, ``inertia`` (3x3 tensor about the centre of mass), ``com`` (body frame),
+    ``joint`` ("free" or "ball"), ``gravity``, ``dt``; ``extra`` maps the names of the
+    engine's own settings to (value read back, value required[, absolute tolerance]), e.g.
+    joint damping (0, 0)."""
+
+    mass: float
+    inertia: np.ndarray
+    com: np.ndarray
+    joint: str
+    gravity: np.ndarray
+    dt: float
+    extra: dict[str, tuple] = field(default_factory=dict)
+
+
+class Clock:
+    """Accumulates the wall time spent inside an engine's own calls (``with ctx.clock:``)."""
+
+    __slots__ = ("elapsed", "_t0")
+
+    def __init__(self):
+        self.elapsed = 0.0
+        self._t0 = 0.0
+
+    def __enter__(self):
+        self._t0 = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        self.elapsed += time.perf_counter() - self._t0
+        return False
+
+
+@dataclass
+class RunContext:
+    """One run's working state, passed to every adapter method. Adapters keep whatever their
+    engine needs in ``handle`` (and may add attributes)."""
+
+    scenario: Any
+    model: BodyModel
+    integrator: Integrator
+    dt: float
+    clock: Clock = field(default_factory=Clock)
+    handle: Any = None
+    #: dynamics evaluations so far (adapters with a varying count add to it)
+    nevals: float = 0.0
+    #: target accuracy of an error-controlled integrator (None for a fixed step)
+    accuracy: float | None = None
+    #: what an adaptive integrator reports: "steps taken", "steps rejected", ...
+    stats: dict = field(default_factory=dict)
 
 
 @dataclass
 class RunOutput:
-    """What one run returns: the trajectory in the suite's schema, the number of steps, the
-    wall time of the stepping alone (model building excluded), and every setting the adapter
-    changed from the engine's defaults (name -> value), recorded with the results."""
+    """What one run returns: the trajectory in the suite's schema, the number of steps taken,
+    the wall time of the stepping (model building excluded) split into the time inside the
+    engine's own calls and the suite's glue around them, the dynamics evaluations per step,
+    and every setting changed from the engine's defaults (recorded with the results)."""
 
     trajectory: Trajectory
     nstep: int
     wall_time_s: float
+    engine_time_s: float
+    evals_per_step: float
     settings: dict[str, object] = field(default_factory=dict)
+    #: an adaptive integrator's statistics ("steps taken", "steps rejected")
+    stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def glue_time_s(self) -> float:
+        return max(self.wall_time_s - self.engine_time_s, 0.0)
 
 
 def step_plan(dt: float, t_end: float, save_every: int) -> tuple[int, np.ndarray]:
     """Number of steps and the step indices to save (0, s, 2s, ... and always the last).
 
-    ``t_end`` must be a whole number of steps to within 1e-9 relative; anything else is an
-    error (a ``ValueError``) rather than a silently shortened or lengthened horizon. The rule
-    is director_model's (:func:`director_model.step_plan`), so that every engine, the
-    reference integrator and the scenario validation share one definition.
+    ``t_end`` must be a whole number of steps to within 1e-9 relative; anything else is a
+    ``ValueError`` rather than a silently shortened or lengthened horizon. The rule is
+    director_model's (:func:`director_model.step_plan`): every engine, the reference
+    integrator and the scenario validation share one definition.
     """
     from director_model import step_plan as _plan
 
     return _plan(dt, t_end, save_every)
 
 
-class Engine(ABC):
-    """Interface of an engine adapter.
+# -- recording --------------------------------------------------------------------------------
 
-    Subclasses set ``name`` and ``integrators`` and implement :meth:`version` and :meth:`_run`.
-    The public :meth:`run` owns the bookkeeping (step plan, integrator lookup, support checks).
-    """
+
+class Recorder:
+    """Receives the states of a run at its checkpoints and keeps those at the saved step
+    indices. A subclass with ``every_step = True`` sees every step (streaming metrics over
+    long horizons keep O(1) memory that way, see :mod:`reports.streaming`)."""
+
+    every_step = False
+
+    def __init__(self, saves: np.ndarray):
+        self.saves = saves
+        self._want = set(int(s) for s in saves)
+        self.steps: list[int] = []
+        self.states: list[cv.BodyState] = []
+
+    def record(self, step: int, state: cv.BodyState) -> None:
+        if step in self._want:
+            self.steps.append(step)
+            self.states.append(state)
+
+    def trajectory(self, scenario, dt: float) -> Trajectory:
+        t = np.asarray(self.steps, dtype=float) * dt
+        if not self.states:
+            z = np.zeros((0, 3))
+            return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z)
+        return Trajectory.from_states(scenario, t, *cv.stack_states(self.states))
+
+
+# -- the interface ----------------------------------------------------------------------------
+
+
+class EngineBase(ABC):
+    """What the runner needs of anything that produces trajectories: a name, integrators, a
+    version, and :meth:`run`. :class:`Engine` (an engine adapter) implements :meth:`run` with
+    the shared loop; the exact reference (:mod:`references.engines.exact`) implements it by
+    evaluating closed forms."""
 
     name: ClassVar[str]
     integrators: ClassVar[tuple[Integrator, ...]]
@@ -128,10 +387,11 @@ class Engine(ABC):
         names = ", ".join(i.name for i in cls.integrators)
         raise Unsupported(f"engine {cls.name!r} has no integrator {name!r}; it offers: {names}")
 
-    def check_supported(self, scenario, integrator: str) -> None:  # noqa: B027 - optional hook
+    def check_supported(self, scenario, integrator: Integrator) -> None:  # noqa: B027
         """Raise :class:`Unsupported` with the reason if this scenario/integrator pair cannot
         be represented. The default accepts everything."""
 
+    @abstractmethod
     def run(
         self,
         scenario,
@@ -140,28 +400,303 @@ class Engine(ABC):
         t_end: float | None = None,
         save_every: int | None = None,
         progress: Callable[[float], None] | None = None,
+        recorder: Recorder | None = None,
+        accuracy: float | None = None,
+    ) -> RunOutput:
+        """Run ``scenario`` with ``integrator`` at step ``dt`` (see :meth:`Engine.run`)."""
+
+
+class Engine(EngineBase):
+    """Interface of an engine adapter (see the module docstring for what to implement)."""
+
+    # -- what adapters implement -----------------------------------------------------------
+    @abstractmethod
+    def build(self, ctx: RunContext) -> None:
+        """Build the engine's model of ``ctx.model`` for ``ctx.integrator`` and step
+        ``ctx.dt``; store what the other methods need in ``ctx.handle``."""
+
+    @abstractmethod
+    def read_model(self, ctx: RunContext) -> ModelReadback:
+        """What the built model holds, read back from the engine."""
+
+    def settings(self, ctx: RunContext) -> dict:
+        """Every setting changed from the engine's defaults, name -> value (recorded)."""
+        return {}
+
+    @abstractmethod
+    def set_state(self, ctx: RunContext, state: cv.BodyState) -> None:
+        """Write ``state`` (the suite's convention) into the engine."""
+
+    @abstractmethod
+    def read_state(self, ctx: RunContext) -> cv.BodyState:
+        """The engine's current state in the suite's convention."""
+
+    @abstractmethod
+    def native_quantities(self, ctx: RunContext) -> dict:
+        """The engine's own view of its current state, computed by the engine:
+        ``{"energy": E, "angular momentum": L (3,), "rotation": R (3, 3)}`` and, where the
+        engine computes it, ``"COM velocity": v (3,)``. L in world axes about the centre of
+        mass (free body) or the pivot; E = T + V with V = -m g . x_G."""
+
+    def advance(self, ctx: RunContext, k: int) -> None:
+        """Take ``k`` steps with the engine's own integrator (``stepping="native"``)."""
+        raise NotImplementedError(f"{self.name}: no native stepping")
+
+    def advance_saving(self, ctx: RunContext, steps: list[int]) -> list[cv.BodyState]:
+        """Advance by each count in ``steps`` in turn and return the state after each: the
+        states of a block of checkpoints. The default calls :meth:`advance` and
+        :meth:`read_state`; an engine whose loop runs in compiled code may save them all in
+        one call (the director model does)."""
+        out = []
+        for k in steps:
+            self.advance(ctx, k)
+            out.append(self.read_state(ctx))
+        return out
+
+    def forward_dynamics(self, ctx: RunContext, state: cv.BodyState):
+        """(dW/dt (3,) body axes, dv_G/dt (3,) world axes) of ``state``, from the engine's
+        forward dynamics (``stepping="rkmk4"``); for a ball joint the second entry is
+        ignored."""
+        raise NotImplementedError(f"{self.name}: no forward-dynamics call")
+
+    def guard(self, ctx: RunContext, state: cv.BodyState) -> str | None:
+        """A reason if the engine reached one of its own limits (e.g. a velocity clamp): the
+        run then counts as diverged. Checked at every checkpoint."""
+        return None
+
+    def close(self, ctx: RunContext) -> None:  # noqa: B027 - optional hook
+        """Release the engine's resources (called once, also after a failure)."""
+
+    # -- the run ---------------------------------------------------------------------------
+    def run(
+        self,
+        scenario,
+        integrator: str,
+        dt: float,
+        t_end: float | None = None,
+        save_every: int | None = None,
+        progress: Callable[[float], None] | None = None,
+        recorder: Recorder | None = None,
+        accuracy: float | None = None,
     ) -> RunOutput:
         """Run ``scenario`` with ``integrator`` at step ``dt`` up to ``t_end`` (default: the
         scenario's), saving every ``save_every`` steps (default: the scenario's).
 
         ``progress``, if given, is called now and then with the fraction done (0..1).
+        ``recorder`` (default: a :class:`Recorder` of the saved steps) receives the states.
+        ``accuracy``: the target accuracy of an error-controlled (``adaptive``) integrator,
+        required for those and refused for the others.
+        Raises :class:`Diverged`, :class:`Unsupported`, :class:`EngineUnavailable` or
+        :class:`EngineError`.
         """
-        self.integrator(integrator)
-        self.check_supported(scenario, integrator)
+        integ = self.integrator(integrator)
+        if integ.adaptive != (accuracy is not None):
+            raise Unsupported(
+                f"{self.name} {integ.name}: "
+                + (
+                    "an error-controlled integrator needs a target accuracy"
+                    if integ.adaptive
+                    else "a fixed-step integrator takes no target accuracy"
+                )
+            )
+        self.check_supported(scenario, integ)
         t_end = scenario.t_end if t_end is None else t_end
         save_every = scenario.save_every if save_every is None else save_every
         nstep, saves = step_plan(dt, t_end, save_every)
-        return self._run(scenario, integrator, dt, nstep, saves, progress)
+        ctx = RunContext(scenario, BodyModel.of(scenario, dt), integ, float(dt))
+        ctx.accuracy = None if accuracy is None else float(accuracy)
+        rec = recorder if recorder is not None else Recorder(saves)
+        try:
+            self.build(ctx)
+            check_readback(self.name, self.read_model(ctx), ctx.model)
+            stepper = _stepper(self, ctx)
+            stepper.start(initial_state(scenario))
+            check_initial(self, ctx, scenario)
+            wall, steps_done = _loop(self, ctx, stepper, nstep, saves, rec, progress)
+            settings = {**self.settings(ctx), "integrator": integ.name, "timestep": float(dt)}
+            if ctx.accuracy is not None:
+                settings["target accuracy"] = ctx.accuracy
+        finally:
+            self.close(ctx)
+        out = _output(ctx, rec, steps_done, wall, settings)
+        if progress is not None:
+            progress(1.0)
+        return out
 
-    @abstractmethod
-    def _run(self, scenario, integrator, dt, nstep, saves, progress) -> RunOutput:
-        """Take ``nstep`` steps of size ``dt``; save the states at step indices ``saves``."""
+
+def initial_state(scenario) -> cv.BodyState:
+    return cv.BodyState(
+        np.array(scenario.position, dtype=float),
+        np.array(scenario.velocity, dtype=float),
+        np.array(scenario.rotation, dtype=float),
+        np.array(scenario.omega_body, dtype=float),
+    )
 
 
-#: Read-back tolerance of the adapters' model checks, a few ulp: engines may store a number
-#: through some arithmetic (with pin 4.1.0 and pybullet 3.2.7 an inertia of 0.9 reads back as
-#: 0.8999999999999999).
-READBACK_RTOL = 1e-15
+def check_readback(engine: str, got: ModelReadback, want: BodyModel) -> None:
+    """Raise :class:`EngineError` naming the quantity unless the built model holds ``want``."""
+    chk = cv.check_quantity
+    chk(engine, "mass", got.mass, want.mass, READBACK_RTOL)
+    chk(engine, "inertia tensor about the COM", got.inertia, np.diag(want.inertia), READBACK_RTOL)
+    scale = float(np.linalg.norm(want.com)) or math.sqrt(float(np.max(want.inertia)) / want.mass)
+    chk(engine, "COM position in the body frame", got.com, want.com, READBACK_RTOL, 1e-15 * scale)
+    if got.joint != want.joint:
+        raise EngineError(
+            f"{engine}: the built model has a {got.joint!r} joint, the scenario needs "
+            f"{want.joint!r}; the adapter built the wrong joint"
+        )
+    chk(engine, "gravity", got.gravity, want.gravity, READBACK_RTOL)
+    chk(engine, "time step", got.dt, want.dt, READBACK_RTOL)
+    for name, (value, required, *atol) in got.extra.items():
+        chk(engine, name, value, required, 0.0, atol[0] if atol else 0.0)
+
+
+def check_initial(engine: Engine, ctx: RunContext, scenario) -> dict:
+    """Check, before the first step, that the engine holds the scenario's initial state: the
+    state read back through the adapter's conversions AND the engine's own energy, angular
+    momentum and rotation (:meth:`Engine.native_quantities`), which a mistake made the same
+    way in both conversions (a quaternion order, a body/world frame, a unit) cannot fool."""
+    native = engine.native_quantities(ctx)
+    if "energy" not in native or "angular momentum" not in native or "rotation" not in native:
+        raise EngineError(
+            f"{engine.name}: native_quantities must give the engine's own energy, angular "
+            "momentum and rotation (the only checks a consistent conversion mistake cannot pass)"
+        )
+    state = engine.read_state(ctx)
+    return cv.check_initial_state(engine.name, scenario, state, native=native)
+
+
+# -- stepping strategies ----------------------------------------------------------------------
+
+
+class _NativeStepper:
+    """The engine's own integrator: the state lives in the engine."""
+
+    def __init__(self, engine: Engine, ctx: RunContext):
+        self.engine, self.ctx = engine, ctx
+
+    def start(self, state: cv.BodyState) -> None:
+        self.engine.set_state(self.ctx, state)
+
+    def run(self, steps: list[int]) -> list[cv.BodyState]:
+        out = self.engine.advance_saving(self.ctx, steps)
+        per = self.ctx.integrator.evals_per_step
+        if per is not None:
+            self.ctx.nevals += per * sum(steps)
+        return out
+
+    def state(self) -> cv.BodyState:
+        return self.engine.read_state(self.ctx)
+
+
+def _stepper(engine: Engine, ctx: RunContext):
+    if ctx.integrator.stepping == "native":
+        return _NativeStepper(engine, ctx)
+    return RKMK4Stepper(engine, ctx)
+
+
+# -- the loop ---------------------------------------------------------------------------------
+
+
+def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
+    """The checkpoints (steps at which the state is read) in blocks that end at multiples of
+    CHUNK: every step, or the saves and at least every CHUNK steps. Generated lazily (a long
+    horizon has many)."""
+    block: list[int] = []
+    if every_step:
+        points = range(1, nstep + 1)
+    else:
+        points = sorted(set(int(s) for s in saves if s > 0) | set(range(CHUNK, nstep, CHUNK)))
+    for p in points:
+        block.append(p)
+        if p % CHUNK == 0 or p == nstep:
+            yield block
+            block = []
+    if block:
+        yield block
+
+
+def _first_divergence(engine, ctx, states, e0, e_scale) -> tuple[int, str] | None:
+    """(index of the first diverged state of a block, why), or None: a non-finite state or
+    an energy error beyond DIVERGENCE_ENERGY of the scale (vectorised over the block), or the
+    engine's own limit (:meth:`Engine.guard`, on the block's last state)."""
+    x, v, R, W = cv.stack_states(states)
+    finite = np.isfinite(x).all(1) & np.isfinite(v).all(1) & np.isfinite(W).all(1)
+    finite &= np.isfinite(R).all((1, 2))
+    with np.errstate(all="ignore"):
+        drift = np.abs(energy(ctx.scenario, x, v, R, W) - e0) / e_scale
+    bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
+    if bad.any():
+        i = int(np.argmax(bad))
+        if not finite[i]:
+            return i, "the state became non-finite"
+        return i, (
+            f"the energy error |E - E0| = {drift[i] * e_scale:.4g} J exceeded "
+            f"{DIVERGENCE_ENERGY:g} x the scenario's energy scale {e_scale:.4g} J"
+        )
+    why = engine.guard(ctx, states[-1])
+    return (len(states) - 1, why) if why else None
+
+
+def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int]:
+    """Step from 0 to nstep block by block; returns (wall time of the stepping, steps done).
+    Raises Diverged with the output up to the last good state."""
+    sc = ctx.scenario
+    e0 = float(energy(sc, *(np.asarray(a)[None] for a in initial_state(sc)))[0])
+    e_scale = sc.energy_scale
+    rec.record(0, stepper.state())
+    wall = 0.0
+    done = 0
+    dt = ctx.dt
+    for block in _blocks(nstep, saves, rec.every_step):
+        steps = np.diff([done, *block]).tolist()
+        t0 = time.perf_counter()
+        try:
+            states = stepper.run(steps)
+        except StepFailure as exc:
+            wall += time.perf_counter() - t0
+            t_fail = getattr(exc, "time", None)
+            t_div = float(t_fail) if t_fail is not None else block[-1] * dt
+            span = f"between t = {done * dt:.6g} and t = {block[-1] * dt:.6g} s"
+            raise _diverged(
+                ctx, rec, done, wall, t_div, f"a step {span} could not be taken: {exc}"
+            ) from exc
+        wall += time.perf_counter() - t0
+        found = _first_divergence(engine, ctx, states, e0, e_scale)
+        good = len(states) if found is None else found[0]
+        for target, state in zip(block[:good], states[:good], strict=True):
+            rec.record(target, state)
+        if found is not None:
+            before = block[good - 1] if good else done
+            span = f"between t = {before * dt:.6g} and t = {block[good] * dt:.6g} s"
+            raise _diverged(ctx, rec, before, wall, block[good] * dt, f"{found[1]} {span}")
+        done = block[-1]
+        if progress is not None:
+            progress(done / nstep)
+    return wall, done
+
+
+def _diverged(ctx, rec, done, wall, t_div, what) -> Diverged:
+    integ = ctx.integrator
+    msg = f"{integ.name} at dt = {ctx.dt:g} s: {what}; the run diverged (reduce dt)"
+    out = _output(ctx, rec, done, wall, {"integrator": integ.name, "timestep": ctx.dt})
+    return Diverged(msg, t_div, out)
+
+
+def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
+    per = ctx.nevals / steps_done if steps_done else float(ctx.integrator.evals_per_step or 0)
+    return RunOutput(
+        trajectory=rec.trajectory(ctx.scenario, ctx.dt),
+        nstep=int(steps_done),
+        wall_time_s=float(wall),
+        engine_time_s=float(min(ctx.clock.elapsed, wall)),
+        evals_per_step=float(per),
+        settings=settings,
+        stats=dict(ctx.stats),
+    )
+
+
+# -- helpers for adapters ---------------------------------------------------------------------
 
 
 def import_engine(module: str, label: str, pip_name: str):
@@ -174,20 +709,5 @@ def import_engine(module: str, label: str, pip_name: str):
     except ImportError as exc:
         raise EngineUnavailable(
             f"{label} is not installed or does not import ({exc}); install it with "
-            f"`pip install {pip_name}` (or `pip install director-bench[engines]`)"
+            f"`pip install {pip_name}` (or `pip install 'director-bench[engines]'`)"
         ) from exc
-
-
-class Stopwatch:
-    """Accumulates wall time of the stepping alone (``with watch: ...``)."""
-
-    def __init__(self):
-        self.elapsed = 0.0
-
-    def __enter__(self):
-        self._t0 = time.perf_counter()
-        return self
-
-    def __exit__(self, *exc):
-        self.elapsed += time.perf_counter() - self._t0
-        return False

@@ -24,22 +24,24 @@ from __future__ import annotations
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import (
-    READBACK_RTOL,
-    Engine,
-    EngineError,
-    Integrator,
-    RunOutput,
-    StepFailure,
-    Stopwatch,
-    import_engine,
-)
-from references.engines.liegroup import rkmk4_step, so3_r3_dexpinv, so3_r3_integrate
-from references.trajectory import Trajectory
+from references.engines.base import Engine, Integrator, ModelReadback, import_engine
 
 
 def _import():
     return import_engine("dartpy", "DART (dartpy)", "dartpy")
+
+
+def _plant_sleeping(ctx) -> None:
+    world = ctx.handle[0]
+    opts = world.getDeactivationOptions()
+    opts.mEnabled = True
+    world.setDeactivationOptions(opts)
+
+
+def _plant_damping(ctx) -> None:
+    joint = ctx.handle[2]
+    for i in range(joint.getNumDofs()):
+        joint.setDampingCoefficient(i, 0.01)
 
 
 class DartEngine(Engine):
@@ -61,225 +63,149 @@ class DartEngine(Engine):
             4,
             "Ours: Runge-Kutta-Munthe-Kaas order 4 on SO(3) x R^3 (SO(3) when pivoted) with "
             "exact dexp^{-1}, accelerations from DART's computeForwardDynamics.",
+            stepping="rkmk4",
+            evals_per_step=4.0,
         ),
     )
+
+    #: defaults that distort the experiment, planted back by the conformance kit
+    plantable = {
+        "deactivation (sleeping) left on": (_plant_sleeping, ("free", "pivoted")),
+        "joint damping left on": (_plant_damping, ("free", "pivoted")),
+    }
 
     @classmethod
     def version(cls) -> str:
         return _import().__version__
 
     # -- model -------------------------------------------------------------------------
-    def _build(self, scenario, dt):
+    def build(self, ctx) -> None:
         dart = _import()
+        mdl = ctx.model
         world = dart.simulation.World()
-        world.setGravity(np.asarray(scenario.gravity, dtype=float))
-        world.setTimeStep(float(dt))
+        world.setGravity(mdl.gravity)
+        world.setTimeStep(ctx.dt)
         opts = world.getDeactivationOptions()
         opts.mEnabled = False
         world.setDeactivationOptions(opts)
-
-        skel = dart.dynamics.Skeleton(scenario.name or "body")
-        if scenario.pivoted:
+        skel = dart.dynamics.Skeleton(mdl.name)
+        if mdl.pivoted:
             joint, body = skel.createBallJointAndBodyNodePair()
-            com = -np.asarray(scenario.pivot, dtype=float)
         else:
             joint, body = skel.createFreeJointAndBodyNodePair()
-            com = np.zeros(3)
-        body.setInertia(dart.dynamics.Inertia(float(scenario.mass), com, np.diag(scenario.inertia)))
+        body.setInertia(dart.dynamics.Inertia(mdl.mass, mdl.com, np.diag(mdl.inertia)))
         for i in range(joint.getNumDofs()):
             joint.setDampingCoefficient(i, 0.0)
             joint.setSpringStiffness(i, 0.0)
             joint.setCoulombFriction(i, 0.0)
         joint.setLimitEnforcement(False)
         world.addSkeleton(skel)
-        self._check_model(world, skel, joint, body, scenario, com, dt)
-        settings = {
+        ctx.handle = (world, skel, joint, body)
+
+    def read_model(self, ctx) -> ModelReadback:
+        world, skel, joint, body = ctx.handle
+        inertia = body.getInertia()
+        n = joint.getNumDofs()
+        kinds = {"FreeJoint": "free", "BallJoint": "ball"}
+        return ModelReadback(
+            mass=inertia.getMass(),
+            inertia=inertia.getMoment(),
+            com=body.getLocalCOM(),
+            joint=kinds.get(joint.getType(), joint.getType()),
+            gravity=world.getGravity(),
+            dt=world.getTimeStep(),
+            extra={
+                "gravity (skeleton)": (skel.getGravity(), ctx.model.gravity),
+                "time step (skeleton)": (skel.getTimeStep(), ctx.dt),
+                "body affected by gravity": (float(body.getGravityMode()), 1.0),
+                "joint to parent transform": (
+                    joint.getTransformFromParentBodyNode().matrix(),
+                    np.eye(4),
+                ),
+                "joint to child transform": (
+                    joint.getTransformFromChildBodyNode().matrix(),
+                    np.eye(4),
+                ),
+                "joint damping": ([joint.getDampingCoefficient(i) for i in range(n)], [0.0] * n),
+                "joint spring stiffness": (
+                    [joint.getSpringStiffness(i) for i in range(n)],
+                    [0.0] * n,
+                ),
+                "joint Coulomb friction": (
+                    [joint.getCoulombFriction(i) for i in range(n)],
+                    [0.0] * n,
+                ),
+                "number of shape nodes": (skel.getNumShapeNodes(), 0),
+                "joint limits enforced": (float(joint.areLimitsEnforced()), 0.0),
+                "deactivation enabled": (float(world.getDeactivationOptions().mEnabled), 0.0),
+                "skeleton mobile": (float(skel.isMobile()), 1.0),
+            },
+        )
+
+    def settings(self, ctx) -> dict:
+        return {
             "deactivation (sleeping)": False,
-            "gravity": np.asarray(scenario.gravity).tolist(),
-            "timestep": float(dt),
-            "joint": "BallJoint at the world origin" if scenario.pivoted else "FreeJoint",
-            "local COM": com.tolist(),
+            "gravity": ctx.model.gravity.tolist(),
+            "joint": "BallJoint at the world origin" if ctx.model.pivoted else "FreeJoint",
+            "local COM": ctx.model.com.tolist(),
             "collision": "none (no shape nodes)",
             "joint damping, spring stiffness, Coulomb friction": 0.0,
             "joint limit enforcement": False,
+            "stepping": "World.step"
+            if ctx.integrator.stepping == "native"
+            else "the suite's RKMK4 around Skeleton.computeForwardDynamics (World.step not used)",
         }
-        return world, skel, joint, body, settings
-
-    @staticmethod
-    def _check_model(world, skel, joint, body, scenario, com, dt):
-        chk = cv.check_quantity
-        e = "DART"
-        inertia = body.getInertia()
-        chk(e, "mass", inertia.getMass(), scenario.mass, READBACK_RTOL)
-        chk(
-            e,
-            "inertia tensor about the COM",
-            inertia.getMoment(),
-            np.diag(scenario.inertia),
-            READBACK_RTOL,
-        )
-        chk(e, "COM position in the body frame", body.getLocalCOM(), com, READBACK_RTOL)
-        chk(e, "gravity (world)", world.getGravity(), scenario.gravity, READBACK_RTOL)
-        chk(e, "gravity (skeleton)", skel.getGravity(), scenario.gravity, READBACK_RTOL)
-        chk(e, "time step (world)", world.getTimeStep(), dt, READBACK_RTOL)
-        chk(e, "time step (skeleton)", skel.getTimeStep(), dt, READBACK_RTOL)
-        chk(e, "body affected by gravity", float(body.getGravityMode()), 1.0, 0, 0)
-        chk(
-            e,
-            "joint to parent transform",
-            joint.getTransformFromParentBodyNode().matrix(),
-            np.eye(4),
-            0,
-            0,
-        )
-        chk(
-            e,
-            "joint to child transform",
-            joint.getTransformFromChildBodyNode().matrix(),
-            np.eye(4),
-            0,
-            0,
-        )
-        n = joint.getNumDofs()
-        chk(e, "joint damping", [joint.getDampingCoefficient(i) for i in range(n)], np.zeros(n), 0)
-        chk(
-            e,
-            "joint spring stiffness",
-            [joint.getSpringStiffness(i) for i in range(n)],
-            np.zeros(n),
-            0,
-        )
-        chk(
-            e,
-            "joint Coulomb friction",
-            [joint.getCoulombFriction(i) for i in range(n)],
-            np.zeros(n),
-            0,
-        )
-        chk(e, "number of shape nodes", skel.getNumShapeNodes(), 0, 0, 0)
-        if joint.areLimitsEnforced():
-            raise EngineError("DART: joint limits are enforced in the built model")
-        if world.getDeactivationOptions().mEnabled:
-            raise EngineError("DART: deactivation (sleeping) is still enabled in the World")
-        if not skel.isMobile():
-            raise EngineError("DART: the skeleton is not mobile")
 
     # -- state -------------------------------------------------------------------------
-    @staticmethod
-    def joint_state_from(scenario, x, v, R, W):
-        if scenario.pivoted:
-            return cv.dart_ball_from_state(R, W)
-        return cv.dart_free_from_state(x, v, R, W)
-
-    @staticmethod
-    def to_state(positions, velocities, scenario) -> cv.BodyState:
-        if scenario.pivoted:
-            R, W = cv.dart_ball_to_state(positions, velocities)
-            return cv.BodyState(*cv.pivot_com(R, W, scenario.pivot), R, W)
-        return cv.dart_free_to_state(positions, velocities)
-
-    def _run(self, scenario, integrator, dt, nstep, saves, progress) -> RunOutput:
-        world, skel, joint, body, settings = self._build(scenario, dt)
-        pos, vel = self.joint_state_from(
-            scenario,
-            scenario.position,
-            scenario.velocity,
-            scenario.rotation,
-            scenario.omega_body,
-        )
+    def set_state(self, ctx, state) -> None:
+        _, _, joint, _ = ctx.handle
+        if ctx.model.pivoted:
+            pos, vel = cv.dart_ball_from_state(state.rotation, state.omega_body)
+        else:
+            pos, vel = cv.dart_free_from_state(*state)
         joint.setPositions(pos)
         joint.setVelocities(vel)
-        state0 = self.to_state(joint.getPositions(), joint.getVelocities(), scenario)
-        # DART's own energy and momentum; getAngularMomentum() is about the body origin in
-        # body axes (docs/engines.md): the COM for a free body, the pivot for a pivoted one.
-        native = {
+
+    def read_state(self, ctx) -> cv.BodyState:
+        _, _, joint, _ = ctx.handle
+        if ctx.model.pivoted:
+            R, W = cv.dart_ball_to_state(joint.getPositions(), joint.getVelocities())
+            return ctx.model.state_from_rotation(R, W)
+        return cv.dart_free_to_state(joint.getPositions(), joint.getVelocities())
+
+    def native_quantities(self, ctx) -> dict:
+        """DART's own energy and momentum; getAngularMomentum() is about the body origin in
+        body axes (docs/engines.md): the COM for a free body, the pivot for a pivoted one."""
+        _, skel, _, body = ctx.handle
+        R = body.getWorldTransform().rotation()
+        return {
             "energy": skel.computeKineticEnergy() + skel.computePotentialEnergy(),
-            "angular momentum": body.getWorldTransform().rotation() @ body.getAngularMomentum(),
+            "angular momentum": R @ body.getAngularMomentum(),
+            "rotation": np.array(R),
             "COM velocity": body.getCOMLinearVelocity(),
+            "COM position": body.getCOM(),
         }
-        cv.check_initial_state("DART", scenario, state0, native=native)
-        cv.check_quantity(
-            "DART", "COM world position", body.getCOM(), state0.position, 1e-14, 1e-15
-        )
-        cv.check_quantity(
-            "DART", "body rotation", body.getWorldTransform().rotation(), state0.rotation, 0, 1e-15
-        )
 
-        pivoted = scenario.pivoted
-        if integrator == "semi-implicit Euler":
-
-            def advance():
+    # -- stepping ----------------------------------------------------------------------
+    def advance(self, ctx, k: int) -> None:
+        world = ctx.handle[0]
+        with ctx.clock:
+            for _ in range(k):
                 world.step()
 
-            def read():
-                return self.to_state(joint.getPositions(), joint.getVelocities(), scenario)
+    def forward_dynamics(self, ctx, state):
+        """(dW/dt, a_G) from computeForwardDynamics. A FreeJoint's accelerations are world
+        angular and linear; with w = R W, dW/dt = R^T dw/dt because R'^T w = -(W x W) = 0."""
+        _, skel, _, _ = ctx.handle
+        if ctx.model.pivoted:
+            p, w = cv.dart_ball_from_state(state.rotation, state.omega_body)
         else:
-            # Our RKMK4 state: q = (R,) or (R, x); u = W or (W, v_G).
-            s0 = state0
-            rk = {
-                "q": (s0.rotation,) if pivoted else (s0.rotation, s0.position),
-                "u": s0.omega_body.copy()
-                if pivoted
-                else np.concatenate([s0.omega_body, s0.velocity]),
-            }
-
-            def accel(q, u):
-                R = q[0]
-                if pivoted:
-                    p, w = cv.dart_ball_from_state(R, u)
-                else:
-                    p, w = cv.dart_free_from_state(q[1], u[3:], R, u[:3])
-                skel.setPositions(p)
-                skel.setVelocities(w)
-                skel.computeForwardDynamics()
-                a = np.array(skel.getAccelerations())
-                if pivoted:
-                    return a
-                return np.concatenate([R.T @ a[:3], a[3:]])
-
-            def advance():
-                rk["q"], rk["u"] = rkmk4_step(
-                    rk["q"], rk["u"], dt, accel, so3_r3_integrate, so3_r3_dexpinv
-                )
-
-            def read():
-                q, u = rk["q"], rk["u"]
-                if pivoted:
-                    return cv.BodyState(*cv.pivot_com(q[0], u, scenario.pivot), q[0], u)
-                return cv.BodyState(q[1], u[3:], q[0], u[:3])
-
-        states = []
-        watch = Stopwatch()
-        done = 0
-        report = max(1, nstep // 100)
-        for i, target in enumerate(saves):
-            with watch:
-                try:
-                    while done < target:
-                        advance()
-                        done += 1
-                        if progress is not None and done % report == 0:
-                            progress(done / nstep)
-                except (ArithmeticError, np.linalg.LinAlgError) as exc:
-                    raise StepFailure(
-                        f"DART {integrator}: step {done + 1} (from t = {done * dt:.6g} s, "
-                        f"dt = {dt:g}) could not be taken: {exc}; reduce dt"
-                    ) from exc
-            state = read()
-            if not all(np.all(np.isfinite(a)) for a in state):
-                t_prev = saves[i - 1] * dt if i else 0.0
-                raise StepFailure(
-                    f"DART {integrator}: the state became non-finite between "
-                    f"t = {t_prev:.6g} and t = {done * dt:.6g} s (dt = {dt:g}); reduce dt"
-                )
-            states.append(state)
-        if progress is not None:
-            progress(1.0)
-        traj = Trajectory.from_states(scenario, np.asarray(saves) * dt, *cv.stack_states(states))
-        settings["integrator"] = integrator
-        settings["stepping"] = (
-            "World.step"
-            if integrator == "semi-implicit Euler"
-            else "our RKMK4 around Skeleton.computeForwardDynamics (World.step not used)"
-        )
-        return RunOutput(traj, nstep, watch.elapsed, settings)
+            p, w = cv.dart_free_from_state(*state)
+        with ctx.clock:
+            skel.setPositions(p)
+            skel.setVelocities(w)
+            skel.computeForwardDynamics()
+            a = np.array(skel.getAccelerations())
+        if ctx.model.pivoted:
+            return a, None
+        return state.rotation.T @ a[:3], a[3:]

@@ -1,18 +1,40 @@
-"""Adapter for the suite's own integrator, :mod:`director_model` (each scheme an integrator)."""
+"""Adapter for the suite's own integrator, :mod:`director_model` (each scheme an integrator).
+
+The director model is an engine like the others here: the model is its :class:`Body`
+(convected moments J, pivot inertia), its state the directors D and their velocities D', its
+own energy and momentum those of the director form (:mod:`director_model.invariants`).
+"""
 
 from __future__ import annotations
 
+import numpy as np
+
+from references import conventions as cv
 from references.engines.base import (
     Engine,
     EngineUnavailable,
     Integrator,
-    RunOutput,
+    ModelReadback,
     StepFailure,
+    Unsupported,
 )
-from references.trajectory import Trajectory
+
+#: dynamics (torque) evaluations per step of each scheme: one per RATTLE substep
+_EVALS = {"rattle": 1.0, "rattle4": 3.0, "rattle6": 7.0, "energy_momentum": 1.0}
+
+#: what each scheme promises beyond its family: RATTLE and its compositions conserve the
+#: angular momentum to round-off (docs/numerics.md section 3); 1e-10 of the momentum scale is
+#: round-off over ~1e5 steps with margin. The energy-momentum scheme conserves momentum in
+#: director form, but its director velocities leave the tangent space at O(h^2), which the
+#: suite's momentum (from W) sees, so it promises nothing more here.
+_PROMISES = {
+    "rattle": {"momentum_drift_max": 1e-10},
+    "rattle4": {"momentum_drift_max": 1e-10},
+    "rattle6": {"momentum_drift_max": 1e-10},
+}
 
 
-def _schemes():
+def _dm():
     try:
         import director_model
     except ImportError as exc:  # pragma: no cover - director_model ships with the suite
@@ -21,13 +43,15 @@ def _schemes():
 
 
 def _integrators() -> tuple[Integrator, ...]:
-    dm = _schemes()
+    dm = _dm()
     return tuple(
         Integrator(
             name=name,
             family="structure-preserving director",
             order=int(scheme.order),
             description=(scheme.__doc__ or "").strip().splitlines()[0],
+            evals_per_step=_EVALS.get(name),
+            tolerances=_PROMISES.get(name, {}),
         )
         for name, scheme in dm.SCHEMES.items()
     )
@@ -42,41 +66,119 @@ class DirectorEngine(Engine):
 
     @classmethod
     def version(cls) -> str:
+        _dm()
         from importlib.metadata import PackageNotFoundError, version
 
-        _schemes()
         try:
             return version("director-bench")
-        except PackageNotFoundError:  # running from a source tree
-            from reports import __version__
+        except PackageNotFoundError:  # a source tree that was never installed
+            return "0+unknown"
 
-            return __version__
+    # -- model -------------------------------------------------------------------------
+    def build(self, ctx) -> None:
+        dm = _dm()
+        mdl = ctx.model
+        pivot = -mdl.com if mdl.pivoted else None
+        try:
+            body = dm.Body.make(mdl.mass, mdl.inertia, pivot)
+        except dm.InvalidBodyError as exc:
+            raise Unsupported(f"director_model refuses the body: {exc}") from exc
+        ctx.handle = _Handle(dm, body)
 
-    def _run(self, scenario, integrator, dt, nstep, saves, progress) -> RunOutput:
-        dm = _schemes()
-        save_every = int(saves[1] - saves[0]) if len(saves) > 1 else nstep
-        kwargs = {}
-        if scenario.pivot is None:
-            kwargs = {"position": scenario.position, "velocity": scenario.velocity}
+    def read_model(self, ctx) -> ModelReadback:
+        body = ctx.handle.body
+        com = -body.pivot if body.pivoted else np.zeros(3)
+        # the principal moments about the COM from the convected moments: I_i = J_j + J_k
+        J = body.J
+        inertia = np.diag([J[1] + J[2], J[2] + J[0], J[0] + J[1]])
+        return ModelReadback(
+            mass=body.mass,
+            inertia=inertia,
+            com=com,
+            joint="ball" if body.pivoted else "free",
+            gravity=ctx.model.gravity,
+            dt=ctx.dt,
+        )
+
+    def settings(self, ctx) -> dict:
+        return {"scheme": ctx.integrator.name, "gravity": ctx.model.gravity.tolist()}
+
+    # -- state -------------------------------------------------------------------------
+    def set_state(self, ctx, state) -> None:
+        ctx.handle.state = cv.BodyState(*(np.array(a, dtype=float) for a in state))
+
+    def read_state(self, ctx) -> cv.BodyState:
+        return ctx.handle.state
+
+    def native_quantities(self, ctx) -> dict:
+        """Energy and angular momentum in director form (director_model.invariants) from the
+        directors D and their velocities D' = D hat(W)."""
+        h = ctx.handle
+        dm, body = h.dm, h.body
+        x, v, D, W = h.state
+        Dp = dm.director_velocity(D, W)
+        L = dm.invariants.angular_momentum(body.mass, body.Jbar, body.pivoted, x, v, D, Dp)
+        if not body.pivoted:
+            L = L - body.mass * np.cross(x, v)  # the suite's L is about the centre of mass
+        return {
+            "energy": float(
+                dm.invariants.energy(
+                    body.mass, body.Jbar, body.pivoted, ctx.model.gravity, x, v, Dp
+                )
+            ),
+            "angular momentum": L,
+            "rotation": D,
+        }
+
+    # -- stepping ----------------------------------------------------------------------
+    def advance(self, ctx, k: int) -> None:
+        self.advance_saving(ctx, [k])
+
+    def advance_saving(self, ctx, steps: list[int]) -> list[cv.BodyState]:
+        """One compiled run for a block of equally spaced checkpoints (else one per
+        checkpoint), saving the state at each."""
+        if len(set(steps)) == 1:
+            return self._simulate(ctx, steps[0], len(steps))
+        out = []
+        for k in steps:
+            out.extend(self._simulate(ctx, k, 1))
+        return out
+
+    def _simulate(self, ctx, every: int, count: int) -> list[cv.BodyState]:
+        h = ctx.handle
+        dm = h.dm
+        x, v, R, W = h.state
+        kw = {} if h.body.pivoted else {"position": x, "velocity": v}
         try:
             out = dm.simulate(
-                scenario.mass,
-                scenario.inertia,
-                rotation=scenario.rotation,
-                omega_body=scenario.omega_body,
-                gravity=scenario.gravity,
-                pivot=scenario.pivot,
-                scheme=integrator,
-                dt=dt,
-                t_end=nstep * dt,
-                save_every=save_every,
-                **kwargs,
+                h.body.mass,
+                ctx.model.inertia,
+                rotation=R,
+                omega_body=W,
+                gravity=ctx.model.gravity,
+                pivot=h.body.pivot,
+                scheme=ctx.integrator.name,
+                dt=ctx.dt,
+                t_end=every * count * ctx.dt,
+                save_every=every,
+                **kw,
             )
         except dm.StepSizeError as exc:
-            raise StepFailure(str(exc)) from exc
-        traj = Trajectory.from_states(
-            scenario, out.t, out.position, out.velocity, out.rotation, out.omega_body
-        )
-        if progress is not None:
-            progress(1.0)
-        return RunOutput(traj, int(out.nstep), float(out.wall_time_s), settings={})
+            err = StepFailure(str(exc))
+            err.time = h.t + float(exc.time)
+            raise err from exc
+        ctx.clock.elapsed += float(out.wall_time_s)
+        h.t += every * count * ctx.dt
+        states = [
+            cv.BodyState(out.position[i], out.velocity[i], out.rotation[i], out.omega_body[i])
+            for i in range(1, len(out.t))
+        ]
+        h.state = states[-1]
+        return states
+
+
+class _Handle:
+    def __init__(self, dm, body):
+        self.dm, self.body = dm, body
+        self.state = None
+        self.t = 0.0

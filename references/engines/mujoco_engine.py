@@ -19,20 +19,13 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import (
-    READBACK_RTOL,
     Engine,
     EngineError,
     Integrator,
-    RunOutput,
-    StepFailure,
-    Stopwatch,
+    ModelReadback,
     Unsupported,
     import_engine,
 )
-from references.trajectory import Trajectory
-
-#: largest number of steps between two finiteness checks (bounds how late a divergence is seen)
-_CHUNK = 1000
 
 _INTEGRATOR_ENUM = {
     "Euler": "mjINT_EULER",
@@ -96,19 +89,36 @@ class MujocoEngine(Engine):
             4,
             "MuJoCo's explicit 4-stage Runge-Kutta; the stages integrate quaternions on the "
             "group, so it is 4th order including orientations (docs/engines.md).",
+            evals_per_step=4.0,
         ),
     )
+
+    #: defaults that distort the experiment, planted back by the conformance kit
+    plantable = {
+        "joint damping left on": (
+            lambda ctx: ctx.handle[1].dof_damping.__setitem__(slice(None), 0.01),
+            ("free", "pivoted"),
+        ),
+        "contacts left on": (
+            lambda ctx: setattr(
+                ctx.handle[1].opt,
+                "disableflags",
+                ctx.handle[1].opt.disableflags & ~int(_import().mjtDisableBit.mjDSBL_CONTACT),
+            ),
+            ("free", "pivoted"),
+        ),
+    }
 
     @classmethod
     def version(cls) -> str:
         return _import().__version__
 
-    def check_supported(self, scenario, integrator: str) -> None:
+    def check_supported(self, scenario, integrator) -> None:
         mujoco = _import()
-        enum = _INTEGRATOR_ENUM[integrator]
+        enum = _INTEGRATOR_ENUM[integrator.name]
         if not hasattr(mujoco.mjtIntegrator, enum):
             raise Unsupported(
-                f"MuJoCo {mujoco.__version__} has no integrator {integrator!r} "
+                f"MuJoCo {mujoco.__version__} has no integrator {integrator.name!r} "
                 f"(mjtIntegrator lacks {enum})"
             )
         I = np.asarray(scenario.inertia)
@@ -123,178 +133,139 @@ class MujocoEngine(Engine):
 
     # -- model -------------------------------------------------------------------------
     @staticmethod
-    def model_xml(scenario, integrator: str, dt: float) -> str:
-        """The MJCF of the scenario (public so that tests can inspect what is built)."""
-        if scenario.pivoted:
-            joint = '<joint name="pivot" type="ball" pos="0 0 0"/>'
-            ipos = -np.asarray(scenario.pivot)
-        else:
-            joint = '<freejoint name="free"/>'
-            ipos = np.zeros(3)
+    def model_xml(model, integrator: str) -> str:
+        """The MJCF of a :class:`BodyModel` (public so that tests can inspect what is built):
+        the body frame at the world origin; the inertial frame at ``model.com`` with identity
+        orientation, so qpos/qvel of a free joint are x_G and the principal frame."""
+        joint = (
+            '<joint name="pivot" type="ball" pos="0 0 0"/>'
+            if model.pivoted
+            else '<freejoint name="free"/>'
+        )
         return f"""
-<mujoco model="{scenario.name}">
-  <option timestep="{float(dt)!r}" gravity="{_num(scenario.gravity)}" integrator="{integrator}">
+<mujoco model="{model.name}">
+  <option timestep="{model.dt!r}" gravity="{_num(model.gravity)}" integrator="{integrator}">
     <flag contact="disable" autoreset="disable"/>
   </option>
   <worldbody>
     <body name="body" pos="0 0 0" quat="1 0 0 0">
       {joint}
-      <inertial pos="{_num(ipos)}" quat="1 0 0 0" mass="{float(scenario.mass)!r}"
-                diaginertia="{_num(scenario.inertia)}"/>
+      <inertial pos="{_num(model.com)}" quat="1 0 0 0" mass="{model.mass!r}"
+                diaginertia="{_num(model.inertia)}"/>
     </body>
   </worldbody>
 </mujoco>"""
 
-    def _build(self, scenario, integrator, dt):
+    def build(self, ctx) -> None:
         mujoco = _import()
         try:
-            m = mujoco.MjModel.from_xml_string(self.model_xml(scenario, integrator, dt))
+            m = mujoco.MjModel.from_xml_string(self.model_xml(ctx.model, ctx.integrator.name))
         except ValueError as exc:
             if "inertia must satisfy" in str(exc):
                 raise Unsupported(f"MuJoCo rejects the scenario's inertia: {exc}") from exc
             raise EngineError(f"MuJoCo could not compile the scenario's model: {exc}") from exc
-        self._check_model(mujoco, m, scenario, integrator, dt)
-        settings = {
-            "integrator": integrator,
-            "timestep": float(dt),
-            "gravity": np.asarray(scenario.gravity).tolist(),
+        ctx.handle = (mujoco, m, mujoco.MjData(m))
+
+    def read_model(self, ctx) -> ModelReadback:
+        mujoco, m, _ = ctx.handle
+        enum = getattr(mujoco.mjtIntegrator, _INTEGRATOR_ENUM[ctx.integrator.name])
+        joint = {int(mujoco.mjtJoint.mjJNT_BALL): "ball", int(mujoco.mjtJoint.mjJNT_FREE): "free"}
+        flags = m.opt.disableflags
+        extra = {
+            "integrator": (m.opt.integrator, int(enum)),
+            "inertial frame orientation (body_iquat)": (m.body_iquat[1], [1, 0, 0, 0]),
+            "body frame position (body_pos)": (m.body_pos[1], np.zeros(3)),
+            "body frame orientation (body_quat)": (m.body_quat[1], [1, 0, 0, 0]),
+            "joint position": (m.jnt_pos[0], np.zeros(3)),
+            "number of joints": (m.njnt, 1),
+            "number of geoms": (m.ngeom, 0),
+            "gravity compensation": (m.body_gravcomp[1], 0.0),
+            "medium density, viscosity": ([m.opt.density, m.opt.viscosity], [0, 0]),
+            "wind": (m.opt.wind, np.zeros(3)),
+            "contacts disabled": (bool(flags & mujoco.mjtDisableBit.mjDSBL_CONTACT), True),
+            "autoreset disabled": (bool(flags & mujoco.mjtDisableBit.mjDSBL_AUTORESET), True),
+            "sleeping enabled": (bool(m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP), False),
+        }
+        for name in ("dof_damping", "dof_armature", "dof_frictionloss"):
+            extra[name] = (getattr(m, name), np.zeros(m.nv))
+        return ModelReadback(
+            mass=m.body_mass[1],
+            inertia=np.diag(m.body_inertia[1]),
+            com=m.body_ipos[1],
+            joint=joint.get(int(m.jnt_type[0]), f"type {int(m.jnt_type[0])}"),
+            gravity=m.opt.gravity,
+            dt=m.opt.timestep,
+            extra=extra,
+        )
+
+    def settings(self, ctx) -> dict:
+        return {
+            "gravity": ctx.model.gravity.tolist(),
             "contact": "disabled (flag contact=disable); the model has no geoms",
             "autoreset": "disabled (flag autoreset=disable): a diverged state is reported "
             "as a failure instead of being silently reset to qpos0",
-            "joint": "ball at the world origin" if scenario.pivoted else "free",
-            "inertial frame": "diaginertia at "
-            + ("-pivot" if scenario.pivoted else "the body origin")
-            + ", identity orientation (qpos/qvel are the principal COM frame)",
+            "joint": "ball at the world origin" if ctx.model.pivoted else "free",
+            "inertial frame": f"diaginertia at {ctx.model.com.tolist()} in the body frame, "
+            "identity orientation (qpos/qvel are the principal COM frame)",
             "damping, armature, frictionloss": "0 (defaults, read back)",
             "sleep": "off (mjENBL_SLEEP not set, read back)",
         }
-        return mujoco, m, settings
-
-    @staticmethod
-    def _check_model(mujoco, m, scenario, integrator, dt):
-        """Read the compiled model back and compare it with the scenario."""
-        chk = cv.check_quantity
-        e = "MuJoCo"
-        chk(e, "mass", m.body_mass[1], scenario.mass, READBACK_RTOL)
-        chk(e, "inertia diagonal", m.body_inertia[1], scenario.inertia, READBACK_RTOL)
-        ipos = -np.asarray(scenario.pivot) if scenario.pivoted else np.zeros(3)
-        chk(e, "COM position in the body frame (body_ipos)", m.body_ipos[1], ipos, READBACK_RTOL)
-        chk(e, "inertial frame orientation (body_iquat)", m.body_iquat[1], [1, 0, 0, 0], 0, 0)
-        chk(e, "body frame position (body_pos)", m.body_pos[1], np.zeros(3), 0, 0)
-        chk(e, "body frame orientation (body_quat)", m.body_quat[1], [1, 0, 0, 0], 0, 0)
-        chk(e, "gravity", m.opt.gravity, scenario.gravity, READBACK_RTOL)
-        chk(e, "time step", m.opt.timestep, dt, READBACK_RTOL)
-        enum = getattr(mujoco.mjtIntegrator, _INTEGRATOR_ENUM[integrator])
-        chk(e, "integrator", m.opt.integrator, int(enum), 0, 0)
-        want_type = mujoco.mjtJoint.mjJNT_BALL if scenario.pivoted else mujoco.mjtJoint.mjJNT_FREE
-        chk(e, "joint type", m.jnt_type, [int(want_type)], 0, 0)
-        chk(e, "joint position", m.jnt_pos[0], np.zeros(3), 0, 0)
-        for name in ("dof_damping", "dof_armature", "dof_frictionloss"):
-            chk(e, name, getattr(m, name), np.zeros(m.nv), 0, 0)
-        chk(e, "number of geoms", m.ngeom, 0, 0, 0)
-        chk(e, "gravity compensation", m.body_gravcomp[1], 0.0, 0, 0)
-        chk(e, "medium density, viscosity", [m.opt.density, m.opt.viscosity], [0, 0], 0, 0)
-        chk(e, "wind", m.opt.wind, np.zeros(3), 0, 0)
-        if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
-            raise EngineError("MuJoCo: contacts are not disabled in the compiled model")
-        if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET:
-            raise EngineError("MuJoCo: autoreset is not disabled in the compiled model")
-        if m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP:
-            raise EngineError("MuJoCo: sleeping is enabled in the compiled model")
 
     # -- state -------------------------------------------------------------------------
-    @staticmethod
-    def _set_state(d, scenario):
-        if scenario.pivoted:
-            qpos, qvel = cv.mujoco_ball_from_state(scenario.rotation, scenario.omega_body)
+    def set_state(self, ctx, state) -> None:
+        mujoco, m, d = ctx.handle
+        if ctx.model.pivoted:
+            qpos, qvel = cv.mujoco_ball_from_state(state.rotation, state.omega_body)
         else:
-            qpos, qvel = cv.mujoco_free_from_state(
-                scenario.position, scenario.velocity, scenario.rotation, scenario.omega_body
-            )
+            qpos, qvel = cv.mujoco_free_from_state(*state)
         d.qpos[:] = qpos
         d.qvel[:] = qvel
+        mujoco.mj_forward(m, d)
 
-    @staticmethod
-    def _state_from(qpos, qvel, scenario) -> cv.BodyState:
-        if scenario.pivoted:
-            R, W = cv.mujoco_ball_to_state(qpos, qvel)
-            return cv.BodyState(*cv.pivot_com(R, W, scenario.pivot), R, W)
-        return cv.mujoco_free_to_state(qpos, qvel)
-
-    @classmethod
-    def read_state(cls, d, scenario) -> cv.BodyState:
+    def read_state(self, ctx) -> cv.BodyState:
         """The suite state from qpos/qvel only (never from derived, possibly stale, fields)."""
-        return cls._state_from(d.qpos, d.qvel, scenario)
+        _, _, d = ctx.handle
+        if ctx.model.pivoted:
+            return ctx.model.state_from_rotation(*cv.mujoco_ball_to_state(d.qpos, d.qvel))
+        return cv.mujoco_free_to_state(d.qpos, d.qvel)
 
-    @staticmethod
-    def native_quantities(m, d) -> dict:
-        """MuJoCo's own energy and angular momentum of the current state (after mj_forward):
+    def native_quantities(self, ctx) -> dict:
+        """MuJoCo's own energy, momentum and frames of the current state, after mj_forward:
         T = 1/2 qvel . M qvel (mj_mulM), V = -m g . xipos, L from mj_subtreeVel about the
-        subtree COM, plus x_G x m v_G when pivoted (about the world origin); v_G from
-        mj_subtreeVel."""
-        mujoco = _import()
+        subtree COM (plus x_G x m v_G when pivoted: about the world origin), v_G from
+        mj_subtreeVel, R = ximat (the inertial frame, which must be the body's principal
+        frame), and xipos, the COM MuJoCo places in the world."""
+        mujoco, m, d = ctx.handle
+        mujoco.mj_forward(m, d)
         Mv = np.zeros(m.nv)
         mujoco.mj_mulM(m, d, Mv, d.qvel)
         mass = m.body_mass[1]
         energy = 0.5 * d.qvel @ Mv - mass * d.xipos[1] @ m.opt.gravity
         mujoco.mj_subtreeVel(m, d)
         L = d.subtree_angmom[1].copy()
-        if m.jnt_type[0] == mujoco.mjtJoint.mjJNT_BALL:
+        if ctx.model.pivoted:
             L += mass * np.cross(d.subtree_com[1], d.subtree_linvel[1])
-        return {"energy": energy, "angular momentum": L, "COM velocity": d.subtree_linvel[1].copy()}
+        return {
+            "energy": energy,
+            "angular momentum": L,
+            "rotation": d.ximat[1].reshape(3, 3).copy(),
+            "COM velocity": d.subtree_linvel[1].copy(),
+            "COM position": d.xipos[1].copy(),
+        }
 
-    def _run(self, scenario, integrator, dt, nstep, saves, progress) -> RunOutput:
-        mujoco, m, settings = self._build(scenario, integrator, dt)
-        d = mujoco.MjData(m)
-        self._set_state(d, scenario)
-        mujoco.mj_forward(m, d)
-        state0 = self.read_state(d, scenario)
-        cv.check_initial_state("MuJoCo", scenario, state0, native=self.native_quantities(m, d))
-        # Derived frames after mj_forward must agree with the state: this catches a COM or
-        # inertial frame that differs from the body frame (the free-joint alignment trap).
-        cv.check_quantity(
-            "MuJoCo", "COM world position (xipos)", d.xipos[1], state0.position, 1e-14, 1e-15
-        )
-        cv.check_quantity(
-            "MuJoCo",
-            "inertial frame rotation (ximat)",
-            d.ximat[1].reshape(3, 3),
-            state0.rotation,
-            0,
-            1e-15,
-        )
+    # -- stepping ----------------------------------------------------------------------
+    def advance(self, ctx, k: int) -> None:
+        mujoco, m, d = ctx.handle
+        with ctx.clock:
+            mujoco.mj_step(m, d, k)
 
-        n = len(saves)
-        nq = m.nq
-        out = np.empty((n, m.nq + m.nv))
-        watch = Stopwatch()
-        done = 0
-        for i, target in enumerate(saves):
-            while done < target:
-                k = min(int(target) - done, _CHUNK)
-                with watch:
-                    mujoco.mj_step(m, d, k)
-                done += k
-                if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-                    raise StepFailure(
-                        f"MuJoCo {integrator}: the state became non-finite between "
-                        f"t = {(done - k) * dt:.6g} and t = {done * dt:.6g} s (dt = {dt:g}); "
-                        "reduce dt"
-                    )
-                if progress is not None:
-                    progress(done / nstep)
-            out[i, :nq] = d.qpos
-            out[i, nq:] = d.qvel
+    def guard(self, ctx, state) -> str | None:
+        mujoco, _, d = ctx.handle
         bad = [
             w
             for w in ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS")
             if d.warning[int(getattr(mujoco.mjtWarning, w))].number
         ]
         if bad:
-            raise StepFailure(
-                f"MuJoCo {integrator}: MuJoCo flagged {', '.join(bad)} during the run "
-                f"(dt = {dt:g}); the simulation is unstable, reduce dt"
-            )
-        states = [self._state_from(row[:nq], row[nq:], scenario) for row in out]
-        traj = Trajectory.from_states(scenario, np.asarray(saves) * dt, *cv.stack_states(states))
-        return RunOutput(traj, nstep, watch.elapsed, settings)
+            return f"MuJoCo flagged {', '.join(bad)} (the simulation is unstable)"
+        return None

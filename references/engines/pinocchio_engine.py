@@ -7,10 +7,9 @@ Pinocchio has no time integrator (docs/engines.md): both integrators here are ou
   Pinocchio time loop. For the FreeFlyer, ``pinocchio.integrate`` is the SE(3) exponential of
   the LOCAL twist, so over one step the COM moves along a screw, not a straight line; the
   difference from MuJoCo's Euler is O(h^2) per step when the body both translates and spins.
-- ``RKMK4``: Runge-Kutta-Munthe-Kaas of order 4 (:mod:`references.engines.liegroup`), with
-  ``pinocchio.integrate`` as the group action and ``pinocchio.dIntegrate`` (derivative with
-  respect to the velocity argument, i.e. the right Jacobian of exp on SE(3) or SO(3)) for
-  dexp^{-1}.
+- ``RKMK4``: the suite's Runge-Kutta-Munthe-Kaas of order 4
+  (:mod:`references.engines.liegroup`) on SO(3) x R^3, with the accelerations from
+  ``pinocchio.aba``.
 
 Model: the body frame is the principal COM frame for the FreeFlyer (lever 0), and the pivot
 frame for the Spherical joint (lever = -pivot). ``pinocchio.Inertia(mass, lever, I)`` takes the
@@ -22,17 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import (
-    READBACK_RTOL,
-    Engine,
-    Integrator,
-    RunOutput,
-    StepFailure,
-    Stopwatch,
-    import_engine,
-)
-from references.engines.liegroup import check_stage_rotation, rkmk4_step
-from references.trajectory import Trajectory
+from references.engines.base import Engine, Integrator, ModelReadback, import_engine
 
 
 def _import():
@@ -51,13 +40,16 @@ class PinocchioEngine(Engine):
             1,
             "Ours (Pinocchio has no integrator): v += h aba(q, v); q = pinocchio.integrate(q, "
             "h v). Gyroscopic term explicit; same algorithm as MuJoCo Euler for rotation.",
+            ours=True,
         ),
         Integrator(
             "RKMK4",
             "4th-order Lie-group",
             4,
-            "Ours: Runge-Kutta-Munthe-Kaas order 4 on the joint's Lie group, stage tangents "
-            "through pinocchio.dIntegrate (dexp^{-1}), forces from pinocchio.aba.",
+            "The suite's Runge-Kutta-Munthe-Kaas order 4 on SO(3) x R^3 (SO(3) when pivoted), "
+            "exact dexp^{-1}, accelerations from pinocchio.aba.",
+            stepping="rkmk4",
+            evals_per_step=4.0,
         ),
     )
 
@@ -66,153 +58,123 @@ class PinocchioEngine(Engine):
         return _import().__version__
 
     # -- model -------------------------------------------------------------------------
-    def _build(self, scenario):
+    def build(self, ctx) -> None:
         pin = _import()
         model = pin.Model()
-        if scenario.pivoted:
-            joint = pin.JointModelSpherical()
-            lever = -np.asarray(scenario.pivot, dtype=float)
-        else:
-            joint = pin.JointModelFreeFlyer()
-            lever = np.zeros(3)
+        joint = pin.JointModelSpherical() if ctx.model.pivoted else pin.JointModelFreeFlyer()
         jid = model.addJoint(0, joint, pin.SE3.Identity(), "body_joint")
-        inertia = pin.Inertia(float(scenario.mass), lever, np.diag(scenario.inertia))
+        inertia = pin.Inertia(ctx.model.mass, ctx.model.com, np.diag(ctx.model.inertia))
         model.appendBodyToJoint(jid, inertia, pin.SE3.Identity())
         # Gravity is on by default in Pinocchio (docs/engines.md): set it from the scenario.
-        model.gravity = pin.Motion(np.asarray(scenario.gravity, dtype=float), np.zeros(3))
-        self._check_model(pin, model, scenario, lever)
-        settings = {
-            "gravity": np.asarray(scenario.gravity).tolist(),
-            "joint": "Spherical at the world origin" if scenario.pivoted else "FreeFlyer",
-            "COM lever": lever.tolist(),
+        model.gravity = pin.Motion(ctx.model.gravity, np.zeros(3))
+        ctx.handle = _Handle(pin, model, model.createData())
+
+    def read_model(self, ctx) -> ModelReadback:
+        h = ctx.handle
+        body = h.model.inertias[1]
+        kind = h.model.joints[1].shortname()
+        joint = {"JointModelFreeFlyer": "free", "JointModelSpherical": "ball"}.get(kind, kind)
+        return ModelReadback(
+            mass=body.mass,
+            inertia=body.inertia,
+            com=body.lever,
+            joint=joint,
+            gravity=h.model.gravity.linear,
+            dt=ctx.dt,  # Pinocchio has no time step: the loop is ours
+            extra={
+                "gravity (angular part)": (h.model.gravity.angular, np.zeros(3)),
+                "joint placement": (h.model.jointPlacements[1].homogeneous, np.eye(4)),
+                "joint damping": (h.model.damping, np.zeros(h.model.nv)),
+                "armature": (h.model.armature, np.zeros(h.model.nv)),
+                "number of joints": (h.model.njoints, 2),
+            },
+        )
+
+    def settings(self, ctx) -> dict:
+        return {
+            "gravity": ctx.model.gravity.tolist(),
+            "joint": "Spherical at the world origin" if ctx.model.pivoted else "FreeFlyer",
+            "COM lever": ctx.model.com.tolist(),
             "quaternion": "normalised after every step (Pinocchio accepts unnormalised ones)",
             "damping, armature": "0 (defaults, read back; aba ignores them anyway)",
+            "time stepping": "ours (Pinocchio has no integrator): "
+            + (
+                "v += h aba(q, v); q = integrate(q, h v)"
+                if ctx.integrator.stepping == "native"
+                else "the suite's RKMK4 around aba"
+            ),
         }
-        return pin, model, settings
-
-    @staticmethod
-    def _check_model(pin, model, scenario, lever):
-        chk = cv.check_quantity
-        e = "Pinocchio"
-        body = model.inertias[1]
-        chk(e, "mass", body.mass, scenario.mass, READBACK_RTOL)
-        chk(
-            e,
-            "inertia tensor about the COM",
-            body.inertia,
-            np.diag(scenario.inertia),
-            READBACK_RTOL,
-        )
-        chk(e, "COM position in the body frame (lever)", body.lever, lever, READBACK_RTOL)
-        chk(e, "gravity", model.gravity.linear, scenario.gravity, READBACK_RTOL)
-        chk(e, "gravity (angular part)", model.gravity.angular, np.zeros(3), 0, 0)
-        chk(e, "joint placement", model.jointPlacements[1].homogeneous, np.eye(4), 0, 0)
-        chk(e, "joint damping", model.damping, np.zeros(model.nv), 0, 0)
-        chk(e, "armature", model.armature, np.zeros(model.nv), 0, 0)
-        want = (4, 3) if scenario.pivoted else (7, 6)
-        chk(e, "(nq, nv)", [model.nq, model.nv], want, 0, 0)
 
     # -- state -------------------------------------------------------------------------
-    @staticmethod
-    def state_from_scenario(scenario):
-        if scenario.pivoted:
-            return cv.pinocchio_spherical_from_state(scenario.rotation, scenario.omega_body)
-        return cv.pinocchio_freeflyer_from_state(
-            scenario.position, scenario.velocity, scenario.rotation, scenario.omega_body
-        )
+    def set_state(self, ctx, state) -> None:
+        if ctx.model.pivoted:
+            q, v = cv.pinocchio_spherical_from_state(state.rotation, state.omega_body)
+        else:
+            q, v = cv.pinocchio_freeflyer_from_state(*state)
+        ctx.handle.q, ctx.handle.v = q, v
 
-    @staticmethod
-    def to_state(q, v, scenario) -> cv.BodyState:
-        if scenario.pivoted:
-            R, W = cv.pinocchio_spherical_to_state(q, v)
-            return cv.BodyState(*cv.pivot_com(R, W, scenario.pivot), R, W)
+    def read_state(self, ctx) -> cv.BodyState:
+        q, v = ctx.handle.q, ctx.handle.v
+        if ctx.model.pivoted:
+            return ctx.model.state_from_rotation(*cv.pinocchio_spherical_to_state(q, v))
         return cv.pinocchio_freeflyer_to_state(q, v)
 
-    def _run(self, scenario, integrator, dt, nstep, saves, progress) -> RunOutput:
-        pin, model, settings = self._build(scenario)
-        data = model.createData()
-        q, v = self.state_from_scenario(scenario)
-        state0 = self.to_state(q, v, scenario)
-        # Pinocchio's own energy and momentum: kinetic and potential energy, centroidal
-        # momentum (about the COM, world axes), shifted to the pivot when pivoted.
+    def native_quantities(self, ctx) -> dict:
+        """Pinocchio's own kinetic and potential energy, centroidal momentum (about the COM,
+        world axes; shifted to the pivot when pivoted), COM position and velocity, and the
+        joint frame's rotation from its forward kinematics."""
+        h = ctx.handle
+        pin, model, data, q, v = h.pin, h.model, h.data, h.q, h.v
         energy = pin.computeKineticEnergy(model, data, q, v) + pin.computePotentialEnergy(
             model, data, q
         )
         com = pin.centerOfMass(model, data, q).copy()
         hg = pin.computeCentroidalMomentum(model, data, q, v)
-        L = hg.angular + (np.cross(com, hg.linear) if scenario.pivoted else 0.0)
-        native = {
+        L = hg.angular + (np.cross(com, hg.linear) if ctx.model.pivoted else 0.0)
+        pin.forwardKinematics(model, data, q)
+        return {
             "energy": energy,
             "angular momentum": L,
-            "COM velocity": hg.linear / scenario.mass,
+            "rotation": data.oMi[1].rotation.copy(),
+            "COM velocity": hg.linear / ctx.model.mass,
+            "COM position": com,
         }
-        cv.check_initial_state("Pinocchio", scenario, state0, native=native)
-        # The COM Pinocchio computes from q must be where the scenario puts it.
-        cv.check_quantity("Pinocchio", "COM world position", com, state0.position, 1e-14, 1e-15)
 
-        nv = model.nv
-        tau = np.zeros(nv)
-        iq = slice(model.nq - 4, model.nq)  # the quaternion, last 4 entries in both joints
+    # -- stepping ----------------------------------------------------------------------
+    def advance(self, ctx, k: int) -> None:
+        """Semi-implicit Euler: v += h aba(q, v); q = integrate(q, h v); the quaternion (the
+        last 4 entries of q for both joints) renormalised."""
+        h = ctx.handle
+        pin, model, data, tau, dt, clock = h.pin, h.model, h.data, h.tau, ctx.dt, ctx.clock
+        q, v = h.q, h.v
+        for _ in range(k):
+            with clock:
+                a = pin.aba(model, data, q, v, tau)
+            v = v + dt * a
+            with clock:
+                q = pin.integrate(model, q, dt * v)
+            quat = q[-4:]
+            q[-4:] = quat / np.sqrt(quat @ quat)
+        h.q, h.v = q, v
 
-        def accel(qq, vv):
-            return pin.aba(model, data, qq, vv, tau).copy()
+    def forward_dynamics(self, ctx, state):
+        """(dW/dt, a_G) from aba. The FreeFlyer's acceleration is the derivative of its LOCAL
+        velocity (R^T v_G, W), so a_G = R (dv_local/dt + W x R^T v_G)."""
+        h = ctx.handle
+        self.set_state(ctx, state)
+        with ctx.clock:
+            a = h.pin.aba(h.model, h.data, h.q, h.v, h.tau)
+        if ctx.model.pivoted:
+            return a, None
+        R = state.rotation
+        v_local = R.T @ state.velocity
+        return a[3:], R @ (a[:3] + np.cross(state.omega_body, v_local))
 
-        if integrator == "semi-implicit Euler":
 
-            def step(qq, vv):
-                vv = vv + dt * accel(qq, vv)
-                return pin.integrate(model, qq, dt * vv), vv
-        else:
-            arg1 = pin.ArgumentPosition.ARG1
-            q_neutral = pin.neutral(model)
+class _Handle:
+    """Pinocchio's model and data, and the state our loop advances."""
 
-            angular = slice(nv - 3, nv)  # last 3 entries for both the FreeFlyer and Spherical
-
-            def dexpinv(theta, vv):
-                check_stage_rotation(float(theta[angular] @ theta[angular]))
-                # d integrate(q, theta)/d theta is the right Jacobian of exp at theta; on a
-                # Lie group it does not depend on q, so the neutral configuration serves.
-                return np.linalg.solve(pin.dIntegrate(model, q_neutral, theta, arg1), vv)
-
-            def integ(qq, theta):
-                return pin.integrate(model, qq, theta)
-
-            def step(qq, vv):
-                return rkmk4_step(qq, vv, dt, accel, integ, dexpinv)
-
-        n = len(saves)
-        qs = np.empty((n, model.nq))
-        vs = np.empty((n, nv))
-        watch = Stopwatch()
-        done = 0
-        report = max(1, nstep // 100)
-        for i, target in enumerate(saves):
-            with watch:
-                try:
-                    while done < target:
-                        q, v = step(q, v)
-                        quat = q[iq]
-                        q[iq] = quat / np.sqrt(quat @ quat)
-                        done += 1
-                        if progress is not None and done % report == 0:
-                            progress(done / nstep)
-                except (ArithmeticError, np.linalg.LinAlgError) as exc:
-                    raise StepFailure(
-                        f"Pinocchio {integrator}: step {done + 1} (from t = {done * dt:.6g} s, "
-                        f"dt = {dt:g}) could not be taken: {exc}; reduce dt"
-                    ) from exc
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-                t_prev = saves[i - 1] * dt if i else 0.0
-                raise StepFailure(
-                    f"Pinocchio {integrator}: the state became non-finite between "
-                    f"t = {t_prev:.6g} and t = {done * dt:.6g} s (dt = {dt:g}); reduce dt"
-                )
-            qs[i] = q
-            vs[i] = v
-        states = [self.to_state(a, b, scenario) for a, b in zip(qs, vs, strict=True)]
-        if progress is not None:
-            progress(1.0)
-        traj = Trajectory.from_states(scenario, np.asarray(saves) * dt, *cv.stack_states(states))
-        settings["integrator"] = integrator
-        settings["timestep"] = float(dt)
-        return RunOutput(traj, nstep, watch.elapsed, settings)
+    def __init__(self, pin, model, data):
+        self.pin, self.model, self.data = pin, model, data
+        self.tau = np.zeros(model.nv)
+        self.q = self.v = None
