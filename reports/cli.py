@@ -8,14 +8,18 @@
     director-bench baseline DIR --write FILE
     director-bench check DIR --baseline FILE [--factor F]
 
-Exit codes: 0 success; 1 the check found regressions (or a run had failures with --strict);
-2 bad input (unknown scenario, malformed file, bad option), with a message naming it.
+Exit codes: 0 success; 1 a failure of the work (the check found regressions, the results
+store is damaged or cannot be written, or --strict and a run failed); 2 bad input (unknown
+scenario, engine or integrator, malformed file, bad option), with a message naming it.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import math
+import os
 import sys
 from pathlib import Path
 
@@ -31,9 +35,38 @@ def _float_list(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(
             f"--dt {text!r}: expected comma-separated numbers, e.g. 1e-3,5e-4"
         ) from None
-    if not vals or any(not (v > 0) for v in vals):
+    if not vals or any(not (v > 0 and math.isfinite(v)) for v in vals):
         raise argparse.ArgumentTypeError(f"--dt {text!r}: every step must be > 0")
     return vals
+
+
+def _accuracy_list(text: str) -> list[float]:
+    try:
+        vals = [float(t) for t in _csv_list(text)]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--accuracy {text!r}: expected comma-separated numbers, e.g. 1e-6,1e-9"
+        ) from None
+    if not vals or any(not 0 < v < 1 for v in vals):
+        raise argparse.ArgumentTypeError(f"--accuracy {text!r}: every accuracy must be in (0, 1)")
+    return vals
+
+
+def _whole(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be >= 1")
+    return v
+
+
+def _factor(text: str) -> float:
+    v = _positive(text)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be >= 1 (a factor of worsening)")
+    return v
 
 
 def _positive(text: str) -> float:
@@ -41,8 +74,8 @@ def _positive(text: str) -> float:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+    if not (v > 0 and math.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
     return v
 
 
@@ -83,31 +116,35 @@ def cmd_run(args) -> int:
         out=args.out,
         redo=args.redo,
         fmt=args.format,
-        baseline=args.baseline,
         report=not args.no_report,
         progress=not args.quiet,
         jobs=args.jobs,
         scheduler=args.scheduler,
         save_every=args.save_every,
         segment=args.segment,
+        accuracies=args.accuracy,
     )
     df = summary.results
-    counts = df["status"].value_counts().to_dict()
     print(
         f"{summary.n_run} runs executed, {summary.n_skipped} already done "
-        f"(use --redo to run them again). Status: "
-        + ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+        f"(use --redo to run them again). The folder holds {len(df)} runs."
     )
+    print("Status:  " + _counts(df["status"]))
+    print("Verdict: " + _counts(df["verdict"].replace("", "none")))
     out = summary.out
-    print(f"results:      {out / 'results.csv'}")
+    print(f"results:      {out / 'results.sqlite'} (exported: results.csv, results.parquet)")
     if summary.report:
         print(f"report:       {summary.report['html']}\n              {summary.report['markdown']}")
-    if summary.junit:
-        print(f"junit:        {summary.junit}")
-    failed = df[~df["status"].isin(["ok", "unavailable", "unsupported"])]
+    print(f"junit:        {summary.junit}")
+    failed = df[(df["verdict"] == "fail") | (df["status"] == "error")]
     if len(failed):
-        print(f"{len(failed)} run(s) failed; see the 'Runs that did not complete' table.")
+        print(f"{len(failed)} run(s) failed their verdict or errored; see the report's failures.")
     return 1 if (args.strict and len(failed)) else 0
+
+
+def _counts(series) -> str:
+    counts = series.value_counts().to_dict()
+    return ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none"
 
 
 def cmd_ensemble(args) -> int:
@@ -161,24 +198,11 @@ def cmd_check(args) -> int:
 
     cmp = compare(args.dir, args.baseline, factor=args.factor, timing_factor=args.timing_factor)
     print(format_comparison(cmp))
-    write_junit(cmp, Path(args.dir) / "junit.xml")
+    write_junit(cmp, Path(args.dir) / "check-junit.xml")
     return 0 if cmp.ok else 1
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from reports import __version__
-
-    p = argparse.ArgumentParser(
-        prog="director-bench",
-        description="Validation and benchmark suite for rigid-body dynamics.",
-    )
-    p.add_argument("--version", action="version", version=f"director-bench {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
-
-    s = sub.add_parser("list", help="scenarios, engines and integrators with availability")
-    s.add_argument("--json", action="store_true", help="machine-readable output")
-    s.set_defaults(func=cmd_list)
-
+def _add_run(sub) -> None:
     s = sub.add_parser("run", help="run scenarios on engines and write the report")
     s.add_argument(
         "scenarios",
@@ -192,25 +216,30 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")
     s.add_argument("--t-end", type=_positive, help="horizon in s (overrides files)")
     s.add_argument("--no-sweep", action="store_true", help="only each scenario's default dt")
-    s.add_argument("--save-every", type=int, help="keep every N-th state (overrides files)")
+    s.add_argument(
+        "--accuracy",
+        type=_accuracy_list,
+        metavar="A,B",
+        help="target accuracies of error-controlled integrators (overrides files)",
+    )
+    s.add_argument("--save-every", type=_whole, help="keep every N-th state (overrides files)")
     s.add_argument(
         "--segment",
-        type=int,
+        type=_whole,
         metavar="N",
-        help="long horizons: run in segments of N steps, metrics over every step, memory O(N)",
+        help="long horizons: metrics over every step, updated every N steps, memory O(N)",
     )
     s.add_argument("--out", default="results", help="output folder (default: results)")
     s.add_argument("--redo", action="store_true", help="run again runs already in the results")
     s.add_argument(
         "--format", choices=["parquet", "csv"], default="parquet", help="trajectory file format"
     )
-    s.add_argument("--baseline", help="baseline JSON giving the tolerances of junit.xml")
     s.add_argument("--no-report", action="store_true", help="skip plots and reports")
-    s.add_argument("--strict", action="store_true", help="exit 1 if any run failed")
+    s.add_argument("--strict", action="store_true", help="exit 1 if any run failed or errored")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument(
         "--jobs",
-        type=int,
+        type=_whole,
         default=None,
         help="local worker processes (default: one per core; 1 = serial, best for timings)",
     )
@@ -219,25 +248,29 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.set_defaults(func=cmd_run)
 
+
+def _add_ensemble(sub) -> None:
     s = sub.add_parser(
         "ensemble",
         help="one scenario over N initial conditions (random "
         "directions of W at the scenario's rotational energy)",
     )
     s.add_argument("scenario", metavar="SCENARIO_OR_FILE")
-    s.add_argument("--n", type=int, default=64, help="number of members (default 64)")
+    s.add_argument("--n", type=_whole, default=64, help="number of members (default 64)")
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     s.add_argument("--engines", type=_csv_list, help="comma-separated engine names")
     s.add_argument("--integrators", type=_csv_list, help="comma-separated integrator names")
     s.add_argument("--dt", type=_positive, help="step size (default: the scenario's)")
     s.add_argument("--t-end", type=_positive, help="horizon in s (overrides the file)")
     s.add_argument("--out", default="results", help="output folder (default: results)")
-    s.add_argument("--jobs", type=int, default=None, help="local worker processes")
+    s.add_argument("--jobs", type=_whole, default=None, help="local worker processes")
     s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="Dask scheduler")
     s.add_argument("--no-report", action="store_true", help="skip the report")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_ensemble)
 
+
+def _add_folder_commands(sub) -> None:
     s = sub.add_parser("report", help="regenerate plots and reports from a results folder")
     s.add_argument("dir")
     s.set_defaults(func=cmd_report)
@@ -252,21 +285,40 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--baseline", required=True, metavar="FILE")
     s.add_argument(
         "--factor",
-        type=_positive,
+        type=_factor,
         default=2.0,
         help="allowed worsening factor of each metric (default 2)",
     )
     s.add_argument(
         "--timing-factor",
-        type=_positive,
+        type=_factor,
         default=None,
         help="also gate ns_per_step by this factor (off by default: noisy)",
     )
     s.set_defaults(func=cmd_check)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from reports import __version__
+
+    p = argparse.ArgumentParser(
+        prog="director-bench",
+        description="Validation and benchmark suite for rigid-body dynamics.",
+    )
+    p.add_argument("--version", action="version", version=f"director-bench {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("list", help="scenarios, engines and integrators with availability")
+    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.set_defaults(func=cmd_list)
+    _add_run(sub)
+    _add_ensemble(sub)
+    _add_folder_commands(sub)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    from reports.results import StoreDamaged, StoreUnwritable
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -277,9 +329,18 @@ def main(argv: list[str] | None = None) -> int:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f"director-bench: error: {msg}", file=sys.stderr)
         return 2
+    except (StoreDamaged, StoreUnwritable) as exc:
+        print(f"director-bench: error: {exc}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # the reader of our output went away (`director-bench list | head`): stop quietly
+        with contextlib.suppress(OSError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print(
-            "\ndirector-bench: interrupted; finished runs are kept in results.csv, "
+            "\ndirector-bench: interrupted; finished runs are kept in the results store, "
             "rerun the same command to continue.",
             file=sys.stderr,
         )

@@ -7,23 +7,21 @@ reproducible): ``W_k = s_k u_k`` with ``u_k`` uniform on S^2 and ``s_k`` chosen 
 regime of the free body: rotations about the major and minor axes and near-separatrix tumbling.
 
 director_model runs all members in one call of its batched path; every other engine runs each
-member through its adapter (distributable like any sweep). Metrics are the suite's, member by
-member, against each member's own reference. Output: ``ensemble.csv`` in the output folder,
-one row per member and configuration.
+member through its adapter (distributable like any sweep). Metrics, statuses and verdicts are
+the suite's, member by member, against each member's own reference. Output: the ensemble
+store ``ensemble.sqlite`` in the output folder (the same transactional store as the results,
+reports.results), exported as ``ensemble.csv``, one row per member and configuration.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
-from reports.metrics import compute_metrics
-from reports.runner import RESULT_COLUMNS, RunSpec, execute, expected_for, reference_for
-
-ENSEMBLE_COLUMNS = ("member", *RESULT_COLUMNS)
+from reports.results import RunSpec
+from reports.runner import execute
 
 
 def members(scenario, n: int, seed: int = 0) -> list:
@@ -46,79 +44,61 @@ def members(scenario, n: int, seed: int = 0) -> list:
     ]
 
 
-def _director_batch(base, mems, scheme, dt, t_end) -> list[dict]:
-    """All members in one call of director_model's batched path; rows per member."""
+def _director_batch(mems, specs) -> list[dict]:
+    """All members of one director scheme in one call of director_model's batched path; the
+    rows are built like every other run's (reports.runner)."""
     import director_model as dm
+    from references.engines import RunOutput, get_engine
     from references.trajectory import Trajectory
+    from reports.runner import _judge, _measure
 
-    rows = []
-    R = np.stack([m.rotation for m in mems])
-    W = np.stack([m.omega_body for m in mems])
+    base, spec0 = mems[0], specs[0]
+    integ = get_engine("director").integrator(spec0.integrator)
     kwargs = {}
     if base.pivot is None:
         kwargs = dict(
             position=np.stack([m.position for m in mems]),
             velocity=np.stack([m.velocity for m in mems]),
         )
-    t0 = time.perf_counter()
+    rows = [_start_row(sp, integ) for sp in specs]
     try:
         out = dm.simulate_batch(
             base.mass,
             base.inertia,
-            rotation=R,
-            omega_body=W,
+            rotation=np.stack([m.rotation for m in mems]),
+            omega_body=np.stack([m.omega_body for m in mems]),
             gravity=base.gravity,
             pivot=base.pivot,
-            scheme=scheme,
-            dt=dt,
-            t_end=t_end,
-            save_every=base.save_every,
+            scheme=spec0.integrator,
+            dt=spec0.dt,
+            t_end=spec0.horizon,
+            save_every=spec0.saving,
             **kwargs,
         )
     except dm.StepSizeError as exc:
         # The batch stops at its first member that cannot be stepped: record the message
         # for every member rather than guess which ones would have succeeded.
-        for k, m in enumerate(mems):
-            row = _row(m, "director", scheme, dt, t_end, k)
-            row.update(status="failed", message=str(exc))
-            rows.append(row)
+        for row in rows:
+            row.update(status="error", message=f"the batched run stopped: {exc}")
         return rows
-    wall = float(getattr(out, "wall_time_s", time.perf_counter() - t0))
     nbody = len(mems)
-    for k, m in enumerate(mems):
+    wall = float(out.wall_time_s) / nbody
+    for k, (m, sp, row) in enumerate(zip(mems, specs, rows, strict=True)):
         traj = Trajectory.from_states(
             m, out.t, out.position[k], out.velocity[k], out.rotation[k], out.omega_body[k]
         )
-        row = _row(m, "director", scheme, dt, t_end, k)
-        row.update(compute_metrics(m, traj, reference_for(m, traj.t), expected_for(m)))
-        row.update(
-            status="ok",
-            nstep=int(out.nstep),
-            wall_time_s=wall / nbody,
-            ns_per_step=1e9 * wall / nbody / max(int(out.nstep), 1),
-        )
-        rows.append(row)
+        output = RunOutput(traj, int(out.nstep), wall, wall, integ.evals_per_step or 0.0)
+        _measure(row, sp, m, output, None, None, "parquet")
+        _judge(row, m, integ, None)
     return rows
 
 
-def _row(member, engine, integrator, dt, t_end, k) -> dict:
-    from references.engines import get_engine
+def _start_row(spec, integ) -> dict:
+    from reports.results import blank_row, finish_time
 
-    row = dict.fromkeys(ENSEMBLE_COLUMNS, "")
-    cls = get_engine(engine)
-    integ = cls.integrator(integrator)
-    row.update(
-        member=k,
-        scenario=member.name.split("#")[0],
-        scenario_hash=member.scenario_hash,
-        engine=engine,
-        engine_version=cls.version(),
-        integrator=integrator,
-        family=integ.family,
-        order=integ.order,
-        dt=dt,
-        t_end=t_end,
-    )
+    row = blank_row(spec)
+    row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
+    row["finished_at"] = finish_time()
     return row
 
 
@@ -135,52 +115,83 @@ def run_ensemble(
     mapper=None,
     progress: bool = True,
 ):
-    """Run ``n`` members of ``scenario`` on every engine/integrator; write ``ensemble.csv``.
-
-    Returns the DataFrame of rows (member x configuration)."""
-    import pandas as pd
-
+    """Run ``n`` members of ``scenario`` on every engine/integrator into the output folder's
+    ensemble store (``ensemble.sqlite``, exported as ``ensemble.csv``); members already in it
+    are skipped. Returns the DataFrame of rows (member x configuration)."""
     from references.engines import engine_names, get_engine
+    from reports.results import Store
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     dt = scenario.dt if dt is None else float(dt)
     t_end = scenario.t_end if t_end is None else float(t_end)
     mems = members(scenario, n, seed)
-    rows = []
-    specs = []
-    for name in engines or engine_names():
-        if name == "exact":
-            continue
-        cls = get_engine(name)
-        names = [i.name for i in cls.integrators if not integrators or i.name in integrators]
-        if name == "director" and cls.availability() is None:
-            for scheme in names:
-                rows += _director_batch(scenario, mems, scheme, dt, t_end)
-            continue
-        for integ in names:
-            specs += [(k, RunSpec(m, name, integ, dt, t_end)) for k, m in enumerate(mems)]
+    with Store(out, create=True, name=ENSEMBLE_STORE) as store:
+        done = store.done_ids()
+        specs = []
+        for name in engines or engine_names():
+            if name == "exact":
+                continue
+            cls = get_engine(name)
+            why = cls.availability()
+            version = cls.version() if why is None else "unavailable"
+            for integ in cls.integrators:
+                if integrators and integ.name not in integrators:
+                    continue
+                group = [
+                    RunSpec(m, name, integ.name, dt, t_end, engine_version=version) for m in mems
+                ]
+                group = [sp for sp in group if sp.run_id not in done]
+                if name == "director" and why is None and group:
+                    for row in _director_batch([sp.scenario for sp in group], group):
+                        store.put(row)
+                else:
+                    specs += group
+        bar = None
+        if progress and specs:
+            from tqdm.auto import tqdm
 
-    bar = None
-    if progress and specs:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(specs), unit="run", desc=f"ensemble {scenario.name}")
-    todo = [s for _, s in specs]
-    for row in (mapper or map)(execute, todo):
-        # members are named "<scenario>#<k>"
-        name, _, k = row["scenario"].rpartition("#")
-        row["member"] = int(k)
-        row["scenario"] = name
-        rows.append(row)
-        if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
-    df = pd.DataFrame(rows, columns=list(ENSEMBLE_COLUMNS))
-    df = df.sort_values(["engine", "integrator", "member"], ignore_index=True)
+            bar = tqdm(total=len(specs), unit="run", desc=f"ensemble {scenario.name}")
+        try:
+            for row in (mapper or _serial)(execute, specs):
+                store.put(row)
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if bar is not None:
+                bar.close()
+        df = ensemble_frame(store.rows())
     df.to_csv(out / "ensemble.csv", index=False)
     return df
+
+
+def _serial(fn, specs):
+    return map(fn, specs)
+
+
+#: the file of the ensemble store inside the output folder
+ENSEMBLE_STORE = "ensemble.sqlite"
+
+
+def ensemble_frame(rows):
+    """Ensemble rows as a DataFrame with a ``member`` column (members are stored as
+    scenarios named ``<scenario>#<k>``)."""
+    from reports.results import frame
+
+    df = frame(rows)
+    parts = df["scenario"].str.rpartition("#")
+    df.insert(0, "member", parts[2].astype(int) if len(df) else [])
+    df["scenario"] = parts[0]
+    return df.sort_values(["scenario", "engine", "integrator", "dt", "member"], ignore_index=True)
+
+
+def read_ensemble(folder):
+    """The ensemble rows of an output folder, or None if it has none."""
+    from reports.results import Store
+
+    if not (Path(folder) / ENSEMBLE_STORE).exists():
+        return None
+    with Store(folder, name=ENSEMBLE_STORE) as st:
+        return ensemble_frame(st.rows())
 
 
 def summary(df, metrics=("attitude_error_max", "energy_drift_max", "momentum_drift_max")):

@@ -20,13 +20,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
-from reports.metrics import HIGHER_IS_BETTER, METRIC_COLUMNS
-from reports.runner import read_results, run_key
+from reports.metrics import HIGHER_IS_BETTER
+from reports.results import METRIC_COLUMNS, config_key, read_results
 
 FLOORS = {
     "energy_drift_max": 1e-11,
     "momentum_drift_max": 1e-11,
     "orthonormality_max": 1e-11,
+    "constraint_velocity_max": 1e-11,
     "attitude_error_max": 1e-10,
     "omega_error_max": 1e-10,
     "position_error_max": 1e-10,
@@ -36,23 +37,31 @@ FLOORS = {
 #: A fitted convergence order may fall by this much before it counts as a regression.
 ORDER_SLACK = 0.3
 TIMING_METRICS = ("ns_per_step",)
+#: version of the baseline file layout
+BASELINE_FORMAT = 2
+_ENTRY_KEYS = ("scenario", "engine", "integrator", "dt", "status")
 
 
 def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
     """Write the baseline of the run in ``results_dir`` to ``path`` (JSON)."""
-    from reports.report import read_provenance
+    from reports.provenance import read_provenance
 
     df = read_results(results_dir)
     runs = []
     for _, r in df.sort_values(["scenario", "engine", "integrator", "dt"]).iterrows():
-        entry = {k: r[k] for k in ("scenario", "engine", "integrator", "engine_version", "status")}
+        entry = {
+            k: r[k]
+            for k in ("scenario", "engine", "integrator", "engine_version", "status", "verdict")
+        }
         entry["dt"] = float(r["dt"])
+        acc = float(r["target_accuracy"])
+        entry["target_accuracy"] = None if math.isnan(acc) else acc
         for m in (*METRIC_COLUMNS, *TIMING_METRICS):
             v = float(r[m]) if r[m] == r[m] else None  # NaN -> null
             entry[m] = v
         runs.append(entry)
     prov = read_provenance(results_dir)
-    doc = {"format": 1, "provenance": prov, "runs": runs}
+    doc = {"format": BASELINE_FORMAT, "provenance": prov, "runs": runs}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
@@ -60,22 +69,38 @@ def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
 
 
 def read_baseline(path: str | Path) -> dict:
+    """A baseline file, checked: a JSON object of format BASELINE_FORMAT whose ``runs`` are
+    objects with scenario, engine, integrator, dt and status (ValueError naming the file and
+    the first problem otherwise)."""
     path = Path(path)
     try:
         doc = json.loads(path.read_text())
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: baseline file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: cannot read the baseline file ({exc})") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not a baseline file (invalid JSON: {exc})") from None
-    if doc.get("format") != 1 or not isinstance(doc.get("runs"), list):
-        raise ValueError(f"{path}: not a baseline file (expected format 1 with a 'runs' list)")
+    if not isinstance(doc, dict) or not isinstance(doc.get("runs"), list):
+        raise ValueError(f"{path}: not a baseline file (expected an object with a 'runs' list)")
+    if doc.get("format") != BASELINE_FORMAT:
+        raise ValueError(
+            f"{path}: baseline format {doc.get('format')!r}, this suite reads format "
+            f"{BASELINE_FORMAT}; write it again with `director-bench baseline DIR --write FILE`"
+        )
+    for i, run in enumerate(doc["runs"]):
+        missing = [k for k in _ENTRY_KEYS if not isinstance(run, dict) or k not in run]
+        if missing:
+            raise ValueError(f"{path}: runs[{i}] lacks {', '.join(missing)}")
+        if not isinstance(run["dt"], int | float) or isinstance(run["dt"], bool):
+            raise ValueError(f"{path}: runs[{i}].dt = {run['dt']!r} is not a number")
     return doc
 
 
 @dataclass
 class Finding:
     key: tuple
-    what: str  # "metric", "status", "missing", "new"
+    what: str  # "metric", "status", "verdict", "missing", "new"
     metric: str = ""
     baseline: object = None
     current: object = None
@@ -130,10 +155,14 @@ def compare(
     df = read_results(results_dir)
     base = read_baseline(baseline_path)
     current = {
-        run_key(r["scenario"], r["engine"], r["integrator"], r["dt"]): r for _, r in df.iterrows()
+        config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"]): r
+        for _, r in df.iterrows()
     }
     expected = {
-        run_key(b["scenario"], b["engine"], b["integrator"], b["dt"]): b for b in base["runs"]
+        config_key(
+            b["scenario"], b["engine"], b["integrator"], b["dt"], b.get("target_accuracy")
+        ): b
+        for b in base["runs"]
     }
     cmp = Comparison(factor)
     for key, b in expected.items():
@@ -151,6 +180,10 @@ def compare(
             continue
         if r["status"] != "ok":
             continue
+        if b.get("verdict") == "pass" and r["verdict"] == "fail":
+            cmp.findings.append(
+                Finding(key, "verdict", "verdict", "pass", f"fail: {r['verdict_detail']}")
+            )
         for m in (*METRIC_COLUMNS, *TIMING_METRICS):
             cur = float(r[m])
             if _worse(m, b.get(m), cur, factor, timing_factor):
@@ -176,14 +209,16 @@ def format_comparison(cmp: Comparison) -> str:
     head = ["scenario", "engine", "integrator", "dt", "problem", "baseline", "current", "ratio"]
     rows = []
     for f in cmp.findings:
-        sc, eng, integ, dt = f.key
+        sc, eng, integ, dt, acc = f.key
         problem = {
             "metric": f.metric,
             "status": "status got worse",
+            "verdict": "verdict got worse",
             "missing": "missing run",
             "new": "new run (not in baseline)",
         }[f.what]
         ratio = f"{f.ratio:.3g}" if f.what == "metric" and not math.isnan(f.ratio) else ""
+        integ = integ if acc is None else f"{integ} (accuracy {acc:g})"
         rows.append([sc, eng, integ, f"{dt:g}", problem, _fmt(f.baseline), _fmt(f.current), ratio])
     widths = [max(len(str(x)) for x in col) for col in zip(head, *rows, strict=False)]
     line = "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True))
@@ -196,14 +231,15 @@ def format_comparison(cmp: Comparison) -> str:
     return "\n".join(out)
 
 
-def write_junit(cmp: Comparison, path: str | Path, results_dir=None) -> Path:
-    """JUnit XML with one test case per run that has a tolerance (is in the baseline)."""
+def write_junit(cmp: Comparison, path: str | Path) -> Path:
+    """JUnit XML of a comparison with a baseline: one test case per run compared, failing
+    when the run regressed (``director-bench check`` writes it as ``check-junit.xml``)."""
     keys = list(cmp.checked) + [f.key for f in cmp.findings if f.what == "new"]
     cases = []
     nfail = 0
     for key in keys:
-        sc, eng, integ, dt = key
-        name = f"{eng}/{integ}/dt={dt:g}"
+        sc, eng, integ, dt, acc = key
+        name = f"{eng}/{integ}/dt={dt:g}" + ("" if acc is None else f"/accuracy={acc:g}")
         fails = cmp.for_key(key)
         body = ""
         if fails:
@@ -219,7 +255,7 @@ def write_junit(cmp: Comparison, path: str | Path, results_dir=None) -> Path:
         )
     xml = [
         '<?xml version="1.0" encoding="utf-8"?>',
-        f'<testsuite name="director-bench" tests="{len(keys)}" failures="{nfail}">',
+        f'<testsuite name="director-bench check" tests="{len(keys)}" failures="{nfail}">',
         *cases,
         "</testsuite>",
     ]

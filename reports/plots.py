@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.runner import default_dt, error_series_path, slug
+from reports.results import default_dt, error_series_path, slug
 
 FAMILY_STYLE = {
     "semi-implicit Euler": "-",

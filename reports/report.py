@@ -9,19 +9,15 @@ preceded by a one-line title (``### ...``) so that two reports diff cleanly.
 from __future__ import annotations
 
 import base64
-import datetime as _dt
 import html
 import json
 import math
-import os
-import platform
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from reports.metrics import METRIC_COLUMNS
-from reports.runner import default_dt
+from reports.provenance import read_provenance
+from reports.results import METRIC_COLUMNS, default_dt
 
 FAMILY_ORDER = [
     "structure-preserving director",
@@ -46,82 +42,6 @@ SHORT = {
     "ns_per_step": "ns/step",
     "order": "order",
 }
-
-
-# -- provenance --------------------------------------------------------------------------------
-def git_commit() -> str:
-    """The suite's git commit (with '+dirty' if the tree has changes), or 'unknown'."""
-    here = Path(__file__).resolve().parent
-    try:
-        commit = subprocess.run(
-            ["git", "-C", str(here), "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            timeout=5,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            timeout=5,
-            check=True,
-        ).stdout.strip()
-        return commit + ("+dirty" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
-def machine() -> dict:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-    }
-
-
-def engine_versions() -> dict:
-    from references.engines import engine_names, get_engine
-
-    out = {}
-    for name in engine_names():
-        cls = get_engine(name)
-        why = cls.availability()
-        out[name] = cls.version() if why is None else f"not available ({why})"
-    return out
-
-
-def provenance() -> dict:
-    from reports import __version__
-
-    return {
-        "suite_version": __version__,
-        "git_commit": git_commit(),
-        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "machine": machine(),
-        "engines": engine_versions(),
-    }
-
-
-def write_provenance(out: Path) -> Path:
-    path = Path(out) / "provenance.json"
-    path.write_text(json.dumps(provenance(), indent=2) + "\n")
-    return path
-
-
-def read_provenance(root: Path) -> dict:
-    path = Path(root) / "provenance.json"
-    return json.loads(path.read_text()) if path.exists() else {}
 
 
 # -- tables ------------------------------------------------------------------------------------
@@ -314,31 +234,22 @@ def _provenance_lines(prov: dict) -> list[tuple[str, str]]:
 
 
 # -- documents ---------------------------------------------------------------------------------
-def build_report(root: str | Path) -> dict[str, Path]:
+def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     """Write plots, report.md and report.html for the results folder ``root``."""
-    from reports.plots import all_plots
-    from reports.runner import read_results
+    from reports.ensemble import read_ensemble, summary
+    from reports.plots import all_plots, ensemble_plot
+    from reports.results import STORE_NAME, frame, read_results
 
     root = Path(root)
-    if (root / "results.csv").exists() or not (root / "ensemble.csv").exists():
+    edf = read_ensemble(root)
+    if (root / STORE_NAME).exists() or edf is None:
         df = read_results(root)
     else:  # a folder holding only an ensemble
-        import pandas as pd
-
-        from reports.runner import RESULT_COLUMNS
-
-        df = pd.DataFrame(columns=list(RESULT_COLUMNS))
+        df = frame([])
     prov = read_provenance(root)
     plots = all_plots(df, root)
     secs = sections(df)
-    ens = root / "ensemble.csv"
-    if ens.exists():
-        import pandas as pd
-
-        from reports.ensemble import summary
-        from reports.plots import ensemble_plot
-
-        edf = pd.read_csv(ens)
+    if edf is not None:
         for scenario, g in edf.groupby("scenario"):
             rows = summary(g)
             cols = [c for c in rows[0] if c != "scenario"]

@@ -1,97 +1,58 @@
 """The scenario runner: scenarios x engines x integrators x dt -> one row per run.
 
-Data flow: a :class:`RunSpec` names one run; :func:`execute` runs it (engine adapter ->
-trajectory in the suite's schema -> metrics against the reference) and returns a row, never
-raising for a failure of the run itself: a missing engine, a step that cannot be solved, a
-diverged state or an unsupported scenario become a row with a ``status`` and a ``message``.
-:func:`run_suite` executes many specs, appending each row to ``results.csv`` as soon as it
-finishes, so an interruption loses only the run in flight, and a rerun skips what is done.
+Data flow: a :class:`~reports.results.RunSpec` names one run; :func:`execute` runs it
+(engine adapter -> trajectory in the suite's schema -> metrics against the reference ->
+status and verdict) and returns its row, never raising for a failure of the run itself: a
+missing engine, a diverged run, an unsupported scenario or a fault of the suite become a row
+with a ``status`` and a ``message``. :func:`run_suite` executes many specs and commits each
+row to the output folder's results store as soon as it finishes (reports.results), so an
+interruption loses only the runs in flight, and a rerun skips what is done.
 """
 
 from __future__ import annotations
 
-import csv
-import datetime as _dt
 import functools
 import json
 import math
-import os
-import re
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from reports.metrics import METRIC_COLUMNS, compute_metrics, convergence_order
-
-RESULT_COLUMNS = (
-    "scenario",
-    "scenario_hash",
-    "engine",
-    "engine_version",
-    "integrator",
-    "family",
-    "order",
-    "dt",
-    "t_end",
-    "status",
-    "message",
-    "nstep",
-    "wall_time_s",
-    "ns_per_step",
-    *METRIC_COLUMNS,
-    "settings",
-    "trajectory",
-    "finished_at",
+from reports import verdicts
+from reports.metrics import compute_metrics, roundoff_floor
+from reports.results import (
+    RunSpec,
+    Store,
+    blank_row,
+    error_series_path,
+    export,
+    finish_time,
+    read_results,
+    trajectory_path,
 )
 
-#: Statuses a rerun tries again: the engine may have been installed since, or the run was cut.
-RETRY_STATUSES = frozenset({"unavailable"})
+# -- references, cached per process ------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class RunSpec:
-    """One run: a scenario, an engine, one of its integrators and a step size."""
+@functools.lru_cache(maxsize=64)
+def _reference_cached(scenario, t_bytes: bytes):
+    from references.exact import reference_trajectory
 
-    scenario: object  # scenarios.Scenario
-    engine: str
-    integrator: str
-    dt: float
-    t_end: float | None = None
-    save_every: int | None = None
-    #: run in segments of this many steps with streaming metrics over every step
-    #: (see :mod:`reports.streaming`); None: one run, metrics at the saved samples
-    segment: int | None = None
-
-    @property
-    def horizon(self) -> float:
-        return self.scenario.t_end if self.t_end is None else self.t_end
-
-    @property
-    def key(self) -> tuple:
-        """Identity of a run in a results table (used to resume and to compare baselines)."""
-        return run_key(self.scenario.name, self.engine, self.integrator, self.dt)
+    return reference_trajectory(scenario, np.frombuffer(t_bytes, dtype=float))
 
 
-def run_key(scenario: str, engine: str, integrator: str, dt: float) -> tuple:
-    return (str(scenario), str(engine), str(integrator), float(f"{float(dt):.12g}"))
+def reference_for(scenario, t):
+    """The scenario's reference at times ``t`` (cached: several engines share one grid)."""
+    return _reference_cached(scenario, np.ascontiguousarray(t, dtype=float).tobytes())
 
 
-def slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9.]+", "-", str(text)).strip("-")
+@functools.lru_cache(maxsize=64)
+def expected_for(scenario) -> dict:
+    from references.exact import expected_observables
 
-
-def trajectory_path(spec: RunSpec, fmt: str = "parquet") -> Path:
-    """Relative path of a run's trajectory file inside the output folder."""
-    name = f"{slug(spec.engine)}__{slug(spec.integrator)}__dt{spec.dt:.6g}.{fmt}"
-    return Path("trajectories") / slug(spec.scenario.name) / name
-
-
-def error_series_path(traj_rel: Path) -> Path:
-    """The per-sample metric series stored beside a trajectory (for the time plots)."""
-    return traj_rel.with_name(traj_rel.stem + ".series.parquet")
+    return dict(expected_observables(scenario))
 
 
 def write_error_series(scenario, traj, ref, path: Path) -> None:
@@ -112,97 +73,188 @@ def write_error_series(scenario, traj, ref, path: Path) -> None:
     if ref is not None:
         cols["attitude_error"] = metrics.attitude_error(traj, ref)
         cols["omega_error"] = metrics.omega_error(traj, ref)
+    _atomic_parquet(pd.DataFrame(cols), path)
+
+
+def _atomic_parquet(df, path: Path, metadata: dict | None = None) -> None:
+    import os
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    pd.DataFrame(cols).to_parquet(path, index=False)
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    if metadata:
+        meta = dict(table.schema.metadata or {})
+        meta.update({k.encode(): json.dumps(v).encode() for k, v in metadata.items()})
+        table = table.replace_schema_metadata(meta)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    pq.write_table(table, tmp)
+    tmp.replace(path)
 
 
-# -- references, cached per process ------------------------------------------------------------
-@functools.lru_cache(maxsize=64)
-def _reference_cached(scenario, t_bytes: bytes):
-    from references.exact import reference_trajectory
+def write_trajectory(traj, path: Path, fmt: str, identity: dict) -> None:
+    """Write a trajectory (Parquet with units, frames and the run's identity in the schema
+    metadata, or CSV), atomically."""
+    import os
 
-    return reference_trajectory(scenario, np.frombuffer(t_bytes, dtype=float))
+    from references.trajectory import UNITS
 
-
-def reference_for(scenario, t):
-    """The scenario's reference at times ``t`` (cached: several engines share one grid)."""
-    return _reference_cached(scenario, np.ascontiguousarray(t, dtype=float).tobytes())
-
-
-@functools.lru_cache(maxsize=64)
-def expected_for(scenario) -> dict:
-    from references.exact import expected_observables
-
-    return dict(expected_observables(scenario))
+    if fmt == "parquet":
+        meta = {
+            "director_bench.units": UNITS,
+            "director_bench.frames": {
+                "position, velocity, angular momentum": "world axes",
+                "R": "body-to-world rotation, row-major R00..R22; columns are the directors",
+                "wx, wy, wz": "body axes",
+                "angular momentum about": "the centre of mass (free body) or the pivot",
+            },
+            "director_bench.run": identity,
+        }
+        _atomic_parquet(traj.to_frame(), path, meta)
+    else:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        traj.write(tmp, "csv")
+        tmp.replace(path)
 
 
 # -- one run -----------------------------------------------------------------------------------
-def _blank_row(spec: RunSpec) -> dict:
-    row = dict.fromkeys(RESULT_COLUMNS, "")
-    row.update(
-        scenario=spec.scenario.name,
-        scenario_hash=spec.scenario.scenario_hash,
-        engine=spec.engine,
-        integrator=spec.integrator,
-        dt=float(spec.dt),
-        t_end=float(spec.horizon),
-    )
-    for col in METRIC_COLUMNS:
-        row[col] = math.nan
-    return row
 
 
-def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet") -> dict:
-    """Run one spec and return its result row (see ``RESULT_COLUMNS``).
+def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progress=None) -> dict:
+    """Run one spec and return its result row (see ``reports.results.RESULT_COLUMNS``).
 
-    Writes the trajectory (and, once per grid, the reference) under ``out/trajectories`` when
-    ``out`` is given. Never raises for a failure of the run: the row says what happened.
+    With ``spec.segment`` the pointwise metrics are streamed over every step
+    (:mod:`reports.streaming`); otherwise they are taken at the saved samples. Writes the
+    trajectory and its per-sample series under ``out/trajectories`` when ``out`` is given.
+    Never raises for a failure of the run: the row says what happened.
     """
-    from references.engines import EngineError, get_engine
+    from references.engines import Diverged, EngineError, get_engine
 
-    if spec.segment:
-        from reports.streaming import execute_segmented
-
-        return execute_segmented(spec, spec.segment, out, fmt)
-    row = _blank_row(spec)
+    row = blank_row(spec)
     try:
-        engine_cls = get_engine(spec.engine)
-        row["engine_version"] = engine_cls.version()
-        integ = engine_cls.integrator(spec.integrator)
-        row["family"], row["order"] = integ.family, integ.order
-        engine = engine_cls()
-        output = engine.run(spec.scenario, spec.integrator, spec.dt, spec.t_end, spec.save_every)
-        traj = output.trajectory
-        row["nstep"] = output.nstep
-        row["wall_time_s"] = output.wall_time_s
-        row["ns_per_step"] = 1e9 * output.wall_time_s / max(output.nstep, 1)
-        row["settings"] = json.dumps(output.settings, sort_keys=True, default=str)
-        ref = None if spec.engine == "exact" else reference_for(spec.scenario, traj.t)
-        row.update(compute_metrics(spec.scenario, traj, ref, expected_for(spec.scenario)))
-        if out is not None:
-            rel = trajectory_path(spec, fmt)
-            traj.write(Path(out) / rel, fmt)
-            write_error_series(spec.scenario, traj, ref, Path(out) / error_series_path(rel))
-            row["trajectory"] = rel.as_posix()
-        bad = [c for c in METRIC_COLUMNS if row[c] == math.inf]
-        if bad:
-            row["status"] = "diverged"
-            row["message"] = f"non-finite state during the run (metrics {', '.join(bad)})"
-        else:
-            row["status"] = "ok"
+        cls = get_engine(spec.engine)
+        if not row["engine_version"]:
+            row["engine_version"] = cls.version()
+        integ = cls.integrator(spec.integrator)
+        row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
+        sc = spec.scenario
+        if spec.t_end is not None and spec.horizon != sc.t_end:
+            sc = sc.replace(t_end=spec.horizon)
+        recorder = _recorder(spec, sc)
+        try:
+            output = cls().run(
+                sc, integ.name, spec.dt, spec.horizon, spec.saving, progress, recorder
+            )
+            diverged = None
+        except Diverged as exc:
+            output, diverged = exc.output, exc
+        _measure(row, spec, sc, output, recorder, out, fmt)
+        _judge(row, sc, integ, diverged)
     except EngineError as exc:
         row["status"] = exc.status
         row["message"] = str(exc)
     except Exception as exc:  # noqa: BLE001 - a run's failure is a row, never a crash
         row["status"] = "error"
         tb = traceback.extract_tb(exc.__traceback__)[-1]
-        where = f"{Path(tb.filename).name}:{tb.lineno}"
-        row["message"] = f"{type(exc).__name__}: {exc} (at {where})"
-    row["finished_at"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+        row["message"] = f"{type(exc).__name__}: {exc} (at {Path(tb.filename).name}:{tb.lineno})"
+    row["finished_at"] = finish_time()
     return row
 
 
+def _recorder(spec: RunSpec, sc):
+    if not spec.segment:
+        return None
+    from references.engines import step_plan
+    from reports.streaming import StreamingRecorder
+
+    _, saves = step_plan(spec.dt, spec.horizon, spec.saving)
+    ref = None if spec.engine == "exact" else functools.partial(reference_for, sc)
+    return StreamingRecorder(saves, sc, spec.dt, spec.segment, ref)
+
+
+def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
+    """Timings, settings and metrics of a run's output (also of a diverged run's part)."""
+    if output is None:
+        return
+    traj = output.trajectory
+    n = max(output.nstep, 1)
+    row.update(
+        nstep=output.nstep,
+        wall_time_s=output.wall_time_s,
+        engine_time_s=output.engine_time_s,
+        glue_time_s=output.glue_time_s,
+        ns_per_step=1e9 * output.wall_time_s / n,
+        engine_ns_per_step=1e9 * output.engine_time_s / n,
+        evals_per_step=output.evals_per_step,
+        settings=json.dumps(output.settings, sort_keys=True, default=str),
+        roundoff_floor=roundoff_floor(sc, output.nstep),
+        steps_taken=output.stats.get("steps taken", math.nan),
+        steps_rejected=output.stats.get("steps rejected", math.nan),
+    )
+    if spec.engine == "exact":
+        ref = None
+        row["reference_kind"] = output.settings.get("reference kind", "")
+        row["reference_accuracy"] = float(output.settings.get("accuracy", math.nan))
+    elif len(traj):
+        ref = reference_for(sc, traj.t)
+        row["reference_kind"] = ref.kind
+        row["reference_accuracy"] = float(ref.accuracy)
+    else:
+        ref = None
+    if len(traj):
+        row.update(compute_metrics(sc, traj, ref, expected_for(sc)))
+    if spec.accuracy is not None:
+        row["accuracy_ratio"] = row["attitude_error_max"] / spec.accuracy
+    if recorder is not None:
+        row.update(recorder.maxima)
+        if not math.isnan(recorder.reference_accuracy):
+            row["reference_accuracy"] = max(row["reference_accuracy"], recorder.reference_accuracy)
+    if out is not None and len(traj):
+        rel = trajectory_path(spec, fmt)
+        identity = {
+            k: row[k]
+            for k in (
+                "run_id",
+                "scenario",
+                "scenario_hash",
+                "engine",
+                "engine_version",
+                "integrator",
+                "dt",
+                "t_end",
+            )
+        }
+        write_trajectory(traj, Path(out) / rel, fmt, identity)
+        write_error_series(sc, traj, ref, Path(out) / error_series_path(rel))
+        row["trajectory"] = rel.as_posix()
+
+
+def _judge(row, sc, integ, diverged) -> None:
+    """Status and verdict of a run that produced an output."""
+    bounds = verdicts.tolerances(sc, integ)
+    if diverged is not None:
+        row["status"] = "diverged"
+        row["t_diverged"] = diverged.t_diverged
+        row["message"] = str(diverged)
+    else:
+        why = verdicts.reference_problem(row["reference_accuracy"], bounds)
+        if why is not None:
+            row["status"] = "reference-inaccurate"
+            row["message"] = f"{why} (reference: {row['reference_kind']})"
+        else:
+            row["status"] = "ok"
+    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)
+
+
 # -- many runs ---------------------------------------------------------------------------------
+
+#: target accuracies of error-controlled integrators when neither the command line nor the
+#: scenario names any
+DEFAULT_ACCURACIES = (1e-6, 1e-8, 1e-10)
+
+
 def plan(
     scenarios: Sequence,
     engines: Sequence[str] | None = None,
@@ -212,99 +264,63 @@ def plan(
     sweep: bool = True,
     save_every: int | None = None,
     segment: int | None = None,
+    accuracies: Sequence[float] | None = None,
 ) -> list[RunSpec]:
-    """The specs of a suite: every scenario x engine x integrator x dt.
+    """The specs of a suite: every scenario x engine x integrator x dt (x target accuracy,
+    for error-controlled integrators: ``accuracies``, else the scenario's ``run.accuracies``,
+    else :data:`DEFAULT_ACCURACIES`; they run at the scenario's own ``dt`` as the interval of
+    their checkpoints).
 
-    ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep``. ``integrators``
-    None: every integrator of each engine; else only those named (an engine offering none of
-    them contributes nothing). ``save_every`` overrides the scenarios' decimation;
-    ``segment`` runs long horizons in segments with streaming metrics over every step.
-    Engines that are not installed still get specs, so that their
-    absence is recorded as rows.
+    ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep``.
+    ``integrators`` None: every integrator of each engine; else only those named (an engine
+    offering none of them contributes nothing). ``save_every`` overrides the scenarios'
+    decimation; ``segment`` streams the metrics over every step. Engines that are not
+    installed still get specs, so that their absence is recorded as rows. Input that cannot
+    run (a step that does not divide the horizon, a tolerance for an unknown family) is a
+    ``ValueError`` naming the scenario, before any run.
     """
     from references.engines import engine_names, get_engine, step_plan
 
     engines = list(engines) if engines else engine_names()
+    versions = {name: _version(get_engine(name)) for name in engines}
     specs = []
     for sc in scenarios:
-        if dts:
-            steps = [float(h) for h in dts]
-        else:
-            steps = [sc.dt, *(sc.dt_sweep if sweep else ())]
+        unknown = verdicts.unknown_families(sc)
+        if unknown:
+            from references.engines import FAMILIES
+
+            raise ValueError(
+                f"scenario {sc.name!r} ({sc.path}): [tolerances] names unknown integrator "
+                f"families {unknown}; known: {', '.join(FAMILIES)}"
+            )
+        steps = [float(h) for h in dts] if dts else [sc.dt, *(sc.dt_sweep if sweep else ())]
         steps = sorted(set(steps), reverse=True)
         horizon = sc.t_end if t_end is None else t_end
         for h in steps:
-            # A step or horizon from the command line that does not fit the scenario is the
-            # user's input to fix, said once, not a failed row per engine and integrator.
             try:
                 step_plan(h, horizon, sc.save_every if save_every is None else save_every)
             except ValueError as exc:
                 raise ValueError(f"scenario {sc.name!r}: {exc}") from None
         for name in engines:
-            cls = get_engine(name)
-            names = [i.name for i in cls.integrators]
+            names = [i.name for i in get_engine(name).integrators]
             if integrators:
                 names = [n for n in names if n in integrators]
-            if name == "exact":
-                steps_e = [sc.dt if not dts else steps[-1]]
-            else:
-                steps_e = steps
+            steps_e = [sc.dt if not dts else steps[-1]] if name == "exact" else steps
+            cls = get_engine(name)
             for integ in names:
-                for h in steps_e:
-                    specs.append(RunSpec(sc, name, integ, h, t_end, save_every, segment))
+                common = (t_end, save_every, segment, versions[name])
+                if cls.integrator(integ).adaptive:
+                    accs = accuracies or sc.accuracies or DEFAULT_ACCURACIES
+                    h = sc.dt if not dts else steps[-1]
+                    specs += [RunSpec(sc, name, integ, h, *common, float(a)) for a in accs]
+                else:
+                    specs += [RunSpec(sc, name, integ, h, *common) for h in steps_e]
     return specs
 
 
-def default_dt(rows) -> float:
-    """The step shown in per-dt tables and time plots: the scenario's own ``dt``, which is
-    the step of the exact reference's run (:func:`plan` runs it there only); without such a
-    row, the dt with the most runs, ties broken by the smaller step."""
-    exact = rows[rows["engine"] == "exact"]
-    if len(exact):
-        return float(exact["dt"].iloc[0])
-    counts = rows.groupby("dt").size()
-    return max(counts.index, key=lambda h: (counts[h], -h))
-
-
-def read_results(path: Path):
-    """The results table at ``path`` (a results.csv or its folder) as a pandas DataFrame."""
-    import pandas as pd
-
-    path = Path(path)
-    if path.is_dir():
-        path = path / "results.csv"
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no results table here (run `director-bench run` first)")
-    df = pd.read_csv(path, keep_default_na=True)
-    for col in ("message", "settings", "trajectory", "engine_version", "family"):
-        if col in df:
-            df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
-    return df
-
-
-def _append_row(path: Path, row: dict) -> None:
-    new = not path.exists()
-    with path.open("a", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS)
-        if new:
-            writer.writeheader()
-        writer.writerow({k: row.get(k, "") for k in RESULT_COLUMNS})
-        fh.flush()
-        os.fsync(fh.fileno())
-
-
-def add_convergence_orders(df):
-    """Fill ``convergence_order`` per (scenario, engine, integrator) from the attitude error
-    over the dt values present (NaN where fewer than two usable points)."""
-    df = df.copy()
-    df["convergence_order"] = math.nan
-    ok = df["status"] == "ok"
-    for _, grp in df[ok].groupby(["scenario", "engine", "integrator"]):
-        if grp["dt"].nunique() < 2:
-            continue
-        slope = convergence_order(grp["dt"], grp["attitude_error_max"])
-        df.loc[grp.index, "convergence_order"] = slope
-    return df
+def _version(cls) -> str:
+    why = cls.availability()
+    return cls.version() if why is None else "unavailable"
 
 
 def run_suite(
@@ -315,59 +331,62 @@ def run_suite(
     progress: bool = True,
     mapper: Callable | None = None,
 ) -> tuple:
-    """Execute ``specs``, writing ``out/results.csv`` row by row; returns (DataFrame, n_run).
+    """Execute ``specs``, committing each row to ``out``'s results store as it finishes;
+    returns (the current results DataFrame, number of runs executed).
 
-    Runs already in ``out/results.csv`` are skipped unless ``redo`` (except those whose status
-    is in ``RETRY_STATUSES``). ``mapper(fn, specs)`` may run specs elsewhere (a process pool,
-    a Dask cluster) and must yield rows as they finish; the default runs them here in order.
+    Runs whose identity is already in the store are skipped unless ``redo`` (except those
+    whose status is in ``RETRY_STATUSES``). ``mapper(fn, specs)`` may run specs elsewhere (a
+    process pool, a Dask cluster) and must yield rows as they finish; the default runs them
+    here in order. ``results.csv`` and ``results.parquet`` are exported at the end (also
+    after an interruption).
     """
-    import pandas as pd
-
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    results = out / "results.csv"
     specs = list(specs)
-    done = {}
-    if results.exists() and not redo:
-        old = read_results(results)
-        for _, r in old.iterrows():
-            if r["status"] not in RETRY_STATUSES:
-                done[run_key(r["scenario"], r["engine"], r["integrator"], r["dt"])] = True
-    elif results.exists() and redo:
-        old = read_results(results)
-        keys = {s.key for s in specs}
-        keep = [
-            run_key(r["scenario"], r["engine"], r["integrator"], r["dt"]) not in keys
-            for _, r in old.iterrows()
-        ]
-        old[keep].to_csv(results, index=False)
-    todo = [s for s in specs if s.key not in done]
+    with Store(out, create=True) as store:
+        done = set() if redo else store.done_ids()
+        todo = [s for s in specs if s.run_id not in done]
+        n_run = 0
+        bar = _bar(len(todo)) if progress and todo else None
+        if mapper is None:
+            from reports.parallel import serial
 
-    bar = None
-    if progress and todo:
-        from tqdm.auto import tqdm
+            mapper = serial(out)
+        if getattr(mapper, "serial", False):
+            # in this process: a long run shows its own progress in the bar
 
-        bar = tqdm(total=len(todo), unit="run", desc="director-bench", dynamic_ncols=True)
-    fn = functools.partial(execute, out=out, fmt=fmt)
-    rows_iter = mapper(fn, todo) if mapper is not None else map(fn, todo)
-    n_run = 0
-    try:
-        for row in rows_iter:
-            _append_row(results, row)
-            n_run += 1
+            def fn(s):
+                return execute(s, out, fmt, progress=_inner(bar, s))
+        else:
+            fn = functools.partial(execute, out=out, fmt=fmt)
+        rows = mapper(fn, todo)
+        try:
+            for row in rows:
+                store.put(row)
+                n_run += 1
+                if bar is not None:
+                    bar.set_postfix_str(f"{row['scenario']}/{row['engine']}/{row['integrator']}")
+                    bar.update(1)
+        finally:
             if bar is not None:
-                bar.set_postfix_str(f"{row['scenario']}/{row['engine']}/{row['integrator']}")
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
-    df = read_results(results)
-    df = df.drop_duplicates(subset=["scenario", "engine", "integrator", "dt"], keep="last")
-    # Rows arrive in completion order when runs execute in parallel: sort so that the table
-    # is the same whatever executed it.
-    df = df.sort_values(["scenario", "engine", "integrator", "dt"], ignore_index=True)
-    df = add_convergence_orders(df)
-    tmp = results.with_suffix(".csv.tmp")
-    df.to_csv(tmp, index=False)
-    tmp.replace(results)
-    return pd.DataFrame(df), n_run
+                bar.close()
+            df = read_results(out)
+            export(out, df)
+    return df, n_run
+
+
+def _bar(n: int):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=n, unit="run", desc="director-bench", dynamic_ncols=True)
+
+
+def _inner(bar, spec):
+    """A per-run progress callback that shows the fraction of a long run in the bar."""
+    if bar is None:
+        return None
+    label = f"{spec.scenario.name}/{spec.engine}/{spec.integrator}"
+
+    def show(frac: float) -> None:
+        bar.set_postfix_str(f"{label} {100 * frac:.0f}%", refresh=True)
+
+    return show

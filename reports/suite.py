@@ -13,21 +13,120 @@ class RunSummary:
     out: Path
     n_run: int
     n_skipped: int
-    results: object  # pandas DataFrame
+    results: object  # pandas DataFrame: the folder's current results
     report: dict
     junit: Path | None
-    comparison: object | None
 
 
 def resolve_scenarios(names, all_: bool = False) -> list:
-    """Scenario objects for names or paths; none given: the default suite."""
+    """Scenario objects for names or paths; none given: the default suite. Two different
+    scenarios with the same name are an error naming both files (results are filed by name)."""
     import scenarios
 
     if all_:
         names = scenarios.list_scenarios()
     elif not names:
         names = scenarios.default_suite()
-    return [scenarios.load(n) for n in names]
+    out, seen = [], {}
+    for n in names:
+        sc = scenarios.load(n)
+        prev = seen.get(sc.name)
+        if prev is not None and prev.scenario_hash != sc.scenario_hash:
+            raise ValueError(
+                f"two different scenarios are named {sc.name!r}: {prev.path} and {sc.path}; "
+                "results are filed by name, so give one of them another name"
+            )
+        if prev is None:
+            seen[sc.name] = sc
+            out.append(sc)
+    return out
+
+
+def check_engines(engines) -> list[str]:
+    """The engine names asked for (None: every registered engine), each checked."""
+    from references.engines import engine_names
+
+    known = engine_names()
+    if engines is None:
+        return known
+    if not engines:
+        raise ValueError(f"--engines: an empty list; give one or more of {', '.join(known)}")
+    bad = [e for e in engines if e not in known]
+    if bad:
+        raise ValueError(
+            f"--engines: unknown {', '.join(map(repr, bad))}; known: {', '.join(known)}"
+        )
+    return list(dict.fromkeys(engines))
+
+
+def check_integrators(integrators, engines: list[str]) -> list[str] | None:
+    """The integrator names asked for, each offered by at least one of ``engines``."""
+    from references.engines import get_engine
+
+    if integrators is None:
+        return None
+    offered = {i.name: e for e in engines for i in get_engine(e).integrators}
+    if not integrators:
+        raise ValueError(f"--integrators: an empty list; give one or more of {', '.join(offered)}")
+    bad = [i for i in integrators if i not in offered]
+    if bad:
+        raise ValueError(
+            f"--integrators: {', '.join(map(repr, bad))} offered by none of the engines "
+            f"{', '.join(engines)}; they offer: {', '.join(offered)}"
+        )
+    return list(dict.fromkeys(integrators))
+
+
+def check_count(name: str, value) -> None:
+    if value is not None and not (isinstance(value, int) and value >= 1):
+        raise ValueError(f"{name} = {value!r}: must be a whole number >= 1")
+
+
+def check_out(out) -> Path:
+    """The output folder, made absolute and created; refused if it is a file or cannot be
+    written."""
+    import os
+    import tempfile
+
+    out = Path(out).expanduser().resolve()
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: is a file, not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-probe-", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ValueError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+    return out
+
+
+#: bytes of memory a run needs per state it keeps (the trajectory, its reference and the
+#: metric series, measured with tracemalloc on the library's scenarios: ~1.3 kB; rounded up)
+BYTES_PER_STATE = 2000
+
+
+def check_memory(specs, jobs: int) -> None:
+    """Refuse, before any run, a horizon whose saved states would not fit in memory."""
+    import os
+
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        total = 8 << 30
+    limit = total / (4 * max(jobs, 1))
+    for sp in specs:
+        nstep = round(sp.horizon / sp.dt)
+        kept = nstep // sp.saving + 2 + (sp.segment or 0)
+        need = kept * BYTES_PER_STATE
+        if need > limit:
+            raise ValueError(
+                f"scenario {sp.scenario.name!r} at dt = {sp.dt:g} s to t_end = "
+                f"{sp.horizon:g} s keeps {kept:.3g} states (~{need / 2**30:.3g} GiB), more "
+                f"than a quarter of this machine's memory per worker ({limit / 2**30:.3g} GiB): "
+                f"keep fewer with --save-every N (one state in N; metrics still over every step "
+                f"with --segment M, memory O(M))"
+            )
 
 
 def run(
@@ -42,49 +141,48 @@ def run(
     out="results",
     redo: bool = False,
     fmt: str = "parquet",
-    baseline: str | Path | None = None,
     report: bool = True,
     progress: bool = True,
     jobs: int | None = None,
     scheduler: str | None = None,
     save_every: int | None = None,
     segment: int | None = None,
+    accuracies=None,
 ) -> RunSummary:
-    """Run scenarios x engines x integrators x dt into ``out`` and write the report.
+    """Run scenarios x engines x integrators x dt into ``out`` and write the report and
+    ``junit.xml`` (the verdicts). Every input is checked before any run (ValueError naming the
+    argument, value and rule). ``jobs``: local worker processes (default: one per core);
+    ``scheduler``: a Dask scheduler address."""
+    import os
 
-    ``baseline``: the tolerances for ``junit.xml`` (default: the committed baseline of the
-    default suite, where it exists); runs absent from it get no test case. ``jobs``: local
-    worker processes (default: one per core); ``scheduler``: a Dask scheduler address.
-    """
-    from reports import gate
+    from reports import junit
     from reports.parallel import make_mapper
-    from reports.report import build_report, write_provenance
+    from reports.provenance import write_provenance
+    from reports.report import build_report
     from reports.runner import plan, run_suite
 
-    out = Path(out)
+    for name, value in (("--jobs", jobs), ("--segment", segment), ("--save-every", save_every)):
+        check_count(name, value)
+    out = check_out(out)
     scs = resolve_scenarios(names, all_scenarios)
-    specs = plan(
-        scs, engines, integrators, dts, t_end, sweep=sweep, save_every=save_every, segment=segment
-    )
-    out.mkdir(parents=True, exist_ok=True)
-    write_provenance(out)
+    engines = check_engines(engines)
+    integrators = check_integrators(integrators, engines)
+    specs = plan(scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies)
+    if not specs:
+        raise ValueError("nothing to run: no engine offers the integrators asked for")
+    check_memory(specs, jobs or os.cpu_count() or 1)
+    write_provenance(out, engines)
     df, n_run = run_suite(
         specs,
         out,
         redo=redo,
         fmt=fmt,
         progress=progress,
-        mapper=make_mapper(jobs, scheduler),
+        mapper=make_mapper(jobs, scheduler, out),
     )
-    rep = build_report(out) if report else {}
-    baseline = (
-        Path(baseline) if baseline else (DEFAULT_BASELINE if DEFAULT_BASELINE.exists() else None)
-    )
-    junit = cmp = None
-    if baseline is not None:
-        cmp = gate.compare(out, baseline, only_present=True)
-        junit = gate.write_junit(cmp, out / "junit.xml")
-    return RunSummary(out, n_run, len(specs) - n_run, df, rep, junit, cmp)
+    rep = build_report(out, progress=progress) if report else {}
+    path = junit.write(df, out / "junit.xml")
+    return RunSummary(out, n_run, len(specs) - n_run, df, rep, path)
 
 
 def ensemble(
@@ -106,7 +204,8 @@ def ensemble(
     (see :mod:`reports.ensemble`), and refresh the report of ``out``."""
     from reports.ensemble import run_ensemble
     from reports.parallel import make_mapper
-    from reports.report import build_report, write_provenance
+    from reports.provenance import write_provenance
+    from reports.report import build_report
 
     (sc,) = resolve_scenarios([name])
     out = Path(out)

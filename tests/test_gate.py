@@ -1,38 +1,42 @@
-"""The regression gate on hand-written results tables: a clean run passes, a regression, a
-status change, a missing run and a new run each fail with a readable line."""
+"""The regression gate on hand-written results: a clean run passes, a regression, a status
+change, a verdict change, a missing run and a new run each fail with a readable line."""
 
+import json
 import math
 import xml.etree.ElementTree as ET
 
-import pandas as pd
 import pytest
 
 from reports import gate
 from reports.cli import main
-from reports.metrics import METRIC_COLUMNS
-from reports.runner import RESULT_COLUMNS
+from reports.results import NUMERIC_COLUMNS, RESULT_COLUMNS, Store
 
 
 def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, status="ok", **m):
     r = dict.fromkeys(RESULT_COLUMNS, "")
+    for c in NUMERIC_COLUMNS:
+        r[c] = math.nan
     r.update(
+        run_id=f"{scenario}/{engine}/{integrator}/{dt!r}",
         scenario=scenario,
         engine=engine,
         integrator=integrator,
         dt=dt,
         status=status,
+        verdict="pass" if status == "ok" else "",
         ns_per_step=1000.0,
+        finished_at="2026-11-22T00:00:00+00:00",
     )
-    for c in METRIC_COLUMNS:
-        r[c] = math.nan
-    r.update(energy_drift_max=1e-8, attitude_error_max=1e-6, convergence_order=4.0)
+    r.update(energy_drift_max=1e-8, attitude_error_max=1e-6)
     r.update(m)
     return r
 
 
 def write(folder, rows):
     folder.mkdir(parents=True, exist_ok=True)
-    pd.DataFrame(rows, columns=list(RESULT_COLUMNS)).to_csv(folder / "results.csv", index=False)
+    with Store(folder, create=True) as st:
+        for r in rows:
+            st.put(r)
     return folder
 
 
@@ -82,17 +86,38 @@ def test_roundoff_floor(tmp_path):
     assert not gate.compare(cur, bl).ok
 
 
-def test_order_drop_and_status_change(tmp_path, baseline):
+def sweep(order, **kw):
+    """RK4 rows at three steps whose attitude errors fall with the given order."""
+    return [
+        row(dt=h, attitude_error_max=1e-4 * (h / 4e-3) ** order, run_id=f"sweep{h}", **kw)
+        for h in (4e-3, 2e-3, 1e-3)
+    ]
+
+
+def test_order_drop_status_and_verdict_change(tmp_path):
+    base = write(tmp_path / "base", [*sweep(4), row(engine="pybullet", integrator="multibody")])
+    bl = gate.write_baseline(base, tmp_path / "bl.json")
+    entries = json.loads(bl.read_text())["runs"]
+    assert {round(e["convergence_order"], 6) for e in entries if e["engine"] == "mujoco"} == {4.0}
     cur = write(
         tmp_path / "cur",
         [
-            row(convergence_order=2.0),
-            row(engine="pybullet", integrator="multibody", status="failed", message="diverged"),
+            *sweep(2),
+            row(engine="pybullet", integrator="multibody", status="diverged", message="blew up"),
         ],
     )
-    what = {(f.key[1], f.what, f.metric) for f in gate.compare(cur, baseline).findings}
+    what = {(f.key[1], f.what, f.metric) for f in gate.compare(cur, bl).findings}
     assert ("mujoco", "metric", "convergence_order") in what
     assert ("pybullet", "status", "status") in what
+    cur = write(
+        tmp_path / "cur2",
+        [
+            *sweep(4, verdict="fail", verdict_detail="x > y"),
+            row(engine="pybullet", integrator="multibody"),
+        ],
+    )
+    what = {(f.key[1], f.what) for f in gate.compare(cur, bl).findings}
+    assert what == {("mujoco", "verdict")}
 
 
 def test_missing_and_new_runs(tmp_path, baseline):
@@ -122,7 +147,7 @@ def test_junit_has_one_case_per_checked_run(tmp_path, baseline):
             row(engine="pybullet", integrator="multibody", energy_drift_max=0.3),
         ],
     )
-    path = gate.write_junit(gate.compare(cur, baseline), tmp_path / "junit.xml")
+    path = gate.write_junit(gate.compare(cur, baseline), tmp_path / "check-junit.xml")
     suite = ET.parse(path).getroot()
     assert suite.get("tests") == "2" and suite.get("failures") == "1"
     failed = [c for c in suite if c.find("failure") is not None]
@@ -131,7 +156,9 @@ def test_junit_has_one_case_per_checked_run(tmp_path, baseline):
 
 def test_bad_baseline_file_is_a_clear_error(tmp_path, capsys):
     cur = write(tmp_path / "cur", [row()])
-    bad = tmp_path / "bad.json"
-    bad.write_text("{not json")
-    assert main(["check", str(cur), "--baseline", str(bad)]) == 2
-    assert "bad.json: not a baseline file" in capsys.readouterr().err
+    for text in ("{not json", "[1, 2]", '{"format": 2, "runs": [{"scenario": "x"}]}'):
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        assert main(["check", str(cur), "--baseline", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert "bad.json:" in err and "Traceback" not in err

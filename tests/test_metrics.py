@@ -74,14 +74,98 @@ def test_attitude_error_along_a_moving_reference(delta):
 
 def test_energy_drift_relative_to_scenario_state():
     """W3 wrong by 1 % from the start: T = 1/2 I3 W3^2 changes by (1.01^2 - 1) exactly, and the
-    drift is measured against the scenario's state, not the trajectory's first sample."""
+    drift is measured against the scenario's state, not the trajectory's first sample. A free
+    spinning body without gravity: the energy scale is its kinetic energy T0."""
     sc = spin_scenario()
     t = np.linspace(0, 1, 5)
     W = np.tile([0, 0, 3.0 * 1.01], (5, 1))
     tr = spin_traj(sc, t, W=W)
     assert metrics.energy_drift(sc, tr) == pytest.approx(np.full(5, 1.01**2 - 1), rel=1e-12)
-    # L = I3 W3 e_z: relative drift 1 %
-    assert metrics.momentum_drift(sc, tr) == pytest.approx(np.full(5, 0.01), rel=1e-12)
+    # L = I3 W3 e_z with |L| = L_c for a spin about the major axis (I3 = 0.5 is the smallest
+    # moment here, so L_c = sqrt(2 T0 I_max) = sqrt(2 * 2.25 * 1) = 2.1213): 0.015 / 2.1213
+    assert metrics.momentum_drift(sc, tr) == pytest.approx(
+        np.full(5, 0.5 * 0.03 / math.sqrt(2 * 2.25 * 1.0)), rel=1e-12
+    )
+
+
+def pendulum(**kw):
+    """A physical pendulum released from rest with its axis horizontal: the potential is
+    measured from the pivot, so E0 = 0, T0 = 0 and L0 = 0. m = 2 kg, COM 0.25 m from the
+    pivot along body axis 3, g = 9.81: m |g| l = 4.905 J."""
+    base = dict(
+        name="pendulum",
+        description="",
+        mass=2.0,
+        inertia=(0.02, 0.02, 0.01),
+        rotation=Rotation.from_rotvec([math.pi / 2, 0, 0]).as_matrix(),
+        omega_body=(0.0, 0.0, 0.0),
+        gravity=(0.0, 0.0, -9.81),
+        pivot=(0.0, 0.0, -0.25),
+        t_end=1.0,
+        dt=0.1,
+    )
+    base.update(kw)
+    return Scenario(**base)
+
+
+def test_energy_drift_of_a_pendulum_released_at_rest_uses_m_g_l():
+    """E0 = 0 and T0 = 0: the drift is |E - E0| / (m |g| l), written out here: a trajectory
+    whose energy is off by 0.049 J reads 0.049 / (2 * 9.81 * 0.25) = 0.0099898. Dividing by
+    E0 or T0 (both 0) or by |E0| would give inf or nan."""
+    sc = pendulum()
+    t = np.linspace(0, 1, 3)
+    tr = Trajectory.from_states(
+        sc, t, None, None, np.tile(sc.rotation, (3, 1, 1)), np.zeros((3, 3))
+    )
+    tr.energy = tr.energy + np.array([0.0, 0.049, -0.049])
+    expect = np.array([0.0, 0.049, 0.049]) / (2.0 * 9.81 * 0.25)
+    np.testing.assert_allclose(metrics.energy_drift(sc, tr), expect, rtol=1e-12, atol=1e-15)
+
+
+def test_energy_drift_scale_is_neither_T0_nor_E0():
+    """A slow top whose weight term dominates: T0 = 1/2 W.I_p W = 0.0105 J with pivot moments
+    I_p = (0.02 + 2 * 0.25^2, ...) = (0.145, 0.145, 0.01) and W = (0.1, 0.2, 0.5):
+    T0 = 1/2 (0.145 * 0.01 + 0.145 * 0.04 + 0.01 * 0.25) = 0.0048750; m |g| l = 4.905 J
+    > T0, so the scale is 4.905 J; E0 = T0 - m g . x_G is neither."""
+    sc = pendulum(omega_body=(0.1, 0.2, 0.5))
+    t0 = 0.5 * (0.145 * 0.01 + 0.145 * 0.04 + 0.01 * 0.25)
+    assert sc.energy_scale == pytest.approx(4.905, rel=1e-15)
+    E0 = float(metrics._initial(sc)[0])
+    assert abs(E0 - t0) < 1e-12  # axis horizontal: x_G at the pivot's height, V = 0
+    t = np.linspace(0, 1, 2)
+    tr = Trajectory.from_states(
+        sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), np.tile(sc.omega_body, (2, 1))
+    )
+    tr.energy = tr.energy + np.array([0.0, 1e-3])
+    assert metrics.energy_drift(sc, tr)[1] == pytest.approx(1e-3 / 4.905, rel=1e-10)
+
+
+def test_momentum_drift_of_a_pendulum_with_zero_initial_momentum():
+    """L0 = 0: the drift of L . g_hat is divided by L_c = sqrt(2 E_c I_max), E_c = m|g|l =
+    4.905 J, I_max = 0.02 + m l^2 = 0.145 kg m^2 (pivot moments): L_c = 1.1926. A trajectory
+    whose vertical momentum is off by 1e-3 reads 1e-3 / 1.1926."""
+    sc = pendulum()
+    t = np.linspace(0, 1, 2)
+    tr = Trajectory.from_states(
+        sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), np.zeros((2, 3))
+    )
+    tr.angular_momentum = tr.angular_momentum + np.array([[0, 0, 0], [0, 0, 1e-3]])
+    L_c = math.sqrt(2 * 4.905 * 0.145)
+    np.testing.assert_allclose(metrics.momentum_drift(sc, tr), [0.0, 1e-3 / L_c], rtol=1e-12)
+
+
+def test_momentum_drift_of_a_symmetric_top_sees_the_spin():
+    """A symmetric top with its axis horizontal: the spin L . d3 = I3 W3 changes by I3 dW3 =
+    0.01 * 0.3 = 3e-3 while L . g_hat stays 0; only the spin term can see it. L_c = sqrt(2 E_c
+    I_max) with E_c = max(T0, m|g|l) = max(1/2 0.01 5^2, 4.905) = 4.905."""
+    sc = pendulum(omega_body=(0.0, 0.0, 5.0))
+    assert metrics.conserved_momentum(sc) == "Lg+spin"
+    t = np.linspace(0, 1, 2)
+    W = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, 5.3]])
+    tr = Trajectory.from_states(sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), W)
+    assert abs(tr.angular_momentum[1] @ [0, 0, 1.0]) < 1e-15  # d3 horizontal
+    L_c = math.sqrt(2 * 4.905 * 0.145)
+    np.testing.assert_allclose(metrics.momentum_drift(sc, tr), [0.0, 3e-3 / L_c], rtol=1e-10)
 
 
 def test_orthonormality_of_a_scaled_rotation():
@@ -127,20 +211,46 @@ def test_reference_on_other_times_is_refused():
 @pytest.mark.parametrize("p", [1.0, 2.0, 4.0])
 def test_convergence_order_recovers_power_law(p):
     dts = np.array([0.04, 0.02, 0.01, 0.005])
-    assert metrics.convergence_order(dts, 3.0 * dts**p) == pytest.approx(p, abs=1e-12)
+    slope, n = metrics.convergence_order(dts, 3e-3 * (dts / 0.04) ** p)
+    assert slope == pytest.approx(p, abs=1e-12) and n == 4
 
 
-def test_convergence_order_ignores_roundoff_points():
+def test_convergence_order_recovers_4_from_order_4_plus_a_floor():
+    """Exact order-4 errors plus a 2e-11 floor (a reference's accuracy or round-off): fitting
+    every point gives a slope below 3.5; fitting only the points above 10x the floor
+    recovers 4 to within the floor's share of the smallest point used (2e-11 / 3.9e-10, i.e.
+    a slope bias of about log2(1.05) / 2 ~ 0.04)."""
+    dts = np.array([0.004, 0.002, 0.001, 0.0005, 0.00025])
+    floor = 2e-11
+    errors = 1e-7 * (dts / 0.004) ** 4 + floor
+    naive = np.polyfit(np.log(dts), np.log(errors), 1)[0]
+    assert naive < 3.5
+    slope, n = metrics.convergence_order(dts, errors, floors=floor)
+    assert slope == pytest.approx(4.0, abs=0.05) and n == 3
+
+
+def test_convergence_order_drops_saturated_points():
+    """Errors of order 1 rad (the phase is lost) are not in the asymptotic range: with them the
+    slope of this order-2 data would be 1.2; without, 2."""
+    dts = np.array([0.008, 0.004, 0.002, 0.001])
+    errors = np.array([3.1, 1.2, 0.04, 0.01])
+    slope, n = metrics.convergence_order(dts, errors)
+    assert slope == pytest.approx(2.0, abs=1e-12) and n == 2
+
+
+def test_convergence_order_is_nan_with_fewer_than_two_points():
     dts = np.array([0.04, 0.02, 0.01])
-    assert math.isnan(metrics.convergence_order(dts, [1e-15, 2e-16, 1e-16]))
-    # two informative points and one at round-off: the slope of the two
-    assert metrics.convergence_order(dts, [1.6e-5, 1e-6, 1e-16]) == pytest.approx(4.0)
+    slope, n = metrics.convergence_order(dts, [1e-15, 2e-16, 1e-16], floors=1e-16)
+    assert math.isnan(slope) and n == 0
+    slope, n = metrics.convergence_order(dts, [0.5, 0.04, 0.039])
+    assert math.isnan(slope) and n == 0  # 0.04 -> 0.039 stops falling: a floor, both out
 
 
-def test_convergence_order_stops_at_the_error_floor():
-    """4th-order errors that saturate at 5e-11 (round-off amplified near a separatrix): the fit
-    uses only the points before the floor."""
+def test_convergence_order_stops_at_an_undeclared_floor():
+    """4th-order errors that saturate at 5e-11 that no floor estimate covers (round-off
+    amplified near a separatrix): the points stop falling and the fit stops there."""
     dts = np.array([0.016, 0.008, 0.004, 0.002, 0.001])
     errors = np.maximum(1e-3 * (dts / 0.016) ** 4, 5e-11)
     errors[-2:] = [4.7e-11, 4.8e-11]  # noisy floor
-    assert metrics.convergence_order(dts, errors) == pytest.approx(4.0, abs=1e-9)
+    slope, n = metrics.convergence_order(dts, errors)
+    assert slope == pytest.approx(4.0, abs=1e-9) and n == 3

@@ -11,7 +11,8 @@ import pytest
 
 import scenarios
 from reports.cli import main
-from reports.runner import RunSpec, plan, read_results, run_suite
+from reports.results import RunSpec, read_results
+from reports.runner import execute, plan, run_suite
 
 SHORT = 1.0  # s: long enough for every metric, short enough for a unit test
 
@@ -51,14 +52,50 @@ def test_rows_files_and_report(tmp_path, dzh):
 
 def test_failing_run_is_a_row_and_the_rest_go_on(tmp_path):
     """h |W| = 0.5 * 2.0 = 1.0: RATTLE has no solution (numerics.md, h|W| < 1); the row says
-    failed with the time and the step-size limit, and MuJoCo's run still happens."""
+    diverged at the first step, with the step-size limit, and MuJoCo's run still happens."""
     sc = scenarios.load("major_axis_spin").replace(t_end=2.0, dt_sweep=())
     specs = [RunSpec(sc, "director", "rattle", 0.5), RunSpec(sc, "mujoco", "Euler", 0.5)]
     df, _ = run_suite(specs, tmp_path, progress=False)
     bad = df[df["engine"] == "director"].iloc[0]
-    assert bad["status"] == "failed"
-    assert "t = 0" in bad["message"] and "dt" in bad["message"]
+    assert bad["status"] == "diverged" and bad["verdict"] == "fail"
+    assert bad["t_diverged"] == 0.0  # the step from t = 0 has no solution
+    assert "could not be taken" in bad["message"] and "h_max" in bad["message"]
     assert df[df["engine"] == "mujoco"]["status"].iloc[0] == "ok"
+
+
+def test_engines_running_the_same_algorithm_get_the_same_status():
+    """cone_top at dt = 1e-3 under semi-implicit Euler blows up (energy error beyond 100 % of
+    the scenario's energy scale): every engine running that algorithm is diverged, at the same
+    time (the algorithm is the same to round-off), and fails its verdict."""
+    sc = scenarios.load("cone_top")
+    pairs = [
+        ("mujoco", "Euler"),
+        ("pinocchio", "semi-implicit Euler"),
+        ("dart", "semi-implicit Euler"),
+        ("pybullet", "multibody"),
+    ]
+    rows = [execute(RunSpec(sc, e, i, 1e-3)) for e, i in pairs]
+    rows = [r for r in rows if r["status"] != "unavailable"]
+    assert len(rows) >= 2
+    assert {r["status"] for r in rows} == {"diverged"}, [r["message"] for r in rows]
+    assert {r["verdict"] for r in rows} == {"fail"}
+    assert len({r["t_diverged"] for r in rows}) == 1
+    # the energy error of the part before the divergence is recorded, and exceeds the limit
+    # only at the divergence: the last good sample is within it
+    assert all(r["energy_drift_max"] <= 1.0 for r in rows)
+
+
+def test_a_reference_too_coarse_for_the_tolerance_says_so():
+    """A [tolerances] bound on the attitude error below 10x the reference's accuracy cannot be
+    judged: the run is reference-inaccurate, with the figure, and gets no verdict."""
+    sc = scenarios.load("free_tumbling").replace(
+        t_end=0.1, dt_sweep=(), tolerances={"*": {"attitude_error_max": 1e-14}}
+    )
+    row = execute(RunSpec(sc, "mujoco", "RK4", 1e-3))
+    assert row["status"] == "reference-inaccurate" and row["verdict"] == ""
+    assert "accuracy estimate" in row["message"] and "1e-14" in row["message"]
+    ok = execute(RunSpec(sc.replace(tolerances={}), "mujoco", "RK4", 1e-3))
+    assert ok["status"] == "ok" and ok["verdict"] == "pass"
 
 
 def test_unknown_integrator_is_a_row(tmp_path, dzh):
@@ -122,7 +159,7 @@ def test_cli_run_on_a_user_file(tmp_path, capsys):
     assert list(df["scenario"]) == ["my_body"] and df["status"].iloc[0] == "ok"
     assert (out / "provenance.json").exists()
     prov = json.loads((out / "provenance.json").read_text())
-    assert prov["engines"]["mujoco"]
+    assert prov["engines"]["director"]
 
 
 def test_cli_malformed_file_names_file_field_and_rule(tmp_path, capsys):

@@ -1,0 +1,98 @@
+"""Provenance of a results folder: suite version, git commit, date, machine, engine versions.
+
+Written once per ``run`` to ``provenance.json`` beside the results store, and shown at the top
+of every report, so that two result folders can be told apart and compared."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import subprocess
+from pathlib import Path
+
+
+def git_commit() -> str:
+    """The suite's git commit (with '+dirty' if the tree has changes), or 'unknown'."""
+    here = Path(__file__).resolve().parent
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(here), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        ).stdout.strip()
+        return commit + ("+dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def machine() -> dict:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+    }
+
+
+def engine_versions(names=None) -> dict:
+    from references.engines import engine_names, get_engine
+
+    out = {}
+    for name in names or engine_names():
+        cls = get_engine(name)
+        why = cls.availability()
+        out[name] = cls.version() if why is None else f"not available ({why})"
+    return out
+
+
+def provenance(engines=None) -> dict:
+    from reports import __version__
+
+    return {
+        "suite_version": __version__,
+        "git_commit": git_commit(),
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "machine": machine(),
+        "engines": engine_versions(engines),
+    }
+
+
+def write_provenance(out: Path, engines=None) -> Path:
+    """Write ``provenance.json`` into ``out`` (atomically: a temporary file renamed)."""
+    path = Path(out) / "provenance.json"
+    tmp = path.with_name(f".provenance.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(provenance(engines), indent=2) + "\n")
+    tmp.replace(path)
+    return path
+
+
+def read_provenance(root: Path) -> dict:
+    """The provenance of a results folder ({} if it has none; a note if it is unreadable)."""
+    path = Path(root) / "provenance.json"
+    if not path.exists():
+        return {}
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        return {"note": f"{path} is unreadable ({exc})"}
+    return doc if isinstance(doc, dict) else {"note": f"{path} is not a JSON object"}

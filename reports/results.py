@@ -1,0 +1,513 @@
+"""The results table: its columns, a run's identity, and the transactional store it lives in.
+
+Every run is one row (:data:`RESULT_COLUMNS`, documented column by column in
+``docs/results.md``). The source of truth is ``results.sqlite`` in the output folder, an
+SQLite database in WAL mode written one row per transaction: any number of processes (the
+local pool's parent, several ``director-bench run`` commands, a Dask client) may write into
+one folder at once without losing a row, a killed process never leaves half a row, and every
+row carries a checksum of its content, verified on every read, so a damaged file is reported
+(:class:`StoreDamaged`), never read as a result. ``results.csv`` and ``results.parquet`` are
+exports written from the store (atomically, by rename); ``report``, ``check`` and
+``compare`` read the store.
+
+A run's identity (:attr:`RunSpec.run_id`) is a hash of everything that determines its
+result: the scenario's content hash, the engine and its version, the integrator, dt, the
+horizon, save_every, the segmenting and the suite's version. A rerun skips a run whose
+identity is in the store; a changed input runs again. Rows of older identities of the same
+configuration stay in the store; :func:`current` keeps the newest one per (scenario, engine,
+integrator, dt) for tables and reports.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import datetime as _dt
+import hashlib
+import json
+import math
+import os
+import re
+import sqlite3
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+STORE_NAME = "results.sqlite"
+#: version of the store's layout, checked on open
+STORE_FORMAT = 1
+
+#: metric columns (all "lower is better" except convergence_order), see reports.metrics
+METRIC_COLUMNS = (
+    "energy_drift_max",
+    "momentum_drift_max",
+    "orthonormality_max",
+    "constraint_velocity_max",
+    "attitude_error_max",
+    "omega_error_max",
+    "position_error_max",
+    "flip_interval_error",
+    "nutation_period_error",
+    "convergence_order",
+)
+
+RESULT_COLUMNS = (
+    "run_id",
+    "scenario",
+    "scenario_hash",
+    "engine",
+    "engine_version",
+    "integrator",
+    "family",
+    "order",
+    "suite_integrated",
+    "dt",
+    "target_accuracy",
+    "t_end",
+    "save_every",
+    "segment",
+    "status",
+    "verdict",
+    "verdict_detail",
+    "message",
+    "t_diverged",
+    "nstep",
+    "wall_time_s",
+    "engine_time_s",
+    "glue_time_s",
+    "ns_per_step",
+    "engine_ns_per_step",
+    "evals_per_step",
+    "steps_taken",
+    "steps_rejected",
+    *METRIC_COLUMNS,
+    "accuracy_ratio",
+    "convergence_points",
+    "energy_scale",
+    "momentum_scale",
+    "reference_kind",
+    "reference_accuracy",
+    "roundoff_floor",
+    "settings",
+    "trajectory",
+    "suite_version",
+    "finished_at",
+)
+
+#: columns holding numbers (the rest are text)
+NUMERIC_COLUMNS = frozenset(
+    {
+        "order",
+        "dt",
+        "target_accuracy",
+        "t_end",
+        "save_every",
+        "segment",
+        "t_diverged",
+        "nstep",
+        "wall_time_s",
+        "engine_time_s",
+        "glue_time_s",
+        "ns_per_step",
+        "engine_ns_per_step",
+        "evals_per_step",
+        "steps_taken",
+        "steps_rejected",
+        *METRIC_COLUMNS,
+        "accuracy_ratio",
+        "convergence_points",
+        "energy_scale",
+        "momentum_scale",
+        "reference_accuracy",
+        "roundoff_floor",
+    }
+)
+
+#: statuses, in the order reports list them
+STATUSES = ("ok", "reference-inaccurate", "diverged", "error", "unsupported", "unavailable")
+
+#: statuses a rerun tries again: the engine may have been installed since
+RETRY_STATUSES = frozenset({"unavailable"})
+
+#: the columns that name one configuration in tables (several identities may share them);
+#: target_accuracy is NaN for fixed-step integrators
+CONFIG_KEY = ("scenario", "engine", "integrator", "dt", "target_accuracy")
+
+
+class StoreDamaged(RuntimeError):
+    """The results store cannot be read as results (not a database, malformed, a row whose
+    checksum does not match); the message names the file and what to do."""
+
+
+class StoreUnwritable(RuntimeError):
+    """The results store cannot be written (read-only folder, disk full, file-size limit)."""
+
+
+def suite_version() -> str:
+    from reports import __version__
+
+    return __version__
+
+
+# -- a run --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run: a scenario, an engine, one of its integrators and a step size, with the
+    horizon and decimation (None: the scenario's) and, for long horizons, ``segment``: the
+    number of steps between streaming-metric updates (None: metrics at the saved samples)."""
+
+    scenario: object  # scenarios.Scenario
+    engine: str
+    integrator: str
+    dt: float
+    t_end: float | None = None
+    save_every: int | None = None
+    segment: int | None = None
+    engine_version: str = ""
+    accuracy: float | None = None
+
+    @property
+    def horizon(self) -> float:
+        return self.scenario.t_end if self.t_end is None else float(self.t_end)
+
+    @property
+    def saving(self) -> int:
+        return self.scenario.save_every if self.save_every is None else int(self.save_every)
+
+    @property
+    def run_id(self) -> str:
+        """Identity of the run: a hash of everything that determines its result."""
+        ident = {
+            "scenario_hash": self.scenario.scenario_hash,
+            "engine": self.engine,
+            "engine_version": self.engine_version,
+            "integrator": self.integrator,
+            "dt": repr(float(self.dt)),
+            "t_end": repr(self.horizon),
+            "save_every": self.saving,
+            "segment": self.segment,
+            "accuracy": None if self.accuracy is None else repr(float(self.accuracy)),
+            "suite_version": suite_version(),
+        }
+        blob = json.dumps(ident, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:20]
+
+    @property
+    def key(self) -> tuple:
+        """The configuration this run belongs to (see :data:`CONFIG_KEY`)."""
+        return config_key(self.scenario.name, self.engine, self.integrator, self.dt, self.accuracy)
+
+
+def config_key(scenario: str, engine: str, integrator: str, dt: float, accuracy=None) -> tuple:
+    """A hashable configuration key; an absent or NaN target accuracy is None."""
+    acc = None if accuracy is None or accuracy != accuracy else float(f"{float(accuracy):.12g}")
+    return (str(scenario), str(engine), str(integrator), float(f"{float(dt):.12g}"), acc)
+
+
+def blank_row(spec: RunSpec) -> dict:
+    """The row of ``spec`` before it runs: identity filled, every result empty (NaN)."""
+    row = dict.fromkeys(RESULT_COLUMNS, "")
+    for col in NUMERIC_COLUMNS:
+        row[col] = math.nan
+    row.update(
+        run_id=spec.run_id,
+        scenario=spec.scenario.name,
+        scenario_hash=spec.scenario.scenario_hash,
+        engine=spec.engine,
+        engine_version=spec.engine_version,
+        integrator=spec.integrator,
+        dt=float(spec.dt),
+        target_accuracy=math.nan if spec.accuracy is None else float(spec.accuracy),
+        t_end=spec.horizon,
+        save_every=spec.saving,
+        segment=math.nan if spec.segment is None else int(spec.segment),
+        energy_scale=spec.scenario.energy_scale,
+        momentum_scale=spec.scenario.momentum_scale,
+        suite_version=suite_version(),
+    )
+    return row
+
+
+def finish_time() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+# -- paths --------------------------------------------------------------------------------------
+
+
+def slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.]+", "-", str(text)).strip("-")
+
+
+def trajectory_path(spec: RunSpec, fmt: str = "parquet") -> Path:
+    """Relative path of a run's trajectory file inside the output folder."""
+    name = f"{slug(spec.engine)}__{slug(spec.integrator)}__dt{spec.dt:.6g}.{fmt}"
+    return Path("trajectories") / slug(spec.scenario.name) / name
+
+
+def error_series_path(traj_rel: Path) -> Path:
+    """The per-sample metric series stored beside a trajectory (for the time plots)."""
+    traj_rel = Path(traj_rel)
+    return traj_rel.with_name(traj_rel.stem + ".series.parquet")
+
+
+# -- canonical form and checksum ----------------------------------------------------------------
+
+
+def _clean(v):
+    if isinstance(v, float) or hasattr(v, "dtype"):
+        f = float(v)
+        return f
+    if isinstance(v, bool):
+        return v
+    if isinstance(v, int):
+        return int(v)
+    return "" if v is None else str(v)
+
+
+def canonical(row: dict) -> str:
+    """The row as canonical JSON (sorted keys, every column, floats exactly), the text the
+    checksum is taken of."""
+    data = {c: _clean(row.get(c, "")) for c in RESULT_COLUMNS}
+    return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=True)
+
+
+def checksum(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+# -- the store ----------------------------------------------------------------------------------
+
+
+def store_path(folder: str | Path, name: str = STORE_NAME) -> Path:
+    return Path(folder) / name
+
+
+class Store:
+    """The results store of one output folder (see the module docstring).
+
+    ``Store(folder)`` opens an existing store (read); ``Store(folder, create=True)`` creates
+    it if needed (write). ``name`` is the file's name in the folder (the ensemble has its
+    own store). Every method raises :class:`StoreDamaged` or
+    :class:`StoreUnwritable` with the file named, never an sqlite3 traceback.
+    """
+
+    def __init__(self, folder: str | Path, create: bool = False, name: str = STORE_NAME):
+        self.path = store_path(folder, name)
+        if not create and not self.path.exists():
+            raise FileNotFoundError(
+                f"{Path(folder)}: no results store here ({name} is missing); run "
+                "`director-bench run --out FOLDER` first"
+            )
+        self._con = self._open(create)
+
+    def _open(self, create: bool) -> sqlite3.Connection:
+        try:
+            con = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
+            con.execute("PRAGMA busy_timeout = 60000")
+            if create:
+                con.execute("PRAGMA journal_mode = WAL")
+                con.execute("PRAGMA synchronous = FULL")
+                con.execute(
+                    "CREATE TABLE IF NOT EXISTS runs (run_id TEXT PRIMARY KEY, scenario TEXT, "
+                    "engine TEXT, integrator TEXT, dt REAL, status TEXT, finished_at TEXT, "
+                    "row_json TEXT NOT NULL, checksum TEXT NOT NULL)"
+                )
+                con.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
+                con.execute("INSERT OR IGNORE INTO meta VALUES ('format', ?)", (str(STORE_FORMAT),))
+            self._check(con)
+            return con
+        except sqlite3.DatabaseError as exc:
+            raise self._damaged(exc) from None
+        except sqlite3.Error as exc:  # pragma: no cover - other sqlite failures
+            raise StoreUnwritable(f"{self.path}: cannot open the results store: {exc}") from None
+
+    def _check(self, con) -> None:
+        ok = con.execute("PRAGMA quick_check").fetchone()[0]
+        if ok != "ok":
+            raise StoreDamaged(self._advice(f"the database is malformed ({ok})"))
+        fmt = con.execute("SELECT value FROM meta WHERE key = 'format'").fetchone()
+        if fmt is None or fmt[0] != str(STORE_FORMAT):
+            raise StoreDamaged(self._advice(f"not a director-bench results store (format {fmt})"))
+
+    def _advice(self, what: str) -> str:
+        return (
+            f"results store {self.path} is damaged: {what}. Nothing was read from it. Move it "
+            f"aside (e.g. `mv {self.path} {self.path}.damaged`) and run again: the runs it held "
+            "are redone"
+        )
+
+    def _damaged(self, exc) -> Exception:
+        text = str(exc)
+        if "readonly" in text or "unable to open" in text:
+            return StoreUnwritable(f"{self.path}: cannot write the results store: {text}")
+        if "full" in text or "disk I/O" in text:
+            return StoreUnwritable(
+                f"{self.path}: cannot write the results store: {text} (disk full or a file "
+                "size limit?); finished runs are kept, rerun to continue"
+            )
+        return StoreDamaged(self._advice(text))
+
+    def close(self) -> None:
+        with contextlib.suppress(sqlite3.Error):
+            self._con.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # -- writing --------------------------------------------------------------------------
+    def put(self, row: dict) -> None:
+        """Insert (or replace) one row in its own transaction."""
+        text = canonical(row)
+        vals = (
+            row["run_id"],
+            row["scenario"],
+            row["engine"],
+            row["integrator"],
+            float(row["dt"]),
+            row["status"],
+            row.get("finished_at", ""),
+            text,
+            checksum(text),
+        )
+        try:
+            self._con.execute("BEGIN IMMEDIATE")
+            self._con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?)", vals)
+            self._con.execute("COMMIT")
+        except sqlite3.Error as exc:
+            with contextlib.suppress(sqlite3.Error):
+                self._con.execute("ROLLBACK")
+            raise self._damaged(exc) from None
+
+    def delete(self, run_ids: Iterable[str]) -> None:
+        ids = list(run_ids)
+        try:
+            self._con.execute("BEGIN IMMEDIATE")
+            self._con.executemany("DELETE FROM runs WHERE run_id = ?", [(i,) for i in ids])
+            self._con.execute("COMMIT")
+        except sqlite3.Error as exc:
+            with contextlib.suppress(sqlite3.Error):
+                self._con.execute("ROLLBACK")
+            raise self._damaged(exc) from None
+
+    # -- reading --------------------------------------------------------------------------
+    def done_ids(self) -> set[str]:
+        """Identities of the runs a rerun skips (every status but :data:`RETRY_STATUSES`)."""
+        try:
+            cur = self._con.execute("SELECT run_id, status FROM runs")
+            return {rid for rid, st in cur if st not in RETRY_STATUSES}
+        except sqlite3.DatabaseError as exc:
+            raise self._damaged(exc) from None
+
+    def rows(self) -> list[dict]:
+        """Every row, checksums verified (:class:`StoreDamaged` on a mismatch)."""
+        try:
+            cur = self._con.execute("SELECT run_id, row_json, checksum FROM runs ORDER BY rowid")
+            data = cur.fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise self._damaged(exc) from None
+        out, bad = [], []
+        for run_id, text, chk in data:
+            try:
+                row = json.loads(text)
+            except ValueError:
+                row = None
+            if row is None or checksum(text) != chk or row.get("run_id") != run_id:
+                bad.append(run_id)
+                continue
+            out.append(row)
+        if bad:
+            raise StoreDamaged(
+                self._advice(f"{len(bad)} row(s) fail their checksum (first: {bad[0]})")
+            )
+        return out
+
+
+# -- tables -------------------------------------------------------------------------------------
+
+
+def frame(rows: list[dict]):
+    """The rows as a pandas DataFrame with every column of :data:`RESULT_COLUMNS`."""
+    import pandas as pd
+
+    df = pd.DataFrame(rows, columns=list(RESULT_COLUMNS))
+    for col in RESULT_COLUMNS:
+        if col in NUMERIC_COLUMNS:
+            df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
+        else:
+            df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
+    return df
+
+
+def current(df):
+    """The newest row of each configuration (:data:`CONFIG_KEY`), sorted by it, with the
+    convergence orders of the dt sweeps filled in (reports.metrics)."""
+    from reports.metrics import add_convergence_orders
+
+    if df.empty:
+        return df
+    df = df.sort_values("finished_at", kind="stable")
+    df = df.drop_duplicates(subset=list(CONFIG_KEY), keep="last")  # NaN accuracies match
+    df = df.sort_values(list(CONFIG_KEY), ignore_index=True)
+    return add_convergence_orders(df)
+
+
+def read_results(folder: str | Path, all_rows: bool = False):
+    """The results of an output folder as a DataFrame: the current view (one row per
+    configuration, with convergence orders) or, with ``all_rows``, every stored row."""
+    folder = Path(folder)
+    if folder.is_file() and folder.name == STORE_NAME:
+        folder = folder.parent
+    elif folder.exists() and not folder.is_dir():
+        raise FileNotFoundError(
+            f"{folder}: not a results folder (give the folder that holds {STORE_NAME})"
+        )
+    with Store(folder) as st:
+        df = frame(st.rows())
+    return df if all_rows else current(df)
+
+
+def export(folder: str | Path, df=None) -> list[Path]:
+    """Write ``results.csv`` and ``results.parquet`` (the current view) from the store, each
+    by writing a temporary file and renaming it over the old one."""
+    folder = Path(folder)
+    if df is None:
+        df = read_results(folder)
+    paths = []
+    csv_path = folder / "results.csv"
+    tmp = csv_path.with_name(f".{csv_path.name}.{os.getpid()}.tmp")
+    with tmp.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(RESULT_COLUMNS)
+        for rec in df[list(RESULT_COLUMNS)].itertuples(index=False):
+            w.writerow(_csv_value(v) for v in rec)
+    tmp.replace(csv_path)
+    paths.append(csv_path)
+    pq = folder / "results.parquet"
+    tmp = pq.with_name(f".{pq.name}.{os.getpid()}.tmp")
+    df[list(RESULT_COLUMNS)].to_parquet(tmp, index=False)
+    tmp.replace(pq)
+    paths.append(pq)
+    return paths
+
+
+def default_dt(rows) -> float:
+    """The step shown in per-dt tables and time plots: the scenario's own ``dt``, the step of
+    the exact reference's run; without such a row, the dt with the most runs, ties broken by
+    the smaller step."""
+    exact = rows[rows["engine"] == "exact"]
+    if len(exact):
+        return float(exact["dt"].iloc[0])
+    counts = rows.groupby("dt").size()
+    return max(counts.index, key=lambda h: (counts[h], -h))
+
+
+def _csv_value(v) -> str:
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return str(v)

@@ -1,0 +1,103 @@
+"""Verdicts: whether a run tells the truth about its scenario to within tolerances.
+
+A completed run is not a correct one. Beside its ``status`` (did it complete, and can its
+numbers be trusted) every run gets a ``verdict``: ``pass`` when every bounded metric is within
+its tolerance, ``fail`` otherwise (a diverged run always fails), empty when there is nothing to
+judge (the run did not produce numbers: error, unsupported, unavailable, or its reference is
+not accurate enough to judge by).
+
+Tolerances come from, in increasing precedence:
+
+1. :data:`DEFAULT_TOLERANCES`, shared by every integrator family: a configuration that gets
+   the motion right to 0.1 rad of attitude, 1 % of the energy and momentum scales, 1 % on the
+   flip interval and nutation period, and keeps R orthonormal to 1e-9;
+2. the family's own (:class:`references.engines.Family` ``tolerances``: a family that
+   promises more is held to it, e.g. the director schemes keep R orthonormal to round-off),
+   then the integrator's own (:class:`references.engines.Integrator` ``tolerances``, e.g.
+   RATTLE conserves angular momentum to round-off);
+3. the scenario file's ``[tolerances]`` table (all families), then its
+   ``[tolerances."<family>"]`` sub-table (docs/scenarios.md).
+
+A reference whose accuracy estimate is not at least :data:`REFERENCE_MARGIN` times below the
+attitude tolerance cannot decide a verdict: such runs get the status
+``reference-inaccurate``, with the figure, instead of numbers that look like measurements.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: Default verdict bounds, every family (metric -> largest value that passes). The metrics
+#: and their scales are in reports.metrics; the values are this suite's choice of "right":
+#: the attitude to 0.1 rad (a flip at the right time, a top on the right side), energy and
+#: momentum to 1 % of the scenario's scales, phase observables to 1 %, and R orthonormal to
+#: 1e-9 (every engine that renormalises keeps ~1e-15).
+DEFAULT_TOLERANCES = {
+    "attitude_error_max": 0.1,
+    "energy_drift_max": 1e-2,
+    "momentum_drift_max": 1e-2,
+    "orthonormality_max": 1e-9,
+    "flip_interval_error": 1e-2,
+    "nutation_period_error": 1e-2,
+}
+
+#: the reference must be this many times more accurate than the attitude tolerance
+REFERENCE_MARGIN = 10.0
+
+
+def tolerances(scenario, integrator) -> dict[str, float]:
+    """The verdict bounds of a run of ``scenario`` by ``integrator`` (an
+    :class:`references.engines.Integrator`)."""
+    from references.engines import FAMILIES
+
+    family = integrator.family
+    out = dict(DEFAULT_TOLERANCES)
+    fam = FAMILIES.get(family)
+    if fam is not None:
+        out.update(fam.tolerances)
+    out.update(integrator.tolerances)
+    file_tol = getattr(scenario, "tolerances", {}) or {}
+    out.update(file_tol.get("*", {}))
+    out.update(file_tol.get(family, {}))
+    return out
+
+
+def unknown_families(scenario) -> list[str]:
+    """Families named in the scenario's ``[tolerances]`` table that no engine registers."""
+    from references.engines import FAMILIES
+
+    return [
+        f for f in (getattr(scenario, "tolerances", {}) or {}) if f != "*" and f not in FAMILIES
+    ]
+
+
+def reference_problem(reference_accuracy: float, bounds: dict[str, float]) -> str | None:
+    """The reason a reference cannot judge a run, or None."""
+    tol = bounds.get("attitude_error_max")
+    if tol is None:
+        return None
+    if not (reference_accuracy <= tol / REFERENCE_MARGIN):
+        return (
+            f"the reference's accuracy estimate {reference_accuracy:.3g} rad is not "
+            f"{REFERENCE_MARGIN:g}x below the attitude tolerance {tol:g} rad, so its errors "
+            "cannot be told from the reference's"
+        )
+    return None
+
+
+def verdict(row: dict, bounds: dict[str, float]) -> tuple[str, str]:
+    """(verdict, detail) of a result row: "pass"/"fail" with the metrics out of bounds, or
+    ("", "") when the row has nothing to judge."""
+    status = row.get("status")
+    if status == "diverged":
+        return "fail", f"diverged at t = {row.get('t_diverged', math.nan):.6g} s"
+    if status != "ok":
+        return "", ""
+    over = []
+    for metric, bound in bounds.items():
+        value = row.get(metric, math.nan)
+        if value is None or (isinstance(value, float) and math.isnan(value)):
+            continue
+        if not value <= bound:
+            over.append(f"{metric} {value:.3g} > {bound:.3g}")
+    return ("fail", "; ".join(over)) if over else ("pass", "")
