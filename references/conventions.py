@@ -80,7 +80,10 @@ def vee(S) -> np.ndarray:
 def _unit(q, name: str) -> np.ndarray:
     q = np.asarray(q, dtype=float).reshape(4)
     n = math.sqrt(float(q @ q))
-    if not (n > 0.0 and math.isfinite(n)):
+    if not math.isfinite(n):
+        # a diverged engine state: keep it non-finite, the run loop reports the divergence
+        return np.full(4, math.nan)
+    if not n > 0.0:
         raise ValueError(f"{name} quaternion {q.tolist()} has no direction (norm {n})")
     return q / n
 
@@ -455,3 +458,114 @@ def check_initial_state(
                 "convention conversion or the model's mass properties are wrong"
             )
     return errors
+
+
+# -- Drake (pydrake): layouts and frames ---------------------------------------------------
+#
+# Measured with drake 1.51.1 (tests/test_engine_drake.py checks each against Drake itself):
+#
+# ===========================  =================================  ===========================
+# joint                        positions                          velocities
+# ===========================  =================================  ===========================
+# QuaternionFloatingJoint      q = [q_FM wxyz (4), p_FM (3)]      v = [w_FM (3), v_FM (3)],
+#                                                                 both in F (= WORLD here)
+# BallRpyJoint                 q = [roll, pitch, yaw] of R_FM      v = w_FM expressed in F
+#                              (R_FM = Rz(yaw) Ry(pitch) Rx(roll))
+# ===========================  =================================  ===========================
+#
+# Drake never renormalises a QuaternionFloatingJoint's quaternion: its kinematics use
+# q/|q| (the body pose is orthonormal whatever |q|), its kinematic map is qdot = 1/2 (0, w) q
+# with the raw q (which keeps |q| in the exact flow), and an integrator's error changes |q|.
+# :func:`drake_free_to_state` shows that change instead of hiding it: R is the homogeneous
+# quadratic form of the raw q, so R^T R = |q|^4 1 and the suite's orthonormality metric sees
+# it; W is Drake's own body angular velocity R(q/|q|)^T w, so the kinetic energy is Drake's.
+#
+# The RPY ball joint is a chart of SO(3) with a singularity at pitch = +-pi/2; the adapter
+# places its frames F (on the world) and M (on the body) so that the run stays away from it
+# (references/engines/drake_engine.py), and the conversions below take those frames.
+
+
+def quat_wxyz_to_matrix_unnormalised(q) -> np.ndarray:
+    """R(q) = the homogeneous quadratic form of the quaternion (w, x, y, z), NOT normalised:
+    R(c q) = c^2 R(q) and R^T R = |q|^4 1, so a quaternion whose norm drifted gives a matrix
+    whose orthonormality error shows the drift (|q|^4 - 1)."""
+    w, x, y, z = _vec(q, 4, "wxyz quaternion").tolist()
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    return np.array(
+        [
+            [ww + xx - yy - zz, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), ww - xx + yy - zz, 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), ww - xx - yy + zz],
+        ]
+    )
+
+
+def drake_free_from_state(x, v, R, W) -> tuple[np.ndarray, np.ndarray]:
+    """(q (7,), v (6,)) of a Drake QuaternionFloatingJoint between the world frame and the
+    body's principal COM frame: q = [q wxyz, x], v = [w WORLD, v WORLD]."""
+    R = np.asarray(R, dtype=float)
+    q = np.concatenate([matrix_to_quat_wxyz(R), _vec(x, 3, "x")])
+    vel = np.concatenate([R @ _vec(W, 3, "W"), _vec(v, 3, "v")])
+    return q, vel
+
+
+def drake_free_to_state(q, v) -> BodyState:
+    """Suite state of a Drake QuaternionFloatingJoint (angular velocity in WORLD axes).
+
+    R is built from the raw quaternion without normalising it
+    (:func:`quat_wxyz_to_matrix_unnormalised`); W = R^T w / |q|^2 = R(q/|q|)^T w, the body
+    angular velocity in Drake's own kinematics."""
+    q = _vec(q, 7, "Drake QuaternionFloatingJoint positions")
+    u = _vec(v, 6, "Drake QuaternionFloatingJoint velocities")
+    quat = q[:4]
+    n2 = float(quat @ quat)
+    if not (n2 > 0.0 and math.isfinite(n2)):
+        raise ValueError(f"Drake quaternion {quat.tolist()} has no direction (|q|^2 = {n2})")
+    R = quat_wxyz_to_matrix_unnormalised(quat)
+    return BodyState(q[4:].copy(), u[3:].copy(), R, R.T @ u[:3] / n2)
+
+
+def rpy_to_matrix(rpy) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) of rpy = (roll, pitch, yaw): Drake's RollPitchYaw
+    (space-fixed x-y-z angles)."""
+    r, p, y = _vec(rpy, 3, "rpy").tolist()
+    cr, sr = math.cos(r), math.sin(r)
+    cp, sp = math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def matrix_to_rpy(R) -> np.ndarray:
+    """(roll, pitch, yaw) with |pitch| <= pi/2 of a rotation R = Rz(yaw) Ry(pitch) Rx(roll).
+
+    Accurate while cos(pitch) is not small (atan2 throughout, pitch from atan2(-R20,
+    hypot(R00, R10))); at pitch = +-pi/2 the roll and yaw are not separately defined."""
+    R = np.asarray(R, dtype=float)
+    if R.shape != (3, 3):
+        raise ValueError(f"rotation matrix must have shape (3, 3), got {R.shape}")
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    return np.array([math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])])
+
+
+def drake_ball_rpy_from_state(R, W, R_WF, R_BM) -> tuple[np.ndarray, np.ndarray]:
+    """(rpy (3,), w_FM in F (3,)) of a Drake BallRpyJoint whose frame F on the world has
+    rotation ``R_WF`` and whose frame M on the body (principal axes B) has rotation ``R_BM``:
+    R_FM = R_WF^T R R_BM, w_F = R_WF^T R W."""
+    R = np.asarray(R, dtype=float)
+    R_WF = np.asarray(R_WF, dtype=float)
+    R_FM = R_WF.T @ R @ np.asarray(R_BM, dtype=float)
+    return matrix_to_rpy(R_FM), R_WF.T @ (R @ _vec(W, 3, "W"))
+
+
+def drake_ball_rpy_to_state(rpy, w_F, R_WF, R_BM) -> tuple[np.ndarray, np.ndarray]:
+    """(R, W) of a Drake BallRpyJoint (see :func:`drake_ball_rpy_from_state`):
+    R = R_WF R_FM(rpy) R_BM^T, W = R^T R_WF w_F."""
+    R_WF = np.asarray(R_WF, dtype=float)
+    R = R_WF @ rpy_to_matrix(rpy) @ np.asarray(R_BM, dtype=float).T
+    return R, R.T @ (R_WF @ _vec(w_F, 3, "BallRpyJoint angular velocity"))

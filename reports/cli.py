@@ -316,6 +316,15 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _quiet_exit() -> int:
+    """The reader of our output went away (`director-bench list | head`): stop quietly, with
+    standard output pointed at /dev/null so that the interpreter's final flush stays quiet."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     from reports.results import StoreDamaged, StoreUnwritable
 
@@ -333,11 +342,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"director-bench: error: {exc}", file=sys.stderr)
         return 1
     except BrokenPipeError:
-        # the reader of our output went away (`director-bench list | head`): stop quietly
-        with contextlib.suppress(OSError):
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
-        return 0
+        return _quiet_exit()
+    except OSError as exc:
+        # writing the report or an export failed (disk full, a file-size limit): the results
+        # store holds every finished run
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(
+            f"director-bench: error: {where}{exc.strerror or exc}; finished runs are kept in "
+            "the results store, rerun (or `director-bench report DIR`) when there is room",
+            file=sys.stderr,
+        )
+        return 1
     except KeyboardInterrupt:
         print(
             "\ndirector-bench: interrupted; finished runs are kept in the results store, "

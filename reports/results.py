@@ -126,8 +126,9 @@ NUMERIC_COLUMNS = frozenset(
 #: statuses, in the order reports list them
 STATUSES = ("ok", "reference-inaccurate", "diverged", "error", "unsupported", "unavailable")
 
-#: statuses a rerun tries again: the engine may have been installed since
-RETRY_STATUSES = frozenset({"unavailable"})
+#: statuses a rerun tries again: the engine may have been installed since, or the fault of
+#: the suite that made the error may have been fixed
+RETRY_STATUSES = frozenset({"unavailable", "error"})
 
 #: the columns that name one configuration in tables (several identities may share them);
 #: target_accuracy is NaN for fixed-step integrators

@@ -11,6 +11,7 @@ interruption loses only the runs in flight, and a rerun skips what is done.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
@@ -25,6 +26,7 @@ from reports.metrics import compute_metrics, roundoff_floor
 from reports.results import (
     RunSpec,
     Store,
+    StoreUnwritable,
     blank_row,
     error_series_path,
     export,
@@ -155,6 +157,8 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     except EngineError as exc:
         row["status"] = exc.status
         row["message"] = str(exc)
+    except StoreUnwritable:
+        raise  # the output folder cannot take the results: the work stops, nothing is lost
     except Exception as exc:  # noqa: BLE001 - a run's failure is a row, never a crash
         row["status"] = "error"
         tb = traceback.extract_tb(exc.__traceback__)[-1]
@@ -213,21 +217,16 @@ def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
             row["reference_accuracy"] = max(row["reference_accuracy"], recorder.reference_accuracy)
     if out is not None and len(traj):
         rel = trajectory_path(spec, fmt)
-        identity = {
-            k: row[k]
-            for k in (
-                "run_id",
-                "scenario",
-                "scenario_hash",
-                "engine",
-                "engine_version",
-                "integrator",
-                "dt",
-                "t_end",
-            )
-        }
-        write_trajectory(traj, Path(out) / rel, fmt, identity)
-        write_error_series(sc, traj, ref, Path(out) / error_series_path(rel))
+        keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
+        identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
+        try:
+            write_trajectory(traj, Path(out) / rel, fmt, identity)
+            write_error_series(sc, traj, ref, Path(out) / error_series_path(rel))
+        except OSError as exc:
+            raise StoreUnwritable(
+                f"{Path(out) / rel}: cannot write the run's trajectory ({exc.strerror or exc}; "
+                "disk full or a file-size limit?); finished runs are kept, rerun to continue"
+            ) from exc
         row["trajectory"] = rel.as_posix()
 
 
@@ -369,9 +368,18 @@ def run_suite(
         finally:
             if bar is not None:
                 bar.close()
-            df = read_results(out)
-            export(out, df)
+            df = _export_quietly(out)
     return df, n_run
+
+
+def _export_quietly(out: Path):
+    """Export the store (also after an interruption); an export that cannot be written
+    (disk full) must not hide the error that stopped the run, and loses nothing: the store
+    holds every row and the next run or report exports again."""
+    df = read_results(out)
+    with contextlib.suppress(OSError):
+        export(out, df)
+    return df
 
 
 def _bar(n: int):

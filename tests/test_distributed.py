@@ -1,8 +1,8 @@
 """Sweeps on a real Dask cluster: a scheduler and two worker processes started here on
-loopback. The rows equal a serial run's (runs are deterministic), and an interrupted
-distributed sweep resumes without redoing finished runs."""
+loopback, through the running interpreter (``python -m distributed.cli...``, so no `dask`
+command needs to be on PATH). The rows equal a serial run's (runs are deterministic), and an
+interrupted distributed sweep resumes without redoing finished runs."""
 
-import shutil
 import socket
 import subprocess
 import sys
@@ -13,13 +13,14 @@ import pytest
 
 import scenarios
 from reports.parallel import dask_cluster
-from reports.runner import plan, read_results, run_suite
+from reports.results import read_results
+from reports.runner import plan, run_suite
 
 pytest.importorskip(
     "distributed", reason="Dask's distributed is not installed (pip install 'director-bench[dask]')"
 )
-DASK = shutil.which("dask")
-pytestmark = pytest.mark.skipif(DASK is None, reason="the `dask` command is not on PATH")
+SCHEDULER = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+WORKER = [sys.executable, "-m", "distributed.cli.dask_worker"]
 
 
 def free_port() -> int:
@@ -34,7 +35,7 @@ def cluster():
     address = f"tcp://127.0.0.1:{port}"
     procs = [
         subprocess.Popen(
-            [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            [*SCHEDULER, "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
@@ -43,8 +44,7 @@ def cluster():
         procs.append(
             subprocess.Popen(
                 [
-                    DASK,
-                    "worker",
+                    *WORKER,
                     address,
                     "--nworkers",
                     "1",

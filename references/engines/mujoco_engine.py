@@ -37,7 +37,18 @@ _INTEGRATOR_ENUM = {
 
 
 def _import():
-    return import_engine("mujoco", "MuJoCo", "mujoco")
+    mujoco = import_engine("mujoco", "MuJoCo", "mujoco")
+    if mujoco.get_mju_user_warning() is None:
+        # MuJoCo's default handler prints each warning on standard output; the run loop reads
+        # the warning counters itself (guard), so the text goes to MuJoCo's log file only, in
+        # the current directory, which during a suite run is the output folder's logs/
+        mujoco.set_mju_user_warning(_log_warning)
+    return mujoco
+
+
+def _log_warning(message: str) -> None:
+    with open("MUJOCO_LOG.TXT", "a") as fh:
+        fh.write(f"WARNING: {message}\n")
 
 
 def _num(a) -> str:

@@ -1,0 +1,364 @@
+"""Fault injection: results survive kill -9, concurrent writers, damaged stores, read-only
+folders and a full disk. Each test counts rows lost (a run finished and committed, or run to
+completion after recovery, that the store does not hold) and rows wrong (a stored row whose
+deterministic content differs from a clean run's): both must be 0.
+
+The long variants (many kill points) are marked slow; the default run keeps one of each.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from reports.results import (
+    NUMERIC_COLUMNS,
+    RESULT_COLUMNS,
+    Store,
+    StoreDamaged,
+    read_results,
+)
+
+#: columns that may differ between two runs of the same configuration (timings, the time of
+#: day); every other column is deterministic and must be equal
+VOLATILE = {
+    "wall_time_s",
+    "engine_time_s",
+    "glue_time_s",
+    "ns_per_step",
+    "engine_ns_per_step",
+    "finished_at",
+    "convergence_order",
+    "convergence_points",
+}
+
+RUN_ARGS = [
+    "run", "free_tumbling", "heavy_top", "--engines", "mujoco,pybullet,exact",
+    "--t-end", "2", "--quiet", "--no-report", "--jobs", "1",
+]  # fmt: skip
+
+
+def cli(*args, env=None, timeout=600, **kw):
+    return subprocess.run(
+        [sys.executable, "-m", "reports.cli", *args],
+        capture_output=True, text=True, timeout=timeout, env=env, **kw,
+    )  # fmt: skip
+
+
+def rows_by_id(folder) -> dict:
+    with Store(folder) as st:
+        return {r["run_id"]: r for r in st.rows()}
+
+
+def same(a: dict, b: dict) -> bool:
+    for c in RESULT_COLUMNS:
+        if c in VOLATILE:
+            continue
+        x, y = a.get(c), b.get(c)
+        if c in NUMERIC_COLUMNS:
+            x, y = float(x), float(y)
+            if not (x == y or (math.isnan(x) and math.isnan(y))):
+                return False
+        elif x != y:
+            return False
+    return True
+
+
+def count_lost_and_wrong(got: dict, clean: dict) -> tuple[int, int]:
+    lost = sum(1 for k in clean if k not in got)
+    wrong = sum(1 for k, r in got.items() if k not in clean or not same(r, clean[k]))
+    return lost, wrong
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    """The rows of an undisturbed run of RUN_ARGS."""
+    out = tmp_path_factory.mktemp("clean")
+    proc = cli(*RUN_ARGS, "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    rows = rows_by_id(out)
+    assert len(rows) >= 20
+    return rows
+
+
+# -- kill -9 ------------------------------------------------------------------------------------
+
+
+def kill_run_at(out: Path, delay: float) -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "reports.cli", *RUN_ARGS, "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    time.sleep(delay)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+
+
+def check_killed_then_resumed(out: Path, clean: dict) -> None:
+    if (out / "results.sqlite").exists():
+        partial = rows_by_id(out)  # readable, every checksum valid: no half row
+        lost, wrong = count_lost_and_wrong(partial, clean)
+        assert wrong == 0, f"{wrong} wrong rows after kill -9"
+    proc = cli(*RUN_ARGS, "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    lost, wrong = count_lost_and_wrong(rows_by_id(out), clean)
+    assert (lost, wrong) == (0, 0)
+
+
+def test_kill_9_during_a_run_loses_nothing(tmp_path, clean):
+    kill_run_at(tmp_path / "out", 6.0)
+    check_killed_then_resumed(tmp_path / "out", clean)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(6))
+def test_kill_9_at_random_points_of_a_run(tmp_path, clean, seed):
+    kill_run_at(tmp_path / "out", random.Random(seed).uniform(2.0, 14.0))
+    check_killed_then_resumed(tmp_path / "out", clean)
+
+
+WRITER = """
+import sys
+from reports.results import RESULT_COLUMNS, Store
+folder, tag, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+with Store(folder, create=True) as st:
+    for i in range(n):
+        row = dict.fromkeys(RESULT_COLUMNS, "")
+        row.update(run_id=f"{tag}-{i}", scenario=tag, engine="e", integrator="i", dt=0.001,
+                   status="ok", message="x" * 2000, energy_drift_max=i * 1e-3)
+        st.put(row)
+"""
+
+
+def writer(folder, tag, n):
+    return subprocess.Popen(
+        [sys.executable, "-c", WRITER, str(folder), tag, str(n)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )  # fmt: skip
+
+
+def check_writer_rows(folder, tag, n_max) -> int:
+    """Rows of one writer: a prefix 0..k-1 of what it meant to write, each row intact."""
+    rows = [r for r in rows_by_id(folder).values() if r["scenario"] == tag]
+    ids = sorted(int(r["run_id"].split("-")[1]) for r in rows)
+    assert ids == list(range(len(ids))) and len(ids) <= n_max
+    for r in rows:
+        i = int(r["run_id"].split("-")[1])
+        assert r["message"] == "x" * 2000 and r["energy_drift_max"] == i * 1e-3
+    return len(ids)
+
+
+@pytest.mark.parametrize("seed", [0])
+def test_kill_9_during_store_writes_leaves_no_half_row(tmp_path, seed):
+    rng = random.Random(seed)
+    total = 0
+    for k in range(3):
+        p = writer(tmp_path, f"w{k}", 100000)
+        time.sleep(rng.uniform(0.5, 1.5))
+        p.send_signal(signal.SIGKILL)
+        p.wait()
+        total += check_writer_rows(tmp_path, f"w{k}", 100000)
+    assert total > 0  # the writers did get rows in before being killed
+
+
+def test_concurrent_writers_lose_nothing(tmp_path):
+    procs = [writer(tmp_path, f"c{k}", 300) for k in range(3)]
+    for p in procs:
+        assert p.wait(timeout=300) == 0, p.stderr.read().decode()
+    counts = [check_writer_rows(tmp_path, f"c{k}", 300) for k in range(3)]
+    assert counts == [300, 300, 300]  # rows lost: 0
+
+
+def test_two_run_commands_into_one_folder(tmp_path, clean):
+    """Two `run` commands writing the same folder at once (different scenarios): the store
+    holds both sets; and the rows equal a clean run's."""
+    out = tmp_path / "out"
+    args = [a for a in RUN_ARGS if a not in ("free_tumbling", "heavy_top")]
+    a = subprocess.Popen(
+        [sys.executable, "-m", "reports.cli", "run", "free_tumbling", *args[1:], "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    b = subprocess.Popen(
+        [sys.executable, "-m", "reports.cli", "run", "heavy_top", *args[1:], "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    assert a.wait(timeout=600) == 0, a.stderr.read().decode()
+    assert b.wait(timeout=600) == 0, b.stderr.read().decode()
+    lost, wrong = count_lost_and_wrong(rows_by_id(out), clean)
+    assert (lost, wrong) == (0, 0)
+
+
+# -- damaged stores -----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def small_store(tmp_path):
+    with Store(tmp_path, create=True) as st:
+        for i in range(200):
+            row = dict.fromkeys(RESULT_COLUMNS, "")
+            row.update(run_id=f"r{i}", scenario="s", engine="e", integrator="i", dt=1e-3,
+                       status="ok", message="m" * 500)  # fmt: skip
+            st.put(row)
+    return tmp_path
+
+
+def test_truncated_store_is_reported_not_read(small_store, capsys):
+    from reports.cli import main
+
+    path = small_store / "results.sqlite"
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(StoreDamaged, match="damaged"):
+        read_results(small_store)
+    assert main(["report", str(small_store)]) == 1
+    err = capsys.readouterr().err
+    assert "results.sqlite" in err and "damaged" in err and "Traceback" not in err
+
+
+def test_garbled_store_is_reported_not_read(small_store):
+    path = small_store / "results.sqlite"
+    data = bytearray(path.read_bytes())
+    rng = random.Random(1)
+    # garble the content of the rows (past the header page): a value changes inside a row
+    at = data.find(b"m" * 500, 4096)
+    assert at > 0
+    data[at + 10 : at + 14] = b"XXXX"
+    path.write_bytes(bytes(data))
+    with pytest.raises(StoreDamaged, match="checksum"):
+        read_results(small_store)
+    # random garbage over a page: malformed
+    start = rng.randrange(4096, len(data) - 4096)
+    data[start : start + 4096] = bytes(rng.randrange(256) for _ in range(4096))
+    path.write_bytes(bytes(data))
+    with pytest.raises(StoreDamaged):
+        read_results(small_store)
+
+
+def test_a_file_that_is_not_a_store(tmp_path):
+    (tmp_path / "results.sqlite").write_text("not a database, just text " * 100)
+    with pytest.raises(StoreDamaged, match="damaged"):
+        read_results(tmp_path)
+
+
+# -- read-only folder and a full disk -----------------------------------------------------------
+
+
+def _read_only_command(folder: Path, args: list[str]) -> list[str] | None:
+    """The command running ``args`` with ``folder`` read-only: permissions for a normal user;
+    for root (whom permissions do not stop) a read-only bind mount in a private mount
+    namespace (``unshare -rm``), or None where that is not possible here."""
+    cmd = [sys.executable, "-m", "reports.cli", *args]
+    if os.geteuid() != 0:
+        folder.chmod(0o555)
+        return cmd
+    unshare = shutil.which("unshare")
+    if unshare is None:
+        return None
+    mount = f"mount --bind {folder} {folder} && mount -o remount,bind,ro {folder}"
+    if subprocess.run([unshare, "-rm", "sh", "-c", mount], capture_output=True).returncode:
+        return None
+    return [unshare, "-rm", "sh", "-c", mount + ' && exec "$@"', "sh", *cmd]
+
+
+def test_read_only_output_folder_is_refused_up_front(tmp_path):
+    """A folder that cannot be written: exit 2 naming it, no traceback, nothing written."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    cmd = _read_only_command(ro, ["run", "free_tumbling", "--engines", "exact", "--out", str(ro)])
+    if cmd is None:
+        pytest.skip("running as root without user namespaces: no way to make a folder read-only")
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    ro.chmod(0o755)
+    assert proc.returncode == 2, proc.stderr
+    assert str(ro) in proc.stderr and "cannot write" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert list(ro.iterdir()) == []
+
+
+def _limit_file_size(nbytes):
+    def pre():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+
+    return pre
+
+
+def test_full_disk_stops_the_run_and_a_rerun_completes(tmp_path, clean):
+    """A file-size limit (ulimit -f) makes writes fail with EFBIG as on a full disk: the run
+    stops with exit 1 and a message, no traceback; the rows it committed are right, and a
+    rerun without the limit completes with no row lost or wrong."""
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "reports.cli", *RUN_ARGS, "--out", str(out)],
+        capture_output=True, text=True, timeout=600, preexec_fn=_limit_file_size(150_000),
+    )  # fmt: skip
+    assert proc.returncode == 1, (proc.returncode, proc.stderr[-2000:])
+    assert "Traceback" not in proc.stderr and "rerun" in proc.stderr
+    partial = rows_by_id(out)
+    assert 0 < len(partial) < len(clean)
+    assert count_lost_and_wrong(partial, clean)[1] == 0
+    proc = cli(*RUN_ARGS, "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert count_lost_and_wrong(rows_by_id(out), clean) == (0, 0)
+
+
+# -- processes and files ------------------------------------------------------------------------
+
+
+def _marked_processes(mark: str) -> list[int]:
+    pids = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            if mark.encode() in (d / "environ").read_bytes():
+                pids.append(int(d.name))
+        except OSError:
+            continue
+    return pids
+
+
+@pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs Linux /proc")
+def test_workers_end_when_the_main_process_is_killed(tmp_path):
+    mark = f"DIRECTOR_BENCH_TEST_MARK={uuid.uuid4().hex}"
+    env = dict(os.environ, DIRECTOR_BENCH_TEST_MARK=mark.split("=", 1)[1])
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "reports.cli", "run", "dzhanibekov", "--engines",
+         "mujoco,pybullet", "--out", str(tmp_path / "o"), "--quiet", "--jobs", "2"],
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    deadline = time.monotonic() + 60
+    while len(_marked_processes(mark)) < 3 and time.monotonic() < deadline:
+        time.sleep(0.2)  # the main process and its two workers
+    assert len(_marked_processes(mark)) >= 3, "the workers did not start"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while _marked_processes(mark) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _marked_processes(mark) == []
+
+
+def test_nothing_is_written_outside_the_output_folder(tmp_path):
+    """heavy_top under MuJoCo Euler at dt = 4e-3 diverges, and MuJoCo writes MUJOCO_LOG.TXT
+    into the current directory when it warns: the runs execute in the output folder's logs."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    out = tmp_path / "out"
+    proc = cli(
+        "run", "heavy_top", "--engines", "mujoco", "--integrators", "Euler", "--dt", "4e-3",
+        "--out", str(out), "--quiet", "--jobs", "1", cwd=str(cwd),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert list(cwd.iterdir()) == []
+    assert read_results(out)["status"].tolist() == ["diverged"]
