@@ -152,8 +152,8 @@ def compare(
     scenario); by default missing and new runs are findings too."""
     if not factor >= 1.0:
         raise ValueError(f"--factor {factor!r}: must be a number >= 1")
-    df = read_results(results_dir)
     base = read_baseline(baseline_path)
+    df = read_results(results_dir)
     current = {
         config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"]): r
         for _, r in df.iterrows()

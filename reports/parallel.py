@@ -128,12 +128,17 @@ def dask_cluster(address: str, timeout: float = 20.0) -> Callable:
             "(pip install 'director-bench[dask]')"
         ) from exc
 
-    def mapper(fn, specs):
-        specs = list(specs)
+    def connect():
         try:
-            client = Client(address, timeout=f"{timeout}s")
+            return Client(address, timeout=f"{timeout}s")
         except OSError as exc:
             raise ValueError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from exc
+
+    connect().close()  # an unreachable scheduler is bad input, said before anything runs
+
+    def mapper(fn, specs):
+        specs = list(specs)
+        client = connect()
         try:
             futures = client.map(fn, specs, pure=False)
             try:

@@ -264,6 +264,7 @@ def plan(
     save_every: int | None = None,
     segment: int | None = None,
     accuracies: Sequence[float] | None = None,
+    max_states: int | None = None,
 ) -> list[RunSpec]:
     """The specs of a suite: every scenario x engine x integrator x dt (x target accuracy,
     for error-controlled integrators: ``accuracies``, else the scenario's ``run.accuracies``,
@@ -275,8 +276,8 @@ def plan(
     offering none of them contributes nothing). ``save_every`` overrides the scenarios'
     decimation; ``segment`` streams the metrics over every step. Engines that are not
     installed still get specs, so that their absence is recorded as rows. Input that cannot
-    run (a step that does not divide the horizon, a tolerance for an unknown family) is a
-    ``ValueError`` naming the scenario, before any run.
+    run (a step that does not divide the horizon, a tolerance for an unknown family, more
+    kept states than ``max_states``) is a ``ValueError`` naming the scenario, before any run.
     """
     from references.engines import engine_names, get_engine, step_plan
 
@@ -295,9 +296,11 @@ def plan(
         steps = [float(h) for h in dts] if dts else [sc.dt, *(sc.dt_sweep if sweep else ())]
         steps = sorted(set(steps), reverse=True)
         horizon = sc.t_end if t_end is None else t_end
+        keep = sc.save_every if save_every is None else save_every
         for h in steps:
+            _check_states(sc, h, horizon, keep, segment, max_states)
             try:
-                step_plan(h, horizon, sc.save_every if save_every is None else save_every)
+                step_plan(h, horizon, keep)
             except ValueError as exc:
                 raise ValueError(f"scenario {sc.name!r}: {exc}") from None
         for name in engines:
@@ -315,6 +318,38 @@ def plan(
                 else:
                     specs += [RunSpec(sc, name, integ, h, *common) for h in steps_e]
     return specs
+
+
+#: bytes of memory a run needs per state it keeps (the trajectory, its reference and the
+#: metric series; ~1.3 kB measured with tracemalloc on the library's scenarios, rounded up)
+BYTES_PER_STATE = 2000
+
+
+def max_states(jobs: int) -> int:
+    """The most states one run may keep: a quarter of this machine's memory per worker."""
+    import os
+
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        total = 8 << 30
+    return int(total / (4 * max(jobs, 1)) / BYTES_PER_STATE)
+
+
+def _check_states(sc, dt, horizon, save_every, segment, max_states) -> None:
+    """Refuse, before any run, a horizon whose kept states would not fit in memory."""
+    if max_states is None:
+        return
+    kept = round(horizon / dt) // save_every + 2 + (segment or 0)
+    if kept > max_states:
+        need = kept * BYTES_PER_STATE / 2**30
+        have = max_states * BYTES_PER_STATE / 2**30
+        raise ValueError(
+            f"scenario {sc.name!r} at dt = {dt:g} s to t_end = {horizon:g} s keeps {kept:.3g} "
+            f"states (~{need:.3g} GiB), more than a quarter of this machine's memory per worker "
+            f"({have:.3g} GiB): keep fewer with --save-every N (one state in N), and add "
+            "--segment M to still measure every step (memory O(M))"
+        )
 
 
 def _version(cls) -> str:

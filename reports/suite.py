@@ -101,34 +101,6 @@ def check_out(out) -> Path:
     return out
 
 
-#: bytes of memory a run needs per state it keeps (the trajectory, its reference and the
-#: metric series, measured with tracemalloc on the library's scenarios: ~1.3 kB; rounded up)
-BYTES_PER_STATE = 2000
-
-
-def check_memory(specs, jobs: int) -> None:
-    """Refuse, before any run, a horizon whose saved states would not fit in memory."""
-    import os
-
-    try:
-        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
-        total = 8 << 30
-    limit = total / (4 * max(jobs, 1))
-    for sp in specs:
-        nstep = round(sp.horizon / sp.dt)
-        kept = nstep // sp.saving + 2 + (sp.segment or 0)
-        need = kept * BYTES_PER_STATE
-        if need > limit:
-            raise ValueError(
-                f"scenario {sp.scenario.name!r} at dt = {sp.dt:g} s to t_end = "
-                f"{sp.horizon:g} s keeps {kept:.3g} states (~{need / 2**30:.3g} GiB), more "
-                f"than a quarter of this machine's memory per worker ({limit / 2**30:.3g} GiB): "
-                f"keep fewer with --save-every N (one state in N; metrics still over every step "
-                f"with --segment M, memory O(M))"
-            )
-
-
 def run(
     names=(),
     *,
@@ -159,27 +131,27 @@ def run(
     from reports.parallel import make_mapper
     from reports.provenance import write_provenance
     from reports.report import build_report
-    from reports.runner import plan, run_suite
+    from reports.runner import max_states, plan, run_suite
 
     for name, value in (("--jobs", jobs), ("--segment", segment), ("--save-every", save_every)):
         check_count(name, value)
-    out = check_out(out)
+    out = Path(out).expanduser().resolve()
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: is a file, not a folder")
     scs = resolve_scenarios(names, all_scenarios)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)
-    specs = plan(scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies)
+    limit = max_states(jobs or os.cpu_count() or 1)  # reports.runner
+    specs = plan(
+        scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit
+    )
     if not specs:
         raise ValueError("nothing to run: no engine offers the integrators asked for")
-    check_memory(specs, jobs or os.cpu_count() or 1)
+    mapper = make_mapper(jobs, scheduler, out)
+    # every input is checked: only now is anything written
+    out = check_out(out)
     write_provenance(out, engines)
-    df, n_run = run_suite(
-        specs,
-        out,
-        redo=redo,
-        fmt=fmt,
-        progress=progress,
-        mapper=make_mapper(jobs, scheduler, out),
-    )
+    df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
     rep = build_report(out, progress=progress) if report else {}
     path = junit.write(df, out / "junit.xml")
     return RunSummary(out, n_run, len(specs) - n_run, df, rep, path)

@@ -1,0 +1,114 @@
+"""Bad input never ends in a traceback: every case exits 2 (bad input) or 1 (a failure of the
+work) with a message naming the argument or file, the value and the rule, and no run starts.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import scenarios
+from reports.cli import main
+
+FREE = Path(scenarios.library_path()) / "free_tumbling.toml"
+
+
+def run_main(argv, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse refuses a malformed option itself
+        code = exc.code
+    err = capsys.readouterr().err
+    return code, err
+
+
+def user_file(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def cases(tmp_path):
+    """(argv, exit code, words the message must contain)."""
+    out = str(tmp_path / "out")
+    a_file = user_file(tmp_path, "a_file.txt", "x")
+    twin = user_file(
+        tmp_path, "twin.toml", FREE.read_text().replace("[0.9, 1.4, 2.0]", "[1.0, 1.4, 2.0]")
+    )
+    unknown_family = user_file(
+        tmp_path, "fam.toml", FREE.read_text() + '\n[tolerances."RK9000"]\nattitude_error_max = 1\n'
+    )
+    list_json = user_file(tmp_path, "list.json", "[1, 2, 3]")
+    empty_dir = tmp_path / "empty"
+    empty_dir.mkdir()
+    return [
+        (["run", "dzhanibekov", "--t-end", "1e9", "--out", out], 2, ["GiB", "--save-every"]),
+        (["run", "free_tumbling", "--out", a_file], 2, ["a_file.txt", "not a folder"]),
+        (["run", "/dev/zero", "--out", out], 2, ["/dev/zero", "not a regular file"]),
+        (["run", str(tmp_path), "--out", out], 2, ["not a regular file"]),
+        (["run", "--engines", "", "--out", out], 2, ["--engines", "empty", "mujoco"]),
+        (["run", "--engines", "mujoco,bulletz", "--out", out], 2, ["bulletz", "known"]),
+        (["run", "--integrators", "rattle,RK44", "--out", out], 2, ["RK44", "rattle4"]),
+        (["run", "--integrators", "rattel", "--out", out], 2, ["rattel", "offer"]),
+        (["run", "--engines", "mujoco", "--integrators", "rattle", "--out", out], 2, ["rattle"]),
+        (["run", "--jobs", "0", "--out", out], 2, ["--jobs", ">= 1"]),
+        (["run", "--segment", "0", "--out", out], 2, ["--segment", ">= 1"]),
+        (["run", "--save-every", "-3", "--out", out], 2, ["--save-every", ">= 1"]),
+        (["run", "--dt", "-1", "--out", out], 2, ["--dt", "> 0"]),
+        (["run", "--dt", "abc", "--out", out], 2, ["--dt", "numbers"]),
+        (["run", "dzhanibekov", "--dt", "7e-3", "--out", out], 2, ["whole number of steps"]),
+        (["run", "--t-end", "nan", "--out", out], 2, ["--t-end", "finite"]),
+        (["run", "--t-end", "inf", "--out", out], 2, ["--t-end", "finite"]),
+        (["run", "--accuracy", "2", "--out", out], 2, ["--accuracy", "(0, 1)"]),
+        (["run", "--format", "xml", "--out", out], 2, ["--format", "xml"]),
+        (["run", "no_such_scenario", "--out", out], 2, ["no_such_scenario", "dzhanibekov"]),
+        (["run", str(FREE), twin, "--out", out], 2, ["free_tumbling", "twin.toml", "are named"]),
+        (["run", unknown_family, "--out", out], 2, ["RK9000", "families"]),
+        (["report", str(tmp_path / "nowhere")], 2, ["nowhere", "no results store"]),
+        (["report", str(empty_dir)], 2, ["empty", "no results store"]),
+        (["check", str(empty_dir), "--baseline", list_json], 2, ["list.json", "baseline"]),
+        (["check", str(empty_dir), "--baseline", str(tmp_path / "no.json")], 2, ["no.json"]),
+        (["check", str(empty_dir), "--baseline", list_json, "--factor", "0.5"], 2, [">= 1"]),
+        (["check", str(empty_dir), "--baseline", str(FREE)], 2, ["free_tumbling.toml", "JSON"]),
+        (["ensemble", "dzhanibekov", "--n", "0", "--out", out], 2, ["--n", ">= 1"]),
+        (["run", "--out", out, "--scheduler", "tcp://127.0.0.1:9"], 2, ["scheduler"]),
+    ]
+
+
+def test_every_bad_input_exits_with_a_message(tmp_path, capsys):
+    failures = []
+    for argv, want, words in cases(tmp_path):
+        code, err = run_main(argv, capsys)
+        problems = []
+        if code != want:
+            problems.append(f"exit {code}, expected {want}")
+        if "Traceback" in err:
+            problems.append("a traceback")
+        missing = [w for w in words if w not in err]
+        if missing:
+            problems.append(f"message lacks {missing}")
+        if problems:
+            failures.append(f"{argv}: {'; '.join(problems)}\n    {err.strip()[:300]}")
+    assert not failures, "\n".join(failures)
+    # nothing ran: no refused command wrote anything, not even the output folder
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_closed_pipe_exits_quietly():
+    proc = subprocess.run(
+        f"{sys.executable} -m reports.cli list --json | head -c 10",
+        shell=True, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.stdout == '{\n "scenar'[:10]
+    assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
+
+
+def test_list_json_is_valid_json():
+    proc = subprocess.run(
+        [sys.executable, "-m", "reports.cli", "list", "--json"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    doc = json.loads(proc.stdout)
+    assert {"scenarios", "engines"} <= set(doc)
