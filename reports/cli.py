@@ -202,6 +202,42 @@ def cmd_check(args) -> int:
     return 0 if cmp.ok else 1
 
 
+def cmd_compare(args) -> int:
+    from reports.compare import compare_folders, format_comparison
+
+    cmp = compare_folders(args.a, args.b, factor=args.factor, cost_factor=args.cost_factor)
+    print(format_comparison(cmp, show_all=args.all))
+    return 0 if cmp.ok else 1
+
+
+def _add_compare(sub) -> None:
+    s = sub.add_parser(
+        "compare",
+        help="compare two results folders run by run (e.g. two engine versions)",
+        description="Match the runs of two results folders on scenario, engine, integrator, "
+        "dt and target accuracy and give, per metric and cost, the ratio B/A: worse, better or "
+        "the same within --factor (above round-off floors). Exit 1 when a run got worse in a "
+        "metric, its status or its verdict; 2 for bad input.",
+    )
+    s.add_argument("a", metavar="A", help="the reference results folder")
+    s.add_argument("b", metavar="B", help="the results folder compared with it")
+    s.add_argument(
+        "--factor",
+        type=_factor,
+        default=2.0,
+        help="a metric changed by less than this factor is the same (default 2)",
+    )
+    s.add_argument(
+        "--cost-factor",
+        type=_factor,
+        default=None,
+        help="also exit 1 when the cost per step grew by more than this factor (off by "
+        "default: timings follow the machine's load)",
+    )
+    s.add_argument("--all", action="store_true", help="list unchanged metrics too")
+    s.set_defaults(func=cmd_compare)
+
+
 def _add_run(sub) -> None:
     s = sub.add_parser("run", help="run scenarios on engines and write the report")
     s.add_argument(
@@ -313,6 +349,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run(sub)
     _add_ensemble(sub)
     _add_folder_commands(sub)
+    _add_compare(sub)
     return p
 
 
