@@ -8,6 +8,8 @@ Public API
 ----------
 simulate, simulate_batch, Trajectory, BatchTrajectory, step_plan
     run one body / N bodies (see their docstrings for shapes and units)
+Stepper, StepperState
+    one body advanced in chunks (``advance``), the integrator state kept between them
 SCHEMES
     registry name -> scheme class ("rattle", "rattle4", "rattle6", "energy_momentum")
 validate_body, Body
@@ -36,6 +38,8 @@ from director_model.errors import (
 from director_model.schemes import SCHEMES
 from director_model.simulate import (
     BatchTrajectory,
+    Stepper,
+    StepperState,
     Trajectory,
     simulate,
     simulate_batch,
@@ -61,6 +65,8 @@ __all__ = [
     "InvalidRunError",
     "InvalidStateError",
     "StepSizeError",
+    "Stepper",
+    "StepperState",
     "Trajectory",
     "check_rotation",
     "director_velocity",

@@ -16,28 +16,46 @@ Jbar and ``v`` must not be counted again).
 
 On exact states (D orthonormal, D' = D hat(W)) these equal the textbook forms
 T_rot = 1/2 W . Ibar W and L = x_G x m v_G + R Ibar W (tests check this).
+
+Every product and sum is written element-wise in a fixed order (:func:`matmul3`, explicit
+sums of 3 or 9 terms), not with ``@`` or reductions whose rounding depends on the shape of
+the stack: a saved state gives the same bits whether it is evaluated alone or in a long
+array (the chunks of :class:`director_model.Stepper` rely on it).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from director_model.state import matmul3
+
+
+def _sum3(X) -> np.ndarray:
+    """X[..., 0] + X[..., 1] + X[..., 2], left to right."""
+    return (X[..., 0] + X[..., 1]) + X[..., 2]
+
+
+def _sum9(X) -> np.ndarray:
+    """Sum over the last two axes (3, 3), row by row, left to right."""
+    return (_sum3(X[..., 0, :]) + _sum3(X[..., 1, :])) + _sum3(X[..., 2, :])
+
 
 def _rot_kinetic(Jbar, Dp):
-    return 0.5 * np.sum((Dp @ Jbar) * Dp, axis=(-2, -1))
+    return 0.5 * _sum9(matmul3(Dp, Jbar) * Dp)
 
 
 def kinetic_energy(mass, Jbar, pivoted: bool, v, Dp) -> np.ndarray:
     """T in J, shape (...)."""
     T = _rot_kinetic(np.asarray(Jbar, float), np.asarray(Dp, float))
     if not pivoted:
-        T = T + 0.5 * np.asarray(mass, float) * np.sum(np.asarray(v, float) ** 2, axis=-1)
+        v = np.asarray(v, float)
+        T = T + 0.5 * np.asarray(mass, float) * _sum3(v * v)
     return T
 
 
 def potential_energy(mass, gravity, x) -> np.ndarray:
     """V = -m g . x_G in J, shape (...); measured from the world origin (the pivot)."""
-    return -np.asarray(mass, float) * (np.asarray(x, float) @ np.asarray(gravity, float))
+    return -np.asarray(mass, float) * _sum3(np.asarray(x, float) * np.asarray(gravity, float))
 
 
 def energy(mass, Jbar, pivoted: bool, gravity, x, v, Dp) -> np.ndarray:
@@ -48,8 +66,8 @@ def energy(mass, Jbar, pivoted: bool, gravity, x, v, Dp) -> np.ndarray:
 def rotational_angular_momentum(Jbar, D, Dp) -> np.ndarray:
     """sum_ij Jbar_ij d_i x d_j', shape (..., 3): the spin about the centre of mass for a free
     body (Jbar = diag(J)), the whole angular momentum about the pivot for a pivoted one."""
-    A = np.asarray(D, float) @ np.asarray(Jbar, float)
-    return np.sum(np.cross(A, np.asarray(Dp, float), axis=-2), axis=-1)
+    A = matmul3(D, Jbar)
+    return _sum3(np.cross(A, np.asarray(Dp, float), axis=-2))
 
 
 def angular_momentum(mass, Jbar, pivoted: bool, x, v, D, Dp) -> np.ndarray:
@@ -71,17 +89,17 @@ def spin(Jbar, D, Dp, axis: int) -> np.ndarray:
     shape (...). For a symmetric body with symmetry axis ``axis`` this is I_k W_k, conserved
     by the torque-free body and by the symmetric heavy top (the Lagrange top, L . d_3)."""
     Lr = rotational_angular_momentum(Jbar, D, Dp)
-    return np.sum(Lr * np.asarray(D, float)[..., :, axis], axis=-1)
+    return _sum3(Lr * np.asarray(D, float)[..., :, axis])
 
 
 def constraint_position(D) -> np.ndarray:
     """max|D^T D - I| over the 9 entries, shape (...)."""
     D = np.asarray(D, float)
-    return np.max(np.abs(np.swapaxes(D, -1, -2) @ D - np.eye(3)), axis=(-2, -1))
+    return np.max(np.abs(matmul3(np.swapaxes(D, -1, -2), D) - np.eye(3)), axis=(-2, -1))
 
 
 def constraint_velocity(D, Dp) -> np.ndarray:
     """max|D^T D' + D'^T D| over the 9 entries, shape (...): the hidden constraint (D^T D'
     skew)."""
-    A = np.swapaxes(np.asarray(D, float), -1, -2) @ np.asarray(Dp, float)
+    A = matmul3(np.swapaxes(np.asarray(D, float), -1, -2), Dp)
     return np.max(np.abs(A + np.swapaxes(A, -1, -2)), axis=(-2, -1))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -181,6 +182,9 @@ def _params(body: Body) -> np.ndarray:
         P[31] = 1.0
     if not np.any(body.Ibar - np.diag(np.diag(body.Ibar))):
         P[32] = 1.0
+        I = np.diag(body.Ibar)
+        e = np.array([I[2] - I[1], I[0] - I[2], I[1] - I[0]])
+        P[33:36] = P[[19, 23, 27]] * e
     return P
 
 
@@ -211,8 +215,10 @@ def _state(x, v, R, W) -> np.ndarray:
     return S
 
 
-def _step_error(scheme: type[Scheme], status: int, info, dt: float, body=None):
-    done = int(info[0])
+def _step_error(scheme: type[Scheme], status: int, info, dt: float, body=None, step0: int = 0):
+    """StepSizeError for a failure reported by a kernel; ``step0`` steps were done before
+    the kernel call (a stepper's earlier chunks)."""
+    done = step0 + int(info[0])
     wnorm = float(info[1])
     t = done * dt
     h_max = scheme.h_max(wnorm, float(info[2]))
@@ -242,9 +248,10 @@ def _ensure_compiled(kind: str) -> None:
         coef = np.ones(1)
         if kind == "single":
             K.run_one(
-                method, coef, P, g, S, 0.1, 1, saves, np.empty((2, 3)), np.empty((2, 3)),
-                np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(3),
+                method, coef, P, g, S.copy(), 0.1, 1, saves, np.empty((2, 3)), np.empty((2, 3)),
+                np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(3), True, True, 0,
             )  # fmt: skip
+            K.init_state(method, P, g, S.copy())
         else:
             fn = K.run_batch_parallel if kind == "parallel" else K.run_batch_serial
             fn(
@@ -280,6 +287,152 @@ def _finish(cls, scheme, t, X, V, D, Dp, mass, Jbar, pivoted, g, nstep, wall, dt
 # --------------------------------------------------------------------------------------------
 
 
+class StepperState(NamedTuple):
+    """The state of a :class:`Stepper`, SI units: ``position`` x_G (3,), m, and ``velocity``
+    v_G (3,), m/s, world axes (x_G = -R c, v_G = -R (W x c) with a pivot); ``rotation`` R
+    (3, 3), body-to-world, columns are the directors; ``omega_body`` W (3,), rad/s, body
+    axes (= vee of the skew part of R^T R', as :attr:`Trajectory.omega_body`)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+
+
+def _check_count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise InvalidRunError(f"{name} = {value!r}: must be a whole number >= 1")
+    return int(value)
+
+
+class Stepper:
+    """One rigid body advanced in chunks of steps, the integrator state kept between chunks.
+
+    The state is the scheme's own (directors, momentum and their compensations, cached
+    torque, multipliers), not the (R, W) it is reported in, so that ``advance(n1)`` then
+    ``advance(n2)`` gives, bit for bit, the states of one ``simulate`` run of n1 + n2 steps
+    (restarting from converted (R, W) states would not).
+
+    Parameters (SI units) as in :func:`simulate`: ``mass`` (kg), ``inertia`` (3,) principal
+    moments (kg m^2), ``rotation`` (3, 3) initial R (body-to-world), ``omega_body`` (3,)
+    initial W (rad/s, body axes), ``position``/``velocity`` (3,) initial x_G, v_G (m, m/s,
+    world; zeros with a pivot), ``gravity`` (3,) (m/s^2, world), ``pivot`` (3,) or None (m,
+    body axes rel. to the COM; the fixed point is the world origin), ``scheme`` (a key of
+    :data:`director_model.SCHEMES`), ``dt`` (s, the step of every chunk). ``compensated``
+    (default True): sums into the state with Kahan compensation (see the package README);
+    False gives the plain floating-point sums, for round-off studies only.
+
+    Attributes: ``dt`` (s), ``scheme`` (name), ``compensated``, ``nstep_done`` (steps
+    completed since construction), ``time`` (= nstep_done * dt, s).
+
+    Raises InvalidBodyError, InvalidStateError, InvalidRunError at construction (as
+    :func:`simulate`), StepSizeError from :meth:`advance`.
+    """
+
+    def __init__(
+        self,
+        mass: float,
+        inertia,
+        *,
+        rotation,
+        omega_body,
+        position=(0.0, 0.0, 0.0),
+        velocity=(0.0, 0.0, 0.0),
+        gravity=(0.0, 0.0, 0.0),
+        pivot=None,
+        scheme: str = "rattle",
+        dt: float,
+        compensated: bool = True,
+    ):
+        body = Body.make(mass, inertia, pivot)
+        R = check_rotation(rotation, "rotation")
+        W = _vec("omega_body", omega_body, (3,))
+        x = _vec("position", position, (3,))
+        v = _vec("velocity", velocity, (3,))
+        g = _vec("gravity", gravity, (3,))
+        sch = _scheme(scheme)
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise InvalidRunError(f"dt = {dt!r}: must be a real number") from None
+        if not (dt > 0 and math.isfinite(dt)):
+            raise InvalidRunError(f"dt = {dt!r}: the time step must be positive and finite")
+        if not isinstance(compensated, bool | np.bool_):
+            raise InvalidRunError(f"compensated = {compensated!r}: must be True or False")
+        if body.pivoted:
+            x, v = _pivot_state("position", "velocity", x, v, R, W, body.pivot)
+        self._body = body
+        self._scheme_cls = sch
+        self._coef = sch.coefficient_array()
+        self._P = _params(body)
+        self._g = g
+        self._S = _state(x, v, R, W)
+        self.dt = dt
+        self.scheme = sch.name
+        self.compensated = bool(compensated)
+        self.nstep_done = 0
+        _ensure_compiled("single")
+        K.init_state(sch.method, self._P, g, self._S)
+
+    @property
+    def time(self) -> float:
+        """Time reached, s (nstep_done * dt)."""
+        return self.nstep_done * self.dt
+
+    def state(self) -> StepperState:
+        """The current state as (position, velocity, rotation, omega_body), new arrays."""
+        X, V = np.empty((1, 3)), np.empty((1, 3))
+        D, Dp = np.empty((1, 3, 3)), np.empty((1, 3, 3))
+        K.store_state(self._scheme_cls.method, self._P, self._S, self._g, self.time, X, V, D, Dp)
+        return StepperState(X[0], V[0], D[0], omega_body_from_directors(D, Dp)[0])
+
+    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False) -> Trajectory:
+        """Advance by ``nstep`` steps of ``dt`` and return the states saved in this chunk.
+
+        Saved: the steps j * save_every (j = 1, 2, ...) of the chunk and always its last
+        step, counted from the chunk's start; the start state itself only with
+        ``include_start`` (it is the previous chunk's last state). ``Trajectory.t`` is the
+        absolute time (nstep_done + j) * dt, ``Trajectory.nstep`` the steps of this chunk.
+        ``simulate(..., dt, t_end, save_every)`` equals
+        ``Stepper(..., dt).advance(round(t_end/dt), save_every, include_start=True)``.
+
+        Raises StepSizeError (``time``: the absolute time of the failing step's start) if a
+        step cannot be solved; the stepper then stays at the last completed step
+        (``nstep_done`` counts it) and the chunk's states are not returned.
+        """
+        nstep = _check_count("nstep", nstep)
+        save_every = _check_count("save_every", save_every)
+        saves = np.arange(save_every, nstep + 1, save_every, dtype=np.int64)
+        if saves.size == 0 or saves[-1] != nstep:
+            saves = np.append(saves, np.int64(nstep))
+        if include_start:
+            saves = np.insert(saves, 0, np.int64(0))
+        nsave = saves.shape[0]
+        X = np.empty((nsave, 3))
+        V = np.empty((nsave, 3))
+        D = np.empty((nsave, 3, 3))
+        Dp = np.empty((nsave, 3, 3))
+        info = np.zeros(3)
+        sch = self._scheme_cls
+        step0 = self.nstep_done
+        t0 = time.perf_counter()
+        status = K.run_one(
+            sch.method, self._coef, self._P, self._g, self._S, self.dt, nstep, saves, X, V, D,
+            Dp, info, False, self.compensated, step0,
+        )  # fmt: skip
+        wall = time.perf_counter() - t0
+        if status != K.OK:
+            self.nstep_done = step0 + int(info[0])
+            raise _step_error(sch, int(status), info, self.dt, step0=step0)
+        self.nstep_done = step0 + nstep
+        t = (step0 + saves) * self.dt
+        b = self._body
+        return _finish(
+            Trajectory, sch, t, X, V, D, Dp, b.mass, b.Jbar, b.pivoted, self._g, nstep, wall,
+            self.dt,
+        )  # fmt: skip
+
+
 def simulate(
     mass: float,
     inertia,
@@ -294,6 +447,7 @@ def simulate(
     dt: float,
     t_end: float,
     save_every: int = 1,
+    compensated: bool = True,
 ) -> Trajectory:
     """Integrate one rigid body in director form and return its saved states.
 
@@ -326,6 +480,10 @@ def simulate(
         Step and horizon, s; t_end must be a whole number of steps (see :func:`step_plan`).
     save_every : int
         Save every ``save_every``-th step; step 0 and the last step are always saved.
+    compensated : bool
+        Sums into the state with Kahan compensation (default); False gives the plain
+        floating-point sums, whose round-off grows with the number of steps (for round-off
+        studies only).
 
     Returns
     -------
@@ -339,39 +497,17 @@ def simulate(
     StepSizeError
         If a step cannot be solved; names the time reached and a step-size limit estimate.
 
-    The time loop runs in numba-compiled code (cached on disk). For debugging as plain
-    Python set ``NUMBA_DISABLE_JIT=1`` before importing director_model.
+    Runs :class:`Stepper` for the whole horizon. The time loop runs in numba-compiled code
+    (cached on disk). For debugging as plain Python set ``NUMBA_DISABLE_JIT=1`` before
+    importing director_model.
     """
-    body = Body.make(mass, inertia, pivot)
-    R = check_rotation(rotation, "rotation")
-    W = _vec("omega_body", omega_body, (3,))
-    x = _vec("position", position, (3,))
-    v = _vec("velocity", velocity, (3,))
-    g = _vec("gravity", gravity, (3,))
-    sch = _scheme(scheme)
-    nstep, saves = step_plan(dt, t_end, save_every)
-    dt = float(dt)
-    if body.pivoted:
-        x, v = _pivot_state("position", "velocity", x, v, R, W, body.pivot)
-    P = _params(body)
-    S0 = _state(x, v, R, W)
-    nsave = saves.shape[0]
-    X = np.empty((nsave, 3))
-    V = np.empty((nsave, 3))
-    D = np.empty((nsave, 3, 3))
-    Dp = np.empty((nsave, 3, 3))
-    info = np.zeros(3)
-    _ensure_compiled("single")
-    coef = sch.coefficient_array()
-    t0 = time.perf_counter()
-    status = K.run_one(sch.method, coef, P, g, S0, dt, nstep, saves, X, V, D, Dp, info)
-    wall = time.perf_counter() - t0
-    if status != K.OK:
-        raise _step_error(sch, int(status), info, dt)
-    t = saves * dt
-    return _finish(
-        Trajectory, sch, t, X, V, D, Dp, body.mass, body.Jbar, body.pivoted, g, nstep, wall, dt
-    )
+    stepper = Stepper(
+        mass, inertia, rotation=rotation, omega_body=omega_body, position=position,
+        velocity=velocity, gravity=gravity, pivot=pivot, scheme=scheme, dt=dt,
+        compensated=compensated,
+    )  # fmt: skip
+    nstep, _ = step_plan(dt, t_end, save_every)
+    return stepper.advance(nstep, int(save_every), include_start=True)
 
 
 def _batch_vec(name: str, value, n: int) -> np.ndarray:

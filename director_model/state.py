@@ -123,6 +123,19 @@ def director_velocity(R, omega_body) -> np.ndarray:
     return np.asarray(R, dtype=float) @ hat(omega_body)
 
 
+def matmul3(A, B) -> np.ndarray:
+    """A B for (..., 3, 3) arrays (broadcasting), each entry summed as
+    (A_i0 B_0j + A_i1 B_1j) + A_i2 B_2j in element-wise operations: every sample rounds the
+    same way whatever the shape of the stack (``@`` may go through BLAS, whose order and
+    fused multiply-adds depend on the shape), so a saved state gives the same derived
+    quantities in a long run and in a chunk of one sample."""
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    return (A[..., :, 0:1] * B[..., 0:1, :] + A[..., :, 1:2] * B[..., 1:2, :]) + A[..., :, 2:3] * B[
+        ..., 2:3, :
+    ]
+
+
 def omega_body_from_directors(D, Dp) -> np.ndarray:
     """Body angular velocity W = vee(skew(D^T D')), (..., 3, 3) x2 -> (..., 3), rad/s.
 
@@ -130,7 +143,7 @@ def omega_body_from_directors(D, Dp) -> np.ndarray:
     skew, as the energy-momentum scheme produces at O(h^2)) has its symmetric part dropped.
     """
     D = np.asarray(D, dtype=float)
-    return vee(np.swapaxes(D, -1, -2) @ np.asarray(Dp, dtype=float))
+    return vee(matmul3(np.swapaxes(D, -1, -2), Dp))
 
 
 def omega_world_from_body(R, omega_body) -> np.ndarray:
