@@ -401,14 +401,15 @@ def work_precision_section(doc: Doc, df) -> None:
             m, h = wp_cell(lv["ranked"][0] if lv["ranked"] else None)
             row.append(Cell(md=m, html_=h))
         rows.append(row)
-    doc.para(
+    text = (
         "The cheapest configuration reaching each max attitude error (fixed steps and "
         "error-controlled runs alike), ranked by the time spent inside the engine's own calls "
         "(`engine_time_s`); the wall time, which includes the suite's glue, is given beside "
         "it. `+ suite` marks a configuration whose time loop is the suite's own Python around "
         "the engine's dynamics: its wall time measures our code, so no ratio here uses it. "
-        "An error below the reference's accuracy reaches no level below that accuracy.",
+        "An error below the reference's accuracy reaches no level below that accuracy."
     )
+    doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
     doc.table("Cheapest configuration per accuracy", header, rows, cls="wp")
 
 
@@ -770,7 +771,10 @@ def document(df, prov: dict, plots: dict, root: Path, edf=None) -> tuple[str, st
     if has_settings:
         settings_section(doc, df)
     doc.heading(2, "Provenance")
-    doc.table("Provenance of the runs", ["", ""], provenance_rows(prov))
+    if prov:
+        doc.table("Provenance of the runs", ["item", "value"], provenance_rows(prov))
+    else:
+        doc.para("This folder has no provenance.json (written by `director-bench run`).")
     md = "\n".join(doc.md)
     page = (
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"

@@ -2,6 +2,7 @@
 resume, the CLI on a user's file, and the report rendered in a real browser."""
 
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -45,9 +46,13 @@ def test_rows_files_and_report(tmp_path, dzh):
 
     rep = build_report(tmp_path)
     md = rep["markdown"].read_text()
-    assert "### dzhanibekov, dt = 0.001 s: structure-preserving director" in md
+    # the verdict first, then the details of the scenario at its own dt
+    assert md.index("## Scorecard") < md.index("## Details")
+    assert "**dzhanibekov at dt = 0.001 s**" in md and "rattle" in md.split("## Details")[0]
     html = rep["html"].read_text()
-    assert html.count("data:image/png;base64,") >= 5 and "src='plots/" not in html
+    # four figures (errors, rates, convergence, work-precision), embedded
+    assert html.count("data:image/png;base64,") == 4 and "src='plots/" not in html
+    assert (tmp_path / "summary.json").exists()
 
 
 def test_failing_run_is_a_row_and_the_rest_go_on(tmp_path):
@@ -197,16 +202,50 @@ def test_parallel_pool_gives_the_serial_rows(tmp_path, dzh):
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
+#: added to a copy of report.html: opens every collapsed section, then writes into the page
+#: what it measured (images that did not load, tables whose container reaches beyond the
+#: page, a page that scrolls sideways), which --dump-dom prints
+LAYOUT_CHECK = """<script>
+window.addEventListener('load', function () {
+  document.querySelectorAll('details').forEach(function (d) { d.open = true; });
+  var vw = document.documentElement.clientWidth, bad = [], broken = 0;
+  var imgs = document.images, tables = document.querySelectorAll('table');
+  for (var i = 0; i < imgs.length; i++) {
+    if (!(imgs[i].complete && imgs[i].naturalWidth > 0)) broken++;
+  }
+  tables.forEach(function (t, k) {
+    var box = t.parentElement, r = box.getBoundingClientRect();
+    if (!box.classList.contains('scroll')) bad.push(k + ': not in a scrolling container');
+    if (r.left < -1 || r.right > vw + 1) bad.push(k + ': ' + r.left + '..' + r.right);
+  });
+  var pre = document.createElement('pre');
+  pre.id = 'layout-check';
+  pre.textContent = JSON.stringify({width: vw, images: imgs.length, broken: broken,
+    tables: tables.length, overflow: bad,
+    page_scrolls: document.documentElement.scrollWidth > vw + 1});
+  document.body.appendChild(pre);
+});
+</script>"""
+
+
 @pytest.mark.skipif(
     CHROMIUM is None,
     reason="Debian's chromium is not installed "
     "(apt-get install chromium) - the report is not rendered in a browser",
 )
 def test_report_renders_in_headless_chromium(tmp_path, dzh):
+    """At 1400 and 800 px wide: every embedded figure loads, every table sits in a container
+    that scrolls instead of widening the page, and the page itself never scrolls sideways;
+    a screenshot of each width is a rendered page (not blank)."""
+    import html as htmlmod
+
     run_suite(specs_for(dzh), tmp_path, progress=False)
     from reports.report import build_report
 
     rep = build_report(tmp_path)
+    page = rep["html"].read_text()
+    probe = tmp_path / "probe.html"
+    probe.write_text(page.replace("</body>", LAYOUT_CHECK + "</body>"))
     flags = [
         "--headless",
         "--no-sandbox",
@@ -217,26 +256,33 @@ def test_report_renders_in_headless_chromium(tmp_path, dzh):
         "--disable-component-update",
         "--disable-sync",
         f"--user-data-dir={tmp_path / 'profile'}",
+        "--hide-scrollbars",
     ]
-    # The DOM after rendering: every table and every embedded plot is there
-    dom = subprocess.run(
-        [CHROMIUM, *flags, "--dump-dom", rep["html"].as_uri()],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    ).stdout
-    assert dom.count("<table>") >= 4 and dom.count("data:image/png") >= 5
-    shot = tmp_path / "shot.png"
-    subprocess.run(
-        [CHROMIUM, *flags, f"--screenshot={shot}", "--window-size=1200,2400", rep["html"].as_uri()],
-        capture_output=True,
-        timeout=120,
-    )
     from matplotlib.image import imread
 
-    img = imread(shot)
-    # A rendered page with tables and plots is not a blank (single-colour) image
-    assert img.shape[0] == 2400 and img[..., :3].std() > 0.05
+    for width in (1400, 800):
+        dom = subprocess.run(
+            [CHROMIUM, *flags, f"--window-size={width},1600", "--dump-dom", probe.as_uri()],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        ).stdout
+        found = re.search(r'<pre id="layout-check">(.*?)</pre>', dom, flags=re.S)
+        assert found, f"no layout result in the DOM at {width} px: {dom[-500:]}"
+        check = json.loads(htmlmod.unescape(found.group(1)))
+        assert check["width"] <= width and check["images"] == 4 and check["broken"] == 0
+        assert check["tables"] >= 5 and check["overflow"] == [], check
+        assert not check["page_scrolls"], check
+        shot = tmp_path / f"report_{width}.png"
+        subprocess.run(
+            [CHROMIUM, *flags, f"--window-size={width},1600", f"--screenshot={shot}",
+             rep["html"].as_uri()],
+            capture_output=True,
+            timeout=120,
+        )  # fmt: skip
+        img = imread(shot)
+        # a rendered page with a coloured scorecard is not a blank (single-colour) image
+        assert img.shape[:2] == (1600, width) and img[..., :3].std() > 0.05
 
 
 def test_dt_that_does_not_divide_the_horizon_is_refused_up_front(tmp_path, capsys):
