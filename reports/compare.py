@@ -29,7 +29,7 @@ from pathlib import Path
 from reports.gate import FLOORS, ORDER_SLACK
 from reports.metrics import HIGHER_IS_BETTER
 from reports.results import METRIC_COLUMNS, config_key, read_results
-from reports.summary import fmt, fmt_level, fmt_step
+from reports.summary import fmt, fmt_level, fmt_step, records
 
 #: cost columns compared (ns per step: inside the engine's calls, and wall)
 COST_COLUMNS = ("engine_ns_per_step", "ns_per_step")
@@ -110,7 +110,7 @@ def classify(column: str, a: float, b: float, factor: float) -> tuple[float, str
 def _by_key(df) -> dict:
     return {
         config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"]): r
-        for r in df.to_dict("records")
+        for r in records(df)
     }
 
 

@@ -40,6 +40,7 @@ from reports.summary import (
     fmt,
     fmt_step,
     group_rows,
+    records,
     scenario_dt,
     sweep_groups,
     truthy,
@@ -694,7 +695,7 @@ def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:
     h.update(Path(summary_mod.__file__).read_bytes())
     sub = df[df["scenario"] == scenario].sort_values("run_id")
     h.update(sub.to_json(orient="values", double_precision=15).encode())
-    for r in sub[["engine", "integrator", "family", "trajectory"]].to_dict("records"):
+    for r in records(sub[["engine", "integrator", "family", "trajectory"]]):
         h.update(json.dumps(styles.of(r), default=str).encode())
         if r["trajectory"]:
             p = root / error_series_path(Path(r["trajectory"]))
