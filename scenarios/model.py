@@ -73,6 +73,8 @@ class Scenario:
     pivot: np.ndarray | None = None
     dt_sweep: tuple[float, ...] = ()
     save_every: int = 1
+    #: target accuracies of error-controlled integrators (empty: the suite's default)
+    accuracies: tuple[float, ...] = ()
     reference: str = "auto"
     #: verdict bounds from the file's ``[tolerances]`` table: {"*" or family: {metric: bound}}
     tolerances: dict = field(default_factory=dict)
@@ -95,6 +97,7 @@ class Scenario:
             object.__setattr__(self, "position", _frozen(x))
             object.__setattr__(self, "velocity", _frozen(v))
         object.__setattr__(self, "dt_sweep", tuple(float(h) for h in self.dt_sweep))
+        object.__setattr__(self, "accuracies", tuple(float(a) for a in self.accuracies))
         object.__setattr__(self, "tags", tuple(self.tags))
         object.__setattr__(self, "mass", float(self.mass))
         object.__setattr__(self, "t_end", float(self.t_end))
@@ -215,6 +218,7 @@ class Scenario:
                 "dt": self.dt,
                 "dt_sweep": list(self.dt_sweep),
                 "save_every": self.save_every,
+                "accuracies": list(self.accuracies),
             },
             "reference": self.reference,
             "tolerances": self.tolerances,

@@ -170,6 +170,7 @@ _SPEC: dict[str, dict[str, tuple[str, bool]]] = {
         "dt": ("number", True),
         "dt_sweep": ("number_list", False),
         "save_every": ("int", False),
+        "accuracies": ("number_list", False),
     },
     "reference": {"kind": ("str", False)},
 }
@@ -285,6 +286,7 @@ def validate(data: dict, path: str | None = None) -> Scenario:
         dt=float(run["dt"]),
         dt_sweep=tuple(float(h) for h in sweep),
         save_every=int(save_every),
+        accuracies=tuple(float(a) for a in run.get("accuracies", ())),
         reference=kind,
         tolerances=tolerances,
         source=data.get("source", ""),
@@ -388,6 +390,9 @@ def _check_run(run: dict, bad) -> tuple[list, int]:
     save_every = run.get("save_every", 1)
     if not save_every >= 1:
         bad("run.save_every", save_every, "must be an integer >= 1")
+    for i, a in enumerate(run.get("accuracies", [])):
+        if not 0 < a < 1:
+            bad(f"run.accuracies[{i}]", a, "a target accuracy must be in (0, 1)")
     return sweep, save_every
 
 
