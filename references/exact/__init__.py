@@ -1,8 +1,9 @@
 """Exact and high-accuracy reference solutions of scenarios.
 
 :func:`reference_trajectory` returns a :class:`ReferenceTrajectory` (the suite's
-:class:`references.trajectory.Trajectory` plus ``kind``, ``accuracy``, ``omega_accuracy`` and
-``method``); :func:`expected_observables` gives exact values of phase observables.
+:class:`references.trajectory.Trajectory` plus ``kind``, ``accuracy``, ``omega_accuracy``,
+``method`` and ``reason``); :func:`expected_observables` gives exact values of phase
+observables.
 
 Reference kinds (``scenario.reference``, or the ``kind`` argument):
 
@@ -14,21 +15,34 @@ Reference kinds (``scenario.reference``, or the ``kind`` argument):
                        without gravity torque whose pivot lies on a principal axis.
 ``steady_precession``  closed-form steady precession of a Lagrange top,
                        R(t) = Rot(up, w_p t) R_0 Rot(e_k, w_s t) (:mod:`.lagrange_top`); the
-                       state is verified to be a steady precession, an error otherwise.
-``numerical``          DOP853 at rtol 1e-13 with an error estimate from four runs (10 rtol,
-                       step halving, a round-off probe)
+                       state is verified to be a steady precession, not applicable otherwise.
+``lagrange_top``       the closed form of a symmetric heavy top pivoted on its axis
+                       (:mod:`.lagrange_top`): nutation by Jacobi functions, the attitude by
+                       elliptic integrals of the third kind, regular through and near the
+                       vertical; the planar physical pendulum; the steady precession.
+``numerical``          DOP853 at rtol 1e-13 with an error estimate from six runs (10 rtol,
+                       step halving, three round-off probes)
                        (:mod:`references.exact.numerical`); any scenario.
-``lagrange_top``       (argument only, not a scenario-file value) the quadrature solution of a
-                       symmetric heavy top pivoted on its axis (:mod:`.lagrange_top`).
 ``auto``               free_body if there is no gravity torque and the above applies,
-                       numerical otherwise.
+                       lagrange_top for a symmetric top pivoted on its axis, numerical
+                       otherwise, and numerical whenever the closed form declines (a
+                       measure-zero motion it does not treat, such as an axis starting exactly
+                       vertical with transverse rates) or its evaluation is not finite.
 =====================  =====================================================================
 
+A kind that does not apply raises :class:`ReferenceNotApplicable` (a ``ValueError``) with the
+reason when it was asked for explicitly (argument or file); ``auto`` never raises it, it
+hands over to ``numerical``. Invalid input (times, unknown kind names) raises ``ValueError``.
+``ReferenceTrajectory.reason`` says which kind was used and why, including any hand-over.
+
 ``accuracy`` is the estimated maximum error of the attitude over the returned times, in rad
-(the angle of R_ref^T R_true); ``omega_accuracy`` that of the body rates, rad/s. For the
-closed forms they are round-off and quadrature estimates; for the numerical reference, twice
-the spread of four solutions (see :mod:`references.exact.numerical`). Energy and angular
-momentum are computed by :meth:`Trajectory.from_states`, exactly as for every engine.
+(the angle of R_ref^T R_true); ``omega_accuracy`` that of the body rates, rad/s. Both are
+finite. For the closed forms they are round-off estimates (16 eps per radian turned, see
+:meth:`FreeBody.accuracy`); for the numerical reference twice the largest difference between
+its runs (see :mod:`references.exact.numerical`). tests/test_exact_accuracy.py checks each
+estimate against independent solutions, from both sides: it covers the actual error and
+exceeds it by at most a stated factor. Energy and angular momentum are computed by
+:meth:`Trajectory.from_states`, exactly as for every engine.
 """
 
 from __future__ import annotations
@@ -39,15 +53,18 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from references.exact import numerical
+from references.exact._util import ReferenceNotApplicable
 from references.exact.free_body import FreeBody, free_flight
 from references.exact.lagrange_top import LagrangeTop, NotALagrangeTop
 from references.trajectory import Trajectory
 
 __all__ = [
+    "CLOSED_FORMS",
     "KINDS",
     "FreeBody",
     "LagrangeTop",
-    "ReferenceError",
+    "NotALagrangeTop",
+    "ReferenceNotApplicable",
     "ReferenceTrajectory",
     "expected_observables",
     "free_body_of",
@@ -56,20 +73,28 @@ __all__ = [
 ]
 
 KINDS = ("free_body", "steady_precession", "numerical", "lagrange_top")
+CLOSED_FORMS = ("free_body", "steady_precession", "lagrange_top")
 
+#: A closed form whose own accuracy estimate exceeds this (rad) is not trusted: ``auto`` hands
+#: over to the numerical reference (whose estimate on the library is 4e-12 .. 3e-9).
+ACCURACY_LIMIT = 1e-8
 
-class ReferenceError(ValueError):
-    """The requested reference does not apply to the scenario (the message says why)."""
+#: ``precession_rate`` is not given when the axis passes the vertical closer than this (rad):
+#: the azimuth then turns by about +-pi within a short time at each passage, on the side
+#: decided by errors of this size, so a measured mean rate is not comparable.
+NEAR_VERTICAL = 1e-3
 
 
 @dataclass
 class ReferenceTrajectory(Trajectory):
-    """A reference solution in the suite's trajectory schema, with what it is and how good."""
+    """A reference solution in the suite's trajectory schema, with what it is, how good, and
+    why that kind was used (``reason``, including any hand-over to the numerical reference)."""
 
     kind: str = ""
     accuracy: float = math.nan
     method: str = ""
     omega_accuracy: float = math.nan
+    reason: str = ""
 
 
 def _torque_free_reason(scenario) -> str | None:
@@ -89,49 +114,93 @@ def free_body_of(scenario) -> FreeBody:
     """The :class:`FreeBody` of a torque-free scenario (moments about the pivot if pivoted)."""
     reason = _torque_free_reason(scenario)
     if reason is not None:
-        raise ReferenceError(f"scenario {scenario.name!r}: free_body does not apply: {reason}")
+        raise ReferenceNotApplicable(
+            f"scenario {scenario.name!r}: free_body does not apply: {reason}"
+        )
     I = np.diag(scenario.pivot_inertia).copy()
-    return FreeBody(I, scenario.omega_body, scenario.rotation)
+    try:
+        return FreeBody(I, scenario.omega_body, scenario.rotation)
+    except (ArithmeticError, ValueError) as exc:
+        raise ReferenceNotApplicable(
+            f"scenario {scenario.name!r}: the free-body closed form failed to set up ({exc})"
+        ) from exc
+
+
+def _lagrange_top_of(scenario, kind: str) -> LagrangeTop:
+    try:
+        top = LagrangeTop(scenario)
+    except NotALagrangeTop as exc:
+        raise ReferenceNotApplicable(
+            f"scenario {scenario.name!r}: {kind} does not apply: {exc}"
+        ) from None
+    if kind == "steady_precession" and not top.steady:
+        lo, hi = top.tilt_range
+        raise ReferenceNotApplicable(
+            f"scenario {scenario.name!r}: the initial state is not a steady precession "
+            f"(relative residual of the torque balance {top.residual:.3g}, nutation between "
+            f"tilts {lo:.12g} and {hi:.12g} rad); use reference kind 'lagrange_top' or "
+            "'numerical', or fix the initial rates"
+        )
+    return top
+
+
+def _choose(scenario, kind: str | None):
+    """(kind, reason, closed-form object or None) for ``scenario``; see :func:`resolve_kind`."""
+    if kind is None:
+        requested, who = scenario.reference, "the scenario's reference.kind"
+    else:
+        requested, who = kind, "the caller"
+    if requested not in ("auto", *KINDS):
+        raise ValueError(f"unknown reference kind {requested!r}; known: auto, {', '.join(KINDS)}")
+    if requested == "numerical":
+        return "numerical", f"numerical: requested by {who}", None
+    if requested == "free_body":
+        return "free_body", f"free_body: requested by {who}", free_body_of(scenario)
+    if requested in ("lagrange_top", "steady_precession"):
+        top = _lagrange_top_of(scenario, requested)
+        return requested, f"{requested}: requested by {who}", top
+    # auto
+    why = _torque_free_reason(scenario)
+    if why is None:
+        try:
+            fb = free_body_of(scenario)
+        except ReferenceNotApplicable as exc:
+            return "numerical", f"numerical: auto, handed over by free_body ({exc})", None
+        return "free_body", "free_body: auto, the rotation is torque-free", fb
+    try:
+        top = LagrangeTop(scenario)
+    except NotALagrangeTop as exc:
+        return "numerical", f"numerical: auto, {why} and no closed form applies ({exc})", None
+    what = {"steady": "a steady precession", "pendulum": "a planar physical pendulum"}.get(
+        top.case, "a symmetric top pivoted on its axis"
+    )
+    return "lagrange_top", f"lagrange_top: auto, {what}", top
 
 
 def resolve_kind(scenario, kind: str | None = None) -> str:
     """The reference kind used for ``scenario``: ``kind`` if given, else the scenario's own,
     with "auto" resolved: free_body when torque-free, lagrange_top for a symmetric top on a
-    pivot on its axis (closed form, about 1e-12 rad and ~100x cheaper than the numerical
-    reference), numerical otherwise."""
-    kind = scenario.reference if kind is None else kind
-    if kind == "auto":
-        if _torque_free_reason(scenario) is None:
-            return "free_body"
-        try:
-            LagrangeTop(scenario)
-        except NotALagrangeTop:
-            return "numerical"
-        return "lagrange_top"
-    if kind not in KINDS:
-        raise ReferenceError(f"unknown reference kind {kind!r}; known: auto, {', '.join(KINDS)}")
-    return kind
+    pivot on its axis (closed form, ~1e-13 rad and ~100x cheaper than the numerical
+    reference) unless it declines the motion, numerical otherwise. Raises
+    :class:`ReferenceNotApplicable` when an explicitly requested kind does not apply.
+    (:func:`reference_trajectory` may still hand an ``auto`` closed form over to the
+    numerical reference if its evaluation is not finite; its result says so.)"""
+    return _choose(scenario, kind)[0]
 
 
 def _times(t) -> np.ndarray:
     t = np.atleast_1d(np.asarray(t, dtype=float))
     if t.ndim != 1 or len(t) == 0:
-        raise ReferenceError(f"times must be a non-empty 1-D array, got shape {t.shape}")
+        raise ValueError(f"times must be a non-empty 1-D array, got shape {t.shape}")
     if not np.all(np.isfinite(t)) or t[0] < 0 or np.any(np.diff(t) < 0):
-        raise ReferenceError("times must be finite, >= 0 and sorted (non-decreasing)")
+        raise ValueError("times must be finite, >= 0 and sorted (non-decreasing)")
     return t
 
 
-def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTrajectory:
-    """The reference solution of ``scenario`` at the times ``t`` (s, sorted, >= 0).
-
-    ``kind`` overrides the scenario's ``reference`` (see the module docstring). Raises
-    :class:`ReferenceError` if the requested kind does not apply.
-    """
-    t = _times(t)
-    kind = resolve_kind(scenario, kind)
+def _closed_form(scenario, t, kind, obj):
+    """(x, v, R, W, accuracy, omega accuracy, method) of a closed form."""
     if kind == "free_body":
-        fb = free_body_of(scenario)
+        fb = obj
         R, W = fb.rotation(t), fb.omega(t)
         if scenario.pivot is None:
             x, v = free_flight(scenario.position, scenario.velocity, scenario.gravity, t)
@@ -144,63 +213,92 @@ def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTraje
             "precession angle by periodic Gauss-Legendre quadrature; "
             + ("centre of mass on the exact parabola" if x is not None else "x_G = -R pivot")
         )
-    elif kind in ("steady_precession", "lagrange_top"):
-        try:
-            top = LagrangeTop(scenario)
-        except NotALagrangeTop as exc:
-            raise ReferenceError(
-                f"scenario {scenario.name!r}: {kind} does not apply: {exc}"
-            ) from None
-        if kind == "steady_precession" and not top.steady:
-            raise ReferenceError(
-                f"scenario {scenario.name!r}: the initial state is not a steady precession "
-                f"(relative residual of the torque balance {top.residual:.3g}, nutation between "
-                f"tilts {top.tilt_range[0]:.12g} and {top.tilt_range[1]:.12g} rad); use "
-                "reference kind 'numerical' or fix the initial rates"
-            )
+    else:
+        top = obj
         R, W = top.rotation_and_omega(t)
         x = v = None
         acc = top.accuracy(t)
-        if top.steady:
+        if top.case == "steady":
             method = (
                 f"closed-form steady precession R = Rot(up, w_p t) R0 Rot(e_k, w_s t), "
                 f"w_p = {top.w_p:.15g}, w_s = {top.w_s:.15g} rad/s"
             )
+        elif top.case == "pendulum":
+            p = top.pendulum
+            method = (
+                f"planar physical pendulum ({p.case}, k^2 = {p.k2:.6g}): R = Rot(n, theta - "
+                "theta0) R0, theta by Jacobi functions"
+            )
         else:
             method = (
-                "Lagrange top: nutation by Jacobi functions from the polished cubic, "
-                "precession and spin angles by periodic Gauss-Legendre quadrature"
+                "Lagrange top: nutation by Jacobi functions from the polished cubic, attitude "
+                "by elliptic integrals of the third kind (Carlson R_J) of 1/(1 +- u); closest "
+                f"approach to the vertical {math.sqrt(2.0 * top.pole_distance):.3g} rad"
             )
-    else:
-        sol = numerical.solve(scenario, t)
-        R, W = sol.rotation, sol.omega_body
-        if scenario.pivot is None:
-            x, v = free_flight(scenario.position, scenario.velocity, scenario.gravity, t)
-        else:
-            x = v = None
-        acc = sol.accuracy
-        method = (
-            f"DOP853 (solve_ivp) at rtol {numerical.RTOL:g} on Euler's equations + quaternion "
-            f"kinematics; error estimate: 2 x spread of runs at 10 rtol, halved steps and "
-            f"perturbed by the round-off; "
-            f"{sol.nfev} evaluations"
+    wmax = float(np.max(np.linalg.norm(W, axis=1))) if len(W) else 0.0
+    return x, v, R, W, acc, acc * max(wmax, 1.0), method
+
+
+def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTrajectory:
+    """The reference solution of ``scenario`` at the times ``t`` (s, sorted, >= 0).
+
+    ``kind`` overrides the scenario's ``reference`` (see the module docstring). Raises
+    :class:`ReferenceNotApplicable` if an explicitly requested kind does not apply (``auto``
+    hands over to the numerical reference instead and records why in ``reason``), and
+    ``ValueError`` for invalid times or kind names.
+    """
+    t = _times(t)
+    explicit = (kind if kind is not None else scenario.reference) != "auto"
+    kind, reason, obj = _choose(scenario, kind)
+    if kind != "numerical":
+        x, v, R, W, acc, wacc, method = _closed_form(scenario, t, kind, obj)
+        finite = bool(np.all(np.isfinite(R)) and np.all(np.isfinite(W)))
+        if finite and math.isfinite(acc) and acc <= ACCURACY_LIMIT:
+            base = Trajectory.from_states(scenario, t, x, v, R, W)
+            return _wrap(base, kind, acc, method, wacc, reason)
+        problem = (
+            "its evaluation is not finite"
+            if not finite
+            else f"its estimated accuracy {acc:.3g} rad exceeds {ACCURACY_LIMIT:g}"
         )
-        base = Trajectory.from_states(scenario, t, x, v, R, W)
-        return _wrap(base, kind, acc, method, sol.omega_accuracy)
+        if explicit:
+            raise ReferenceNotApplicable(f"scenario {scenario.name!r}: {kind}: {problem}")
+        reason = f"numerical: auto, handed over by {kind} ({problem})"
+    sol = numerical.solve(scenario, t)
+    R, W = sol.rotation, sol.omega_body
+    if scenario.pivot is None:
+        x, v = free_flight(scenario.position, scenario.velocity, scenario.gravity, t)
+    else:
+        x = v = None
+    method = (
+        f"DOP853 (solve_ivp) at rtol {numerical.RTOL:g} on Euler's equations + quaternion "
+        "kinematics; error estimate: 2 x the largest difference from runs at 10 rtol, with "
+        f"halved steps and with W0 perturbed by the round-off along each axis; {sol.nfev} "
+        "evaluations"
+    )
     base = Trajectory.from_states(scenario, t, x, v, R, W)
-    wmax = float(np.max(np.linalg.norm(W, axis=1)))
-    return _wrap(base, kind, acc, method, acc * max(wmax, 1.0))
+    return _wrap(base, "numerical", sol.accuracy, method, sol.omega_accuracy, reason)
 
 
-def _wrap(base: Trajectory, kind, acc, method, wacc) -> ReferenceTrajectory:
+def _wrap(base: Trajectory, kind, acc, method, wacc, reason) -> ReferenceTrajectory:
     data = {f.name: getattr(base, f.name) for f in fields(Trajectory)}
     return ReferenceTrajectory(
-        **data, kind=kind, accuracy=float(acc), method=method, omega_accuracy=float(wacc)
+        **data,
+        kind=kind,
+        accuracy=float(acc),
+        method=method,
+        omega_accuracy=float(wacc),
+        reason=reason,
     )
 
 
 def expected_observables(scenario) -> dict[str, float]:
     """Exact values of phase observables where a closed form applies (else an empty dict).
+
+    Closed forms are only consulted for the kind :func:`resolve_kind` picks (so with
+    ``kind = "numerical"`` no :class:`LagrangeTop` is built), except that a torque-free
+    body's period is always taken from :class:`FreeBody`, which applies to every such body.
+    Never raises for a valid scenario: a kind that does not apply gives an empty dict.
 
     Keys (all in s, rad or rad/s):
 
@@ -210,30 +308,41 @@ def expected_observables(scenario) -> dict[str, float]:
       given only when the body tumbles about its intermediate axis (that axis has the largest
       mean |W_i|, which is what :func:`reports.observables.flip_times` follows by default);
       absent for a stable spin.
-    - ``nutation_period``: Lagrange top, from the cubic (absent for a steady precession).
+    - ``nutation_period``: Lagrange top, period of u = cos(tilt) (absent for a steady
+      precession); for the planar pendulum the period of cos(theta) (half the swing period).
     - ``precession_rate``: Lagrange top, mean rate of the azimuth of the symmetry axis about
-      the vertical (dphi per nutation / nutation period; w_p for a steady precession).
+      the vertical (dphi per nutation / nutation period; w_p for a steady precession); absent
+      for the pendulum and when the axis passes the vertical within ``NEAR_VERTICAL`` rad.
     - ``tilt_min``, ``tilt_max``: Lagrange top, range of the tilt of the symmetry axis from
       the vertical.
     """
     out: dict[str, float] = {}
-    if _torque_free_reason(scenario) is None:
-        fb = free_body_of(scenario)
-        if math.isfinite(fb.period):
-            out["period"] = fb.period
-        if (
-            fb.flip_interval is not None
-            and fb.intermediate_axis is not None
-            and fb.dominant_axis == fb.intermediate_axis
-        ):
-            out["flip_interval"] = fb.flip_interval
-        return out
     try:
-        top = LagrangeTop(scenario)
-    except NotALagrangeTop:
-        return out
-    if not top.steady:
-        out["nutation_period"] = top.nutation_period
-    out["precession_rate"] = top.precession_rate
-    out["tilt_min"], out["tilt_max"] = top.tilt_range
-    return out
+        kind, _, obj = _choose(scenario, None)
+        if kind == "numerical" and _torque_free_reason(scenario) is None:
+            kind, obj = "free_body", free_body_of(scenario)
+        if kind == "free_body":
+            fb = obj
+            if math.isfinite(fb.period):
+                out["period"] = fb.period
+            if (
+                fb.flip_interval is not None
+                and fb.intermediate_axis is not None
+                and fb.dominant_axis == fb.intermediate_axis
+            ):
+                out["flip_interval"] = fb.flip_interval
+            return out
+        if kind not in ("lagrange_top", "steady_precession"):
+            return out
+        top = obj
+        if not top.steady and math.isfinite(top.nutation_period or math.nan):
+            out["nutation_period"] = top.nutation_period
+        passes_vertical = (
+            top.case == "nutating" and math.sqrt(2.0 * top.pole_distance) < NEAR_VERTICAL
+        )
+        if math.isfinite(top.precession_rate) and not passes_vertical:
+            out["precession_rate"] = top.precession_rate
+        out["tilt_min"], out["tilt_max"] = top.tilt_range
+    except (ValueError, ArithmeticError):  # ReferenceNotApplicable is a ValueError
+        return {}
+    return {k: float(v) for k, v in out.items() if math.isfinite(v)}
