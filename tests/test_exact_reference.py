@@ -27,6 +27,8 @@ KIND = {
     "gazebo_boxes_simple": "free_body",
     "heavy_top": "lagrange_top",
     "major_axis_spin": "free_body",
+    "near_vertical_top": "lagrange_top",
+    "pendulum_through_vertical": "lagrange_top",
     "simo_wong_top": "lagrange_top",
 }
 OBSERVABLES = {
@@ -37,6 +39,10 @@ OBSERVABLES = {
     "gazebo_boxes_simple": set(),
     "heavy_top": {"nutation_period", "precession_rate", "tilt_min", "tilt_max"},
     "major_axis_spin": {"period"},
+    # the axis passes within 1e-6 rad of the vertical (no comparable precession rate)
+    "near_vertical_top": {"nutation_period", "tilt_min", "tilt_max"},
+    # the azimuth of the swinging axis jumps by pi at each passage of the vertical
+    "pendulum_through_vertical": {"nutation_period", "tilt_min", "tilt_max"},
     "simo_wong_top": {"nutation_period", "precession_rate", "tilt_min", "tilt_max"},
 }
 
