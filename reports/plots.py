@@ -68,7 +68,14 @@ FAMILY_STYLE = {
     "semi-implicit Euler": ":",
     "exact": "-",
 }
-EXTRA_STYLES = ((0, (6, 1.5, 1, 1.5, 1, 1.5)), (0, (10, 3)), (0, (1, 3)))
+EXTRA_STYLES = (
+    (0, (6, 1.5, 1, 1.5, 1, 1.5)),
+    (0, (10, 3)),
+    (0, (1, 3)),
+    (0, (4, 1.5, 1, 1.5)),
+    (0, (8, 2, 2, 2)),
+    (0, (2, 1)),
+)
 
 #: markers telling apart the integrators of one engine within one family
 MARKERS = ("o", "s", "^", "D", "v", "P", "X")
@@ -378,10 +385,10 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> Non
             "lw": 1.7,
             "label": plot_label(g.rows),
         }
-        if st["marker"]:
+        if st["marker"] and np.isfinite(y).sum() > 1:  # markevery needs a drawn line
             kw.update(marker=st["marker"], markevery=(0.04 + 0.025 * len(ax.lines), 0.2), ms=5)
         _, left = _clip_at(ax, t, y, top, **kw)
-        if g.outcome == "diverged" and len(t):
+        if g.outcome == "diverged" and np.isfinite(y).any():
             x, yy = left if left is not None else (t[-1], min(np.nanmax(y), top))
             text = f"diverged at {fmt(g.value('t_diverged'))} s"
             _status_note(ax, x, yy, "" if text in noted or not show_notes else text, notes)
@@ -471,7 +478,9 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
                 edge = hi if (np.isfinite(y[j]) and y[j] > hi) or not np.isfinite(y[j]) else lo
                 ax.plot(tt[j], edge, marker="^" if edge == hi else "v", ms=8, color=st["color"])
                 tt, y = tt[:j], y[:j]
-            kw = {"marker": st["marker"], "markevery": 0.1, "ms": 5} if st["marker"] else {}
+            kw = {}
+            if st["marker"] and np.isfinite(y).sum() > 1:  # markevery needs a drawn line
+                kw = {"marker": st["marker"], "markevery": 0.1, "ms": 5}
             ax.plot(
                 tt,
                 y,

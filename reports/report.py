@@ -89,6 +89,16 @@ METRIC_SHORT = {
     "constraint_velocity_max": "velocity constraint",
 }
 
+#: a mark per outcome in the HTML scorecard, beside its colour (the words are in the legend)
+MARK = {
+    "pass": "✓",
+    "fail": "✗",
+    "diverged": "↯",
+    "error": "⚠",
+    "reference-inaccurate": "?",
+    "ok": "✓",
+}
+
 #: a symbol per outcome, so that the Markdown scorecard reads at a glance without colour
 SYMBOL = {
     "pass": "✅",
@@ -347,14 +357,16 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
                     f"{SYMBOL.get(out, '')} {md_cell(who)}: {md_cell(' · '.join(figs))}"
                 )
                 href = f" href='#{sid}'" if links else ""
+                why = [f for f in figs if f.startswith("fails")]
+                title = f" title='{html.escape(out)}: {html.escape(why[0])}'" if why else ""
                 spans = " · ".join(
-                    f"<span class='{'why' if f.startswith('fails') else 'fig'}'>"
-                    f"{html.escape(f)}</span>"
+                    f"<span class='fig'>{html.escape(f)}</span>"
                     for f in figs
+                    if not f.startswith("fails")
                 )
                 html_parts.append(
-                    f"<a class='entry v-{out}'{href}><span class='who'>{html.escape(who)}"
-                    f"</span> <b>{html.escape(out)}</b><br>{spans}</a>"
+                    f"<a class='entry v-{out}'{href}{title}><b>{MARK.get(out, '')}</b> "
+                    f"<span class='who'>{html.escape(who)}</span> {spans}</a>"
                 )
             row.append(Cell(md="<br>".join(md_parts) or "-", html_="".join(html_parts) or "-"))
         rows.append(row)
@@ -366,12 +378,13 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
         "drift relative to the scenario's energy scale. Configurations in one entry agree to "
         "1e-3 in every metric (round-off-level values aside); the details give their largest "
         "difference.",
-        "Colours: <span class='v-pass'>pass</span> <span class='v-fail'>fail</span> "
-        "<span class='v-diverged'>diverged</span> <span class='v-error'>error</span> "
-        "<span class='v-reference-inaccurate'>reference too coarse to judge</span>. "
+        "<span class='v-pass'>✓ pass</span> <span class='v-fail'>✗ fail</span> "
+        "<span class='v-diverged'>↯ diverged</span> <span class='v-error'>⚠ error</span> "
+        "<span class='v-reference-inaccurate'>? reference too coarse to judge</span>. "
         "Figures: max attitude error [rad] (<code>&lt; x</code>: below the reference's "
         "accuracy x, not a measurement) and E, the max energy drift relative to the "
-        "scenario's energy scale; a failing entry names the metrics out of bounds. "
+        "scenario's energy scale; hovering over a failing entry names the metrics out of "
+        "bounds (the failures section lists them). "
         "Configurations in one entry agree to 1e-3 in every metric (round-off-level values "
         "aside); each scenario's details give their largest difference.",
     )
@@ -702,7 +715,8 @@ table{border-collapse:collapse;font-size:13px}
 th{background:#f3f3f3;text-align:left;vertical-align:bottom}
 td,th{border:1px solid #d0d7de;padding:3px 7px;vertical-align:top}
 td.num{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}
-table.scorecard td{min-width:9em} table.scorecard td:first-child{min-width:6em}
+table.scorecard{font-size:12.5px} table.scorecard td{min-width:8em}
+table.scorecard td:first-child{min-width:6em}
 a.entry{display:block;margin:2px 0;padding:2px 6px;border-left:4px solid #999;
  border-radius:3px;color:inherit;text-decoration:none}
 a.entry .who{font-size:.92em} a.entry .fig{white-space:nowrap;font-variant-numeric:tabular-nums}
