@@ -10,24 +10,28 @@ beta = 2 m |g| l/A, alpha = (2E - C W_k^2)/A. Then
 
     u'^2 = f(u) = (1 - u^2)(alpha - beta u) - (a - b u)^2 = beta (u - u1)(u - u2)(u - u3).
 
-Roots. The cubic is solved in delta = u - u0 (u0 the initial value), where its coefficients
-follow from the initial state without cancellation:
+Roots. The cubic is solved in delta = u - u0 (u0 the initial value), expanded about u0,
 
-    f = (N - 2 u0 delta - delta^2)(w2 - beta delta) - (p - b delta)^2,
-    N = 1 - u0^2 = |n_perp|^2,  w2 = |W_perp|^2,  p = W_perp . n_perp,  f(0) = (W_perp x n_perp)^2,
+    f = q^2 + c1 delta + c2 delta^2 + beta delta^3,
+    c1 = -beta N - 2 u0 w2 + 2 p b,  c2 = 2 u0 beta - w2 - b^2,
+    N = 1 - u0^2 = |n_perp|^2,  w2 = |W_perp|^2,  p = W_perp . n_perp,  q = W_perp x n_perp,
 
-with n = R^T up in body axes (N is a sum of squares, not 1 - u0^2). The roots of the expanded
-cubic are polished by Newton on the unexpanded f (numerics.md: the expanded cubic in u loses
-~5 digits for fast tops); when f(0) = 0 (the top starts at a turning point, as in Simo-Wong)
-delta = 0 is an exact root and the quadratic factor is solved by the stable formula. A turning
-point near a pole is polished once more in the distance s from that pole, u = -1 + s or
-u = 1 - s, where
+with n = R^T up in body axes (N is a sum of squares, not 1 - u0^2): the constant term f(0) =
+u'(0)^2 is exact and the terms at a turning point are small, whereas the cubic expanded in u
+about 0 loses several digits for fast tops (numerics.md section 4). The turning points are bracketed
+by the signs f(-(1 + u0)) = -(a + b)^2 < 0, f(0) = q^2 >= 0, f(1 - u0) = -(a - b)^2 < 0
+(a +- b formed as p +- b (1 +- u0)), so they stay real when they nearly coincide close to a
+steady precession, and are found by Brent's method; when q = 0 (the top starts at a turning
+point, as in Simo-Wong) delta = 0 is an exact root and the quadratic factor is solved by the
+stable formula. A turning point near a pole is polished once more in the distance s from that
+pole, u = -1 + s or u = 1 - s, where
 
     f = s (2 - s)((alpha +- beta) -+ beta s) - ((a +- b) -+ b s)^2
 
-with a + b = p + b (1 + u0), alpha + beta = w2 + beta (1 + u0) (and the same with 1 - u0): the
-smallest root s ~ (a +- b)^2/(2 (alpha +- beta)) then has full relative accuracy, consistent
-with a +- b. That is what the attitude needs when the axis passes close to the vertical.
+with alpha + beta = w2 + beta (1 + u0) (and the same with 1 - u0): the smallest root
+s ~ (a +- b)^2/(2 (alpha +- beta)) then has full relative accuracy, consistent with a +- b.
+That is what the attitude needs when the axis passes close to the vertical; the polished value
+is taken when its rounding bound is the smaller one.
 
 Nutation between the two roots of [-1, 1]: u = u_far + (u_near - u_far) sn^2(tau), with u_far
 the turning point farther from u3, tau = tau0 + tau' t, tau' = sqrt(|beta| |u3 - u_far|)/2,
