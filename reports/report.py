@@ -38,6 +38,7 @@ from reports.results import STATUSES
 from reports.summary import (
     ACCURACY_LEVELS,
     ENERGY_MOMENTUM_NOTE,
+    METRIC_SHORT,
     NOT_RUN,
     at_scenario_dt,
     config_label,
@@ -74,19 +75,6 @@ METRIC_TITLES = {
     "momentum_drift_max": "momentum drift [L_c]",
     "orthonormality_max": "‖RᵀR − 1‖",
     "constraint_velocity_max": "velocity constraint [w_c]",
-}
-
-#: short names of the metrics in verdict texts
-METRIC_SHORT = {
-    "attitude_error_max": "attitude",
-    "omega_error_max": "W",
-    "position_error_max": "position",
-    "flip_interval_error": "flip interval",
-    "nutation_period_error": "nutation period",
-    "energy_drift_max": "energy",
-    "momentum_drift_max": "momentum",
-    "orthonormality_max": "orthonormality",
-    "constraint_velocity_max": "velocity constraint",
 }
 
 #: a mark per outcome in the HTML scorecard, beside its colour (the words are in the legend)

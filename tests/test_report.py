@@ -23,7 +23,7 @@ INTEGRATORS = ("rattle", "rattle4", "energy_momentum", "reference", "Euler", "RK
 def folder(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
     cone = scenarios.load("cone_top").replace(t_end=0.5, dt_sweep=(2e-3,))
-    free = scenarios.load("free_tumbling").replace(t_end=1.0, dt_sweep=(2e-3,))
+    free = scenarios.load("free_tumbling").replace(t_end=0.5, dt_sweep=(2e-3,))
     specs = plan([cone, free], ENGINES, INTEGRATORS)
     run_suite(specs, out, progress=False)
     from reports.report import build_report
@@ -186,3 +186,9 @@ def test_readme_block_from_the_scorecard(folder, capsys):
     assert "| scenario | integrator family | configurations |" in out
     assert "cone_top" in out and "mujoco RK4, pinocchio + suite RKMK4" in out
     assert main([str(folder / "nowhere"), "--readme"]) == 2
+    # a selection for the README: one scenario, one family
+    fam = "4th-order Lie-group"
+    assert main([str(folder), "--readme", "--scenarios", "cone_top", "--families", fam]) == 0
+    table = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("| cone_top")]
+    assert len(table) == 1 and fam in table[0]
+    assert main([str(folder), "--readme", "--scenarios", "no_such"]) == 2
