@@ -732,9 +732,11 @@ document.addEventListener('DOMContentLoaded',openTarget);
 
 
 def _toc(df, has_settings: bool, has_ensemble: bool) -> tuple[str, str]:
-    entries = [("Scorecard", "scorecard"), ("Work precision", "work-precision")]
-    entries.append(("Failures and divergences", "failures-and-divergences"))
-    entries += [(s, anchor(s)) for s in scenarios_of(df)]
+    entries = []
+    if len(df):
+        entries += [("Scorecard", "scorecard"), ("Work precision", "work-precision")]
+        entries.append(("Failures and divergences", "failures-and-divergences"))
+        entries += [(s, anchor(s)) for s in scenarios_of(df)]
     if has_ensemble:
         entries.append(("Ensembles", "ensembles"))
     if has_settings:
