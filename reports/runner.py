@@ -12,6 +12,7 @@ interruption loses only the runs in flight, and a rerun skips what is done.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import json
 import math
@@ -152,6 +153,9 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
             diverged = None
         except Diverged as exc:
             output, diverged = exc.output, exc
+        if output is not None and output.family and output.family != integ.family:
+            row["family"] = output.family  # the algorithm this model ran (see RunOutput)
+            integ = dataclasses.replace(integ, family=output.family)
         _measure(row, spec, sc, output, recorder, out, fmt)
         _judge(row, sc, integ, diverged)
     except EngineError as exc:
@@ -376,6 +380,10 @@ def run_suite(
     """
     out = Path(out)
     specs = list(specs)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise StoreUnwritable(f"{out}: cannot create the output folder ({exc})") from None
     with Store(out, create=True) as store:
         done = set() if redo else store.done_ids()
         todo = [s for s in specs if s.run_id not in done]

@@ -58,11 +58,14 @@ class StreamingRecorder(Recorder):
         self.reference_accuracy = 0.0 if reference is not None else math.nan
         self._buf_steps: list[int] = []
         self._buf_states: list[cv.BodyState] = []
+        self._buf_cv: list[float] = []
 
     def record(self, step: int, state: cv.BodyState) -> None:
+        r = self.residuals.get(step, math.nan)
         super().record(step, state)
         self._buf_steps.append(step)
         self._buf_states.append(state)
+        self._buf_cv.append(r)
         if len(self._buf_steps) >= self.segment:
             self.flush()
 
@@ -70,10 +73,10 @@ class StreamingRecorder(Recorder):
         """Fold the buffered steps into the maxima."""
         if not self._buf_steps:
             return
-        from references.trajectory import Trajectory
+        from references.engines.base import states_trajectory
 
         t = np.asarray(self._buf_steps, dtype=float) * self.dt
-        tr = Trajectory.from_states(self.scenario, t, *cv.stack_states(self._buf_states))
+        tr = states_trajectory(self.scenario, t, self._buf_states, self._buf_cv)
         ref = None
         if self.reference is not None:
             ref = self.reference(t)
@@ -86,6 +89,7 @@ class StreamingRecorder(Recorder):
             self.maxima[name] = max(self.maxima[name], worst)
         self._buf_steps.clear()
         self._buf_states.clear()
+        self._buf_cv.clear()
 
     def trajectory(self, scenario, dt: float):
         self.flush()

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from references.engines import get_engine
 from references.engines import conformance as kit
+from references.engines import get_engine
 
 ADAPTERS = ("mujoco", "pinocchio", "dart", "pybullet", "director")
 

@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from references.conventions import hat
-from references.engines import StepFailure
+from references.engines import Diverged
 from tests.test_engines import (
     ENGINES,
     FOURTH_ORDER,
@@ -266,12 +266,16 @@ def test_fourth_order_engines_agree(name, integrator, case):
 
 # == failures are statuses ===================================================================
 @pytest.mark.parametrize("name,integrator", pairs({"semi-implicit Euler", "4th-order Lie-group"}))
-def test_a_diverging_run_is_a_step_failure_naming_the_time(name, integrator):
+def test_a_diverging_run_is_diverged_naming_the_time(name, integrator):
     engine = engine_or_skip(name)
     # h |W| = 10: far outside the stability region of every explicit method
     sc = free_body(inertia=[1.0, 2.0, 2.5], omega_body=[50.0, 80.0, 30.0], t_end=10.0)
-    with pytest.raises(StepFailure, match=r"t = [0-9.]+"):
+    with pytest.raises(Diverged, match=r"t = [0-9.]+") as info:
         run(engine, integrator, sc, 0.1, save_every=10)
+    assert 0.0 <= info.value.t_diverged <= 10.0
+    out = info.value.output  # the part before the divergence, with the engine's settings
+    assert out is not None and out.settings["integrator"] == integrator
+    assert len(out.settings) > 2
 
 
 @pytest.mark.parametrize("name", ENGINES)

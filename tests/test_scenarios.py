@@ -24,10 +24,12 @@ LIBRARY = [
     "gazebo_boxes_simple",
     "heavy_top",
     "major_axis_spin",
+    "near_vertical_top",
+    "pendulum_through_vertical",
     "simo_wong_top",
 ]
 DEFAULT = ["cone_top", "dzhanibekov", "free_tumbling", "gazebo_boxes_complex", "heavy_top",
-           "simo_wong_top"]  # fmt: skip
+           "pendulum_through_vertical", "simo_wong_top"]  # fmt: skip
 
 
 # -- the library ------------------------------------------------------------------------------

@@ -287,6 +287,13 @@ class RunContext:
     accuracy: float | None = None
     #: what an adaptive integrator reports: "steps taken", "steps rejected", ...
     stats: dict = field(default_factory=dict)
+    #: step -> velocity-constraint residual ||D^T D' + D'^T D||_F of the engine's own
+    #: director velocities, for adapters that have them (the director model); other states
+    #: get the residual of D' = R hat(W)
+    residuals: dict = field(default_factory=dict)
+    #: the family of the algorithm actually run, where it differs from the integrator's
+    #: declared one for this model (MuJoCo's implicitfast on a ball joint is its Euler)
+    family: str | None = None
 
 
 @dataclass
@@ -304,6 +311,8 @@ class RunOutput:
     settings: dict[str, object] = field(default_factory=dict)
     #: an adaptive integrator's statistics ("steps taken", "steps rejected")
     stats: dict[str, float] = field(default_factory=dict)
+    #: the integrator family of the algorithm that ran (see RunContext.family)
+    family: str = ""
 
     @property
     def glue_time_s(self) -> float:
@@ -338,18 +347,36 @@ class Recorder:
         self._want = set(int(s) for s in saves)
         self.steps: list[int] = []
         self.states: list[cv.BodyState] = []
+        self.cv: list[float] = []
+        #: the run's residuals by step (RunContext.residuals), consumed as states arrive
+        self.residuals: dict = {}
 
     def record(self, step: int, state: cv.BodyState) -> None:
+        r = self.residuals.pop(step, math.nan)
         if step in self._want:
             self.steps.append(step)
             self.states.append(state)
+            self.cv.append(r)
 
     def trajectory(self, scenario, dt: float) -> Trajectory:
-        t = np.asarray(self.steps, dtype=float) * dt
-        if not self.states:
-            z = np.zeros((0, 3))
-            return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z)
-        return Trajectory.from_states(scenario, t, *cv.stack_states(self.states))
+        return states_trajectory(scenario, np.asarray(self.steps) * dt, self.states, self.cv)
+
+
+def states_trajectory(scenario, t, states, residuals) -> Trajectory:
+    """The trajectory of a list of states; ``residuals`` the engine's own velocity-constraint
+    residuals (NaN where it has none: then computed from R and W)."""
+    t = np.asarray(t, dtype=float)
+    if not states:
+        z = np.zeros((0, 3))
+        return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z)
+    x, v, R, W = cv.stack_states(states)
+    res = np.asarray(residuals, dtype=float)
+    own = None
+    if np.any(np.isfinite(res)):
+        from references.trajectory import velocity_constraint
+
+        own = np.where(np.isfinite(res), res, velocity_constraint(R, W))
+    return Trajectory.from_states(scenario, t, x, v, R, W, own)
 
 
 # -- the interface ----------------------------------------------------------------------------
@@ -506,6 +533,7 @@ class Engine(EngineBase):
         ctx = RunContext(scenario, BodyModel.of(scenario, dt), integ, float(dt))
         ctx.accuracy = None if accuracy is None else float(accuracy)
         rec = recorder if recorder is not None else Recorder(saves)
+        rec.residuals = ctx.residuals
         try:
             self.build(ctx)
             check_readback(self.name, self.read_model(ctx), ctx.model)
@@ -659,7 +687,7 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
             t_div = float(t_fail) if t_fail is not None else block[-1] * dt
             span = f"between t = {done * dt:.6g} and t = {block[-1] * dt:.6g} s"
             raise _diverged(
-                ctx, rec, done, wall, t_div, f"a step {span} could not be taken: {exc}"
+                engine, ctx, rec, done, wall, t_div, f"a step {span} could not be taken: {exc}"
             ) from exc
         wall += time.perf_counter() - t0
         found = _first_divergence(engine, ctx, states, e0, e_scale)
@@ -669,22 +697,25 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
         if found is not None:
             before = block[good - 1] if good else done
             span = f"between t = {before * dt:.6g} and t = {block[good] * dt:.6g} s"
-            raise _diverged(ctx, rec, before, wall, block[good] * dt, f"{found[1]} {span}")
+            raise _diverged(engine, ctx, rec, before, wall, block[good] * dt, f"{found[1]} {span}")
         done = block[-1]
         if progress is not None:
             progress(done / nstep)
     return wall, done
 
 
-def _diverged(ctx, rec, done, wall, t_div, what) -> Diverged:
+def _diverged(engine, ctx, rec, done, wall, t_div, what) -> Diverged:
     integ = ctx.integrator
     msg = f"{integ.name} at dt = {ctx.dt:g} s: {what}; the run diverged (reduce dt)"
-    out = _output(ctx, rec, done, wall, {"integrator": integ.name, "timestep": ctx.dt})
+    settings = {**engine.settings(ctx), "integrator": integ.name, "timestep": ctx.dt}
+    out = _output(ctx, rec, done, wall, settings)
     return Diverged(msg, t_div, out)
 
 
 def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
     per = ctx.nevals / steps_done if steps_done else float(ctx.integrator.evals_per_step or 0)
+    if ctx.family is not None:
+        settings = {**settings, "family of the algorithm run": ctx.family}
     return RunOutput(
         trajectory=rec.trajectory(ctx.scenario, ctx.dt),
         nstep=int(steps_done),
@@ -693,6 +724,7 @@ def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
         evals_per_step=float(per),
         settings=settings,
         stats=dict(ctx.stats),
+        family=ctx.family or ctx.integrator.family,
     )
 
 
