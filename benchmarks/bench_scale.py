@@ -8,7 +8,7 @@
    the size the full trajectory would have had; then the same with streaming metrics over
    every step (runs in segments, memory bounded by the segment).
 3. Ensemble throughput: director_model's batched path against ``mujoco.rollout`` on the same
-   ensemble of free bodies (the Dzhanibekov body of numerics.md with random directions of W at
+   ensemble of free bodies (the Dzhanibekov body of docs/numerics.md with random directions of W at
    its rotational energy), both on every core, body-steps per second and the ratio.
 
 Every timing is the best of ``--repeat`` (the machine is shared: +-30 % noise); ratios are of

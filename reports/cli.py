@@ -180,7 +180,7 @@ def cmd_ensemble(args) -> int:
 def cmd_report(args) -> int:
     from reports.report import build_report
 
-    rep = build_report(args.dir)
+    rep = build_report(args.dir, progress=True)
     print(f"report: {rep['html']}\n        {rep['markdown']}")
     return 0
 

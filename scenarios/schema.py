@@ -6,7 +6,7 @@ names the file, the field (dotted, e.g. ``body.inertia``), the value found and t
 Nothing is ever repaired silently (a rotation that is not orthonormal is an error, not
 re-orthonormalised).
 
-Physical checks of the body (:func:`body_problems`) follow numerics.md section 1: all principal
+Physical checks of the body (:func:`body_problems`) follow docs/numerics.md section 1: all principal
 moments positive, the triangle inequality ``I_i <= I_j + I_k`` (equivalently all convected
 moments ``J_i = (I_j + I_k - I_i)/2 >= 0``), and not a thin rod (two ``J_i`` equal to zero).
 """
@@ -23,7 +23,7 @@ from scenarios.model import REFERENCE_KINDS, TOLERANCE_METRICS, Scenario
 
 #: Tolerance on the orthonormality of a given rotation matrix, max |R^T R - 1|, and on the
 #: norm of a given quaternion. Decimal input with 16-17 significant digits meets it easily; a
-#: matrix typed with 12 digits is at the edge (numerics.md's R(10) gives 7.8e-13) and one with
+#: matrix typed with 12 digits is at the edge (docs/numerics.md's R(10) gives 7.8e-13) and one with
 #: fewer digits fails (use ``rotation_vector`` or ``quaternion_wxyz`` then).
 ROTATION_TOL = 1e-12
 

@@ -419,7 +419,8 @@ def test_library_scenarios_are_accepted(name, integrator, scenario_name):
 @pytest.mark.parametrize("name,integrator", pairs())
 def test_flat_body_runs_and_a_non_physical_inertia_is_refused_by_mujoco(name, integrator):
     engine = engine_or_skip(name)
-    # a lamina, I_3 = I_1 + I_2 (numerics.md section 1: physical, J_3 = 0): every engine runs it
+    # a lamina, I_3 = I_1 + I_2 (docs/numerics.md section 1: physical, J_3 = 0): every engine
+    # runs it
     tr = run(engine, integrator, free_body(inertia=[1.0, 2.0, 3.0]), 1e-3, t_end=0.01).trajectory
     assert np.all(np.isfinite(tr.omega_body))
     if name == "mujoco":

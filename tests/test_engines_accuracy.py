@@ -1,5 +1,5 @@
 """Engine adapters, dynamics: exact-solution oracles, the declared order of every integrator,
-order 4 against the numerics.md section 5 test vector, agreement between engines where the
+order 4 against the docs/numerics.md section 5 test vector, agreement between engines where the
 algorithm is the same (and only there), and failures reported as statuses."""
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ def test_declared_order(name, integrator, case):
     assert fitted_order(dts, errors) == pytest.approx(order, abs=0.1), errors
 
 
-# == order 4 in attitude against the numerics.md section 5 test vector =====================
+# == order 4 in attitude against the docs/numerics.md section 5 test vector =====================
 R10 = np.array(
     [
         [0.601069719933, -0.479226289446, 0.639575918311],

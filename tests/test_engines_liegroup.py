@@ -1,5 +1,5 @@
 """Our RKMK4 helper, without any engine: dexp^{-1} against finite differences, and the order
-of the method against the numerics.md section 5 Dzhanibekov test vector."""
+of the method against the docs/numerics.md section 5 Dzhanibekov test vector."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from references.engines.liegroup import (
     so3_right_jacobian_inverse,
 )
 
-# numerics.md section 5: I = (2, 3, 4), W0 = (0.01, 2, 0.01), R0 = 1, R(10) to 12 digits.
+# docs/numerics.md section 5: I = (2, 3, 4), W0 = (0.01, 2, 0.01), R0 = 1, R(10) to 12 digits.
 INERTIA = np.array([2.0, 3.0, 4.0])
 W_DZ = np.array([0.01, 2.0, 0.01])
 R10 = np.array(

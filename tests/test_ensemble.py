@@ -16,7 +16,7 @@ def dzh():
 
 def test_members_keep_rotational_energy_and_are_seeded(dzh):
     I, W0 = dzh.inertia, dzh.omega_body
-    T0 = 0.5 * W0 @ (I * W0)  # 6.0003 for numerics.md's Dzhanibekov body
+    T0 = 0.5 * W0 @ (I * W0)  # 6.0003 for docs/numerics.md's Dzhanibekov body
     assert T0 == pytest.approx(6.0003, rel=1e-15)
     ms = members(dzh, 50, seed=3)
     T = [0.5 * m.omega_body @ (I * m.omega_body) for m in ms]

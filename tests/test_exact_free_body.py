@@ -1,4 +1,4 @@
-"""The exact torque-free body against numerics.md's 30-digit test vectors, an independent
+"""The exact torque-free body against docs/numerics.md's 30-digit test vectors, an independent
 high-precision mpmath evaluation (20-30 digits), Euler's equations, relabelling symmetry and
 the numerical reference."""
 
@@ -16,7 +16,7 @@ from references.exact._util import rotation_angle
 from references.exact.free_body import FreeBody, free_flight
 from scenarios.model import Scenario
 
-DZ_I, DZ_W = [2.0, 3.0, 4.0], [0.01, 2.0, 0.01]  # numerics.md section 5
+DZ_I, DZ_W = [2.0, 3.0, 4.0], [0.01, 2.0, 0.01]  # docs/numerics.md section 5
 
 # Required by the brief: 1e-12 relative. The computation takes O(10) roundings, so 1e-13 is a
 # margin of ~100x over what was measured (<= 2.2e-16 on every quantity below).
@@ -56,16 +56,16 @@ def test_dzhanibekov_state_at_10s(dz):
             [-0.587666980955, -0.807386214720, -0.052678456472],
         ]
     )
-    # numerics.md gives R(10) to 12 decimals: rounding up to 5e-13, plus our error
+    # docs/numerics.md gives R(10) to 12 decimals: rounding up to 5e-13, plus our error
     assert np.abs(dz.rotation([10.0])[0] - R10).max() < 6e-13
 
 
 def test_dzhanibekov_half_and_full_period(dz):
     T = 36.999402926830183884
-    # W(T/2) = (-0.01, -2, 0.01) (numerics.md): the flip
+    # W(T/2) = (-0.01, -2, 0.01) (docs/numerics.md): the flip
     assert np.abs(dz.omega([T / 2])[0] - [-0.01, -2.0, 0.01]).max() < 1e-13
     assert np.abs(dz.omega([T])[0] - DZ_W).max() < 1e-13
-    # after one period R(T) = Rot(L, dphi) R0 (numerics.md section 4), with the 30-digit dphi
+    # after one period R(T) = Rot(L, dphi) R0 (docs/numerics.md section 4), with the 30-digit dphi
     L = np.multiply(DZ_I, DZ_W)
     expect = Rotation.from_rotvec(77.821937985846349919 * L / np.linalg.norm(L)).as_matrix()
     # the rotation angle of 77.8 rad carries eps * 78 of round-off in both evaluations
@@ -73,7 +73,7 @@ def test_dzhanibekov_half_and_full_period(dz):
 
 
 def test_second_test_body():
-    fb = FreeBody(DZ_I, [0.2, 0.5, 1.0], np.eye(3))  # numerics.md section 5, case A
+    fb = FreeBody(DZ_I, [0.2, 0.5, 1.0], np.eye(3))  # docs/numerics.md section 5, case A
     assert fb.case == "A"
     assert fb.energy == pytest.approx(2.415, rel=REL)
     assert fb.L == pytest.approx(4.2906875905849868808, rel=REL)
@@ -82,8 +82,8 @@ def test_second_test_body():
 
 
 def _mp_free_body(I, W, t_list, dps=20, attitude=True):
-    """Independent high-precision evaluation of the case-A formulas of numerics.md section 4 with
-    mpmath (body rates, and the attitude by mpmath quadrature of phi')."""
+    """Independent high-precision evaluation of the case-A formulas of docs/numerics.md section 4
+    with mpmath (body rates, and the attitude by mpmath quadrature of phi')."""
     mp = pytest.importorskip("mpmath")
     mp.mp.dps = dps
     I = [mp.mpf(repr(x)) for x in I]

@@ -1,4 +1,4 @@
-"""The Lagrange top and the steady precession against numerics.md's Simo-Wong test vectors,
+"""The Lagrange top and the steady precession against docs/numerics.md's Simo-Wong test vectors,
 the literature's cone top, and the numerical reference."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def simo_wong():
 
 
 def test_simo_wong_roots_and_periods(simo_wong):
-    top = simo_wong  # numerics.md section 5
+    top = simo_wong  # docs/numerics.md section 5
     u1, u2, u3 = top.roots
     assert u1 == pytest.approx(0.9985124255061859741, rel=REL)
     assert u2 == pytest.approx(0.99875026039496624656, rel=REL)
@@ -42,7 +42,7 @@ def test_simo_wong_roots_and_periods(simo_wong):
 
 def test_simo_wong_motion_over_one_nutation_period(simo_wong):
     # after one nutation period the tilt returns and the Euler angles have advanced by the
-    # test vector's dphi and dpsi: R(T) = Rot(up, dphi) R0 Rot(e3, dpsi) (numerics.md)
+    # test vector's dphi and dpsi: R(T) = Rot(up, dphi) R0 Rot(e3, dpsi) (docs/numerics.md)
     T, dphi, dpsi = 0.6854584972896153183, 0.28610768780066136647, 33.987225031622482562
     sc = scenarios.load("simo_wong_top")
     R, W = simo_wong.rotation_and_omega([0.0, T])
@@ -119,7 +119,7 @@ def test_cone_top_steady_precession():
     sc = scenarios.load("cone_top")
     top = LagrangeTop(sc)
     assert top.steady and top.nutation_period is None
-    # numerics.md section 7: precession 10 rad/s, spin 135.6 rad/s, tilt pi/3 (the file's
+    # docs/numerics.md section 7: precession 10 rad/s, spin 135.6 rad/s, tilt pi/3 (the file's
     # numbers are the nearest doubles: a few ulps of O(100) terms)
     assert top.w_p == pytest.approx(10.0, rel=1e-15)
     assert top.w_s == pytest.approx(135.6, rel=1e-14)

@@ -56,7 +56,7 @@ def test_rows_files_and_report(tmp_path, dzh):
 
 
 def test_failing_run_is_a_row_and_the_rest_go_on(tmp_path):
-    """h |W| = 0.5 * 2.0 = 1.0: RATTLE has no solution (numerics.md, h|W| < 1); the row says
+    """h |W| = 0.5 * 2.0 = 1.0: RATTLE has no solution (docs/numerics.md, h|W| < 1); the row says
     diverged at the first step, with the step-size limit, and MuJoCo's run still happens."""
     sc = scenarios.load("major_axis_spin").replace(t_end=2.0, dt_sweep=())
     specs = [RunSpec(sc, "director", "rattle", 0.5), RunSpec(sc, "mujoco", "Euler", 0.5)]

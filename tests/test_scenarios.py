@@ -68,7 +68,7 @@ def test_default_suite_total_work():
 
 
 def test_dzhanibekov_is_the_test_vector_body():
-    sc = scenarios.load("dzhanibekov")  # numerics.md section 5
+    sc = scenarios.load("dzhanibekov")  # docs/numerics.md section 5
     assert sc.inertia.tolist() == [2.0, 3.0, 4.0]
     assert sc.omega_body.tolist() == [0.01, 2.0, 0.01]
     assert np.array_equal(sc.rotation, np.eye(3))
@@ -94,24 +94,24 @@ def test_gazebo_inertia_from_the_box_dimensions():
 
 def test_simo_wong_top_energy_and_momentum():
     sc = scenarios.load("simo_wong_top")
-    # numerics.md section 5: moments about the pivot diag(5, 5, 1), m g l = 20
+    # docs/numerics.md section 5: moments about the pivot diag(5, 5, 1), m g l = 20
     assert np.array_equal(sc.pivot_inertia, np.diag([5.0, 5.0, 1.0]))
     mgl = sc.mass * np.linalg.norm(sc.gravity) * np.linalg.norm(sc.pivot)
     assert mgl == 20.0
     # the top stands above the pivot: centre of mass at +0.5 d3 from the pivot (the origin)
     assert sc.position[2] > 0 and np.isclose(np.linalg.norm(sc.position), 0.5, rtol=0, atol=1e-15)
     traj = Trajectory.from_states(sc, [0.0], None, None, sc.rotation[None], sc.omega_body[None])
-    # 30-digit values of numerics.md section 5; the suite's formulas add a handful of
+    # 30-digit values of docs/numerics.md section 5; the suite's formulas add a handful of
     # roundings of O(1e3) terms, hence 1e-15 relative
     assert traj.energy[0] == pytest.approx(1269.9750052078993249, rel=1e-15)
     assert traj.angular_momentum[0, 2] == pytest.approx(49.937513019748312328, rel=1e-15)
-    # L . d3 = 50 (numerics.md)
+    # L . d3 = 50 (docs/numerics.md)
     assert traj.angular_momentum[0] @ sc.rotation[:, 2] == pytest.approx(50.0, rel=1e-15)
 
 
 def test_cone_top_parameters_and_steady_spin():
     sc = scenarios.load("cone_top")
-    # numerics.md section 7, computed here independently of the file
+    # docs/numerics.md section 7, computed here independently of the file
     rho, a = 2700.0, 0.1
     r, l = a / 2, 3 * a / 4
     m = rho * math.pi * r**2 * a / 3
@@ -376,13 +376,13 @@ def test_not_utf8(tmp_path):
 
 
 def test_lamina_is_accepted(tmp_path):
-    # numerics.md section 1: one J_i = 0 (I = (1, 2, 3), J = (2, 1, 0)) is a real flat body
+    # docs/numerics.md section 1: one J_i = 0 (I = (1, 2, 3), J = (2, 1, 0)) is a real flat body
     text = VALID.replace("[1.0, 2.0, 2.5]", "[1.0, 2.0, 3.0]")
     assert scenarios.load(_write(tmp_path, text)).inertia.tolist() == [1.0, 2.0, 3.0]
 
 
 def test_textbook_body_violating_the_triangle_inequality(tmp_path):
-    # numerics.md section 1: I = (2, 1, 2/3) is not a rigid body (J_1 < 0)
+    # docs/numerics.md section 1: I = (2, 1, 2/3) is not a rigid body (J_1 < 0)
     text = VALID.replace("[1.0, 2.0, 2.5]", "[2.0, 1.0, 0.6666666666666666]")
     with pytest.raises(ScenarioError, match=r"I_1 <= I_2 \+ I_3"):
         scenarios.load(_write(tmp_path, text))

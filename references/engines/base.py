@@ -118,7 +118,7 @@ for _fam in (
         "symplectic / energy-momentum schemes of the director model; they keep the directors "
         "orthonormal to round-off",
         # every scheme of the family enforces the position constraints at the nodes (docs
-        # numerics.md section 3): 1e-10 is round-off accumulated over ~1e5 steps with margin
+        # docs/numerics.md section 3): 1e-10 is round-off accumulated over ~1e5 steps with margin
         {"orthonormality_max": 1e-10},
     ),
     Family(

@@ -1,7 +1,7 @@
 """Exact torque-free motion of a rigid body: body rates by Jacobi elliptic functions and the
 attitude by Euler angles aligned with the (constant) angular momentum.
 
-Notation (numerics.md section 4): principal moments I, body rates W, 2E = sum I_i W_i^2,
+Notation (docs/numerics.md section 4): principal moments I, body rates W, 2E = sum I_i W_i^2,
 L^2 = sum (I_i W_i)^2. The solution is computed in a relabelled body frame (a, b, c), where c
 is the axis the angular momentum circulates around (the largest moment in case A,
 L^2 > 2 E I_mid; the smallest in case B, L^2 < 2 E I_mid), b the intermediate axis and a the
@@ -15,7 +15,7 @@ sign of W in Euler's equations). In that frame, with u = lambda t + u0 and param
     lambda^2 = |I_c - I_b| Q/(I_a I_b I_c),  m = |I_b - I_a| P/(|I_c - I_b| Q),
     1 - m = |I_c - I_a| S/(|I_c - I_b| Q),
 
-with the cancellation-free forms (exact identities, numerics.md section 4)
+with the cancellation-free forms (exact identities, docs/numerics.md section 4)
 
     P = |2E I_c - L^2| = I_a |I_c - I_a| W_a^2 + I_b |I_c - I_b| W_b^2,
     Q = |L^2 - 2E I_a| = I_b |I_b - I_a| W_b^2 + I_c |I_c - I_a| W_c^2,
@@ -124,7 +124,7 @@ class FreeBody:
     # -- asymmetric bodies ---------------------------------------------------------------
     def _init_asymmetric(self, I, W0, R0, order):
         lo, mid, hi = (int(i) for i in order)
-        # separatrix distance L^2 - 2 E I_mid without cancellation (numerics.md section 4)
+        # separatrix distance L^2 - 2 E I_mid without cancellation (docs/numerics.md section 4)
         D = I[lo] * (I[lo] - I[mid]) * W0[lo] ** 2 + I[hi] * (I[hi] - I[mid]) * W0[hi] ** 2
         if D >= 0:
             perm, self.case = (lo, mid, hi), ("A" if D > 0 else "separatrix")

@@ -2,7 +2,7 @@
 the cubic f(u) and Jacobi functions, the attitude by elliptic integrals of the third kind, the
 planar physical pendulum, and the closed-form steady precession.
 
-Notation (numerics.md section 4): k is the body symmetry axis, "up" = -g/|g|, u = cos(theta) =
+Notation (docs/numerics.md section 4): k is the body symmetry axis, "up" = -g/|g|, u = cos(theta) =
 up . d_k the cosine of the tilt of the symmetry axis, A the transverse moment about the pivot,
 C the axial moment, l the signed distance pivot -> centre of mass along d_k (l > 0: the centre
 of mass above the pivot when the axis is up), a = L_up/A, b = L . d_k/A = C W_k/A,
@@ -18,9 +18,9 @@ Roots. The cubic is solved in delta = u - u0 (u0 the initial value), expanded ab
 
 with n = R^T up in body axes (N is a sum of squares, not 1 - u0^2): the constant term f(0) =
 u'(0)^2 is exact and the terms at a turning point are small, whereas the cubic expanded in u
-about 0 loses several digits for fast tops (numerics.md section 4). The turning points are bracketed
-by the signs f(-(1 + u0)) = -(a + b)^2 < 0, f(0) = q^2 >= 0, f(1 - u0) = -(a - b)^2 < 0
-(a +- b formed as p +- b (1 +- u0)), so they stay real when they nearly coincide close to a
+about 0 loses several digits for fast tops (docs/numerics.md section 4). The turning points are
+bracketed by the signs f(-(1 + u0)) = -(a + b)^2 < 0, f(0) = q^2 >= 0, f(1 - u0) = -(a - b)^2 <
+0 (a +- b formed as p +- b (1 +- u0)), so they stay real when they nearly coincide close to a
 steady precession, and are found by Brent's method; when q = 0 (the top starts at a turning
 point, as in Simo-Wong) delta = 0 is an exact root and the quadratic factor is solved by the
 stable formula. A turning point near a pole is polished once more in the distance s from that
@@ -80,7 +80,7 @@ Functions and Applications, 1989, section 5.2; Whittaker, Analytical Dynamics, s
 Steady precession (double root u1 = u2 = u0, checked to a relative residual of 1e-12 of the
 torque balance m g l = phi' (C W_k - A phi' cos theta)): the closed form
 R(t) = Rot(up, w_p t) R_0 Rot(e_k, w_s t), W(t) = w_p R(t)^T up + w_s e_k, with
-w_p = phi', w_s = psi' (numerics.md section 7). A top spinning upright or hanging straight down
+w_p = phi', w_s = psi' (docs/numerics.md section 7). A top spinning upright or hanging straight down
 without transverse rate (N = 0, W_perp = 0) is the special case w_p = 0.
 """
 
@@ -347,7 +347,7 @@ class LagrangeTop:
                 "numerical reference"
             )
 
-        # f in delta = u - u0, expanded about u0: f(0) = q^2 exactly, c1 = f'(0) (numerics.md)
+        # f in delta = u - u0, expanded about u0: f(0) = q^2 exactly, c1 = f'(0) (docs/numerics.md)
         c3, c2, c1, c0 = (
             beta,
             2 * u0 * beta - w2 - b * b,
