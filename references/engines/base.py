@@ -45,7 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from references import conventions as cv
-from references.engines.liegroup import RKMK4Stepper
+from references.engines.liegroup import CompiledRKMK4Stepper
 from references.errors import (
     Diverged,
     EngineError,
@@ -620,7 +620,7 @@ class _NativeStepper:
 def _stepper(engine: Engine, ctx: RunContext):
     if ctx.integrator.stepping == "native":
         return _NativeStepper(engine, ctx)
-    return RKMK4Stepper(engine, ctx)
+    return CompiledRKMK4Stepper(engine, ctx)
 
 
 # -- the loop ---------------------------------------------------------------------------------
