@@ -29,10 +29,10 @@ Pivoted bodies. Drake 1.51 has no ball joint with quaternion coordinates (its ow
 message says so and points to https://github.com/RobotLocomotion/drake/issues/12404); the
 BallRpyJoint's roll-pitch-yaw chart is singular at pitch = +-pi/2, where Drake refuses to
 step (|cos pitch| below about 1e-3). The adapter places the frames F and M (:func:`rpy_chart`)
-so that the singular set is the configuration a top is furthest from, and ends a run in which
-|cos pitch| falls below :data:`CHART_MIN_COS` at a checkpoint (or Drake's own singularity check
-fires) as diverged at that time: for a top, only a numerical tilt far off the exact motion
-gets there.
+so that the singular set is a configuration tops and pendulums stay far from, and ends a run
+in which |cos pitch| falls below :data:`CHART_MIN_COS` at a checkpoint (or Drake's own
+singularity check fires) as diverged at that time: for the library's pivoted bodies, only a
+numerical motion far off the exact one gets there.
 
 Cut-off of error-controlled runs: a run may make at most :data:`EVAL_BUDGET` dynamics
 evaluations (Drake's derivative evaluations, Jacobian ones included; steps for CENIC, which
@@ -53,7 +53,7 @@ and the number of steps Drake took is checked against the plan after every call.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -324,36 +324,26 @@ def rpy_chart(R0, com, gravity) -> tuple[np.ndarray, np.ndarray]:
     under ``gravity``.
 
     The chart is singular where the body direction a = R_BM e_x meets the world direction
-    b = R_WF e_z (R a = +-b). b is the vertical (gravity's direction; e_z without gravity).
-    With theta0 the initial angle between the COM axis c and the vertical, a is chosen
-    perpendicular to c (singular only when c is horizontal, theta = pi/2) when theta0 is
-    nearer to 0 or pi than to pi/2, else a = c (singular only when c is vertical); for a top
-    whose tilt stays in a band (nutation), the singular set is then never reached.
-    F and M are aligned with each other at t = 0 up to the initial pitch
-    (R_FM(0) = Ry(pitch0): roll and yaw start at 0)."""
+    b = R_WF e_z (R a = +-b). b is the vertical (gravity's direction; e_z without gravity) and
+    a is perpendicular both to the COM axis c and, at t = 0, to the vertical
+    (a = c x R0^T b, normalised; any unit vector perpendicular to c if c starts vertical). Then
+    R a can only meet the vertical while c is horizontal; a top whose tilt stays in a band
+    below 90 degrees keeps |cos pitch| >= cos(largest tilt), and a pendulum swinging in the
+    vertical plane of c keeps a on its swing axis (pitch 0). F and M are aligned at t = 0
+    (R_FM(0) = 1: roll, pitch and yaw start at 0)."""
     R0 = np.asarray(R0, dtype=float)
     b = _unit(gravity)
     if b is None:
         b = np.array([0.0, 0.0, 1.0])
     b_body = R0.T @ b
     c = _unit(com)
-    if c is None:
-        a = _unit(np.cross(b_body, _perpendicular(b_body)))
-    else:
-        theta0 = math.acos(max(-1.0, min(1.0, float(c @ b_body))))
-        if abs(theta0 - 0.5 * math.pi) >= min(theta0, math.pi - theta0):
-            a = _unit(np.cross(c, b_body))
-            if a is None:
-                a = _perpendicular(c)
-        else:
-            a = c
-    a_world = R0 @ a
-    fx = _unit(a_world - (a_world @ b) * b)
-    if fx is None:  # cannot happen for the choices above; a safe fallback all the same
-        fx = _perpendicular(b)
-    R_WF = np.column_stack([fx, np.cross(b, fx), b])
-    u = R0.T @ R_WF[:, 1]
-    R_BM = np.column_stack([a, u, np.cross(a, u)])
+    if c is None:  # pivot at the centre of mass: no COM axis, any horizontal direction
+        c = _perpendicular(b_body)
+    a = _unit(np.cross(c, b_body))
+    if a is None:  # c starts vertical: every direction perpendicular to it is horizontal
+        a = _perpendicular(c)
+    R_WF = np.column_stack([R0 @ a, np.cross(b, R0 @ a), b])
+    R_BM = R0.T @ R_WF
     return R_WF, R_BM
 
 
@@ -383,7 +373,6 @@ class _Handle:
     horizon: float = math.nan
     stop: str | None = None
     min_cos_pitch: float = math.inf
-    extra: dict = field(default_factory=dict)
 
 
 class DrakeEngine(Engine):
@@ -501,6 +490,11 @@ class DrakeEngine(Engine):
             integ = ResetIntegratorFromFlags(sim, scheme, horizon)
             integ.set_fixed_step_mode(False)
             integ.set_target_accuracy(ctx.accuracy)
+            # Drake's first attempt would be the largest step (the horizon); from such a step
+            # runge_kutta5's error control never recovers on a top (measured: 258000 rejected
+            # attempts and no step in 12 s at t = 0, heavy_top, 1e-6), and no step means no
+            # monitor call to cut it off. The scenario's own fixed step is a sane first try.
+            integ.request_initial_step_size_target(min(ctx.scenario.dt, horizon))
         h = _Handle(plant, body, joint, sim, context, integ, mode, scheme, R_WF, R_BM, p_BM)
         h.horizon = horizon
         if mode == "error-controlled":
@@ -573,6 +567,10 @@ class DrakeEngine(Engine):
                     integ.get_maximum_step_size(),
                     h.horizon,
                 )
+                extra["initial step size target (the scenario's dt)"] = (
+                    integ.get_initial_step_size_target(),
+                    min(ctx.scenario.dt, h.horizon),
+                )
                 # an error-controlled integrator has no step of its own to read back: ctx.dt is
                 # the interval of the adapter's calls (checkpoints), not an engine setting
                 dt = ctx.dt
@@ -605,8 +603,13 @@ class DrakeEngine(Engine):
             "joint limits": "none (infinite, read back)",
             "geometry": "none (no collision geometry)"
             + ("; an empty SceneGraph for CENIC" if h.scheme == "cenic" else ""),
-            "quaternion": "not renormalised by Drake (its drift shows in R)",
         }
+        if not mdl.pivoted:
+            out["quaternion"] = (
+                "kept at unit norm by CENIC's position update"
+                if h.scheme == "cenic"
+                else "never renormalised by Drake; its norm's drift shows in R (R^T R = |q|^4 1)"
+            )
         if mdl.pivoted:
             out["RPY chart"] = (
                 f"frame F rotation {h.R_WF.tolist()}; the run ends below |cos pitch| "
@@ -619,6 +622,8 @@ class DrakeEngine(Engine):
             out["integration scheme"] = h.scheme
             out["fixed step mode"] = h.mode == "fixed step"
             out["maximum step size"] = ctx.dt if h.mode == "fixed step" else h.horizon
+        if h.mode == "error-controlled":
+            out["initial step size target"] = min(ctx.scenario.dt, h.horizon)
         if h.mode == "error-controlled":
             out["evaluation budget"] = (
                 f"{h.budget} dynamics evaluations ({EVAL_BUDGET} x max(t_end / scenario dt "
@@ -732,10 +737,10 @@ class DrakeEngine(Engine):
     def _check_chart(self, ctx) -> None:
         """End a pivoted run whose RPY chart came near its singularity (|cos pitch| below
         :data:`CHART_MIN_COS` at a checkpoint): a StepFailure at that time, so the run counts
-        as diverged there. With the frames of :func:`rpy_chart` the exact motion of a top
-        stays far from the singular set (the library's tops keep |cos pitch| >= 0.86,
-        tests/test_engine_drake.py), so reaching it means the numerical tilt has left the
-        exact motion's band: the integrator has failed, and beyond that point the chart, not
+        as diverged there. With the frames of :func:`rpy_chart` the exact motions of the
+        library's pivoted bodies stay far from the singular set (|cos pitch| >= 0.5,
+        tests/test_engine_drake.py), so reaching it means the numerical motion has left the
+        exact one far behind: the integrator has failed, and beyond that point the chart, not
         the integrator, would shape the result."""
         h = ctx.handle
         pitch = float(h.plant.GetPositions(h.context)[1])
@@ -744,9 +749,9 @@ class DrakeEngine(Engine):
         if c < CHART_MIN_COS:
             exc = StepFailure(
                 f"the BallRpyJoint's roll-pitch-yaw chart reached pitch = {pitch:.6g} rad "
-                f"(|cos pitch| = {c:.3g} < {CHART_MIN_COS}) at t = {h.t:.6g} s, far outside "
-                "the band of the exact motion for a top; Drake 1.51 has no ball joint with "
-                "quaternion coordinates (drake issue 12404), so the run stops here"
+                f"(|cos pitch| = {c:.3g} < {CHART_MIN_COS}) at t = {h.t:.6g} s, where the exact "
+                "motion of a top or pendulum never goes with this chart; Drake 1.51 has no ball "
+                "joint with quaternion coordinates (drake issue 12404), so the run stops here"
             )
             exc.time = h.t
             raise exc
