@@ -159,22 +159,33 @@ def test_ball_rpy_layout_against_drake_kinematics(drake):
 # -- the RPY chart of pivoted bodies ------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["heavy_top", "cone_top", "simo_wong_top"])
-def test_chart_keeps_the_library_tops_far_from_its_singularity(drake, name):
+PIVOTED = [
+    "heavy_top",
+    "cone_top",
+    "simo_wong_top",
+    "pendulum_through_vertical",
+    "near_vertical_top",
+]
+
+
+@pytest.mark.parametrize("name", PIVOTED)
+def test_chart_keeps_the_library_pivoted_bodies_far_from_its_singularity(drake, name):
     """Over the exact motion (references.exact, 2001 times over the horizon) the chart's
-    |cos pitch| stays >= 0.86: the singular set (R a = +-b) is never approached, by a margin
-    far above CHART_MIN_COS."""
+    |cos pitch| stays >= 0.45, far above CHART_MIN_COS: the singular set (R a = +-b) is never
+    approached. The tightest is cone_top: a is perpendicular to the axis, which precesses at
+    60 degrees from the vertical, so |cos pitch| >= cos 60 degrees = 0.5 (attained)."""
     from references.engines.drake_engine import CHART_MIN_COS, rpy_chart
 
     sc = scenarios.load(name)
     mdl = BodyModel.of(sc, sc.dt)
     R_WF, R_BM = rpy_chart(sc.rotation, mdl.com, mdl.gravity)
+    assert np.abs(R_WF.T @ R_WF - np.eye(3)).max() <= 4 * EPS
+    assert np.abs(R_BM.T @ R_BM - np.eye(3)).max() <= 4 * EPS
+    assert np.abs(R_WF.T @ sc.rotation @ R_BM - np.eye(3)).max() <= 4 * EPS  # rpy(0) = 0
     ref = reference_trajectory(sc, np.linspace(0.0, sc.t_end, 2001))
     sin_pitch = np.einsum("i,nij,j->n", R_WF[:, 2], ref.rotation, R_BM[:, 0])
     min_cos = float(np.sqrt(1.0 - sin_pitch**2).min())
-    assert min_cos >= 0.86 > CHART_MIN_COS
-    assert np.abs(R_WF.T @ R_WF - np.eye(3)).max() <= 4 * EPS
-    assert np.abs(R_BM.T @ R_BM - np.eye(3)).max() <= 4 * EPS
+    assert min_cos >= 0.45 > CHART_MIN_COS
 
 
 def test_chart_singularity_ends_the_run_as_diverged(drake):
@@ -198,55 +209,16 @@ def test_chart_singularity_ends_the_run_as_diverged(drake):
 # -- the conformance kit ------------------------------------------------------------------------
 
 
-#: what the kit (references/engines/conformance.py) cannot yet ask of this adapter, and why:
-#: it runs every integrator without a target accuracy, which an error-controlled one refuses;
-#: and it measures order 5 on (0.1, 0.05, 0.025), where runge_kutta5 is pre-asymptotic (local
-#: slopes 5.48 and 5.21 there, 5.09 and 5.03 at the next halvings; measured 5.344 against 5.3
-#: allowed). Both are checked below in the kit's terms instead.
-def _kit_gap(check) -> bool:
-    return "(error-controlled)" in check.name or check.name == "declared order of 'runge_kutta5'"
-
-
 def test_passes_the_conformance_kit(drake):
-    checks = kit.check_adapter(drake)
-    failed = [f"{c.name}: {c.message}" for c in checks if not c.ok and not _kit_gap(c)]
-    assert not failed, "\n".join(failed)
-    names = {c.name for c in checks}
+    """The kit (references/engines/conformance.py) on every integrator, the error-controlled
+    ones at its target accuracy; every planted mistake, the kit's and Drake's own defaults
+    (joint damping, the Simulator's default integrator), is caught on free and pivoted
+    bodies."""
+    kit.assert_conforms(drake)
+    names = {c.name for c in kit.check_adapter(drake, orders=False)}
     for mistake in (*kit.STATE_MISTAKES, *kit.MODEL_MISTAKES, *drake.plantable):
         assert f"catches {mistake} (free)" in names
         assert f"catches {mistake} (pivoted)" in names
-    for integ in drake.integrators:
-        if not integ.adaptive:
-            assert f"declared order of {integ.name!r}" in names
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="the kit runs error-controlled integrators without a target accuracy and measures "
-    "order 5 before the asymptotic range (see _kit_gap); strict: passes once the kit does",
-)
-def test_assert_conforms(drake):
-    kit.assert_conforms(drake)
-
-
-def test_error_controlled_integrators_pass_the_kits_run_checks(drake):
-    """The kit's check_runs, with a target accuracy: model read back, the initial state
-    through Drake's own quantities, seconds and joules, free and pivoted."""
-    for integ in drake.integrators:
-        if not integ.adaptive:
-            continue
-        for sc in (kit.free_scenario(), kit.pivoted_scenario()):
-            out = drake().run(sc, integ.name, sc.dt, t_end=2 * sc.dt, save_every=1, accuracy=1e-8)
-            assert abs(out.trajectory.t[-1] - 2 * sc.dt) <= 1e-15
-            e0 = kit._energy0(sc)
-            assert abs(out.trajectory.energy[0] - e0) <= 1e-12 * sc.energy_scale
-            assert out.settings["target accuracy"] == 1e-8
-            assert out.stats["steps taken"] >= 2
-
-
-def test_runge_kutta5_order_on_the_next_sweep(drake):
-    p = kit.measured_order(drake, "runge_kutta5", dts=(0.05, 0.025, 0.0125))
-    assert abs(p - 5) <= kit.ORDER_SLACK, p
 
 
 # -- what each configuration computes -----------------------------------------------------------
@@ -408,6 +380,28 @@ def test_an_integrator_over_its_budget_is_cut_off(drake):
         int(x) for x in re.search(r"after (\d+) steps and (\d+) dynamics", msg).groups()
     )
     assert budget < evals <= budget + 50 and 0 < steps < evals
+
+
+def test_error_control_from_a_sane_first_step_on_a_top(drake):
+    """Drake's first error-controlled attempt would be the largest step (the horizon); on the
+    heavy top runge_kutta5 then rejected 258000 attempts in 12 s without taking a step (a loop
+    no step budget can see: the monitor runs after steps). The adapter asks for the scenario's
+    dt as the first step; the run must finish, in a subprocess with a timeout so that a
+    regression fails instead of hanging the suite (measured 0.7 s, import included)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import scenarios\n"
+        "from references.engines import get_engine\n"
+        "sc = scenarios.load('heavy_top')\n"
+        "out = get_engine('drake')().run(sc, 'runge_kutta5 (error-controlled)', 0.05, "
+        "t_end=0.1, save_every=1, accuracy=1e-6)\n"
+        "print(int(out.stats['steps taken']))\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert int(res.stdout.split()[-1]) > 0
 
 
 # -- long runs ----------------------------------------------------------------------------------
