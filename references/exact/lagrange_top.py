@@ -278,6 +278,31 @@ class LagrangeTop:
     # -- set-up --------------------------------------------------------------------------
     def _setup(self, scenario):
         self.scenario = sc = scenario
+        self._axis_and_moments(sc)
+        n, Wr = self._initial_frame(sc)
+        u0, N, w2, p = self.u0, self._N0, self._w2, self._p0
+        R0 = np.asarray(sc.rotation, dtype=float)
+        W0 = np.asarray(sc.omega_body, dtype=float)
+        if self.omega3 == 0.0 and p == 0.0:
+            self._init_pendulum(R0, W0, self._mgl / self.A, w2, N)
+            return
+        if N == 0.0:
+            if w2 == 0.0:  # spinning exactly upright or hanging: R0 Rot(e_k, W_k t)
+                self._init_steady(0.0, self.omega3, u0, N, 0.0)
+                return
+            raise NotALagrangeTop(
+                "the symmetry axis starts exactly vertical with a transverse rate and spin: "
+                "the Euler angles about the vertical are undefined at t = 0; use the "
+                "numerical reference"
+            )
+        q = float(Wr[0] * n[1] - Wr[1] * n[0])  # f(u0) = q^2 = u'(0)^2
+        if self._expand_cubic(q):
+            return
+        self._init_nutating(R0, n, q)
+
+    def _axis_and_moments(self, sc) -> None:
+        """The symmetry axis k, "up", the transverse and axial moments about the pivot A, C and
+        the pivot to centre-of-mass distance l; NotALagrangeTop if the scenario is not one."""
         if sc.pivot is None:
             raise NotALagrangeTop("not pivoted: a Lagrange top turns about a fixed point")
         g = np.asarray(sc.gravity, dtype=float)
@@ -303,10 +328,14 @@ class LagrangeTop:
         self.up = -g / gn
         m = sc.mass
         l = -float(c[k])  # centre of mass relative to the pivot: -c = l e_k
-        A = float(I[i]) + m * l * l
-        Cm = float(I[k])
-        self.A, self.C, self.l = A, Cm, l
+        self.A, self.C, self.l = float(I[i]) + m * l * l, float(I[k]), l
+        self._mgl = m * gn * abs(l)
+        self._gn = gn
         self._Cb = np.eye(3)[:, [i, j, k]]  # relabelled body axes (cyclic: right-handed)
+
+    def _initial_frame(self, sc):
+        """The initial up vector n and rates Wr in the relabelled body axes, and the
+        constants of the motion a, b, alpha, beta (module docstring); returns (n, Wr)."""
         R0 = np.asarray(sc.rotation, dtype=float)
         W0 = np.asarray(sc.omega_body, dtype=float)
         n = self._Cb.T @ (R0.T @ self.up)
@@ -316,13 +345,13 @@ class LagrangeTop:
         N = float(n[0] ** 2 + n[1] ** 2)
         w2 = float(Wr[0] ** 2 + Wr[1] ** 2)
         p = float(Wr[0] * n[0] + Wr[1] * n[1])
-        q = float(Wr[0] * n[1] - Wr[1] * n[0])  # f(u0) = q^2 = u'(0)^2
-        b = Cm * self.omega3 / A
-        beta = 2.0 * m * gn * l / A
+        b = self.C * self.omega3 / self.A
+        beta = 2.0 * sc.mass * self._gn * self.l / self.A
         self.beta, self.b = beta, b
         self.a = p + b * u0
         self.alpha = w2 + beta * u0
         self.u0 = u0
+        self._N0, self._w2, self._p0 = N, w2, p
         self.pendulum = None
         self.steady = False
         self.dphi = self.dpsi = math.nan
@@ -334,20 +363,13 @@ class LagrangeTop:
             omu0 = 1.0 - u0
             opu0 = N / omu0
         self._opu0, self._omu0 = opu0, omu0
-        if self.omega3 == 0.0 and p == 0.0:
-            self._init_pendulum(R0, W0, m * gn * abs(l) / A, w2, N)
-            return
-        if N == 0.0:
-            if w2 == 0.0:  # spinning exactly upright or hanging: R0 Rot(e_k, W_k t)
-                self._init_steady(0.0, self.omega3, u0, N, 0.0)
-                return
-            raise NotALagrangeTop(
-                "the symmetry axis starts exactly vertical with a transverse rate and spin: "
-                "the Euler angles about the vertical are undefined at t = 0; use the "
-                "numerical reference"
-            )
+        return n, Wr
 
-        # f in delta = u - u0, expanded about u0: f(0) = q^2 exactly, c1 = f'(0) (docs/numerics.md)
+    def _expand_cubic(self, q) -> bool:
+        """The cubic f in delta = u - u0 about u0 (f(0) = q^2 exactly, c1 = f'(0); docs/
+        numerics.md section 4), and the steady precession if f has a double root at u0: then
+        the motion is set up and True is returned."""
+        u0, N, w2, p, b, beta = self.u0, self._N0, self._w2, self._p0, self.b, self.beta
         c3, c2, c1, c0 = (
             beta,
             2 * u0 * beta - w2 - b * b,
@@ -364,7 +386,13 @@ class LagrangeTop:
         if self.steady:  # f = delta^2 (c2 + c3 delta): the third root is -c2/c3
             w_p = p / N
             self._init_steady(w_p, self.omega3 - u0 * w_p, u0, N, -c2 / c3)
-            return
+        return self.steady
+
+    def _init_nutating(self, R0, n, q) -> None:
+        """A nutating top: the turning points, their distances from the poles, the elliptic
+        parametrisation of u(t), and the attitude's constants (module docstring)."""
+        u0, w2, p, b, beta = self.u0, self._w2, self._p0, self.b, self.beta
+        opu0, omu0 = self._opu0, self._omu0
         self._apb = p + b * opu0  # a + b
         self._amb = p - b * omu0  # a - b
         if self._apb == 0.0 or self._amb == 0.0:
@@ -379,8 +407,6 @@ class LagrangeTop:
         self._deltas = (d1, d2, d3)
         self.case = "nutating"
         # distances of the turning points from the poles, polished near a pole
-        self._apb = p + b * opu0  # a + b
-        self._amb = p - b * omu0  # a - b
         s_lo = self._pole_root(d1, opu0, self._apb, w2 + beta * opu0, +1.0, "lowest")
         s_hi = self._pole_root(d2, omu0, self._amb, w2 - beta * omu0, -1.0, "highest")
         self._s_lo, self._s_hi = s_lo, s_hi
@@ -394,8 +420,12 @@ class LagrangeTop:
             math.atan2(math.sqrt(s_hi * (2.0 - s_hi)), 1.0 - s_hi),
             math.atan2(math.sqrt(s_lo * (2.0 - s_lo)), s_lo - 1.0),
         )
-        # nutation: u = u_far + (u_near - u_far) sn^2(tau)
-        if beta > 0:
+        self._init_nutation(d1, d2, d3, q, s_lo, s_hi)
+        self._init_attitude(R0, n)
+
+    def _init_nutation(self, d1, d2, d3, q, s_lo, s_hi) -> None:
+        """u = u_far + (u_near - u_far) sn^2(tau): the parameter, period and phase tau0."""
+        if self.beta > 0:
             dfar, dnear = d1, d2
         else:
             dfar, dnear = d2, d1
@@ -407,9 +437,9 @@ class LagrangeTop:
                 "axis approaches an unstable vertical asymptotically; use the numerical "
                 "reference"
             )
-        self.k2 = span / abs(d3 - dfar)
+        self.k2 = self._span / abs(d3 - dfar)
         self.K = float(ellipkm1(self.m1))
-        self.taudot = 0.5 * math.sqrt(abs(beta) * abs(d3 - dfar))
+        self.taudot = 0.5 * math.sqrt(abs(self.beta) * abs(d3 - dfar))
         self.nutation_period = 2.0 * self.K / self.taudot
         # sn^2(tau0) = (u0 - u_far)/(u_near - u_far), cn^2(tau0) = (u_near - u0)/(...)
         sn0 = math.sqrt(max(0.0, -dfar / (dnear - dfar)))
@@ -420,7 +450,7 @@ class LagrangeTop:
             tau0 = -tau0
         self.tau0 = tau0
         # 1 + u and 1 - u as P + Q sn^2 ("sn") or P + Q cn^2 ("cn") with Q = span
-        if beta > 0:  # u = u1 + span sn^2
+        if self.beta > 0:  # u = u1 + span sn^2
             self._lo = ("sn", s_lo)
             self._hi = ("cn", s_hi)
         else:  # u = u2 - span sn^2
@@ -428,21 +458,24 @@ class LagrangeTop:
             self._hi = ("sn", s_hi)
         self._lo_pi = self._pi_constants(*self._lo)
         self._hi_pi = self._pi_constants(*self._hi)
-        # Euler frame F with phi(0) = 0 (third column up), psi(0) = psi0
+
+    def _init_attitude(self, R0, n) -> None:
+        """The Euler frame F (phi(0) = 0, third column up, psi(0) = psi0), the values of the
+        pole integrals at t = 0 and the angle increments over one nutation period."""
+        u0, N, b, tau0 = self.u0, self._N0, self.b, self.tau0
         th0 = math.atan2(math.sqrt(N), u0)
         psi0 = math.atan2(n[0], n[1])
         self._psi0 = psi0
         self._F = R0 @ self._Cb @ rot_axis(np.array([0.0, 0.0, 1.0]), -psi0)[0]
         self._F = self._F @ rot_axis(np.array([1.0, 0.0, 0.0]), -th0)[0]
         sn, cn, dn = jacobi(np.array([tau0]), self.k2, self.m1, self.K)
-        self._Jlo0 = float(self._J(self._lo, self._lo_pi, np.zeros(1), np.array([tau0]),
-                                   sn, cn, dn)[0])  # fmt: skip
-        self._Jhi0 = float(self._J(self._hi, self._hi_pi, np.zeros(1), np.array([tau0]),
-                                   sn, cn, dn)[0])  # fmt: skip
+        zero, at0 = np.zeros(1), np.array([tau0])
+        self._Jlo0 = float(self._J(self._lo, self._lo_pi, zero, at0, sn, cn, dn)[0])
+        self._Jhi0 = float(self._J(self._hi, self._hi_pi, zero, at0, sn, cn, dn)[0])
         # increments over one nutation period (2K in tau)
         T = self.nutation_period
-        dJlo, dJhi = (self._period_increment(*x) for x in ((self._lo, self._lo_pi),
-                                                            (self._hi, self._hi_pi)))  # fmt: skip
+        dJlo = self._period_increment(self._lo, self._lo_pi)
+        dJhi = self._period_increment(self._hi, self._hi_pi)
         dsig = (self.omega3 - b) * T + self._apb * dJlo / self.taudot
         ddel = (b - self.omega3) * T + self._amb * dJhi / self.taudot
         self.dphi = 0.5 * (dsig + ddel)
