@@ -123,6 +123,7 @@ def cmd_run(args) -> int:
         save_every=args.save_every,
         segment=args.segment,
         accuracies=args.accuracy,
+        full=args.full,
     )
     df = summary.results
     print(
@@ -247,6 +248,12 @@ def _add_run(sub) -> None:
         help="library names or paths to TOML files (none: the default suite)",
     )
     s.add_argument("--all", action="store_true", help="every library scenario")
+    s.add_argument(
+        "--full",
+        action="store_true",
+        help="every integrator of every engine (not only the default suite's) and the full "
+        "sweep of target accuracies",
+    )
     s.add_argument("--engines", type=_csv_list, help="comma-separated engine names")
     s.add_argument("--integrators", type=_csv_list, help="comma-separated integrator names")
     s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")

@@ -254,8 +254,14 @@ def _judge(row, sc, integ, diverged) -> None:
 # -- many runs ---------------------------------------------------------------------------------
 
 #: target accuracies of error-controlled integrators when neither the command line nor the
-#: scenario names any
-DEFAULT_ACCURACIES = (1e-6, 1e-8, 1e-10)
+#: scenario names any: one in the default suite, a sweep with --full
+DEFAULT_ACCURACIES = (1e-8,)
+FULL_ACCURACIES = (1e-6, 1e-8, 1e-10)
+
+#: an error-controlled run is checked about this many times over its horizon (a checkpoint
+#: is a point the integrator must stop at, so checkpoints every dt would make it a fixed-step
+#: run at loose targets)
+ADAPTIVE_CHECKPOINTS = 100
 
 
 def plan(
@@ -269,16 +275,17 @@ def plan(
     segment: int | None = None,
     accuracies: Sequence[float] | None = None,
     max_states: int | None = None,
+    full: bool = False,
 ) -> list[RunSpec]:
     """The specs of a suite: every scenario x engine x integrator x dt (x target accuracy,
     for error-controlled integrators: ``accuracies``, else the scenario's ``run.accuracies``,
-    else :data:`DEFAULT_ACCURACIES`; they run at the scenario's own ``dt`` as the interval of
-    their checkpoints).
+    else :data:`DEFAULT_ACCURACIES` (:data:`FULL_ACCURACIES` with ``full``); they run at the
+    scenario's own ``dt`` with about :data:`ADAPTIVE_CHECKPOINTS` checkpoints).
 
     ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep``.
-    ``integrators`` None: every integrator of each engine; else only those named (an engine
-    offering none of them contributes nothing). ``save_every`` overrides the scenarios'
-    decimation; ``segment`` streams the metrics over every step. Engines that are not
+    ``integrators`` None: each engine's default-suite integrators (every one with ``full``);
+    else only those named (an engine offering none of them contributes nothing).
+    ``save_every`` overrides the scenarios' decimation; ``segment`` streams the metrics over every step. Engines that are not
     installed still get specs, so that their absence is recorded as rows. Input that cannot
     run (a step that does not divide the horizon, a tolerance for an unknown family, more
     kept states than ``max_states``) is a ``ValueError`` naming the scenario, before any run.
@@ -308,16 +315,24 @@ def plan(
             except ValueError as exc:
                 raise ValueError(f"scenario {sc.name!r}: {exc}") from None
         for name in engines:
-            names = [i.name for i in get_engine(name).integrators]
+            offered = get_engine(name).integrators
             if integrators:
-                names = [n for n in names if n in integrators]
+                names = [i.name for i in offered if i.name in integrators]
+            else:
+                names = [i.name for i in offered if full or i.default]
             steps_e = [sc.dt if not dts else steps[-1]] if name == "exact" else steps
             cls = get_engine(name)
             for integ in names:
                 common = (t_end, save_every, segment, versions[name])
                 if cls.integrator(integ).adaptive:
-                    accs = accuracies or sc.accuracies or DEFAULT_ACCURACIES
+                    accs = (
+                        accuracies
+                        or sc.accuracies
+                        or (FULL_ACCURACIES if full else DEFAULT_ACCURACIES)
+                    )
                     h = sc.dt if not dts else steps[-1]
+                    every = save_every or max(keep, round(horizon / h) // ADAPTIVE_CHECKPOINTS)
+                    common = (t_end, every, segment, versions[name])
                     specs += [RunSpec(sc, name, integ, h, *common, float(a)) for a in accs]
                 else:
                     specs += [RunSpec(sc, name, integ, h, *common) for h in steps_e]

@@ -120,6 +120,7 @@ def run(
     save_every: int | None = None,
     segment: int | None = None,
     accuracies=None,
+    full: bool = False,
 ) -> RunSummary:
     """Run scenarios x engines x integrators x dt into ``out`` and write the report and
     ``junit.xml`` (the verdicts). Every input is checked before any run (ValueError naming the
@@ -143,7 +144,7 @@ def run(
     integrators = check_integrators(integrators, engines)
     limit = max_states(jobs or os.cpu_count() or 1)  # reports.runner
     specs = plan(
-        scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit
+        scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
     )
     if not specs:
         raise ValueError("nothing to run: no engine offers the integrators asked for")

@@ -163,6 +163,9 @@ class Integrator:
     ``adaptive``: an error-controlled integrator, run at target accuracies (``accuracy`` of
     :meth:`Engine.run`); ``dt`` is then the interval of the checkpoints, not a step, and the
     adapter reports the steps it took (``ctx.stats``, ``ctx.nevals``).
+    ``default``: part of the default suite; an engine with many configurations keeps the
+    ones that answer the suite's questions at a cost that fits, the rest run on request
+    (``director-bench run --full`` or ``--integrators``).
     """
 
     name: str
@@ -175,6 +178,7 @@ class Integrator:
     ours: bool = False
     tolerances: Mapping[str, float] = field(default_factory=dict)
     adaptive: bool = False
+    default: bool = True
 
     def __post_init__(self):
         if self.family not in FAMILIES:
@@ -279,6 +283,8 @@ class RunContext:
     model: BodyModel
     integrator: Integrator
     dt: float
+    #: the run's horizon, s
+    t_end: float = 0.0
     clock: Clock = field(default_factory=Clock)
     handle: Any = None
     #: dynamics evaluations so far (adapters with a varying count add to it)
@@ -530,7 +536,7 @@ class Engine(EngineBase):
         t_end = scenario.t_end if t_end is None else t_end
         save_every = scenario.save_every if save_every is None else save_every
         nstep, saves = step_plan(dt, t_end, save_every)
-        ctx = RunContext(scenario, BodyModel.of(scenario, dt), integ, float(dt))
+        ctx = RunContext(scenario, BodyModel.of(scenario, dt), integ, float(dt), float(t_end))
         ctx.accuracy = None if accuracy is None else float(accuracy)
         rec = recorder if recorder is not None else Recorder(saves)
         rec.residuals = ctx.residuals
