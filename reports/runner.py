@@ -286,9 +286,10 @@ def plan(
     ``integrators`` None: each engine's default-suite integrators (every one with ``full``);
     else only those named (an engine offering none of them contributes nothing).
     ``save_every`` overrides the scenarios' decimation; ``segment`` streams the metrics over
-    every step. Engines that are not installed still get specs, so that their absence is recorded as rows. Input that cannot
-    run (a step that does not divide the horizon, a tolerance for an unknown family, more
-    kept states than ``max_states``) is a ``ValueError`` naming the scenario, before any run.
+    every step. Engines that are not installed still get specs, so that their absence is
+    recorded as rows. Input that cannot run (a step that does not divide the horizon, a
+    tolerance for an unknown family, more kept states than ``max_states``) is a ``ValueError``
+    naming the scenario, before any run.
     """
     from references.engines import engine_names, get_engine, step_plan
 
