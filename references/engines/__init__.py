@@ -42,6 +42,7 @@ BUILTIN = {
     "dart": "references.engines.dart_engine:DartEngine",
     "pybullet": "references.engines.pybullet_engine:PybulletEngine",
     "drake": "references.engines.drake_engine:DrakeEngine",
+    "mjx": "references.engines.mjx_engine:MjxEngine",
 }
 
 
