@@ -6,8 +6,9 @@ reproducible): ``W_k = s_k u_k`` with ``u_k`` uniform on S^2 and ``s_k`` chosen 
 ``1/2 W_k . I W_k`` equals the scenario's rotational kinetic energy. Such members cross every
 regime of the free body: rotations about the major and minor axes and near-separatrix tumbling.
 
-director_model runs all members in one call of its batched path; every other engine runs each
-member through its adapter (distributable like any sweep). Metrics, statuses and verdicts are
+director_model runs all members in one call of its batched path, MJX all members of a
+configuration in one vmapped, compiled call; every other engine runs each member through its
+adapter (distributable like any sweep). Metrics, statuses and verdicts are
 the suite's, member by member, against each member's own reference. Output: the ensemble
 store ``ensemble.sqlite`` in the output folder (the same transactional store as the results,
 reports.results), exported as ``ensemble.csv``, one row per member and configuration.
@@ -93,6 +94,32 @@ def _director_batch(mems, specs) -> list[dict]:
     return rows
 
 
+def _mjx_batch(mems, specs) -> list[dict]:
+    """All members of one MJX configuration in one vmapped, compiled call
+    (references.engines.mjx_engine.run_batch); the rows are built like every other run's
+    (reports.runner), a diverged member's from its output up to the divergence."""
+    from references.engines import Diverged, EngineError, Unsupported, get_engine
+    from references.engines.mjx_engine import run_batch
+    from reports.runner import _judge, _measure
+
+    spec0 = specs[0]
+    integ = get_engine("mjx").integrator(spec0.integrator)
+    rows = [_start_row(sp, integ) for sp in specs]
+    try:
+        results = run_batch(mems, spec0.integrator, spec0.dt, spec0.horizon, spec0.saving)
+    except EngineError as exc:
+        # the model, an initial state or the configuration was refused for the whole batch
+        why = str(exc) if isinstance(exc, Unsupported) else f"the batched run stopped: {exc}"
+        for row in rows:
+            row.update(status=exc.status, message=why)
+        return rows
+    for m, sp, row, res in zip(mems, specs, rows, results, strict=True):
+        diverged = res if isinstance(res, Diverged) else None
+        _measure(row, sp, m, res.output if diverged else res, None, None, "parquet")
+        _judge(row, m, integ, diverged)
+    return rows
+
+
 def _start_row(spec, integ) -> dict:
     from reports.results import blank_row, finish_time
 
@@ -143,6 +170,9 @@ def run_ensemble(
                 group = [sp for sp in group if sp.run_id not in done]
                 if name == "director" and why is None and group:
                     for row in _director_batch([sp.scenario for sp in group], group):
+                        store.put(row)
+                elif name == "mjx" and why is None and group:
+                    for row in _mjx_batch([sp.scenario for sp in group], group):
                         store.put(row)
                 else:
                     specs += group
