@@ -64,7 +64,6 @@ import contextlib
 import dataclasses
 import io
 import time
-from typing import Any
 
 import numpy as np
 
@@ -86,10 +85,13 @@ from references.engines.base import (
     check_readback,
     import_engine,
     register_family,
-    states_trajectory,
     step_plan,
 )
 from references.engines.mujoco_engine import MujocoEngine
+
+#: whether Engine.advance_saving returns the block of states stacked (a BodyState of arrays,
+#: the suite's engines with read_raw/states_from_raw) rather than a list of states
+_BLOCKS = hasattr(Engine, "states_from_raw")
 
 #: the name of every MJX model (see the module docstring: names are part of the compile key)
 MODEL_NAME = "director-bench"
@@ -244,37 +246,82 @@ def _versions() -> dict[str, str]:
 
 # -- compiled functions -----------------------------------------------------------------------
 
-#: (kind, 64-bit mode, tree structure, shapes and dtypes) -> (compiled, compile seconds)
-_COMPILED: dict[tuple, tuple[Any, float]] = {}
+
+class _Compiled:
+    """A function of pytrees (and further array arguments), compiled ahead of time as a
+    function of the trees' leaf lists. MJX flattens an mjx.Model or Data by hashing its static
+    numpy fields on every call (~0.5 ms, measured); a compiled call on leaf lists skips that.
+    ``leaves(i, tree)`` flattens the i-th tree argument once and checks that it has the
+    structure compiled for (a changed static field, e.g. a flag, would otherwise be ignored)."""
+
+    def __init__(self, comp, defs, seconds: float):
+        self.comp, self.defs, self.seconds = comp, defs, seconds
+
+    def leaves(self, i: int, tree) -> list:
+        _, jax, _ = _import()
+        leaves, tdef = jax.tree_util.tree_flatten(tree)
+        if tdef != self.defs[i]:
+            raise EngineError(
+                "mjx: the model or data changed its static structure after compilation (a "
+                "setting that MJX bakes into the compiled code); rebuild the run"
+            )
+        return leaves
+
+    def __call__(self, *args):
+        return self.comp(*args)
 
 
-def _compiled(kind: str, fn, args: tuple, x64: bool):
-    """``jax.jit(fn)`` compiled ahead of time for ``args`` in the given precision, cached for
-    the process. Returns (compiled, compile seconds, compiled now?)."""
+#: (kind, 64-bit mode, tree structures, shapes and dtypes) -> _Compiled
+_COMPILED: dict[tuple, _Compiled] = {}
+
+
+def _compiled(kind: str, fn, trees: tuple, extra: tuple, x64: bool):
+    """``fn(*trees, *extra)`` compiled ahead of time (``jax.jit(...).lower(...).compile()``) in
+    the given precision as a function of the trees' leaf lists and ``extra``, cached for the
+    process. Returns (_Compiled, compile seconds, compiled now?)."""
     _, jax, _ = _import()
-    leaves, tree = jax.tree_util.tree_flatten(args)
-    key = (kind, x64, tree, tuple((np.shape(a), str(np.asarray(a).dtype)) for a in leaves))
+    flat = [jax.tree_util.tree_flatten(t) for t in trees]
+    defs = tuple(d for _, d in flat)
+    avals = tuple(
+        (np.shape(a), str(np.asarray(a).dtype))
+        for a in [*(x for lv, _ in flat for x in lv), *extra]
+    )
+    key = (kind, x64, defs, avals)
     hit = _COMPILED.get(key)
     if hit is not None:
-        return hit[0], hit[1], False
+        return hit, hit.seconds, False
+
+    def on_leaves(*args):
+        trees = args[: len(defs)]
+        ts = [jax.tree_util.tree_unflatten(d, lv) for d, lv in zip(defs, trees, strict=True)]
+        return fn(*ts, *args[len(defs) :])
+
     with jax.enable_x64(x64):
         t0 = time.perf_counter()
-        comp = jax.jit(fn).lower(*args).compile()
+        comp = jax.jit(on_leaves).lower(*(lv for lv, _ in flat), *extra).compile()
         seconds = time.perf_counter() - t0
-    _COMPILED[key] = (comp, seconds)
-    return comp, seconds, True
+    _COMPILED[key] = _Compiled(comp, defs, seconds)
+    return _COMPILED[key], seconds, True
 
 
 def _block_fn():
-    """(model, data, ks) -> (data after sum(ks) steps, (qpos, qvel) after each ks[i] steps)."""
+    """(model, data, ks, n) -> (the data's leaves after sum(ks[:n]) steps, qpos and qvel
+    (CHECKPOINTS, nq | nv) after each of the first n counts ks[i]; the rest zero). A
+    ``lax.while_loop`` over the n checkpoints of ``lax.fori_loop`` of ``mjx.step``."""
     _, jax, mjx = _import()
+    jnp = jax.numpy
 
-    def block(m, d, ks):
-        def one(d, k):
-            d = jax.lax.fori_loop(0, k, lambda _, d: mjx.step(m, d), d)
-            return d, (d.qpos, d.qvel)
+    def block(m, d, ks, n):
+        qp = jnp.zeros((CHECKPOINTS, d.qpos.shape[0]), d.qpos.dtype)
+        qv = jnp.zeros((CHECKPOINTS, d.qvel.shape[0]), d.qvel.dtype)
 
-        return jax.lax.scan(one, d, ks)
+        def checkpoint(c):
+            i, d, qp, qv = c
+            d = jax.lax.fori_loop(0, ks[i], lambda _, d: mjx.step(m, d), d)
+            return i + 1, d, qp.at[i].set(d.qpos), qv.at[i].set(d.qvel)
+
+        _, d, qp, qv = jax.lax.while_loop(lambda c: c[0] < n, checkpoint, (0, d, qp, qv))
+        return jax.tree_util.tree_leaves(d), qp, qv
 
     return block
 
@@ -322,31 +369,52 @@ def _as_float(tree) -> dict:
 # -- the handle -------------------------------------------------------------------------------
 
 
-@dataclasses.dataclass
 class _Handle:
-    mujoco: Any
-    jax: Any
-    mjx: Any
-    m: Any  # the compiled MjModel (float64)
-    d: Any  # the MjData holding the state handed to MJX (float64)
-    mx: Any  # the mjx.Model in the run's precision
-    dx: Any  # the mjx.Data in the run's precision
-    x64: bool
-    mj_name: str
-    #: seconds it took to compile each function this run uses (in this run or an earlier
-    #: one of the process: compilations are cached)
-    compile_s: dict = dataclasses.field(default_factory=dict)
-    #: the functions compiled for this run (the others were in the process's cache)
-    compiled_now: list = dataclasses.field(default_factory=list)
-    block: Any = None
-    native: Any = None
-    #: float32: the state read is still the float64 one handed over (no step taken yet)
-    handed: bool = False
-    #: float32: errors of the rounded initial state, by quantity
-    rounding: dict = dataclasses.field(default_factory=dict)
+    """A run's MuJoCo and MJX objects. The state MJX holds is ``dx`` (an mjx.Data), kept
+    between compiled calls as its leaf list and rebuilt only when read."""
+
+    def __init__(self, mujoco, jax, mjx, m, d, mx, dx, x64: bool, mj_name: str):
+        self.mujoco, self.jax, self.mjx = mujoco, jax, mjx
+        self.m, self.d = m, d  # the compiled MjModel and the MjData of the state handed over
+        self.mx = mx  # the mjx.Model in the run's precision (planted mistakes replace it)
+        self.x64, self.mj_name = x64, mj_name
+        self._dx, self._d_leaves = dx, None
+        self._m_leaves = (None, None)
+        #: seconds it took to compile each function this run uses (in this run or an earlier
+        #: one of the process: compilations are cached)
+        self.compile_s: dict[str, float] = {}
+        #: the functions compiled for this run (the others were in the process's cache)
+        self.compiled_now: list[str] = []
+        self.block: _Compiled | None = None
+        self.native: _Compiled | None = None
+        #: float32: the state read is still the float64 one handed over (no step taken yet)
+        self.handed = False
+        #: float32: errors of the rounded initial state, by quantity
+        self.rounding: dict[str, float] = {}
 
     def x64_mode(self):
         return self.jax.enable_x64(self.x64)
+
+    @property
+    def dx(self):
+        if self._dx is None:
+            self._dx = self.jax.tree_util.tree_unflatten(self.block.defs[1], self._d_leaves)
+        return self._dx
+
+    @dx.setter
+    def dx(self, value) -> None:
+        self._dx, self._d_leaves = value, None
+
+    def step_args(self) -> tuple[list, list]:
+        """The model's and the state's leaf lists for the compiled stepping."""
+        if self._m_leaves[0] is not self.mx:
+            self._m_leaves = (self.mx, self.block.leaves(0, self.mx))
+        if self._d_leaves is None:
+            self._d_leaves = self.block.leaves(1, self._dx)
+        return self._m_leaves[1], self._d_leaves
+
+    def stepped(self, d_leaves: list) -> None:
+        self._dx, self._d_leaves = None, d_leaves
 
 
 def _c_ctx(ctx: RunContext, h: _Handle) -> RunContext:
@@ -435,13 +503,14 @@ class MjxEngine(Engine):
         h = ctx.handle
         ks = np.zeros(CHECKPOINTS, np.int32)
         h.block, h.compile_s["step"], now = _compiled(
-            f"step-{h.mj_name}", _block_fn(), (h.mx, h.dx, ks), h.x64
+            f"step-{h.mj_name}", _block_fn(), (h.mx, h.dx), (ks, np.int32(0)), h.x64
         )
         h.compiled_now += ["step"] if now else []
         h.native, h.compile_s["own quantities"], now = _compiled(
             f"native-{ctx.model.joint}",
             _native_fn(ctx.model.pivoted),
             (_for_native(h.mjx, h.mx), h.dx),
+            (),
             h.x64,
         )
         h.compiled_now += ["own quantities"] if now else []
@@ -598,8 +667,10 @@ class MjxEngine(Engine):
 
     def _mjx_native(self, ctx) -> dict:
         h = ctx.handle
+        mxn = _for_native(h.mjx, h.mx)
+        args = (h.native.leaves(0, mxn), h.native.leaves(1, h.dx))
         with h.x64_mode():
-            out = h.native(_for_native(h.mjx, h.mx), h.dx)
+            out = h.native(*args)
         return _as_float(out)
 
     def read_state(self, ctx) -> cv.BodyState:
@@ -641,14 +712,18 @@ class MjxEngine(Engine):
             part = steps[i : i + CHECKPOINTS]
             ks = np.zeros(CHECKPOINTS, np.int32)
             ks[: len(part)] = part
+            m_leaves, d_leaves = h.step_args()
             with ctx.clock, h.x64_mode():
-                h.dx, (qpos, qvel) = h.block(h.mx, h.dx, ks)
-                h.jax.block_until_ready(h.dx)
+                d_leaves, qpos, qvel = h.block(m_leaves, d_leaves, ks, np.int32(len(part)))
+                h.jax.block_until_ready((d_leaves, qpos, qvel))
+            h.stepped(d_leaves)
             qp.append(np.asarray(qpos)[: len(part)])
             qv.append(np.asarray(qvel)[: len(part)])
         h.handed = False
-        st = _states(ctx.model, np.concatenate(qp), np.concatenate(qv))
-        return [cv.BodyState(*(a[i] for a in st)) for i in range(len(steps))]
+        block = _states(ctx.model, np.concatenate(qp), np.concatenate(qv))
+        if _BLOCKS:
+            return block
+        return [cv.BodyState(*(a[i] for a in block)) for i in range(len(steps))]
 
 
 def _mj_name(integrator: Integrator) -> str:
@@ -715,7 +790,7 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
     and engine times are the batch's divided by the number of members. Raises
     :class:`EngineError` (``Unsupported`` included) for the whole batch.
     """
-    from references.trajectory import energy
+    from references.trajectory import Trajectory, energy
 
     eng = MjxEngine()
     integ = eng.integrator(integrator)
@@ -728,6 +803,7 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
     eng.check_supported(base, integ)
     nstep, saves = step_plan(dt, t_end, save_every)
     ctx = RunContext(base, BodyModel.of(base, dt), integ, float(dt))
+    ctx.t_end = float(t_end)
     eng._put_model(ctx)
     h = ctx.handle
     check_readback(eng.name, eng.read_model(ctx), ctx.model)
@@ -755,11 +831,11 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
     vnative = jax.vmap(_native_fn(ctx.model.pivoted), in_axes=(None, 0))
     mxn = _for_native(h.mjx, h.mx)
     comp_n, h.compile_s["batched own quantities"], now = _compiled(
-        f"batch-native-{ctx.model.joint}", vnative, (mxn, dxb), h.x64
+        f"batch-native-{ctx.model.joint}", vnative, (mxn, dxb), (), h.x64
     )
     h.compiled_now += ["batched own quantities"] if now else []
     with h.x64_mode():
-        nat = _as_float(comp_n(mxn, dxb))
+        nat = _as_float(comp_n(comp_n.leaves(0, mxn), comp_n.leaves(1, dxb)))
     held = _states(ctx.model, np.asarray(dxb.qpos, dtype=float), np.asarray(dxb.qvel, dtype=float))
     tol = 1e-12 if h.x64 else FLOAT32_INITIAL_RTOL
     for k, mem in enumerate(members):
@@ -776,14 +852,15 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
 
     # the stepping: one compiled, vmapped call per CHECKPOINTS checkpoints
     ks = np.zeros(CHECKPOINTS, np.int32)
-    vblock = jax.vmap(_block_fn(), in_axes=(None, 0, None))
+    vblock = jax.vmap(_block_fn(), in_axes=(None, 0, None, None))
     comp, h.compile_s["batched step"], now = _compiled(
-        f"batch-step-{h.mj_name}", vblock, (h.mx, dxb, ks), h.x64
+        f"batch-step-{h.mj_name}", vblock, (h.mx, dxb), (ks, np.int32(0)), h.x64
     )
     h.compiled_now += ["batched step"] if now else []
     points = sorted(set(int(s) for s in saves if s > 0) | set(range(CHUNK, nstep, CHUNK)))
     steps = np.diff([0, *points]).astype(np.int32)
     qp, qv = [qpos0[:, None]], [qvel0[:, None]]
+    m_leaves, d_leaves = comp.leaves(0, h.mx), comp.leaves(1, dxb)
     engine_s = 0.0
     t0 = time.perf_counter()
     for i in range(0, len(steps), CHECKPOINTS):
@@ -792,8 +869,8 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
         ks[: len(part)] = part
         c0 = time.perf_counter()
         with h.x64_mode():
-            dxb, (qpos, qvel) = comp(h.mx, dxb, ks)
-            jax.block_until_ready(dxb)
+            d_leaves, qpos, qvel = comp(m_leaves, d_leaves, ks, np.int32(len(part)))
+            jax.block_until_ready((d_leaves, qpos, qvel))
         engine_s += time.perf_counter() - c0
         qp.append(np.asarray(qpos, dtype=float)[:, : len(part)])
         qv.append(np.asarray(qvel, dtype=float)[:, : len(part)])
@@ -815,12 +892,7 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
         bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
         good = int(np.argmax(bad)) if bad.any() else len(points)
         keep = np.flatnonzero(saved & (np.arange(len(points)) < good))
-        traj = states_trajectory(
-            mem,
-            points[keep] * dt,
-            [cv.BodyState(x[i], v[i], R[i], W[i]) for i in keep],
-            np.full(len(keep), np.nan),
-        )
+        traj = Trajectory.from_states(mem, points[keep] * dt, x[keep], v[keep], R[keep], W[keep])
         done = int(points[good - 1]) if good < len(points) else nstep
         output = RunOutput(
             traj, done, wall / n, engine_s / n, float(integ.evals_per_step or 0.0), settings
