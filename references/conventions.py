@@ -59,8 +59,14 @@ class BodyState(NamedTuple):
 
 def stack_states(states) -> BodyState:
     """Stack a sequence of :class:`BodyState` into one with arrays (n, 3), (n, 3), (n, 3, 3),
-    (n, 3): the argument order of :meth:`references.trajectory.Trajectory.from_states`."""
+    (n, 3): the argument order of :meth:`references.trajectory.Trajectory.from_states`. A
+    BodyState whose fields are such stacks is a *block* of states (the run loop's unit)."""
     return BodyState(*(np.array([s[k] for s in states]) for k in range(4)))
+
+
+def block_row(block: BodyState, i: int) -> BodyState:
+    """State ``i`` of a block."""
+    return BodyState(*(a[i] for a in block))
 
 
 # -- skew matrices --------------------------------------------------------------------------
@@ -342,6 +348,105 @@ def pybullet_spherical_to_state(q_xyzw, W) -> tuple[np.ndarray, np.ndarray]:
     return R, _vec(W, 3, "PyBullet spherical joint velocity").copy()
 
 
+# -- blocks of states (stacks of shape (k, ...)), for the run loop's checkpoints ------------
+def quats_wxyz_to_matrices(q) -> np.ndarray:
+    """Rotation matrices (k, 3, 3) of quaternions (k, 4) stored (w, x, y, z), each normalised
+    first (a row that is not finite gives a non-finite matrix: a diverged state)."""
+    q = np.asarray(q, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+
+
+def rotvecs_to_matrices(theta) -> np.ndarray:
+    """R = exp(hat(theta)) for rotation vectors (k, 3): (k, 3, 3), Rodrigues' formula with the
+    series of :func:`rotvec_to_matrix` for small angles."""
+    th = np.asarray(theta, dtype=float)
+    a2 = np.einsum("ki,ki->k", th, th)
+    small = a2 < 1e-8
+    a = np.sqrt(np.where(small, 1.0, a2))
+    s = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(a) / a)
+    c = np.where(
+        small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0, (1.0 - np.cos(a)) / np.where(small, 1.0, a2)
+    )
+    x, y, z = th.T
+    return np.stack(
+        [
+            np.stack([1 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y], -1),
+            np.stack([c * x * y + s * z, 1 - c * (x * x + z * z), c * y * z - s * x], -1),
+            np.stack([c * x * z - s * y, c * y * z + s * x, 1 - c * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+
+
+def pivot_block(R, W, com) -> BodyState:
+    """The block of states (x_G = R com, v_G = R (W x com)) of a body on a ball joint at the
+    world origin, from stacks R (k, 3, 3), W (k, 3); ``com`` is the centre of mass in the
+    body frame."""
+    R = np.asarray(R, dtype=float)
+    W = np.asarray(W, dtype=float)
+    c = np.asarray(com, dtype=float)
+    u = np.stack(
+        [W[:, 1] * c[2] - W[:, 2] * c[1], W[:, 2] * c[0] - W[:, 0] * c[2],
+         W[:, 0] * c[1] - W[:, 1] * c[0]], axis=-1,
+    )  # fmt: skip
+    return BodyState(R @ c, np.einsum("kij,kj->ki", R, u), R, W)
+
+
+def mujoco_block(raw, nq: int, com, pivoted: bool) -> BodyState:
+    """States of rows ``[qpos, qvel]`` of a MuJoCo free joint (qpos [x, q wxyz], qvel [v world,
+    W body]) or ball joint (qpos q wxyz, qvel W body)."""
+    raw = np.asarray(raw, dtype=float)
+    if pivoted:
+        return pivot_block(quats_wxyz_to_matrices(raw[:, 0:4]), raw[:, nq : nq + 3], com)
+    R = quats_wxyz_to_matrices(raw[:, 3:7])
+    return BodyState(raw[:, 0:3], raw[:, nq : nq + 3], R, raw[:, nq + 3 : nq + 6])
+
+
+def pinocchio_block(raw, nq: int, com, pivoted: bool) -> BodyState:
+    """States of rows ``[q, v]`` of a Pinocchio FreeFlyer (q [x, q xyzw], v LOCAL [R^T v_G, W])
+    or Spherical joint (q xyzw, v = W)."""
+    raw = np.asarray(raw, dtype=float)
+    if pivoted:
+        R = quats_wxyz_to_matrices(quat_xyzw_to_wxyz(raw[:, 0:4]))
+        return pivot_block(R, raw[:, nq : nq + 3], com)
+    R = quats_wxyz_to_matrices(quat_xyzw_to_wxyz(raw[:, 3:7]))
+    v = np.einsum("kij,kj->ki", R, raw[:, nq : nq + 3])
+    return BodyState(raw[:, 0:3], v, R, raw[:, nq + 3 : nq + 6])
+
+
+def dart_block(raw, ndof: int, com, pivoted: bool) -> BodyState:
+    """States of rows ``[positions, velocities]`` of a DART FreeJoint ([rotation vector, x],
+    [w WORLD, v WORLD]) or BallJoint (rotation vector, W BODY)."""
+    raw = np.asarray(raw, dtype=float)
+    R = rotvecs_to_matrices(raw[:, 0:3])
+    if pivoted:
+        return pivot_block(R, raw[:, ndof : ndof + 3], com)
+    W = np.einsum("kji,kj->ki", R, raw[:, ndof : ndof + 3])
+    return BodyState(raw[:, 3:6], raw[:, ndof + 3 : ndof + 6], R, W)
+
+
+def pybullet_block(raw, com, pivoted: bool) -> BodyState:
+    """States of rows ``[x, q xyzw, v, w world]`` of a PyBullet base, or ``[q xyzw, W body]``
+    of a spherical joint."""
+    raw = np.asarray(raw, dtype=float)
+    if pivoted:
+        R = quats_wxyz_to_matrices(quat_xyzw_to_wxyz(raw[:, 0:4]))
+        return pivot_block(R, raw[:, 4:7], com)
+    R = quats_wxyz_to_matrices(quat_xyzw_to_wxyz(raw[:, 3:7]))
+    W = np.einsum("kji,kj->ki", R, raw[:, 10:13])
+    return BodyState(raw[:, 0:3], raw[:, 7:10], R, W)
+
+
 # -- checks that an engine holds what the scenario says ------------------------------------
 def check_quantity(engine: str, quantity: str, got, expected, rtol: float, atol: float = 0.0):
     """Raise :class:`~references.errors.EngineError` naming ``quantity`` unless
@@ -569,3 +674,38 @@ def drake_ball_rpy_to_state(rpy, w_F, R_WF, R_BM) -> tuple[np.ndarray, np.ndarra
     R_WF = np.asarray(R_WF, dtype=float)
     R = R_WF @ rpy_to_matrix(rpy) @ np.asarray(R_BM, dtype=float).T
     return R, R.T @ (R_WF @ _vec(w_F, 3, "BallRpyJoint angular velocity"))
+
+
+def drake_block(raw, nq: int, com, pivoted: bool, R_WF=None, R_BM=None) -> BodyState:
+    """States of rows ``[q, v]`` of a Drake QuaternionFloatingJoint (q [q wxyz, x], v [w world,
+    v world]; R from the raw quaternion, unnormalised, as :func:`drake_free_to_state`) or of a
+    BallRpyJoint (q rpy, v w_F; as :func:`drake_ball_rpy_to_state`), vectorised."""
+    raw = np.asarray(raw, dtype=float)
+    if pivoted:
+        r, p, y = raw[:, 0], raw[:, 1], raw[:, 2]
+        cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+        R_FM = np.stack(
+            [
+                np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
+                np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
+                np.stack([-sp, cp * sr, cp * cr], -1),
+            ],
+            axis=1,
+        )
+        R = np.asarray(R_WF, dtype=float) @ R_FM @ np.asarray(R_BM, dtype=float).T
+        w = raw[:, nq : nq + 3] @ np.asarray(R_WF, dtype=float).T
+        return pivot_block(R, np.einsum("kji,kj->ki", R, w), com)
+    w_, x_, y_, z_ = raw[:, 0], raw[:, 1], raw[:, 2], raw[:, 3]
+    ww, xx, yy, zz = w_ * w_, x_ * x_, y_ * y_, z_ * z_
+    R = np.stack(
+        [
+            np.stack([ww + xx - yy - zz, 2 * (x_ * y_ - w_ * z_), 2 * (x_ * z_ + w_ * y_)], -1),
+            np.stack([2 * (x_ * y_ + w_ * z_), ww - xx + yy - zz, 2 * (y_ * z_ - w_ * x_)], -1),
+            np.stack([2 * (x_ * z_ - w_ * y_), 2 * (y_ * z_ + w_ * x_), ww - xx - yy + zz], -1),
+        ],
+        axis=1,
+    )
+    n2 = ww + xx + yy + zz
+    with np.errstate(invalid="ignore", divide="ignore"):
+        W = np.einsum("kji,kj->ki", R, raw[:, nq : nq + 3]) / n2[:, None]
+    return BodyState(raw[:, 4:7], raw[:, nq + 3 : nq + 6], R, W)

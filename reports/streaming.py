@@ -56,27 +56,31 @@ class StreamingRecorder(Recorder):
             for k, (needs_ref, _) in POINTWISE.items()
         }
         self.reference_accuracy = 0.0 if reference is not None else math.nan
-        self._buf_steps: list[int] = []
-        self._buf_states: list[cv.BodyState] = []
-        self._buf_cv: list[float] = []
+        self._buf_steps: list[np.ndarray] = []
+        self._buf: list[cv.BodyState] = []
+        self._buf_cv: list[np.ndarray] = []
+        self._nbuf = 0
 
-    def record(self, step: int, state: cv.BodyState) -> None:
-        r = self.residuals.get(step, math.nan)
-        super().record(step, state)
-        self._buf_steps.append(step)
-        self._buf_states.append(state)
-        self._buf_cv.append(r)
-        if len(self._buf_steps) >= self.segment:
+    def record_block(self, steps, block: cv.BodyState) -> None:
+        steps = np.asarray(steps, dtype=np.int64)
+        res = np.array([self.residuals.get(int(s), math.nan) for s in steps])
+        super().record_block(steps, block)
+        self._buf_steps.append(steps)
+        self._buf.append(block)
+        self._buf_cv.append(res)
+        self._nbuf += len(steps)
+        if self._nbuf >= self.segment:
             self.flush()
 
     def flush(self) -> None:
         """Fold the buffered steps into the maxima."""
-        if not self._buf_steps:
+        if not self._nbuf:
             return
-        from references.engines.base import states_trajectory
+        from references.engines.base import block_trajectory
 
-        t = np.asarray(self._buf_steps, dtype=float) * self.dt
-        tr = states_trajectory(self.scenario, t, self._buf_states, self._buf_cv)
+        t = np.concatenate(self._buf_steps) * self.dt
+        block = cv.BodyState(*(np.concatenate(p) for p in zip(*self._buf, strict=True)))
+        tr = block_trajectory(self.scenario, t, block, np.concatenate(self._buf_cv))
         ref = None
         if self.reference is not None:
             ref = self.reference(t)
@@ -88,8 +92,9 @@ class StreamingRecorder(Recorder):
             worst = math.inf if not np.all(np.isfinite(v)) else float(np.max(v))
             self.maxima[name] = max(self.maxima[name], worst)
         self._buf_steps.clear()
-        self._buf_states.clear()
+        self._buf.clear()
         self._buf_cv.clear()
+        self._nbuf = 0
 
     def trajectory(self, scenario, dt: float):
         self.flush()

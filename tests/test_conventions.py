@@ -257,3 +257,87 @@ def test_check_quantity_names_the_quantity():
     cv.check_quantity("E", "mass", 1.0, 1.0, 0.0)
     with pytest.raises(EngineError, match="inertia diagonal"):
         cv.check_quantity("E", "inertia diagonal", [1.0, 1.0, 1.0], [2.0, 3.0, 4.0], 1e-15)
+
+
+# == blocks of states: the vectorised conversions equal the per-state ones ====================
+def _random_states(n=40, seed=3):
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(n, random_state=seed).as_matrix()
+    return (
+        rng.normal(size=(n, 3)),
+        rng.normal(size=(n, 3)),
+        R,
+        rng.normal(size=(n, 3)) * 3.0,
+    )
+
+
+COM = np.array([0.05, -0.1, 0.3])
+
+
+@pytest.mark.parametrize("pivoted", [False, True])
+def test_block_conversions_equal_the_per_state_ones(pivoted):
+    """Each engine layout: rows written by the per-state `*_from_state` conversion, read back
+    by the vectorised `*_block`, give the states back (to a few ulp); for a pivoted body the
+    centre of mass follows from R (x_G = R com, v_G = R (W x com))."""
+    x, v, R, W = _random_states()
+    if pivoted:
+        x = np.einsum("kij,j->ki", R, COM)
+        v = np.einsum("kij,kj->ki", R, np.cross(W, COM))
+    rows = {"mujoco": [], "pinocchio": [], "dart": [], "pybullet": [], "drake": []}
+    for i in range(len(R)):
+        if pivoted:
+            rows["mujoco"].append(np.concatenate(cv.mujoco_ball_from_state(R[i], W[i])))
+            rows["pinocchio"].append(np.concatenate(cv.pinocchio_spherical_from_state(R[i], W[i])))
+            rows["dart"].append(np.concatenate(cv.dart_ball_from_state(R[i], W[i])))
+            q, Wb = cv.pybullet_spherical_from_state(R[i], W[i])
+            rows["pybullet"].append(np.array([*q, *Wb]))
+        else:
+            rows["mujoco"].append(np.concatenate(cv.mujoco_free_from_state(x[i], v[i], R[i], W[i])))
+            rows["pinocchio"].append(
+                np.concatenate(cv.pinocchio_freeflyer_from_state(x[i], v[i], R[i], W[i]))
+            )
+            rows["dart"].append(np.concatenate(cv.dart_free_from_state(x[i], v[i], R[i], W[i])))
+            xp, q, vp, w = cv.pybullet_base_from_state(x[i], v[i], R[i], W[i])
+            rows["pybullet"].append(np.array([*xp, *q, *vp, *w]))
+            rows["drake"].append(np.concatenate(cv.drake_free_from_state(x[i], v[i], R[i], W[i])))
+    blocks = {
+        "mujoco": cv.mujoco_block(np.array(rows["mujoco"]), 4 if pivoted else 7, COM, pivoted),
+        "pinocchio": cv.pinocchio_block(
+            np.array(rows["pinocchio"]), 4 if pivoted else 7, COM, pivoted
+        ),
+        "dart": cv.dart_block(np.array(rows["dart"]), 3 if pivoted else 6, COM, pivoted),
+        "pybullet": cv.pybullet_block(np.array(rows["pybullet"]), COM, pivoted),
+    }
+    if not pivoted:
+        blocks["drake"] = cv.drake_block(np.array(rows["drake"]), 7, COM, False)
+    for name, (bx, bv, bR, bW) in blocks.items():
+        # 1e-14: a quaternion or rotation-vector round trip of O(1) numbers (a few ulp) times
+        # the rates' size (|W| ~ 5)
+        np.testing.assert_allclose(bR, R, rtol=0, atol=1e-14, err_msg=name)
+        np.testing.assert_allclose(bW, W, rtol=0, atol=1e-14, err_msg=name)
+        np.testing.assert_allclose(bx, x, rtol=0, atol=1e-14, err_msg=name)
+        np.testing.assert_allclose(bv, v, rtol=0, atol=1e-13, err_msg=name)
+
+
+def test_drake_ball_block_equals_the_per_state_conversion():
+    _, _, R, W = _random_states()
+    rng = np.random.default_rng(5)
+    R_WF = Rotation.random(random_state=1).as_matrix()
+    R_BM = Rotation.random(random_state=2).as_matrix()
+    rows = [
+        np.concatenate(cv.drake_ball_rpy_from_state(R[i], W[i], R_WF, R_BM)) for i in range(len(R))
+    ]
+    del rng
+    bx, bv, bR, bW = cv.drake_block(np.array(rows), 3, COM, True, R_WF, R_BM)
+    for i in range(len(R)):
+        Ri, Wi = cv.drake_ball_rpy_to_state(rows[i][:3], rows[i][3:], R_WF, R_BM)
+        np.testing.assert_allclose(bR[i], Ri, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(bW[i], Wi, rtol=0, atol=1e-14)
+
+
+def test_a_non_finite_row_stays_non_finite():
+    """A diverged engine state converts to NaN (the run loop reports it as diverged) instead
+    of raising in the conversion."""
+    raw = np.full((1, 13), np.nan)
+    block = cv.mujoco_block(raw, 7, COM, False)
+    assert np.isnan(block.rotation).all()

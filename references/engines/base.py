@@ -236,7 +236,12 @@ class BodyModel:
         x_G = R com, v_G = R (W x com)."""
         R = np.asarray(R, dtype=float)
         W = np.asarray(W, dtype=float)
-        return cv.BodyState(R @ self.com, R @ np.cross(W, self.com), R, W)
+        c0, c1, c2 = self.com
+        w0, w1, w2 = W
+        # W x com written out: numpy's cross costs tens of microseconds on 3-vectors, and this
+        # runs at every saved state of a pivoted body
+        u = np.array([w1 * c2 - w2 * c1, w2 * c0 - w0 * c2, w0 * c1 - w1 * c0])
+        return cv.BodyState(R @ self.com, R @ u, R, W)
 
 
 @dataclass
@@ -342,40 +347,55 @@ def step_plan(dt: float, t_end: float, save_every: int) -> tuple[int, np.ndarray
 
 
 class Recorder:
-    """Receives the states of a run at its checkpoints and keeps those at the saved step
-    indices. A subclass with ``every_step = True`` sees every step (streaming metrics over
-    long horizons keep O(1) memory that way, see :mod:`reports.streaming`)."""
+    """Receives the states of a run, block by block (:func:`conventions.block_row`: stacked
+    arrays), and keeps those at the saved step indices. A subclass with ``every_step = True``
+    sees every step (streaming metrics over long horizons keep O(1) memory that way, see
+    :mod:`reports.streaming`)."""
 
     every_step = False
 
     def __init__(self, saves: np.ndarray):
-        self.saves = saves
-        self._want = set(int(s) for s in saves)
-        self.steps: list[int] = []
-        self.states: list[cv.BodyState] = []
-        self.cv: list[float] = []
+        self.saves = np.asarray(saves, dtype=np.int64)
+        self.steps: list[np.ndarray] = []
+        self.blocks: list[cv.BodyState] = []
+        self.cv: list[np.ndarray] = []
         #: the run's residuals by step (RunContext.residuals), consumed as states arrive
         self.residuals: dict = {}
 
-    def record(self, step: int, state: cv.BodyState) -> None:
-        r = self.residuals.pop(step, math.nan)
-        if step in self._want:
-            self.steps.append(step)
-            self.states.append(state)
-            self.cv.append(r)
+    def _residuals(self, steps) -> np.ndarray:
+        if not self.residuals:
+            return np.full(len(steps), math.nan)
+        return np.array([self.residuals.pop(int(s), math.nan) for s in steps])
+
+    def record_block(self, steps, block: cv.BodyState) -> None:
+        steps = np.asarray(steps, dtype=np.int64)
+        res = self._residuals(steps)
+        keep = np.isin(steps, self.saves)
+        if keep.all():
+            self.steps.append(steps)
+            self.blocks.append(block)
+            self.cv.append(res)
+        elif keep.any():
+            self.steps.append(steps[keep])
+            self.blocks.append(cv.BodyState(*(a[keep] for a in block)))
+            self.cv.append(res[keep])
 
     def trajectory(self, scenario, dt: float) -> Trajectory:
-        return states_trajectory(scenario, np.asarray(self.steps) * dt, self.states, self.cv)
+        if not self.blocks:
+            return block_trajectory(scenario, np.zeros(0), None, np.zeros(0))
+        steps = np.concatenate(self.steps)
+        block = cv.BodyState(*(np.concatenate(parts) for parts in zip(*self.blocks, strict=True)))
+        return block_trajectory(scenario, steps * dt, block, np.concatenate(self.cv))
 
 
-def states_trajectory(scenario, t, states, residuals) -> Trajectory:
-    """The trajectory of a list of states; ``residuals`` the engine's own velocity-constraint
+def block_trajectory(scenario, t, block, residuals) -> Trajectory:
+    """The trajectory of a block of states; ``residuals`` the engine's own velocity-constraint
     residuals (NaN where it has none: then computed from R and W)."""
     t = np.asarray(t, dtype=float)
-    if not states:
+    if block is None or not len(t):
         z = np.zeros((0, 3))
         return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z)
-    x, v, R, W = cv.stack_states(states)
+    x, v, R, W = block
     res = np.asarray(residuals, dtype=float)
     own = None
     if np.any(np.isfinite(res)):
@@ -475,16 +495,34 @@ class Engine(EngineBase):
         """Take ``k`` steps with the engine's own integrator (``stepping="native"``)."""
         raise NotImplementedError(f"{self.name}: no native stepping")
 
-    def advance_saving(self, ctx: RunContext, steps: list[int]) -> list[cv.BodyState]:
-        """Advance by each count in ``steps`` in turn and return the state after each: the
-        states of a block of checkpoints. The default calls :meth:`advance` and
-        :meth:`read_state`; an engine whose loop runs in compiled code may save them all in
-        one call (the director model does)."""
-        out = []
+    def advance_saving(self, ctx: RunContext, steps: list[int]) -> cv.BodyState:
+        """Advance by each count in ``steps`` in turn and return the block of states after
+        each (a BodyState of stacked arrays, (k, 3), (k, 3), (k, 3, 3), (k, 3)). The default
+        calls :meth:`advance`, copies the engine's state with :meth:`read_raw` and converts
+        the block at once with :meth:`states_from_raw` where the adapter has them (a copy of
+        a state vector costs a microsecond, its conversion tens: done once per block,
+        vectorised), else reads each state with :meth:`read_state`. An engine whose loop runs
+        in compiled code may save them all in one call (the director model does)."""
+        if type(self).states_from_raw is Engine.states_from_raw:
+            states = []
+            for k in steps:
+                self.advance(ctx, k)
+                states.append(self.read_state(ctx))
+            return cv.stack_states(states)
+        rows = []
         for k in steps:
             self.advance(ctx, k)
-            out.append(self.read_state(ctx))
-        return out
+            rows.append(self.read_raw(ctx))
+        return self.states_from_raw(ctx, np.array(rows))
+
+    def read_raw(self, ctx: RunContext) -> np.ndarray:
+        """Optional: a copy of the engine's state vector (any layout the adapter's
+        :meth:`states_from_raw` reads)."""
+        raise NotImplementedError
+
+    def states_from_raw(self, ctx: RunContext, raw: np.ndarray) -> cv.BodyState:
+        """Optional: the block of states of rows of :meth:`read_raw` (vectorised)."""
+        raise NotImplementedError
 
     def forward_dynamics(self, ctx: RunContext, state: cv.BodyState):
         """(dW/dt (3,) body axes, dv_G/dt (3,) world axes) of ``state``, from the engine's
@@ -612,7 +650,7 @@ class _NativeStepper:
     def start(self, state: cv.BodyState) -> None:
         self.engine.set_state(self.ctx, state)
 
-    def run(self, steps: list[int]) -> list[cv.BodyState]:
+    def run(self, steps: list[int]) -> cv.BodyState:
         out = self.engine.advance_saving(self.ctx, steps)
         per = self.ctx.integrator.evals_per_step
         if per is not None:
@@ -650,11 +688,11 @@ def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
         yield block
 
 
-def _first_divergence(engine, ctx, states, e0, e_scale) -> tuple[int, str] | None:
+def _first_divergence(engine, ctx, block, e0, e_scale) -> tuple[int, str] | None:
     """(index of the first diverged state of a block, why), or None: a non-finite state or
     an energy error beyond DIVERGENCE_ENERGY of the scale (vectorised over the block), or the
     engine's own limit (:meth:`Engine.guard`, on the block's last state)."""
-    x, v, R, W = cv.stack_states(states)
+    x, v, R, W = block
     finite = np.isfinite(x).all(1) & np.isfinite(v).all(1) & np.isfinite(W).all(1)
     finite &= np.isfinite(R).all((1, 2))
     with np.errstate(all="ignore"):
@@ -668,8 +706,8 @@ def _first_divergence(engine, ctx, states, e0, e_scale) -> tuple[int, str] | Non
             f"the energy error |E - E0| = {drift[i] * e_scale:.4g} J exceeded "
             f"{DIVERGENCE_ENERGY:g} x the scenario's energy scale {e_scale:.4g} J"
         )
-    why = engine.guard(ctx, states[-1])
-    return (len(states) - 1, why) if why else None
+    why = engine.guard(ctx, cv.block_row(block, len(x) - 1))
+    return (len(x) - 1, why) if why else None
 
 
 def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int]:
@@ -678,7 +716,8 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
     sc = ctx.scenario
     e0 = float(energy(sc, *(np.asarray(a)[None] for a in initial_state(sc)))[0])
     e_scale = sc.energy_scale
-    rec.record(0, stepper.state())
+    first = stepper.state()
+    rec.record_block([0], cv.BodyState(*(np.asarray(a)[None] for a in first)))
     wall = 0.0
     done = 0
     dt = ctx.dt
@@ -697,9 +736,9 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
             ) from exc
         wall += time.perf_counter() - t0
         found = _first_divergence(engine, ctx, states, e0, e_scale)
-        good = len(states) if found is None else found[0]
-        for target, state in zip(block[:good], states[:good], strict=True):
-            rec.record(target, state)
+        good = len(block) if found is None else found[0]
+        if good:
+            rec.record_block(block[:good], cv.BodyState(*(a[:good] for a in states)))
         if found is not None:
             before = block[good - 1] if good else done
             span = f"between t = {before * dt:.6g} and t = {block[good] * dt:.6g} s"

@@ -174,6 +174,14 @@ class DartEngine(Engine):
             return ctx.model.state_from_rotation(R, W)
         return cv.dart_free_to_state(joint.getPositions(), joint.getVelocities())
 
+    def read_raw(self, ctx) -> np.ndarray:
+        joint = ctx.handle[2]
+        return np.concatenate((joint.getPositions(), joint.getVelocities()))
+
+    def states_from_raw(self, ctx, raw) -> cv.BodyState:
+        ndof = ctx.handle[2].getNumDofs()
+        return cv.dart_block(raw, ndof, ctx.model.com, ctx.model.pivoted)
+
     def native_quantities(self, ctx) -> dict:
         """DART's own energy and momentum; getAngularMomentum() is about the body origin in
         body axes (docs/engines.md): the COM for a free body, the pivot for a pivoted one."""

@@ -155,18 +155,16 @@ class DirectorEngine(Engine):
     def advance(self, ctx, k: int) -> None:
         self.advance_saving(ctx, [k])
 
-    def advance_saving(self, ctx, steps: list[int]) -> list[cv.BodyState]:
+    def advance_saving(self, ctx, steps: list[int]) -> cv.BodyState:
         """One compiled run for a block of equally spaced checkpoints (else one per
         checkpoint), saving the state at each, with the velocity-constraint residual of the
         scheme's own director velocities (ctx.residuals)."""
         if len(set(steps)) == 1:
             return self._chunk(ctx, steps[0], len(steps))
-        out = []
-        for k in steps:
-            out.extend(self._chunk(ctx, k, 1))
-        return out
+        parts = [self._chunk(ctx, k, 1) for k in steps]
+        return cv.BodyState(*(np.concatenate(p) for p in zip(*parts, strict=True)))
 
-    def _chunk(self, ctx, every: int, count: int) -> list[cv.BodyState]:
+    def _chunk(self, ctx, every: int, count: int) -> cv.BodyState:
         h = ctx.handle
         start = h.stepper.nstep_done
         try:
@@ -178,12 +176,9 @@ class DirectorEngine(Engine):
         ctx.clock.elapsed += float(tr.wall_time_s)
         A = np.einsum("nki,nkj->nij", tr.rotation, tr.director_velocity)
         res = np.linalg.norm(A + np.swapaxes(A, 1, 2), axis=(1, 2))
-        for i in range(len(tr.t)):
-            ctx.residuals[start + every * (i + 1)] = float(res[i])
-        return [
-            cv.BodyState(tr.position[i], tr.velocity[i], tr.rotation[i], tr.omega_body[i])
-            for i in range(len(tr.t))
-        ]
+        steps = start + every * np.arange(1, len(tr.t) + 1)
+        ctx.residuals.update(zip(steps.tolist(), res.tolist(), strict=True))
+        return cv.BodyState(tr.position, tr.velocity, tr.rotation, tr.omega_body)
 
 
 class _Handle:

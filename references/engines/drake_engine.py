@@ -739,6 +739,18 @@ class DrakeEngine(Engine):
             return ctx.model.state_from_rotation(R, W)
         return cv.drake_free_to_state(q, v)
 
+    def read_raw(self, ctx) -> np.ndarray:
+        h = ctx.handle
+        return np.concatenate((h.plant.GetPositions(h.context), h.plant.GetVelocities(h.context)))
+
+    def states_from_raw(self, ctx, raw) -> cv.BodyState:
+        h = ctx.handle
+        nq = 3 if ctx.model.pivoted else 7
+        return cv.drake_block(
+            raw, nq, ctx.model.com, ctx.model.pivoted, getattr(h, "R_WF", None),
+            getattr(h, "R_BM", None),
+        )  # fmt: skip
+
     def native_quantities(self, ctx) -> dict:
         """Drake's own energy (CalcKineticEnergy + CalcPotentialEnergy, whose zero is at the
         world origin: V = -m g . x_G), angular momentum (CalcSpatialMomentumInWorldAboutPoint

@@ -153,7 +153,9 @@ class RKMK4Stepper:
         dW, a = self.engine.forward_dynamics(self.ctx, st)
         return np.concatenate([dW, a])
 
-    def run(self, steps: list[int]) -> list[BodyState]:
+    def run(self, steps: list[int]) -> BodyState:
+        from references.conventions import stack_states
+
         h = self.ctx.dt
         out = []
         for k in steps:
@@ -163,7 +165,7 @@ class RKMK4Stepper:
                 )
             self.ctx.nevals += 4 * k
             out.append(self.state())
-        return out
+        return stack_states(out)
 
     def state(self) -> BodyState:
         if self.pivoted:
@@ -218,12 +220,12 @@ class CompiledRKMK4Stepper:
             return self.ctx.model.state_from_rotation(R, W)
         return BodyState(y[4:7].copy(), y[10:13].copy(), R, W)
 
-    def run(self, steps: list[int]) -> list[BodyState]:
+    def run(self, steps: list[int]) -> BodyState:
         stage, finish = self.k.stage, self.k.finish
         y, z, K, acc, h, piv = self.y, self.z, self.K, self.acc, self.ctx.dt, self.pivoted
         fd, ctx = self.fd, self.ctx
-        out = []
-        for n in steps:
+        rows = np.empty((len(steps), 13))
+        for j, n in enumerate(steps):
             for _ in range(n):
                 for i in range(4):
                     if stage(i, y, K, acc, h, piv, z):
@@ -232,8 +234,16 @@ class CompiledRKMK4Stepper:
                 if finish(y, K, acc, h, piv, z):
                     raise StageRotationTooLarge("a Runge-Kutta step rotation >= pi")
             ctx.nevals += 4 * n
-            out.append(self.state())
-        return out
+            rows[j] = y
+        return self._as_block(rows)
+
+    def _as_block(self, rows) -> BodyState:
+        from references.conventions import pivot_block, quats_wxyz_to_matrices
+
+        R = quats_wxyz_to_matrices(rows[:, 0:4])
+        if self.pivoted:
+            return pivot_block(R, rows[:, 7:10], self.ctx.model.com)
+        return BodyState(rows[:, 4:7], rows[:, 10:13], R, rows[:, 7:10])
 
     def state(self) -> BodyState:
         return self._as_state(self.y)

@@ -248,6 +248,13 @@ class MujocoEngine(Engine):
             return ctx.model.state_from_rotation(*cv.mujoco_ball_to_state(d.qpos, d.qvel))
         return cv.mujoco_free_to_state(d.qpos, d.qvel)
 
+    def read_raw(self, ctx) -> np.ndarray:
+        _, m, d = ctx.handle
+        return np.concatenate((d.qpos, d.qvel))
+
+    def states_from_raw(self, ctx, raw) -> cv.BodyState:
+        return cv.mujoco_block(raw, ctx.handle[1].nq, ctx.model.com, ctx.model.pivoted)
+
     def native_quantities(self, ctx) -> dict:
         """MuJoCo's own energy, momentum and frames of the current state, after mj_forward:
         T = 1/2 qvel . M qvel (mj_mulM), V = -m g . xipos, L from mj_subtreeVel about the

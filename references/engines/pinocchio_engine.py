@@ -120,6 +120,12 @@ class PinocchioEngine(Engine):
             return ctx.model.state_from_rotation(*cv.pinocchio_spherical_to_state(q, v))
         return cv.pinocchio_freeflyer_to_state(q, v)
 
+    def read_raw(self, ctx) -> np.ndarray:
+        return np.concatenate((ctx.handle.q, ctx.handle.v))
+
+    def states_from_raw(self, ctx, raw) -> cv.BodyState:
+        return cv.pinocchio_block(raw, ctx.handle.model.nq, ctx.model.com, ctx.model.pivoted)
+
     def native_quantities(self, ctx) -> dict:
         """Pinocchio's own kinetic and potential energy, centroidal momentum (about the COM,
         world axes; shifted to the pivot when pivoted), COM position and velocity, and the

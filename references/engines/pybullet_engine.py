@@ -322,6 +322,19 @@ class PybulletEngine(Engine):
         v, w = p.getBaseVelocity(body, physicsClientId=cid)
         return cv.pybullet_base_to_state(x, q, v, w)
 
+    def read_raw(self, ctx) -> np.ndarray:
+        h = ctx.handle
+        p, cid, body = h.p, h.cid, h.body
+        if ctx.model.pivoted:
+            q, W = p.getJointStateMultiDof(body, 0, physicsClientId=cid)[:2]
+            return np.array([*q, *W])
+        x, q = p.getBasePositionAndOrientation(body, physicsClientId=cid)
+        v, w = p.getBaseVelocity(body, physicsClientId=cid)
+        return np.array([*x, *q, *v, *w])
+
+    def states_from_raw(self, ctx, raw) -> cv.BodyState:
+        return cv.pybullet_block(raw, ctx.model.com, ctx.model.pivoted)
+
     def native_quantities(self, ctx) -> dict:
         """PyBullet has no energy or momentum API (docs/engines.md). These come from its own
         kinematics, never from the suite's conversions: the rotation from PyBullet's
