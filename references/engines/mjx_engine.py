@@ -49,13 +49,15 @@ Feature Parity"):
   results show the gap. The adapter asks MJX (``put_model`` and a trace of ``step``) and
   reports MJX's own ``NotImplementedError`` as the reason of an ``unsupported`` row.
 
-Compilation. The stepping is one jitted function per configuration, compiled ahead of time in
-:meth:`MjxEngine.build` (``jax.jit(...).lower(...).compile()``, outside the stopwatch) and
-cached for the process: it takes a state and a vector of :data:`CHECKPOINTS` step counts and
-returns the state after each (a ``lax.scan`` over ``lax.fori_loop`` of ``mjx.step``). The
-compile time is recorded (``settings``: "compile time s"). MJX has no warning counters, no
-velocity clamp and no automatic reset: a state that blows up stays non-finite and the run loop
-reports the divergence.
+Compilation. The stepping is one jitted function per configuration and joint, compiled ahead
+of time (``jax.jit(...).lower(...).compile()``) when the state is first set, after the model's
+read-back and outside the stopwatch, and cached for the process: it takes the model and the
+state (as leaf lists) and up to :data:`CHECKPOINTS` step counts, and returns the state after
+each (a ``lax.while_loop`` over the checkpoints of a ``lax.fori_loop`` of ``mjx.step``). The
+compile time is recorded (``settings``: "compile time s"); JAX's persistent compilation cache
+(``JAX_COMPILATION_CACHE_DIR``), when the user sets it, serves later processes. MJX has no
+warning counters, no velocity clamp and no automatic reset: a state that blows up stays
+non-finite and the run loop reports the divergence.
 """
 
 from __future__ import annotations
@@ -497,10 +499,16 @@ class MjxEngine(Engine):
 
     # -- model -------------------------------------------------------------------------
     def build(self, ctx) -> None:
-        """The model on the device, then the compiled stepping and own-quantities functions
-        (outside the stopwatch; from the process's cache when compiled before)."""
+        """The model on the device; the functions are compiled when the state is first set
+        (after the read-back, so a model the read-back refuses is never compiled)."""
         self._put_model(ctx)
+
+    def _compile(self, ctx) -> None:
+        """The compiled stepping and own-quantities functions (outside the stopwatch; from
+        the process's cache when compiled before)."""
         h = ctx.handle
+        if h.block is not None:
+            return
         ks = np.zeros(CHECKPOINTS, np.int32)
         h.block, h.compile_s["step"], now = _compiled(
             f"step-{h.mj_name}", _block_fn(), (h.mx, h.dx), (ks, np.int32(0)), h.x64
@@ -625,6 +633,7 @@ class MjxEngine(Engine):
         """Write ``state`` into the MjData (float64) and put it on the device in the run's
         precision with ``mjx.put_data`` (which rounds it for float32; that rounding is checked
         here, see the module docstring)."""
+        self._compile(ctx)
         h = ctx.handle
         if ctx.model.pivoted:
             qpos, qvel = cv.mujoco_ball_from_state(state.rotation, state.omega_body)
