@@ -96,12 +96,9 @@ class DirectorEngine(Engine):
     def read_model(self, ctx) -> ModelReadback:
         body = ctx.handle.body
         com = -body.pivot if body.pivoted else np.zeros(3)
-        # the principal moments about the COM from the convected moments: I_i = J_j + J_k
-        J = body.J
-        inertia = np.diag([J[1] + J[2], J[2] + J[0], J[0] + J[1]])
         return ModelReadback(
             mass=body.mass,
-            inertia=inertia,
+            inertia=np.diag(body.inertia),  # the moments the Body holds (its J follow from them)
             com=com,
             joint="ball" if body.pivoted else "free",
             gravity=ctx.model.gravity,
