@@ -21,14 +21,19 @@ Data layout (float64 arrays, so one compiled signature serves every body):
     singular director mass matrix): it maps body momentum to body angular velocity.
 ``S`` state, length ``NS``:
     S[0:3] x_G; S[3:6] v_G; S[6:15] D (row-major: D[r, i] = S[6 + 3 r + i], column i is the
-    director d_i); S[15:24] D' (same layout); S[24:27] Pi = Ibar W (RATTLE family);
-    S[27:30] body torque of gravity at D (RATTLE family, cached between steps);
-    S[30:36] scaled multipliers mu = h^2/4 Lambda (energy-momentum warm start; order 11, 22,
-    33, 12, 13, 23);
-    S[36:45] compensation of D, S[45:48] of Pi (RATTLE family): the rounding error of the
-    last sum into each entry (Kahan's compensated summation, see :func:`_kahan`); the value
-    of an entry is S[k] + its compensation, S[k] being that value rounded to double. Zero
-    at the start of a run.
+    director d_i); S[15:24] D' (same layout).
+    Energy-momentum: D and D' are the state; S[30:36] scaled multipliers mu = h^2/4 Lambda
+    (warm start; order 11, 22, 33, 12, 13, 23).
+    RATTLE family: S[6:15] holds D_0, the directors at the start of the run, and the
+    directors after n steps are D_n = D_0 Q_1 ... Q_n = D_0 R(p_n), with p_n the product of
+    the quaternions (1, w_k) of the rotations Q_k (Gibbs vectors w_k), unnormalised, in
+    S[36:40] (scalar first); D_n is formed where it is needed (saved states; the torque of a
+    pivoted body uses D_n^T g = R(p_n)^T D_0^T g). S[15:24] is only a scratch for D' at the
+    start. S[24:27] Pi = Ibar W; S[27:30] the body torque of gravity (cached between
+    steps); S[30:33] D_0^T g. S[40:44] and S[44:47] are the compensations of p and Pi: the
+    rounding error of the last sum into each entry (Kahan's compensated summation, see
+    :func:`_kahan`); the value of an entry is S[k] + its compensation, S[k] being that
+    value rounded to double. Zero at the start of a run.
     A free centre of mass is never stepped: every scheme integrates free flight exactly
     (RATTLE and the energy-momentum midpoint rule both give x += h v + h^2/2 g, v += h g,
     and a composition of exact flows is exact), so S[0:6] keeps x_G, v_G of the start and
@@ -51,10 +56,18 @@ import numpy as np
 from numba import njit, prange
 
 NP = 36
-NS = 48
-#: offset of the compensation of S[6:15] (D) and S[24:27] (Pi)
-LO_D = 36
-LO_PI = 45
+NS = 47
+#: RATTLE family: the attitude quaternion p (S[36:40]), its compensation (S[40:44]) and the
+#: compensation of Pi (S[44:47])
+QP = 36
+LO_Q = 40
+LO_PI = 44
+#: the attitude quaternion is rescaled by QUAT_SHRINK (exactly) when |p|^2 exceeds QUAT_BIG,
+#: checked every RESCALE_EVERY steps: |p|^2 grows by less than 2 per step, so it stays below
+#: 2^(128 + 64), far from overflow
+QUAT_BIG = 2.0**128
+QUAT_SHRINK = 2.0**-64
+RESCALE_EVERY = 64
 
 #: method codes
 RATTLE_FAMILY = 0
@@ -426,66 +439,91 @@ def _dmv_solve_diag(P, b0, b1, b2):
 
 
 @njit(inline="always")
-def _torque(piv, m, c, g, D):
-    """Body torque of gravity about the pivot, tau = m (D^T g) x c (zero for a free body);
-    c, g 3-tuples, D a 9-tuple (row-major). Returns a 3-tuple.
+def _torque(piv, m, c, gb):
+    """Body torque of gravity about the pivot, tau = m gb x c with gb = D^T g the gravity in
+    body axes (zero for a free body); c, gb 3-tuples. Returns a 3-tuple.
 
     From V = -m g . x_G with x_G = -D c: the director forces are f_i = -dV/dd_i = -m c_i g and
     tau = vee(D^T F - F^T D) = -m c x (D^T g) (numerics.md section 2). Zero for a free body
     (gravity acts at the centre of mass)."""
-    gb0 = D[0] * g[0] + D[3] * g[1] + D[6] * g[2]
-    gb1 = D[1] * g[0] + D[4] * g[1] + D[7] * g[2]
-    gb2 = D[2] * g[0] + D[5] * g[1] + D[8] * g[2]
-    t0 = m * (gb1 * c[2] - gb2 * c[1]) if piv else 0.0
-    t1 = m * (gb2 * c[0] - gb0 * c[2]) if piv else 0.0
-    t2 = m * (gb0 * c[1] - gb1 * c[0]) if piv else 0.0
+    t0 = m * (gb[1] * c[2] - gb[2] * c[1]) if piv else 0.0
+    t1 = m * (gb[2] * c[0] - gb[0] * c[2]) if piv else 0.0
+    t2 = m * (gb[0] * c[1] - gb[1] * c[0]) if piv else 0.0
     return (t0, t1, t2)
 
 
-@njit(cache=True)
-def _gravity_torque(P, g, S):
-    """:func:`_torque` at the state's D, stored in S[27:30]."""
-    t = _torque(
-        P[31] != 0.0, P[0], (P[28], P[29], P[30]), (g[0], g[1], g[2]),
-        (S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[14]),
-    )  # fmt: skip
-    S[27] = t[0]
-    S[28] = t[1]
-    S[29] = t[2]
+@njit(inline="always")
+def _quat_increment(p, w):
+    """p (x) (0, w), the Hamilton product: the increment of the quaternion p when it is
+    multiplied by (1, w), the (unnormalised) quaternion of Q with Gibbs vector w. p a
+    4-tuple (scalar first), w a 3-tuple; O(|w| |p|)."""
+    return (
+        -((p[1] * w[0] + p[2] * w[1]) + p[3] * w[2]),
+        p[0] * w[0] + (p[2] * w[2] - p[3] * w[1]),
+        p[0] * w[1] + (p[3] * w[0] - p[1] * w[2]),
+        p[0] * w[2] + (p[1] * w[1] - p[2] * w[0]),
+    )
 
 
 @njit(inline="always")
-def _cayley_increment(f, w0, w1, w2, D):
-    """D (Q - 1) for Q = 1 + f (hat(w) + hat(w)^2), f = 2/(1 + |w|^2) (the Cayley form of
-    the quaternion with Gibbs vector w); D and the result are 9-tuples, row-major. The
-    caller adds it to D with compensation (:func:`_kahan`): the increment is O(|w|), so its
-    rounding is at its own small ulp, and the rounding of the sum D + D (Q - 1) is carried to
-    the next step instead of being lost."""
-    x00 = w0 * w0
-    x11 = w1 * w1
-    x22 = w2 * w2
-    x01 = w0 * w1
-    x02 = w0 * w2
-    x12 = w1 * w2
-    Q00 = -f * (x11 + x22)
-    Q11 = -f * (x00 + x22)
-    Q22 = -f * (x00 + x11)
-    Q01 = f * (x01 - w2)
-    Q10 = f * (x01 + w2)
-    Q02 = f * (x02 + w1)
-    Q20 = f * (x02 - w1)
-    Q12 = f * (x12 - w0)
-    Q21 = f * (x12 + w0)
+def _quat_matrix(p):
+    """R(p/|p|), the rotation of the quaternion p (any norm > 0), as a 9-tuple row-major:
+    ((p0^2 - |v|^2) 1 + 2 v v^T + 2 p0 hat(v)) / |p|^2."""
+    a = p[0] * p[0]
+    b = p[1] * p[1]
+    c = p[2] * p[2]
+    d = p[3] * p[3]
+    r = 1.0 / ((a + b) + (c + d))
+    r2 = 2.0 * r
+    xy = p[1] * p[2]
+    xz = p[1] * p[3]
+    yz = p[2] * p[3]
+    sx = p[0] * p[1]
+    sy = p[0] * p[2]
+    sz = p[0] * p[3]
     return (
-        D[0] * Q00 + D[1] * Q10 + D[2] * Q20,
-        D[0] * Q01 + D[1] * Q11 + D[2] * Q21,
-        D[0] * Q02 + D[1] * Q12 + D[2] * Q22,
-        D[3] * Q00 + D[4] * Q10 + D[5] * Q20,
-        D[3] * Q01 + D[4] * Q11 + D[5] * Q21,
-        D[3] * Q02 + D[4] * Q12 + D[5] * Q22,
-        D[6] * Q00 + D[7] * Q10 + D[8] * Q20,
-        D[6] * Q01 + D[7] * Q11 + D[8] * Q21,
-        D[6] * Q02 + D[7] * Q12 + D[8] * Q22,
+        ((a + b) - (c + d)) * r, (xy - sz) * r2, (xz + sy) * r2,
+        (xy + sz) * r2, ((a + c) - (b + d)) * r, (yz - sx) * r2,
+        (xz - sy) * r2, (yz + sx) * r2, ((a + d) - (b + c)) * r,
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def _quat_rotate_back(p, x):
+    """R(p/|p|)^T x for a quaternion p (any norm > 0) and a 3-tuple x:
+    ((p0^2 - |v|^2) x + 2 (v . x) v - 2 p0 v x x) / |p|^2."""
+    v0 = p[1]
+    v1 = p[2]
+    v2 = p[3]
+    vv = (v0 * v0 + v1 * v1) + v2 * v2
+    r = 1.0 / (p[0] * p[0] + vv)
+    s = p[0] * p[0] - vv
+    vx = 2.0 * ((v0 * x[0] + v1 * x[1]) + v2 * x[2])
+    c0 = v1 * x[2] - v2 * x[1]
+    c1 = v2 * x[0] - v0 * x[2]
+    c2 = v0 * x[1] - v1 * x[0]
+    t = 2.0 * p[0]
+    return (
+        ((s * x[0] + vx * v0) - t * c0) * r,
+        ((s * x[1] + vx * v1) - t * c1) * r,
+        ((s * x[2] + vx * v2) - t * c2) * r,
+    )
+
+
+@njit(inline="always")
+def _directors(S):
+    """D = D_0 R(p/|p|) of a RATTLE state: D_0 in S[6:15], p in S[36:40]. A 9-tuple."""
+    R = _quat_matrix((S[QP], S[QP + 1], S[QP + 2], S[QP + 3]))
+    return (
+        (S[6] * R[0] + S[7] * R[3]) + S[8] * R[6],
+        (S[6] * R[1] + S[7] * R[4]) + S[8] * R[7],
+        (S[6] * R[2] + S[7] * R[5]) + S[8] * R[8],
+        (S[9] * R[0] + S[10] * R[3]) + S[11] * R[6],
+        (S[9] * R[1] + S[10] * R[4]) + S[11] * R[7],
+        (S[9] * R[2] + S[10] * R[5]) + S[11] * R[8],
+        (S[12] * R[0] + S[13] * R[3]) + S[14] * R[6],
+        (S[12] * R[1] + S[13] * R[4]) + S[14] * R[7],
+        (S[12] * R[2] + S[13] * R[5]) + S[14] * R[8],
     )
 
 
@@ -499,20 +537,30 @@ def _kahan3(hi, lo, d, comp):
 
 
 @njit(inline="always")
-def _kahan9(hi, lo, d, comp):
-    """:func:`_kahan` on 9-tuples; returns (new values, new compensations)."""
-    a, ea = _kahan3((hi[0], hi[1], hi[2]), (lo[0], lo[1], lo[2]), (d[0], d[1], d[2]), comp)
-    b, eb = _kahan3((hi[3], hi[4], hi[5]), (lo[3], lo[4], lo[5]), (d[3], d[4], d[5]), comp)
-    c, ec = _kahan3((hi[6], hi[7], hi[8]), (lo[6], lo[7], lo[8]), (d[6], d[7], d[8]), comp)
-    return (
-        (a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]),
-        (ea[0], ea[1], ea[2], eb[0], eb[1], eb[2], ec[0], ec[1], ec[2]),
-    )
+def _kahan4(hi, lo, d, comp):
+    """:func:`_kahan` on 4-tuples; returns (new values, new compensations)."""
+    t0, e0 = _kahan(hi[0], lo[0], d[0], comp)
+    t1, e1 = _kahan(hi[1], lo[1], d[1], comp)
+    t2, e2 = _kahan(hi[2], lo[2], d[2], comp)
+    t3, e3 = _kahan(hi[3], lo[3], d[3], comp)
+    return (t0, t1, t2, t3), (e0, e1, e2, e3)
+
+
+@njit(inline="always")
+def _quat_rescale(p, pl):
+    """Multiply p and its compensation by 2^-64 if |p|^2 > 2^128: exact (a power of two),
+    so the rotation and the compensated value are unchanged; |p|^2 grows by the factor
+    1 + |w|^2 < 2 per step and would otherwise overflow after very many steps."""
+    big = ((p[0] * p[0] + p[1] * p[1]) + (p[2] * p[2] + p[3] * p[3])) > QUAT_BIG
+    f = QUAT_SHRINK if big else 1.0
+    return (p[0] * f, p[1] * f, p[2] * f, p[3] * f), (pl[0] * f, pl[1] * f, pl[2] * f, pl[3] * f)
 
 
 @njit(cache=True)
 def _rattle_init(P, g, S):
-    """From the director state (D, D') set Pi = Ibar vee(skew(D^T D')) and the torque."""
+    """From a new director state (D = D_0 in S[6:15], D' in S[15:24]) set Pi = Ibar
+    vee(skew(D^T D')), p = (1, 0, 0, 0), the gravity in body axes D_0^T g (S[30:33]) and
+    the torque."""
     W0 = 0.0
     W1 = 0.0
     W2 = 0.0
@@ -530,7 +578,18 @@ def _rattle_init(P, g, S):
     S[24] = P[10] * W0 + P[11] * W1 + P[12] * W2
     S[25] = P[13] * W0 + P[14] * W1 + P[15] * W2
     S[26] = P[16] * W0 + P[17] * W1 + P[18] * W2
-    _gravity_torque(P, g, S)
+    S[QP] = 1.0
+    for j in range(1, 4):
+        S[QP + j] = 0.0
+    for j in range(4):
+        S[LO_Q + j] = 0.0
+    for j in range(3):
+        S[LO_PI + j] = 0.0
+        S[30 + j] = (S[6 + j] * g[0] + S[9 + j] * g[1]) + S[12 + j] * g[2]
+    t = _torque(P[31] != 0.0, P[0], (P[28], P[29], P[30]), (S[30], S[31], S[32]))
+    S[27] = t[0]
+    S[28] = t[1]
+    S[29] = t[2]
 
 
 # One RATTLE step of size h (h may be negative inside a composition, never 0), in two pieces
@@ -542,13 +601,14 @@ def _rattle_init(P, g, S):
 #                   straight-line solve when Ibar is diagonal (predictor, _fp_count
 #                   fixed-point corrections, _diag_finish); otherwise, or if it does not
 #                   finish, the caller runs _solve_loop.
-#   _rattle_commit: D_{n+1} = D_n + D_n (Q - 1); Pi_{n+1} = Q^T pi + h/2 tau_{n+1}, computed
-#                   as Pi_n + (h/2 (tau_n + tau_{n+1}) - 4 c/(q h)) (Q^T pi = pi - 4 c/(q h),
-#                   see _dmv_solve). Both sums are compensated (_kahan) unless comp is
-#                   False. (The centre of mass is not stepped: see _store.)
+#   _rattle_commit: D_{n+1} = D_n Q, kept as D_0 R(p) with p_{n+1} = p_n + p_n (x) (0, w);
+#                   Pi_{n+1} = Q^T pi + h/2 tau_{n+1}, computed as
+#                   Pi_n + (h/2 (tau_n + tau_{n+1}) - 4 c/(q h)) (Q^T pi = pi - 4 c/(q h), see
+#                   _dmv_solve). Both sums are compensated (_kahan) unless comp is False.
+#                   (The centre of mass is not stepped: see _store.)
 #
-# The RATTLE state as tuples: D, L (9: directors row-major and their compensation), Pi, Pl
-# (momentum, compensation), T (torque) (3 each).
+# The RATTLE state as tuples: p, pl (4: attitude quaternion and its compensation), Pi, Pl
+# (momentum, compensation), T (torque), G (gravity in the axes of D_0) (3 each).
 # The single-body loop (_run_rattle), the array step (_rattle_substep) and the block step of
 # the batched loop (_rattle_block_substep) all use these, so they compute the same numbers.
 @njit(inline="always")
@@ -593,21 +653,22 @@ def _solve_loop(P, b0, b1, b2):
 
 
 @njit(inline="always")
-def _rattle_commit(comp, piv, m, pc, g, hh, rh, w, c, q, D, L, Pi, Pl, T, vector):
+def _rattle_commit(comp, piv, m, pc, hh, rh, w, c, q, p, pl, Pi, Pl, T, G, vector, torque):
     """The new state from the solution (w, c, q) of a step of size h (hh = h/2, rh = 4/h);
-    pc is the pivot, g gravity (3-tuples). Returns (finite, D, L, Pi, Pl, T); finite is
-    False if the new momentum is not finite. ``vector`` (a constant): the torque without a
-    branch, as the SIMD lane loop needs (the same numbers)."""
-    rq = 1.0 / q
-    f = 2.0 * rq
-    r = rh * rq
-    Dn, Ln = _kahan9(D, L, _cayley_increment(f, w[0], w[1], w[2], D), comp)
+    pc is the pivot, G the gravity in the axes of D_0 (3-tuples). Returns
+    (finite, p, pl, Pi, Pl, T); finite is False if the new momentum is not finite.
+    ``vector`` (a constant): called from the SIMD lane loop: the torque without a branch,
+    zero for the free lanes (the same numbers as the scalar branch), and only if ``torque``
+    (a constant: some lane of the block is pivoted)."""
+    r = rh * (1.0 / q)
+    pn, pln = _kahan4(p, pl, _quat_increment(p, w), comp)
     N = (0.0, 0.0, 0.0)
     if vector:
-        N = _torque(piv, m, pc, g, Dn)
+        if torque:
+            N = _torque(piv, m, pc, _quat_rotate_back(pn, G))
     elif piv:
-        # a branch in scalar code, so that a free body's momentum does not wait for the new D
-        N = _torque(True, m, pc, g, Dn)
+        # a branch in scalar code: a free body's momentum does not wait for the attitude
+        N = _torque(True, m, pc, _quat_rotate_back(pn, G))
     dP = (
         hh * (T[0] + N[0]) - r * c[0],
         hh * (T[1] + N[1]) - r * c[1],
@@ -615,28 +676,28 @@ def _rattle_commit(comp, piv, m, pc, g, hh, rh, w, c, q, D, L, Pi, Pl, T, vector
     )
     Pn, Pln = _kahan3(Pi, Pl, dP, comp)
     finite = (abs(Pn[0]) + abs(Pn[1]) + abs(Pn[2])) < math.inf
-    return finite, Dn, Ln, Pn, Pln, N
+    return finite, pn, pln, Pn, Pln, N
 
 
 @njit(cache=True)
 def _get_state(S):
-    """The RATTLE state tuples (D, L, Pi, Pl, T) from S."""
+    """The RATTLE state tuples (p, pl, Pi, Pl, T, G) from S."""
     return (
-        (S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[14]),
-        (S[LO_D], S[LO_D + 1], S[LO_D + 2], S[LO_D + 3], S[LO_D + 4], S[LO_D + 5],
-         S[LO_D + 6], S[LO_D + 7], S[LO_D + 8]),
+        (S[QP], S[QP + 1], S[QP + 2], S[QP + 3]),
+        (S[LO_Q], S[LO_Q + 1], S[LO_Q + 2], S[LO_Q + 3]),
         (S[24], S[25], S[26]),
         (S[LO_PI], S[LO_PI + 1], S[LO_PI + 2]),
         (S[27], S[28], S[29]),
-    )  # fmt: skip
+        (S[30], S[31], S[32]),
+    )
 
 
 @njit(cache=True)
-def _put_state(S, D, L, Pi, Pl, T):
+def _put_state(S, p, pl, Pi, Pl, T):
     """Write the RATTLE state tuples into S."""
-    for j in range(9):
-        S[6 + j] = D[j]
-        S[LO_D + j] = L[j]
+    for j in range(4):
+        S[QP + j] = p[j]
+        S[LO_Q + j] = pl[j]
     for j in range(3):
         S[24 + j] = Pi[j]
         S[LO_PI + j] = Pl[j]
@@ -644,10 +705,10 @@ def _put_state(S, D, L, Pi, Pl, T):
 
 
 @njit(cache=True)
-def _rattle_substep(P, g, S, hh, rh, comp):
+def _rattle_substep(P, S, hh, rh, comp):
     """One RATTLE step of size h (hh = h/2, rh = 4/h) on the array state S, written only if
     the step succeeds; returns a status code. The scalar fallback of the batched loop."""
-    D, L, Pi, Pl, T = _get_state(S)
+    p, pl, Pi, Pl, T, G = _get_state(S)
     ok, b0, b1, b2, w0, w1, w2, c0, c1, c2, q = _rattle_solve(
         P[32] != 0.0, P[10], P[14], P[18], P[19], P[23], P[27], P[33], P[34], P[35], hh, Pi, T
     )
@@ -655,30 +716,26 @@ def _rattle_substep(P, g, S, hh, rh, comp):
         st, w0, w1, w2, c0, c1, c2, q = _solve_loop(P, b0, b1, b2)
         if st != OK:
             return st
-    finite, D, L, Pi, Pl, T = _rattle_commit(
-        comp, P[31] != 0.0, P[0], (P[28], P[29], P[30]), (g[0], g[1], g[2]), hh, rh,
-        (w0, w1, w2), (c0, c1, c2), q, D, L, Pi, Pl, T, False,
+    finite, p, pl, Pi, Pl, T = _rattle_commit(
+        comp, P[31] != 0.0, P[0], (P[28], P[29], P[30]), hh, rh, (w0, w1, w2), (c0, c1, c2),
+        q, p, pl, Pi, Pl, T, G, False, False,
     )  # fmt: skip
     if not finite:
         return FAIL_NONFINITE
-    _put_state(S, D, L, Pi, Pl, T)
+    _put_state(S, p, pl, Pi, Pl, T)
     return OK
 
 
 @njit(cache=True)
-def _rattle_director_velocity(P, S):
-    """D' = D hat(W) with W = Ibar^{-1} Pi, written to S[15:24]."""
-    W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
-    W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
-    W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
-    for r in range(3):
-        a0 = S[6 + 3 * r]
-        a1 = S[7 + 3 * r]
-        a2 = S[8 + 3 * r]
-        # row r of D hat(W); hat(W) columns: (0, W2, -W1), (-W2, 0, W0), (W1, -W0, 0)
-        S[15 + 3 * r] = a1 * W2 - a2 * W1
-        S[16 + 3 * r] = a2 * W0 - a0 * W2
-        S[17 + 3 * r] = a0 * W1 - a1 * W0
+def _rescale_state(S):
+    """:func:`_quat_rescale` on the quaternion in S."""
+    p, pl = _quat_rescale(
+        (S[QP], S[QP + 1], S[QP + 2], S[QP + 3]),
+        (S[LO_Q], S[LO_Q + 1], S[LO_Q + 2], S[LO_Q + 3]),
+    )
+    for j in range(4):
+        S[QP + j] = p[j]
+        S[LO_Q + j] = pl[j]
 
 
 # --------------------------------------------------------------------------------------------
@@ -910,9 +967,10 @@ NROW = ROW_B + 13
 
 
 @njit(cache=True, error_model="numpy")
-def _rattle_block_substep(B, g0, g1, g2, hh, rh, nl):
+def _rattle_block_substep(B, hh, rh, nl, anypiv):
     """One RATTLE substep of size h (hh = h/2, rh = 4/h) for lanes 0..nl-1 of the block
-    array B, in place.
+    array B, in place; ``anypiv``: some lane is pivoted (else the torque, zero for every
+    lane, is not computed). Returns the number of lanes not accepted.
 
     :func:`_rattle_substep` with its straight-line solve, cut into three passes over the
     lanes: the predictor, the fixed-point corrections (one pass each, as many as the lane
@@ -953,14 +1011,20 @@ def _rattle_block_substep(B, g0, g1, g2, hh, rh, nl):
         B[ROW_AB * BLOCK + l] = ab0
         B[(ROW_AB + 1) * BLOCK + l] = ab1
         B[(ROW_AB + 2) * BLOCK + l] = ab2
-        B[ROW_W * BLOCK + l] = ab0
-        B[(ROW_W + 1) * BLOCK + l] = ab1
-        B[(ROW_W + 2) * BLOCK + l] = ab2
+        # the first correction here: every lane the vector code accepts takes at least 3
+        w0, w1, w2 = _fp_step(
+            ab0, ab1, ab2, B[(ROW_P + 33) * BLOCK + l], B[(ROW_P + 34) * BLOCK + l],
+            B[(ROW_P + 35) * BLOCK + l], ab0, ab1, ab2,
+        )  # fmt: skip
+        B[ROW_W * BLOCK + l] = w0
+        B[(ROW_W + 1) * BLOCK + l] = w1
+        B[(ROW_W + 2) * BLOCK + l] = w2
     kmax = 0.0
     for l in range(nl):
         kmax = max(kmax, B[ROW_K * BLOCK + l])
-    # pass 2: fixed-point corrections; lane l takes the first B[ROW_K, l] of them
-    it = 0.0
+    # pass 2: the other fixed-point corrections, one per pass (two per pass measured
+    # slower); lane l takes B[ROW_K, l] in all
+    it = 1.0
     while it < kmax:
         for l in range(nl):
             w0 = B[ROW_W * BLOCK + l]
@@ -976,7 +1040,19 @@ def _rattle_block_substep(B, g0, g1, g2, hh, rh, nl):
             B[(ROW_W + 1) * BLOCK + l] = n1 if on else w1
             B[(ROW_W + 2) * BLOCK + l] = n2 if on else w2
         it += 1.0
-    # pass 3: residual test, polish, compensated commit
+    # pass 3: residual test, polish, compensated commit; the torque only if needed
+    return _block_finish(B, hh, rh, nl, anypiv)
+
+
+@njit(cache=True, error_model="numpy")
+def _block_finish(B, hh, rh, nl, torque):
+    """Pass 3 of :func:`_rattle_block_substep`: the residual test, the polish and the
+    compensated commit for lanes 0..nl-1; ``torque``: some lane is pivoted (a loop
+    invariant, so the lane loop is compiled with and without the torque). Returns the
+    number of lanes not accepted. A called function, not an inlined one: numba would count
+    references to the array argument of an inlined function at each call."""
+    # 3a: residual, test and polish; w, c = w x Ibar w, q = 1 + |w|^2 and the outcome go to
+    # the rows of w, ab and b (two short loops overlap across lanes better than one long one)
     for l in range(nl):
         ok, w0, w1, w2, c0, c1, c2, q = _diag_finish(
             B[(ROW_P + 10) * BLOCK + l], B[(ROW_P + 14) * BLOCK + l],
@@ -985,45 +1061,44 @@ def _rattle_block_substep(B, g0, g1, g2, hh, rh, nl):
             B[ROW_B * BLOCK + l], B[(ROW_B + 1) * BLOCK + l], B[(ROW_B + 2) * BLOCK + l],
             B[ROW_W * BLOCK + l], B[(ROW_W + 1) * BLOCK + l], B[(ROW_W + 2) * BLOCK + l],
         )  # fmt: skip
-        D = (
-            B[6 * BLOCK + l], B[7 * BLOCK + l], B[8 * BLOCK + l], B[9 * BLOCK + l],
-            B[10 * BLOCK + l], B[11 * BLOCK + l], B[12 * BLOCK + l], B[13 * BLOCK + l],
-            B[14 * BLOCK + l],
-        )  # fmt: skip
-        L = (
-            B[LO_D * BLOCK + l], B[(LO_D + 1) * BLOCK + l], B[(LO_D + 2) * BLOCK + l],
-            B[(LO_D + 3) * BLOCK + l], B[(LO_D + 4) * BLOCK + l], B[(LO_D + 5) * BLOCK + l],
-            B[(LO_D + 6) * BLOCK + l], B[(LO_D + 7) * BLOCK + l], B[(LO_D + 8) * BLOCK + l],
-        )  # fmt: skip
+        B[ROW_W * BLOCK + l] = w0
+        B[(ROW_W + 1) * BLOCK + l] = w1
+        B[(ROW_W + 2) * BLOCK + l] = w2
+        B[ROW_AB * BLOCK + l] = c0
+        B[(ROW_AB + 1) * BLOCK + l] = c1
+        B[(ROW_AB + 2) * BLOCK + l] = c2
+        B[ROW_B * BLOCK + l] = q
+        B[(ROW_B + 1) * BLOCK + l] = 1.0 if ok & (B[ROW_K * BLOCK + l] != 0.0) else 0.0
+    # 3b: the compensated commit
+    nrej = 0
+    for l in range(nl):
+        p = (B[QP * BLOCK + l], B[(QP + 1) * BLOCK + l], B[(QP + 2) * BLOCK + l],
+             B[(QP + 3) * BLOCK + l])  # fmt: skip
+        pl = (B[LO_Q * BLOCK + l], B[(LO_Q + 1) * BLOCK + l], B[(LO_Q + 2) * BLOCK + l],
+              B[(LO_Q + 3) * BLOCK + l])  # fmt: skip
         Pi = (B[24 * BLOCK + l], B[25 * BLOCK + l], B[26 * BLOCK + l])
         Pl = (B[LO_PI * BLOCK + l], B[(LO_PI + 1) * BLOCK + l], B[(LO_PI + 2) * BLOCK + l])
         T = (B[27 * BLOCK + l], B[28 * BLOCK + l], B[29 * BLOCK + l])
-        finite, Dn, Ln, Pin, Pln, Tn = _rattle_commit(
+        finite, pn, pln, Pin, Pln, Tn = _rattle_commit(
             True, B[(ROW_P + 31) * BLOCK + l] != 0.0, B[ROW_P * BLOCK + l],
             (B[(ROW_P + 28) * BLOCK + l], B[(ROW_P + 29) * BLOCK + l],
              B[(ROW_P + 30) * BLOCK + l]),
-            (g0, g1, g2), hh, rh, (w0, w1, w2), (c0, c1, c2), q, D, L, Pi, Pl, T, True,
+            hh, rh,
+            (B[ROW_W * BLOCK + l], B[(ROW_W + 1) * BLOCK + l], B[(ROW_W + 2) * BLOCK + l]),
+            (B[ROW_AB * BLOCK + l], B[(ROW_AB + 1) * BLOCK + l], B[(ROW_AB + 2) * BLOCK + l]),
+            B[ROW_B * BLOCK + l], p, pl, Pi, Pl, T,
+            (B[30 * BLOCK + l], B[31 * BLOCK + l], B[32 * BLOCK + l]), True, torque,
         )  # fmt: skip
-        ok = ok & finite & (B[ROW_K * BLOCK + l] != 0.0)
+        ok = finite & (B[(ROW_B + 1) * BLOCK + l] != 0.0)
         # the new state where accepted
-        B[6 * BLOCK + l] = Dn[0] if ok else D[0]
-        B[7 * BLOCK + l] = Dn[1] if ok else D[1]
-        B[8 * BLOCK + l] = Dn[2] if ok else D[2]
-        B[9 * BLOCK + l] = Dn[3] if ok else D[3]
-        B[10 * BLOCK + l] = Dn[4] if ok else D[4]
-        B[11 * BLOCK + l] = Dn[5] if ok else D[5]
-        B[12 * BLOCK + l] = Dn[6] if ok else D[6]
-        B[13 * BLOCK + l] = Dn[7] if ok else D[7]
-        B[14 * BLOCK + l] = Dn[8] if ok else D[8]
-        B[LO_D * BLOCK + l] = Ln[0] if ok else L[0]
-        B[(LO_D + 1) * BLOCK + l] = Ln[1] if ok else L[1]
-        B[(LO_D + 2) * BLOCK + l] = Ln[2] if ok else L[2]
-        B[(LO_D + 3) * BLOCK + l] = Ln[3] if ok else L[3]
-        B[(LO_D + 4) * BLOCK + l] = Ln[4] if ok else L[4]
-        B[(LO_D + 5) * BLOCK + l] = Ln[5] if ok else L[5]
-        B[(LO_D + 6) * BLOCK + l] = Ln[6] if ok else L[6]
-        B[(LO_D + 7) * BLOCK + l] = Ln[7] if ok else L[7]
-        B[(LO_D + 8) * BLOCK + l] = Ln[8] if ok else L[8]
+        B[QP * BLOCK + l] = pn[0] if ok else p[0]
+        B[(QP + 1) * BLOCK + l] = pn[1] if ok else p[1]
+        B[(QP + 2) * BLOCK + l] = pn[2] if ok else p[2]
+        B[(QP + 3) * BLOCK + l] = pn[3] if ok else p[3]
+        B[LO_Q * BLOCK + l] = pln[0] if ok else pl[0]
+        B[(LO_Q + 1) * BLOCK + l] = pln[1] if ok else pl[1]
+        B[(LO_Q + 2) * BLOCK + l] = pln[2] if ok else pl[2]
+        B[(LO_Q + 3) * BLOCK + l] = pln[3] if ok else pl[3]
         B[24 * BLOCK + l] = Pin[0] if ok else Pi[0]
         B[25 * BLOCK + l] = Pin[1] if ok else Pi[1]
         B[26 * BLOCK + l] = Pin[2] if ok else Pi[2]
@@ -1035,6 +1110,29 @@ def _rattle_block_substep(B, g0, g1, g2, hh, rh, nl):
         B[29 * BLOCK + l] = Tn[2] if ok else T[2]
         B[ROW_ACC * BLOCK + l] = 1.0 if ok else 0.0
         B[ROW_VEC * BLOCK + l] += 1.0 if ok else 0.0
+        nrej += 0 if ok else 1
+    return nrej
+
+
+@njit(cache=True, error_model="numpy")
+def _rattle_block_rescale(B, nl):
+    """:func:`_quat_rescale` for lanes 0..nl-1 (every RESCALE_EVERY steps, as the scalar
+    loop does)."""
+    for l in range(nl):
+        p, pl = _quat_rescale(
+            (B[QP * BLOCK + l], B[(QP + 1) * BLOCK + l], B[(QP + 2) * BLOCK + l],
+             B[(QP + 3) * BLOCK + l]),
+            (B[LO_Q * BLOCK + l], B[(LO_Q + 1) * BLOCK + l], B[(LO_Q + 2) * BLOCK + l],
+             B[(LO_Q + 3) * BLOCK + l]),
+        )  # fmt: skip
+        B[QP * BLOCK + l] = p[0]
+        B[(QP + 1) * BLOCK + l] = p[1]
+        B[(QP + 2) * BLOCK + l] = p[2]
+        B[(QP + 3) * BLOCK + l] = p[3]
+        B[LO_Q * BLOCK + l] = pl[0]
+        B[(LO_Q + 1) * BLOCK + l] = pl[1]
+        B[(LO_Q + 2) * BLOCK + l] = pl[2]
+        B[(LO_Q + 3) * BLOCK + l] = pl[3]
 
 
 @njit(cache=True)
@@ -1091,19 +1189,20 @@ def _run_rattle_block(
             B[(ROW_P + j) * BLOCK + l] = P[i, j]
         B[ROW_LIVE * BLOCK + l] = 1.0
     k = 1 if store0 else 0
-    g0 = g[0]
-    g1 = g[1]
-    g2 = g[2]
+    anypiv = False
+    for l in range(nl):
+        anypiv = anypiv or P[i0 + l, 31] != 0.0
     ncoef = coef.shape[0]
     for n in range(1, nstep + 1):
         for c in range(ncoef):
-            _rattle_block_substep(B, g0, g1, g2, hhs[c], rhs[c], nl)
+            if _rattle_block_substep(B, hhs[c], rhs[c], nl, anypiv) == 0:
+                continue
             for l in range(nl):
                 if B[ROW_ACC * BLOCK + l] != 0.0 or B[ROW_LIVE * BLOCK + l] == 0.0:
                     continue
                 i = i0 + l
                 _lane_get(B, l, S)
-                st = _rattle_substep(P[i], g, S, hhs[c], rhs[c], True)
+                st = _rattle_substep(P[i], S, hhs[c], rhs[c], True)
                 _lane_put(B, l, S)
                 if st != OK:
                     status[i] = st
@@ -1111,6 +1210,8 @@ def _run_rattle_block(
                     info[i, 1] = _omega_norm(RATTLE_FAMILY, P[i], S)
                     info[i, 2] = _alpha_norm(RATTLE_FAMILY, P[i], S)
                     B[ROW_LIVE * BLOCK + l] = 0.0
+        if n % RESCALE_EVERY == 0:
+            _rattle_block_rescale(B, nl)
         if k < nsave and saves[k] == n:
             for l in range(nl):
                 if B[ROW_LIVE * BLOCK + l] != 0.0:
@@ -1127,22 +1228,36 @@ def _run_rattle_block(
 # --------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _store(method, P, S, g, t, k, X, V, Dout, Dpout):
-    """Saved state k at the absolute time t: x_G, v_G, D and D' (computed from Pi for the
-    RATTLE family; S[15:24] is then overwritten, which the RATTLE step never reads). A free
-    centre of mass from its start state S[0:6] in closed form, x_G + v_G t + (t^2/2) g and
+    """Saved state k at the absolute time t: x_G, v_G, D and D'. RATTLE family: D = D_0 R(p)
+    and D' = D hat(W), W = Ibar^{-1} Pi; energy-momentum: D, D' from S. A free centre of
+    mass from its start state S[0:6] in closed form, x_G + v_G t + (t^2/2) g and
     v_G + g t; with a pivot x_G = -D c, v_G = -D' c."""
     if method == RATTLE_FAMILY:
-        _rattle_director_velocity(P, S)
-    piv = P[31] != 0.0
-    for r in range(3):
-        for j in range(3):
-            Dout[k, r, j] = S[6 + 3 * r + j]
-            Dpout[k, r, j] = S[15 + 3 * r + j]
+        D = _directors(S)
+        W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
+        W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
+        W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
+        for r in range(3):
+            a0 = D[3 * r]
+            a1 = D[3 * r + 1]
+            a2 = D[3 * r + 2]
+            Dout[k, r, 0] = a0
+            Dout[k, r, 1] = a1
+            Dout[k, r, 2] = a2
+            # row r of D hat(W); hat(W) columns: (0, W2, -W1), (-W2, 0, W0), (W1, -W0, 0)
+            Dpout[k, r, 0] = a1 * W2 - a2 * W1
+            Dpout[k, r, 1] = a2 * W0 - a0 * W2
+            Dpout[k, r, 2] = a0 * W1 - a1 * W0
+    else:
+        for r in range(3):
+            for j in range(3):
+                Dout[k, r, j] = S[6 + 3 * r + j]
+                Dpout[k, r, j] = S[15 + 3 * r + j]
     tt = 0.5 * t * t
     for r in range(3):
-        if piv:
-            X[k, r] = -(S[6 + 3 * r] * P[28] + S[7 + 3 * r] * P[29] + S[8 + 3 * r] * P[30])
-            V[k, r] = -(S[15 + 3 * r] * P[28] + S[16 + 3 * r] * P[29] + S[17 + 3 * r] * P[30])
+        if P[31] != 0.0:
+            X[k, r] = -(Dout[k, r, 0] * P[28] + Dout[k, r, 1] * P[29] + Dout[k, r, 2] * P[30])
+            V[k, r] = -(Dpout[k, r, 0] * P[28] + Dpout[k, r, 1] * P[29] + Dpout[k, r, 2] * P[30])
         else:
             X[k, r] = S[r] + (S[3 + r] * t + tt * g[r])
             V[k, r] = S[3 + r] + g[r] * t
@@ -1206,21 +1321,31 @@ def store_state(method, P, S, g, t, X, V, Dout, Dpout):
 
 @njit(cache=True)
 def _run_rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, comp, n0):
-    """The RATTLE-family loop of :func:`run_one` from saved state index k, compiled twice:
-    for a free body (no torque, diagonal Ibar: those branches and the torque terms folded
-    away) and for a pivoted one. The same numbers either way."""
-    if P[31] == 0.0:
-        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, comp, n0,
-                            True)  # fmt: skip
-    return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, comp, n0,
-                        False)  # fmt: skip
+    """The RATTLE-family loop of :func:`run_one` from saved state index k, compiled four
+    times: for a free body (no torque, diagonal Ibar: those branches and the torque terms
+    folded away) or a pivoted one, with compensated or plain sums (the plain variant, for
+    round-off studies, then costs nothing on the default path). The same numbers as one
+    general loop."""
+    free = P[31] == 0.0
+    if free and comp:
+        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                            True, True)  # fmt: skip
+    if free:
+        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                            True, False)  # fmt: skip
+    if comp:
+        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                            False, True)  # fmt: skip
+    return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                        False, False)  # fmt: skip
 
 
 @njit(inline="always")
-def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, comp, n0, free):
+def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0, free, comp):
     """The loop of :func:`_run_rattle`: the state in local variables (registers) between
-    steps, written to S at the saved steps and at the end. ``free`` is a constant: True for
-    a free body, whose Ibar is diagonal and whose torque is zero."""
+    steps, written to S at the saved steps, at the end and (for a composition) at the start
+    of each step. ``free`` and ``comp`` are constants: True for a free body, whose Ibar is
+    diagonal and whose torque is zero; compensated sums."""
     hs, hhs, rhs = _substep_sizes(coef, h)
     ncoef = coef.shape[0]
     nsave = saves.shape[0]
@@ -1237,15 +1362,14 @@ def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, com
     ae0 = P[33]
     ae1 = P[34]
     ae2 = P[35]
-    gt = (g[0], g[1], g[2])
-    D, L, Pi, Pl, T = _get_state(S)
+    p, pl, Pi, Pl, T, G = _get_state(S)
     if free:
         T = (0.0, 0.0, 0.0)  # as stored: a free body has no torque
     for n in range(1, nstep + 1):
         if ncoef > 1:
             # the start of the step, left in S if a later substep fails (a failing substep
             # changes nothing, so a single-substep scheme needs no copy)
-            _put_state(S, D, L, Pi, Pl, T)
+            _put_state(S, p, pl, Pi, Pl, T)
         st = OK
         for c in range(ncoef):
             hh = hhs[c]
@@ -1256,14 +1380,16 @@ def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, com
                 st, w0, w1, w2, c0, c1, c2, q = _solve_loop(P, b0, b1, b2)
                 if st != OK:
                     break
-            finite, Dn, Ln, Pin, Pln, Tn = _rattle_commit(
-                comp, piv, m, pc, gt, hh, rhs[c], (w0, w1, w2), (c0, c1, c2), q, D, L, Pi, Pl, T,
-                False,
+            finite, pn, pln, Pin, Pln, Tn = _rattle_commit(
+                comp, piv, m, pc, hh, rhs[c], (w0, w1, w2), (c0, c1, c2), q, p, pl, Pi, Pl, T,
+                G, False, False,
             )  # fmt: skip
             if not finite:
                 st = FAIL_NONFINITE
                 break
-            D, L, Pi, Pl, T = Dn, Ln, Pin, Pln, Tn
+            p, pl, Pi, Pl = pn, pln, Pin, Pln
+            if not free:
+                T = Tn
         if st != OK:
             info[0] = n - 1
             info[1] = _norm3(
@@ -1277,13 +1403,15 @@ def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, com
                 P[25] * T[0] + P[26] * T[1] + P[27] * T[2],
             )
             if ncoef == 1:
-                _put_state(S, D, L, Pi, Pl, T)
+                _put_state(S, p, pl, Pi, Pl, T)
             return st
+        if (n0 + n) % RESCALE_EVERY == 0:
+            p, pl = _quat_rescale(p, pl)
         if k < nsave and saves[k] == n:
-            _put_state(S, D, L, Pi, Pl, T)
+            _put_state(S, p, pl, Pi, Pl, T)
             _store(RATTLE_FAMILY, P, S, g, (n0 + n) * h, k, X, V, Dout, Dpout)
             k += 1
-    _put_state(S, D, L, Pi, Pl, T)
+    _put_state(S, p, pl, Pi, Pl, T)
     return OK
 
 
