@@ -197,6 +197,9 @@ def roundoff_floor(scenario, nstep: int) -> float:
 #: consecutive points whose error falls more slowly than this power of dt are not in the
 #: asymptotic range (every consistent method has order >= 1)
 MIN_LOCAL_SLOPE = 0.5
+#: a local slope this much below the previous one means the smaller step met a floor: in the
+#: asymptotic range successive local slopes agree (they differ by the next order's share)
+MAX_SLOPE_DROP = 0.5
 
 
 def convergence_order(dts, errors, floors=0.0, saturation: float = SATURATION):
@@ -207,27 +210,36 @@ def convergence_order(dts, errors, floors=0.0, saturation: float = SATURATION):
     is lost, not how fast it converges) and above 10 times its ``floors`` entry (the larger of
     the reference's accuracy and the round-off floor of that run): closer to the floor the
     error is part floor and its slope is flattened. Among those, the fit takes the points
-    from the largest dt down while each halving of the error keeps a local slope of at least
-    :data:`MIN_LOCAL_SLOPE`: an error that stops falling has met a floor or a saturation that
-    the thresholds did not catch (e.g. a nutation damped away, whatever the step).
+    from the largest dt down while each local slope is at least :data:`MIN_LOCAL_SLOPE` and
+    not :data:`MAX_SLOPE_DROP` below the previous one: an error that stops falling, or
+    suddenly falls more slowly, has met a floor or a saturation the thresholds did not catch
+    (round-off amplified near a separatrix, a nutation damped away whatever the step); a
+    point within 10x of that floor counts as part floor.
     """
     dts = np.asarray(dts, dtype=float)
     errors = np.asarray(errors, dtype=float)
     floors = np.broadcast_to(np.asarray(floors, dtype=float), dts.shape)
-    ok = np.isfinite(errors) & (dts > 0) & (errors < saturation) & (errors > 10.0 * floors)
+    ok = np.isfinite(errors) & (dts > 0) & (errors > 0) & (errors < saturation)
     order = np.argsort(-dts[ok], kind="stable")
-    h, e = dts[ok][order], errors[ok][order]
+    h, e, f = dts[ok][order], errors[ok][order], floors[ok][order]
+    # the walk sees every point, also those below the floor thresholds: a point that stops
+    # falling marks a floor even where the estimate of the floor was too low
     keep = min(h.size, 1)
+    previous = None
     while keep < h.size and h[keep] < h[keep - 1]:
         local = np.log(e[keep - 1] / e[keep]) / np.log(h[keep - 1] / h[keep])
-        if local < MIN_LOCAL_SLOPE:
+        dropped = previous is not None and local < previous - MAX_SLOPE_DROP
+        if local < MIN_LOCAL_SLOPE or dropped:
             break
+        previous = local
         keep += 1
     if keep < h.size:
         # the error stopped falling at h[keep]: that is a floor, and a kept point within 10x
         # of it is already part floor (its slope exaggerated), so it does not count either
         while keep > 0 and e[keep - 1] < 10.0 * e[keep]:
             keep -= 1
+    h, e = h[:keep][e[:keep] > 10.0 * f[:keep]], e[:keep][e[:keep] > 10.0 * f[:keep]]
+    keep = h.size
     if keep < 2:
         return math.nan, int(keep)
     slope, _ = np.polyfit(np.log(h[:keep]), np.log(e[:keep]), 1)
