@@ -195,12 +195,21 @@ def cmd_baseline(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from reports.gate import compare, format_comparison, write_junit
+    from reports.gate import compare, format_comparison, invariants, write_junit
+    from reports.results import read_results
 
     cmp = compare(args.dir, args.baseline, factor=args.factor, timing_factor=args.timing_factor)
     print(format_comparison(cmp))
     write_junit(cmp, Path(args.dir) / "check-junit.xml")
-    return 0 if cmp.ok else 1
+    junit = Path(args.dir) / "junit.xml"
+    problems = invariants(read_results(args.dir), junit if junit.exists() else None)
+    if problems:
+        print(f"FAIL: {len(problems)} statement(s) the results must make true do not hold:")
+        print("\n".join(f"  {p}" for p in problems))
+    else:
+        print("OK: the results' invariants hold (no blown-up run ok, verdicts match statuses, "
+              "fitted orders within 0.3 of declared, junit.xml agrees).")  # fmt: skip
+    return 0 if cmp.ok and not problems else 1
 
 
 def cmd_compare(args) -> int:

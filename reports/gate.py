@@ -262,3 +262,70 @@ def write_junit(cmp: Comparison, path: str | Path) -> Path:
     path = Path(path)
     path.write_text("\n".join(xml) + "\n")
     return path
+
+
+# -- invariants of a suite: statements the results must make true ------------------------------
+
+#: a fitted convergence order may differ from the declared one by this much, where at least
+#: two points are in the asymptotic range
+ORDER_TOLERANCE = 0.3
+
+
+def invariants(df, junit_path: str | Path | None = None) -> list[str]:
+    """What must hold of any results, whatever the engines: every problem found, as a line.
+
+    - no run whose energy error exceeds 100 % of its scale (the divergence limit) is ``ok``;
+    - a diverged run fails its verdict; an ``ok`` run has one; error, unsupported,
+      unavailable and reference-inaccurate runs have none;
+    - a fixed-step integrator's fitted order is within :data:`ORDER_TOLERANCE` of its
+      declared order wherever at least two points are in the asymptotic range;
+    - ``junit.xml`` (if given) counts the same failures, errors and skips as the results.
+    """
+    from references.engines.base import DIVERGENCE_ENERGY
+
+    out = []
+    ok = df[df["status"] == "ok"]
+    for _, r in ok[ok["energy_drift_max"] > DIVERGENCE_ENERGY].iterrows():
+        out.append(f"{_name(r)}: status ok with energy drift {r['energy_drift_max']:.3g}")
+    rules = {"diverged": {"fail"}, "ok": {"pass", "fail"}}
+    for _, r in df.iterrows():
+        allowed = rules.get(r["status"], {""})
+        if r["verdict"] not in allowed:
+            out.append(f"{_name(r)}: status {r['status']} with verdict {r['verdict']!r}")
+    fits = df[(df["convergence_points"] >= 2) & df["target_accuracy"].isna() & (df["order"] >= 1)]
+    for (sc, eng, integ), g in fits.groupby(["scenario", "engine", "integrator"]):
+        declared, fitted = float(g["order"].iloc[0]), float(g["convergence_order"].iloc[0])
+        if not abs(fitted - declared) <= ORDER_TOLERANCE:
+            out.append(
+                f"{sc} {eng} {integ}: fitted order {fitted:.3f} from "
+                f"{int(g['convergence_points'].iloc[0])} points, declared {declared:g}"
+            )
+    if junit_path is not None:
+        out += _junit_agrees(df, Path(junit_path))
+    return out
+
+
+def _name(r) -> str:
+    return f"{r['scenario']} {r['engine']} {r['integrator']} dt={float(r['dt']):g}"
+
+
+def _junit_agrees(df, path: Path) -> list[str]:
+    import xml.etree.ElementTree as ET
+
+    from reports.junit import SKIPPED
+
+    try:
+        suite = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        return [f"{path}: not readable JUnit XML ({exc})"]
+    want = {
+        "tests": len(df),
+        "failures": int(((df["verdict"] == "fail") & (df["status"] != "error")).sum()),
+        "errors": int((df["status"] == "error").sum()),
+        "skipped": int(df["status"].isin(SKIPPED).sum()),
+    }
+    return [
+        f"{path}: {key} = {suite.get(key)}, the results say {n}"
+        for key, n in want.items()
+        if suite.get(key) != str(n)
+    ]

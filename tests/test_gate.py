@@ -86,10 +86,12 @@ def test_roundoff_floor(tmp_path):
     assert not gate.compare(cur, bl).ok
 
 
-def sweep(order, **kw):
-    """RK4 rows at three steps whose attitude errors fall with the given order."""
+def sweep(slope, **kw):
+    """RK4 rows (declared order 4) at three steps whose attitude errors fall with ``slope``."""
     return [
-        row(dt=h, attitude_error_max=1e-4 * (h / 4e-3) ** order, run_id=f"sweep{h}", **kw)
+        row(
+            dt=h, order=4.0, attitude_error_max=1e-4 * (h / 4e-3) ** slope, run_id=f"sweep{h}", **kw
+        )
         for h in (4e-3, 2e-3, 1e-3)
     ]
 
@@ -162,3 +164,43 @@ def test_bad_baseline_file_is_a_clear_error(tmp_path, capsys):
         assert main(["check", str(cur), "--baseline", str(bad)]) == 2
         err = capsys.readouterr().err
         assert "bad.json:" in err and "Traceback" not in err
+
+
+# -- invariants ---------------------------------------------------------------------------------
+def _frame(rows):
+    from reports.results import frame
+
+    return frame(rows)
+
+
+def test_invariants_hold_on_consistent_rows(tmp_path):
+    from reports import junit
+
+    rows = [
+        *sweep(4, convergence_order=4.0, convergence_points=3.0),
+        row(engine="pybullet", integrator="multibody", status="diverged", verdict="fail"),
+        row(engine="dart", integrator="x", status="unsupported", verdict=""),
+    ]
+    df = _frame(rows)
+    path = junit.write(df, tmp_path / "junit.xml")
+    assert gate.invariants(df, path) == []
+
+
+def test_each_invariant_can_fail(tmp_path):
+    from reports import junit
+
+    good = _frame([row(order=4.0), row(engine="pybullet", integrator="multibody")])
+    path = junit.write(good, tmp_path / "junit.xml")
+    cases = {
+        "energy drift": row(energy_drift_max=1.5),  # blew up, yet ok
+        "with verdict ''": row(verdict=""),  # ok without a verdict
+        "verdict 'pass'": row(status="diverged", verdict="pass"),  # diverged cannot pass
+        "fitted order 2.9": row(order=4.0, convergence_order=2.9, convergence_points=2.0),
+    }
+    for words, bad in cases.items():
+        problems = gate.invariants(_frame([bad]))
+        assert len(problems) == 1 and words in problems[0], (words, problems)
+    # a junit.xml that counts differently from the results
+    worse = _frame([row(order=4.0, verdict="fail"), row(engine="pybullet", integrator="multibody")])
+    problems = gate.invariants(worse, path)
+    assert any("failures = 0, the results say 1" in p for p in problems)
