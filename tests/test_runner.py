@@ -7,6 +7,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -293,3 +294,25 @@ def test_dt_that_does_not_divide_the_horizon_is_refused_up_front(tmp_path, capsy
     err = capsys.readouterr().err
     assert "dzhanibekov" in err and "dt = 0.007" in err and "whole number of steps" in err
     assert not (out / "results.csv").exists()
+
+
+@pytest.mark.parametrize("engine,integrator", [("mujoco", "RK4"), ("pinocchio", "RKMK4")])
+def test_drifts_of_a_pendulum_released_at_rest_have_their_physical_size(engine, integrator):
+    """pendulum_through_vertical starts from rest with its axis horizontal: E0 = 0 (potential
+    from the pivot) and L0 = 0. A 4th-order method at dt = 1e-3 keeps energy and momentum to
+    far better than 1e-6 of the scenario's scales (measured ~1e-12); a drift divided by E0 or
+    |L0| would be inf or nan, one divided by a round-off E0 ~1e4."""
+    sc = scenarios.load("pendulum_through_vertical")
+    from references.exact import reference_trajectory
+
+    ref = reference_trajectory(sc, [0.0])
+    assert ref.energy[0] == 0.0 and np.linalg.norm(ref.angular_momentum[0]) == 0.0
+    row = execute(RunSpec(sc, engine, integrator, 1e-3))
+    if row["status"] == "unavailable":
+        pytest.skip(row["message"])
+    assert row["status"] == "ok", row["message"]
+    assert 0.0 <= row["energy_drift_max"] < 1e-6
+    assert 0.0 <= row["momentum_drift_max"] < 1e-6
+    # the exact reference itself: round-off (scale m g l, not E0 = 0)
+    exact = execute(RunSpec(sc, "exact", "reference", 1e-3))
+    assert exact["energy_drift_max"] < 1e-12 and exact["momentum_drift_max"] < 1e-12
