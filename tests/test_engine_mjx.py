@@ -3,7 +3,7 @@
 Checked against references that do not share its code: C MuJoCo running the same algorithms
 (``Euler`` through ``mj_step``; MJX's RK4 redone step by step with C MuJoCo's ``mj_forward``
 and ``mj_integratePos``), the exact references of references.exact, and hand computations
-(the float32 unit round-off). Compiling is slow (5 to 20 s per configuration and joint; the
+(the float32 unit round-off). Compiling is slow (6 to 13 s per configuration and joint; the
 adapter caches compiled functions for the process), so the default run compiles two
 configurations on a free body and shares them; the heavy top, every configuration, the
 ensemble batch and the conformance kit are marked slow. Skipped with the reason when MJX is

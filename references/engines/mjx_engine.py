@@ -98,8 +98,8 @@ _BLOCKS = hasattr(Engine, "states_from_raw")
 #: the name of every MJX model (see the module docstring: names are part of the compile key)
 MODEL_NAME = "director-bench"
 
-#: checkpoints per call of the compiled stepping function (shorter blocks are padded with
-#: zero step counts, which cost one empty loop each)
+#: most checkpoints per call of the compiled stepping function (a call loops over the
+#: checkpoints it is given only; more take several calls)
 CHECKPOINTS = 128
 
 #: unit round-off of float32
@@ -110,8 +110,9 @@ U32 = 2.0**-24
 #: to float32 moves it by at most U32 relative, and MJX's float32 evaluation of its energy,
 #: momentum and frames (forward kinematics, the mass matrix, the subtree sums) chains about a
 #: dozen roundings each of at most U32 of a term no larger than the scale: 64 U32 (3.8e-6)
-#: bounds that with margin (measured maxima in tests/test_engine_mjx.py are below 8 U32).
-#: Every mistake the check exists for moves a quantity by 1e-3 or more of its scale.
+#: bounds that with margin (measured: at most 1.2 U32 on the conformance kit's bodies;
+#: tests/test_engine_mjx.py asserts 8 U32 on three scenarios). Every mistake the check exists
+#: for moves a quantity by more than 1e-3 of its scale (the kit's planted mistakes).
 FLOAT32_INITIAL_RTOL = 64 * U32
 
 #: MJX's RK4 (see the module docstring); registered like Drake's families
@@ -141,7 +142,7 @@ _UNIMPLEMENTED = ("implicit", "discrete")
 
 def _configurations() -> tuple[Integrator, ...]:
     """Every configuration, none in the default suite (``default=False``): on 2 cores each
-    compiles for 5 to 20 s per joint type, 14 to 41 s on the default scenarios (free and
+    compiles for 6 to 13 s per joint type, 14 to 29 s on the default scenarios (free and
     pivoted bodies), which the default suite's budget of about a minute cannot take for all;
     they run with ``director-bench run --full`` or ``--integrators``."""
     out = []
