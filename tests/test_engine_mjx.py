@@ -224,14 +224,6 @@ def test_planted_mistakes_are_caught_on_a_free_body(mjx):
         assert exc.value.status == "error", name
 
 
-def test_stacked_rotations_are_the_conventions(mjx):
-    from references.engines.mjx_engine import _stack_rotations
-
-    q = np.random.default_rng(3).normal(size=(50, 4))
-    want = np.array([cv.quat_wxyz_to_matrix(x) for x in q])
-    assert np.abs(_stack_rotations(q) - want).max() <= 4 * EPS
-
-
 # -- slow: every configuration, the heavy top, RK4, ensembles, the kit -----------------------
 
 CONFIGS = [f"{a} ({p})" for p in ("float64", "float32") for a in ("Euler", "RK4", "implicitfast")]

@@ -91,10 +91,6 @@ from references.engines.base import (
 )
 from references.engines.mujoco_engine import MujocoEngine
 
-#: whether Engine.advance_saving returns the block of states stacked (a BodyState of arrays,
-#: the suite's engines with read_raw/states_from_raw) rather than a list of states
-_BLOCKS = hasattr(Engine, "states_from_raw")
-
 #: the name of every MJX model (see the module docstring: names are part of the compile key)
 MODEL_NAME = "director-bench"
 
@@ -435,37 +431,12 @@ def _c_ctx(ctx: RunContext, h: _Handle) -> RunContext:
     )
 
 
-def _stack_rotations(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) of quaternions (n, 4) wxyz, normalised first: the formula of
-    :func:`references.conventions.quat_wxyz_to_matrix` on a stack (tests check they agree)."""
-    q = np.asarray(q, dtype=float)
-    with np.errstate(all="ignore"):
-        q = q / np.sqrt(np.einsum("ni,ni->n", q, q))[:, None]
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
-
-
 def _states(model: BodyModel, qpos: np.ndarray, qvel: np.ndarray) -> cv.BodyState:
-    """Stacked suite states of MuJoCo qpos (n, nq), qvel (n, nv) (the MuJoCo conversions of
-    references.conventions, on stacks)."""
+    """The block of suite states of MuJoCo qpos (n, nq), qvel (n, nv)
+    (:func:`references.conventions.mujoco_block`)."""
     qpos = np.asarray(qpos, dtype=float)
-    qvel = np.asarray(qvel, dtype=float)
-    if model.pivoted:
-        R = _stack_rotations(qpos)
-        W = qvel.copy()
-        x = R @ model.com
-        v = np.einsum("nij,nj->ni", R, np.cross(W, model.com))
-        return cv.BodyState(x, v, R, W)
-    return cv.BodyState(
-        qpos[:, :3].copy(), qvel[:, :3].copy(), _stack_rotations(qpos[:, 3:]), qvel[:, 3:].copy()
-    )
+    raw = np.concatenate([qpos, np.asarray(qvel, dtype=float)], axis=1)
+    return cv.mujoco_block(raw, qpos.shape[1], model.com, model.pivoted)
 
 
 class MjxEngine(Engine):
@@ -721,7 +692,7 @@ class MjxEngine(Engine):
     def advance(self, ctx, k: int) -> None:
         self.advance_saving(ctx, [k])
 
-    def advance_saving(self, ctx, steps: list[int]) -> list[cv.BodyState]:
+    def advance_saving(self, ctx, steps: list[int]) -> cv.BodyState:
         """The checkpoints of a block in calls of the compiled stepping, CHECKPOINTS at a
         time; the engine's clock runs around each call until its results are ready."""
         h = ctx.handle
@@ -738,10 +709,7 @@ class MjxEngine(Engine):
             qp.append(np.asarray(qpos)[: len(part)])
             qv.append(np.asarray(qvel)[: len(part)])
         h.handed = False
-        block = _states(ctx.model, np.concatenate(qp), np.concatenate(qv))
-        if _BLOCKS:
-            return block
-        return [cv.BodyState(*(a[i] for a in block)) for i in range(len(steps))]
+        return _states(ctx.model, np.concatenate(qp), np.concatenate(qv))
 
 
 def _mj_name(integrator: Integrator) -> str:
