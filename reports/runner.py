@@ -412,23 +412,53 @@ def run_suite(
         if getattr(mapper, "serial", False):
             # in this process: a long run shows its own progress in the bar
 
-            def fn(s):
-                return execute(s, out, fmt, progress=_inner(bar, s))
+            def fn(bundle):
+                return [execute(s, out, fmt, progress=_inner(bar, s)) for s in bundle]
         else:
-            fn = functools.partial(execute, out=out, fmt=fmt)
-        rows = mapper(fn, todo)
+            fn = functools.partial(execute_bundle, out=out, fmt=fmt)
         try:
-            for row in rows:
-                store.put(row)
-                n_run += 1
-                if bar is not None:
-                    bar.set_postfix_str(f"{row['scenario']}/{row['engine']}/{row['integrator']}")
-                    bar.update(1)
+            for rows in mapper(fn, bundles(todo)):
+                for row in rows:
+                    store.put(row)
+                    n_run += 1
+                    if bar is not None:
+                        label = f"{row['scenario']}/{row['engine']}/{row['integrator']}"
+                        bar.set_postfix_str(label)
+                        bar.update(1)
         finally:
             if bar is not None:
                 bar.close()
             df = _export_quietly(out)
     return df, n_run
+
+
+def execute_bundle(specs, out: Path | None = None, fmt: str = "parquet") -> list[dict]:
+    """The rows of a bundle of specs executed one after another (see :func:`bundles`)."""
+    return [execute(s, out, fmt) for s in specs]
+
+
+def bundles(specs) -> list[list[RunSpec]]:
+    """The specs as units of work for a mapper: one spec each, except that the runs of an
+    engine whose runs share a warm-up (``bundle_runs``, e.g. MJX's compilation) go together,
+    one bundle per integrator, so that each compiles once, in one worker."""
+    from references.engines import EngineError, get_engine
+
+    out, grouped = [], {}
+    for s in specs:
+        try:
+            shared = get_engine(s.engine).bundle_runs
+        except EngineError:
+            shared = False
+        if shared:
+            key = (s.engine, s.integrator)
+            if key not in grouped:
+                grouped[key] = []
+                out.append(grouped[key])
+            grouped[key].append(s)
+        else:
+            out.append([s])
+    # the long bundles first, so that the single runs fill the other workers meanwhile
+    return sorted(out, key=len, reverse=True)
 
 
 def _export_quietly(out: Path):

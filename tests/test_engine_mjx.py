@@ -390,10 +390,5 @@ def test_the_kit_fails_only_the_order_of_the_unsupported_integrators(kit_checks)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="the kit measures the declared order of integrators the engine refuses as "
-    "unsupported (implicit, discrete); strict: passes once the kit skips them",
-)
 def test_assert_conforms(mjx, kit_checks):
     kit.assert_conforms(mjx)

@@ -417,6 +417,9 @@ class EngineBase(ABC):
     name: ClassVar[str]
     integrators: ClassVar[tuple[Integrator, ...]]
     description: ClassVar[str] = ""
+    #: the runs of one integrator share an expensive warm-up in a process (MJX compiles its
+    #: step): a runner executes them one after another in one worker instead of spreading them
+    bundle_runs: ClassVar[bool] = False
 
     @classmethod
     @abstractmethod
