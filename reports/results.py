@@ -249,8 +249,12 @@ def trajectory_path(spec: RunSpec, fmt: str = "parquet") -> Path:
 
 
 def error_series_path(traj_rel: Path) -> Path:
-    """The per-sample metric series stored beside a trajectory (for the time plots)."""
+    """The file holding a run's per-sample metric series (for the time plots): the
+    trajectory's own Parquet file, whose extra columns they are, or a ``.series.parquet``
+    file beside a CSV trajectory."""
     traj_rel = Path(traj_rel)
+    if traj_rel.suffix == ".parquet":
+        return traj_rel
     return traj_rel.with_name(traj_rel.stem + ".series.parquet")
 
 

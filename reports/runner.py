@@ -29,7 +29,6 @@ from reports.results import (
     Store,
     StoreUnwritable,
     blank_row,
-    error_series_path,
     export,
     finish_time,
     read_results,
@@ -58,35 +57,66 @@ def expected_for(scenario) -> dict:
     return dict(expected_observables(scenario))
 
 
-def write_error_series(scenario, traj, ref, path: Path) -> None:
+def error_series(scenario, traj, ref) -> dict[str, np.ndarray]:
     """Per-sample drifts and errors of one run, so that plots are pure functions of files."""
-    import pandas as pd
-
     from reports import metrics
 
     cols = {
-        "t": traj.t,
         "energy_drift": metrics.energy_drift(scenario, traj),
         "momentum_drift": metrics.momentum_drift(scenario, traj),
         "orthonormality": metrics.orthonormality(traj),
-        "wx": traj.omega_body[:, 0],
-        "wy": traj.omega_body[:, 1],
-        "wz": traj.omega_body[:, 2],
     }
     if ref is not None:
         cols["attitude_error"] = metrics.attitude_error(traj, ref)
         cols["omega_error"] = metrics.omega_error(traj, ref)
-    _atomic_parquet(pd.DataFrame(cols), path)
+    return cols
 
 
-def _atomic_parquet(df, path: Path, metadata: dict | None = None) -> None:
+def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) -> None:
+    """Write a run's trajectory, atomically: Parquet with the per-sample error series as
+    extra columns and units, frames and the run's identity in the schema metadata; or CSV
+    with the series in a Parquet file beside it."""
     import os
 
     import pyarrow as pa
-    import pyarrow.parquet as pq
+
+    from references.trajectory import COLUMNS, UNITS
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    table = pa.Table.from_pandas(df, preserve_index=False)
+    if fmt != "parquet":
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        traj.write(tmp, "csv")
+        tmp.replace(path)
+        series = {"t": traj.t, "wx": traj.omega_body[:, 0], "wy": traj.omega_body[:, 1],
+                  "wz": traj.omega_body[:, 2], **series}  # fmt: skip
+        _write_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), {})
+        return
+    n = len(traj)
+    data = np.column_stack(
+        [
+            traj.t, traj.position, traj.velocity, traj.rotation.reshape(n, 9),
+            traj.omega_body, traj.energy, traj.angular_momentum, traj.constraint_velocity,
+        ]
+    )  # fmt: skip
+    table = pa.table({c: data[:, i] for i, c in enumerate(COLUMNS)} | series)
+    meta = {
+        "director_bench.units": {**UNITS, **dict.fromkeys(series, "1 (see docs/results.md)")},
+        "director_bench.frames": {
+            "position, velocity, angular momentum": "world axes",
+            "R": "body-to-world rotation, row-major R00..R22; columns are the directors",
+            "wx, wy, wz": "body axes",
+            "angular momentum about": "the centre of mass (free body) or the pivot",
+        },
+        "director_bench.run": identity,
+    }
+    _write_table(table, path, meta)
+
+
+def _write_table(table, path: Path, metadata: dict) -> None:
+    import os
+
+    import pyarrow.parquet as pq
+
     if metadata:
         meta = dict(table.schema.metadata or {})
         meta.update({k.encode(): json.dumps(v).encode() for k, v in metadata.items()})
@@ -94,32 +124,6 @@ def _atomic_parquet(df, path: Path, metadata: dict | None = None) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     pq.write_table(table, tmp)
     tmp.replace(path)
-
-
-def write_trajectory(traj, path: Path, fmt: str, identity: dict) -> None:
-    """Write a trajectory (Parquet with units, frames and the run's identity in the schema
-    metadata, or CSV), atomically."""
-    import os
-
-    from references.trajectory import UNITS
-
-    if fmt == "parquet":
-        meta = {
-            "director_bench.units": UNITS,
-            "director_bench.frames": {
-                "position, velocity, angular momentum": "world axes",
-                "R": "body-to-world rotation, row-major R00..R22; columns are the directors",
-                "wx, wy, wz": "body axes",
-                "angular momentum about": "the centre of mass (free body) or the pivot",
-            },
-            "director_bench.run": identity,
-        }
-        _atomic_parquet(traj.to_frame(), path, meta)
-    else:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        traj.write(tmp, "csv")
-        tmp.replace(path)
 
 
 # -- one run -----------------------------------------------------------------------------------
@@ -224,8 +228,7 @@ def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
         keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
         identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
         try:
-            write_trajectory(traj, Path(out) / rel, fmt, identity)
-            write_error_series(sc, traj, ref, Path(out) / error_series_path(rel))
+            write_run_files(traj, error_series(sc, traj, ref), Path(out) / rel, fmt, identity)
         except OSError as exc:
             raise StoreUnwritable(
                 f"{Path(out) / rel}: cannot write the run's trajectory ({exc.strerror or exc}; "
