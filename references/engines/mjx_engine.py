@@ -114,7 +114,7 @@ FLOAT32_INITIAL_RTOL = 64 * U32
 #: MJX's RK4 (see the module docstring); registered like Drake's families
 RK4_MEAN_EXP = register_family(
     Family(
-        "RK4 stages, uncorrected exponential update",
+        "RK4 stages with an uncorrected exponential update",
         "the classical four Runge-Kutta stages in the velocities, the positions advanced once "
         "by the exponential map of the stage-weighted mean velocity without the dexp "
         "correction: order 4 in the velocities of a torque-free body, order 2 in the attitude "
