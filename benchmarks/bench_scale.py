@@ -1,7 +1,9 @@
 """Scale benchmarks, measured side by side in one run on this machine.
 
-1. The default suite: wall time and peak memory of ``director-bench run`` (every engine and
-   integrator of the default scenarios), unless ``--skip-suite``.
+1. The default suite: wall time (runs and report) and peak memory of ``director-bench run``,
+   with every engine and with the engines it had before Drake and MJX joined, the stepping
+   time by engine, and the suite's RKMK4 (Pinocchio, DART) against MuJoCo's RK4 per step on
+   the same runs; unless ``--skip-suite``.
 2. Long horizon: 1e6 steps of the Dzhanibekov body (1000 s at dt = 1e-3), decimated storage
    (one saved state per 1000 steps), through the suite's engine interface: wall time, peak
    resident memory of the process (each run in a fresh subprocess so peaks do not mix), and
@@ -168,16 +170,48 @@ def long_table(nlong, every, configs, segment=0):
         )
 
 
-def default_suite():
+#: the engines of the default suite before Drake and MJX joined it
+FIRST_ENGINES = "director,exact,mujoco,pinocchio,dart,pybullet"
+
+
+def default_suite(engines: str | None = None):
+    """Wall time of ``director-bench run`` (runs and report) into a fresh folder, the peak
+    RSS of the largest process, and the results (for the breakdown below)."""
+    from reports.results import read_results
+
     with tempfile.TemporaryDirectory() as tmp:
+        cmd = ["director-bench", "run", "--out", tmp, "--quiet"]
+        if engines:
+            cmd += ["--engines", engines]
         t0 = time.perf_counter()
-        res = subprocess.run(
-            ["director-bench", "run", "--out", tmp, "--quiet"], capture_output=True, text=True
-        )
+        res = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
         peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        last = res.stdout.strip().splitlines()[:1]
-    return wall, peak, res.returncode, last
+        df = read_results(tmp) if res.returncode == 0 else None
+    return wall, peak, res.returncode, df
+
+
+def suite_breakdown(df) -> None:
+    """Stepping time by engine (inside the engine's calls and with the suite's glue), and the
+    suite's RKMK4 against MuJoCo's RK4 per step on the same runs."""
+    g = df.groupby("engine")[["wall_time_s", "engine_time_s"]].sum().sort_values("wall_time_s")
+    print("   | engine | stepping [s] | inside the engine [s] |\n   |---|---|---|")
+    for eng, r in g.iterrows():
+        print(f"   | {eng} | {r['wall_time_s']:.1f} | {r['engine_time_s']:.1f} |")
+    key = ["scenario", "dt"]
+    ok = df[df["status"] == "ok"]
+    mj = ok[(ok["engine"] == "mujoco") & (ok["integrator"] == "RK4")].set_index(key)
+    for eng in ("pinocchio", "dart"):
+        rk = ok[(ok["engine"] == eng) & (ok["integrator"] == "RKMK4")].set_index(key)
+        both = rk.join(mj, rsuffix="_mj", how="inner")
+        if both.empty:
+            continue
+        wall = (both["wall_time_s"] / both["wall_time_s_mj"]).median()
+        inside = (both["engine_time_s"] / both["wall_time_s_mj"]).median()
+        print(
+            f"   {eng} + suite RKMK4 against mujoco RK4, same runs ({len(both)}), median ratio "
+            f"of stepping wall time {wall:.2f} x (time inside {eng} alone: {inside:.2f} x)"
+        )
 
 
 def main(argv=None):
@@ -198,12 +232,15 @@ def main(argv=None):
         print("(no /proc: peak-memory figures are not available on this platform)")
 
     if not args.skip_suite:
-        wall, peak, code, last = default_suite()
-        print(
-            f"1. Default suite (director-bench run, every engine): wall {wall:.0f} s, peak RSS "
-            f"of the largest process {peak / 1024:.0f} MB, exit code {code}"
-        )
-        print("   " + " ".join(last))
+        for label, engines in (("every engine", None), (FIRST_ENGINES, FIRST_ENGINES)):
+            wall, peak, code, df = default_suite(engines)
+            print(
+                f"1. Default suite ({label}), runs and report: wall {wall:.0f} s, "
+                f"{0 if df is None else len(df)} runs, peak RSS of the largest process "
+                f"{peak / 1024:.0f} MB, exit code {code}"
+            )
+            if df is not None:
+                suite_breakdown(df)
     nlong = 100_000 if args.quick else 1_000_000
     every = 1000
     full_mb = nlong * 23 * 8 / 2**20
