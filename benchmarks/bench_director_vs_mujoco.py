@@ -128,6 +128,27 @@ def batch_rate(scheme: str, nbody: int, nstep: int, dt: float, repeat: int, para
     return best, bt.vector_substeps.sum() / (nbody * nstep * ncoef), share
 
 
+def clock_estimate(n: int = 100_000_000) -> float:
+    """Core clock in GHz from a chain of n dependent double additions (each waits for the
+    previous one: 3 cycles of latency on AMD Zen 2/3 and Intel since Skylake), best of 3
+    in thread CPU time. Used to turn times into cycles in the README's speed analysis."""
+    from numba import njit
+
+    @njit
+    def chain(n, x):
+        for _ in range(n):
+            x = x + 1e-300  # no fastmath: kept, and each add depends on the last
+        return x
+
+    chain(10, 1.0)
+    best = np.inf
+    for _ in range(3):
+        c0 = time.thread_time()
+        chain(n, 1.0)
+        best = min(best, (time.thread_time() - c0) / n)
+    return 3.0 / best / 1e9
+
+
 def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
@@ -149,6 +170,8 @@ def main(argv=None):
           f"best of {args.repeat}")  # fmt: skip
     # other jobs on the machine inflate every timing: report the load with the figures
     print("load average at start (1, 5, 15 min): " + _load())
+    print(f"core clock estimate: {clock_estimate():.2f} GHz (dependent add chain, 3 cycles "
+          f"per add)")  # fmt: skip
     dm.simulate(1.0, I, rotation=np.eye(3), omega_body=W0, dt=dt, t_end=dt)  # compile/load
 
     rows = []

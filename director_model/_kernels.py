@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import literally, njit, prange
 
 NP = 36
 NS = 47
@@ -1041,16 +1041,20 @@ def _rattle_block_substep(B, hh, rh, nl, anypiv):
             B[(ROW_W + 2) * BLOCK + l] = n2 if on else w2
         it += 1.0
     # pass 3: residual test, polish, compensated commit; the torque only if needed
-    return _block_finish(B, hh, rh, nl, anypiv)
+    if anypiv:
+        return _block_finish(B, hh, rh, nl, True)
+    return _block_finish(B, hh, rh, nl, False)
 
 
 @njit(cache=True, error_model="numpy")
 def _block_finish(B, hh, rh, nl, torque):
     """Pass 3 of :func:`_rattle_block_substep`: the residual test, the polish and the
-    compensated commit for lanes 0..nl-1; ``torque``: some lane is pivoted (a loop
-    invariant, so the lane loop is compiled with and without the torque). Returns the
-    number of lanes not accepted. A called function, not an inlined one: numba would count
-    references to the array argument of an inlined function at each call."""
+    compensated commit for lanes 0..nl-1; ``torque``: some lane is pivoted, a literal
+    (``numba.literally``), so the function is compiled once with and once without the
+    torque. Returns the number of lanes not accepted. A called function, not an inlined
+    one: numba would count references to the array argument of an inlined function at each
+    call."""
+    literally(torque)
     # 3a: residual, test and polish; w, c = w x Ibar w, q = 1 + |w|^2 and the outcome go to
     # the rows of w, ab and b (two short loops overlap across lanes better than one long one)
     for l in range(nl):
