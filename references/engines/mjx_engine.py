@@ -778,27 +778,47 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
     and engine times are the batch's divided by the number of members. Raises
     :class:`EngineError` (``Unsupported`` included) for the whole batch.
     """
-    from references.trajectory import Trajectory, energy
-
     eng = MjxEngine()
     integ = eng.integrator(integrator)
+    base = members[0]
+    _check_same_body(members)
+    eng.check_supported(base, integ)
+    nstep, saves = step_plan(dt, t_end, save_every)
+    ctx = RunContext(base, BodyModel.of(base, dt), integ, float(dt))
+    ctx.t_end = float(t_end)
+    eng._put_model(ctx)
+    check_readback(eng.name, eng.read_model(ctx), ctx.model)
+    qpos0, qvel0, dxb = _batch_initial(eng, ctx, members)
+    points = sorted(set(int(s) for s in saves if s > 0) | set(range(CHUNK, nstep, CHUNK)))
+    qp, qv, wall, engine_s = _batch_step(ctx, dxb, qpos0, qvel0, points)
+    settings = {**eng.settings(ctx), "integrator": integ.name, "timestep": float(dt)}
+    n = len(members)
+    settings["batch"] = f"{n} bodies in one vmapped call; times are the batch's / {n}"
+    settings["initial state rounding errors"] = "checked per member, not recorded"
+    points = np.array([0, *points])
+    return [
+        _batch_output(
+            ctx, mem, qp[k], qv[k], points, saves, nstep, settings, wall / n, engine_s / n
+        )
+        for k, mem in enumerate(members)
+    ]
+
+
+def _check_same_body(members) -> None:
     base = members[0]
     for mem in members[1:]:
         for f in ("mass", "inertia", "gravity", "pivot"):
             a, b = getattr(mem, f), getattr(base, f)
             if (a is None) != (b is None) or (a is not None and not np.array_equal(a, b)):
                 raise ValueError(f"run_batch: the members differ in {f}; only initial states may")
-    eng.check_supported(base, integ)
-    nstep, saves = step_plan(dt, t_end, save_every)
-    ctx = RunContext(base, BodyModel.of(base, dt), integ, float(dt))
-    ctx.t_end = float(t_end)
-    eng._put_model(ctx)
+
+
+def _batch_initial(eng, ctx, members):
+    """The members' initial states on the device as one batched ``mjx.Data``, each checked
+    through C MuJoCo's quantities (the conversions) and MJX's own (the state MJX holds)."""
     h = ctx.handle
-    check_readback(eng.name, eng.read_model(ctx), ctx.model)
     jax, jnp = h.jax, h.jax.numpy
     n = len(members)
-
-    # the conversions, member by member on the C MjData, through C MuJoCo's own quantities
     cctx = _c_ctx(ctx, h)
     c_engine = MujocoEngine()
     qpos0, qvel0 = [], []
@@ -812,7 +832,6 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
         qvel0.append(h.d.qvel.copy())
     qpos0, qvel0 = np.stack(qpos0), np.stack(qvel0)
 
-    # one batched mjx.Data in the run's precision, and MJX's own quantities of every member
     with h.x64_mode():
         dxb = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n, *a.shape)), h.dx)
         dxb = dxb.replace(qpos=jnp.asarray(qpos0), qvel=jnp.asarray(qvel0))
@@ -837,15 +856,21 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
                     f"{quantity} of the state MJX holds differs from the scenario's by "
                     f"{err:.3g} relative (allowed {tol:.3g}); a conversion or the model is wrong"
                 )
+    return qpos0, qvel0, dxb
 
-    # the stepping: one compiled, vmapped call per CHECKPOINTS checkpoints
+
+def _batch_step(ctx, dxb, qpos0, qvel0, points):
+    """Step the batch to every checkpoint in ``points`` (step counts), one compiled, vmapped
+    call per CHECKPOINTS of them; the (qpos, qvel) of each member at 0 and every checkpoint,
+    and the wall and engine seconds of the stepping."""
+    h = ctx.handle
+    jax = h.jax
     ks = np.zeros(CHECKPOINTS, np.int32)
     vblock = jax.vmap(_block_fn(), in_axes=(None, 0, None, None))
     comp, h.compile_s["batched step"], now = _compiled(
         f"batch-step-{h.mj_name}", vblock, (h.mx, dxb), (ks, np.int32(0)), h.x64
     )
     h.compiled_now += ["batched step"] if now else []
-    points = sorted(set(int(s) for s in saves if s > 0) | set(range(CHUNK, nstep, CHUNK)))
     steps = np.diff([0, *points]).astype(np.int32)
     qp, qv = [qpos0[:, None]], [qvel0[:, None]]
     m_leaves, d_leaves = comp.leaves(0, h.mx), comp.leaves(1, dxb)
@@ -863,41 +888,38 @@ def run_batch(members, integrator: str, dt: float, t_end: float, save_every: int
         qp.append(np.asarray(qpos, dtype=float)[:, : len(part)])
         qv.append(np.asarray(qvel, dtype=float)[:, : len(part)])
     wall = time.perf_counter() - t0
-    qp, qv = np.concatenate(qp, axis=1), np.concatenate(qv, axis=1)
-    points = np.array([0, *points])
+    return np.concatenate(qp, axis=1), np.concatenate(qv, axis=1), wall, engine_s
 
-    settings = {**eng.settings(ctx), "integrator": integ.name, "timestep": float(dt)}
-    settings["batch"] = f"{n} bodies in one vmapped call; times are the batch's / {n}"
-    settings["initial state rounding errors"] = "checked per member, not recorded"
+
+def _batch_output(ctx, mem, qp, qv, points, saves, nstep, settings, wall, engine_s):
+    """One member's RunOutput from its states at the checkpoints ``points``, or a Diverged
+    carrying the output up to its last good checkpoint."""
+    from references.trajectory import Trajectory, energy
+
+    dt, integ = ctx.dt, ctx.integrator
     saved = np.isin(points, saves)
-    out = []
-    for k, mem in enumerate(members):
-        x, v, R, W = _states(ctx.model, qp[k], qv[k])
-        e0 = float(energy(mem, *(np.asarray(a)[None] for a in _initial(mem)))[0])
-        with np.errstate(all="ignore"):
-            drift = np.abs(energy(mem, x, v, R, W) - e0) / mem.energy_scale
-        finite = np.isfinite(qp[k]).all(1) & np.isfinite(qv[k]).all(1)
-        bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
-        good = int(np.argmax(bad)) if bad.any() else len(points)
-        keep = np.flatnonzero(saved & (np.arange(len(points)) < good))
-        traj = Trajectory.from_states(mem, points[keep] * dt, x[keep], v[keep], R[keep], W[keep])
-        done = int(points[good - 1]) if good < len(points) else nstep
-        output = RunOutput(
-            traj, done, wall / n, engine_s / n, float(integ.evals_per_step or 0.0), settings
-        )
-        if good == len(points):
-            out.append(output)
-            continue
-        what = (
-            "the state became non-finite"
-            if not finite[good]
-            else f"the energy error exceeded {DIVERGENCE_ENERGY:g} x the scenario's energy "
-            f"scale {mem.energy_scale:.4g} J"
-        )
-        span = f"between t = {done * dt:.6g} and t = {points[good] * dt:.6g} s"
-        msg = f"{integ.name} at dt = {dt:g} s: {what} {span}; the run diverged (reduce dt)"
-        out.append(Diverged(msg, float(points[good] * dt), output))
-    return out
+    x, v, R, W = _states(ctx.model, qp, qv)
+    e0 = float(energy(mem, *(np.asarray(a)[None] for a in _initial(mem)))[0])
+    with np.errstate(all="ignore"):
+        drift = np.abs(energy(mem, x, v, R, W) - e0) / mem.energy_scale
+    finite = np.isfinite(qp).all(1) & np.isfinite(qv).all(1)
+    bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
+    good = int(np.argmax(bad)) if bad.any() else len(points)
+    keep = np.flatnonzero(saved & (np.arange(len(points)) < good))
+    traj = Trajectory.from_states(mem, points[keep] * dt, x[keep], v[keep], R[keep], W[keep])
+    done = int(points[good - 1]) if good < len(points) else nstep
+    output = RunOutput(traj, done, wall, engine_s, float(integ.evals_per_step or 0.0), settings)
+    if good == len(points):
+        return output
+    what = (
+        "the state became non-finite"
+        if not finite[good]
+        else f"the energy error exceeded {DIVERGENCE_ENERGY:g} x the scenario's energy "
+        f"scale {mem.energy_scale:.4g} J"
+    )
+    span = f"between t = {done * dt:.6g} and t = {points[good] * dt:.6g} s"
+    msg = f"{integ.name} at dt = {dt:g} s: {what} {span}; the run diverged (reduce dt)"
+    return Diverged(msg, float(points[good] * dt), output)
 
 
 def _initial(scenario) -> cv.BodyState:
