@@ -426,6 +426,24 @@ def _window(t, w_ref) -> tuple[float, float]:
     return float(t[0]), float(t[-1])
 
 
+def _clipped_line(ax, tt, y, lim, st, label):
+    """Draw y(tt) in the style ``st`` up to where it first leaves ``lim`` (or stops being
+    finite), marking that point on the edge with a triangle."""
+    lo, hi = lim
+    out_of = ~np.isfinite(y) | (y < lo) | (y > hi)
+    if out_of.any():
+        j = int(np.argmax(out_of))
+        edge = hi if (np.isfinite(y[j]) and y[j] > hi) or not np.isfinite(y[j]) else lo
+        ax.plot(tt[j], edge, marker="^" if edge == hi else "v", ms=8, color=st["color"])
+        tt, y = tt[:j], y[:j]
+    kw = {}
+    if st["marker"] and np.isfinite(y).sum() > 1:  # markevery needs a drawn line
+        kw = {"marker": st["marker"], "markevery": 0.1, "ms": 5}
+    ax.plot(
+        tt, y, color=st["color"], linestyle=st["linestyle"], lw=1.5, label=label, zorder=3, **kw
+    )
+
+
 def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
     """Body rates W_1, W_2, W_3 against the reference (thick grey), one panel each. Only the
     configurations whose W error exceeds RATES_VISIBLE of max |W| are drawn; y ranges are the
@@ -470,27 +488,7 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
             label += f"\n(diverged at {fmt(g.value('t_diverged'))} s,\nbefore this window)"
         m = (t >= t0) & (t <= t1)
         for k, (ax, col) in enumerate(zip(axes, ("wx", "wy", "wz"), strict=True)):
-            tt, y = _thin(t[m], s[col][m])
-            lo, hi = lims[k]
-            out_of = ~np.isfinite(y) | (y < lo) | (y > hi)
-            if out_of.any():
-                j = int(np.argmax(out_of))
-                edge = hi if (np.isfinite(y[j]) and y[j] > hi) or not np.isfinite(y[j]) else lo
-                ax.plot(tt[j], edge, marker="^" if edge == hi else "v", ms=8, color=st["color"])
-                tt, y = tt[:j], y[:j]
-            kw = {}
-            if st["marker"] and np.isfinite(y).sum() > 1:  # markevery needs a drawn line
-                kw = {"marker": st["marker"], "markevery": 0.1, "ms": 5}
-            ax.plot(
-                tt,
-                y,
-                color=st["color"],
-                linestyle=st["linestyle"],
-                lw=1.5,
-                label=label if k == 0 else None,
-                zorder=3,
-                **kw,
-            )
+            _clipped_line(ax, *_thin(t[m], s[col][m]), lims[k], st, label if k == 0 else None)
         if g.outcome == "diverged" and t0 <= t[-1] <= t1:
             text = f"diverged at {fmt(g.value('t_diverged'))} s"
             _status_note(axes[0], t[-1], lims[0][1], "" if text in noted else text, notes)
