@@ -660,8 +660,7 @@ def _rattle_commit(comp, piv, m, pc, hh, rh, w, c, q, p, pl, Pi, Pl, T, G, vecto
     ``vector`` (a constant): called from the SIMD lane loop: the torque without a branch,
     zero for the free lanes (the same numbers as the scalar branch), and only if ``torque``
     (a constant: some lane of the block is pivoted)."""
-    r = rh * (1.0 / q)
-    pn, pln = _kahan4(p, pl, _quat_increment(p, w), comp)
+    pn, pln = _commit_attitude(p, pl, w, comp)
     N = (0.0, 0.0, 0.0)
     if vector:
         if torque:
@@ -669,14 +668,29 @@ def _rattle_commit(comp, piv, m, pc, hh, rh, w, c, q, p, pl, Pi, Pl, T, G, vecto
     elif piv:
         # a branch in scalar code: a free body's momentum does not wait for the attitude
         N = _torque(True, m, pc, _quat_rotate_back(pn, G))
+    finite, Pn, Pln = _commit_momentum(hh, rh, c, q, Pi, Pl, T, N, comp)
+    return finite, pn, pln, Pn, Pln, N
+
+
+@njit(inline="always")
+def _commit_attitude(p, pl, w, comp):
+    """p + p (x) (0, w), compensated: the attitude part of :func:`_rattle_commit`."""
+    return _kahan4(p, pl, _quat_increment(p, w), comp)
+
+
+@njit(inline="always")
+def _commit_momentum(hh, rh, c, q, Pi, Pl, T, N, comp):
+    """Pi + (h/2 (T + N) - 4 c/(q h)), compensated, with T and N the torques at the start
+    and the end of the step: the momentum part of :func:`_rattle_commit`. Returns
+    (finite, Pi, Pl)."""
+    r = rh * (1.0 / q)
     dP = (
         hh * (T[0] + N[0]) - r * c[0],
         hh * (T[1] + N[1]) - r * c[1],
         hh * (T[2] + N[2]) - r * c[2],
     )
     Pn, Pln = _kahan3(Pi, Pl, dP, comp)
-    finite = (abs(Pn[0]) + abs(Pn[1]) + abs(Pn[2])) < math.inf
-    return finite, pn, pln, Pn, Pln, N
+    return (abs(Pn[0]) + abs(Pn[1]) + abs(Pn[2])) < math.inf, Pn, Pln
 
 
 @njit(cache=True)
@@ -1019,12 +1033,32 @@ def _rattle_block_substep(B, hh, rh, nl, anypiv):
         B[ROW_W * BLOCK + l] = w0
         B[(ROW_W + 1) * BLOCK + l] = w1
         B[(ROW_W + 2) * BLOCK + l] = w2
+    # the largest count, and the smallest among the lanes the vector code may accept (the
+    # others, count 0, are rejected in pass 3 whatever their w)
+    kmin = math.inf
     kmax = 0.0
     for l in range(nl):
-        kmax = max(kmax, B[ROW_K * BLOCK + l])
+        k = B[ROW_K * BLOCK + l]
+        kmax = max(kmax, k)
+        if k > 0.0:
+            kmin = min(kmin, k)
+    kmin = min(kmin, kmax)
     # pass 2: the other fixed-point corrections, one per pass (two per pass measured
-    # slower); lane l takes B[ROW_K, l] in all
+    # slower); lane l takes B[ROW_K, l] in all. Up to the smallest count every lane takes
+    # the correction: no per-lane test, which would turn the loads into masked loads
     it = 1.0
+    while it < kmin:
+        for l in range(nl):
+            w0, w1, w2 = _fp_step(
+                B[ROW_AB * BLOCK + l], B[(ROW_AB + 1) * BLOCK + l], B[(ROW_AB + 2) * BLOCK + l],
+                B[(ROW_P + 33) * BLOCK + l], B[(ROW_P + 34) * BLOCK + l],
+                B[(ROW_P + 35) * BLOCK + l], B[ROW_W * BLOCK + l], B[(ROW_W + 1) * BLOCK + l],
+                B[(ROW_W + 2) * BLOCK + l],
+            )  # fmt: skip
+            B[ROW_W * BLOCK + l] = w0
+            B[(ROW_W + 1) * BLOCK + l] = w1
+            B[(ROW_W + 2) * BLOCK + l] = w2
+        it += 1.0
     while it < kmax:
         for l in range(nl):
             w0 = B[ROW_W * BLOCK + l]
@@ -1082,7 +1116,8 @@ def _block_finish(B, hh, rh, nl, torque):
               B[(LO_Q + 3) * BLOCK + l])  # fmt: skip
         Pi = (B[24 * BLOCK + l], B[25 * BLOCK + l], B[26 * BLOCK + l])
         Pl = (B[LO_PI * BLOCK + l], B[(LO_PI + 1) * BLOCK + l], B[(LO_PI + 2) * BLOCK + l])
-        T = (B[27 * BLOCK + l], B[28 * BLOCK + l], B[29 * BLOCK + l])
+        # without a pivoted lane every torque is zero, as stored: no torque rows to read
+        T = (B[27 * BLOCK + l], B[28 * BLOCK + l], B[29 * BLOCK + l]) if torque else (0.0, 0.0, 0.0)
         finite, pn, pln, Pin, Pln, Tn = _rattle_commit(
             True, B[(ROW_P + 31) * BLOCK + l] != 0.0, B[ROW_P * BLOCK + l],
             (B[(ROW_P + 28) * BLOCK + l], B[(ROW_P + 29) * BLOCK + l],
@@ -1109,9 +1144,10 @@ def _block_finish(B, hh, rh, nl, torque):
         B[LO_PI * BLOCK + l] = Pln[0] if ok else Pl[0]
         B[(LO_PI + 1) * BLOCK + l] = Pln[1] if ok else Pl[1]
         B[(LO_PI + 2) * BLOCK + l] = Pln[2] if ok else Pl[2]
-        B[27 * BLOCK + l] = Tn[0] if ok else T[0]
-        B[28 * BLOCK + l] = Tn[1] if ok else T[1]
-        B[29 * BLOCK + l] = Tn[2] if ok else T[2]
+        if torque:
+            B[27 * BLOCK + l] = Tn[0] if ok else T[0]
+            B[28 * BLOCK + l] = Tn[1] if ok else T[1]
+            B[29 * BLOCK + l] = Tn[2] if ok else T[2]
         B[ROW_ACC * BLOCK + l] = 1.0 if ok else 0.0
         B[ROW_VEC * BLOCK + l] += 1.0 if ok else 0.0
         nrej += 0 if ok else 1
