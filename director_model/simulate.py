@@ -1,8 +1,10 @@
-"""Entry points: :func:`simulate` (one body) and :func:`simulate_batch` (N bodies).
+"""Entry points: :func:`simulate` (one body), :class:`Stepper` (one body in chunks) and
+:func:`simulate_batch` (N bodies).
 
-Both validate every input before any stepping, run the compiled time loop of
+All validate every input before any stepping, run the compiled time loop of
 :mod:`director_model._kernels` (saved states only, memory O(nsave)), and compute the
 invariants from the saved director states with :mod:`director_model.invariants`.
+:func:`simulate` is one chunk of a :class:`Stepper`.
 """
 
 from __future__ import annotations
@@ -567,6 +569,7 @@ def simulate_batch(
     advance blocks of up to 32 bodies together, one SIMD lane per body, with the operations
     of the single-body code in the same order (a lane the vector code cannot finish goes
     through the single-body code), so body i equals ``simulate(...)`` of body i bit for bit.
+    Always with compensated sums (``compensated=True`` of :func:`simulate`).
     ``parallel=False`` runs on one thread.
     Every body is validated before any stepping (messages prefixed with the body index);
     if any body fails a step, StepSizeError names the first failing body.

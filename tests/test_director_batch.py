@@ -131,10 +131,11 @@ def test_pure_python_debug_mode_same_numbers():
 
 def _kernel_inputs():
     """75 bodies in three blocks, mixing every way a lane can leave the vector code: free
-    bodies with small steps (vector code throughout), large steps h|W| = 0.6 (Newton needs
-    more than one update: scalar fallback), pendulums under gravity 8000 m/s^2 (h|W| grows as they
-    swing: some steps each way, and some fail mid-run), pivots off the principal axes
-    (non-diagonal Ibar: scalar only) and a spin with h|W| = 1.2 (fails at the first step)."""
+    bodies with small steps (vector code throughout), large steps h|W| = 0.6 (beyond the
+    straight-line solve, h|W| ~ 0.05: scalar Newton loop), pendulums under gravity
+    8000 m/s^2 (h|W| grows as they swing: some steps each way, and some fail mid-run),
+    pivots off the principal axes (non-diagonal Ibar: scalar only) and a spin with
+    h|W| = 1.2 (fails at the first step)."""
     import importlib
 
     from director_model import _kernels as K
@@ -207,12 +208,14 @@ def test_vector_block_equals_scalar_loop_bit_for_bit(scheme, parallel):
 
 
 def test_batch_reports_vector_substeps():
-    # |W| <= 2 rad/s, dt = 0.01: Newton converges after one update in every substep
+    # |W| = 1 rad/s, dt = 0.01 (h|W|/2 <= 0.0085 in rattle4's largest substep): within the
+    # straight-line solve, every substep by the vector code
     Ws = W / np.linalg.norm(W, axis=1, keepdims=True)
     bt = dm.simulate_batch(1.0, (2, 3, 4), rotation=ROT, omega_body=Ws, dt=0.01, t_end=0.1,
                            scheme="rattle4")  # fmt: skip
     assert np.array_equal(bt.vector_substeps, np.full(N, 3 * 10))
-    # |W| = 60 rad/s: more than one Newton update, every substep by the scalar code
+    # |W| = 60 rad/s (h|W|/2 = 0.3): beyond the straight-line solve, every substep by the
+    # scalar Newton loop
     big = dm.simulate_batch(1.0, (2, 3, 4), rotation=ROT, omega_body=60 * Ws, dt=0.01,
                             t_end=0.1)  # fmt: skip
     assert np.array_equal(big.vector_substeps, np.zeros(N))
