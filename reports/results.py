@@ -33,23 +33,15 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from scenarios.model import TOLERANCE_METRICS
+
 STORE_NAME = "results.sqlite"
 #: version of the store's layout, checked on open
 STORE_FORMAT = 1
 
-#: metric columns (all "lower is better" except convergence_order), see reports.metrics
-METRIC_COLUMNS = (
-    "energy_drift_max",
-    "momentum_drift_max",
-    "orthonormality_max",
-    "constraint_velocity_max",
-    "attitude_error_max",
-    "omega_error_max",
-    "position_error_max",
-    "flip_interval_error",
-    "nutation_period_error",
-    "convergence_order",
-)
+#: metric columns, see reports.metrics: every metric a scenario's ``[tolerances]`` may bound
+#: ("lower is better"), and the measured convergence order
+METRIC_COLUMNS = (*TOLERANCE_METRICS, "convergence_order")
 
 RESULT_COLUMNS = (
     "run_id",
@@ -94,34 +86,29 @@ RESULT_COLUMNS = (
     "finished_at",
 )
 
-#: columns holding numbers (the rest are text)
-NUMERIC_COLUMNS = frozenset(
+#: columns holding text; every other column holds a number
+TEXT_COLUMNS = frozenset(
     {
-        "order",
-        "dt",
-        "target_accuracy",
-        "t_end",
-        "save_every",
-        "segment",
-        "t_diverged",
-        "nstep",
-        "wall_time_s",
-        "engine_time_s",
-        "glue_time_s",
-        "ns_per_step",
-        "engine_ns_per_step",
-        "evals_per_step",
-        "steps_taken",
-        "steps_rejected",
-        *METRIC_COLUMNS,
-        "accuracy_ratio",
-        "convergence_points",
-        "energy_scale",
-        "momentum_scale",
-        "reference_accuracy",
-        "roundoff_floor",
+        "run_id",
+        "scenario",
+        "scenario_hash",
+        "engine",
+        "engine_version",
+        "integrator",
+        "family",
+        "suite_integrated",
+        "status",
+        "verdict",
+        "verdict_detail",
+        "message",
+        "reference_kind",
+        "settings",
+        "trajectory",
+        "suite_version",
+        "finished_at",
     }
 )
+NUMERIC_COLUMNS = frozenset(RESULT_COLUMNS) - TEXT_COLUMNS
 
 #: statuses, in the order reports list them
 STATUSES = ("ok", "reference-inaccurate", "diverged", "error", "unsupported", "unavailable")
