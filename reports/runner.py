@@ -152,7 +152,14 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
         recorder = _recorder(spec, sc)
         try:
             output = cls().run(
-                sc, integ.name, spec.dt, spec.horizon, spec.saving, progress, recorder
+                sc,
+                integ.name,
+                spec.dt,
+                spec.horizon,
+                spec.saving,
+                progress,
+                recorder,
+                accuracy=spec.accuracy,
             )
             diverged = None
         except Diverged as exc:
