@@ -44,33 +44,32 @@ def _import():
 
     if sys.modules.get("pybullet") is not None:
         return sys.modules["pybullet"]
-    # pybullet prints its build time on standard output from C when imported: keep the suite's
-    # output (and a `list --json` piped into another program) clean
-    with _quiet_stdout():
+    # pybullet's C module prints its build time on the standard error when imported, once per
+    # process: in a parallel run that is one stray line per worker in the suite's output
+    with _banner_silenced():
         return import_engine("pybullet", "PyBullet", "pybullet")
 
 
 @contextlib.contextmanager
-def _quiet_stdout():
+def _banner_silenced():
+    """The process's standard error (file descriptor 2, where native code writes) goes to
+    /dev/null while pybullet is imported. Nothing of the suite's is lost: a failed import is
+    an ImportError whose message import_engine puts in the EngineUnavailable."""
     import os
     import sys
 
     try:
-        fd = sys.stdout.fileno()
-    except (AttributeError, ValueError, OSError):  # stdout replaced (pytest's capture)
+        fd = sys.stderr.fileno()
+    except (AttributeError, ValueError, OSError):  # stderr replaced (pytest's capture)
         yield
         return
-    sys.stdout.flush()
+    sys.stderr.flush()
     saved = os.dup(fd)
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
         os.dup2(devnull, fd)
         yield
     finally:
-        with contextlib.suppress(Exception):  # C's buffered printf must land in /dev/null
-            import ctypes
-
-            ctypes.CDLL(None).fflush(None)
         os.dup2(saved, fd)
         os.close(saved)
         os.close(devnull)
