@@ -969,8 +969,8 @@ BLOCK = 32
 #: Rows of the block array (row-major, BLOCK lanes per row): the state rows 0..NS-1 as in S,
 #: the parameter rows ROW_P..ROW_P+NP-1 as in P, then work rows: b = h pi/2 (3 rows),
 #: ab = Ibar^{-1} b (3), the iterate w (3), the number of fixed-point corrections of the
-#: lane (0: not for the vector code), a live flag (0 once a body has failed), an accepted
-#: flag written by each vector substep, and the count of substeps the vector code took.
+#: lane (0: not for the vector code), a live flag (0 once a body has failed) and an accepted
+#: flag written by each vector substep.
 ROW_P = NS
 ROW_B = NS + NP
 ROW_AB = ROW_B + 3
@@ -978,8 +978,7 @@ ROW_W = ROW_B + 6
 ROW_K = ROW_B + 9
 ROW_LIVE = ROW_B + 10
 ROW_ACC = ROW_B + 11
-ROW_VEC = ROW_B + 12
-NROW = ROW_B + 13
+NROW = ROW_B + 12
 
 
 @njit(cache=True, error_model="numpy")
@@ -1151,7 +1150,6 @@ def _block_finish(B, hh, rh, nl, torque):
             B[28 * BLOCK + l] = Tn[1] if ok else T[1]
             B[29 * BLOCK + l] = Tn[2] if ok else T[2]
         B[ROW_ACC * BLOCK + l] = 1.0 if ok else 0.0
-        B[ROW_VEC * BLOCK + l] += 1.0 if ok else 0.0
         nrej += 0 if ok else 1
     return nrej
 
@@ -1214,7 +1212,8 @@ def _run_rattle_block(
     :func:`_rattle_substep` on the lanes it did not accept. Every body gets the numbers
     ``run_one`` gives it, bit for bit, including a failure's status and info; a failed body
     stops (its lane is no longer live) and the others go on. vec[i] counts the substeps of
-    body i taken by the vector code."""
+    body i taken by the vector code: those it attempted less those the scalar code redid
+    (counted here, not in the vector pass, which they would cost a load and a store)."""
     B = np.zeros(NROW * BLOCK)
     S = np.empty(NS)
     hs, hhs, rhs = _substep_sizes(coef, h)
@@ -1235,6 +1234,8 @@ def _run_rattle_block(
     for l in range(nl):
         anypiv = anypiv or P[i0 + l, 31] != 0.0
     ncoef = coef.shape[0]
+    attempted = np.full(nl, nstep * ncoef)
+    scalar = np.zeros(nl, dtype=np.int64)
     for n in range(1, nstep + 1):
         for c in range(ncoef):
             if _rattle_block_substep(B, hhs[c], rhs[c], nl, anypiv) == 0:
@@ -1246,7 +1247,9 @@ def _run_rattle_block(
                 _lane_get(B, l, S)
                 st = _rattle_substep(P[i], S, hhs[c], rhs[c], True)
                 _lane_put(B, l, S)
+                scalar[l] += 1
                 if st != OK:
+                    attempted[l] = (n - 1) * ncoef + c + 1
                     status[i] = st
                     info[i, 0] = n - 1
                     info[i, 1] = _omega_norm(RATTLE_FAMILY, P[i], S)
@@ -1262,7 +1265,7 @@ def _run_rattle_block(
                     _store(RATTLE_FAMILY, P[i], S, g, n * h, k, X[i], V[i], Dout[i], Dpout[i])
             k += 1
     for l in range(nl):
-        vec[i0 + l] = int(B[ROW_VEC * BLOCK + l])
+        vec[i0 + l] = attempted[l] - scalar[l]
 
 
 # --------------------------------------------------------------------------------------------
