@@ -964,7 +964,7 @@ def _em_step(P, g, S, h, A, M):
 #: loops of _rattle_block_substep have no loop-carried dependence and vectorise them (AVX2:
 #: four bodies per instruction). 32 and 64 run equally fast on the project's 2-core AMD EPYC
 #: (12.0-12.5 ns per free-body step on one thread, dt = 1e-3), 16 is 5-10 % slower; 32 keeps
-#: the block array (NROW x 32 x 8 bytes = 24.6 kB) inside a 32 kB L1 data cache.
+#: the block array (NROW x 32 x 8 bytes = 24.3 kB) inside a 32 kB L1 data cache.
 BLOCK = 32
 #: Rows of the block array (row-major, BLOCK lanes per row): the state rows 0..NS-1 as in S,
 #: the parameter rows ROW_P..ROW_P+NP-1 as in P, then work rows: b = h pi/2 (3 rows),
