@@ -109,7 +109,7 @@ class DirectorEngine(Engine):
         return {
             "scheme": ctx.integrator.name,
             "gravity": ctx.model.gravity.tolist(),
-            "sums": "compensated (Kahan) in the director and momentum updates",
+            "sums": "compensated (Kahan) in the attitude quaternion and momentum updates",
         }
 
     # -- state -------------------------------------------------------------------------
