@@ -77,8 +77,8 @@ def test_dzhanibekov_is_the_test_vector_body():
 
 
 def test_gazebo_inertia_from_the_box_dimensions():
-    # Gazebo's boxes benchmark: uniform box 0.1 x 0.4 x 0.9 m, m = 10 kg; I_x = m (b^2 + c^2)/12 etc., in
-    # exact rational arithmetic, must be the nearest doubles (not the rounded 0.808333 ...)
+    # Gazebo's boxes benchmark: uniform box 0.1 x 0.4 x 0.9 m, m = 10 kg; I_x = m (b^2 + c^2)/12
+    # etc., in exact rational arithmetic, must be the nearest doubles (not the rounded 0.808333 ...)
     a, b, c = Fraction(1, 10), Fraction(4, 10), Fraction(9, 10)
     m = 10
     exact = [m * (b * b + c * c) / 12, m * (a * a + c * c) / 12, m * (a * a + b * b) / 12]
