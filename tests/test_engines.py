@@ -11,6 +11,7 @@ A missing engine is skipped with the reason its adapter gives (never faked).
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from references import conventions as cv
 from references.engines import (
     FAMILIES,
     BodyModel,
+    Diverged,
     EngineError,
     EngineUnavailable,
     RunContext,
@@ -333,6 +335,41 @@ def test_dart_deactivation_is_switched_off():
     world.setDeactivationOptions(opts)
     with pytest.raises(EngineError, match="deactivation"):
         check_readback("dart", engine.read_model(ctx), ctx.model)
+
+
+def test_native_stderr_is_kept_for_the_record_not_the_terminal(capfd):
+    import os
+
+    from references.engines.base import NativeStderr
+
+    cap = NativeStderr()
+    with cap:
+        os.write(2, b"\x1b[1;33mWarning [X.cpp:1]\x1b[0m first\nsecond\n")
+    with cap:
+        pass
+    with cap:
+        os.write(2, b"third\n")
+    cap.close()
+    os.write(2, b"after\n")
+    assert capfd.readouterr().err == "after\n"  # fd 2 is back where it was
+    assert cap.lines == 3
+    assert cap.summary() == "3 line(s) while stepping; first: Warning [X.cpp:1] first; last: third"
+    assert NativeStderr().summary() is None
+
+
+def test_dart_warnings_on_a_diverging_state_go_to_the_run_record(capfd):
+    """The trap: DART 6.20 prints three warnings a step once a state is non-finite (until the
+    run loop's checkpoint stops the run); they belong to the run's record, not the terminal."""
+    engine = engine_or_skip("dart")
+    sc = scenarios.load("heavy_top")
+    with pytest.raises(Diverged) as info:
+        engine.run(sc, "semi-implicit Euler", 0.004)
+    said = info.value.output.settings["engine's standard error"]
+    # the count depends on where in its block of steps the state became non-finite; the
+    # warnings' words are DART's
+    assert re.match(r"\d+ line\(s\) while stepping; first: Warning \[BallJoint", said), said
+    assert "Non-finite" in said
+    assert "Warning" not in capfd.readouterr().err
 
 
 def test_mujoco_state_is_read_from_qpos_not_stale_xmat():

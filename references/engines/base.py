@@ -35,7 +35,13 @@ result row with that status and the message, so messages say what happened and w
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import re
+import sys
+import tempfile
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
@@ -305,6 +311,75 @@ class RunContext:
     #: the family of the algorithm actually run, where it differs from the integrator's
     #: declared one for this model (MuJoCo's implicitfast on a ball joint is its Euler)
     family: str | None = None
+    #: what the engine's native code wrote to the standard error while stepping
+    stderr: NativeStderr | None = None
+
+
+class NativeStderr:
+    """What an engine's native code writes to the standard error (file descriptor 2) while
+    it steps, kept for the run's record instead of the terminal.
+
+    A diverging state makes some engines print a warning at every step (DART 6.20: three
+    lines a step once a state is non-finite, until the run loop's next checkpoint stops the
+    run); a default suite would flood the terminal with thousands of lines. While a block of
+    steps runs, file descriptor 2 points to a temporary file; afterwards the lines are counted
+    and the first and last kept (:meth:`summary`, recorded in the run's settings). Only on the
+    main thread: redirecting a process-wide descriptor from several threads at once (a Dask
+    worker's task threads) could leave it pointing at a closed file, so there the writes go
+    where they always went (the worker's log)."""
+
+    def __init__(self) -> None:
+        self.lines = 0
+        self.first = ""
+        self.last = ""
+        self._file = None
+        self._saved: int | None = None
+
+    def __enter__(self) -> NativeStderr:
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        if self._file is None:
+            self._file = tempfile.TemporaryFile()
+        sys.stderr.flush()
+        self._saved = os.dup(2)
+        os.dup2(self._file.fileno(), 2)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._saved is None:
+            return
+        sys.stderr.flush()
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._saved = None
+        f = self._file
+        if f.tell() or os.fstat(f.fileno()).st_size:
+            f.seek(0)
+            text = f.read().decode("utf-8", "replace")
+            f.seek(0)
+            f.truncate()
+            lines = [_plain(x) for x in text.splitlines() if x.strip()]
+            if lines:
+                self.first = self.first or lines[0]
+                self.last = lines[-1]
+                self.lines += len(lines)
+
+    def summary(self) -> str | None:
+        """The record of what was written, or None if nothing was."""
+        if not self.lines:
+            return None
+        out = f"{self.lines} line(s) while stepping; first: {self.first}"
+        return out + (f"; last: {self.last}" if self.lines > 1 else "")
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def _plain(line: str) -> str:
+    """A terminal line without its ANSI colour codes."""
+    return re.sub(r"\x1b\[[0-9;]*m", "", line).strip()
 
 
 @dataclass
@@ -579,6 +654,7 @@ class Engine(EngineBase):
         nstep, saves = step_plan(dt, t_end, save_every)
         ctx = RunContext(scenario, BodyModel.of(scenario, dt), integ, float(dt), float(t_end))
         ctx.accuracy = None if accuracy is None else float(accuracy)
+        ctx.stderr = NativeStderr()
         rec = recorder if recorder is not None else Recorder(saves)
         rec.residuals = ctx.residuals
         try:
@@ -593,6 +669,7 @@ class Engine(EngineBase):
                 settings["target accuracy"] = ctx.accuracy
         finally:
             self.close(ctx)
+            ctx.stderr.close()
         out = _output(ctx, rec, steps_done, wall, settings)
         if progress is not None:
             progress(1.0)
@@ -728,7 +805,9 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
         steps = np.diff([done, *block]).tolist()
         t0 = time.perf_counter()
         try:
-            states = stepper.run(steps)
+            with ctx.stderr or _NO_CAPTURE:
+                t0 = time.perf_counter()  # the redirection is not the engine's time
+                states = stepper.run(steps)
         except StepFailure as exc:
             wall += time.perf_counter() - t0
             t_fail = getattr(exc, "time", None)
@@ -760,10 +839,16 @@ def _diverged(engine, ctx, rec, done, wall, t_div, what) -> Diverged:
     return Diverged(msg, t_div, out)
 
 
+_NO_CAPTURE = contextlib.nullcontext()
+
+
 def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
     per = ctx.nevals / steps_done if steps_done else float(ctx.integrator.evals_per_step or 0)
     if ctx.family is not None:
         settings = {**settings, "family of the algorithm run": ctx.family}
+    said = ctx.stderr.summary() if ctx.stderr is not None else None
+    if said is not None:
+        settings = {**settings, "engine's standard error": said}
     return RunOutput(
         trajectory=rec.trajectory(ctx.scenario, ctx.dt),
         nstep=int(steps_done),
