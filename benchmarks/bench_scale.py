@@ -203,7 +203,7 @@ def suite_breakdown(df) -> None:
     mj = ok[(ok["engine"] == "mujoco") & (ok["integrator"] == "RK4")].set_index(key)
     for eng in ("pinocchio", "dart"):
         rk = ok[(ok["engine"] == eng) & (ok["integrator"] == "RKMK4")].set_index(key)
-        both = rk.join(mj, rsuffix="_mj", how="inner")
+        both = rk.merge(mj, left_index=True, right_index=True, suffixes=("", "_mj"))
         if both.empty:
             continue
         wall = (both["wall_time_s"] / both["wall_time_s_mj"]).median()

@@ -102,6 +102,8 @@ class DartEngine(Engine):
         joint.setLimitEnforcement(False)
         world.addSkeleton(skel)
         ctx.handle = (world, skel, joint, body)
+        # the compiled RKMK4's stage state is packed into these (no allocation per stage)
+        ctx.dart_buffers = (np.zeros(joint.getNumDofs()), np.zeros(joint.getNumDofs()))
 
     def read_model(self, ctx) -> ModelReadback:
         world, skel, joint, body = ctx.handle
@@ -222,9 +224,8 @@ class DartEngine(Engine):
     def forward_dynamics_packed(self, ctx, z, acc) -> None:
         """:meth:`forward_dynamics` on the compiled RKMK4's flat stage state (quaternion
         form), packed and unpacked by compiled code: the engine calls are most of the cost."""
-        _, skel, joint, _ = ctx.handle
-        n = joint.getNumDofs()
-        pos, vel = np.empty(n), np.empty(n)
+        skel = ctx.handle[1]
+        pos, vel = ctx.dart_buffers
         piv = ctx.model.pivoted
         _rkmk4.pack_dart(z, piv, pos, vel)
         with ctx.clock:
