@@ -409,9 +409,32 @@ def work_precision_section(doc: Doc, df) -> None:
         "it. `+ suite` marks a configuration whose time loop is the suite's own Python around "
         "the engine's dynamics: its wall time measures our code, so no ratio here uses it. "
         "An error below the reference's accuracy reaches no level below that accuracy."
+        + _finer_sweep_note(df)
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
     doc.table("Cheapest configuration per accuracy", header, rows, cls="wp")
+
+
+def _finer_sweep_note(df) -> str:
+    """The sentence naming the engines that ran steps below the shared dt sweep."""
+    from references.engines import EngineError, get_engine
+
+    finer = []
+    for name in sorted(set(df["engine"])):
+        try:
+            n = get_engine(name).sweep_halvings
+        except EngineError:  # an engine no longer registered: its rows still show
+            continue
+        if n:
+            finer.append(f"{name} ({n} halvings)")
+    if not finer:
+        return ""
+    return (
+        " Every engine ran each scenario's dt sweep; " + ", ".join(finer) + " also ran "
+        "that many halvings of its smallest step (milliseconds of stepping, so that its "
+        "curve reaches its round-off floor); the others were not run there, where each "
+        "would cost more than at its smallest swept step."
+    )
 
 
 def failures_section(doc: Doc, df) -> None:

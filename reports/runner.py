@@ -292,7 +292,8 @@ def plan(
     else :data:`DEFAULT_ACCURACIES` (:data:`FULL_ACCURACIES` with ``full``); they run at the
     scenario's own ``dt`` with about :data:`ADAPTIVE_CHECKPOINTS` checkpoints).
 
-    ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep``.
+    ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep`` and, for an
+    engine with ``sweep_halvings`` (the director model), that many halvings of the smallest.
     ``integrators`` None: each engine's default-suite integrators (every one with ``full``);
     else only those named (an engine offering none of them contributes nothing).
     ``save_every`` overrides the scenarios' decimation; ``segment`` streams the metrics over
@@ -331,8 +332,13 @@ def plan(
                 names = [i.name for i in offered if i.name in integrators]
             else:
                 names = [i.name for i in offered if full or i.default]
-            steps_e = [sc.dt if not dts else steps[-1]] if name == "exact" else steps
             cls = get_engine(name)
+            steps_e = [sc.dt if not dts else steps[-1]] if name == "exact" else steps
+            if sweep and not dts and cls.sweep_halvings:
+                finer = [steps[-1] / 2**k for k in range(1, cls.sweep_halvings + 1)]
+                for h in finer:
+                    _check_states(sc, h, horizon, keep, segment, max_states)
+                steps_e = steps + finer
             for integ in names:
                 common = (t_end, save_every, segment, versions[name])
                 if cls.integrator(integ).adaptive:

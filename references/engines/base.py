@@ -495,6 +495,11 @@ class EngineBase(ABC):
     #: the runs of one integrator share an expensive warm-up in a process (MJX compiles its
     #: step): a runner executes them one after another in one worker instead of spreading them
     bundle_runs: ClassVar[bool] = False
+    #: halvings of the smallest step of a scenario's dt sweep that this engine runs beyond the
+    #: sweep in a suite (not with explicit --dt or --no-sweep): an engine cheap enough to
+    #: follow its error down to the round-off floor (the director model) shows where its
+    #: work-precision curve goes below the other engines' smallest step
+    sweep_halvings: ClassVar[int] = 0
 
     @classmethod
     @abstractmethod
