@@ -416,24 +416,24 @@ def work_precision_section(doc: Doc, df) -> None:
 
 
 def _finer_sweep_note(df) -> str:
-    """The sentence naming the engines that ran steps below the shared dt sweep."""
+    """The sentence naming the configurations that ran steps below the shared dt sweep."""
     from references.engines import EngineError, get_engine
 
     finer = []
-    for name in sorted(set(df["engine"])):
+    for (engine, name), _ in df.groupby(["engine", "integrator"]):
         try:
-            n = get_engine(name).sweep_halvings
-        except EngineError:  # an engine no longer registered: its rows still show
+            n = get_engine(engine).integrator(name).sweep_halvings
+        except EngineError:  # no longer registered or offered: its rows still show
             continue
         if n:
-            finer.append(f"{name} ({n} halvings)")
+            finer.append(f"{engine} {name} ({n} halvings)")
     if not finer:
         return ""
     return (
-        " Every engine ran each scenario's dt sweep; " + ", ".join(finer) + " also ran "
-        "that many halvings of its smallest step (milliseconds of stepping, so that its "
-        "curve reaches its round-off floor); the others were not run there, where each "
-        "would cost more than at its smallest swept step."
+        " Every configuration ran each scenario's dt sweep; " + ", ".join(finer) + " also "
+        "ran halvings of the smallest step (milliseconds of stepping, so that their "
+        "curves reach the round-off floor); the others were not run there, where each would "
+        "cost more than at its smallest swept step."
     )
 
 

@@ -293,7 +293,7 @@ def plan(
     scenario's own ``dt`` with about :data:`ADAPTIVE_CHECKPOINTS` checkpoints).
 
     ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep`` and, for an
-    engine with ``sweep_halvings`` (the director model), that many halvings of the smallest.
+    integrator with ``sweep_halvings``, that many halvings of the smallest.
     ``integrators`` None: each engine's default-suite integrators (every one with ``full``);
     else only those named (an engine offering none of them contributes nothing).
     ``save_every`` overrides the scenarios' decimation; ``segment`` streams the metrics over
@@ -334,11 +334,6 @@ def plan(
                 names = [i.name for i in offered if full or i.default]
             cls = get_engine(name)
             steps_e = [sc.dt if not dts else steps[-1]] if name == "exact" else steps
-            if sweep and not dts and cls.sweep_halvings:
-                finer = [steps[-1] / 2**k for k in range(1, cls.sweep_halvings + 1)]
-                for h in finer:
-                    _check_states(sc, h, horizon, keep, segment, max_states)
-                steps_e = steps + finer
             for integ in names:
                 common = (t_end, save_every, segment, versions[name])
                 if cls.integrator(integ).adaptive:
@@ -352,8 +347,19 @@ def plan(
                     common = (t_end, every, segment, versions[name])
                     specs += [RunSpec(sc, name, integ, h, *common, float(a)) for a in accs]
                 else:
-                    specs += [RunSpec(sc, name, integ, h, *common) for h in steps_e]
+                    run_at = steps_e + _halvings(cls.integrator(integ), steps, sweep and not dts)
+                    for h in run_at[len(steps_e) :]:
+                        _check_states(sc, h, horizon, keep, segment, max_states)
+                    specs += [RunSpec(sc, name, integ, h, *common) for h in run_at]
     return specs
+
+
+def _halvings(integ, steps: list[float], swept: bool) -> list[float]:
+    """The steps an integrator runs below a scenario's sweep (``Integrator.sweep_halvings``
+    halvings of the smallest), only in a sweep the user did not set."""
+    if not swept or not integ.sweep_halvings:
+        return []
+    return [steps[-1] / 2**k for k in range(1, integ.sweep_halvings + 1)]
 
 
 #: bytes of memory a run needs per state it keeps (the trajectory, its reference and the

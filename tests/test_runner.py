@@ -32,9 +32,8 @@ def specs_for(
 
 def test_rows_files_and_report(tmp_path, dzh):
     df, n = run_suite(specs_for(dzh), tmp_path, progress=False)
-    # mujoco Euler at the 3 dt of the sweep, director rattle also at 2 halvings of the
-    # smallest (sweep_halvings), exact once
-    assert n == 9 and len(df) == 9
+    # director rattle and mujoco Euler at 3 dt each, exact once
+    assert n == 7 and len(df) == 7
     assert set(df["status"]) == {"ok"}
     for _, r in df.iterrows():
         assert (tmp_path / r["trajectory"]).exists()
@@ -57,18 +56,22 @@ def test_rows_files_and_report(tmp_path, dzh):
     assert (tmp_path / "summary.json").exists()
 
 
-def test_the_director_runs_two_halvings_below_the_sweep_and_only_in_a_sweep(dzh):
-    def steps(specs, engine):
-        return sorted(s.dt for s in specs if s.engine == engine)
+def test_director_compositions_run_two_halvings_below_the_sweep_only_in_a_sweep(dzh):
+    def steps(specs, integrator):
+        return sorted(s.dt for s in specs if s.integrator == integrator)
 
-    specs = specs_for(dzh)
-    assert steps(specs, "mujoco") == sorted([1e-3, 2e-3, 4e-3])
-    assert steps(specs, "director") == sorted([2.5e-4, 5e-4, 1e-3, 2e-3, 4e-3])
-    # explicit steps and --no-sweep are what the user asked for, for every engine
-    explicit = plan([dzh], ("director", "mujoco"), ("rattle", "Euler"), dts=[1e-3, 5e-4])
-    assert steps(explicit, "director") == steps(explicit, "mujoco") == [5e-4, 1e-3]
-    single = plan([dzh], ("director", "mujoco"), ("rattle", "Euler"), sweep=False)
-    assert steps(single, "director") == steps(single, "mujoco") == [1e-3]
+    names = ("rattle", "rattle4", "rattle6", "Euler")
+    specs = plan([dzh], ("director", "mujoco"), names)
+    for name in ("rattle", "Euler"):
+        assert steps(specs, name) == [1e-3, 2e-3, 4e-3]
+    for name in ("rattle4", "rattle6"):  # sweep_halvings = 2
+        assert steps(specs, name) == [2.5e-4, 5e-4, 1e-3, 2e-3, 4e-3]
+    # explicit steps and --no-sweep are what the user asked for, for every integrator
+    explicit = plan([dzh], ("director", "mujoco"), names, dts=[1e-3, 5e-4])
+    single = plan([dzh], ("director", "mujoco"), names, sweep=False)
+    for name in names:
+        assert steps(explicit, name) == [5e-4, 1e-3]
+        assert steps(single, name) == [1e-3]
 
 
 def test_failing_run_is_a_row_and_the_rest_go_on(tmp_path):

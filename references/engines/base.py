@@ -172,6 +172,10 @@ class Integrator:
     ``default``: part of the default suite; an engine with many configurations keeps the
     ones that answer the suite's questions at a cost that fits, the rest run on request
     (``director-bench run --full`` or ``--integrators``).
+    ``sweep_halvings``: halvings of the smallest step of a scenario's dt sweep run beyond the
+    sweep in a suite (not with explicit steps or without the sweep): for an integrator cheap
+    enough to follow its error down to the round-off floor (the director model's high-order
+    compositions), whose work-precision curve would otherwise stop above it.
     """
 
     name: str
@@ -185,6 +189,7 @@ class Integrator:
     tolerances: Mapping[str, float] = field(default_factory=dict)
     adaptive: bool = False
     default: bool = True
+    sweep_halvings: int = 0
 
     def __post_init__(self):
         if self.family not in FAMILIES:
@@ -495,11 +500,6 @@ class EngineBase(ABC):
     #: the runs of one integrator share an expensive warm-up in a process (MJX compiles its
     #: step): a runner executes them one after another in one worker instead of spreading them
     bundle_runs: ClassVar[bool] = False
-    #: halvings of the smallest step of a scenario's dt sweep that this engine runs beyond the
-    #: sweep in a suite (not with explicit --dt or --no-sweep): an engine cheap enough to
-    #: follow its error down to the round-off floor (the director model) shows where its
-    #: work-precision curve goes below the other engines' smallest step
-    sweep_halvings: ClassVar[int] = 0
 
     @classmethod
     @abstractmethod
