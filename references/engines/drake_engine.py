@@ -638,77 +638,18 @@ class DrakeEngine(Engine):
         integrator (error-controlled: ``first_step`` as the initial step size target) and the
         monitor, into ``h``; at t = 0 and at every chart switch (a finalised plant's joint
         frames cannot move)."""
-        from pydrake.math import RigidTransform, RotationMatrix
-        from pydrake.multibody.plant import (
-            AddMultibodyPlantSceneGraph,
-            DiscreteContactApproximation,
-            MultibodyPlant,
-        )
-        from pydrake.multibody.tree import (
-            BallRpyJoint,
-            FixedOffsetFrame,
-            QuaternionFloatingJoint,
-            RotationalInertia,
-            SpatialInertia,
-        )
-        from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
-        from pydrake.systems.framework import DiagramBuilder
+        from pydrake.systems.analysis import Simulator
 
-        mdl = ctx.model
-        mode, scheme = h.mode, h.scheme
-        builder = None
-        if scheme == "cenic":
-            # CENIC refuses a bare plant ("must be given a Diagram"): plant + empty SceneGraph
-            builder = DiagramBuilder()
-            plant, _ = AddMultibodyPlantSceneGraph(builder, 0.0)
-        else:
-            plant = MultibodyPlant(time_step=ctx.dt if mode == "discrete" else 0.0)
-        if mode == "discrete":
-            plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
-        I1, I2, I3 = (float(x) for x in mdl.inertia)
-        body = plant.AddRigidBody(
-            "body",
-            SpatialInertia.MakeFromCentralInertia(
-                mdl.mass, np.zeros(3), RotationalInertia(I1, I2, I3)
-            ),
-        )
-        frame_F = plant.AddFrame(
-            FixedOffsetFrame(
-                "F", plant.world_frame(), RigidTransform(RotationMatrix(R_WF), np.zeros(3))
-            )
-        )
-        frame_M = plant.AddFrame(
-            FixedOffsetFrame("M", body.body_frame(), RigidTransform(RotationMatrix(R_BM), h.p_BM))
-        )
-        if mdl.pivoted:
-            joint = plant.AddJoint(BallRpyJoint("pivot", frame_F, frame_M, 0.0))
-        else:
-            joint = plant.AddJoint(QuaternionFloatingJoint("free", frame_F, frame_M, 0.0, 0.0))
-        plant.mutable_gravity_field().set_gravity_vector(np.asarray(mdl.gravity, dtype=float))
-        plant.Finalize()
-        system = builder.Build() if builder is not None else plant
+        plant, body, joint, system = _plant(ctx, h, R_WF, R_BM)
         sim = Simulator(system)
         context = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
-        integ = None
-        if mode == "fixed step":
-            integ = ResetIntegratorFromFlags(sim, scheme, ctx.dt)
-            integ.set_fixed_step_mode(True)
-        elif mode == "error-controlled":
-            # No cap on the step but the run's horizon: Drake never steps past the time it is
-            # asked to reach, so the checkpoints (ctx.dt times the save interval, at most
-            # base.CHUNK steps apart) are the only other limit. A cap at ctx.dt would pin the
-            # step there and make every target accuracy the same run.
-            integ = ResetIntegratorFromFlags(sim, scheme, h.horizon)
-            integ.set_fixed_step_mode(False)
-            integ.set_target_accuracy(ctx.accuracy)
-            integ.request_initial_step_size_target(first_step)
-            h.first_step = first_step
+        integ = _integrator(ctx, h, sim, first_step)
         h.plant, h.body, h.joint, h.simulator, h.context, h.integrator = (
             plant, body, joint, sim, context, integ,
         )  # fmt: skip
         h.R_WF, h.R_BM = np.asarray(R_WF, dtype=float), np.asarray(R_BM, dtype=float)
         h.charts.append((h.R_WF, h.R_BM))
-        if mdl.pivoted or mode == "error-controlled":
+        if ctx.model.pivoted or h.mode == "error-controlled":
             sim.set_monitor(_monitor(h, ctx.model.pivoted))
 
     def read_model(self, ctx) -> ModelReadback:
@@ -718,70 +659,8 @@ class DrakeEngine(Engine):
         p_BoBcm = np.asarray(M.get_com())
         about_com = M.Shift(p_BoBcm)
         X_BM = joint.frame_on_child().CalcPoseInBodyFrame(pc)
-        X_WF = joint.frame_on_parent().CalcPoseInWorld(pc)
-        nv = plant.num_velocities()
-        lims = [
-            joint.position_lower_limits(),
-            joint.velocity_lower_limits(),
-            joint.acceleration_lower_limits(),
-        ]
-        ups = [
-            joint.position_upper_limits(),
-            joint.velocity_upper_limits(),
-            joint.acceleration_upper_limits(),
-        ]
-        infinite = all(np.all(np.isneginf(a)) for a in lims) and all(
-            np.all(np.isposinf(a)) for a in ups
-        )
-        extra = {
-            "joint damping (in the context)": (joint.GetDampingVector(pc), np.zeros(nv)),
-            "joint damping (default)": (joint.default_damping_vector(), np.zeros(nv)),
-            "joint position, velocity and acceleration limits infinite": (float(infinite), 1.0),
-            "joint locked": (float(joint.is_locked(pc)), 0.0),
-            "joint frame F origin in the world": (X_WF.translation(), np.zeros(3)),
-            "joint frame F rotation": (X_WF.rotation().matrix(), h.R_WF, 1e-15),
-            "joint frame M rotation in the body": (X_BM.rotation().matrix(), h.R_BM, 1e-15),
-            "number of bodies (world and the body)": (plant.num_bodies(), 2),
-            "number of joints": (plant.num_joints(), 1),
-            "number of force elements (gravity only)": (plant.num_force_elements(), 1),
-            "number of actuators": (plant.num_actuators(), 0),
-            "number of constraints": (plant.num_constraints(), 0),
-            "number of collision geometries": (plant.num_collision_geometries(), 0),
-            "gravity enabled for the body": (
-                float(plant.gravity_field().is_enabled(body.model_instance())),
-                1.0,
-            ),
-        }
-        if h.mode == "discrete":
-            from pydrake.multibody.plant import DiscreteContactApproximation
-
-            extra["discrete contact approximation (SAP)"] = (
-                float(plant.get_discrete_contact_approximation().value),
-                float(DiscreteContactApproximation.kSap.value),
-            )
-            dt = plant.time_step()
-        else:
-            integ = h.integrator
-            extra["plant time step (continuous)"] = (plant.time_step(), 0.0)
-            extra["fixed step mode"] = (
-                float(integ.get_fixed_step_mode()),
-                float(h.mode == "fixed step"),
-            )
-            if h.mode == "error-controlled":
-                extra["target accuracy"] = (integ.get_target_accuracy(), ctx.accuracy)
-                extra["maximum step size (the horizon)"] = (
-                    integ.get_maximum_step_size(),
-                    h.horizon,
-                )
-                extra["initial step size target (requested)"] = (
-                    integ.get_initial_step_size_target(),
-                    h.first_step,
-                )
-                # an error-controlled integrator has no step of its own to read back: ctx.dt is
-                # the interval of the adapter's calls (checkpoints), not an engine setting
-                dt = ctx.dt
-            else:
-                dt = integ.get_maximum_step_size()
+        extra = _model_checks(h)
+        dt = _integrator_checks(ctx, h, extra)
         return ModelReadback(
             mass=M.get_mass(),
             inertia=about_com.CalcRotationalInertia().CopyToFullMatrix3(),
@@ -1057,6 +936,136 @@ class DrakeEngine(Engine):
         if h is not None:
             h.simulator.clear_monitor()
         ctx.handle = None
+
+
+def _plant(ctx, h: _Handle, R_WF, R_BM):
+    """(plant, body, joint, the system to simulate): the finalised MultibodyPlant of
+    ``ctx.model`` with its joint between frame F (``R_WF`` on the world) and frame M (``R_BM``
+    and ``h.p_BM`` on the body), no geometry; continuous, or discrete with SAP."""
+    from pydrake.math import RigidTransform, RotationMatrix
+    from pydrake.multibody.plant import (
+        AddMultibodyPlantSceneGraph,
+        DiscreteContactApproximation,
+        MultibodyPlant,
+    )
+    from pydrake.multibody.tree import (
+        BallRpyJoint,
+        FixedOffsetFrame,
+        QuaternionFloatingJoint,
+        RotationalInertia,
+        SpatialInertia,
+    )
+    from pydrake.systems.framework import DiagramBuilder
+
+    mdl = ctx.model
+    builder = None
+    if h.scheme == "cenic":
+        # CENIC refuses a bare plant ("must be given a Diagram"): plant + empty SceneGraph
+        builder = DiagramBuilder()
+        plant, _ = AddMultibodyPlantSceneGraph(builder, 0.0)
+    else:
+        plant = MultibodyPlant(time_step=ctx.dt if h.mode == "discrete" else 0.0)
+    if h.mode == "discrete":
+        plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
+    I1, I2, I3 = (float(x) for x in mdl.inertia)
+    inertia = SpatialInertia.MakeFromCentralInertia(
+        mdl.mass, np.zeros(3), RotationalInertia(I1, I2, I3)
+    )
+    body = plant.AddRigidBody("body", inertia)
+    X_WF = RigidTransform(RotationMatrix(R_WF), np.zeros(3))
+    frame_F = plant.AddFrame(FixedOffsetFrame("F", plant.world_frame(), X_WF))
+    X_BM = RigidTransform(RotationMatrix(R_BM), h.p_BM)
+    frame_M = plant.AddFrame(FixedOffsetFrame("M", body.body_frame(), X_BM))
+    if mdl.pivoted:
+        joint = plant.AddJoint(BallRpyJoint("pivot", frame_F, frame_M, 0.0))
+    else:
+        joint = plant.AddJoint(QuaternionFloatingJoint("free", frame_F, frame_M, 0.0, 0.0))
+    plant.mutable_gravity_field().set_gravity_vector(np.asarray(mdl.gravity, dtype=float))
+    plant.Finalize()
+    return plant, body, joint, (builder.Build() if builder is not None else plant)
+
+
+def _integrator(ctx, h: _Handle, sim, first_step: float):
+    """The Simulator's integrator, replaced by the run's (None for the discrete plant)."""
+    from pydrake.systems.analysis import ResetIntegratorFromFlags
+
+    if h.mode == "fixed step":
+        integ = ResetIntegratorFromFlags(sim, h.scheme, ctx.dt)
+        integ.set_fixed_step_mode(True)
+        return integ
+    if h.mode != "error-controlled":
+        return None
+    # No cap on the step but the run's horizon: Drake never steps past the time it is asked
+    # to reach, so the checkpoints (ctx.dt times the save interval, at most base.CHUNK steps
+    # apart) are the only other limit. A cap at ctx.dt would pin the step there and make
+    # every target accuracy the same run.
+    integ = ResetIntegratorFromFlags(sim, h.scheme, h.horizon)
+    integ.set_fixed_step_mode(False)
+    integ.set_target_accuracy(ctx.accuracy)
+    integ.request_initial_step_size_target(first_step)
+    h.first_step = first_step
+    return integ
+
+
+def _model_checks(h: _Handle) -> dict:
+    """The read-back of everything of the plant that could distort a run but inertia, joint
+    type, gravity and step: name -> (value, required[, atol])."""
+    plant, body, joint, pc = h.plant, h.body, h.joint, h.context
+    X_BM = joint.frame_on_child().CalcPoseInBodyFrame(pc)
+    X_WF = joint.frame_on_parent().CalcPoseInWorld(pc)
+    nv = plant.num_velocities()
+    lows = (joint.position_lower_limits(), joint.velocity_lower_limits(),
+            joint.acceleration_lower_limits())  # fmt: skip
+    ups = (joint.position_upper_limits(), joint.velocity_upper_limits(),
+           joint.acceleration_upper_limits())  # fmt: skip
+    infinite = all(np.all(np.isneginf(a)) for a in lows) and all(
+        np.all(np.isposinf(a)) for a in ups
+    )
+    gravity_on = plant.gravity_field().is_enabled(body.model_instance())
+    return {
+        "joint damping (in the context)": (joint.GetDampingVector(pc), np.zeros(nv)),
+        "joint damping (default)": (joint.default_damping_vector(), np.zeros(nv)),
+        "joint position, velocity and acceleration limits infinite": (float(infinite), 1.0),
+        "joint locked": (float(joint.is_locked(pc)), 0.0),
+        "joint frame F origin in the world": (X_WF.translation(), np.zeros(3)),
+        "joint frame F rotation": (X_WF.rotation().matrix(), h.R_WF, 1e-15),
+        "joint frame M rotation in the body": (X_BM.rotation().matrix(), h.R_BM, 1e-15),
+        "number of bodies (world and the body)": (plant.num_bodies(), 2),
+        "number of joints": (plant.num_joints(), 1),
+        "number of force elements (gravity only)": (plant.num_force_elements(), 1),
+        "number of actuators": (plant.num_actuators(), 0),
+        "number of constraints": (plant.num_constraints(), 0),
+        "number of collision geometries": (plant.num_collision_geometries(), 0),
+        "gravity enabled for the body": (float(gravity_on), 1.0),
+    }
+
+
+def _integrator_checks(ctx, h: _Handle, extra: dict) -> float:
+    """Add the read-back of the time stepping (discrete approximation, or the integrator's
+    mode, accuracy and step sizes) to ``extra``; return the step to check against ctx.dt."""
+    plant = h.plant
+    if h.mode == "discrete":
+        from pydrake.multibody.plant import DiscreteContactApproximation
+
+        extra["discrete contact approximation (SAP)"] = (
+            float(plant.get_discrete_contact_approximation().value),
+            float(DiscreteContactApproximation.kSap.value),
+        )
+        return plant.time_step()
+    integ = h.integrator
+    extra["plant time step (continuous)"] = (plant.time_step(), 0.0)
+    extra["fixed step mode"] = (float(integ.get_fixed_step_mode()), float(h.mode == "fixed step"))
+    if h.mode != "error-controlled":
+        return integ.get_maximum_step_size()
+    extra["target accuracy"] = (integ.get_target_accuracy(), ctx.accuracy)
+    extra["maximum step size (the horizon)"] = (integ.get_maximum_step_size(), h.horizon)
+    extra["initial step size target (requested)"] = (
+        integ.get_initial_step_size_target(),
+        h.first_step,
+    )
+    # an error-controlled integrator has no step of its own to read back: ctx.dt is the
+    # interval of the adapter's calls (checkpoints), not an engine setting
+    return ctx.dt
 
 
 def _monitor(h: _Handle, pivoted: bool):
