@@ -541,6 +541,41 @@ def _per_body(name: str, value, nbody: int, width: int | None) -> np.ndarray:
     )
 
 
+def _batch_bodies(mass, inertia, rotation, omega_body, position, velocity, pivot):
+    """(n, P, S0, Jbar, masses, pivots or None): the bodies of :func:`simulate_batch` checked
+    one by one (an error names the body) and packed as the kernels' parameter and state rows."""
+    try:
+        R_all = np.asarray(rotation, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidStateError(f"rotation: expected an (N, 3, 3) array ({exc})") from None
+    if R_all.ndim != 3 or R_all.shape[1:] != (3, 3) or R_all.shape[0] < 1:
+        raise InvalidStateError(f"rotation: expected shape (N, 3, 3), N >= 1, got {R_all.shape}")
+    n = R_all.shape[0]
+    W_all = _vec("omega_body", omega_body, (n, 3))
+    x_all = _batch_vec("position", position, n)
+    v_all = _batch_vec("velocity", velocity, n)
+    m_all = _per_body("mass", mass, n, None)
+    I_all = _per_body("inertia", inertia, n, 3)
+    c_all = None if pivot is None else _per_body("pivot", pivot, n, 3)
+    P = np.empty((n, K.NP))
+    S0 = np.empty((n, K.NS))
+    Jbar = np.empty((n, 3, 3))
+    for i in range(n):
+        where = f"[{i}]"
+        try:
+            body = Body.make(m_all[i], I_all[i], None if c_all is None else c_all[i])
+        except InvalidBodyError as exc:
+            raise InvalidBodyError(f"body {i}: {exc}") from None
+        R = check_rotation(R_all[i], f"rotation{where}")
+        x, v = x_all[i], v_all[i]
+        if body.pivoted:
+            x, v = _pivot_state("position", "velocity", x, v, R, W_all[i], body.pivot, where)
+        P[i] = _params(body)
+        S0[i] = _state(x, v, R, W_all[i])
+        Jbar[i] = body.Jbar
+    return n, P, S0, Jbar, m_all, c_all
+
+
 def simulate_batch(
     mass,
     inertia,
@@ -574,39 +609,13 @@ def simulate_batch(
     Every body is validated before any stepping (messages prefixed with the body index);
     if any body fails a step, StepSizeError names the first failing body.
     """
-    try:
-        R_all = np.asarray(rotation, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidStateError(f"rotation: expected an (N, 3, 3) array ({exc})") from None
-    if R_all.ndim != 3 or R_all.shape[1:] != (3, 3) or R_all.shape[0] < 1:
-        raise InvalidStateError(f"rotation: expected shape (N, 3, 3), N >= 1, got {R_all.shape}")
-    n = R_all.shape[0]
-    W_all = _vec("omega_body", omega_body, (n, 3))
-    x_all = _batch_vec("position", position, n)
-    v_all = _batch_vec("velocity", velocity, n)
+    n, P, S0, Jbar, m_all, c_all = _batch_bodies(
+        mass, inertia, rotation, omega_body, position, velocity, pivot
+    )
     g = _vec("gravity", gravity, (3,))
     sch = _scheme(scheme)
     nstep, saves = step_plan(dt, t_end, save_every)
     dt = float(dt)
-    m_all = _per_body("mass", mass, n, None)
-    I_all = _per_body("inertia", inertia, n, 3)
-    c_all = None if pivot is None else _per_body("pivot", pivot, n, 3)
-    P = np.empty((n, K.NP))
-    S0 = np.empty((n, K.NS))
-    Jbar = np.empty((n, 3, 3))
-    for i in range(n):
-        where = f"[{i}]"
-        try:
-            body = Body.make(m_all[i], I_all[i], None if c_all is None else c_all[i])
-        except InvalidBodyError as exc:
-            raise InvalidBodyError(f"body {i}: {exc}") from None
-        R = check_rotation(R_all[i], f"rotation{where}")
-        x, v = x_all[i], v_all[i]
-        if body.pivoted:
-            x, v = _pivot_state("position", "velocity", x, v, R, W_all[i], body.pivot, where)
-        P[i] = _params(body)
-        S0[i] = _state(x, v, R, W_all[i])
-        Jbar[i] = body.Jbar
     nsave = saves.shape[0]
     X = np.empty((n, nsave, 3))
     V = np.empty((n, nsave, 3))
