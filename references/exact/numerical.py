@@ -43,53 +43,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from references.conventions import matrix_to_quat_wxyz, quats_wxyz_to_matrices
 from references.exact._util import EPS, rotation_angle
 
 RTOL = 1e-13
 
 #: Margin applied to the spread of the runs (see the module docstring).
 SAFETY = 2.0
-
-
-def quat_to_rotation(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices of quaternions (n, 4) (w, x, y, z), normalised first: (n, 3, 3)."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
-
-
-def rotation_to_quat(R: np.ndarray) -> np.ndarray:
-    """A unit quaternion (w, x, y, z) of one rotation matrix (Shepperd's method)."""
-    tr = np.trace(R)
-    d = np.array([tr, R[0, 0], R[1, 1], R[2, 2]])
-    i = int(np.argmax(d))
-    if i == 0:
-        w = 0.5 * math.sqrt(1 + tr)
-        q = [
-            w,
-            (R[2, 1] - R[1, 2]) / (4 * w),
-            (R[0, 2] - R[2, 0]) / (4 * w),
-            (R[1, 0] - R[0, 1]) / (4 * w),
-        ]
-    else:
-        j, k = i % 3, (i + 1) % 3  # body index of the other two (0-based: i-1 is the largest)
-        a = i - 1
-        s = 0.5 * math.sqrt(1 + 2 * R[a, a] - tr)
-        v = [0.0, 0.0, 0.0]
-        v[a] = s
-        v[j] = (R[j, a] + R[a, j]) / (4 * s)
-        v[k] = (R[k, a] + R[a, k]) / (4 * s)
-        w = (R[k, j] - R[j, k]) / (4 * s)
-        q = [w, *v]
-    q = np.array(q)
-    return q / np.linalg.norm(q)
 
 
 @dataclass
@@ -177,7 +137,7 @@ def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
     else:
         arm = (None, None)
     W0 = np.asarray(scenario.omega_body)
-    y0 = np.concatenate([W0, rotation_to_quat(np.asarray(scenario.rotation))])
+    y0 = np.concatenate([W0, matrix_to_quat_wxyz(scenario.rotation)])
     # scale of W: the initial rate plus the rate a gravity torque can build up, sqrt(m g l/I)
     wscale = float(np.linalg.norm(W0))
     if arm[0] is not None:
@@ -191,7 +151,7 @@ def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
     # that its dense output (interpolation between steps, less accurate than the steps) is
     # far better than the main run's
     runs.append(_solve(Ip, Ip_inv, arm, y0, t, rtol, scale, max_step=0.5 * float(t[-1]) / nstep))
-    Rs = [quat_to_rotation(y[3:].T) for y, _ in runs]
+    Rs = [quats_wxyz_to_matrices(y[3:].T) for y, _ in runs]
     Ws = [y[:3].T for y, _ in runs]
     acc = wacc = 0.0
     for i, j in ((0, 1), (0, 2), (1, 2)):
@@ -208,7 +168,7 @@ def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
         y0p[axis] += delta
         yp, nfp = _solve(Ip, Ip_inv, arm, y0p, t, rtol, scale)
         nfev_probe += nfp
-        acc = max(acc, float(np.max(rotation_angle(Rs[0], quat_to_rotation(yp[3:].T)))))
+        acc = max(acc, float(np.max(rotation_angle(Rs[0], quats_wxyz_to_matrices(yp[3:].T)))))
         wacc = max(wacc, float(np.max(np.abs(Ws[0] - yp[:3].T))))
     acc *= SAFETY
     wacc *= SAFETY
