@@ -31,6 +31,7 @@ from references.engines import (
     get_engine,
 )
 from references.engines.base import check_readback
+from references.engines.conformance import free_scenario, pivoted_scenario
 from scenarios.model import Scenario
 
 #: the third-party engines' adapters (the suite's own "director" and "exact" are tested with
@@ -59,27 +60,10 @@ def pairs(families=None):
 
 FOURTH_ORDER = {"4th-order Lie-group"}
 
-# -- scenarios: non-identity R0, generic W, generic gravity ---------------------------------
-R_GEN = Rotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix()
-G_GEN = np.array([0.3, -0.2, -9.81])
-
-
-def free_body(**kw):
-    d = dict(
-        name="free generic",
-        description="free body, generic state",
-        mass=1.5,
-        inertia=[2.0, 3.0, 4.0],
-        rotation=R_GEN,
-        omega_body=[0.4, -1.3, 2.1],
-        position=[0.1, 0.2, -0.3],
-        velocity=[1.0, -2.0, 0.5],
-        gravity=G_GEN,
-        t_end=1.0,
-        dt=1e-3,
-    )
-    d.update(kw)
-    return Scenario(**d)
+# -- scenarios: non-identity R0, generic W, generic gravity: the conformance kit's -----------
+free_body = free_scenario
+pivoted_generic = pivoted_scenario
+R_GEN = free_scenario().rotation
 
 
 def tilted_top(**kw):
@@ -92,23 +76,6 @@ def tilted_top(**kw):
         omega_body=[0.1, 0.2, 30.0],
         gravity=[0.0, 0.0, -9.81],
         pivot=[0.0, 0.0, -0.5],
-        t_end=1.0,
-        dt=1e-3,
-    )
-    d.update(kw)
-    return Scenario(**d)
-
-
-def pivoted_generic(**kw):
-    d = dict(
-        name="pivoted generic",
-        description="asymmetric body on a pivot off every principal axis",
-        mass=1.5,
-        inertia=[2.0, 3.0, 4.0],
-        rotation=R_GEN,
-        omega_body=[0.4, -1.3, 2.1],
-        gravity=G_GEN,
-        pivot=[0.05, -0.1, 0.3],
         t_end=1.0,
         dt=1e-3,
     )
