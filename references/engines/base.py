@@ -35,7 +35,6 @@ result row with that status and the message, so messages say what happened and w
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import re
@@ -808,10 +807,9 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
     dt = ctx.dt
     for block in _blocks(nstep, saves, rec.every_step):
         steps = np.diff([done, *block]).tolist()
-        t0 = time.perf_counter()
         try:
-            with ctx.stderr or _NO_CAPTURE:
-                t0 = time.perf_counter()  # the redirection is not the engine's time
+            with ctx.stderr:  # set by Engine.run, the only caller
+                t0 = time.perf_counter()  # after the redirection is in place
                 states = stepper.run(steps)
         except StepFailure as exc:
             wall += time.perf_counter() - t0
@@ -842,9 +840,6 @@ def _diverged(engine, ctx, rec, done, wall, t_div, what) -> Diverged:
     settings = {**engine.settings(ctx), "integrator": integ.name, "timestep": ctx.dt}
     out = _output(ctx, rec, done, wall, settings)
     return Diverged(msg, t_div, out)
-
-
-_NO_CAPTURE = contextlib.nullcontext()
 
 
 def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
