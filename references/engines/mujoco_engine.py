@@ -203,8 +203,10 @@ class MujocoEngine(Engine):
             "wind": (m.opt.wind, np.zeros(3)),
             "contacts disabled": (bool(flags & mujoco.mjtDisableBit.mjDSBL_CONTACT), True),
             "autoreset disabled": (bool(flags & mujoco.mjtDisableBit.mjDSBL_AUTORESET), True),
-            "sleeping enabled": (bool(m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP), False),
         }
+        sleep = getattr(mujoco.mjtEnableBit, "mjENBL_SLEEP", None)  # absent in e.g. 3.3.0
+        if sleep is not None:
+            extra["sleeping enabled"] = (bool(m.opt.enableflags & sleep), False)
         for name in ("dof_damping", "dof_armature", "dof_frictionloss"):
             extra[name] = (getattr(m, name), np.zeros(m.nv))
         return ModelReadback(
@@ -227,7 +229,9 @@ class MujocoEngine(Engine):
             "inertial frame": f"diaginertia at {ctx.model.com.tolist()} in the body frame, "
             "identity orientation (qpos/qvel are the principal COM frame)",
             "damping, armature, frictionloss": "0 (defaults, read back)",
-            "sleep": "off (mjENBL_SLEEP not set, read back)",
+            "sleep": "off (mjENBL_SLEEP not set, read back)"
+            if hasattr(_import().mjtEnableBit, "mjENBL_SLEEP")
+            else "none in this MuJoCo version",
         }
 
     # -- state -------------------------------------------------------------------------
