@@ -40,4 +40,7 @@ class Diverged(EngineError):
 class StepFailure(ArithmeticError):
     """Raised by an adapter's ``advance`` or ``forward_dynamics`` when a step cannot be taken
     (an implicit step with no solution, a stage rotation beyond a half turn); the run loop
-    turns it into :class:`Diverged` at the time of that step."""
+    turns it into :class:`Diverged` at the time of that step. The raiser says which step:
+    ``time`` (s, the absolute time the failing step starts from) or ``steps_taken`` (the steps
+    the failing call completed before it); with neither, only the block is known. ``states``
+    (optional): the states of the checkpoints the call completed before the failure."""

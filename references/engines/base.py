@@ -813,25 +813,49 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
                 states = stepper.run(steps)
         except StepFailure as exc:
             wall += time.perf_counter() - t0
-            t_fail = getattr(exc, "time", None)
-            t_div = float(t_fail) if t_fail is not None else block[-1] * dt
-            span = f"between t = {done * dt:.6g} and t = {block[-1] * dt:.6g} s"
+            t_div, span = _failed_step(exc, done, block[-1], dt)
+            kept = getattr(exc, "states", None)  # the checkpoints completed before it
+            if kept is not None and len(kept[0]):
+                _record_checked(engine, ctx, rec, block, kept, done, wall, (e0, e_scale))
+                done = block[len(kept[0]) - 1]
             raise _diverged(
-                engine, ctx, rec, done, wall, t_div, f"a step {span} could not be taken: {exc}"
+                engine, ctx, rec, done, wall, t_div, f"{span} could not be taken: {exc}"
             ) from exc
         wall += time.perf_counter() - t0
-        found = _first_divergence(engine, ctx, states, e0, e_scale)
-        good = len(block) if found is None else found[0]
-        if good:
-            rec.record_block(block[:good], cv.BodyState(*(a[:good] for a in states)))
-        if found is not None:
-            before = block[good - 1] if good else done
-            span = f"between t = {before * dt:.6g} and t = {block[good] * dt:.6g} s"
-            raise _diverged(engine, ctx, rec, before, wall, block[good] * dt, f"{found[1]} {span}")
+        _record_checked(engine, ctx, rec, block, states, done, wall, (e0, e_scale))
         done = block[-1]
         if progress is not None:
             progress(done / nstep)
     return wall, done
+
+
+def _record_checked(engine, ctx, rec, block, states, done, wall, energy0) -> None:
+    """Record the states of the checkpoints ``block[:len(states)]`` up to the first diverged
+    one, and raise :class:`Diverged` at that one if there is one."""
+    dt = ctx.dt
+    found = _first_divergence(engine, ctx, states, *energy0)
+    good = len(states[0]) if found is None else found[0]
+    if good:
+        rec.record_block(block[:good], cv.BodyState(*(a[:good] for a in states)))
+    if found is not None:
+        before = block[good - 1] if good else done
+        span = f"between t = {before * dt:.6g} and t = {block[good] * dt:.6g} s"
+        raise _diverged(engine, ctx, rec, before, wall, block[good] * dt, f"{found[1]} {span}")
+
+
+def _failed_step(exc, done: int, last: int, dt: float) -> tuple[float, str]:
+    """(t_diverged, what failed) of a :class:`StepFailure` raised while stepping from step
+    ``done`` to ``last``: the time the failing step starts from, as the raiser gives it
+    (``time``, or ``steps_taken`` in this call); without either, only the block is known and
+    its end is the latest the failure can be."""
+    t_fail = getattr(exc, "time", None)
+    taken = getattr(exc, "steps_taken", None)
+    if t_fail is None and taken is not None:
+        t_fail = (done + int(taken)) * dt
+    if t_fail is not None:
+        t_fail = float(t_fail)
+        return t_fail, f"the step from t = {t_fail:.6g} to t = {t_fail + dt:.6g} s"
+    return last * dt, f"a step between t = {done * dt:.6g} and t = {last * dt:.6g} s"
 
 
 def _diverged(engine, ctx, rec, done, wall, t_div, what) -> Diverged:

@@ -158,11 +158,18 @@ class RKMK4Stepper:
 
         h = self.ctx.dt
         out = []
+        taken = 0
         for k in steps:
             for _ in range(k):
-                self.q, self.u = rkmk4_step(
-                    self.q, self.u, h, self._accel, so3_r3_integrate, so3_r3_dexpinv
-                )
+                try:
+                    self.q, self.u = rkmk4_step(
+                        self.q, self.u, h, self._accel, so3_r3_integrate, so3_r3_dexpinv
+                    )
+                except StepFailure as exc:
+                    exc.steps_taken = taken
+                    exc.states = stack_states(out) if out else None
+                    raise
+                taken += 1
             self.ctx.nevals += 4 * k
             out.append(self.state())
         return stack_states(out)
@@ -225,17 +232,27 @@ class CompiledRKMK4Stepper:
         y, z, K, acc, h, piv = self.y, self.z, self.K, self.acc, self.ctx.dt, self.pivoted
         fd, ctx = self.fd, self.ctx
         rows = np.empty((len(steps), 13))
+        taken = 0
         for j, n in enumerate(steps):
             for _ in range(n):
                 for i in range(4):
                     if stage(i, y, K, acc, h, piv, z):
-                        raise StageRotationTooLarge("a Runge-Kutta stage rotation >= pi")
+                        raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                     fd(ctx, z, acc)
                 if finish(y, K, acc, h, piv, z):
-                    raise StageRotationTooLarge("a Runge-Kutta step rotation >= pi")
+                    raise self._failure("a Runge-Kutta step rotation >= pi", taken, rows[:j])
+                taken += 1
             ctx.nevals += 4 * n
             rows[j] = y
         return self._as_block(rows)
+
+    def _failure(self, what: str, taken: int, done_rows) -> StageRotationTooLarge:
+        """The failure of the step after ``taken`` completed steps of this call, with the
+        states of the checkpoints completed before it."""
+        exc = StageRotationTooLarge(what)
+        exc.steps_taken = taken
+        exc.states = self._as_block(done_rows) if len(done_rows) else None
+        return exc
 
     def _as_block(self, rows) -> BodyState:
         from references.conventions import pivot_block, quats_wxyz_to_matrices
