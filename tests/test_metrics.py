@@ -267,3 +267,75 @@ def test_convergence_order_stops_where_the_slope_drops_sharply():
     assert math.isnan(slope) and n == 1
     slope, n = metrics.convergence_order(dts, [1.975e-8, 1.3e-9, 9.7e-11])
     assert n == 3 and slope == pytest.approx(3.85, abs=0.05)
+
+
+# == attitude error of a matrix that is not a rotation ========================================
+
+
+def _stretched(Q, size, seed=0):
+    """Q (I + S) with S symmetric, ||S|| ~ size: its polar factor is Q exactly (I + S is
+    symmetric positive definite), so the attitude it stands for is known by construction."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((len(Q), 3, 3))
+    S = size * (A + np.swapaxes(A, 1, 2)) / 2
+    return Q @ (np.eye(3) + S)
+
+
+@pytest.mark.parametrize("stretch", [1e-9, 1e-6, 3e-5, 1e-3, 0.05, 0.3])
+@pytest.mark.parametrize("delta", [1e-7, 0.3, 2.5])
+def test_attitude_error_of_a_stretched_rotation_is_that_of_its_rotation(stretch, delta):
+    """R = Rz(delta) (I + S): the attitude error against 1 is delta whatever the stretch
+    (both the series and the SVD branch of the polar factor); the stretch shows in
+    orthonormality_max only. atol 1e-15: the matrices and the SVD carry a few ulp of absolute
+    rounding (measured <= 2.6e-16); rtol 1e-12 for the rest."""
+    sc = spin_scenario(omega_body=(0, 0, 0.0))
+    t = np.linspace(0, 1, 7)
+    ref = spin_traj(sc, t)
+    R = _stretched(rz(np.full(len(t), delta)), stretch)
+    tr = Trajectory.from_states(sc, t, ref.position, ref.velocity, R, ref.omega_body)
+    err = metrics.attitude_error(tr, ref)
+    np.testing.assert_allclose(err, delta, rtol=1e-12, atol=1e-15)
+    assert metrics.orthonormality(tr).max() > stretch  # the norm error is reported there
+
+
+def test_attitude_error_of_a_non_unit_quaternion_against_scipy():
+    """A semi-explicit Euler step on quaternion coordinates leaves |q| != 1, and the matrix of
+    the unit-quaternion formula is then no rotation: its attitude error is the angle of the
+    rotation it stands for, computed here independently by scipy (polar decomposition by
+    scipy.linalg.polar, angle of Q_ref^T Q by scipy's Rotation)."""
+    from scipy.linalg import polar
+
+    rng = np.random.default_rng(3)
+    n = 40
+    q = rng.standard_normal((n, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    q *= (1.0 + rng.uniform(-0.05, 0.05, n))[:, None]  # norms 0.95 .. 1.05
+    w, x, y, z = q.T
+    R = np.empty((n, 3, 3))
+    R[:, 0] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], 1)
+    R[:, 1] = np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], 1)
+    R[:, 2] = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], 1)
+    Rref = Rotation.random(n, random_state=5).as_matrix()
+    sc = spin_scenario(omega_body=(0, 0, 0.0))
+    t = np.linspace(0, 1, n)
+    ref = Trajectory.from_states(sc, t, np.zeros((n, 3)), np.zeros((n, 3)), Rref, np.zeros((n, 3)))
+    tr = Trajectory.from_states(sc, t, np.zeros((n, 3)), np.zeros((n, 3)), R, np.zeros((n, 3)))
+    Q = np.array([polar(r)[0] for r in R])
+    want = Rotation.from_matrix(np.einsum("nji,njk->nik", Rref, Q)).magnitude()
+    # 1e-12: angles of order 1, computed by two formulas (Frobenius distance vs quaternion)
+    np.testing.assert_allclose(metrics.attitude_error(tr, ref), want, rtol=0, atol=1e-12)
+    # the old measure, the distance of R itself, counted the norm error as attitude
+    raw = 2 * np.arcsin(np.minimum(np.linalg.norm(R - Rref, axis=(1, 2)) / (2 * math.sqrt(2)), 1))
+    assert np.max(np.abs(raw - want)) > 1e-3
+
+
+def test_nearest_rotation_of_a_reflection_and_of_non_finite_matrices():
+    """A reflection diag(1, 1, -1) R: the nearest rotation with det +1 (the SVD branch with
+    the sign), and NaN for a non-finite matrix, which the maximum reports as inf."""
+    Q = rz(np.array([0.4]))
+    bad = np.array([Q[0] @ np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)])
+    out = metrics.nearest_rotation(bad)
+    assert np.linalg.det(out[0]) == pytest.approx(1.0, abs=1e-14)
+    np.testing.assert_allclose(out[0].T @ out[0], np.eye(3), atol=1e-14)
+    assert np.all(np.isnan(out[1]))
+    assert metrics._max([0.1, math.nan]) == math.inf
