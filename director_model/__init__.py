@@ -23,11 +23,14 @@ invariants
     module: energy, angular momentum, spin, constraint residuals in director form
 reference
     module: the readable numpy RATTLE with six multipliers (the check of the fast kernel)
+system, simulate_system, SystemStepper, SystemTrajectory, SystemBody, Joint, project_velocities
+    systems of bodies and joints (module ``director_model.system``; ``SystemBody`` is its
+    ``Body``: name, mass, inertia and initial state)
 
 Debugging: ``NUMBA_DISABLE_JIT=1`` runs every kernel as plain Python.
 """
 
-from director_model import invariants
+from director_model import invariants, system
 from director_model.body import Body, validate_body
 from director_model.errors import (
     InvalidBodyError,
@@ -56,6 +59,14 @@ from director_model.state import (
     rotation_from_quat_wxyz,
     vee,
 )
+from director_model.system import Body as SystemBody
+from director_model.system import (
+    Joint,
+    SystemStepper,
+    SystemTrajectory,
+    project_velocities,
+    simulate_system,
+)
 
 __all__ = [
     "SCHEMES",
@@ -64,9 +75,13 @@ __all__ = [
     "InvalidBodyError",
     "InvalidRunError",
     "InvalidStateError",
+    "Joint",
     "StepSizeError",
     "Stepper",
     "StepperState",
+    "SystemBody",
+    "SystemStepper",
+    "SystemTrajectory",
     "Trajectory",
     "check_rotation",
     "director_velocity",
@@ -75,11 +90,14 @@ __all__ = [
     "omega_body_from_directors",
     "omega_body_from_world",
     "omega_world_from_body",
+    "project_velocities",
     "quat_wxyz_from_rotation",
     "rotation_from_quat_wxyz",
     "simulate",
     "simulate_batch",
+    "simulate_system",
     "step_plan",
+    "system",
     "validate_body",
     "vee",
 ]

@@ -1,0 +1,682 @@
+"""Compiled kernels of the system integrator: RATTLE on M q'' = f - G^T lambda, g(q) = 0.
+
+All numba code of director_model.system is in this module (numba's disk cache is keyed on the
+file of the cached function; see director_model/_kernels.py).
+
+Formulation. Body i has the director coordinates q_i = (x_i, d_1i, d_2i, d_3i) and the
+constant mass matrix blockdiag(m 1, J_1 1, J_2 1, J_3 1). RATTLE on the whole system splits
+exactly into (a) the six internal constraints of each body (orthonormal directors) and
+(b) the joint rows g_r. For fixed joint multipliers lambda, the internal multipliers of one
+body solve that body's RATTLE step under the director forces of the joints, which is the
+discrete Moser-Veselov (DMV) equation with the body torque of those forces (numerics.md,
+section 3): with Q = D_n^T D_{n+1} given by the Gibbs vector w (quaternion (1, w)),
+
+    2 (I w + w x I w) = h (1 + |w|^2) pi,     pi = Pi_n + h/2 D_n^T tau(lambda)
+
+(I = principal moments, all > 0; no convected moment J_i appears, so laminas with one
+J_i = 0 are handled without dividing by it). The joint multipliers then solve
+g(q_{n+1}(lambda)) = 0 by a chord Newton iteration whose matrix is the exact derivative at the
+first iterate,
+
+    dg/dlambda = -h^2 sum_i G_i(q_{n+1}) blockdiag(1/(2 m_i), Mth_i) G_i(q_n)^T,
+    Mth_i = D_{n+1} (1 - hat(w)) A^{-1} D_n^T,   A = dF/dw of the DMV residual F,
+
+assembled row pair by row pair over the rows that share a body (block tridiagonal for a
+chain: solved by banded LU without pivoting, cost linear in the number of bodies), or dense
+with a rank-revealing SVD and the minimum-norm solution (closed loops, redundant rows). The
+velocity stage solves the linear system sum_i G_i blockdiag(1/m_i, D I^-1 D^T) G_i^T nu = G u0
+for the multipliers of G(q_{n+1}) u_{n+1} = 0, with the same two solvers.
+
+Rows: joint constraint rows (see model.py) with, per row, the 12 numbers
+(dg/dx_a, dg/dtheta_a, dg/dx_b, dg/dtheta_b), theta the world rotation increment
+(delta d = delta theta x d). The joint force on a body is -G^T lambda as (force, world torque).
+
+State per body (``S`` rows, length NS): x (0:3) and its compensation (3:6), v (6:9) and
+(9:12), the unnormalised attitude quaternion p (12:16) with D = D_0 R(p/|p|) and (16:20),
+Pi = I W (20:23) and (23:26). Sums into x, v, p, Pi are compensated (Kahan). ``mu`` (nrow)
+holds the velocity multipliers of the last step (force units): the start value of the
+position multipliers of the next step, so a stepper restarted from (S, mu) continues bit for
+bit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+NS = 26
+EPS = 2.220446049250313e-16
+MAXIT = 50
+DMV_MAXIT = 40
+QUAT_BIG = 2.0**128
+QUAT_SHRINK = 2.0**-64
+
+OK = 0
+FAIL_NEWTON = 1  # the joint multipliers did not converge
+FAIL_DMV = 2  # a body's rotation equation has no admissible solution (step too large)
+FAIL_SINGULAR = 3  # singular multiplier matrix (banded solver)
+FAIL_NONFINITE = 4
+
+STATUS_TEXT = {
+    FAIL_NEWTON: "the Newton iteration for the joint multipliers did not converge",
+    FAIL_DMV: "a body's rotation equation (discrete Moser-Veselov) has no admissible solution "
+    "(rotation of 90 degrees or more in one step, or a singular Jacobian)",
+    FAIL_SINGULAR: "the multiplier matrix is singular (a singular configuration of the joints; "
+    "solver='minnorm' handles it)",
+    FAIL_NONFINITE: "a non-finite state",
+}
+
+#: diagnostics slots
+D_ITER = 0  # Newton iterations (all substeps)
+D_RANKDROP = 1  # steps whose velocity-stage matrix lost rank below the nominal rank
+D_SMIN = 2  # smallest sigma_{rank_nominal} / sigma_1 of that matrix (minnorm solver)
+D_TSMIN = 3  # step index where it occurred
+D_MAXIT = 4  # largest iteration count of one substep
+NDIAG = 5
+
+
+@njit(inline="always")
+def _kahan(hi, lo, d):
+    y = d + lo
+    t = hi + y
+    return t, y - (t - hi)
+
+
+@njit(cache=True)
+def _quat_mat(p0, p1, p2, p3, R):
+    """R(p/|p|) into R (9,), row-major."""
+    a = p0 * p0
+    b = p1 * p1
+    c = p2 * p2
+    d = p3 * p3
+    r = 1.0 / ((a + b) + (c + d))
+    r2 = 2.0 * r
+    xy = p1 * p2
+    xz = p1 * p3
+    yz = p2 * p3
+    sx = p0 * p1
+    sy = p0 * p2
+    sz = p0 * p3
+    R[0] = ((a + b) - (c + d)) * r
+    R[1] = (xy - sz) * r2
+    R[2] = (xz + sy) * r2
+    R[3] = (xy + sz) * r2
+    R[4] = ((a + c) - (b + d)) * r
+    R[5] = (yz - sx) * r2
+    R[6] = (xz - sy) * r2
+    R[7] = (yz + sx) * r2
+    R[8] = ((a + d) - (b + c)) * r
+
+
+@njit(cache=True)
+def _matmul3(A, B, C):
+    """C = A B for row-major 3x3 arrays (9,)."""
+    for i in range(3):
+        for j in range(3):
+            C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
+
+
+@njit(cache=True)
+def _directors(D0, S, Dn, tmp):
+    """Dn[i] = D0[i] R(p_i) for every body."""
+    for i in range(S.shape[0]):
+        _quat_mat(S[i, 12], S[i, 13], S[i, 14], S[i, 15], tmp)
+        _matmul3(D0[i], tmp, Dn[i])
+
+
+@njit(cache=True)
+def _inv3(A, out):
+    """out = A^{-1} (row-major 3x3); returns det(A)."""
+    c00 = A[4] * A[8] - A[5] * A[7]
+    c01 = A[5] * A[6] - A[3] * A[8]
+    c02 = A[3] * A[7] - A[4] * A[6]
+    det = A[0] * c00 + A[1] * c01 + A[2] * c02
+    if det == 0.0:
+        return det
+    r = 1.0 / det
+    out[0] = c00 * r
+    out[1] = (A[2] * A[7] - A[1] * A[8]) * r
+    out[2] = (A[1] * A[5] - A[2] * A[4]) * r
+    out[3] = c01 * r
+    out[4] = (A[0] * A[8] - A[2] * A[6]) * r
+    out[5] = (A[2] * A[3] - A[0] * A[5]) * r
+    out[6] = c02 * r
+    out[7] = (A[1] * A[6] - A[0] * A[7]) * r
+    out[8] = (A[0] * A[4] - A[1] * A[3]) * r
+    return det
+
+
+@njit(cache=True)
+def _dmv_jac(I, w, pi, h, A):
+    """A = dF/dw of F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi (row-major)."""
+    Iw0 = I[0] * w[0]
+    Iw1 = I[1] * w[1]
+    Iw2 = I[2] * w[2]
+    # 2 (diag(I) + hat(w) diag(I) - hat(I w)) - 2 h pi w^T
+    A[0] = 2.0 * I[0] - 2.0 * h * pi[0] * w[0]
+    A[1] = 2.0 * (-w[2] * I[1] + Iw2) - 2.0 * h * pi[0] * w[1]
+    A[2] = 2.0 * (w[1] * I[2] - Iw1) - 2.0 * h * pi[0] * w[2]
+    A[3] = 2.0 * (w[2] * I[0] - Iw2) - 2.0 * h * pi[1] * w[0]
+    A[4] = 2.0 * I[1] - 2.0 * h * pi[1] * w[1]
+    A[5] = 2.0 * (-w[0] * I[2] + Iw0) - 2.0 * h * pi[1] * w[2]
+    A[6] = 2.0 * (-w[1] * I[0] + Iw1) - 2.0 * h * pi[2] * w[0]
+    A[7] = 2.0 * (w[0] * I[1] - Iw0) - 2.0 * h * pi[2] * w[1]
+    A[8] = 2.0 * I[2] - 2.0 * h * pi[2] * w[2]
+
+
+@njit(cache=True)
+def _dmv_solve(I, pi, h, w, A, Ai):
+    """Solve the DMV equation for the Gibbs vector w (in place; w holds the start value).
+    Returns True on success: converged, |w| < 1 (rotation below 90 degrees), det A > 0."""
+    for _ in range(DMV_MAXIT):
+        Iw0 = I[0] * w[0]
+        Iw1 = I[1] * w[1]
+        Iw2 = I[2] * w[2]
+        q = 1.0 + (w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        F0 = 2.0 * (Iw0 + (w[1] * Iw2 - w[2] * Iw1)) - h * q * pi[0]
+        F1 = 2.0 * (Iw1 + (w[2] * Iw0 - w[0] * Iw2)) - h * q * pi[1]
+        F2 = 2.0 * (Iw2 + (w[0] * Iw1 - w[1] * Iw0)) - h * q * pi[2]
+        _dmv_jac(I, w, pi, h, A)
+        det = _inv3(A, Ai)
+        if not det > 0.0:
+            return False
+        d0 = Ai[0] * F0 + Ai[1] * F1 + Ai[2] * F2
+        d1 = Ai[3] * F0 + Ai[4] * F1 + Ai[5] * F2
+        d2 = Ai[6] * F0 + Ai[7] * F1 + Ai[8] * F2
+        w[0] -= d0
+        w[1] -= d1
+        w[2] -= d2
+        dn = abs(d0) + abs(d1) + abs(d2)
+        wn = abs(w[0]) + abs(w[1]) + abs(w[2])
+        if not wn < math.inf:
+            return False
+        if dn <= 4.0 * EPS * wn or wn == 0.0:
+            if w[0] * w[0] + w[1] * w[1] + w[2] * w[2] >= 1.0:
+                return False
+            _dmv_jac(I, w, pi, h, A)
+            return _inv3(A, Ai) > 0.0
+    return False
+
+
+@njit(cache=True)
+def _rows(rint, rvec, X, D, gv, Jc):
+    """Row values gv (nrow,) and Jacobians Jc (nrow, 12) at positions X (nb, 3) and
+    directors D (nb, 9); body index -1 is the ground (x = 0, D = 1)."""
+    for r in range(rint.shape[0]):
+        prim = rint[r, 0]
+        a = rint[r, 1]
+        b = rint[r, 2]
+        k = rint[r, 3]
+        Da = D[a]
+        va0, va1, va2 = rvec[r, 0], rvec[r, 1], rvec[r, 2]
+        vb0, vb1, vb2 = rvec[r, 3], rvec[r, 4], rvec[r, 5]
+        ra0 = Da[0] * va0 + Da[1] * va1 + Da[2] * va2
+        ra1 = Da[3] * va0 + Da[4] * va1 + Da[5] * va2
+        ra2 = Da[6] * va0 + Da[7] * va1 + Da[8] * va2
+        if b >= 0:
+            Db = D[b]
+            rb0 = Db[0] * vb0 + Db[1] * vb1 + Db[2] * vb2
+            rb1 = Db[3] * vb0 + Db[4] * vb1 + Db[5] * vb2
+            rb2 = Db[6] * vb0 + Db[7] * vb1 + Db[8] * vb2
+            xb0, xb1, xb2 = X[b, 0], X[b, 1], X[b, 2]
+        else:
+            rb0, rb1, rb2 = vb0, vb1, vb2
+            xb0, xb1, xb2 = 0.0, 0.0, 0.0
+        xa0, xa1, xa2 = X[a, 0], X[a, 1], X[a, 2]
+        for c in range(12):
+            Jc[r, c] = 0.0
+        if prim == 0:  # POINT component k
+            if k == 0:
+                gv[r] = (xa0 + ra0) - (xb0 + rb0)
+                Jc[r, 0] = 1.0
+                Jc[r, 4] = ra2
+                Jc[r, 5] = -ra1
+                Jc[r, 6] = -1.0
+                Jc[r, 10] = -rb2
+                Jc[r, 11] = rb1
+            elif k == 1:
+                gv[r] = (xa1 + ra1) - (xb1 + rb1)
+                Jc[r, 1] = 1.0
+                Jc[r, 3] = -ra2
+                Jc[r, 5] = ra0
+                Jc[r, 7] = -1.0
+                Jc[r, 9] = rb2
+                Jc[r, 11] = -rb0
+            else:
+                gv[r] = (xa2 + ra2) - (xb2 + rb2)
+                Jc[r, 2] = 1.0
+                Jc[r, 3] = ra1
+                Jc[r, 4] = -ra0
+                Jc[r, 8] = -1.0
+                Jc[r, 9] = -rb1
+                Jc[r, 10] = rb0
+        elif prim == 1:  # DOT
+            gv[r] = (ra0 * rb0 + ra1 * rb1 + ra2 * rb2) - rvec[r, 9]
+            c0 = ra1 * rb2 - ra2 * rb1
+            c1 = ra2 * rb0 - ra0 * rb2
+            c2 = ra0 * rb1 - ra1 * rb0
+            Jc[r, 3] = c0
+            Jc[r, 4] = c1
+            Jc[r, 5] = c2
+            Jc[r, 9] = -c0
+            Jc[r, 10] = -c1
+            Jc[r, 11] = -c2
+        else:  # LINE
+            p0, p1, p2 = rvec[r, 6], rvec[r, 7], rvec[r, 8]
+            u0 = Da[0] * p0 + Da[1] * p1 + Da[2] * p2
+            u1 = Da[3] * p0 + Da[4] * p1 + Da[5] * p2
+            u2 = Da[6] * p0 + Da[7] * p1 + Da[8] * p2
+            s0 = (xb0 + rb0) - (xa0 + ra0)
+            s1 = (xb1 + rb1) - (xa1 + ra1)
+            s2 = (xb2 + rb2) - (xa2 + ra2)
+            gv[r] = s0 * u0 + s1 * u1 + s2 * u2
+            Jc[r, 0] = -u0
+            Jc[r, 1] = -u1
+            Jc[r, 2] = -u2
+            Jc[r, 3] = -(ra1 * u2 - ra2 * u1) + (u1 * s2 - u2 * s1)
+            Jc[r, 4] = -(ra2 * u0 - ra0 * u2) + (u2 * s0 - u0 * s2)
+            Jc[r, 5] = -(ra0 * u1 - ra1 * u0) + (u0 * s1 - u1 * s0)
+            Jc[r, 6] = u0
+            Jc[r, 7] = u1
+            Jc[r, 8] = u2
+            Jc[r, 9] = rb1 * u2 - rb2 * u1
+            Jc[r, 10] = rb2 * u0 - rb0 * u2
+            Jc[r, 11] = rb0 * u1 - rb1 * u0
+
+
+@njit(cache=True)
+def _forces(rint, Jc, lam, F, T):
+    """Joint forces -G^T lam per body: F (nb, 3) force, T (nb, 3) world torque."""
+    F[:] = 0.0
+    T[:] = 0.0
+    for r in range(rint.shape[0]):
+        a = rint[r, 1]
+        b = rint[r, 2]
+        lr = lam[r]
+        for c in range(3):
+            F[a, c] -= Jc[r, c] * lr
+            T[a, c] -= Jc[r, 3 + c] * lr
+        if b >= 0:
+            for c in range(3):
+                F[b, c] -= Jc[r, 6 + c] * lr
+                T[b, c] -= Jc[r, 9 + c] * lr
+
+
+@njit(cache=True)
+def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw):
+    """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
+    (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]."""
+    A[:] = 0.0
+    nb = ptr.shape[0] - 1
+    for i in range(nb):
+        M = Mth[i]
+        mx = Mx[i]
+        for e1 in range(ptr[i], ptr[i + 1]):
+            r = idx[e1]
+            o1 = 6 * side[e1]
+            l0 = JL[r, o1] * mx
+            l1 = JL[r, o1 + 1] * mx
+            l2 = JL[r, o1 + 2] * mx
+            t0, t1, t2 = JL[r, o1 + 3], JL[r, o1 + 4], JL[r, o1 + 5]
+            l3 = t0 * M[0] + t1 * M[3] + t2 * M[6]
+            l4 = t0 * M[1] + t1 * M[4] + t2 * M[7]
+            l5 = t0 * M[2] + t1 * M[5] + t2 * M[8]
+            for e2 in range(ptr[i], ptr[i + 1]):
+                s = idx[e2]
+                o2 = 6 * side[e2]
+                v = (
+                    l0 * JR[s, o2] + l1 * JR[s, o2 + 1] + l2 * JR[s, o2 + 2]
+                    + l3 * JR[s, o2 + 3] + l4 * JR[s, o2 + 4] + l5 * JR[s, o2 + 5]
+                )  # fmt: skip
+                if band:
+                    A[r, bw + s - r] += v
+                else:
+                    A[r, s] += v
+
+
+@njit(cache=True)
+def _band_lu(A, bw):
+    """In-place LU without pivoting of the banded A (n, 2 bw + 1). Returns False on a pivot
+    below 1e-13 times the largest diagonal entry (a singular configuration)."""
+    n = A.shape[0]
+    big = 0.0
+    for k in range(n):
+        big = max(big, abs(A[k, bw]))
+    tiny = 1e-13 * big
+    for k in range(n):
+        piv = A[k, bw]
+        if not abs(piv) > tiny:
+            return False
+        ip = 1.0 / piv
+        for i in range(k + 1, min(k + bw + 1, n)):
+            li = A[i, bw + k - i] * ip
+            A[i, bw + k - i] = li
+            if li != 0.0:
+                for j in range(k + 1, min(k + bw + 1, n)):
+                    A[i, bw + j - i] -= li * A[k, bw + j - k]
+    return True
+
+
+@njit(cache=True)
+def _band_solve(A, bw, b, x):
+    """Solve with the factors of :func:`_band_lu`: x = A^{-1} b."""
+    n = A.shape[0]
+    for i in range(n):
+        s = b[i]
+        for k in range(max(0, i - bw), i):
+            s -= A[i, bw + k - i] * x[k]
+        x[i] = s
+    for i in range(n - 1, -1, -1):
+        s = x[i]
+        for j in range(i + 1, min(i + bw + 1, n)):
+            s -= A[i, bw + j - i] * x[j]
+        x[i] = s / A[i, bw]
+
+
+@njit(cache=True)
+def _svd_factor(A, rank_tol, U, s, Vt):
+    """SVD of the dense A into U, s, Vt (copies); returns rank = #(s > rank_tol s_0)."""
+    U1, s1, Vt1 = np.linalg.svd(A)
+    U[:, :] = U1
+    s[:] = s1
+    Vt[:, :] = Vt1
+    rank = 0
+    if s.shape[0] > 0 and s[0] > 0.0:
+        for k in range(s.shape[0]):
+            if s[k] > rank_tol * s[0]:
+                rank += 1
+    return rank
+
+
+@njit(cache=True)
+def _svd_solve(U, s, Vt, rank, b, x):
+    """Minimum-norm x = V S^+ U^T b over the first ``rank`` singular values."""
+    n = x.shape[0]
+    x[:] = 0.0
+    for k in range(rank):
+        c = 0.0
+        for i in range(n):
+            c += U[i, k] * b[i]
+        c /= s[k]
+        for j in range(n):
+            x[j] += c * Vt[k, j]
+
+
+@njit(cache=True)
+def _substep(
+    h, B, D0, rint, rvec, ptr, idx, side, g, S, mu, minnorm, bw, rank_nom, rank_tol, tol_rel,
+    Lsc, diag, nstep_now, W,
+):  # fmt: skip
+    """One RATTLE step of size h (negative in a composition's backward sub-step). W is the
+    workspace tuple. Returns a status code."""
+    (Dn, Dnew, Xn, Xnew, VH, PI, WG, F, T, F2, T2, Mx, Mth, Jold, Jnew, gv, lam, dl, Ab,
+     Ad, tmp, A3, Ai3, K3, K4, r0, U, sv, Vt) = W  # fmt: skip
+    nb = S.shape[0]
+    nrow = rint.shape[0]
+    hh = 0.5 * h
+    _directors(D0, S, Dn, tmp)
+    xmax = Lsc
+    for i in range(nb):
+        for c in range(3):
+            Xn[i, c] = S[i, c]
+            xmax = max(xmax, abs(S[i, c]))
+    tol = tol_rel * xmax
+    if nrow > 0:
+        _rows(rint, rvec, Xn, Dn, gv, Jold)
+    for r in range(nrow):
+        lam[r] = mu[r]
+    for i in range(nb):
+        for c in range(3):
+            WG[i, c] = hh * S[i, 20 + c] * B[i, 4 + c]
+    rank = 0
+    it = 0
+    while True:
+        if nrow > 0:
+            _forces(rint, Jold, lam, F, T)
+        for i in range(nb):
+            m = B[i, 0]
+            Di = Dn[i]
+            for c in range(3):
+                VH[i, c] = S[i, 6 + c] + hh * (g[c] + F[i, c] / m)
+                Xnew[i, c] = S[i, c] + h * VH[i, c]
+            # pi = Pi + h/2 D_n^T tau
+            for c in range(3):
+                PI[i, c] = S[i, 20 + c] + hh * (Di[c] * T[i, 0] + Di[3 + c] * T[i, 1]
+                                                 + Di[6 + c] * T[i, 2])  # fmt: skip
+            if not _dmv_solve(B[i, 1:4], PI[i], h, WG[i], A3, Ai3):
+                return FAIL_DMV
+            w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
+            _quat_mat(1.0, w0, w1, w2, tmp)
+            _matmul3(Di, tmp, Dnew[i])
+            if it == 0 and nrow > 0:
+                # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, A^{-1} at the solution (in Ai3)
+                for a in range(3):
+                    for b in range(3):
+                        K3[3 * a + b] = Ai3[3 * a + b]
+                K3[0] -= -w2 * Ai3[3] + w1 * Ai3[6]
+                K3[1] -= -w2 * Ai3[4] + w1 * Ai3[7]
+                K3[2] -= -w2 * Ai3[5] + w1 * Ai3[8]
+                K3[3] -= w2 * Ai3[0] - w0 * Ai3[6]
+                K3[4] -= w2 * Ai3[1] - w0 * Ai3[7]
+                K3[5] -= w2 * Ai3[2] - w0 * Ai3[8]
+                K3[6] -= -w1 * Ai3[0] + w0 * Ai3[3]
+                K3[7] -= -w1 * Ai3[1] + w0 * Ai3[4]
+                K3[8] -= -w1 * Ai3[2] + w0 * Ai3[5]
+                _matmul3(Dnew[i], K3, K4)
+                for a in range(3):
+                    for b in range(3):
+                        Mth[i, 3 * a + b] = (
+                            K4[3 * a] * Di[3 * b] + K4[3 * a + 1] * Di[3 * b + 1]
+                            + K4[3 * a + 2] * Di[3 * b + 2]
+                        )  # fmt: skip
+                Mx[i] = 0.5 / m
+        if nrow == 0:
+            break
+        _rows(rint, rvec, Xnew, Dnew, gv, Jnew)
+        err = 0.0
+        for r in range(nrow):
+            err = max(err, abs(gv[r]))
+        if not err < math.inf:
+            return FAIL_NONFINITE
+        if err <= tol:
+            break
+        if it >= MAXIT:
+            return FAIL_NEWTON
+        if it == 0:
+            if minnorm:
+                _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, False, bw)
+                rank = _svd_factor(Ad, rank_tol, U, sv, Vt)
+            else:
+                _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, True, bw)
+                if not _band_lu(Ab, bw):
+                    return FAIL_SINGULAR
+        if minnorm:
+            _svd_solve(U, sv, Vt, rank, gv, dl)
+        else:
+            _band_solve(Ab, bw, gv, dl)
+        ih2 = 1.0 / (h * h)
+        for r in range(nrow):
+            lam[r] += dl[r] * ih2
+        it += 1
+    diag[D_ITER] += it
+    diag[D_MAXIT] = max(diag[D_MAXIT], it)
+    # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h)
+    for i in range(nb):
+        w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
+        I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
+        q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
+        rq = 4.0 / (q * h)
+        c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
+        c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
+        c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
+        # the momentum increment over the first half and the rotation: PI - Pi_n - rq c
+        Di = Dn[i]
+        for c in range(3):
+            K3[c] = hh * (Di[c] * T[i, 0] + Di[3 + c] * T[i, 1] + Di[6 + c] * T[i, 2])
+        F2[i, 0] = K3[0] - rq * c0  # dPi of the step so far, body axes of D_{n+1}
+        F2[i, 1] = K3[1] - rq * c1
+        F2[i, 2] = K3[2] - rq * c2
+        for c in range(3):
+            T2[i, c] = (S[i, 20 + c] + F2[i, c]) * B[i, 4 + c]  # W0 = I^{-1} Q^T pi
+            VH[i, c] = VH[i, c] + hh * g[c]  # v0
+    if nrow > 0:
+        for r in range(nrow):
+            a = rint[r, 1]
+            b = rint[r, 2]
+            Da = Dnew[a]
+            wa0 = Da[0] * T2[a, 0] + Da[1] * T2[a, 1] + Da[2] * T2[a, 2]
+            wa1 = Da[3] * T2[a, 0] + Da[4] * T2[a, 1] + Da[5] * T2[a, 2]
+            wa2 = Da[6] * T2[a, 0] + Da[7] * T2[a, 1] + Da[8] * T2[a, 2]
+            s = (Jnew[r, 0] * VH[a, 0] + Jnew[r, 1] * VH[a, 1] + Jnew[r, 2] * VH[a, 2]
+                 + Jnew[r, 3] * wa0 + Jnew[r, 4] * wa1 + Jnew[r, 5] * wa2)  # fmt: skip
+            if b >= 0:
+                Db = Dnew[b]
+                wb0 = Db[0] * T2[b, 0] + Db[1] * T2[b, 1] + Db[2] * T2[b, 2]
+                wb1 = Db[3] * T2[b, 0] + Db[4] * T2[b, 1] + Db[5] * T2[b, 2]
+                wb2 = Db[6] * T2[b, 0] + Db[7] * T2[b, 1] + Db[8] * T2[b, 2]
+                s += (Jnew[r, 6] * VH[b, 0] + Jnew[r, 7] * VH[b, 1] + Jnew[r, 8] * VH[b, 2]
+                      + Jnew[r, 9] * wb0 + Jnew[r, 10] * wb1 + Jnew[r, 11] * wb2)  # fmt: skip
+            r0[r] = s
+        for i in range(nb):
+            Mx[i] = 1.0 / B[i, 0]
+            Di = Dnew[i]
+            for a in range(3):
+                for b in range(3):
+                    Mth[i, 3 * a + b] = (
+                        Di[3 * a] * B[i, 4] * Di[3 * b] + Di[3 * a + 1] * B[i, 5] * Di[3 * b + 1]
+                        + Di[3 * a + 2] * B[i, 6] * Di[3 * b + 2]
+                    )  # fmt: skip
+        if minnorm:
+            _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, False, bw)
+            rank = _svd_factor(Ad, rank_tol, U, sv, Vt)
+            _svd_solve(U, sv, Vt, rank, r0, dl)
+            if rank < rank_nom:
+                diag[D_RANKDROP] += 1
+            if rank_nom > 0 and sv[0] > 0.0:
+                rel = sv[rank_nom - 1] / sv[0]
+                if rel < diag[D_SMIN]:
+                    diag[D_SMIN] = rel
+                    diag[D_TSMIN] = nstep_now
+        else:
+            _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, True, bw)
+            if not _band_lu(Ab, bw):
+                return FAIL_SINGULAR
+            _band_solve(Ab, bw, r0, dl)
+    return _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, dl, rint, Jnew, nrow, F2, T2)
+
+
+@njit(cache=True)
+def _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, nu, rint, Jnew, nrow, Fn, Tn):
+    """Compensated update of the state from the step's solution; mu = 2 nu / h. Fn, Tn are
+    work arrays (nb, 3) for the forces of the velocity multipliers nu."""
+    nb = S.shape[0]
+    hh = 0.5 * h
+    Fn[:] = 0.0
+    Tn[:] = 0.0
+    if nrow > 0:
+        _forces(rint, Jnew, nu, Fn, Tn)
+    for r in range(nrow):
+        mu[r] = 2.0 * nu[r] / h
+    for i in range(nb):
+        m = B[i, 0]
+        I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
+        w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
+        Di = Dn[i]
+        Dj = Dnew[i]
+        # x += h v_half; v += h/2 (g + F/m) + h/2 g + Fn/m  (VH holds v_half + h/2 g)
+        for c in range(3):
+            vh = VH[i, c] - hh * g[c]
+            S[i, c], S[i, 3 + c] = _kahan(S[i, c], S[i, 3 + c], h * vh)
+            dv = hh * (g[c] + F[i, c] / m) + hh * g[c] + Fn[i, c] / m
+            S[i, 6 + c], S[i, 9 + c] = _kahan(S[i, 6 + c], S[i, 9 + c], dv)
+        # Pi += h/2 Dn^T T - 4 c/(q h) + Dnew^T Tn
+        q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
+        rq = 4.0 / (q * h)
+        c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
+        c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
+        c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
+        cc = (c0, c1, c2)
+        for c in range(3):
+            d = (
+                hh * (Di[c] * T[i, 0] + Di[3 + c] * T[i, 1] + Di[6 + c] * T[i, 2]) - rq * cc[c]
+                + (Dj[c] * Tn[i, 0] + Dj[3 + c] * Tn[i, 1] + Dj[6 + c] * Tn[i, 2])
+            )  # fmt: skip
+            S[i, 20 + c], S[i, 23 + c] = _kahan(S[i, 20 + c], S[i, 23 + c], d)
+        # p += p (x) (0, w)
+        p0, p1, p2, p3 = S[i, 12], S[i, 13], S[i, 14], S[i, 15]
+        dp0 = -((p1 * w0 + p2 * w1) + p3 * w2)
+        dp1 = p0 * w0 + (p2 * w2 - p3 * w1)
+        dp2 = p0 * w1 + (p3 * w0 - p1 * w2)
+        dp3 = p0 * w2 + (p1 * w1 - p2 * w0)
+        S[i, 12], S[i, 16] = _kahan(p0, S[i, 16], dp0)
+        S[i, 13], S[i, 17] = _kahan(p1, S[i, 17], dp1)
+        S[i, 14], S[i, 18] = _kahan(p2, S[i, 18], dp2)
+        S[i, 15], S[i, 19] = _kahan(p3, S[i, 19], dp3)
+        nn = (S[i, 12] ** 2 + S[i, 13] ** 2) + (S[i, 14] ** 2 + S[i, 15] ** 2)
+        if nn > QUAT_BIG:
+            for c in range(12, 20):
+                S[i, c] *= QUAT_SHRINK
+        for c in range(NS):
+            if not abs(S[i, c]) < math.inf:
+                return FAIL_NONFINITE
+    return OK
+
+
+@njit(cache=True)
+def _store(B, D0, S, X, V, D, W, k, tmp, R):
+    for i in range(S.shape[0]):
+        for c in range(3):
+            X[k, i, c] = S[i, c]
+            V[k, i, c] = S[i, 6 + c]
+            W[k, i, c] = S[i, 20 + c] * B[i, 4 + c]
+        _quat_mat(S[i, 12], S[i, 13], S[i, 14], S[i, 15], tmp)
+        _matmul3(D0[i], tmp, R)
+        for c in range(9):
+            D[k, i, c // 3, c % 3] = R[c]
+
+
+@njit(cache=True)
+def run_system(
+    B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info,
+):  # fmt: skip
+    """Advance the system nstep steps of dt (each step the composition ``coef`` of RATTLE
+    sub-steps), storing the states at the step indices ``saves`` (increasing, 0 = the start)
+    into X, V (nsave, nb, 3), D (nsave, nb, 3, 3), W (nsave, nb, 3). Returns a status; on
+    failure info[0] = steps completed, info[1] = the failing sub-step's h."""
+    nb = S.shape[0]
+    nrow = rint.shape[0]
+    nr = max(nrow, 1)
+    Wk = (
+        np.empty((nb, 9)), np.empty((nb, 9)), np.empty((nb, 3)), np.empty((nb, 3)),
+        np.empty((nb, 3)), np.empty((nb, 3)), np.empty((nb, 3)), np.zeros((nb, 3)),
+        np.zeros((nb, 3)), np.zeros((nb, 3)), np.zeros((nb, 3)), np.empty(nb),
+        np.empty((nb, 9)), np.zeros((nr, 12)), np.zeros((nr, 12)), np.zeros(nr), np.zeros(nr),
+        np.zeros(nr), np.zeros((nr, 2 * bw + 1)), np.zeros((nr, nr)) if minnorm else
+        np.zeros((1, 1)), np.empty(9), np.empty(9), np.empty(9), np.empty(9), np.empty(9),
+        np.zeros(nr), np.zeros((nr, nr)) if minnorm else np.zeros((1, 1)), np.zeros(nr),
+        np.zeros((nr, nr)) if minnorm else np.zeros((1, 1)),
+    )  # fmt: skip
+    tmp = np.empty(9)
+    R = np.empty(9)
+    k = 0
+    if saves.shape[0] > 0 and saves[0] == 0:
+        _store(B, D0, S, X, V, D, W, 0, tmp, R)
+        k = 1
+    for n in range(1, nstep + 1):
+        for j in range(coef.shape[0]):
+            h = coef[j] * dt
+            st = _substep(
+                h, B, D0, rint, rvec, ptr, idx, side, g, S, mu, minnorm, bw, rank_nom,
+                rank_tol, tol_rel, Lsc, diag, n, Wk,
+            )  # fmt: skip
+            if st != OK:
+                info[0] = n - 1
+                info[1] = h
+                return st
+        if k < saves.shape[0] and saves[k] == n:
+            _store(B, D0, S, X, V, D, W, k, tmp, R)
+            k += 1
+    return OK

@@ -1,0 +1,502 @@
+"""Bodies, joints and their assembly into constraint rows (the system's Python layer).
+
+Conventions (SI): each body's frame is its principal frame with the origin at its centre of
+mass; ``rotation`` R is body-to-world (columns are the directors d_1, d_2, d_3), ``omega_body``
+W is the angular velocity in body axes (w = R W). Joint anchors and axes are given in the
+principal frame of each body, relative to its centre of mass; for the ground (``body_b=None``)
+``anchor_b`` and ``axis_b`` are world coordinates.
+
+Each joint is a set of *constraint rows* g_r(q) = 0, each one of three primitives, all at
+most quadratic in the director coordinates q = (x, d_1, d_2, d_3) of the two bodies:
+
+``POINT`` (component k)  (x_a + R_a X - x_b - R_b Y)_k
+``DOT``                  (R_a u) . (R_b v) - c
+``LINE``                 (x_b + R_b Y - x_a - R_a X) . (R_a p)
+
+with the ground's x = 0, R = 1. Joints (u_a = R_a axis_a, u_b = R_b axis_b):
+
+==============  ====  ==================================================================
+kind            rows  rows
+==============  ====  ==================================================================
+spherical       3     POINT x3 (anchor_a, anchor_b)
+fixed_point     3     as spherical, body_b must be None (the ground)
+revolute        5     POINT x3, DOT (u_a . R_b m_k = 0, k = 1, 2; m_1, m_2 perpendicular to
+                      axis_b)
+universal       4     POINT x3, DOT u_a . u_b = 0 (axes perpendicular at t = 0)
+cylindrical     4     the two DOT rows of a revolute, LINE x2 (R_a p_k, p_k perpendicular to
+                      axis_a)
+prismatic       5     cylindrical and DOT (R_a p_1) . (R_b m_k) = c, the rotation about the
+                      axis locked at its initial value
+==============  ====  ==================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from director_model.body import validate_body
+from director_model.errors import InvalidBodyError, InvalidStateError
+from director_model.state import check_rotation
+
+POINT = 0
+DOT = 1
+LINE = 2
+
+JOINT_KINDS = ("spherical", "fixed_point", "revolute", "universal", "cylindrical", "prismatic")
+_ROWS = {"spherical": 3, "fixed_point": 3, "revolute": 5, "universal": 4, "cylindrical": 4,
+         "prismatic": 5}  # fmt: skip
+_NEEDS_AXES = ("revolute", "universal", "cylindrical", "prismatic")
+
+#: a joint must hold at t = 0 to this absolute tolerance (m for points, for the dot products
+#: of unit axes), and the initial velocities to this tolerance times the largest body speed
+#: scale (m/s); larger gaps are errors, smaller ones are closed by the first step
+INIT_TOL = 1e-10
+
+
+class InvalidJointError(ValueError):
+    """A joint is malformed (unknown kind or body, missing or zero axis) or does not hold at
+    t = 0 (the message names the joint, the gap and the rule)."""
+
+
+class InvalidMechanismError(ValueError):
+    """The system as a whole cannot be integrated: no degree of freedom is left (a locked
+    structure), or a body is a thin rod (two convected moments zero)."""
+
+
+def _vec3(what: str, value, err=InvalidStateError) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise err(f"{what} = {value!r}: expected 3 real numbers ({exc})") from None
+    if a.shape != (3,):
+        raise err(f"{what} = {value!r}: expected 3 real numbers, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise err(f"{what} = {a.tolist()}: every entry must be finite")
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """A rigid body of a system and its initial state (SI units).
+
+    ``name`` unique in the system; ``mass`` m > 0 (kg); ``inertia`` principal moments
+    (I_1, I_2, I_3) about the centre of mass (kg m^2), triangle inequality, a lamina
+    (I_i = I_j + I_k) allowed, a thin rod refused; ``position`` x of the centre of mass (m,
+    world); ``rotation`` R (3, 3) body-to-world, orthonormal to 1e-12, det +1; ``velocity``
+    v (m/s, world); ``omega_body`` W (rad/s, body axes). Checked at construction
+    (InvalidBodyError / InvalidStateError naming the body)."""
+
+    name: str
+    mass: float
+    inertia: tuple = (1.0, 1.0, 1.0)
+    position: tuple = (0.0, 0.0, 0.0)
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    velocity: tuple = (0.0, 0.0, 0.0)
+    omega_body: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise InvalidBodyError(f"body name = {self.name!r}: must be a non-empty string")
+        where = f"body {self.name!r}: "
+        try:
+            J = validate_body(self.mass, self.inertia)
+        except InvalidBodyError as exc:
+            raise InvalidBodyError(where + str(exc)) from None
+        object.__setattr__(self, "mass", float(self.mass))
+        object.__setattr__(self, "inertia", _vec3(where + "inertia", self.inertia))
+        object.__setattr__(self, "J", J)
+        for f in ("position", "velocity", "omega_body"):
+            object.__setattr__(self, f, _vec3(where + f, getattr(self, f)))
+        R = check_rotation(self.rotation, where + "rotation")
+        object.__setattr__(self, "rotation", R)
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """A joint between body ``body_a`` and body ``body_b`` (names), or the ground if
+    ``body_b`` is None. ``kind``: one of :data:`JOINT_KINDS`. ``anchor_a`` (m) in the
+    principal frame of a relative to its centre of mass, ``anchor_b`` likewise in b (world
+    coordinates for the ground); ``axis_a``, ``axis_b`` (any length > 0, normalised) for
+    revolute, universal, cylindrical and prismatic joints, in the same frames. ``name``
+    defaults to "joint<index>" in the system. The equations are in the module docstring."""
+
+    kind: str
+    body_a: str
+    body_b: str | None = None
+    anchor_a: tuple = (0.0, 0.0, 0.0)
+    anchor_b: tuple = (0.0, 0.0, 0.0)
+    axis_a: tuple | None = None
+    axis_b: tuple | None = None
+    name: str | None = None
+
+
+def _perp_pair(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing the unit vector n to a right-handed orthonormal basis."""
+    k = int(np.argmin(np.abs(n)))
+    e = np.zeros(3)
+    e[k] = 1.0
+    m1 = np.cross(n, e)
+    m1 /= np.linalg.norm(m1)
+    return m1, np.cross(n, m1)
+
+
+@dataclass(frozen=True)
+class Assembly:
+    """The system as arrays for the compiled kernel.
+
+    ``rint`` (nrow, 4) int64: primitive (POINT, DOT, LINE), body a, body b (-1 = ground),
+    component k (POINT rows). ``rvec`` (nrow, 10): vector in a (anchor X or axis u), vector
+    in b (anchor Y or axis v; world for the ground), vector p in a (LINE rows), constant c
+    (DOT rows). ``row_joint`` (nrow,) the joint index of each row. ``bodies`` (nb, 7): m,
+    I_1, I_2, I_3, 1/I_1, 1/I_2, 1/I_3. ``brow_ptr``, ``brow_idx``, ``brow_side``: the rows
+    touching each body (CSR; side 0 = the row's body a, 1 = body b). ``bandwidth``: the
+    largest |r - s| over rows r, s sharing a body."""
+
+    names: tuple
+    joint_names: tuple
+    rint: np.ndarray
+    rvec: np.ndarray
+    row_joint: np.ndarray
+    bodies: np.ndarray
+    brow_ptr: np.ndarray
+    brow_idx: np.ndarray
+    brow_side: np.ndarray
+    bandwidth: int
+    length_scale: float
+
+
+def assemble(bodies, joints) -> Assembly:
+    """Check the bodies' names and the joints' kinds, bodies and axes, and build the
+    constraint rows. Raises InvalidJointError / InvalidBodyError naming the joint or body."""
+    bodies = list(bodies)
+    joints = list(joints)
+    if not bodies:
+        raise InvalidBodyError("bodies: the system needs at least one body")
+    for i, b in enumerate(bodies):
+        if not isinstance(b, Body):
+            raise InvalidBodyError(f"bodies[{i}] = {b!r}: expected a director_model.system.Body")
+    names = tuple(b.name for b in bodies)
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise InvalidBodyError(f"body name {n!r}: used twice; body names must be unique")
+        seen.add(n)
+    index = {n: i for i, n in enumerate(names)}
+    rint, rvec, row_joint, jnames = [], [], [], []
+    for j, jt in enumerate(joints):
+        if not isinstance(jt, Joint):
+            raise InvalidJointError(f"joints[{j}] = {jt!r}: expected a director_model.system.Joint")
+        jn = jt.name if jt.name is not None else f"joint{j}"
+        jnames.append(jn)
+        where = f"joint {jn!r} ({jt.kind}, {jt.body_a!r}-{jt.body_b!r})"
+        if jt.kind not in _ROWS:
+            raise InvalidJointError(
+                f"joint {jn!r}: kind = {jt.kind!r}: unknown; available: {', '.join(JOINT_KINDS)}"
+            )
+        for side, bn in (("body_a", jt.body_a), ("body_b", jt.body_b)):
+            if side == "body_b" and bn is None:
+                continue
+            if bn not in index:
+                raise InvalidJointError(
+                    f"{where}: {side} = {bn!r}: unknown body; the bodies are {list(names)}"
+                )
+        if jt.body_b is not None and jt.body_a == jt.body_b:
+            raise InvalidJointError(f"{where}: a joint must connect two different bodies")
+        if jt.kind == "fixed_point" and jt.body_b is not None:
+            raise InvalidJointError(
+                f"{where}: body_b = {jt.body_b!r}: a fixed_point joint ties body_a to the "
+                "ground (body_b=None, anchor_b a world point)"
+            )
+        a = index[jt.body_a]
+        b = -1 if jt.body_b is None else index[jt.body_b]
+        X = _vec3(where + ": anchor_a", jt.anchor_a, InvalidJointError)
+        Y = _vec3(where + ": anchor_b", jt.anchor_b, InvalidJointError)
+        ua = ub = None
+        if jt.kind in _NEEDS_AXES:
+            if jt.axis_a is None or jt.axis_b is None:
+                raise InvalidJointError(f"{where}: a {jt.kind} joint needs axis_a and axis_b")
+            ua = _vec3(where + ": axis_a", jt.axis_a, InvalidJointError)
+            ub = _vec3(where + ": axis_b", jt.axis_b, InvalidJointError)
+            for nm, ax in (("axis_a", ua), ("axis_b", ub)):
+                if not np.linalg.norm(ax) > 0:
+                    raise InvalidJointError(f"{where}: {nm} = {ax.tolist()}: must be nonzero")
+            ua = ua / np.linalg.norm(ua)
+            ub = ub / np.linalg.norm(ub)
+        rows = []
+        z = np.zeros(3)
+        if jt.kind in ("spherical", "fixed_point", "revolute", "universal"):
+            rows += [(POINT, k, X, Y, z, 0.0) for k in range(3)]
+        if jt.kind in ("revolute", "cylindrical", "prismatic"):
+            m1, m2 = _perp_pair(ub)
+            rows += [(DOT, 0, ua, m1, z, 0.0), (DOT, 0, ua, m2, z, 0.0)]
+        if jt.kind == "universal":
+            rows += [(DOT, 0, ua, ub, z, 0.0)]
+        if jt.kind in ("cylindrical", "prismatic"):
+            p1, p2 = _perp_pair(ua)
+            rows += [(LINE, 0, X, Y, p1, 0.0), (LINE, 0, X, Y, p2, 0.0)]
+        if jt.kind == "prismatic":
+            # lock the rotation about the axis: (R_a p1) . (R_b m) = c, with m the one of
+            # m1, m2 most perpendicular to R_a p1 at t = 0 (largest gradient), c its value
+            Ra = bodies[a].rotation
+            Rb = np.eye(3) if b < 0 else bodies[b].rotation
+            P1 = Ra @ p1
+            m = m1 if abs(P1 @ (Rb @ m1)) < abs(P1 @ (Rb @ m2)) else m2
+            rows += [(DOT, 0, p1, m, z, float(P1 @ (Rb @ m)))]
+        for prim, k, va, vb, vc, c in rows:
+            rint.append((prim, a, b, k))
+            rvec.append(np.concatenate([va, vb, vc, [c]]))
+            row_joint.append(j)
+    nb = len(bodies)
+    B = np.array([[b.mass, *b.inertia, *(1.0 / b.inertia)] for b in bodies])
+    rint = np.array(rint, dtype=np.int64).reshape(-1, 4)
+    rvec = np.array(rvec, dtype=float).reshape(-1, 10)
+    ptr = [0]
+    idx, side = [], []
+    for i in range(nb):
+        for r in range(rint.shape[0]):
+            for s_, col in ((0, 1), (1, 2)):
+                if rint[r, col] == i:
+                    idx.append(r)
+                    side.append(s_)
+        ptr.append(len(idx))
+    bw = 0
+    for i in range(nb):
+        rs = idx[ptr[i] : ptr[i + 1]]
+        if rs:
+            bw = max(bw, max(rs) - min(rs))
+    L = 1.0
+    if rvec.size:
+        L = max(1.0, float(np.abs(rvec[:, 0:6]).max()))
+    return Assembly(
+        names=names,
+        joint_names=tuple(jnames),
+        rint=rint,
+        rvec=rvec,
+        row_joint=np.array(row_joint, dtype=np.int64),
+        bodies=B,
+        brow_ptr=np.array(ptr, dtype=np.int64),
+        brow_idx=np.array(idx, dtype=np.int64),
+        brow_side=np.array(side, dtype=np.int64),
+        bandwidth=int(bw),
+        length_scale=L,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# constraint rows in numpy (checks of the initial state and of saved states; the kernel has
+# its own compiled copy of the same formulas)
+# --------------------------------------------------------------------------------------------
+
+
+def rows_numpy(asm: Assembly, X, R, V=None, Wb=None):
+    """Values of the constraint rows, and with velocities their time derivatives, for states
+    X (..., nb, 3), R (..., nb, 3, 3), V (..., nb, 3), Wb (..., nb, 3) (body axes).
+    Returns g (..., nrow) and, if V is given, gdot (..., nrow)."""
+    X = np.asarray(X)
+    R = np.asarray(R)
+    lead = X.shape[:-2]
+    nrow = asm.rint.shape[0]
+    g = np.zeros(lead + (nrow,))
+    gd = np.zeros(lead + (nrow,)) if V is not None else None
+    if V is not None:
+        W = np.einsum("...ij,...j->...i", R, Wb)  # world angular velocity
+    zero = np.zeros(lead + (3,))
+    eye = np.broadcast_to(np.eye(3), lead + (3, 3))
+    for r in range(nrow):
+        prim, a, b, k = asm.rint[r]
+        va, vb, vc, c = asm.rvec[r, 0:3], asm.rvec[r, 3:6], asm.rvec[r, 6:9], asm.rvec[r, 9]
+        xa, Ra = X[..., a, :], R[..., a, :, :]
+        xb, Rb = (zero, eye) if b < 0 else (X[..., b, :], R[..., b, :, :])
+        ra = Ra @ va
+        rb = Rb @ vb
+        if V is not None:
+            vA, wA = V[..., a, :], W[..., a, :]
+            vB, wB = (zero, zero) if b < 0 else (V[..., b, :], W[..., b, :])
+        if prim == POINT:
+            g[..., r] = (xa + ra - xb - rb)[..., k]
+            if V is not None:
+                gd[..., r] = (vA + np.cross(wA, ra) - vB - np.cross(wB, rb))[..., k]
+        elif prim == DOT:
+            g[..., r] = np.sum(ra * rb, axis=-1) - c
+            if V is not None:
+                gd[..., r] = np.sum(np.cross(wA, ra) * rb + ra * np.cross(wB, rb), axis=-1)
+        else:
+            u = Ra @ vc
+            s = xb + rb - xa - ra
+            g[..., r] = np.sum(s * u, axis=-1)
+            if V is not None:
+                sd = vB + np.cross(wB, rb) - vA - np.cross(wA, ra)
+                gd[..., r] = np.sum(sd * u + s * np.cross(wA, u), axis=-1)
+    return g, gd
+
+
+def jacobian_numpy(asm: Assembly, X, R) -> np.ndarray:
+    """The constraint Jacobian (nrow, 6 nb) at one state: row r, columns 6 i .. 6 i + 5 are
+    (dg_r/dx_i, dg_r/dtheta_i) with theta_i the world rotation increment of body i
+    (delta d = delta theta x d), so that gdot = G (v_1, w_1, v_2, w_2, ...)."""
+    nb = X.shape[0]
+    nrow = asm.rint.shape[0]
+    G = np.zeros((nrow, 6 * nb))
+    for r in range(nrow):
+        prim, a, b, k = asm.rint[r]
+        va, vb, vc = asm.rvec[r, 0:3], asm.rvec[r, 3:6], asm.rvec[r, 6:9]
+        Ra = R[a]
+        xa = X[a]
+        xb, Rb = (np.zeros(3), np.eye(3)) if b < 0 else (X[b], R[b])
+        ra, rb = Ra @ va, Rb @ vb
+        if prim == POINT:
+            e = np.eye(3)[k]
+            Ja = np.r_[e, np.cross(ra, e)]
+            Jb = np.r_[-e, -np.cross(rb, e)]
+        elif prim == DOT:
+            Ja = np.r_[np.zeros(3), np.cross(ra, rb)]
+            Jb = np.r_[np.zeros(3), np.cross(rb, ra)]
+        else:
+            u = Ra @ vc
+            s = xb + rb - xa - ra
+            Ja = np.r_[-u, -np.cross(ra, u) + np.cross(u, s)]
+            Jb = np.r_[u, np.cross(rb, u)]
+        G[r, 6 * a : 6 * a + 6] += Ja
+        if b >= 0:
+            G[r, 6 * b : 6 * b + 6] += Jb
+    return G
+
+
+def _state_arrays(bodies):
+    X = np.array([b.position for b in bodies])
+    R = np.array([b.rotation for b in bodies])
+    V = np.array([b.velocity for b in bodies])
+    W = np.array([b.omega_body for b in bodies])
+    return X, R, V, W
+
+
+def _mobility(bodies, R) -> np.ndarray:
+    """Inverse of the 6 nb x 6 nb kinetic metric blockdiag(m 1, R I R^T) (all I_k > 0)."""
+    nb = len(bodies)
+    Minv = np.zeros((6 * nb, 6 * nb))
+    for i, b in enumerate(bodies):
+        Minv[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = np.eye(3) / b.mass
+        Minv[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = R[i] @ np.diag(1 / b.inertia) @ R[i].T
+    return Minv
+
+
+def check_initial(asm: Assembly, bodies, tol: float = INIT_TOL) -> tuple[int, int]:
+    """Check that every joint holds at t = 0 (positions and velocities) and that the
+    mechanism keeps a degree of freedom. Returns (rank of G, degrees of freedom).
+
+    Raises InvalidJointError naming the joint, its largest gap (m, or the dot product of
+    axes) and the rule; InvalidStateError for velocities violating a joint (the residual,
+    and the pointer to :func:`project_velocities`); InvalidMechanismError for a locked
+    mechanism (no degree of freedom left)."""
+    X, R, V, W = _state_arrays(bodies)
+    nrow = asm.rint.shape[0]
+    if nrow == 0:
+        return 0, 6 * len(bodies)
+    g, gd = rows_numpy(asm, X, R, V, W)
+    for j, jn in enumerate(asm.joint_names):
+        rows = np.flatnonzero(asm.row_joint == j)
+        if rows.size == 0:
+            continue
+        gap = g[rows]
+        worst = int(rows[np.argmax(np.abs(gap))])
+        if np.max(np.abs(gap)) > tol:
+            prim = asm.rint[worst, 0]
+            if prim == POINT:
+                pts = rows[asm.rint[rows, 0] == POINT]
+                d = float(np.linalg.norm(g[pts]))
+                what = (
+                    f"the anchors do not coincide at t = 0: gap |x_a + R_a anchor_a - x_b - "
+                    f"R_b anchor_b| = {d:.6g} m (tolerance {tol:g} m)"
+                )
+            elif prim == LINE:
+                ln = rows[asm.rint[rows, 0] == LINE]
+                d = float(np.linalg.norm(g[ln]))
+                what = (
+                    f"anchor_b is not on the axis line through anchor_a at t = 0: distance "
+                    f"{d:.6g} m (tolerance {tol:g} m)"
+                )
+            else:
+                what = (
+                    f"the axes violate the joint at t = 0: a dot product of the joint's unit "
+                    f"axes is {float(g[worst]):.6g} where it must be 0 (tolerance {tol:g}); "
+                    "revolute/cylindrical/prismatic need R_a axis_a parallel to R_b axis_b, "
+                    "universal needs them perpendicular"
+                )
+            raise InvalidJointError(f"joint {jn!r}: {what}")
+    G = jacobian_numpy(asm, X, R)
+    s = np.linalg.svd(G, compute_uv=False)
+    rank = int(np.sum(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
+    dof = 6 * len(bodies) - rank
+    if dof == 0:
+        raise InvalidMechanismError(
+            f"the joints leave no degree of freedom (rank of the constraint Jacobian {rank} = "
+            f"6 x {len(bodies)} bodies): the mechanism is locked, a rigid structure with "
+            "nothing to integrate"
+        )
+    vscale = max(1.0, float(np.abs(V).max()), float(np.abs(W).max()) * asm.length_scale)
+    for j, jn in enumerate(asm.joint_names):
+        rows = np.flatnonzero(asm.row_joint == j)
+        if rows.size and np.max(np.abs(gd[rows])) > tol * vscale:
+            raise InvalidStateError(
+                f"joint {jn!r}: the initial velocities violate the joint: the rate of its "
+                f"constraints is {np.abs(gd[rows]).max():.6g} (m/s, or 1/s for axes; "
+                f"tolerance {tol * vscale:g}); give consistent velocity/omega_body or call "
+                "director_model.system.project_velocities(bodies, joints) explicitly"
+            )
+    return rank, dof
+
+
+def project_velocities(bodies, joints) -> list[Body]:
+    """Return copies of ``bodies`` whose velocities satisfy every joint: the projection of
+    (v, w) onto the null space of the constraint Jacobian G in the kinetic-energy metric
+    (the consistent velocities closest to the given ones in kinetic energy; the minimum-norm
+    multiplier solve handles redundant joints). Positions are not changed (they must
+    satisfy the joints already). Never called implicitly by the integrators."""
+    bodies = list(bodies)
+    asm = assemble(bodies, joints)
+    X, R, V, W = _state_arrays(bodies)
+    if asm.rint.shape[0] == 0:
+        return bodies
+    G = jacobian_numpy(asm, X, R)
+    Minv = _mobility(bodies, R)
+    u = np.concatenate([np.r_[V[i], R[i] @ W[i]] for i in range(len(bodies))])
+    S = G @ Minv @ G.T
+    mu = np.linalg.lstsq(S, G @ u, rcond=1e-12)[0]
+    u = u - Minv @ (G.T @ mu)
+    out = []
+    for i, b in enumerate(bodies):
+        out.append(
+            Body(
+                b.name, b.mass, b.inertia, b.position, b.rotation, u[6 * i : 6 * i + 3],
+                R[i].T @ u[6 * i + 3 : 6 * i + 6],
+            )
+        )  # fmt: skip
+    return out
+
+
+def energy_momentum(bodies_B: np.ndarray, gravity, X, V, R, W):
+    """Energy (...,), linear momentum (..., 3), angular momentum about the world origin
+    (..., 3) of states X, V (..., nb, 3), R (..., nb, 3, 3), W (..., nb, 3) body axes;
+    ``bodies_B`` the (nb, 7) body table of :class:`Assembly`. E = sum 1/2 m |v|^2 +
+    1/2 W . I W - m g . x."""
+    m = bodies_B[:, 0]
+    I = bodies_B[:, 1:4]
+    g = np.asarray(gravity, dtype=float)
+    E = (
+        0.5 * np.sum(m[:, None] * V * V, axis=(-2, -1))
+        + 0.5 * np.sum(I * W * W, axis=(-2, -1))
+        - np.sum(m[:, None] * (X @ g)[..., None], axis=(-2, -1))
+    )
+    p = np.sum(m[:, None] * V, axis=-2)
+    L = np.sum(np.cross(X, m[:, None] * V) + np.einsum("...ij,...j->...i", R, I * W), axis=-2)
+    return E, p, L
+
+
+def is_finite_number(x) -> bool:
+    try:
+        return math.isfinite(float(x))
+    except (TypeError, ValueError):
+        return False

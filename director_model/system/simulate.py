@@ -1,0 +1,327 @@
+"""Entry points for systems: :func:`simulate_system` and :class:`SystemStepper`."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from director_model.errors import InvalidRunError, InvalidStateError, StepSizeError
+from director_model.schemes.composition import Rattle4, Rattle6
+from director_model.schemes.rattle import Rattle
+from director_model.simulate import step_plan
+from director_model.system import _kernels as K
+from director_model.system.model import (
+    Assembly,
+    assemble,
+    check_initial,
+    energy_momentum,
+    rows_numpy,
+)
+
+#: scheme name -> (order, sub-step coefficients); the coefficients are those of the
+#: single-body compositions (Yoshida 1990 triple jump; Kahan & Li 1997 s9odr6a)
+SYSTEM_SCHEMES = {
+    "rattle": (2, tuple(Rattle.coefficients)),
+    "rattle4": (4, tuple(Rattle4.coefficients)),
+    "rattle6": (6, tuple(Rattle6.coefficients)),
+}
+
+#: the joint rows are solved to TOL_EPS * eps * max(length scale, largest |x_i|)
+TOL_EPS = 16.0
+#: relative singular value below which the minimum-norm solver drops a direction
+RANK_TOL = 1e-10
+
+
+@dataclass(eq=False)
+class SystemTrajectory:
+    """Saved states of a system run (n saved times, nb bodies in the order given), SI units,
+    world axes unless said.
+
+    =======================  ===============  ===============================================
+    field                    shape            meaning
+    =======================  ===============  ===============================================
+    ``t``                    (n,)             time, s
+    ``position``             (n, nb, 3)       centre of mass x, m
+    ``velocity``             (n, nb, 3)       v, m/s
+    ``rotation``             (n, nb, 3, 3)    R body-to-world (columns: directors)
+    ``omega_body``           (n, nb, 3)       W, body axes, rad/s
+    ``energy``               (n,)             sum 1/2 m|v|^2 + 1/2 W.I W - m g.x, J
+    ``linear_momentum``      (n, 3)           sum m v, kg m/s
+    ``angular_momentum``     (n, 3)           about the world origin: sum x x m v + R I W
+    ``constraint_position``  (n,)             max |g_r| over the joint rows (m; axis rows:
+                                              dot products)
+    ``constraint_velocity``  (n,)             max |dg_r/dt| (m/s; axis rows 1/s)
+    ``orthonormality``       (n,)             max over bodies of max |R^T R - 1|
+    =======================  ===============  ===============================================
+
+    Scalars: ``body_names``, ``joint_names`` (tuples), ``nstep`` (steps of this run or
+    chunk), ``dt``, ``scheme``, ``wall_time_s``/``cpu_time_s`` (the compiled stepping
+    alone), ``solver`` ("banded": block-banded LU, or "minnorm": dense SVD with the
+    minimum-norm multipliers), ``newton_iterations`` (chord-Newton iterations of the
+    position multipliers over all sub-steps), ``max_iterations`` (most in one sub-step),
+    ``rank_nominal`` (rank of the constraint Jacobian at t = 0), ``rank_drop_steps``
+    (steps at which the velocity-stage matrix had a numerical rank, singular values above
+    RANK_TOL sigma_1, below the nominal rank: a singular configuration), ``min_singular_value``
+    (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps, NaN for the banded
+    solver, which does not compute it) and ``min_singular_step`` (the step where it occurred).
+    The invariants and residuals are computed from the saved states in numpy, independently
+    of the compiled step.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+    energy: np.ndarray
+    linear_momentum: np.ndarray
+    angular_momentum: np.ndarray
+    constraint_position: np.ndarray
+    constraint_velocity: np.ndarray
+    orthonormality: np.ndarray
+    body_names: tuple
+    joint_names: tuple
+    nstep: int
+    dt: float
+    scheme: str
+    wall_time_s: float
+    cpu_time_s: float
+    solver: str
+    newton_iterations: int
+    max_iterations: int
+    rank_nominal: int
+    rank_drop_steps: int
+    min_singular_value: float
+    min_singular_step: int
+
+    def __len__(self) -> int:
+        return self.t.shape[0]
+
+    def body_index(self, name: str) -> int:
+        """Index of the body ``name`` in the arrays' body axis."""
+        try:
+            return self.body_names.index(name)
+        except ValueError:
+            raise KeyError(
+                f"body {name!r}: unknown; the bodies are {list(self.body_names)}"
+            ) from None
+
+
+def _check_count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise InvalidRunError(f"{name} = {value!r}: must be a whole number >= 1")
+    return int(value)
+
+
+_COMPILED = False
+
+
+def _ensure_compiled() -> None:
+    """Compile or load the kernels with a 1-step run of a small system, so that the timed
+    call measures stepping only."""
+    global _COMPILED
+    if _COMPILED:
+        return
+    from director_model.system.model import Body, Joint
+
+    bodies = [Body("a", 1.0, (1.0, 1.0, 1.0), position=(0, 0, -1)),
+              Body("b", 1.0, (1.0, 1.0, 1.0), position=(0, 0, -3))]  # fmt: skip
+    joints = [Joint("spherical", "a", None, (0, 0, 1), (0, 0, 0)),
+              Joint("spherical", "a", "b", (0, 0, -1), (0, 0, 1))]  # fmt: skip
+    for solver in ("banded", "minnorm"):
+        st = SystemStepper(bodies, joints, gravity=(0, 0, -1), dt=0.01, solver=solver,
+                           _warm=False)  # fmt: skip
+        st.advance(1)
+    _COMPILED = True
+
+
+class SystemStepper:
+    """A system of rigid bodies and joints advanced in chunks, the integrator state (the
+    director state, its compensations and the last multipliers) kept between chunks, so
+    that ``advance(n1)`` then ``advance(n2)`` saves bit for bit the states of one run of
+    n1 + n2 steps.
+
+    Parameters
+    ----------
+    bodies : list of :class:`Body`
+        The bodies and their initial states.
+    joints : list of :class:`Joint`
+        The joints (bodies named by ``Body.name``; ``body_b=None`` is the ground).
+    gravity : (3,)
+        Uniform gravity, m/s^2, world axes.
+    scheme : str
+        "rattle" (order 2), "rattle4" (Yoshida triple jump, order 4), "rattle6" (Kahan-Li
+        9-stage composition, order 6).
+    dt : float
+        Step, s.
+    solver : str
+        "auto" (default): "minnorm" if the joint rows are redundant at t = 0 (rank of the
+        Jacobian below the number of rows: closed loops such as a planar four-bar of
+        revolute joints, or Bricard's mechanism), else "banded". "banded": block-banded LU
+        without pivoting of the multiplier matrices (rows ordered as the joints are given;
+        bandwidth = the largest row distance between rows sharing a body, so a chain whose
+        joints are listed along it has cost linear in its length); a singular configuration
+        stops it with StepSizeError. "minnorm": dense SVD of the multiplier matrices, the
+        minimum-norm multipliers (correct for rank-deficient Jacobians) and the singularity
+        diagnostics of :class:`SystemTrajectory`; cost cubic in the number of rows.
+
+    Raises InvalidBodyError, InvalidStateError, InvalidJointError, InvalidMechanismError,
+    InvalidRunError at construction; StepSizeError from :meth:`advance` (a step whose
+    equations have no solution: too large a step, or a singular configuration for the
+    banded solver), after which the stepper stays at the last completed step.
+    """
+
+    def __init__(self, bodies, joints, *, gravity=(0.0, 0.0, 0.0), scheme: str = "rattle",
+                 dt: float, solver: str = "auto", _warm: bool = True):  # fmt: skip
+        bodies = list(bodies)
+        joints = list(joints)
+        asm = assemble(bodies, joints)
+        rank, dof = check_initial(asm, bodies)
+        if scheme not in SYSTEM_SCHEMES:
+            raise InvalidRunError(
+                f"scheme = {scheme!r}: unknown; available: {', '.join(SYSTEM_SCHEMES)}"
+            )
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise InvalidRunError(f"dt = {dt!r}: must be a real number") from None
+        if not (dt > 0 and math.isfinite(dt)):
+            raise InvalidRunError(f"dt = {dt!r}: the time step must be positive and finite")
+        try:
+            g = np.asarray(gravity, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidStateError(f"gravity = {gravity!r}: expected 3 real numbers") from None
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise InvalidStateError(f"gravity = {gravity!r}: expected 3 finite real numbers")
+        nrow = asm.rint.shape[0]
+        if solver == "auto":
+            solver = "minnorm" if rank < nrow else "banded"
+        if solver not in ("banded", "minnorm"):
+            raise InvalidRunError(f"solver = {solver!r}: expected 'auto', 'banded' or 'minnorm'")
+        if solver == "banded" and rank < nrow:
+            raise InvalidRunError(
+                f"solver = 'banded': the {nrow} joint rows have rank {rank} at t = 0 "
+                "(redundant constraints, e.g. a closed loop): use solver='minnorm' or 'auto'"
+            )
+        self._asm: Assembly = asm
+        self._g = g
+        self._coef = np.array(SYSTEM_SCHEMES[scheme][1], dtype=float)
+        self.scheme = scheme
+        self.dt = dt
+        self.solver = solver
+        self.rank_nominal = rank
+        self.dof = dof
+        self.nstep_done = 0
+        nb = len(bodies)
+        self._D0 = np.array([b.rotation.ravel() for b in bodies])
+        S = np.zeros((nb, K.NS))
+        for i, b in enumerate(bodies):
+            S[i, 0:3] = b.position
+            S[i, 6:9] = b.velocity
+            S[i, 12] = 1.0
+            S[i, 20:23] = b.inertia * b.omega_body
+        self._S = S
+        self._mu = np.zeros(max(nrow, 1))
+        self._bodies = bodies
+        if _warm:
+            _ensure_compiled()
+
+    @property
+    def time(self) -> float:
+        """Time reached, s (nstep_done * dt)."""
+        return self.nstep_done * self.dt
+
+    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False):
+        """Advance ``nstep`` steps; save the steps j * save_every of the chunk and its last
+        step (and its start with ``include_start``). Returns a :class:`SystemTrajectory`
+        with absolute times. Raises StepSizeError naming the time and the step."""
+        nstep = _check_count("nstep", nstep)
+        save_every = _check_count("save_every", save_every)
+        saves = np.arange(save_every, nstep + 1, save_every, dtype=np.int64)
+        if saves.size == 0 or saves[-1] != nstep:
+            saves = np.append(saves, np.int64(nstep))
+        if include_start:
+            saves = np.insert(saves, 0, np.int64(0))
+        asm = self._asm
+        nb = len(self._bodies)
+        ns = saves.shape[0]
+        X = np.empty((ns, nb, 3))
+        V = np.empty((ns, nb, 3))
+        D = np.empty((ns, nb, 3, 3))
+        W = np.empty((ns, nb, 3))
+        diag = np.zeros(K.NDIAG)
+        diag[K.D_SMIN] = np.inf
+        info = np.zeros(2)
+        minnorm = self.solver == "minnorm"
+        rint = asm.rint if asm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
+        c0 = time.thread_time()
+        t0 = time.perf_counter()
+        status = K.run_system(
+            asm.bodies, self._D0, rint, asm.rvec, asm.brow_ptr, asm.brow_idx, asm.brow_side,
+            self._g, self._S, self._mu, self._coef, self.dt, nstep, saves, X, V, D, W,
+            minnorm, asm.bandwidth, self.rank_nominal, RANK_TOL, TOL_EPS * K.EPS,
+            asm.length_scale, diag, info,
+        )  # fmt: skip
+        wall = time.perf_counter() - t0
+        cpu = time.thread_time() - c0
+        step0 = self.nstep_done
+        if status != K.OK:
+            done = step0 + int(info[0])
+            self.nstep_done = done
+            t = done * self.dt
+            raise StepSizeError(
+                f"{self.scheme}: step {done + 1} starting at t = {t:.9g} s could not be "
+                f"solved: {K.STATUS_TEXT.get(int(status), 'unknown failure')} (sub-step "
+                f"h = {info[1]:.6g} s of dt = {self.dt:.6g} s); reduce dt",
+                time=t,
+                step=done + 1,
+                dt=self.dt,
+                h_max=None,
+            )
+        self.nstep_done = step0 + nstep
+        return self._trajectory((step0 + saves) * self.dt, X, V, D, W, nstep, wall, cpu, diag)
+
+    def _trajectory(self, t, X, V, D, W, nstep, wall, cpu, diag):
+        asm = self._asm
+        E, p, L = energy_momentum(asm.bodies, self._g, X, V, D, W)
+        if asm.rint.shape[0]:
+            gp, gv = rows_numpy(asm, X, D, V, W)
+            cp = np.max(np.abs(gp), axis=-1)
+            cv = np.max(np.abs(gv), axis=-1)
+        else:
+            cp = np.zeros(t.shape)
+            cv = np.zeros(t.shape)
+        RtR = np.einsum("...ki,...kj->...ij", D, D) - np.eye(3)
+        orth = np.max(np.abs(RtR), axis=(-3, -2, -1))
+        smin = float(diag[K.D_SMIN])
+        return SystemTrajectory(
+            t=t, position=X, velocity=V, rotation=D, omega_body=W, energy=E,
+            linear_momentum=p, angular_momentum=L, constraint_position=cp,
+            constraint_velocity=cv, orthonormality=orth, body_names=asm.names,
+            joint_names=asm.joint_names, nstep=nstep, dt=self.dt, scheme=self.scheme,
+            wall_time_s=wall, cpu_time_s=cpu, solver=self.solver,
+            newton_iterations=int(diag[K.D_ITER]), max_iterations=int(diag[K.D_MAXIT]),
+            rank_nominal=self.rank_nominal, rank_drop_steps=int(diag[K.D_RANKDROP]),
+            min_singular_value=smin if math.isfinite(smin) else math.nan,
+            min_singular_step=int(diag[K.D_TSMIN]) + self.nstep_done - nstep,
+        )  # fmt: skip
+
+
+def simulate_system(bodies, joints, *, gravity=(0.0, 0.0, 0.0), scheme: str = "rattle",
+                    dt: float, t_end: float, save_every: int = 1,
+                    solver: str = "auto") -> SystemTrajectory:  # fmt: skip
+    """Integrate a system of rigid bodies connected by joints and return the saved states.
+
+    ``bodies`` (list of :class:`Body`), ``joints`` (list of :class:`Joint`), ``gravity``
+    (3,) m/s^2, ``scheme`` ("rattle", "rattle4", "rattle6"), ``solver`` as in
+    :class:`SystemStepper`; ``dt``, ``t_end`` (s) and ``save_every`` follow the step plan of
+    :func:`director_model.step_plan` (t_end a whole number of steps; steps 0, s, 2s, ... and
+    the last saved). Memory O(saved states). Equals
+    ``SystemStepper(...).advance(round(t_end/dt), save_every, include_start=True)``.
+    """
+    st = SystemStepper(bodies, joints, gravity=gravity, scheme=scheme, dt=dt, solver=solver)
+    nstep, _ = step_plan(dt, t_end, save_every)
+    return st.advance(nstep, int(save_every), include_start=True)
