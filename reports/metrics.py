@@ -21,7 +21,8 @@ quantity that may vanish (an initial energy of 0, an initial momentum of 0):
 ``omega_error_max``          max_t |W - W_ref|                                            rad/s
 ``position_error_max``       max_t |x_G - x_G,ref|                                        m
 ``flip_interval_error``      |flip interval - exact| / exact (free bodies that flip)      1
-``nutation_period_error``    |nutation period - exact| / exact (Lagrange tops)           1
+``nutation_period_error``    |nutation period - exact| / exact (Lagrange tops), the tilt   1
+                             measured from the scenario's vertical -g/|g|
 ``convergence_order``        slope of log(attitude error) against log(dt) over the        1
                              asymptotic range of a dt sweep (:func:`convergence_order`)
 ===========================  ==========================================================  =====
@@ -218,7 +219,7 @@ def compute_metrics(scenario, traj, ref=None, expected=None) -> dict[str, float]
     if "nutation_period" in expected and scenario.top_axis is not None:
         from reports.observables import nutation_period
 
-        got = nutation_period(traj, scenario.top_axis)
+        got = nutation_period(traj, scenario.top_axis, scenario.vertical)
         exp = expected["nutation_period"]
         m["nutation_period_error"] = abs(got - exp) / exp
     return m

@@ -15,7 +15,9 @@ Values that cannot be measured are NaN with a reason: each function returns a
 and ``n`` (the number of events it is based on).
 
 Symbols: W (body rates, rad/s), d_k = R e_k (the k-th director: body axis k in world axes),
-up (the vertical, default e_z), u = d_k . up = cos(tilt), azimuth = angle of d_k about up.
+up (the scenario's vertical -g/|g|, :attr:`scenarios.model.Scenario.vertical`: a required
+argument, never a default axis, since a top under gravity along another axis nutates about
+that one), u = d_k . up = cos(tilt), azimuth = angle of d_k about up.
 """
 
 from __future__ import annotations
@@ -171,8 +173,11 @@ def flip_interval(traj, axis: int | None = None) -> Measured:
 
 
 def _frame(up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    e3 = np.asarray(up, dtype=float)
-    e3 = e3 / np.linalg.norm(e3)
+    e3 = np.asarray(up, dtype=float) if up is not None else np.zeros(0)
+    norm = float(np.linalg.norm(e3)) if e3.shape == (3,) else 0.0
+    if not (math.isfinite(norm) and norm > 0.0):
+        raise ValueError(f"up = {up!r}: the vertical must be a finite non-zero 3-vector")
+    e3 = e3 / norm
     helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     e1 = helper - (helper @ e3) * e3
     e1 /= np.linalg.norm(e1)
@@ -207,7 +212,7 @@ def _nutation_crossings(t, u):
     return tc, ""
 
 
-def nutation_period(traj, axis: int, up=(0.0, 0.0, 1.0)) -> Measured:
+def nutation_period(traj, axis: int, up) -> Measured:
     """Nutation period, s: the mean spacing of the upward crossings of the mean of
     u = d_axis . up (cos of the tilt of body axis ``axis`` from the vertical ``up``). Any level
     strictly between the extremes recurs once per period; the mean is used because it lies
@@ -219,7 +224,7 @@ def nutation_period(traj, axis: int, up=(0.0, 0.0, 1.0)) -> Measured:
     return Measured((tc[-1] - tc[0]) / (len(tc) - 1), n=len(tc))
 
 
-def tilt_range(traj, axis: int, up=(0.0, 0.0, 1.0)) -> tuple[Measured, Measured]:
+def tilt_range(traj, axis: int, up) -> tuple[Measured, Measured]:
     """(min, max) tilt of body axis ``axis`` from ``up``, rad, tilt = atan2(|d x up|, d . up).
 
     Each interior local extremum of the sampled tilt is refined by the vertex of the parabola
@@ -255,7 +260,7 @@ def _vertex(t0, t1, t2, y0, y1, y2) -> np.ndarray:
     return np.where(inside, yv, y1)
 
 
-def precession_rate(traj, axis: int, up=(0.0, 0.0, 1.0)) -> Measured:
+def precession_rate(traj, axis: int, up) -> Measured:
     """Mean rate of the azimuth of body axis ``axis`` about ``up``, rad/s (unwrapped).
 
     If the axis nutates, the mean is taken over whole nutation periods (between the first and

@@ -118,6 +118,15 @@ class Scenario:
         return bool(np.any(self.gravity != 0.0))
 
     @property
+    def vertical(self) -> np.ndarray | None:
+        """The scenario's own vertical, up = -g/|g| (world axes, unit), or None without
+        gravity. Observables of tops (tilt, nutation, precession) are measured about it."""
+        gn = float(np.linalg.norm(self.gravity))
+        if gn == 0.0:
+            return None
+        return _frozen(-self.gravity / gn)
+
+    @property
     def symmetric_axis(self) -> int | None:
         """Index of the body axis of symmetry (the moment that differs from two equal ones),
         or None for an asymmetric or spherical body. Equality is exact: scenario files state

@@ -325,7 +325,7 @@ class LagrangeTop:
         if c[k] == 0.0:
             raise NotALagrangeTop("the pivot is at the centre of mass: no gravity torque")
         self.axis = k
-        self.up = -g / gn
+        self.up = np.array(sc.vertical)
         m = sc.mass
         l = -float(c[k])  # centre of mass relative to the pivot: -c = l e_k
         self.A, self.C, self.l = float(I[i]) + m * l * l, float(I[k]), l
