@@ -72,14 +72,33 @@ def velocity_constraint(rotation, omega_body) -> np.ndarray:
     return np.linalg.norm(M @ Wh - Wh @ M, axis=(-2, -1))
 
 
+def _energy_terms(scenario, position, velocity, omega_body):
+    """(1/2 m |v_G|^2, 1/2 W.I W, V = -m g.x_G), each (n,), J."""
+    I = np.asarray(scenario.inertia)
+    t_trans = 0.5 * scenario.mass * np.einsum("ni,ni->n", velocity, velocity)
+    t_rot = 0.5 * np.einsum("ni,i,ni->n", omega_body, I, omega_body)
+    return t_trans, t_rot, -scenario.mass * position @ np.asarray(scenario.gravity)
+
+
 def energy(scenario, position, velocity, rotation, omega_body) -> np.ndarray:
     """Total energy E = T + V from states, shape (n,). Arrays as in :class:`Trajectory`."""
     del rotation  # the rotational energy needs only body rates and principal moments
-    I = np.asarray(scenario.inertia)
-    T = 0.5 * scenario.mass * np.einsum("ni,ni->n", velocity, velocity)
-    T = T + 0.5 * np.einsum("ni,i,ni->n", omega_body, I, omega_body)
-    V = -scenario.mass * position @ np.asarray(scenario.gravity)
-    return T + V
+    t_trans, t_rot, V = _energy_terms(scenario, position, velocity, omega_body)
+    return (t_trans + t_rot) + V
+
+
+def energy_parts(scenario, position, velocity, rotation, omega_body) -> dict[str, np.ndarray]:
+    """The energy and the parts of it that are conserved on their own, J, each shape (n,):
+    ``"total"``, E = T + V (:func:`energy`); for a free body also ``"rot"``, 1/2 W.I W (uniform
+    gravity exerts no torque about the centre of mass), and ``"trans"``, 1/2 m |v_G|^2 -
+    m g.x_G. A pivoted body's rotation and translation are one motion about the pivot and
+    exchange energy: it has only ``"total"``."""
+    del rotation
+    t_trans, t_rot, V = _energy_terms(scenario, position, velocity, omega_body)
+    parts = {"total": (t_trans + t_rot) + V}
+    if scenario.pivot is None:
+        parts["rot"], parts["trans"] = t_rot, t_trans + V
+    return parts
 
 
 def angular_momentum(scenario, position, velocity, rotation, omega_body) -> np.ndarray:

@@ -8,8 +8,15 @@ Each has a physical scale, the scenario's (:class:`scenarios.model.Scenario`), n
 quantity that may vanish (an initial energy of 0, an initial momentum of 0):
 
 ===========================  ==========================================================  =====
-``energy_drift_max``         max_t |E(t) - E0| / E_c, E_c = max(T0, m |g| l)              1
-                             (:attr:`Scenario.energy_scale`)
+``energy_drift_max``         max_t |E(t) - E0| / E_c, E_c the energy in play over the     1
+                             horizon (:attr:`Scenario.energy_scale`)
+``energy_drift_rot_max``     free body: max_t |E_rot(t) - E_rot(0)| / E_rot,c, the        1
+                             rotational energy 1/2 W.IW against its own value
+                             (:attr:`Scenario.rotational_energy_scale`); NaN if pivoted
+``energy_drift_trans_max``   free body: max_t |E_tr(t) - E_tr(0)| / E_tr,c, E_tr =        1
+                             1/2 m |v_G|^2 - m g.x_G against the largest translational
+                             kinetic energy over the horizon
+                             (:attr:`Scenario.translational_energy_scale`); NaN if pivoted
 ``momentum_drift_max``       max_t drift of the conserved angular-momentum components     1
                              (:func:`conserved_momentum`) / L_c, L_c = sqrt(2 E_rot I_max)
                              (:attr:`Scenario.momentum_scale`)
@@ -39,7 +46,7 @@ import math
 
 import numpy as np
 
-from references.trajectory import angular_momentum, energy
+from references.trajectory import angular_momentum, energy, energy_parts
 
 #: Metrics where a larger value is better; every other metric is an error (lower is better).
 HIGHER_IS_BETTER = frozenset({"convergence_order"})
@@ -64,6 +71,26 @@ def energy_drift(scenario, traj) -> np.ndarray:
     """|E(t) - E0| / E_c with E_c = :attr:`Scenario.energy_scale`, shape (n,)."""
     E0, _ = _initial(scenario)
     return np.abs(traj.energy - E0) / scenario.energy_scale
+
+
+#: the metric of each separately conserved part of a free body's energy
+#: (:func:`references.trajectory.energy_parts`)
+ENERGY_PART_METRICS = {"rot": "energy_drift_rot_max", "trans": "energy_drift_trans_max"}
+
+
+def energy_part_drift(scenario, traj, part: str) -> np.ndarray | None:
+    """|E_part(t) - E_part(0)| over the part's own scale (:attr:`Scenario.energy_scales`),
+    shape (n,), for ``part`` "rot" or "trans" of a free body: uniform gravity exerts no torque
+    about the centre of mass, so the rotational and the translational energy are conserved
+    apart, and an error in one is measured against what is in play in that one (a fall of
+    240 J does not hide a rotational error of 0.1 J, nor the reverse). None for a pivoted
+    body, whose rotation and translation exchange energy."""
+    if scenario.pivot is not None:
+        return None
+    x, v, R, W = (scenario.position, scenario.velocity, scenario.rotation, scenario.omega_body)
+    p0 = energy_parts(scenario, x[None], v[None], R[None], W[None])[part][0]
+    p = energy_parts(scenario, traj.position, traj.velocity, traj.rotation, traj.omega_body)
+    return np.abs(p[part] - p0) / scenario.energy_scales[part]
 
 
 def conserved_momentum(scenario) -> str:
@@ -205,6 +232,9 @@ def compute_metrics(scenario, traj, ref=None, expected=None) -> dict[str, float]
         "flip_interval_error": math.nan,
         "nutation_period_error": math.nan,
     }
+    for part, name in ENERGY_PART_METRICS.items():
+        d = energy_part_drift(scenario, traj, part)
+        m[name] = math.nan if d is None else _max(d)
     if ref is not None:
         _check_same_times(traj, ref)
         m["attitude_error_max"] = _max(attitude_error(traj, ref))

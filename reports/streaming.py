@@ -25,6 +25,8 @@ from reports import metrics as M
 #: pointwise metrics folded over every step: name -> (needs the reference, function)
 POINTWISE = {
     "energy_drift_max": (False, lambda sc, tr, ref: M.energy_drift(sc, tr)),
+    "energy_drift_rot_max": (False, lambda sc, tr, ref: M.energy_part_drift(sc, tr, "rot")),
+    "energy_drift_trans_max": (False, lambda sc, tr, ref: M.energy_part_drift(sc, tr, "trans")),
     "momentum_drift_max": (False, lambda sc, tr, ref: M.momentum_drift(sc, tr)),
     "orthonormality_max": (False, lambda sc, tr, ref: M.orthonormality(tr)),
     "constraint_velocity_max": (False, lambda sc, tr, ref: M.constraint_velocity(sc, tr)),
@@ -51,8 +53,10 @@ class StreamingRecorder(Recorder):
             raise ValueError(f"segment = {segment}: must be a whole number of steps >= 1")
         self.scenario, self.dt, self.segment = scenario, float(dt), int(segment)
         self.reference = reference
+        # a metric that does not apply (no reference; an energy part of a pivoted body) is NaN
+        parts = M.ENERGY_PART_METRICS.values() if scenario.pivot is not None else ()
         self.maxima = {
-            k: (math.nan if (needs_ref and reference is None) else 0.0)
+            k: (math.nan if (needs_ref and reference is None) or k in parts else 0.0)
             for k, (needs_ref, _) in POINTWISE.items()
         }
         self.reference_accuracy = 0.0 if reference is not None else math.nan
@@ -89,6 +93,8 @@ class StreamingRecorder(Recorder):
             if needs_ref and ref is None:
                 continue
             v = fn(self.scenario, tr, ref)
+            if v is None:  # does not apply to this scenario
+                continue
             worst = math.inf if not np.all(np.isfinite(v)) else float(np.max(v))
             self.maxima[name] = max(self.maxima[name], worst)
         self._buf_steps.clear()

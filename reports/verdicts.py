@@ -9,7 +9,9 @@ not accurate enough to judge by).
 Tolerances come from, in increasing precedence:
 
 1. :data:`DEFAULT_TOLERANCES`, shared by every integrator family: a configuration that gets
-   the motion right to 0.1 rad of attitude, 1 % of the energy and momentum scales, 1 % on the
+   the motion right to 0.1 rad of attitude, 1 % of the energy scales (the total, and a free
+   body's rotational and translational energy each against its own) and of the momentum
+   scale, 1 % on the
    flip interval and nutation period, and keeps R orthonormal to 1e-9;
 2. the family's own (:class:`references.engines.Family` ``tolerances``: a family that
    promises more is held to it, e.g. the director schemes keep R orthonormal to round-off),
@@ -35,6 +37,8 @@ import math
 DEFAULT_TOLERANCES = {
     "attitude_error_max": 0.1,
     "energy_drift_max": 1e-2,
+    "energy_drift_rot_max": 1e-2,
+    "energy_drift_trans_max": 1e-2,
     "momentum_drift_max": 1e-2,
     "orthonormality_max": 1e-9,
     "flip_interval_error": 1e-2,

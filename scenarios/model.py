@@ -33,6 +33,8 @@ REFERENCE_KINDS = ("auto", "free_body", "lagrange_top", "steady_precession", "nu
 #: their units are documented in reports.metrics and docs/results.md).
 TOLERANCE_METRICS = (
     "energy_drift_max",
+    "energy_drift_rot_max",
+    "energy_drift_trans_max",
     "momentum_drift_max",
     "orthonormality_max",
     "constraint_velocity_max",
@@ -163,37 +165,71 @@ class Scenario:
     # -- physical scales of the metrics -----------------------------------------------------
     @property
     def energy_scale(self) -> float:
-        """Characteristic energy E_c (J) that energy drifts are divided by:
-        max(T0, m |g| l), the larger of the initial kinetic energy and the weight times a body
-        length l: the pivot to centre-of-mass distance for a pivoted body (the potential then
-        ranges over [-m|g|l, m|g|l]), the largest radius of gyration sqrt(I_max/m) for a free
-        one.
+        """Characteristic energy E_c (J) that energy drifts are divided by: the energy in play
+        over the horizon.
+
+        - pivoted body: max(T0, m |g| l), the larger of the initial kinetic energy and the
+          weight times the pivot to centre-of-mass distance l (the potential ranges over
+          [-m|g|l, m|g|l]);
+        - free body: the rotational energy 1/2 W.IW (conserved) plus
+          :attr:`translational_energy_scale`, the largest translational kinetic energy over
+          the horizon (the initial one plus what gravity hands over: a body falling from rest
+          for t_end has m |g|^2 t_end^2/2 in play).
 
         Never the initial total energy E0, which depends on where the potential's zero is and
-        is 0 for a pendulum released from rest with its axis horizontal. 1 J if both terms are
-        0 (a body at rest with no force on it).
+        is 0 for a pendulum released from rest with its axis horizontal. 1 J if it is 0 (a
+        body at rest with no force on it).
         """
         W = self.omega_body
         t0 = 0.5 * float(W @ (self.pivot_inertia @ W))
         if self.pivot is None:
-            t0 += 0.5 * self.mass * float(self.velocity @ self.velocity)
-            length = math.sqrt(float(np.max(self.inertia)) / self.mass)
+            e = t0 + self._translational_in_play()
         else:
             length = float(np.linalg.norm(self.pivot))
-        e = max(t0, self.mass * float(np.linalg.norm(self.gravity)) * length)
+            e = max(t0, self.mass * float(np.linalg.norm(self.gravity)) * length)
         return e if e > 0 else 1.0
+
+    def _translational_in_play(self) -> float:
+        """1/2 m max_t |v_G(t)|^2 over [0, t_end] on the parabola v_G = v0 + g t (|v_G|^2 is
+        convex in t: the larger of its end values), J."""
+        v1 = self.velocity + self.gravity * self.t_end
+        return 0.5 * self.mass * max(float(self.velocity @ self.velocity), float(v1 @ v1))
 
     @property
     def rotational_energy_scale(self) -> float:
-        """The part of :attr:`energy_scale` that can be in rotation (J): the rotational energy
-        1/2 W.IW for a free body (it is conserved; :attr:`energy_scale` if it is 0), all of
-        :attr:`energy_scale` for a pivoted one."""
+        """The part of :attr:`energy_scale` that can be in rotation (J), the scale of
+        ``energy_drift_rot_max``: the rotational energy 1/2 W.IW for a free body (it is
+        conserved; :attr:`energy_scale` if it is 0), all of :attr:`energy_scale` for a
+        pivoted one."""
         if self.pivot is None:
             W = self.omega_body
             e = 0.5 * float(W @ (self.inertia * W))
             if e > 0:
                 return e
         return self.energy_scale
+
+    @property
+    def translational_energy_scale(self) -> float:
+        """The part of :attr:`energy_scale` in the motion of the centre of mass (J), the scale
+        of ``energy_drift_trans_max``: for a free body the largest translational kinetic
+        energy over the horizon, 1/2 m max(|v0|^2, |v0 + g t_end|^2) (:attr:`energy_scale`
+        if it is 0); all of :attr:`energy_scale` for a pivoted one."""
+        if self.pivot is None:
+            e = self._translational_in_play()
+            if e > 0:
+                return e
+        return self.energy_scale
+
+    @property
+    def energy_scales(self) -> dict[str, float]:
+        """The scale of each separately conserved part of the energy
+        (:func:`references.trajectory.energy_parts`): ``"total"`` always, ``"rot"`` and
+        ``"trans"`` for a free body."""
+        scales = {"total": self.energy_scale}
+        if self.pivot is None:
+            scales["rot"] = self.rotational_energy_scale
+            scales["trans"] = self.translational_energy_scale
+        return scales
 
     @property
     def momentum_scale(self) -> float:

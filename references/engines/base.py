@@ -58,7 +58,7 @@ from references.errors import (
     StepFailure,
     Unsupported,
 )
-from references.trajectory import Trajectory, energy
+from references.trajectory import Trajectory, energy_parts
 
 __all__ = [
     "CHUNK",
@@ -772,23 +772,35 @@ def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
         yield block
 
 
-def _first_divergence(engine, ctx, block, e0, e_scale) -> tuple[int, str] | None:
+#: the separately conserved parts of the energy, as divergence messages name them
+_ENERGY_PART = {"total": "energy", "rot": "rotational energy", "trans": "translational energy"}
+
+
+def _first_divergence(engine, ctx, block, energy0) -> tuple[int, str] | None:
     """(index of the first diverged state of a block, why), or None: a non-finite state or
-    an energy error beyond DIVERGENCE_ENERGY of the scale (vectorised over the block), or the
-    engine's own limit (:meth:`Engine.guard`, on the block's last state)."""
+    an energy error beyond DIVERGENCE_ENERGY of its scale (vectorised over the block): of the
+    total energy, and for a free body of its rotational and its translational energy apart,
+    each against its own scale (:attr:`Scenario.energy_scales`), so that neither hides the
+    other; or the engine's own limit (:meth:`Engine.guard`, on the block's last state).
+    ``energy0``: the parts of the initial energy (:func:`energy_parts`)."""
     x, v, R, W = block
     finite = np.isfinite(x).all(1) & np.isfinite(v).all(1) & np.isfinite(W).all(1)
     finite &= np.isfinite(R).all((1, 2))
+    scales = ctx.scenario.energy_scales
     with np.errstate(all="ignore"):
-        drift = np.abs(energy(ctx.scenario, x, v, R, W) - e0) / e_scale
-    bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
+        parts = energy_parts(ctx.scenario, x, v, R, W)
+        drifts = {p: np.abs(parts[p] - energy0[p]) / scales[p] for p in parts}
+    over = {p: ~(d <= DIVERGENCE_ENERGY) for p, d in drifts.items()}
+    bad = ~finite | np.logical_or.reduce(list(over.values()))
     if bad.any():
         i = int(np.argmax(bad))
         if not finite[i]:
             return i, "the state became non-finite"
+        p = next(p for p in drifts if over[p][i])
+        what = _ENERGY_PART[p]
         return i, (
-            f"the energy error |E - E0| = {drift[i] * e_scale:.4g} J exceeded "
-            f"{DIVERGENCE_ENERGY:g} x the scenario's energy scale {e_scale:.4g} J"
+            f"the {what} error |E - E0| = {drifts[p][i] * scales[p]:.4g} J exceeded "
+            f"{DIVERGENCE_ENERGY:g} x the scenario's {what} scale {scales[p]:.4g} J"
         )
     why = engine.guard(ctx, cv.block_row(block, len(x) - 1))
     return (len(x) - 1, why) if why else None
@@ -798,8 +810,10 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
     """Step from 0 to nstep block by block; returns (wall time of the stepping, steps done).
     Raises Diverged with the output up to the last good state."""
     sc = ctx.scenario
-    e0 = float(energy(sc, *(np.asarray(a)[None] for a in initial_state(sc)))[0])
-    e_scale = sc.energy_scale
+    energy0 = {
+        p: float(e[0])
+        for p, e in energy_parts(sc, *(np.asarray(a)[None] for a in initial_state(sc))).items()
+    }
     first = stepper.state()
     rec.record_block([0], cv.BodyState(*(np.asarray(a)[None] for a in first)))
     wall = 0.0
@@ -816,13 +830,13 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
             t_div, span = _failed_step(exc, done, block[-1], dt)
             kept = getattr(exc, "states", None)  # the checkpoints completed before it
             if kept is not None and len(kept[0]):
-                _record_checked(engine, ctx, rec, block, kept, done, wall, (e0, e_scale))
+                _record_checked(engine, ctx, rec, block, kept, done, wall, energy0)
                 done = block[len(kept[0]) - 1]
             raise _diverged(
                 engine, ctx, rec, done, wall, t_div, f"{span} could not be taken: {exc}"
             ) from exc
         wall += time.perf_counter() - t0
-        _record_checked(engine, ctx, rec, block, states, done, wall, (e0, e_scale))
+        _record_checked(engine, ctx, rec, block, states, done, wall, energy0)
         done = block[-1]
         if progress is not None:
             progress(done / nstep)
@@ -833,7 +847,7 @@ def _record_checked(engine, ctx, rec, block, states, done, wall, energy0) -> Non
     """Record the states of the checkpoints ``block[:len(states)]`` up to the first diverged
     one, and raise :class:`Diverged` at that one if there is one."""
     dt = ctx.dt
-    found = _first_divergence(engine, ctx, states, *energy0)
+    found = _first_divergence(engine, ctx, states, energy0)
     good = len(states[0]) if found is None else found[0]
     if good:
         rec.record_block(block[:good], cv.BodyState(*(a[:good] for a in states)))
