@@ -99,7 +99,6 @@ def _scales(tree: Tree, q0, u0) -> tuple[np.ndarray, float]:
         uo = tree.uofs[b]
         if tree.kinds[b] == "free":
             vmax = max(vmax, float(np.linalg.norm(u0[uo : uo + 3])))
-            wscale += 0.0
             wscale = max(wscale, float(np.linalg.norm(u0[uo + 3 : uo + 6])))
         elif tree.kinds[b] == "spherical":
             wscale = max(wscale, float(np.linalg.norm(u0[uo : uo + 3])))
