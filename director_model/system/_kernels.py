@@ -84,9 +84,9 @@ def _kahan(hi, lo, d):
     return t, y - (t - hi)
 
 
-@njit(cache=True)
-def _quat_mat(p0, p1, p2, p3, R):
-    """R(p/|p|) into R (9,), row-major."""
+@njit(inline="always")
+def _qmat(p0, p1, p2, p3):
+    """R(p/|p|) of a quaternion (scalar first, any norm > 0), a row-major 9-tuple."""
     a = p0 * p0
     b = p1 * p1
     c = p2 * p2
@@ -99,105 +99,129 @@ def _quat_mat(p0, p1, p2, p3, R):
     sx = p0 * p1
     sy = p0 * p2
     sz = p0 * p3
-    R[0] = ((a + b) - (c + d)) * r
-    R[1] = (xy - sz) * r2
-    R[2] = (xz + sy) * r2
-    R[3] = (xy + sz) * r2
-    R[4] = ((a + c) - (b + d)) * r
-    R[5] = (yz - sx) * r2
-    R[6] = (xz - sy) * r2
-    R[7] = (yz + sx) * r2
-    R[8] = ((a + d) - (b + c)) * r
+    return (
+        ((a + b) - (c + d)) * r, (xy - sz) * r2, (xz + sy) * r2,
+        (xy + sz) * r2, ((a + c) - (b + d)) * r, (yz - sx) * r2,
+        (xz - sy) * r2, (yz + sx) * r2, ((a + d) - (b + c)) * r,
+    )  # fmt: skip
 
 
-@njit(cache=True)
-def _matmul3(A, B, C):
-    """C = A B for row-major 3x3 arrays (9,)."""
-    for i in range(3):
-        for j in range(3):
-            C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
+@njit(inline="always")
+def _mm(A, B):
+    """A B for row-major 3x3 9-tuples."""
+    return (
+        A[0] * B[0] + A[1] * B[3] + A[2] * B[6],
+        A[0] * B[1] + A[1] * B[4] + A[2] * B[7],
+        A[0] * B[2] + A[1] * B[5] + A[2] * B[8],
+        A[3] * B[0] + A[4] * B[3] + A[5] * B[6],
+        A[3] * B[1] + A[4] * B[4] + A[5] * B[7],
+        A[3] * B[2] + A[4] * B[5] + A[5] * B[8],
+        A[6] * B[0] + A[7] * B[3] + A[8] * B[6],
+        A[6] * B[1] + A[7] * B[4] + A[8] * B[7],
+        A[6] * B[2] + A[7] * B[5] + A[8] * B[8],
+    )
 
 
-@njit(cache=True)
-def _directors(D0, S, Dn, tmp):
-    """Dn[i] = D0[i] R(p_i) for every body."""
-    for i in range(S.shape[0]):
-        _quat_mat(S[i, 12], S[i, 13], S[i, 14], S[i, 15], tmp)
-        _matmul3(D0[i], tmp, Dn[i])
+@njit(inline="always")
+def _mmt(A, B):
+    """A B^T for row-major 3x3 9-tuples."""
+    return (
+        A[0] * B[0] + A[1] * B[1] + A[2] * B[2],
+        A[0] * B[3] + A[1] * B[4] + A[2] * B[5],
+        A[0] * B[6] + A[1] * B[7] + A[2] * B[8],
+        A[3] * B[0] + A[4] * B[1] + A[5] * B[2],
+        A[3] * B[3] + A[4] * B[4] + A[5] * B[5],
+        A[3] * B[6] + A[4] * B[7] + A[5] * B[8],
+        A[6] * B[0] + A[7] * B[1] + A[8] * B[2],
+        A[6] * B[3] + A[7] * B[4] + A[8] * B[5],
+        A[6] * B[6] + A[7] * B[7] + A[8] * B[8],
+    )
 
 
-@njit(cache=True)
-def _inv3(A, out):
-    """out = A^{-1} (row-major 3x3); returns det(A)."""
+@njit(inline="always")
+def _inv3(A):
+    """(det A, A^{-1}) for a row-major 9-tuple (the inverse is garbage if det = 0)."""
     c00 = A[4] * A[8] - A[5] * A[7]
     c01 = A[5] * A[6] - A[3] * A[8]
     c02 = A[3] * A[7] - A[4] * A[6]
     det = A[0] * c00 + A[1] * c01 + A[2] * c02
-    if det == 0.0:
-        return det
-    r = 1.0 / det
-    out[0] = c00 * r
-    out[1] = (A[2] * A[7] - A[1] * A[8]) * r
-    out[2] = (A[1] * A[5] - A[2] * A[4]) * r
-    out[3] = c01 * r
-    out[4] = (A[0] * A[8] - A[2] * A[6]) * r
-    out[5] = (A[2] * A[3] - A[0] * A[5]) * r
-    out[6] = c02 * r
-    out[7] = (A[1] * A[6] - A[0] * A[7]) * r
-    out[8] = (A[0] * A[4] - A[1] * A[3]) * r
-    return det
+    r = 1.0 / det if det != 0.0 else 0.0
+    return det, (
+        c00 * r, (A[2] * A[7] - A[1] * A[8]) * r, (A[1] * A[5] - A[2] * A[4]) * r,
+        c01 * r, (A[0] * A[8] - A[2] * A[6]) * r, (A[2] * A[3] - A[0] * A[5]) * r,
+        c02 * r, (A[1] * A[6] - A[0] * A[7]) * r, (A[0] * A[4] - A[1] * A[3]) * r,
+    )  # fmt: skip
 
 
-@njit(cache=True)
-def _dmv_jac(I, w, pi, h, A):
-    """A = dF/dw of F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi (row-major)."""
-    Iw0 = I[0] * w[0]
-    Iw1 = I[1] * w[1]
-    Iw2 = I[2] * w[2]
-    # 2 (diag(I) + hat(w) diag(I) - hat(I w)) - 2 h pi w^T
-    A[0] = 2.0 * I[0] - 2.0 * h * pi[0] * w[0]
-    A[1] = 2.0 * (-w[2] * I[1] + Iw2) - 2.0 * h * pi[0] * w[1]
-    A[2] = 2.0 * (w[1] * I[2] - Iw1) - 2.0 * h * pi[0] * w[2]
-    A[3] = 2.0 * (w[2] * I[0] - Iw2) - 2.0 * h * pi[1] * w[0]
-    A[4] = 2.0 * I[1] - 2.0 * h * pi[1] * w[1]
-    A[5] = 2.0 * (-w[0] * I[2] + Iw0) - 2.0 * h * pi[1] * w[2]
-    A[6] = 2.0 * (-w[1] * I[0] + Iw1) - 2.0 * h * pi[2] * w[0]
-    A[7] = 2.0 * (w[0] * I[1] - Iw0) - 2.0 * h * pi[2] * w[1]
-    A[8] = 2.0 * I[2] - 2.0 * h * pi[2] * w[2]
+@njit(inline="always")
+def _dmv_jac(I0, I1, I2, w0, w1, w2, p0, p1, p2, h):
+    """dF/dw of F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi: 2 (diag(I) + hat(w) diag(I) -
+    hat(I w)) - 2 h pi w^T, a row-major 9-tuple."""
+    Iw0 = I0 * w0
+    Iw1 = I1 * w1
+    Iw2 = I2 * w2
+    t = 2.0 * h
+    return (
+        2.0 * I0 - t * p0 * w0,
+        2.0 * (Iw2 - w2 * I1) - t * p0 * w1,
+        2.0 * (w1 * I2 - Iw1) - t * p0 * w2,
+        2.0 * (w2 * I0 - Iw2) - t * p1 * w0,
+        2.0 * I1 - t * p1 * w1,
+        2.0 * (Iw0 - w0 * I2) - t * p1 * w2,
+        2.0 * (Iw1 - w1 * I0) - t * p2 * w0,
+        2.0 * (w0 * I1 - Iw0) - t * p2 * w1,
+        2.0 * I2 - t * p2 * w2,
+    )
 
 
-@njit(cache=True)
-def _dmv_solve(I, pi, h, w, A, Ai):
-    """Solve the DMV equation for the Gibbs vector w (in place; w holds the start value).
-    Returns True on success: converged, |w| < 1 (rotation below 90 degrees), det A > 0."""
+@njit(inline="always")
+def _dmv(I0, I1, I2, p0, p1, p2, h):
+    """Solve the DMV equation F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi = 0 for the Gibbs
+    vector w: start w = h/2 I^{-1} pi, one fixed-point correction, then chord Newton with the
+    Jacobian at that start (its error is O(|w|^2), so each iteration gains about as many
+    digits as h |W| has leading zeros, twice). Returns (ok, w0, w1, w2, Ai) with Ai the
+    inverse Jacobian at the start (for the multiplier matrix); ok is False without an
+    admissible solution (no convergence, det <= 0, or |w| >= 1: 90 degrees or more)."""
+    w0 = 0.5 * h * p0 / I0
+    w1 = 0.5 * h * p1 / I1
+    w2 = 0.5 * h * p2 / I2
+    q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
+    c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
+    c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
+    c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
+    w0 = (0.5 * h * q * p0 - c0) / I0
+    w1 = (0.5 * h * q * p1 - c1) / I1
+    w2 = (0.5 * h * q * p2 - c2) / I2
+    det, Ai = _inv3(_dmv_jac(I0, I1, I2, w0, w1, w2, p0, p1, p2, h))
+    if not det > 0.0:
+        return False, w0, w1, w2, Ai
+    ok = False
+    dprev = math.inf
     for _ in range(DMV_MAXIT):
-        Iw0 = I[0] * w[0]
-        Iw1 = I[1] * w[1]
-        Iw2 = I[2] * w[2]
-        q = 1.0 + (w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        F0 = 2.0 * (Iw0 + (w[1] * Iw2 - w[2] * Iw1)) - h * q * pi[0]
-        F1 = 2.0 * (Iw1 + (w[2] * Iw0 - w[0] * Iw2)) - h * q * pi[1]
-        F2 = 2.0 * (Iw2 + (w[0] * Iw1 - w[1] * Iw0)) - h * q * pi[2]
-        _dmv_jac(I, w, pi, h, A)
-        det = _inv3(A, Ai)
-        if not det > 0.0:
-            return False
+        Iw0 = I0 * w0
+        Iw1 = I1 * w1
+        Iw2 = I2 * w2
+        q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
+        F0 = 2.0 * (Iw0 + (w1 * Iw2 - w2 * Iw1)) - h * q * p0
+        F1 = 2.0 * (Iw1 + (w2 * Iw0 - w0 * Iw2)) - h * q * p1
+        F2 = 2.0 * (Iw2 + (w0 * Iw1 - w1 * Iw0)) - h * q * p2
         d0 = Ai[0] * F0 + Ai[1] * F1 + Ai[2] * F2
         d1 = Ai[3] * F0 + Ai[4] * F1 + Ai[5] * F2
         d2 = Ai[6] * F0 + Ai[7] * F1 + Ai[8] * F2
-        w[0] -= d0
-        w[1] -= d1
-        w[2] -= d2
-        dn = abs(d0) + abs(d1) + abs(d2)
-        wn = abs(w[0]) + abs(w[1]) + abs(w[2])
+        w0 -= d0
+        w1 -= d1
+        w2 -= d2
+        wn = abs(w0) + abs(w1) + abs(w2)
         if not wn < math.inf:
-            return False
-        if dn <= 4.0 * EPS * wn or wn == 0.0:
-            if w[0] * w[0] + w[1] * w[1] + w[2] * w[2] >= 1.0:
-                return False
-            _dmv_jac(I, w, pi, h, A)
-            return _inv3(A, Ai) > 0.0
-    return False
+            break
+        dn = abs(d0) + abs(d1) + abs(d2)
+        # converged: a correction at the rounding of w, or no longer falling near it
+        if dn <= 4.0 * EPS * wn or (dn >= dprev and dn <= 64.0 * EPS * wn):
+            ok = True
+            break
+        dprev = dn
+    ok = ok and (w0 * w0 + w1 * w1 + w2 * w2) < 1.0
+    return ok, w0, w1, w2, Ai
 
 
 @njit(cache=True)
@@ -209,17 +233,15 @@ def _rows(rint, rvec, X, D, gv, Jc):
         a = rint[r, 1]
         b = rint[r, 2]
         k = rint[r, 3]
-        Da = D[a]
         va0, va1, va2 = rvec[r, 0], rvec[r, 1], rvec[r, 2]
         vb0, vb1, vb2 = rvec[r, 3], rvec[r, 4], rvec[r, 5]
-        ra0 = Da[0] * va0 + Da[1] * va1 + Da[2] * va2
-        ra1 = Da[3] * va0 + Da[4] * va1 + Da[5] * va2
-        ra2 = Da[6] * va0 + Da[7] * va1 + Da[8] * va2
+        ra0 = D[a, 0] * va0 + D[a, 1] * va1 + D[a, 2] * va2
+        ra1 = D[a, 3] * va0 + D[a, 4] * va1 + D[a, 5] * va2
+        ra2 = D[a, 6] * va0 + D[a, 7] * va1 + D[a, 8] * va2
         if b >= 0:
-            Db = D[b]
-            rb0 = Db[0] * vb0 + Db[1] * vb1 + Db[2] * vb2
-            rb1 = Db[3] * vb0 + Db[4] * vb1 + Db[5] * vb2
-            rb2 = Db[6] * vb0 + Db[7] * vb1 + Db[8] * vb2
+            rb0 = D[b, 0] * vb0 + D[b, 1] * vb1 + D[b, 2] * vb2
+            rb1 = D[b, 3] * vb0 + D[b, 4] * vb1 + D[b, 5] * vb2
+            rb2 = D[b, 6] * vb0 + D[b, 7] * vb1 + D[b, 8] * vb2
             xb0, xb1, xb2 = X[b, 0], X[b, 1], X[b, 2]
         else:
             rb0, rb1, rb2 = vb0, vb1, vb2
@@ -265,9 +287,9 @@ def _rows(rint, rvec, X, D, gv, Jc):
             Jc[r, 11] = -c2
         else:  # LINE
             p0, p1, p2 = rvec[r, 6], rvec[r, 7], rvec[r, 8]
-            u0 = Da[0] * p0 + Da[1] * p1 + Da[2] * p2
-            u1 = Da[3] * p0 + Da[4] * p1 + Da[5] * p2
-            u2 = Da[6] * p0 + Da[7] * p1 + Da[8] * p2
+            u0 = D[a, 0] * p0 + D[a, 1] * p1 + D[a, 2] * p2
+            u1 = D[a, 3] * p0 + D[a, 4] * p1 + D[a, 5] * p2
+            u2 = D[a, 6] * p0 + D[a, 7] * p1 + D[a, 8] * p2
             s0 = (xb0 + rb0) - (xa0 + ra0)
             s1 = (xb1 + rb1) - (xa1 + ra1)
             s2 = (xb2 + rb2) - (xa2 + ra2)
@@ -311,7 +333,6 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw):
     A[:] = 0.0
     nb = ptr.shape[0] - 1
     for i in range(nb):
-        M = Mth[i]
         mx = Mx[i]
         for e1 in range(ptr[i], ptr[i + 1]):
             r = idx[e1]
@@ -320,9 +341,9 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw):
             l1 = JL[r, o1 + 1] * mx
             l2 = JL[r, o1 + 2] * mx
             t0, t1, t2 = JL[r, o1 + 3], JL[r, o1 + 4], JL[r, o1 + 5]
-            l3 = t0 * M[0] + t1 * M[3] + t2 * M[6]
-            l4 = t0 * M[1] + t1 * M[4] + t2 * M[7]
-            l5 = t0 * M[2] + t1 * M[5] + t2 * M[8]
+            l3 = t0 * Mth[i, 0] + t1 * Mth[i, 3] + t2 * Mth[i, 6]
+            l4 = t0 * Mth[i, 1] + t1 * Mth[i, 4] + t2 * Mth[i, 7]
+            l5 = t0 * Mth[i, 2] + t1 * Mth[i, 5] + t2 * Mth[i, 8]
             for e2 in range(ptr[i], ptr[i + 1]):
                 s = idx[e2]
                 o2 = 6 * side[e2]
@@ -404,32 +425,58 @@ def _svd_solve(U, s, Vt, rank, b, x):
             x[j] += c * Vt[k, j]
 
 
+@njit(inline="always")
+def _row9(A, i):
+    return (A[i, 0], A[i, 1], A[i, 2], A[i, 3], A[i, 4], A[i, 5], A[i, 6], A[i, 7], A[i, 8])
+
+
+@njit(inline="always")
+def _put9(A, i, T):
+    for c in range(9):
+        A[i, c] = T[c]
+
+
+@njit(inline="always")
+def _tmul(D, t0, t1, t2):
+    """D^T t for a row-major 9-tuple D."""
+    return (
+        D[0] * t0 + D[3] * t1 + D[6] * t2,
+        D[1] * t0 + D[4] * t1 + D[7] * t2,
+        D[2] * t0 + D[5] * t1 + D[8] * t2,
+    )
+
+
+@njit(inline="always")
+def _mul(D, t0, t1, t2):
+    """D t for a row-major 9-tuple D."""
+    return (
+        D[0] * t0 + D[1] * t1 + D[2] * t2,
+        D[3] * t0 + D[4] * t1 + D[5] * t2,
+        D[6] * t0 + D[7] * t1 + D[8] * t2,
+    )
+
+
 @njit(cache=True)
 def _substep(
     h, B, D0, rint, rvec, ptr, idx, side, g, S, mu, minnorm, bw, rank_nom, rank_tol, tol_rel,
-    Lsc, diag, nstep_now, W,
+    Lsc, diag, nstep_now, Dn, Dnew, VH, PI, WG, F, T, Mx, Mth, Jold, Jnew, gv, lam, dl, Ab,
+    Ad, r0, U, sv, Vt, Fn, Tn,
 ):  # fmt: skip
-    """One RATTLE step of size h (negative in a composition's backward sub-step). W is the
-    workspace tuple. Returns a status code."""
-    (Dn, Dnew, Xn, Xnew, VH, PI, WG, F, T, F2, T2, Mx, Mth, Jold, Jnew, gv, lam, dl, Ab,
-     Ad, tmp, A3, Ai3, K3, K4, r0, U, sv, Vt) = W  # fmt: skip
+    """One RATTLE step of size h (negative in a composition's backward sub-step); the
+    arrays after ``nstep_now`` are workspace. Returns a status code."""
     nb = S.shape[0]
     nrow = rint.shape[0]
     hh = 0.5 * h
-    _directors(D0, S, Dn, tmp)
     xmax = Lsc
     for i in range(nb):
+        _put9(Dn, i, _mm(_row9(D0, i), _qmat(S[i, 12], S[i, 13], S[i, 14], S[i, 15])))
         for c in range(3):
-            Xn[i, c] = S[i, c]
             xmax = max(xmax, abs(S[i, c]))
     tol = tol_rel * xmax
     if nrow > 0:
-        _rows(rint, rvec, Xn, Dn, gv, Jold)
+        _rows(rint, rvec, S, Dn, gv, Jold)
     for r in range(nrow):
         lam[r] = mu[r]
-    for i in range(nb):
-        for c in range(3):
-            WG[i, c] = hh * S[i, 20 + c] * B[i, 4 + c]
     rank = 0
     it = 0
     while True:
@@ -437,44 +484,43 @@ def _substep(
             _forces(rint, Jold, lam, F, T)
         for i in range(nb):
             m = B[i, 0]
-            Di = Dn[i]
+            Di = _row9(Dn, i)
             for c in range(3):
                 VH[i, c] = S[i, 6 + c] + hh * (g[c] + F[i, c] / m)
-                Xnew[i, c] = S[i, c] + h * VH[i, c]
-            # pi = Pi + h/2 D_n^T tau
-            for c in range(3):
-                PI[i, c] = S[i, 20 + c] + hh * (Di[c] * T[i, 0] + Di[3 + c] * T[i, 1]
-                                                 + Di[6 + c] * T[i, 2])  # fmt: skip
-            if not _dmv_solve(B[i, 1:4], PI[i], h, WG[i], A3, Ai3):
+                WG[i, 3 + c] = S[i, c] + h * VH[i, c]  # x_{n+1}
+            t0, t1, t2 = _tmul(Di, T[i, 0], T[i, 1], T[i, 2])
+            p0 = S[i, 20] + hh * t0
+            p1 = S[i, 21] + hh * t1
+            p2 = S[i, 22] + hh * t2
+            PI[i, 0] = p0
+            PI[i, 1] = p1
+            PI[i, 2] = p2
+            ok, w0, w1, w2, Ai = _dmv(B[i, 1], B[i, 2], B[i, 3], p0, p1, p2, h)
+            if not ok:
                 return FAIL_DMV
-            w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
-            _quat_mat(1.0, w0, w1, w2, tmp)
-            _matmul3(Di, tmp, Dnew[i])
+            WG[i, 0] = w0
+            WG[i, 1] = w1
+            WG[i, 2] = w2
+            Dj = _mm(Di, _qmat(1.0, w0, w1, w2))
+            _put9(Dnew, i, Dj)
             if it == 0 and nrow > 0:
-                # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, A^{-1} at the solution (in Ai3)
-                for a in range(3):
-                    for b in range(3):
-                        K3[3 * a + b] = Ai3[3 * a + b]
-                K3[0] -= -w2 * Ai3[3] + w1 * Ai3[6]
-                K3[1] -= -w2 * Ai3[4] + w1 * Ai3[7]
-                K3[2] -= -w2 * Ai3[5] + w1 * Ai3[8]
-                K3[3] -= w2 * Ai3[0] - w0 * Ai3[6]
-                K3[4] -= w2 * Ai3[1] - w0 * Ai3[7]
-                K3[5] -= w2 * Ai3[2] - w0 * Ai3[8]
-                K3[6] -= -w1 * Ai3[0] + w0 * Ai3[3]
-                K3[7] -= -w1 * Ai3[1] + w0 * Ai3[4]
-                K3[8] -= -w1 * Ai3[2] + w0 * Ai3[5]
-                _matmul3(Dnew[i], K3, K4)
-                for a in range(3):
-                    for b in range(3):
-                        Mth[i, 3 * a + b] = (
-                            K4[3 * a] * Di[3 * b] + K4[3 * a + 1] * Di[3 * b + 1]
-                            + K4[3 * a + 2] * Di[3 * b + 2]
-                        )  # fmt: skip
+                # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, the rotation's response to a torque
+                K = (
+                    Ai[0] - (-w2 * Ai[3] + w1 * Ai[6]),
+                    Ai[1] - (-w2 * Ai[4] + w1 * Ai[7]),
+                    Ai[2] - (-w2 * Ai[5] + w1 * Ai[8]),
+                    Ai[3] - (w2 * Ai[0] - w0 * Ai[6]),
+                    Ai[4] - (w2 * Ai[1] - w0 * Ai[7]),
+                    Ai[5] - (w2 * Ai[2] - w0 * Ai[8]),
+                    Ai[6] - (-w1 * Ai[0] + w0 * Ai[3]),
+                    Ai[7] - (-w1 * Ai[1] + w0 * Ai[4]),
+                    Ai[8] - (-w1 * Ai[2] + w0 * Ai[5]),
+                )
+                _put9(Mth, i, _mmt(_mm(Dj, K), Di))
                 Mx[i] = 0.5 / m
         if nrow == 0:
             break
-        _rows(rint, rvec, Xnew, Dnew, gv, Jnew)
+        _rows(rint, rvec, WG[:, 3:6], Dnew, gv, Jnew)
         err = 0.0
         for r in range(nrow):
             err = max(err, abs(gv[r]))
@@ -502,52 +548,38 @@ def _substep(
         it += 1
     diag[D_ITER] += it
     diag[D_MAXIT] = max(diag[D_MAXIT], it)
-    # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h)
+    # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h);
+    # Tn holds the world angular velocity of u0, VH its velocity
     for i in range(nb):
         w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
         I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
-        q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
-        rq = 4.0 / (q * h)
+        rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
         c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
         c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
         c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-        # the momentum increment over the first half and the rotation: PI - Pi_n - rq c
-        Di = Dn[i]
+        W0 = (PI[i, 0] - rq * c0) * B[i, 4]
+        W1 = (PI[i, 1] - rq * c1) * B[i, 5]
+        W2 = (PI[i, 2] - rq * c2) * B[i, 6]
+        Tn[i, 0], Tn[i, 1], Tn[i, 2] = _mul(_row9(Dnew, i), W0, W1, W2)
         for c in range(3):
-            K3[c] = hh * (Di[c] * T[i, 0] + Di[3 + c] * T[i, 1] + Di[6 + c] * T[i, 2])
-        F2[i, 0] = K3[0] - rq * c0  # dPi of the step so far, body axes of D_{n+1}
-        F2[i, 1] = K3[1] - rq * c1
-        F2[i, 2] = K3[2] - rq * c2
-        for c in range(3):
-            T2[i, c] = (S[i, 20 + c] + F2[i, c]) * B[i, 4 + c]  # W0 = I^{-1} Q^T pi
-            VH[i, c] = VH[i, c] + hh * g[c]  # v0
+            VH[i, c] = VH[i, c] + hh * g[c]
     if nrow > 0:
         for r in range(nrow):
             a = rint[r, 1]
             b = rint[r, 2]
-            Da = Dnew[a]
-            wa0 = Da[0] * T2[a, 0] + Da[1] * T2[a, 1] + Da[2] * T2[a, 2]
-            wa1 = Da[3] * T2[a, 0] + Da[4] * T2[a, 1] + Da[5] * T2[a, 2]
-            wa2 = Da[6] * T2[a, 0] + Da[7] * T2[a, 1] + Da[8] * T2[a, 2]
-            s = (Jnew[r, 0] * VH[a, 0] + Jnew[r, 1] * VH[a, 1] + Jnew[r, 2] * VH[a, 2]
-                 + Jnew[r, 3] * wa0 + Jnew[r, 4] * wa1 + Jnew[r, 5] * wa2)  # fmt: skip
+            s = Jnew[r, 0] * VH[a, 0] + Jnew[r, 1] * VH[a, 1] + Jnew[r, 2] * VH[a, 2]
+            s += Jnew[r, 3] * Tn[a, 0] + Jnew[r, 4] * Tn[a, 1] + Jnew[r, 5] * Tn[a, 2]
             if b >= 0:
-                Db = Dnew[b]
-                wb0 = Db[0] * T2[b, 0] + Db[1] * T2[b, 1] + Db[2] * T2[b, 2]
-                wb1 = Db[3] * T2[b, 0] + Db[4] * T2[b, 1] + Db[5] * T2[b, 2]
-                wb2 = Db[6] * T2[b, 0] + Db[7] * T2[b, 1] + Db[8] * T2[b, 2]
-                s += (Jnew[r, 6] * VH[b, 0] + Jnew[r, 7] * VH[b, 1] + Jnew[r, 8] * VH[b, 2]
-                      + Jnew[r, 9] * wb0 + Jnew[r, 10] * wb1 + Jnew[r, 11] * wb2)  # fmt: skip
+                s += Jnew[r, 6] * VH[b, 0] + Jnew[r, 7] * VH[b, 1] + Jnew[r, 8] * VH[b, 2]
+                s += Jnew[r, 9] * Tn[b, 0] + Jnew[r, 10] * Tn[b, 1] + Jnew[r, 11] * Tn[b, 2]
             r0[r] = s
         for i in range(nb):
             Mx[i] = 1.0 / B[i, 0]
-            Di = Dnew[i]
-            for a in range(3):
-                for b in range(3):
-                    Mth[i, 3 * a + b] = (
-                        Di[3 * a] * B[i, 4] * Di[3 * b] + Di[3 * a + 1] * B[i, 5] * Di[3 * b + 1]
-                        + Di[3 * a + 2] * B[i, 6] * Di[3 * b + 2]
-                    )  # fmt: skip
+            Dj = _row9(Dnew, i)
+            DI = (Dj[0] * B[i, 4], Dj[1] * B[i, 5], Dj[2] * B[i, 6],
+                  Dj[3] * B[i, 4], Dj[4] * B[i, 5], Dj[5] * B[i, 6],
+                  Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
+            _put9(Mth, i, _mmt(DI, Dj))
         if minnorm:
             _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, False, bw)
             rank = _svd_factor(Ad, rank_tol, U, sv, Vt)
@@ -564,7 +596,7 @@ def _substep(
             if not _band_lu(Ab, bw):
                 return FAIL_SINGULAR
             _band_solve(Ab, bw, r0, dl)
-    return _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, dl, rint, Jnew, nrow, F2, T2)
+    return _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, dl, rint, Jnew, nrow, Fn, Tn)
 
 
 @njit(cache=True)
@@ -573,18 +605,17 @@ def _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, nu, rint, Jnew, nrow, Fn, Tn
     work arrays (nb, 3) for the forces of the velocity multipliers nu."""
     nb = S.shape[0]
     hh = 0.5 * h
-    Fn[:] = 0.0
-    Tn[:] = 0.0
     if nrow > 0:
         _forces(rint, Jnew, nu, Fn, Tn)
+    else:
+        Fn[:] = 0.0
+        Tn[:] = 0.0
     for r in range(nrow):
         mu[r] = 2.0 * nu[r] / h
     for i in range(nb):
         m = B[i, 0]
         I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
         w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
-        Di = Dn[i]
-        Dj = Dnew[i]
         # x += h v_half; v += h/2 (g + F/m) + h/2 g + Fn/m  (VH holds v_half + h/2 g)
         for c in range(3):
             vh = VH[i, c] - hh * g[c]
@@ -592,18 +623,15 @@ def _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, nu, rint, Jnew, nrow, Fn, Tn
             dv = hh * (g[c] + F[i, c] / m) + hh * g[c] + Fn[i, c] / m
             S[i, 6 + c], S[i, 9 + c] = _kahan(S[i, 6 + c], S[i, 9 + c], dv)
         # Pi += h/2 Dn^T T - 4 c/(q h) + Dnew^T Tn
-        q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
-        rq = 4.0 / (q * h)
+        rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
         c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
         c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
         c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-        cc = (c0, c1, c2)
-        for c in range(3):
-            d = (
-                hh * (Di[c] * T[i, 0] + Di[3 + c] * T[i, 1] + Di[6 + c] * T[i, 2]) - rq * cc[c]
-                + (Dj[c] * Tn[i, 0] + Dj[3 + c] * Tn[i, 1] + Dj[6 + c] * Tn[i, 2])
-            )  # fmt: skip
-            S[i, 20 + c], S[i, 23 + c] = _kahan(S[i, 20 + c], S[i, 23 + c], d)
+        a0, a1, a2 = _tmul(_row9(Dn, i), T[i, 0], T[i, 1], T[i, 2])
+        b0, b1, b2 = _tmul(_row9(Dnew, i), Tn[i, 0], Tn[i, 1], Tn[i, 2])
+        S[i, 20], S[i, 23] = _kahan(S[i, 20], S[i, 23], (hh * a0 - rq * c0) + b0)
+        S[i, 21], S[i, 24] = _kahan(S[i, 21], S[i, 24], (hh * a1 - rq * c1) + b1)
+        S[i, 22], S[i, 25] = _kahan(S[i, 22], S[i, 25], (hh * a2 - rq * c2) + b2)
         # p += p (x) (0, w)
         p0, p1, p2, p3 = S[i, 12], S[i, 13], S[i, 14], S[i, 15]
         dp0 = -((p1 * w0 + p2 * w1) + p3 * w2)
@@ -614,7 +642,9 @@ def _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, nu, rint, Jnew, nrow, Fn, Tn
         S[i, 13], S[i, 17] = _kahan(p1, S[i, 17], dp1)
         S[i, 14], S[i, 18] = _kahan(p2, S[i, 18], dp2)
         S[i, 15], S[i, 19] = _kahan(p3, S[i, 19], dp3)
-        nn = (S[i, 12] ** 2 + S[i, 13] ** 2) + (S[i, 14] ** 2 + S[i, 15] ** 2)
+        nn = (S[i, 12] * S[i, 12] + S[i, 13] * S[i, 13]) + (
+            S[i, 14] * S[i, 14] + S[i, 15] * S[i, 15]
+        )
         if nn > QUAT_BIG:
             for c in range(12, 20):
                 S[i, c] *= QUAT_SHRINK
@@ -625,14 +655,13 @@ def _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, nu, rint, Jnew, nrow, Fn, Tn
 
 
 @njit(cache=True)
-def _store(B, D0, S, X, V, D, W, k, tmp, R):
+def _store(B, D0, S, X, V, D, W, k):
     for i in range(S.shape[0]):
         for c in range(3):
             X[k, i, c] = S[i, c]
             V[k, i, c] = S[i, 6 + c]
             W[k, i, c] = S[i, 20 + c] * B[i, 4 + c]
-        _quat_mat(S[i, 12], S[i, 13], S[i, 14], S[i, 15], tmp)
-        _matmul3(D0[i], tmp, R)
+        R = _mm(_row9(D0, i), _qmat(S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
         for c in range(9):
             D[k, i, c // 3, c % 3] = R[c]
 
@@ -649,34 +678,46 @@ def run_system(
     nb = S.shape[0]
     nrow = rint.shape[0]
     nr = max(nrow, 1)
-    Wk = (
-        np.empty((nb, 9)), np.empty((nb, 9)), np.empty((nb, 3)), np.empty((nb, 3)),
-        np.empty((nb, 3)), np.empty((nb, 3)), np.empty((nb, 3)), np.zeros((nb, 3)),
-        np.zeros((nb, 3)), np.zeros((nb, 3)), np.zeros((nb, 3)), np.empty(nb),
-        np.empty((nb, 9)), np.zeros((nr, 12)), np.zeros((nr, 12)), np.zeros(nr), np.zeros(nr),
-        np.zeros(nr), np.zeros((nr, 2 * bw + 1)), np.zeros((nr, nr)) if minnorm else
-        np.zeros((1, 1)), np.empty(9), np.empty(9), np.empty(9), np.empty(9), np.empty(9),
-        np.zeros(nr), np.zeros((nr, nr)) if minnorm else np.zeros((1, 1)), np.zeros(nr),
-        np.zeros((nr, nr)) if minnorm else np.zeros((1, 1)),
-    )  # fmt: skip
-    tmp = np.empty(9)
-    R = np.empty(9)
+    nd = nr if minnorm else 1
+    Dn = np.empty((nb, 9))
+    Dnew = np.empty((nb, 9))
+    VH = np.empty((nb, 3))
+    PI = np.empty((nb, 3))
+    WG = np.empty((nb, 6))
+    F = np.zeros((nb, 3))
+    T = np.zeros((nb, 3))
+    Mx = np.empty(nb)
+    Mth = np.empty((nb, 9))
+    Jold = np.zeros((nr, 12))
+    Jnew = np.zeros((nr, 12))
+    gv = np.zeros(nr)
+    lam = np.zeros(nr)
+    dl = np.zeros(nr)
+    Ab = np.zeros((nr, 2 * bw + 1))
+    Ad = np.zeros((nd, nd))
+    r0 = np.zeros(nr)
+    U = np.zeros((nd, nd))
+    sv = np.zeros(nd)
+    Vt = np.zeros((nd, nd))
+    Fn = np.zeros((nb, 3))
+    Tn = np.zeros((nb, 3))
     k = 0
     if saves.shape[0] > 0 and saves[0] == 0:
-        _store(B, D0, S, X, V, D, W, 0, tmp, R)
+        _store(B, D0, S, X, V, D, W, 0)
         k = 1
     for n in range(1, nstep + 1):
         for j in range(coef.shape[0]):
             h = coef[j] * dt
             st = _substep(
                 h, B, D0, rint, rvec, ptr, idx, side, g, S, mu, minnorm, bw, rank_nom,
-                rank_tol, tol_rel, Lsc, diag, n, Wk,
+                rank_tol, tol_rel, Lsc, diag, n, Dn, Dnew, VH, PI, WG, F, T, Mx, Mth, Jold,
+                Jnew, gv, lam, dl, Ab, Ad, r0, U, sv, Vt, Fn, Tn,
             )  # fmt: skip
             if st != OK:
                 info[0] = n - 1
                 info[1] = h
                 return st
         if k < saves.shape[0] and saves[k] == n:
-            _store(B, D0, S, X, V, D, W, k, tmp, R)
+            _store(B, D0, S, X, V, D, W, k)
             k += 1
     return OK
