@@ -9,8 +9,10 @@
     director-bench check DIR --baseline FILE [--factor F]
 
 Exit codes: 0 success; 1 a failure of the work (the check found regressions, the results
-store is damaged or cannot be written, or --strict and a run failed); 2 bad input (unknown
-scenario, engine or integrator, malformed file, bad option), with a message naming it.
+store is damaged, locked or cannot be written, a figure failed, a fault of the suite, or
+--strict and a run failed), with a message fitting the cause; 2 bad input (unknown scenario,
+engine or integrator, malformed file, bad option: an :class:`scenarios.schema.InputError` or
+argparse's refusal), with a message naming it. Never a traceback.
 """
 
 from __future__ import annotations
@@ -52,13 +54,31 @@ def _accuracy_list(text: str) -> list[float]:
     return vals
 
 
+#: the largest count an option takes (steps, states, members are indexed by 64-bit integers)
+MAX_COUNT = 10**18
+
+
 def _whole(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a whole number") from None
     if v < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be >= 1")
+    if v > MAX_COUNT:
+        raise argparse.ArgumentTypeError(
+            f"{text[:40]!r} ({len(text)} digits) must be at most {MAX_COUNT:.0e}"
+        )
+    return v
+
+
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a whole number") from None
+    if not 0 <= v < 2**64:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} must be in 0 .. 2^64 - 1")
     return v
 
 
@@ -137,6 +157,8 @@ def cmd_run(args) -> int:
     if summary.report:
         print(f"report:       {summary.report['html']}\n              {summary.report['markdown']}")
     print(f"junit:        {summary.junit}")
+    for why in summary.unloadable.values():
+        print(f"not run:      {why}")
     failed = df[(df["verdict"] == "fail") | (df["status"] == "error")]
     if len(failed):
         print(f"{len(failed)} run(s) failed their verdict or errored; see the report's failures.")
@@ -195,9 +217,14 @@ def cmd_baseline(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from reports.gate import compare, format_comparison, invariants, write_junit
+    from reports.gate import compare, format_comparison, invariants, read_baseline, write_junit
     from reports.results import read_results
+    from scenarios.schema import InputError
 
+    try:  # the baseline file is input: what is wrong with it is the user's to fix (exit 2)
+        read_baseline(args.baseline)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     cmp = compare(args.dir, args.baseline, factor=args.factor, timing_factor=args.timing_factor)
     print(format_comparison(cmp))
     write_junit(cmp, Path(args.dir) / "check-junit.xml")
@@ -309,7 +336,7 @@ def _add_ensemble(sub) -> None:
     )
     s.add_argument("scenario", metavar="SCENARIO_OR_FILE")
     s.add_argument("--n", type=_whole, default=64, help="number of members (default 64)")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     s.add_argument("--engines", type=_csv_list, help="comma-separated engine names")
     s.add_argument("--integrators", type=_csv_list, help="comma-separated integrator names")
     s.add_argument("--dt", type=_positive, help="step size (default: the scenario's)")
@@ -380,32 +407,27 @@ def _quiet_exit() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     from reports.results import StoreDamaged, StoreUnwritable
+    from scenarios.schema import InputError
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError, KeyError) as exc:
-        # Input errors (malformed scenario file, unknown name, bad baseline) are the user's to
-        # fix: print the message that names file, field and rule, not a traceback.
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"director-bench: error: {msg}", file=sys.stderr)
+    except InputError as exc:
+        # input errors (malformed scenario file, unknown name, bad baseline, bad option) are
+        # the user's to fix: the message names the file or argument, the value and the rule
+        print(f"director-bench: error: {exc}", file=sys.stderr)
         return 2
+    except FileNotFoundError as exc:
+        if exc.errno is None:  # ours, naming a folder or file given as an argument
+            print(f"director-bench: error: {exc}", file=sys.stderr)
+            return 2
+        return _work_failed(exc)
     except (StoreDamaged, StoreUnwritable) as exc:
         print(f"director-bench: error: {exc}", file=sys.stderr)
         return 1
     except BrokenPipeError:
         return _quiet_exit()
-    except OSError as exc:
-        # writing the report or an export failed (disk full, a file-size limit): the results
-        # store holds every finished run
-        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(
-            f"director-bench: error: {where}{exc.strerror or exc}; finished runs are kept in "
-            "the results store, rerun (or `director-bench report DIR`) when there is room",
-            file=sys.stderr,
-        )
-        return 1
     except KeyboardInterrupt:
         print(
             "\ndirector-bench: interrupted; finished runs are kept in the results store, "
@@ -413,6 +435,43 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 130
+    except Exception as exc:  # noqa: BLE001 - the work failed: a message, never a traceback
+        return _work_failed(exc)
+
+
+def _work_failed(exc: BaseException) -> int:
+    """Exit 1 for a failure of the work, with a message that fits its cause: a file that
+    cannot be written (disk full, a file-size limit, a read-only folder), memory, or a fault
+    of the suite, located (file:line) so that it can be reported."""
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(
+            f"director-bench: error: {where}{exc.strerror or exc}; finished runs are kept in "
+            "the results store, rerun (or `director-bench report DIR`) when the cause is fixed",
+            file=sys.stderr,
+        )
+        return 1
+    if isinstance(exc, MemoryError):
+        print(
+            "director-bench: error: out of memory; finished runs are kept in the results "
+            "store: run fewer or shorter runs at once (--jobs, --save-every)",
+            file=sys.stderr,
+        )
+        return 1
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    at = f" (at {Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
+    print(
+        f"director-bench: error: the work failed: {type(exc).__name__}: {exc}{at}. This is a "
+        "fault of director-bench, not of the input: finished runs are kept in the results "
+        "store; please report it with the command (set DIRECTOR_BENCH_TRACEBACK=1 for the "
+        "traceback)",
+        file=sys.stderr,
+    )
+    if os.environ.get("DIRECTOR_BENCH_TRACEBACK"):
+        traceback.print_exception(exc, file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":

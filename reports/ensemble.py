@@ -23,18 +23,19 @@ import numpy as np
 
 from reports.results import RunSpec
 from reports.runner import execute
+from scenarios.schema import InputError
 
 
 def members(scenario, n: int, seed: int = 0) -> list:
     """``n`` variants of ``scenario`` with random directions of W at the scenario's rotational
     kinetic energy. Member k is named ``<name>#k``."""
     if n < 1:
-        raise ValueError(f"ensemble size n = {n}: must be >= 1")
+        raise InputError(f"ensemble size n = {n}: must be >= 1")
     I = np.asarray(scenario.inertia)
     W0 = np.asarray(scenario.omega_body)
     T_rot = 0.5 * W0 @ (I * W0)
     if T_rot == 0:
-        raise ValueError(f"scenario {scenario.name!r}: W = 0, no rotational energy to keep")
+        raise InputError(f"scenario {scenario.name!r}: W = 0, no rotational energy to keep")
     rng = np.random.default_rng(seed)
     u = rng.normal(size=(n, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)

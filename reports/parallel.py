@@ -25,6 +25,8 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
+from scenarios.schema import InputError
+
 
 def log_dir(out: Path | None) -> Path | None:
     if out is None:
@@ -123,7 +125,7 @@ def dask_cluster(address: str, timeout: float = 20.0) -> Callable:
     try:
         from distributed import Client, as_completed
     except ImportError as exc:
-        raise ValueError(
+        raise InputError(
             f"--scheduler {address}: Dask's distributed package is not installed "
             "(pip install 'director-bench[dask]')"
         ) from exc
@@ -132,7 +134,7 @@ def dask_cluster(address: str, timeout: float = 20.0) -> Callable:
         try:
             return Client(address, timeout=f"{timeout}s")
         except OSError as exc:
-            raise ValueError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from exc
+            raise InputError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from exc
 
     connect().close()  # an unreachable scheduler is bad input, said before anything runs
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+
+from scenarios.schema import InputError
 
 DEFAULT_BASELINE = Path(__file__).resolve().parent / "baselines" / "default.json"
 
@@ -16,6 +18,8 @@ class RunSummary:
     results: object  # pandas DataFrame: the folder's current results
     report: dict
     junit: Path | None
+    #: engines whose adapter does not load here (no integrator to run), with the reason
+    unloadable: dict = field(default_factory=dict)
 
 
 def resolve_scenarios(names, all_: bool = False) -> list:
@@ -32,7 +36,7 @@ def resolve_scenarios(names, all_: bool = False) -> list:
         sc = scenarios.load(n)
         prev = seen.get(sc.name)
         if prev is not None and prev.scenario_hash != sc.scenario_hash:
-            raise ValueError(
+            raise InputError(
                 f"two different scenarios are named {sc.name!r}: {prev.path} and {sc.path}; "
                 "results are filed by name, so give one of them another name"
             )
@@ -50,10 +54,10 @@ def check_engines(engines) -> list[str]:
     if engines is None:
         return known
     if not engines:
-        raise ValueError(f"--engines: an empty list; give one or more of {', '.join(known)}")
+        raise InputError(f"--engines: an empty list; give one or more of {', '.join(known)}")
     bad = [e for e in engines if e not in known]
     if bad:
-        raise ValueError(
+        raise InputError(
             f"--engines: unknown {', '.join(map(repr, bad))}; known: {', '.join(known)}"
         )
     return list(dict.fromkeys(engines))
@@ -67,10 +71,10 @@ def check_integrators(integrators, engines: list[str]) -> list[str] | None:
         return None
     offered = {i.name: e for e in engines for i in get_engine(e).integrators}
     if not integrators:
-        raise ValueError(f"--integrators: an empty list; give one or more of {', '.join(offered)}")
+        raise InputError(f"--integrators: an empty list; give one or more of {', '.join(offered)}")
     bad = [i for i in integrators if i not in offered]
     if bad:
-        raise ValueError(
+        raise InputError(
             f"--integrators: {', '.join(map(repr, bad))} offered by none of the engines "
             f"{', '.join(engines)}; they offer: {', '.join(offered)}"
         )
@@ -79,7 +83,17 @@ def check_integrators(integrators, engines: list[str]) -> list[str] | None:
 
 def check_count(name: str, value) -> None:
     if value is not None and not (isinstance(value, int) and value >= 1):
-        raise ValueError(f"{name} = {value!r}: must be a whole number >= 1")
+        raise InputError(f"{name} = {value!r}: must be a whole number >= 1")
+
+
+def check_jobs(jobs) -> None:
+    """At most 4 local workers per core: more only share the cores, and each worker's share
+    of memory (the limit on the states a run keeps) shrinks with their number."""
+    import os
+
+    most = 4 * (os.cpu_count() or 1)
+    if jobs is not None and jobs > most:
+        raise InputError(f"--jobs {jobs}: at most {most} (4 per core on this machine)")
 
 
 def check_out(out) -> Path:
@@ -90,14 +104,14 @@ def check_out(out) -> Path:
 
     out = Path(out).expanduser().resolve()
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: is a file, not a folder")
+        raise InputError(f"--out {out}: is a file, not a folder")
     try:
         out.mkdir(parents=True, exist_ok=True)
         fd, probe = tempfile.mkstemp(prefix=".write-probe-", dir=out)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
-        raise ValueError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+        raise InputError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
     return out
 
 
@@ -128,6 +142,7 @@ def run(
     ``scheduler``: a Dask scheduler address."""
     import os
 
+    from references.engines import get_engine
     from reports import junit
     from reports.parallel import make_mapper
     from reports.provenance import write_provenance
@@ -136,18 +151,21 @@ def run(
 
     for name, value in (("--jobs", jobs), ("--segment", segment), ("--save-every", save_every)):
         check_count(name, value)
+    check_jobs(jobs)
     out = Path(out).expanduser().resolve()
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: is a file, not a folder")
+        raise InputError(f"--out {out}: is a file, not a folder")
     scs = resolve_scenarios(names, all_scenarios)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)
+    unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
     limit = max_states(jobs or os.cpu_count() or 1)  # reports.runner
     specs = plan(
         scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
     )
     if not specs:
-        raise ValueError("nothing to run: no engine offers the integrators asked for")
+        why = "".join(f"; {w}" for w in unloadable.values())
+        raise InputError(f"nothing to run: no engine offers the integrators asked for{why}")
     mapper = make_mapper(jobs, scheduler, out)
     # every input is checked: only now is anything written
     out = check_out(out)
@@ -155,7 +173,7 @@ def run(
     df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
     rep = build_report(out, progress=progress) if report else {}
     path = junit.write(df, out / "junit.xml")
-    return RunSummary(out, n_run, len(specs) - n_run, df, rep, path)
+    return RunSummary(out, n_run, len(specs) - n_run, df, rep, path, unloadable)
 
 
 def ensemble(

@@ -41,8 +41,40 @@ STEP_RTOL = 1e-9
 #: huge file by mistake; the library's files are 1-2 KiB.
 MAX_FILE_BYTES = 1 << 20
 
+#: Deepest nesting of arrays and tables a scenario file may have: the schema's deepest value
+#: is a family's tolerance, ``tolerances."<family>".metric`` (3 levels below the top), and a
+#: rotation matrix is a list of lists. A deeper file is not a scenario file, and one nested
+#: thousands of levels deep would exhaust the parser's recursion.
+MAX_DEPTH = 8
 
-class ScenarioError(ValueError):
+#: Longest scenario name, in bytes (names are ASCII). The name starts the file names a run
+#: writes: the folder ``trajectories/<name>/``, the figures ``<name>__<plot>.png`` (the
+#: longest, ``<name>__ensemble_attitude_error_max.png``, adds 34 bytes) and the temporary
+#: file each is first written to, ``.<file>.<pid>.tmp`` (13 more bytes with a 7-digit
+#: process id); an ensemble member is ``<name>#<k>``. 128 leaves half of the 255 bytes a
+#: file name may have on Linux, macOS and Windows file systems (NAME_MAX) for these
+#: suffixes; tests/test_scenarios.py writes every file of a run with a name this long.
+MAX_NAME_BYTES = 128
+
+#: Largest number of steps in a run, t_end/dt: 2^53, beyond which the step index k of the
+#: time t = k dt is no longer exact in double precision (and dt = 5e-324 would give an
+#: infinite count).
+MAX_STEPS = 2**53
+
+#: Largest magnitude (SI units) of a mass, moment of inertia, energy, momentum, position or
+#: velocity reached over the horizon, and the reciprocal is the smallest mass and moment:
+#: the suite squares such quantities when it takes norms and energies, and double precision
+#: ends at 1.8e308 (a mass of 1e308 would make every energy infinite).
+MAX_MAGNITUDE = 1e150
+
+
+class InputError(ValueError):
+    """Input the user must fix (a file, a name, an option, a folder): the command line exits 2
+    with the message, which names the input, its value and the rule. Every other exception is
+    a failure of the work (exit 1)."""
+
+
+class ScenarioError(InputError):
     """A scenario file (or name) is invalid. ``problems`` lists ``(field, value, rule)``
     triples; ``path`` is the file concerned (or None)."""
 
@@ -176,12 +208,15 @@ _SPEC: dict[str, dict[str, tuple[str, bool]]] = {
 }
 
 _KIND_TEXT = {
-    "name": "a non-empty string of letters, digits, '_' or '-'",
+    "name": (
+        f"a non-empty string of at most {MAX_NAME_BYTES} ASCII letters, digits, '_' or '-' "
+        "(it starts the names of the files a run writes, and a file name holds 255 bytes)"
+    ),
     "str": "a string",
     "str_list": "a list of strings",
     "table": "a table",
     "number": "a finite number",
-    "int": "an integer",
+    "int": "an integer of at most 18 digits",
     "vec3": "a list of 3 finite numbers",
     "vec4": "a list of 4 finite numbers",
     "mat3": "a 3x3 nested list of finite numbers (row-major)",
@@ -193,15 +228,25 @@ def _is_number(x) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
+def _finite(x) -> bool:
+    """A number that is finite as a double (an integer of 400 digits is not)."""
+    if not _is_number(x):
+        return False
+    try:
+        return math.isfinite(float(x))
+    except OverflowError:
+        return False
+
+
 def _finite_numbers(xs) -> bool:
-    return all(_is_number(x) and math.isfinite(x) for x in xs)
+    return all(_finite(x) for x in xs)
 
 
 def _type_ok(kind: str, v) -> bool:
     if kind == "name":
         return (
             isinstance(v, str)
-            and len(v) > 0
+            and 0 < len(v) <= MAX_NAME_BYTES
             and all(c.isascii() and (c.isalnum() or c in "_-") for c in v)
         )
     if kind == "str":
@@ -211,9 +256,9 @@ def _type_ok(kind: str, v) -> bool:
     if kind == "table":
         return isinstance(v, dict)
     if kind == "number":
-        return _is_number(v) and math.isfinite(v)
+        return _finite(v)
     if kind == "int":
-        return isinstance(v, int) and not isinstance(v, bool)
+        return isinstance(v, int) and not isinstance(v, bool) and abs(v) < 10**18
     if kind in ("vec3", "vec4"):
         n = 3 if kind == "vec3" else 4
         return isinstance(v, list) and len(v) == n and _finite_numbers(v)
@@ -232,6 +277,19 @@ def _whole_steps(t_end: float, dt: float) -> bool:
     ratio = t_end / dt
     n = round(ratio)
     return n >= 1 and abs(n - ratio) <= STEP_RTOL * max(ratio, 1.0)
+
+
+def step_count_problem(t_end: float, dt: float) -> str | None:
+    """Why ``t_end/dt`` steps cannot be run (more than :data:`MAX_STEPS`, or not finite: dt
+    underflows against t_end), or None. The one rule for files and the command line."""
+    ratio = t_end / dt
+    if math.isfinite(ratio) and ratio <= MAX_STEPS:
+        return None
+    return (
+        f"t_end/dt = {ratio:.3g} steps (t_end = {t_end!r} s, dt = {dt!r} s): at most 2^53 = "
+        f"{MAX_STEPS:.3g} steps, beyond which the step times k dt are not exact in double "
+        "precision; choose a larger dt or a shorter horizon"
+    )
 
 
 def _fmt(v) -> str:
@@ -271,7 +329,7 @@ def validate(data: dict, path: str | None = None) -> Scenario:
     if probs:
         raise ScenarioError(_message(where, probs), path=path, problems=probs)
 
-    return Scenario(
+    sc = Scenario(
         name=data["name"],
         description=data["description"],
         mass=float(body["mass"]),
@@ -293,6 +351,66 @@ def validate(data: dict, path: str | None = None) -> Scenario:
         tags=tuple(data.get("tags", ())),
         path=path,
     )
+    probs = magnitude_problems(sc)
+    if probs:
+        raise ScenarioError(_message(where, probs), path=path, problems=probs)
+    return sc
+
+
+def magnitude_problems(sc: Scenario, t_end: float | None = None) -> list[tuple]:
+    """Quantities of ``sc`` over the horizon ``t_end`` (default: its own) outside
+    [1/:data:`MAX_MAGNITUDE`, :data:`MAX_MAGNITUDE`] (masses and moments) or above
+    :data:`MAX_MAGNITUDE` (energies, momenta, positions, velocities), as ``(field, value,
+    rule)`` triples. Each is an upper bound (by components, so within a factor 3 of the
+    norm) computed before any work from the initial state: a free body's rotational energy and
+    angular momentum are conserved and its centre of mass follows the parabola
+    x0 + v0 t + g t^2/2; a pivoted body's kinetic energy stays below its initial one plus the
+    largest potential drop, 2 m |g| |c|."""
+    t = sc.t_end if t_end is None else float(t_end)
+    lim = MAX_MAGNITUDE
+    probs = []
+    with np.errstate(over="ignore", invalid="ignore"):
+        for field, value in (("body.mass", sc.mass), ("body.inertia", float(np.min(sc.inertia)))):
+            if not 1.0 / lim <= value:
+                probs.append((field, value, f"must be at least {1 / lim:g} (SI units)"))
+        g, c = float(np.max(np.abs(sc.gravity))), 0.0
+        if sc.pivot is not None:
+            c = float(np.max(np.abs(sc.pivot)))
+        W, Ip = np.abs(sc.omega_body), np.abs(sc.pivot_inertia)
+        L = 3.0 * float(np.max(Ip @ W))  # bounds |I W| (components, max norm)
+        T = 3.0 * float(np.max(W)) * L
+        if sc.pivot is None:
+            v = float(np.max(np.abs(sc.velocity))) + g * t
+            x = float(np.max(np.abs(sc.position))) + v * t
+        else:  # the kinetic energy grows by at most the potential drop; |x| = |c|
+            T += 12.0 * g * c * sc.mass
+            inertia = np.linalg.eigvalsh(sc.pivot_inertia)
+            L = max(L, math.sqrt(2.0 * T * float(inertia[-1])))
+            v, x = 3.0 * c * math.sqrt(2.0 * T / float(inertia[0])), 3.0 * c
+        figures = {
+            "body.mass": sc.mass,
+            "body.inertia": float(np.max(sc.inertia)),
+            "angular momentum |I W|": L,
+            "kinetic energy of rotation": T,
+            "potential energy m |g| (|x| + |c|)": 3.0 * g * (x + 4.0 * c) * sc.mass,
+            "speed of the centre of mass": v,
+            "momentum m |v|": 3.0 * v * sc.mass,
+            "kinetic energy of translation m |v|^2": 9.0 * v * v * sc.mass,
+            "distance travelled by the centre of mass": x,
+        }
+    for what, value in figures.items():
+        if not value <= lim:
+            probs.append(
+                (
+                    what,
+                    value,
+                    f"reaches up to {value:.3g} (SI units) over the horizon t_end = {t:g} s, "
+                    f"above {lim:g}: the suite squares such quantities in norms and energies "
+                    "and double precision ends at 1.8e308; state the body in units that keep "
+                    "it moderate",
+                )
+            )
+    return probs
 
 
 def _check_structure(data: dict, bad) -> tuple[dict, dict]:
@@ -377,7 +495,10 @@ def _check_run(run: dict, bad) -> tuple[list, int]:
         if not h > 0:
             bad(field, h, "every step must be > 0 s")
     for field, h in steps:
-        if t_end is not None and h is not None and h > 0 and not _whole_steps(t_end, h):
+        count = step_count_problem(t_end, h) if t_end is not None and h and h > 0 else None
+        if count is not None:
+            bad(field, h, count)
+        elif t_end is not None and h is not None and h > 0 and not _whole_steps(t_end, h):
             bad(
                 field,
                 h,
@@ -423,7 +544,7 @@ def _check_tolerances(table, bad) -> dict:
                     value,
                     f"not a metric with a tolerance; known: {', '.join(TOLERANCE_METRICS)}",
                 )
-            elif not (_is_number(value) and math.isfinite(value) and value > 0):
+            elif not (_finite(value) and value > 0):
                 bad(field, value, "a tolerance must be a finite number > 0")
             else:
                 out.setdefault(family, {})[metric] = float(value)
@@ -466,8 +587,29 @@ def load_file(path: str | Path) -> Scenario:
         raise ScenarioError(
             f"invalid scenario file {path}: not UTF-8 text ({exc})", path=str(path)
         ) from None
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, ValueError) as exc:  # ValueError: an int of 5000 digits
         raise ScenarioError(
             f"invalid scenario file {path}: not valid TOML: {exc}", path=str(path)
         ) from None
+    except RecursionError:
+        data = None
+    if data is None or nesting_depth(data) > MAX_DEPTH:
+        raise ScenarioError(
+            f"invalid scenario file {path}: arrays or tables nested more than {MAX_DEPTH} "
+            "levels deep (a scenario file nests at most 3)",
+            path=str(path),
+        )
     return validate(data, path=str(path))
+
+
+def nesting_depth(value) -> int:
+    """How deeply lists and dicts nest in ``value`` (0 for a scalar), without recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, dict):
+            v = list(v.values())
+        if isinstance(v, list):
+            deepest = max(deepest, d + 1)
+            stack.extend((x, d + 1) for x in v)
+    return deepest

@@ -65,18 +65,55 @@ def engine_names() -> list[str]:
     return list(_registry())
 
 
+class UnknownEngine(EngineUnavailable, KeyError):
+    """No adapter is registered under this name here (e.g. rows of a plug-in that is not
+    installed on this machine): an :class:`EngineUnavailable`, and a ``KeyError``."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
 def get_engine(name: str) -> type[EngineBase]:
-    """The adapter class registered as ``name`` (its import never needs the engine itself)."""
+    """The adapter class registered as ``name`` (its import never needs the engine itself).
+
+    An adapter whose module fails to import (any exception: a plug-in with a bug, a broken
+    install) is replaced by a stand-in with no integrators whose :meth:`availability` gives
+    the reason, so that one broken adapter never stops ``list`` or the other engines' runs.
+    A name nobody registered raises :class:`UnknownEngine`."""
     try:
         target = _registry()[name]
     except KeyError:
         known = ", ".join(_registry())
-        raise KeyError(f"unknown engine {name!r}; known engines: {known}") from None
+        raise UnknownEngine(f"unknown engine {name!r}; known engines here: {known}") from None
+    return _load(name, target)
+
+
+@functools.cache
+def _load(name: str, target: str) -> type[EngineBase]:
     module, cls = target.split(":")
     try:
         return getattr(importlib.import_module(module), cls)
-    except (ImportError, AttributeError) as exc:
-        raise EngineError(f"engine {name!r}: its adapter {target} does not load: {exc}") from exc
+    except Exception as exc:  # noqa: BLE001 - any failure of an adapter's import
+        why = (
+            f"engine {name!r}: its adapter {target} does not load ({type(exc).__name__}: "
+            f"{exc}); reinstall the package that provides it, or uninstall it"
+        )
+        return _stand_in(name, why)
+
+
+def _stand_in(name: str, why: str) -> type[EngineBase]:
+    """An engine that is unavailable for the reason ``why`` and offers no integrator."""
+
+    def version(cls) -> str:
+        raise EngineUnavailable(why)
+
+    def run(self, *args, **kwargs):
+        raise EngineUnavailable(why)
+
+    body = {"name": name, "description": why, "integrators": (), "broken": why}
+    return type(f"Unloadable_{name}", (EngineBase,), body | {
+        "version": classmethod(version), "run": run,
+    })  # fmt: skip
 
 
 __all__ = [
@@ -95,6 +132,7 @@ __all__ = [
     "RunContext",
     "RunOutput",
     "StepFailure",
+    "UnknownEngine",
     "Unsupported",
     "engine_names",
     "get_engine",

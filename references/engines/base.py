@@ -909,8 +909,9 @@ def import_engine(module: str, label: str, pip_name: str):
 
     try:
         return importlib.import_module(module)
-    except ImportError as exc:
+    except Exception as exc:  # noqa: BLE001 - a broken install raises more than ImportError
         raise EngineUnavailable(
-            f"{label} is not installed or does not import ({exc}); install it with "
+            f"{label} is not installed or does not import ({type(exc).__name__}: {exc}); "
+            "install it with "
             f"`pip install {pip_name}` (or `pip install 'director-bench[engines]'`)"
         ) from exc

@@ -33,23 +33,101 @@ there and to give half the error: hence three axes, and the factor 2). Measured
 estimate/error: 2.8 .. 35 (attitude and rates) on the library and 60 random bodies and tops;
 tests/test_exact_accuracy.py checks it from both sides against the closed forms. It is an
 estimate, not a bound.
+
+Cost bound: the six solutions together take at most ``max_steps`` steps and ``max_seconds`` of
+wall time (defaults :data:`MAX_STEPS` and :data:`MAX_SECONDS`, or the environment variables
+``DIRECTOR_BENCH_REFERENCE_MAX_STEPS`` and ``DIRECTOR_BENCH_REFERENCE_MAX_SECONDS``). A
+motion that needs more is refused before any work when even a lower estimate of its steps
+(one step per radian turned, in each solution; the library's motions take 1 to 6) exceeds
+the bound, else stopped when a bound is reached: :class:`ReferenceCostExceeded` (an
+``Unsupported``) names the bound, the figures and how to raise it.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import time
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from references.conventions import matrix_to_quat_wxyz, quats_wxyz_to_matrices
+from references.errors import Unsupported
 from references.exact._util import EPS, rotation_angle
 
 RTOL = 1e-13
 
 #: Margin applied to the spread of the runs (see the module docstring).
 SAFETY = 2.0
+
+#: Default bound on the steps of the six solutions together: 165 times the costliest in the
+#: library (heavy_top: 12 100 steps), about 10 minutes of a 2026 core at 12 evaluations of a
+#: ~25 us right-hand side per step.
+MAX_STEPS = 2_000_000
+
+#: Default bound on the wall time of the six solutions together (s).
+MAX_SECONDS = 900.0
+
+#: DOP853 evaluates the right-hand side 12 times per step.
+EVALS_PER_STEP = 12
+
+#: Solutions computed per reference (the main one and the five of the error estimate).
+SOLUTIONS = 6
+
+
+class ReferenceCostExceeded(Unsupported):
+    """The numerical reference needs more steps or time than its bound allows; the message
+    says which bound, the figures, and how to raise it."""
+
+
+def _bound(env: str, default: float, given: float | None) -> float:
+    if given is not None:
+        return float(given)
+    text = os.environ.get(env)
+    if text is None:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not value > 0:
+        raise ValueError(f"{env}={text!r}: must be a number > 0")
+    return value
+
+
+class _Budget:
+    """The steps and seconds left to the solutions of one reference (checked every 12
+    right-hand-side evaluations: once per step)."""
+
+    def __init__(self, name: str, t_end: float, max_steps: float, max_seconds: float):
+        self.name, self.t_end = name, t_end
+        self.max_steps, self.max_seconds = max_steps, max_seconds
+        self.start = time.monotonic()
+        self.nfev = 0
+        self.solution = 1
+
+    def charge(self, t: float) -> None:
+        self.nfev += 1
+        if self.nfev % EVALS_PER_STEP:
+            return
+        steps = self.nfev / EVALS_PER_STEP
+        elapsed = time.monotonic() - self.start
+        where = f"at t = {t:.3g} s of {self.t_end:.3g} s in solution {self.solution}"
+        if steps > self.max_steps:
+            self.stop(f"step bound: {steps:.3g} steps > {self.max_steps:.3g}, {where}", "STEPS")
+        if elapsed > self.max_seconds:
+            what = f"time bound: {elapsed:.3g} s > {self.max_seconds:.3g} s, {where}"
+            self.stop(what, "SECONDS")
+
+    def stop(self, what: str, env: str) -> None:
+        raise ReferenceCostExceeded(
+            f"scenario {self.name!r}: the numerical reference (DOP853 at rtol {RTOL:g}, "
+            f"{SOLUTIONS} solutions) reached its {what}; the run cannot be judged against it: "
+            "shorten the horizon (--t-end), or raise the bound with the environment variable "
+            f"DIRECTOR_BENCH_REFERENCE_MAX_{env}"
+        )
 
 
 @dataclass
@@ -62,7 +140,7 @@ class NumericalSolution:
     nfev: int
 
 
-def _solve(Ip, Ip_inv, torque_arm_mg, y0, t_eval, rtol, scale, max_step=np.inf):
+def _solve(Ip, Ip_inv, torque_arm_mg, y0, t_eval, rtol, scale, budget, max_step=np.inf):
     Ip = np.asarray(Ip)
     a = torque_arm_mg  # tau = (-c) x (m R^T g) = cross(-c, R^T (m g)) : a = (-c, m g)
     c_neg, mg = a
@@ -74,6 +152,7 @@ def _solve(Ip, Ip_inv, torque_arm_mg, y0, t_eval, rtol, scale, max_step=np.inf):
         gx, gy, gz = mg
 
     def rhs(_t, y):
+        budget.charge(_t)
         w1, w2, w3, qw, qx, qy, qz = y
         # angular momentum about the pivot / centre of mass, and gyroscopic torque -W x (Ip W)
         p1 = I00 * w1 + I01 * w2 + I02 * w3
@@ -120,12 +199,21 @@ def _solve(Ip, Ip_inv, torque_arm_mg, y0, t_eval, rtol, scale, max_step=np.inf):
     )
     if sol.status != 0:
         raise RuntimeError(f"numerical reference failed: {sol.message}")
+    budget.solution += 1
     return sol.y, sol.nfev
 
 
-def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
+def solve(
+    scenario,
+    t,
+    rtol: float = RTOL,
+    max_steps: float | None = None,
+    max_seconds: float | None = None,
+) -> NumericalSolution:
     """Rotation and body rates of ``scenario`` at the sorted, non-negative times ``t``, with the
-    error estimate described in the module docstring."""
+    error estimate described in the module docstring, within the cost bound ``max_steps`` and
+    ``max_seconds`` (None: the environment's or the defaults; :class:`ReferenceCostExceeded`
+    beyond them)."""
     t_all = np.asarray(t, dtype=float)
     if t_all.ndim != 1 or len(t_all) == 0 or np.any(np.diff(t_all) < 0) or t_all[0] < 0:
         raise ValueError("times must be a non-empty, sorted 1-D array of values >= 0")
@@ -145,12 +233,27 @@ def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
         wscale += math.sqrt(tq / float(np.min(np.linalg.eigvalsh(Ip))))
     wscale = max(wscale, 1e-12)
     scale = np.array([wscale] * 3 + [1.0] * 4)
-    runs = [_solve(Ip, Ip_inv, arm, y0, t, f * rtol, scale) for f in (1.0, 10.0)]
+    budget = _Budget(
+        scenario.name,
+        float(t[-1]),
+        _bound("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", MAX_STEPS, max_steps),
+        _bound("DIRECTOR_BENCH_REFERENCE_MAX_SECONDS", MAX_SECONDS, max_seconds),
+    )
+    least = SOLUTIONS * float(np.linalg.norm(W0)) * float(t[-1])  # one step per radian
+    if not least <= budget.max_steps:
+        budget.stop(
+            f"step bound before any step: |W0| t_end = {least / SOLUTIONS:.3g} rad needs at "
+            f"least {least:.3g} steps (one per radian turned, in each of the {SOLUTIONS} "
+            f"solutions) > {budget.max_steps:.3g}",
+            "STEPS",
+        )
+    runs = [_solve(Ip, Ip_inv, arm, y0, t, f * rtol, scale, budget) for f in (1.0, 10.0)]
     nstep = max(runs[0][1] / 12.0, 1.0)  # DOP853: 12 evaluations per step
     # step halving: the same rtol with every step at most half the main run's mean step, so
     # that its dense output (interpolation between steps, less accurate than the steps) is
     # far better than the main run's
-    runs.append(_solve(Ip, Ip_inv, arm, y0, t, rtol, scale, max_step=0.5 * float(t[-1]) / nstep))
+    half = 0.5 * float(t[-1]) / nstep
+    runs.append(_solve(Ip, Ip_inv, arm, y0, t, rtol, scale, budget, max_step=half))
     Rs = [quats_wxyz_to_matrices(y[3:].T) for y, _ in runs]
     Ws = [y[:3].T for y, _ in runs]
     acc = wacc = 0.0
@@ -166,7 +269,7 @@ def solve(scenario, t, rtol: float = RTOL) -> NumericalSolution:
     for axis in range(3):
         y0p = y0.copy()
         y0p[axis] += delta
-        yp, nfp = _solve(Ip, Ip_inv, arm, y0p, t, rtol, scale)
+        yp, nfp = _solve(Ip, Ip_inv, arm, y0p, t, rtol, scale, budget)
         nfev_probe += nfp
         acc = max(acc, float(np.max(rotation_angle(Rs[0], quats_wxyz_to_matrices(yp[3:].T)))))
         wacc = max(wacc, float(np.max(np.abs(Ws[0] - yp[:3].T))))
