@@ -27,6 +27,13 @@ from references.exact.multibody.dynamics import (
     mass_matrix_and_bias,
     rhs,
 )
+from references.exact.multibody.exact import (
+    DoubleConicalPendulum,
+    ParallelogramFourBar,
+    SpinningChain,
+    straight_chain,
+)
+from references.exact.multibody.horizon import Horizon, trajectory_horizon
 from references.exact.multibody.integrate import (
     RTOL,
     MultibodySolution,
@@ -39,9 +46,13 @@ from references.exact.multibody.tree import Body, Joint, Tree
 __all__ = [
     "RTOL",
     "Body",
+    "DoubleConicalPendulum",
+    "Horizon",
     "Joint",
     "MultibodySolution",
+    "ParallelogramFourBar",
     "ReferenceCostExceeded",
+    "SpinningChain",
     "Tree",
     "body_states",
     "invariants",
@@ -49,4 +60,6 @@ __all__ = [
     "rhs",
     "solve",
     "solve_from_states",
+    "straight_chain",
+    "trajectory_horizon",
 ]
