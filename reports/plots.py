@@ -4,6 +4,10 @@ it wrote, or None when there is nothing to draw.
 
 One figure per scenario and kind (:data:`KINDS`):
 
+- ``scenario``: the body (the uniform box with its principal moments) and its motion, a
+  strip of poses and the trace of one body axis, from the exact reference's run
+  (:func:`scenario_picture`; ``python -m reports.plots --scenario-figures docs/figures``
+  draws the same pictures for the documentation);
 - ``errors``: running maxima of the attitude, energy and momentum errors against time at the
   scenario's own dt (log scale), the quantities the metrics report, as they grow; the band
   below the reference's accuracy, where attitude errors are not measurements, is shaded;
@@ -12,12 +16,18 @@ One figure per scenario and kind (:data:`KINDS`):
 - ``convergence``: attitude error against dt (log-log), with the fitted orders;
 - ``work_precision``: attitude error against the time spent inside the engine's calls.
 
-Styles: one colour per engine (:data:`ENGINE_COLOURS`), one line style per integrator family
-(:data:`FAMILY_STYLE`), a marker per integrator where an engine has several in one family.
-Configurations whose results coincide (reports.summary's groups) are one line labelled with
-all of them, in near-black when they are several engines' (:data:`SHARED_COLOUR`). A curve
-that leaves the plot (a diverged run, an error beyond :data:`CAPS`) is cut where it leaves
-and marked there; a diverged run's end is marked with its time.
+and the scorecard as one picture (:func:`scorecard_figure`, ``scorecard.png`` and
+``scorecard.svg`` in the results folder).
+
+Styles: a colour and a marker per configuration (:data:`PALETTE`, :data:`MARKERS`), a line
+style per integrator family (:data:`FAMILY_STYLE`). Configurations whose results coincide
+(reports.summary's groups) are one line labelled with all of them. Every figure is as wide
+as its legend needs (:func:`_fit`: the legend sits beside the axes and is never cut). A
+curve that leaves the plot (a diverged run, an error beyond :data:`CAPS`) is cut where it
+leaves and marked there; a diverged run's end is marked with its time; every configuration
+cut, left out or not drawn is named under the figure. Beside each PNG a ``.json`` file holds
+its alt text and its lines as polylines, which the HTML report uses to name the line under
+the pointer.
 """
 
 from __future__ import annotations
@@ -46,19 +56,34 @@ from reports.summary import (
     truthy,
 )
 
-#: one colour per engine (engines not listed take the next of EXTRA_COLOURS)
-ENGINE_COLOURS = {
-    "director": "#1f77b4",
-    "mujoco": "#ff7f0e",
-    "pinocchio": "#2ca02c",
-    "dart": "#d62728",
-    "pybullet": "#9467bd",
-    "exact": "#555555",
-}
-EXTRA_COLOURS = ("#8c564b", "#e377c2", "#bcbd22", "#17becf", "#7f7f7f")
+#: colours of the configurations, given out in engine and integrator order so that every
+#: configuration of a results folder has its own (tab10, then darker tones of tab20b/c); a
+#: line standing for several configurations that coincide takes its first member's colour
+PALETTE = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#bcbd22",
+    "#7f7f7f",
+    "#393b79",
+    "#e6550d",
+    "#31a354",
+    "#843c39",
+    "#7b4173",
+    "#3182bd",
+    "#637939",
+    "#8c6d31",
+    "#756bb1",
+    "#636363",
+)
 
-#: the colour of one line standing for several engines that coincide
-SHARED_COLOUR = "#222222"
+#: the exact reference's colour
+REFERENCE_COLOUR = "#555555"
 
 #: one line style per family (families not listed take the next of EXTRA_STYLES)
 FAMILY_STYLE = {
@@ -77,8 +102,8 @@ EXTRA_STYLES = (
     (0, (2, 1)),
 )
 
-#: markers telling apart the integrators of one engine within one family
-MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+#: markers, given out with the colours (a second cue where two colours look alike)
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 
 #: the top of the log axes, per series column: beyond it a run has blown up (the runner
 #: declares divergence at an energy error of 1 scale; attitude errors end at pi)
@@ -93,10 +118,14 @@ RATES_VISIBLE = 0.01
 #: a fast oscillation in the rates plot is shown over its last RATES_PERIODS periods
 RATES_PERIODS = 12
 
-FIGSIZE = (9.0, 4.2)
 DPI = 100
-#: axes box in figure fractions: the legend takes the right part
-AXES_BOX = {"left": 0.09, "right": 0.62, "bottom": 0.13, "top": 0.88}
+#: the width of the axes, inches; a figure is as wide as its axes, tick labels and legend
+#: need (:func:`_fit`), so a legend is never cut and every axes has the same width
+AXES_WIDTH = 5.6
+#: the height of one panel, inches (a figure of three panels, one axes each)
+PANEL_HEIGHT = 1.9
+#: white space around everything a figure holds, inches
+PAD = 0.08
 
 
 def _plt():
@@ -123,34 +152,30 @@ def _plt():
 
 class Styles:
     """Colours, line styles and markers of the configurations of one results table, so that a
-    configuration looks the same in every figure."""
+    configuration looks the same in every figure: a colour and a marker of its own
+    (:data:`PALETTE`, :data:`MARKERS`, in engine and integrator order), a line style per
+    integrator family."""
 
     def __init__(self, df):
-        engines = sorted(set(df["engine"]), key=engine_key)
-        extra = iter(EXTRA_COLOURS * 4)
-        self.colour = {e: ENGINE_COLOURS.get(e) or next(extra) for e in engines}
         fams = sorted({f for f in df["family"] if f}, key=family_key)
         extra_s = iter(EXTRA_STYLES * 4)
         self.style = {f: FAMILY_STYLE.get(f) or next(extra_s) for f in fams}
-        self.marker = {}
-        pairs = df[["engine", "family", "integrator"]].drop_duplicates()
-        for (_, _), g in pairs.groupby(["engine", "family"]):
-            integs = sorted(g["integrator"])
-            if len(integs) > 1:
-                for k, integ in enumerate(integs):
-                    self.marker[(g["engine"].iloc[0], integ)] = MARKERS[k % len(MARKERS)]
+        pairs = sorted(
+            {(e, i) for e, i in zip(df["engine"], df["integrator"], strict=True) if e != "exact"},
+            key=lambda p: (engine_key(p[0]), p[1]),
+        )
+        self.colour = {p: PALETTE[k % len(PALETTE)] for k, p in enumerate(pairs)}
+        self.marker = {p: MARKERS[k % len(MARKERS)] for k, p in enumerate(pairs)}
 
     def of(self, row, always_marker: bool = False, engines=None) -> dict:
-        """Style of a configuration's line; ``engines``: the engines of a group of coinciding
-        configurations drawn as one line (several engines: :data:`SHARED_COLOUR`)."""
-        marker = self.marker.get((row["engine"], row["integrator"]))
-        if marker is None and always_marker:
-            marker = "o"
-        several = engines is not None and len(set(engines)) > 1
+        """Style of a configuration's line (a group of coinciding configurations drawn as one
+        line takes its first member's; ``engines`` is accepted for callers that pass it).
+        ``always_marker``: a marker even in time plots' dense lines."""
+        key = (row["engine"], row["integrator"])
         return {
-            "color": SHARED_COLOUR if several else self.colour.get(row["engine"], "k"),
+            "color": self.colour.get(key, REFERENCE_COLOUR),
             "linestyle": self.style.get(row["family"], "-"),
-            "marker": marker,
+            "marker": self.marker.get(key, "o") if always_marker else None,
         }
 
 
@@ -158,39 +183,182 @@ def plot_label(rows, width: int = 34) -> str:
     """A legend label for configurations that coincide: ``mujoco RK4, pinocchio RKMK4``,
     wrapped."""
     text = ", ".join(f"{r['engine']} {r['integrator']}" for r in rows)
-    return "\n".join(textwrap.wrap(text, width, break_long_words=False)) or text
+    wrapped = textwrap.wrap(text, width, break_long_words=False, break_on_hyphens=False)
+    return "\n".join(wrapped) or text
 
 
 def _new_figure(nrows: int = 1, height: float | None = None):
+    """A figure of ``nrows`` axes sharing x, each AXES_WIDTH wide and ``height`` (default
+    PANEL_HEIGHT) high; :func:`_save` fits the figure around them."""
     plt = _plt()
+    h = height or PANEL_HEIGHT
     fig, axes = plt.subplots(
-        nrows, 1, figsize=(FIGSIZE[0], height or FIGSIZE[1]), sharex=True, squeeze=False
+        nrows, 1, figsize=(AXES_WIDTH + 4.0, nrows * h + 1.2), dpi=DPI, sharex=True, squeeze=False
     )
-    fig.subplots_adjust(**AXES_BOX, hspace=0.12)
+    W, H = fig.get_size_inches()
+    gap = 0.12
+    for k, ax in enumerate(axes[:, 0]):
+        top = H - 0.5 - k * (h + gap)
+        ax.set_position([1.0 / W, (top - h) / H, AXES_WIDTH / W, h / H])
     return fig, [a for a in axes[:, 0]]
 
 
-def _legend(ax, title=None) -> None:
-    """Legend to the right of the axes (the figure keeps room for it), never over data; it
-    lists the labelled artists of every axes of the figure, each label once."""
+def _legend(ax, title=None):
+    """Legend to the right of the axes, never over data (the figure grows to hold it,
+    :func:`_fit`); it lists the labelled artists of every axes of the figure, each label once,
+    in two columns when one would be more than 1.6 times as tall as the axes."""
     handles, labels = [], []
     for a in ax.figure.axes:
         for hnd, lab in zip(*a.get_legend_handles_labels(), strict=True):
             if lab not in labels:
                 handles.append(hnd)
                 labels.append(lab)
+    if not handles:
+        return None
     kw = {"loc": "upper left", "bbox_to_anchor": (1.02, 1.0), "frameon": False}
     if title:
         kw["title"] = title
         kw["title_fontsize"] = 9
-    ax.legend(handles, labels, borderaxespad=0.0, handlelength=3.2, **kw)
+        kw["alignment"] = "left"
+    leg = ax.legend(handles, labels, borderaxespad=0.0, handlelength=3.2, **kw)
+    r = ax.figure.canvas.get_renderer()
+    axes_h = sum(a.get_window_extent(r).height for a in ax.figure.axes)
+    if leg.get_window_extent(r).height > 1.6 * axes_h and len(handles) > 4:
+        leg.remove()
+        leg = ax.legend(handles, labels, borderaxespad=0.0, handlelength=3.2, ncols=2, **kw)
+    return leg
 
 
-def _save(fig, path: Path) -> Path:
-    """Write the figure as PNG and release it."""
-    fig.savefig(path, dpi=DPI)
+def _fit(fig, notes: str = "") -> None:
+    """Resize the figure around its axes (kept at their size in inches) so that everything
+    it holds (tick labels, axis labels, titles, the legend beside the axes, annotations) lies
+    inside it with PAD to spare; ``notes``: text set under it all, wrapped to its width."""
+    from matplotlib.transforms import Bbox
+
+    r = fig.canvas.get_renderer()
+    dpi = fig.dpi
+    axes = fig.axes
+    W, H = fig.get_size_inches()
+    inner = Bbox.union([a.get_position() for a in axes])  # figure fractions
+    x0, x1, y0, y1 = inner.x0 * W, inner.x1 * W, inner.y0 * H, inner.y1 * H
+    ext = Bbox.union([a.get_tightbbox(r) for a in axes])  # pixels
+    need_l = max(0.0, x0 - ext.x0 / dpi)
+    need_r = max(0.0, ext.x1 / dpi - x1)
+    need_b = max(0.0, y0 - ext.y0 / dpi)
+    need_t = max(0.0, ext.y1 / dpi - y1)
+    new_w = 2 * PAD + need_l + (x1 - x0) + need_r
+    note_h, text = 0.0, None
+    if notes:
+        chars = max(40, int((new_w - 2 * PAD) * 72 / (8.0 * 0.56)))
+        wrapped = "\n".join(
+            "\n".join(
+                textwrap.wrap(
+                    par,
+                    chars,
+                    break_long_words=False,
+                    break_on_hyphens=False,
+                    subsequent_indent="  ",
+                )
+            )
+            for par in notes.split("\n")
+        )
+        text = fig.text(0, 0, wrapped, fontsize=8.0, color="0.25", ha="left", va="bottom")
+        note_h = text.get_window_extent(r).height / dpi + 0.1
+    new_h = 2 * PAD + note_h + need_b + (y1 - y0) + need_t
+    fig.set_size_inches(new_w, new_h)
+    for a in axes:
+        p = a.get_position()
+        ax0 = PAD + need_l + (p.x0 * W - x0)
+        ay0 = PAD + note_h + need_b + (p.y0 * H - y0)
+        a.set_position([ax0 / new_w, ay0 / new_h, p.width * W / new_w, p.height * H / new_h])
+    if text is not None:
+        text.set_position((PAD / new_w, PAD / new_h))
+
+
+def _hover_lines(fig, width_px: float, height_px: float) -> list[dict]:
+    """The lines of the figure that stand for configurations (an artist with a ``gid``: the
+    label to show), as polylines in fractions of the image (x right, y down), clipped to
+    their axes and simplified to within about a pixel (matplotlib's own path cleanup)."""
+    import matplotlib
+    from matplotlib.path import Path as MPath
+
+    out = {}
+    with matplotlib.rc_context({"path.simplify_threshold": 1.0}):
+        for ax in fig.axes:
+            ax.get_xlim(), ax.get_ylim()  # apply any pending autoscaling to the transforms
+            box = ax.get_window_extent()
+            for line in ax.get_lines():
+                gid = line.get_gid()
+                if not gid:
+                    continue
+                path = line.get_transform().transform_path(line.get_path())
+                path = MPath(path.vertices)  # with the threshold above, no codes
+                clean = path.cleaned(remove_nans=True, clip=box.extents, simplify=True)
+                paths, cur = [], []
+                for (x, y), code in zip(clean.vertices, clean.codes, strict=True):
+                    if code == MPath.STOP:
+                        break
+                    if code == MPath.MOVETO and cur:
+                        paths.append(cur)
+                        cur = []
+                    cur.append([round(x / width_px, 4), round(1.0 - y / height_px, 4)])
+                if cur:
+                    paths.append(cur)
+                if paths:
+                    out.setdefault(gid, []).extend(paths)
+    return [{"label": k, "paths": v} for k, v in out.items()]
+
+
+def _save(fig, path: Path, alt: str = "", notes: str = "") -> Path:
+    """Fit the figure (:func:`_fit`), write it as PNG and, beside it (``.json``), the alt
+    text and the lines a reader can hover over in the HTML report; release the figure."""
+    import json
+
+    _fit(fig, notes)
+    w, h = fig.get_size_inches() * fig.dpi
+    meta = {"alt": alt, "lines": _hover_lines(fig, w, h)}
+    _write_png(fig, path)
     _plt().close(fig)
+    path.with_suffix(".json").write_text(json.dumps(meta, separators=(",", ":")))
     return path
+
+
+def _write_png(fig, path: Path, **kw) -> None:
+    """Save the figure as a PNG of at most 256 colours (a third of the size of a full-colour
+    one, the same to the eye for line art)."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, **kw)
+    buf.seek(0)
+    with Image.open(buf) as im:
+        im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(
+            path, format="PNG", optimize=True
+        )
+
+
+def figure_meta(png: Path) -> dict:
+    """The alt text and hover lines written beside a figure by :func:`_save` (empty if the
+    file is missing or unreadable)."""
+    import json
+
+    try:
+        meta = json.loads(Path(png).with_suffix(".json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return meta if isinstance(meta, dict) else {}
+
+
+def name_list(names, limit: int = 0) -> str:
+    """``a, b and c``; ``limit``: at most this many names, then ``and N more``."""
+    names = list(dict.fromkeys(names))
+    if limit and len(names) > limit:
+        names = [*names[:limit], f"{len(names) - limit} more"]
+    if len(names) < 2:
+        return "".join(names)
+    return ", ".join(names[:-1]) + " and " + names[-1]
 
 
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -267,7 +435,8 @@ def _running_max(y: np.ndarray) -> np.ndarray:
 
 def _clip_at(ax, t, y, top, **style):
     """Plot ``y(t)``, cut where it first exceeds ``top`` (or becomes infinite), with a
-    marker on the top edge there. Returns the line and the point where it left, or None."""
+    marker on the top edge there. Returns the line and the point where it left, or None;
+    the line's gid is its label (the name the HTML report shows on hover)."""
     bad = np.isinf(y) | (y > top)  # NaN: a gap (an exact zero on a log axis), not an exit
     exit_pt = None
     if bad.any():
@@ -275,9 +444,15 @@ def _clip_at(ax, t, y, top, **style):
         exit_pt = (t[k], top)
         t, y = t[:k], y[:k]
     (line,) = ax.plot(t, y, **style)
+    line.set_gid(_flat(style.get("label")))
     if exit_pt is not None:
         ax.plot(*exit_pt, marker="^", ms=8, color=style["color"], clip_on=False, zorder=5)
     return line, exit_pt
+
+
+def _flat(label) -> str:
+    """A legend label on one line (the hover text)."""
+    return " ".join(str(label).split()) if label else ""
 
 
 def _status_note(ax, x, y, text, k: int) -> None:
@@ -325,7 +500,8 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     """Running maxima of the attitude, energy and momentum errors against time at the
     scenario's dt (three log panels sharing t), one line per group of coinciding
     configurations; the exact reference's own drift (its round-off) in grey; the band below
-    the reference's accuracy shaded; curves beyond :data:`CAPS` cut and marked."""
+    the reference's accuracy shaded; curves beyond :data:`CAPS` cut and marked, and named
+    under the figure."""
     rows, h = _plot_rows(df, scenario)
     if rows.empty:
         return None
@@ -338,11 +514,13 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
         return None
     exact = rows[rows["engine"] == "exact"]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
-    fig, axes = _new_figure(3, height=7.4)
-    fig.subplots_adjust(top=0.93, bottom=0.08)
+    fig, axes = _new_figure(3)
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
+    off = {}
     for ax, (column, ylabel, scale_col, unit) in zip(axes, ERROR_PANELS, strict=True):
-        _error_panel(ax, rows, groups, ref, column, styles, show_notes=ax is axes[0])
+        left = _error_panel(ax, rows, groups, ref, column, styles, show_notes=ax is axes[0])
+        for name, t_left in left:
+            off.setdefault(name, []).append((column, t_left))
         if scale_col and rows[scale_col].notna().any():
             scale = float(rows[scale_col].dropna().iloc[0])
             sym = ylabel.split("/")[-1].split("[")[0].strip()
@@ -351,14 +529,27 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
         ax.grid(True, which="major", alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
-    fig.suptitle(
-        f"{scenario}: errors against time, running max (dt = {fmt_step(h)} s)", fontsize=10.5
-    )
+    axes[0].set_title(f"{scenario}: errors against time, running max (dt = {fmt_step(h)} s)")
     _legend(axes[0])
-    return _save(fig, out / f"{slug(scenario)}__errors.png")
+    words = {"attitude_error": "attitude", "energy_drift": "energy", "momentum_drift": "momentum"}
+    notes = ""
+    if off:
+        notes = "Beyond the top of a panel (cut there, ▲): " + "; ".join(
+            f"{name} ({', '.join(f'{words[c]} at t = {fmt(t)} s' for c, t in where)})"
+            for name, where in off.items()
+        )
+    diverged = [g for g, _ in groups if g.outcome == "diverged"]
+    alt = (
+        f"{scenario}: running maximum of the attitude error, energy drift and momentum drift "
+        f"against time at dt = {fmt_step(h)} s for {len(groups)} line(s) of configurations"
+        + (f"; diverged: {name_list(g.label for g in diverged)}" if diverged else "; none diverged")
+        + "."
+    )
+    return _save(fig, out / f"{slug(scenario)}__errors.png", alt=alt, notes=notes)
 
 
-def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> None:
+def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> list:
+    """One panel of the errors figure; returns (label, t) of the lines cut at its top."""
     lines = []
     for g, s in groups:
         if column in s:
@@ -376,6 +567,7 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> Non
             bottom = min(bottom, max(FLOOR, float(ry.min()) / 3.0))
     notes = 0
     noted = set()
+    left_top = []
     for t, y, g in lines:
         st = styles.of(g.first, engines=g.engines)
         y = np.where(y > 0, np.maximum(y, bottom), np.nan)  # log axis: zeros start the curve
@@ -385,9 +577,12 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> Non
             "lw": 1.7,
             "label": plot_label(g.rows),
         }
-        if st["marker"] and np.isfinite(y).sum() > 1:  # markevery needs a drawn line
-            kw.update(marker=st["marker"], markevery=(0.04 + 0.025 * len(ax.lines), 0.2), ms=5)
+        if np.isfinite(y).sum() > 1:  # markevery needs a drawn line
+            mk = styles.of(g.first, always_marker=True)["marker"]
+            kw.update(marker=mk, markevery=(0.04 + 0.025 * len(ax.lines), 0.2), ms=5)
         _, left = _clip_at(ax, t, y, top, **kw)
+        if left is not None:
+            left_top.append((_flat(kw["label"]), left[0]))
         if g.outcome == "diverged" and np.isfinite(y).any():
             x, yy = left if left is not None else (t[-1], min(np.nanmax(y), top))
             text = f"diverged at {fmt(g.value('t_diverged'))} s"
@@ -410,11 +605,16 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> Non
     ax.set_yscale("log")
     _log_axes(ax)
     ax.set_ylim(bottom, top * 1.05)
+    return left_top
 
 
-def _window(t, w_ref) -> tuple[float, float]:
-    """The time window of the rates plot: everything, or the last RATES_PERIODS periods of
-    a fast oscillation (counted from the sign changes about the mean)."""
+def _window(t, w_ref, t_stop: float | None = None) -> tuple[float, float]:
+    """The time window of the rates plot, ending at ``t_stop`` (default: the end): all of it,
+    or the last RATES_PERIODS periods of a fast oscillation (counted from the sign changes
+    about the mean)."""
+    if t_stop is not None:
+        keep = t <= t_stop
+        t, w_ref = t[keep], w_ref[keep]
     best = np.array([], dtype=int)
     for k in range(3):
         c = w_ref[:, k] - np.mean(w_ref[:, k])
@@ -426,28 +626,35 @@ def _window(t, w_ref) -> tuple[float, float]:
     return float(t[0]), float(t[-1])
 
 
-def _clipped_line(ax, tt, y, lim, st, label):
+def _clipped_line(ax, tt, y, lim, st, label, gid):
     """Draw y(tt) in the style ``st`` up to where it first leaves ``lim`` (or stops being
-    finite), marking that point on the edge with a triangle."""
+    finite), marking that point on the edge with a triangle; returns the time it left, or
+    None."""
     lo, hi = lim
     out_of = ~np.isfinite(y) | (y < lo) | (y > hi)
+    left = None
     if out_of.any():
         j = int(np.argmax(out_of))
         edge = hi if (np.isfinite(y[j]) and y[j] > hi) or not np.isfinite(y[j]) else lo
         ax.plot(tt[j], edge, marker="^" if edge == hi else "v", ms=8, color=st["color"])
+        left = float(tt[j])
         tt, y = tt[:j], y[:j]
     kw = {}
     if st["marker"] and np.isfinite(y).sum() > 1:  # markevery needs a drawn line
         kw = {"marker": st["marker"], "markevery": 0.1, "ms": 5}
-    ax.plot(
+    (line,) = ax.plot(
         tt, y, color=st["color"], linestyle=st["linestyle"], lw=1.5, label=label, zorder=3, **kw
     )
+    line.set_gid(gid)
+    return left
 
 
 def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
     """Body rates W_1, W_2, W_3 against the reference (thick grey), one panel each. Only the
-    configurations whose W error exceeds RATES_VISIBLE of max |W| are drawn; y ranges are the
-    reference's (a blown-up run is cut where it leaves them)."""
+    configurations whose W error exceeds RATES_VISIBLE of max |W| are drawn (the others are
+    named under the figure); y ranges are the reference's (a blown-up run is cut where it
+    leaves them, and named). A fast oscillation is shown over its last periods, ending where
+    the last drawn run diverged when every drawn run diverged before the end."""
     rows, h = _plot_rows(df, scenario)
     exact = rows[rows["engine"] == "exact"]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
@@ -456,17 +663,22 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
     t_ref = ref["t"]
     w_ref = np.column_stack([ref["wx"], ref["wy"], ref["wz"]])
     wmax = float(np.max(np.abs(w_ref))) or 1.0
-    t0, t1 = _window(t_ref, w_ref)
     groups = group_rows(rows[rows["engine"] != "exact"])
-    shown, hidden = [], 0
+    shown, hidden = [], []
     for g in groups:
         err = g.value("omega_error_max")
+        if cache.get(g.first) is None:
+            continue
         if g.outcome == "diverged" or not (err <= RATES_VISIBLE * wmax):
             shown.append(g)
         else:
-            hidden += len(g.rows)
-    fig, axes = _new_figure(3, height=6.2)
-    fig.subplots_adjust(top=0.93, bottom=0.09)
+            hidden.append(g.label)
+    ends = [float(cache.get(g.first)["t"][-1]) for g in shown]
+    t_stop = None
+    if shown and max(ends) < t_ref[-1] - 1e-12:
+        t_stop = max(ends)  # every drawn run ended early: show the time before it did
+    t0, t1 = _window(t_ref, w_ref, t_stop)
+    fig, axes = _new_figure(3)
     axes[-1].set_xlim(t0, t1)
     sel = (t_ref >= t0) & (t_ref <= t1)
     lims = []
@@ -477,18 +689,22 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
         lims.append((lo - pad, hi + pad))
         ax.plot(*_thin(t_ref[sel], w), color="0.6", lw=4.0, label="exact reference", zorder=1)
     notes, noted = 0, set()
+    before, outside = [], {}
     for g in shown:
         s = cache.get(g.first)
-        if s is None:
-            continue
-        st = styles.of(g.first, engines=g.engines)
+        st = styles.of(g.first, always_marker=True)
         t = s["t"]
         label = plot_label(g.rows)
-        if g.outcome == "diverged" and t[-1] < t0:
-            label += f"\n(diverged at {fmt(g.value('t_diverged'))} s,\nbefore this window)"
+        if t[-1] < t0:
+            before.append(f"{_flat(label)} (diverged at {fmt(g.value('t_diverged'))} s)")
+            continue
         m = (t >= t0) & (t <= t1)
         for k, (ax, col) in enumerate(zip(axes, ("wx", "wy", "wz"), strict=True)):
-            _clipped_line(ax, *_thin(t[m], s[col][m]), lims[k], st, label if k == 0 else None)
+            left = _clipped_line(
+                ax, *_thin(t[m], s[col][m]), lims[k], st, label if k == 0 else None, _flat(label)
+            )
+            if left is not None:
+                outside.setdefault(_flat(label), []).append(f"W{'₁₂₃'[k]} at t = {fmt(left)} s")
         if g.outcome == "diverged" and t0 <= t[-1] <= t1:
             text = f"diverged at {fmt(g.value('t_diverged'))} s"
             _status_note(axes[0], t[-1], lims[0][1], "" if text in noted else text, notes)
@@ -500,15 +716,31 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(t0, t1)
-    window = "" if t0 <= t_ref[0] else f", last {fmt(t1 - t0)} s"
+    window = "" if t0 <= t_ref[0] and t1 >= t_ref[-1] else f", {fmt(t0)} to {fmt(t1)} s"
     axes[0].set_title(
         f"{scenario}: body angular velocity, body axes (dt = {fmt_step(h)} s{window})"
     )
-    title = None
+    _legend(axes[0])
+    parts = []
+    if outside:
+        parts.append(
+            "Left the plotted range (cut there, ▲▼): "
+            + "; ".join(f"{n} ({', '.join(w)})" for n, w in outside.items())
+        )
+    if before:
+        parts.append("Diverged before this window, not drawn: " + "; ".join(before))
     if hidden:
-        title = f"{hidden} configuration(s) within\n{RATES_VISIBLE:.0%} of max|W| not drawn"
-    _legend(axes[0], title=title)
-    return _save(fig, out / f"{slug(scenario)}__rates.png")
+        parts.append(
+            f"Within {RATES_VISIBLE:.0%} of max |W| of the reference throughout, not drawn: "
+            + name_list(hidden)
+        )
+    drawn = [g.label for g in shown if cache.get(g.first)["t"][-1] >= t0]
+    alt = (
+        f"{scenario}: body angular velocity W1, W2, W3 against the exact reference"
+        + (f", drawn for {name_list(drawn)}" if drawn else ", no configuration drawn")
+        + f"; {len(hidden)} configuration group(s) within {RATES_VISIBLE:.0%} not drawn."
+    )
+    return _save(fig, out / f"{slug(scenario)}__rates.png", alt=alt, notes="\n".join(parts))
 
 
 # -- dt sweeps and cost -------------------------------------------------------------------------
@@ -534,31 +766,41 @@ def _dt_ticks(ax, dts) -> None:
 def convergence_plot(df, out: Path, scenario: str, styles: Styles):
     """Max attitude error against dt (log-log), one line per group of configurations with the
     same errors at every dt, labelled with the fitted order (and the points of the fit) and
-    the declared order; a run that diverged or failed is a cross at the top; saturation (no
-    fit above it) and the reference's accuracy shown."""
+    the declared order; a run that diverged or failed is a cross at the top, and named under
+    the figure with the configurations that have no point at all; saturation (no fit above
+    it) and the reference's accuracy shown."""
     sub = df[(df["scenario"] == scenario) & (df["engine"] != "exact")]
     sub = sub[~sub["status"].isin(NOT_RUN)]
     groups = [g for g in sweep_groups(sub) if len(g.dts) >= 2]
     if not groups:
         return None
-    fig, (ax,) = _new_figure(height=5.4)
+    fig, (ax,) = _new_figure(height=3.8)
     vals = sub.loc[sub["status"] == "ok", "attitude_error_max"]
     vals = vals[np.isfinite(vals) & (vals > 0)]
     bottom = max(FLOOR, float(vals.min()) / 3.0) if len(vals) else 1e-12
     top = CAPS["attitude_error"]
-    crosses = set()
+    crosses, bad, absent, drawn = set(), {}, [], []
     for g in groups:
         first = g.first
-        st = styles.of(first, always_marker=True, engines=[m["engine"] for m in g.members])
+        st = styles.of(first, always_marker=True)
         ok = [h for h in g.dts if g.at(h).first["status"] == "ok"]
-        crosses.update(h for h in g.dts if g.at(h).first["status"] != "ok")
+        name = _flat(plot_label(g.members))
+        for h in g.dts:
+            at = g.at(h)
+            if at.first["status"] != "ok":
+                crosses.add(h)
+                word = at.outcome
+                if word == "diverged":
+                    word += f" at {fmt(at.value('t_diverged'))} s"
+                bad.setdefault(name, []).append(f"dt {fmt_step(h)}: {word}")
         if not ok:
+            absent.append(f"{name} ({', '.join(bad.pop(name, []))})")
             continue
         order, npts = first["convergence_order"], first["convergence_points"]
         fit = "no fit" if order != order else f"fit {order:.2f} ({int(npts)} pts)"
         label = f"{plot_label(g.members, 34)}\n  {fit}, declared {int(first['order'])}"
         y = np.array([g.at(h).value("attitude_error_max") for h in ok], dtype=float)
-        ax.loglog(
+        (line,) = ax.loglog(
             ok,
             np.clip(y, bottom, top),
             color=st["color"],
@@ -568,6 +810,8 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
             lw=1.6,
             label=label,
         )
+        line.set_gid(f"{name}: {fit}, declared order {int(first['order'])}")
+        drawn.append(name)
     if crosses:
         ax.plot(
             sorted(crosses),
@@ -578,7 +822,7 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
             mew=2.2,
             color="#b00020",
             clip_on=False,
-            label="some run diverged or\nfailed at this dt",
+            label="some run diverged or\nfailed to run at this dt",
         )
     ax.axhline(SATURATION, color="0.4", lw=0.8, ls=(0, (2, 2)))
     ax.text(
@@ -601,7 +845,21 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
     )
     ax.grid(True, which="major", alpha=0.3)
     _legend(ax)
-    return _save(fig, out / f"{slug(scenario)}__convergence.png")
+    parts = []
+    if bad:
+        parts.append(
+            "No point at a dt where the run did not finish (× at the top): "
+            + "; ".join(f"{n} ({', '.join(w)})" for n, w in bad.items())
+        )
+    if absent:
+        parts.append("Not drawn, no run finished at any dt: " + "; ".join(absent))
+    alt = (
+        f"{scenario}: max attitude error against the time step (log-log) for "
+        f"{len(drawn)} line(s) of configurations with their fitted convergence orders"
+        + (f"; {len(absent)} not drawn (no run finished)" if absent else "")
+        + "."
+    )
+    return _save(fig, out / f"{slug(scenario)}__convergence.png", alt=alt, notes="\n".join(parts))
 
 
 #: the work-precision plot leaves out configurations never within this attitude error (rad)
@@ -612,15 +870,18 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     """Max attitude error against the time spent inside the engine (the suite's glue left out,
     so a suite-integrated configuration's cost is its engine's dynamics), one line per
     configuration in dt order; error-controlled runs in target-accuracy order, open markers.
-    Configurations never within WP_RELEVANT rad are listed, not drawn."""
-    sub = df[(df["scenario"] == scenario) & (df["status"] == "ok") & (df["engine"] != "exact")]
+    Configurations never within WP_RELEVANT rad, or with no finished run, are named under the
+    figure, not drawn."""
+    every = df[(df["scenario"] == scenario) & (df["engine"] != "exact")]
+    every = every[~every["status"].isin(NOT_RUN)]
+    sub = every[(every["status"] == "ok")]
     sub = sub[np.isfinite(sub["attitude_error_max"])]
     cost = sub["engine_time_s"].where(sub["engine_time_s"] > 0, sub["wall_time_s"])
     sub = sub.assign(cost=cost)
     sub = sub[sub["cost"] > 0]
     if sub.empty:
         return None
-    fig, (ax,) = _new_figure(height=5.4)
+    fig, (ax,) = _new_figure(height=3.8)
     left_out = []
     configs = sorted(
         sub.groupby(["engine", "integrator"]),
@@ -631,16 +892,18 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         ),
     )
     bottom = max(FLOOR, float(sub["attitude_error_max"].clip(lower=FLOOR).min()) / 3.0)
+    drawn = []
     for (eng, integ), g in configs:
         first = g.iloc[0]
+        sep = " + suite " if truthy(first["suite_integrated"]) else " "
+        name = f"{eng}{sep}{integ}"
         if not (g["attitude_error_max"] <= WP_RELEVANT).any():
-            left_out.append(f"{eng} {integ}")
+            left_out.append(f"{name} (best {fmt(g['attitude_error_max'].min())} rad)")
             continue
         st = styles.of(first, always_marker=True)
         adaptive = g["target_accuracy"].notna().any()
         g = g.sort_values("target_accuracy" if adaptive else "dt")
-        sep = " + suite " if truthy(first["suite_integrated"]) else " "
-        ax.loglog(
+        (line,) = ax.loglog(
             g["cost"],
             np.maximum(g["attitude_error_max"], bottom),
             color=st["color"],
@@ -649,8 +912,14 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
             mfc="none" if adaptive else st["color"],
             ms=5,
             lw=1.6,
-            label=f"{eng}{sep}{integ}" + (" (error-controlled)" if adaptive else ""),
+            label=name,
         )
+        line.set_gid(name + (", error-controlled (points: target accuracies)" if adaptive else ""))
+        drawn.append(name)
+    unfinished = sorted(
+        {f"{e} {i}" for e, i in zip(every["engine"], every["integrator"], strict=True)}
+        - {f"{e} {i}" for e, i in zip(sub["engine"], sub["integrator"], strict=True)}
+    )
     _shade_reference(ax, sub, bottom)
     ax.set_ylim(bottom, CAPS["attitude_error"])
     _log_axes(ax, x=True)
@@ -660,20 +929,245 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         title=f"{scenario}: work-precision (points: the dt sweep)",
     )
     ax.grid(True, which="major", alpha=0.3)
-    title = None
+    _legend(ax)
+    parts = []
+    if sub["target_accuracy"].notna().any():
+        parts.append("Open markers: an error-controlled integrator at its target accuracies.")
     if left_out:
-        title = "not drawn (never within\n" + f"{WP_RELEVANT:g} rad): {len(left_out)}"
-    _legend(ax, title=title)
-    return _save(fig, out / f"{slug(scenario)}__work_precision.png")
+        parts.append(f"Not drawn, never within {WP_RELEVANT:g} rad: " + name_list(left_out))
+    if unfinished:
+        parts.append("Not drawn, no run finished: " + name_list(unfinished))
+    alt = (
+        f"{scenario}: max attitude error against the time spent inside the engine, log-log, "
+        f"for {len(drawn)} configuration(s)"
+        + (f"; not drawn: {name_list([*left_out, *unfinished])}" if left_out or unfinished else "")
+        + "."
+    )
+    return _save(
+        fig, out / f"{slug(scenario)}__work_precision.png", alt=alt, notes="\n".join(parts)
+    )
+
+
+# -- a picture of each scenario ------------------------------------------------------------------
+
+#: the poses of the strip in a scenario picture (equally spaced over the horizon, both ends)
+POSES = 5
+
+#: face colours of the body's box, by the body axis a face is normal to (d1, d2, d3)
+AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
+
+
+def body_box(sc) -> np.ndarray:
+    """Half the side lengths (m) of the uniform box with the scenario's mass and principal
+    moments about the centre of mass: a box of sides (a1, a2, a3) has I1 = m (a2^2 + a3^2)/12,
+    so a1^2 = 6 (I2 + I3 - I1)/m. A side that comes out 0 or negative (moments on the edge
+    of the triangle inequality) is drawn as a thin plate: 2 % of the largest."""
+    I, m = np.asarray(sc.inertia, dtype=float), float(sc.mass)
+    sq = np.array([6.0 * (I[(k + 1) % 3] + I[(k + 2) % 3] - I[k]) / m for k in range(3)])
+    half = 0.5 * np.sqrt(np.clip(sq, 0.0, None))
+    return np.maximum(half, 0.02 * half.max())
+
+
+def tracked_axis(sc) -> tuple[int, np.ndarray]:
+    """The body axis a scenario picture traces, as (index, unit vector in body axes): a
+    pivoted body's axis from the pivot through the centre of mass; a free body's axis
+    carrying the largest share of the initial angular momentum, pointing along it."""
+    if sc.pivot is not None and np.linalg.norm(sc.pivot) > 0:
+        u = -np.asarray(sc.pivot, dtype=float)
+        return int(np.argmax(np.abs(u))), u / np.linalg.norm(u)
+    L = np.asarray(sc.inertia) * np.asarray(sc.omega_body)
+    k = int(np.argmax(np.abs(L)))
+    u = np.zeros(3)
+    u[k] = 1.0 if L[k] >= 0 else -1.0
+    return k, u
+
+
+def _box_faces(half, R, c):
+    """The six faces of a box (half sides ``half``) turned by R about its centre c, with the
+    index of the body axis each is normal to."""
+    faces, normals = [], []
+    for k in range(3):
+        i, j = [a for a in range(3) if a != k]
+        for sgn in (-1.0, 1.0):
+            corners = []
+            for si, sj in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                v = np.zeros(3)
+                v[k], v[i], v[j] = sgn * half[k], si * half[i], sj * half[j]
+                corners.append(c + R @ v)
+            faces.append(corners)
+            normals.append(k)
+    return faces, normals
+
+
+def _tip_length(half, u) -> float:
+    """How far from the centre of mass the traced axis is drawn: out of the box by half its
+    largest side."""
+    k = int(np.argmax(np.abs(u)))
+    return float(half[k] + 0.6 * np.max(half))
+
+
+def _draw_pose(ax, sc, R, x, half, u, lim, trace=None) -> None:
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    faces, normals = _box_faces(half, R, x)
+    ax.add_collection3d(
+        Poly3DCollection(
+            faces,
+            facecolors=[AXIS_COLOURS[k] for k in normals],
+            edgecolors="0.25",
+            linewidths=0.4,
+            alpha=0.35,
+        )
+    )
+    tip = x + R @ (u * _tip_length(half, u))
+    ax.plot(*np.column_stack([x, tip]), color="k", lw=1.8)
+    if sc.pivot is not None:
+        ax.plot([0, x[0]], [0, x[1]], [0, x[2]], color="0.2", lw=1.0, ls=(0, (2, 1)))
+        ax.scatter([0], [0], [0], color="k", s=14, depthshade=False)
+    if trace is not None:
+        ax.plot(*trace.T, color="#6a3d9a", lw=1.1)
+    for setter in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+        setter(-lim, lim)
+    ax.set_box_aspect((1, 1, 1), zoom=1.45)
+    ax.view_init(elev=18, azim=-58)
+    ax.set_axis_off()
+
+
+def scenario_picture(sc, t, R, x, out_path: Path, note: str = "") -> Path:
+    """A picture of a scenario: its body (the uniform box with its mass and principal
+    moments, faces coloured by body axis d1 red, d2 green, d3 blue) at t = 0 with the trace of
+    one body axis (:func:`tracked_axis`) over the horizon, then a strip of :data:`POSES` poses
+    equally spaced in time; a pivot is a black dot with a dashed line to the centre of mass.
+
+    ``t`` (n,), ``R`` (n, 3, 3) body-to-world rotations and ``x`` (n, 3) centre-of-mass
+    positions of the motion (the exact reference); a free body's centre of mass is drawn at
+    the origin (its flight is not what the picture shows). Writes a small PNG."""
+    plt = _plt()
+    t, R, x = np.asarray(t, float), np.asarray(R, float), np.asarray(x, float)
+    half = body_box(sc)
+    k, u = tracked_axis(sc)
+    pivoted = sc.pivot is not None
+    if not pivoted:
+        x = np.zeros_like(x)
+    tips = x + np.einsum("nij,j->ni", R, u * _tip_length(half, u))
+    reach = np.max(np.linalg.norm(half)) + (np.linalg.norm(sc.pivot) if pivoted else 0.0)
+    lim = 1.05 * max(reach, float(np.max(np.abs(tips))))
+    fig = plt.figure(figsize=(9.6, 2.4), dpi=80)
+    main = fig.add_axes([0.0, 0.07, 0.27, 0.84], projection="3d")
+    _draw_pose(main, sc, R[0], x[0], half, u, lim, trace=tips)
+    main.set_title(f"{sc.name}: body and the trace of d{k + 1}", fontsize=8.5, pad=0, loc="left")
+    idx = np.unique(np.round(np.linspace(0, len(t) - 1, POSES)).astype(int))
+    w = 0.71 / len(idx)
+    for n, i in enumerate(idx):
+        ax = fig.add_axes([0.28 + n * w, 0.07, w, 0.78], projection="3d")
+        _draw_pose(ax, sc, R[i], x[i], half, u, lim)
+        ax.set_title(f"t = {fmt(float(t[i]))} s", fontsize=8, pad=0)
+    side = " x ".join(fmt(2 * h) for h in half)
+    text = (
+        f"box {side} m (mass {fmt(sc.mass)} kg, the same principal moments), faces normal to "
+        f"d1 red, d2 green, d3 blue; black: d{k + 1}; purple: its tip over "
+        f"{fmt(float(t[-1]))} s; "
+        f"{'pivot: black dot' if pivoted else 'centre of mass held still'}; world z up"
+        + (f"; {note}" if note else "")
+    )
+    fig.text(0.01, 0.01, text, fontsize=7, color="0.3", ha="left", va="bottom")
+    _write_png(fig, out_path)
+    plt.close(fig)
+    return out_path
+
+
+def library_scenario(row):
+    """The library's scenario a run used, or None: the file of the run's scenario name when
+    its content hash is the run's, or when its body and initial state give the run's energy
+    and momentum scales to 1e-12 (the same body run with another horizon or step). A
+    scenario file of one's own gives None: the results folder does not hold its body."""
+    import scenarios
+
+    try:
+        sc = scenarios.load(str(row["scenario"]))
+    except (ValueError, OSError):
+        return None
+    if sc.scenario_hash == str(row.get("scenario_hash") or ""):
+        return sc
+    same = [
+        abs(float(getattr(sc, col)) - float(row.get(col))) <= 1e-12 * abs(float(row.get(col)))
+        for col in ("energy_scale", "momentum_scale")
+    ]
+    return sc if all(same) else None
+
+
+def scenario_plot_from_results(df, cache: SeriesCache, out: Path, scenario: str):
+    """The scenario picture of a results folder: the body from the library's scenario file
+    (when the runs used that very file) and the motion of the exact reference's run."""
+    rows = df[(df["scenario"] == scenario) & (df["engine"] == "exact")]
+    rows = rows[rows["status"].isin(("ok", "reference-inaccurate"))]
+    if rows.empty:
+        return None
+    row = rows.sort_values("dt").iloc[0]
+    sc = library_scenario(row)
+    s = cache.get(row)
+    if sc is None or s is None or "R00" not in s:
+        return None
+    R = np.stack([s[f"R{i}{j}"] for i in range(3) for j in range(3)], axis=1).reshape(-1, 3, 3)
+    x = np.column_stack([s["x"], s["y"], s["z"]])
+    path = scenario_picture(sc, s["t"], R, x, out / f"{slug(scenario)}__scenario.png")
+    k, _ = tracked_axis(sc)
+    pose = "pivoted on a fixed point" if sc.pivot is not None else "free"
+    alt = (
+        f"{scenario}: the body as a uniform box ({pose}) with the same principal moments, the "
+        f"trace of its body axis d{k + 1} over {fmt(float(s['t'][-1]))} s, and {POSES} poses "
+        "equally spaced in time."
+    )
+    import json
+
+    path.with_suffix(".json").write_text(json.dumps({"alt": alt, "lines": []}))
+    return path
+
+
+def scenario_figures(names, out: Path, samples: int = 400) -> list[Path]:
+    """The pictures of library scenarios for the documentation, each from its exact reference
+    at ``samples`` times: ``scenario_<name>.png`` in ``out``."""
+    import scenarios
+    from references.exact import reference_trajectory
+
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name in names:
+        sc = scenarios.load(name)
+        t = np.linspace(0.0, sc.t_end, samples)
+        ref = reference_trajectory(sc, t)
+        path = out / f"scenario_{name}.png"
+        paths.append(scenario_picture(sc, t, ref.rotation, ref.position, path))
+    return paths
 
 
 # -- all figures --------------------------------------------------------------------------------
 
 #: the figures of one scenario, in report order
-KINDS = ("errors", "rates", "convergence", "work_precision")
+KINDS = ("scenario", "errors", "rates", "convergence", "work_precision")
 
 
 def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles):
+    """One figure of a scenario, or None. A figure that cannot be drawn (data a log axis
+    cannot show, a library failure) is said on the standard error and left out: a figure
+    never costs the report, junit.xml or the results."""
+    try:
+        return _scenario_plot(kind, df, cache, out, scenario, styles)
+    except Exception as exc:  # noqa: BLE001 - any failure of one figure
+        import sys
+
+        _plt().close("all")
+        print(
+            f"director-bench: the {kind} figure of {scenario} was not drawn "
+            f"({type(exc).__name__}: {exc}); the report goes on without it",
+            file=sys.stderr,
+        )
+        return None
+
+
+def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles):
+    if kind == "scenario":
+        return scenario_plot_from_results(df, cache, out, scenario)
     if kind == "errors":
         return errors_plot(df, cache, out, scenario, styles)
     if kind == "rates":
@@ -705,9 +1199,10 @@ def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:
     for r in records(sub[["engine", "integrator", "family", "trajectory"]]):
         h.update(json.dumps(styles.of(r), default=str).encode())
         if r["trajectory"]:
-            p = root / error_series_path(Path(r["trajectory"]))
+            rel = error_series_path(Path(r["trajectory"]))  # relative: a folder named
+            p = root / rel  # once relative and once absolute is the same folder
             st = p.stat() if p.exists() else None
-            h.update(repr((str(p), st and (st.st_size, st.st_mtime_ns))).encode())
+            h.update(repr((rel.as_posix(), st and (st.st_size, st.st_mtime_ns))).encode())
     return h.hexdigest()
 
 
@@ -777,7 +1272,10 @@ def all_plots(
     for scenario in sorted(df["scenario"].unique()):
         key = _scenario_key(df, scenario, styles, root)
         old = made_from.get(scenario, {})
-        if old.get("key") == key and all((out / f).exists() for f in old.get("files", [])):
+        files = [out / f for f in old.get("files", [])]
+        if old.get("key") == key and all(
+            f.exists() and f.with_suffix(".json").exists() for f in files
+        ):
             made[scenario] = [out / f for f in old["files"]]
         else:
             made[scenario] = []
@@ -794,6 +1292,184 @@ def all_plots(
     return made
 
 
+# -- the scorecard as one picture --------------------------------------------------------------
+
+#: cell colours of the scorecard figure, per outcome (the HTML report's colours)
+OUTCOME_COLOURS = {
+    "pass": "#cfe9d6",
+    "fail": "#f6c9c4",
+    "diverged": "#e8a39b",
+    "error": "#fce8b2",
+    "reference-inaccurate": "#dde3e6",
+    "unsupported": "#f2f2f2",
+    "unavailable": "#f2f2f2",
+}
+#: a mark per outcome in the scorecard figure
+OUTCOME_MARKS = {
+    "pass": "✓",
+    "fail": "✗",
+    "diverged": "↯",
+    "error": "!",
+    "reference-inaccurate": "?",
+    "unsupported": "",
+    "unavailable": "",
+}
+
+
+def fmt_cost(ns: float) -> str:
+    """A cost per step, ``1.23 µs`` (``-`` when unknown)."""
+    try:
+        v = float(ns)
+    except (TypeError, ValueError):
+        return "-"
+    if not v > 0:
+        return "-"
+    return f"{fmt(v / 1e3)} µs"
+
+
+def scorecard_cells(df) -> tuple[list, list, dict]:
+    """The scorecard figure's content: scenarios (columns), configurations (rows: (engine,
+    integrator, label)) and {(row, scenario): (outcome, lines of text)}; each scenario at its
+    own dt (an error-controlled integrator at its tightest target accuracy)."""
+    from reports.summary import (
+        METRIC_SHORT,
+        config_label,
+        failed_metrics,
+        fmt_attitude,
+        outcome,
+        scenarios_of,
+    )
+
+    scens = scenarios_of(df)
+    cells, labels = {}, {}
+    for sc in scens:
+        rows = at_scenario_dt(df[df["scenario"] == sc])
+        for r in records(rows[rows["engine"] != "exact"]):
+            key = (r["engine"], r["integrator"])
+            labels.setdefault(key, config_label(r))
+            out = outcome(r)
+            if out in NOT_RUN:
+                text = ["not run", f"({out})"]
+            elif out == "diverged":
+                text = [f"↯ t = {fmt(r['t_diverged'])} s", fmt_cost(r["engine_ns_per_step"])]
+            elif out == "error":
+                text = ["! error"]
+            else:
+                text = [
+                    f"{OUTCOME_MARKS.get(out, '')} {fmt_attitude(r)}",
+                    fmt_cost(r["engine_ns_per_step"]),
+                ]
+                if out == "fail":
+                    names = failed_metrics(r["verdict_detail"])
+                    text.append(", ".join(METRIC_SHORT.get(m, m) for m in names))
+            cells[(key, sc)] = (out, text)
+    order = sorted(labels, key=lambda k: (engine_key(k[0]), k[1]))
+    return scens, [(e, i, labels[(e, i)]) for e, i in order], cells
+
+
+def scorecard_figure(df, out: Path) -> list[Path]:
+    """The scorecard as one picture for a README or a pull request, ``scorecard.png`` and
+    ``scorecard.svg`` in ``out``: a row per configuration, a column per scenario at its own
+    dt; each cell coloured by the verdict, with the max attitude error [rad] (``< x``: below
+    the reference's accuracy), the time inside the engine per step and the failing metrics.
+    Returns the paths written ([] for an empty table)."""
+    import matplotlib
+    from matplotlib.patches import Patch, Rectangle
+
+    df = df[df["engine"] != "exact"]
+    if df.empty:
+        return []
+    scens, configs, cells = scorecard_cells(df)
+    plt = _plt()
+    cw, ch, lw = 1.3, 0.55, 2.5  # cell width and height, label column, inches
+    width, height = lw + cw * len(scens) + 0.2, ch * len(configs) + 2.1
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        fig = plt.figure(figsize=(width, height), dpi=DPI)
+        ax = fig.add_axes(
+            [lw / width, 0.75 / height, cw * len(scens) / width, ch * len(configs) / height]
+        )
+        ax.set_xlim(0, len(scens))
+        ax.set_ylim(len(configs), 0)
+        ax.axis("off")
+        prev = None
+        for i, (eng, integ, label) in enumerate(configs):
+            if prev is not None and eng != prev:
+                ax.axhline(i, color="0.35", lw=1.0)
+            prev = eng
+            ax.text(-0.06, i + 0.5, label, ha="right", va="center", fontsize=8.5)
+            for j, sc in enumerate(scens):
+                out_, text = cells.get(((eng, integ), sc), ("", ["-"]))
+                face = OUTCOME_COLOURS.get(out_, "white")
+                ax.add_patch(Rectangle((j, i), 1, 1, fc=face, ec="white", lw=1.5))
+                if len(text) > 2:  # the failing metrics, on two lines if need be
+                    text = [*text[:2], *textwrap.wrap(text[2], 22)]
+                # two texts per cell (drawing text is most of the figure's time): the
+                # verdict and error, then the cost and failing metrics in smaller type
+                lift = 0.1 * (len(text) - 1)
+                ax.text(j + 0.5, i + 0.5 - lift, text[0], ha="center", va="center", fontsize=8)
+                if len(text) > 1:
+                    ax.text(
+                        j + 0.5, i + 0.5 - lift + 0.13, "\n".join(text[1:]), ha="center",
+                        va="top", fontsize=6.6, color="0.3", linespacing=1.05,
+                    )  # fmt: skip
+        for j, sc in enumerate(scens):
+            ax.text(
+                j + 0.5, -0.15, sc.replace("_", "_\u200b"), ha="left", va="bottom",
+                rotation=25, rotation_mode="anchor", fontsize=8.5,
+            )  # fmt: skip
+        handles = [
+            Patch(fc=OUTCOME_COLOURS[o], ec="0.6", label=f"{OUTCOME_MARKS[o]} {o}".strip())
+            for o in ("pass", "fail", "diverged", "error", "reference-inaccurate")
+        ]
+        handles.append(Patch(fc=OUTCOME_COLOURS["unsupported"], ec="0.6", label="not run"))
+        fig.legend(
+            handles=handles, loc="lower left", bbox_to_anchor=(0.01, 0.0), ncols=6,
+            frameon=False, fontsize=8, handlelength=1.4,
+        )  # fmt: skip
+        fig.text(
+            0.01,
+            1 - 0.08 / height,
+            "director-bench scorecard, each scenario at its own dt: verdict, max attitude "
+            "error [rad] (< x: below the reference's accuracy x),\ntime inside the engine per "
+            "step, and the metrics that failed",
+            ha="left",
+            va="top",
+            fontsize=9,
+        )
+        paths = [out / "scorecard.png", out / "scorecard.svg"]
+        box = fig.get_tightbbox().padded(0.1)  # inches; measured once for both files
+        _write_png(fig, paths[0], bbox_inches=box)
+        fig.savefig(paths[1], bbox_inches=box)
+        plt.close(fig)
+    return paths
+
+
+def scorecard_figure_cached(df, root: str | Path) -> list[Path]:
+    """:func:`scorecard_figure` into the results folder, drawn again only when the table or
+    the code drawing it changed (a hash kept in ``plots/.scorecard-made-from``)."""
+    import hashlib
+
+    import reports.summary as summary_mod
+
+    root = Path(root)
+    h = hashlib.sha256()
+    h.update(Path(__file__).read_bytes())
+    h.update(Path(summary_mod.__file__).read_bytes())
+    h.update(df.sort_values("run_id").to_json(orient="values", double_precision=15).encode())
+    key = h.hexdigest()
+    mark = root / "plots" / ".scorecard-made-from"
+    paths = [root / "scorecard.png", root / "scorecard.svg"]
+    try:
+        if mark.read_text() == key and all(p.exists() for p in paths):
+            return paths
+    except OSError:
+        pass
+    paths = scorecard_figure(df, root)
+    mark.parent.mkdir(parents=True, exist_ok=True)
+    mark.write_text(key)
+    return paths
+
+
 def ensemble_plot(df, out, metric: str = "attitude_error_max"):
     """Distribution of ``metric`` over the members of an ensemble, one box per engine and
     integrator (log scale), ordered by median."""
@@ -806,7 +1482,7 @@ def ensemble_plot(df, out, metric: str = "attitude_error_max"):
     )
     data = [np.maximum(g[metric].astype(float).to_numpy(), FLOOR) for _, g in groups]
     labels = [f"{e} {i}" for (e, i), _ in groups]
-    fig, ax = plt.subplots(figsize=(FIGSIZE[0], 0.32 * len(labels) + 1.6))
+    fig, ax = plt.subplots(figsize=(AXES_WIDTH + 3.0, 0.32 * len(labels) + 1.6), dpi=DPI)
     ax.boxplot(data, orientation="horizontal", whis=(0, 100))
     ax.set_yticks(range(1, len(labels) + 1), labels)
     ax.set_xscale("log")
@@ -819,20 +1495,61 @@ def ensemble_plot(df, out, metric: str = "attitude_error_max"):
     )
     ax.grid(True, which="major", axis="x", alpha=0.3)
     fig.subplots_adjust(left=0.3, right=0.97, bottom=0.5 / (0.32 * len(labels) + 1.6) + 0.1)
-    return _save(fig, Path(out) / f"{slug(scen)}__ensemble_{slug(metric)}.png")
+    alt = (
+        f"{scen}: distribution of {metric} over {n} initial conditions, one box per "
+        f"configuration ({name_list(labels)}), ordered by median."
+    )
+    return _save(fig, Path(out) / f"{slug(scen)}__ensemble_{slug(metric)}.png", alt=alt)
 
 
 __all__ = [
     "CAPS",
-    "ENGINE_COLOURS",
     "ENGINE_ORDER",
     "FAMILY_ORDER",
     "FAMILY_STYLE",
     "KINDS",
+    "PALETTE",
     "all_plots",
     "convergence_plot",
     "ensemble_plot",
-    "rates_plot",
     "errors_plot",
+    "figure_meta",
+    "rates_plot",
+    "scenario_figures",
+    "scenario_picture",
+    "scorecard_figure",
     "work_precision_plot",
 ]
+
+
+def main(argv=None) -> int:
+    """``python -m reports.plots --scenario-figures DIR [NAME ...]``: the pictures of the
+    default suite's scenarios (or those named) for the documentation."""
+    import argparse
+
+    import scenarios
+
+    p = argparse.ArgumentParser(
+        prog="python -m reports.plots",
+        description="Draw the pictures of library scenarios (body and motion) into a folder.",
+    )
+    p.add_argument(
+        "--scenario-figures",
+        metavar="DIR",
+        required=True,
+        help="folder to write scenario_<name>.png into (e.g. docs/figures)",
+    )
+    p.add_argument("names", nargs="*", help="library scenarios (default: the default suite)")
+    args = p.parse_args(argv)
+    names = args.names or scenarios.default_suite()
+    try:
+        for path in scenario_figures(names, Path(args.scenario_figures)):
+            print(path)
+    except (ValueError, OSError) as exc:
+        print(f"python -m reports.plots: error: {exc}", file=__import__("sys").stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

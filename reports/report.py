@@ -28,11 +28,13 @@ from __future__ import annotations
 
 import base64
 import html
+import json
 import math
 import os
 import re
 from pathlib import Path
 
+from reports.plots import figure_meta
 from reports.provenance import read_provenance
 from reports.results import STATUSES
 from reports.summary import (
@@ -43,6 +45,7 @@ from reports.summary import (
     at_scenario_dt,
     config_label,
     energy_momentum_rows,
+    engine_key,
     failed_metrics,
     failures,
     family_key,
@@ -167,9 +170,10 @@ class Doc:
         self.md.append(f"{'#' * level} {text}\n")
         self.html.append(f"<h{level} id='{html.escape(id_)}'>{html.escape(text)}</h{level}>")
 
-    def para(self, md: str, html_: str | None = None) -> None:
+    def para(self, md: str, html_: str | None = None, cls: str = "") -> None:
         self.md.append(md + "\n")
-        self.html.append(f"<p>{html_ if html_ is not None else html.escape(md)}</p>")
+        attr = f" class='{cls}'" if cls else ""
+        self.html.append(f"<p{attr}>{html_ if html_ is not None else html.escape(md)}</p>")
 
     def bullets(self, items: list[tuple[str, str]]) -> None:
         """Items as (Markdown, HTML)."""
@@ -177,21 +181,29 @@ class Doc:
         self.html.append("<ul>" + "".join(f"<li>{h}</li>" for _, h in items) + "</ul>")
 
     def table(self, title: str, header: list, rows: list[list], cls: str = "") -> None:
-        """A table with its one-line title; in HTML inside a container that scrolls when the
-        table is wider than the page."""
+        """A table with its one-line title; header entries and cells are text or
+        :class:`Cell`. In HTML inside a container that scrolls should the table be wider than
+        the page; a table of class ``stack`` turns into one card per row on a narrow screen,
+        each cell labelled with its column (``data-label``)."""
+        heads = [h if isinstance(h, Cell) else Cell(h) for h in header]
+        if len(heads) > 4 and "stack" not in cls.split():
+            cls = f"{cls} stack".strip()
         cells = [[c if isinstance(c, Cell) else Cell(c) for c in r] for r in rows]
         md = [f"**{md_cell(title)}**", ""] if title else []
-        md.append("| " + " | ".join(md_cell(h) for h in header) + " |")
-        md.append("|" + "|".join("---" for _ in header) + "|")
+        md.append("| " + " | ".join(h.to_md() for h in heads) + " |")
+        md.append("|" + "|".join("---" for _ in heads) + "|")
         md += ["| " + " | ".join(c.to_md() for c in r) + " |" for r in cells]
         self.md.append("\n".join(md) + "\n")
-        head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+        head = "".join(f"<th>{h.to_html()}</th>" for h in heads)
+        labels = [html.escape(h.text, quote=True) for h in heads]
         body = []
         for r in cells:
             tds = []
-            for c in r:
+            for k, c in enumerate(r):
                 classes = " ".join(x for x in ("num" if c.num else "", c.cls) if x)
                 attr = f" class='{classes}'" if classes else ""
+                if k < len(labels):
+                    attr += f" data-label='{labels[k]}'"
                 tds.append(f"<td{attr}>{c.to_html()}</td>")
             body.append("<tr>" + "".join(tds) + "</tr>")
         caption = f"<div class='title'>{html.escape(title)}</div>" if title else ""
@@ -212,22 +224,46 @@ class Doc:
         if md:
             self.md.append("</details>\n")
 
-    def images(self, paths: list[Path], root: Path) -> None:
+    def images(
+        self, paths: list[Path], root: Path, cls: str = "plots", md: bool = True, alts=None
+    ) -> None:
+        """Figures: in Markdown as links to the files, in HTML embedded (base64), each with
+        its alt text and, where :func:`reports.plots.figure_meta` has them, the lines a
+        pointer over the figure names (``data-lines``, read by :data:`SCRIPT`)."""
         if not paths:
             return
-        for p in paths:
-            self.md.append(f"![{p.stem}]({p.relative_to(root).as_posix()})\n")
-        figs = []
-        for p in paths:
-            data = base64.b64encode(p.read_bytes()).decode()
-            figs.append(
-                f"<img alt='{html.escape(p.stem)}' loading='eager' "
-                f"src='data:image/png;base64,{data}'>"
-            )
-        self.html.append("<div class='plots'>" + "".join(figs) + "</div>")
+        if md:
+            for p in paths:
+                alt = (alts or {}).get(p) or figure_meta(p).get("alt") or p.stem
+                self.md.append(f"![{_md_alt(alt)}]({p.relative_to(root).as_posix()})\n")
+        figs = "".join(figure_html(p, (alts or {}).get(p, "")) for p in paths)
+        self.html.append(f"<div class='{cls}'>{figs}</div>")
 
     def raw_html(self, text: str) -> None:
         self.html.append(text)
+
+
+def figure_html(p: Path, alt: str = "") -> str:
+    """A figure embedded in the page: the PNG as a data URI, its alt text (``alt``, or the
+    one written beside the figure), its hover lines."""
+    meta = figure_meta(p)
+    alt = alt or meta.get("alt") or p.stem.replace("__", ": ").replace("_", " ")
+    data = base64.b64encode(p.read_bytes()).decode()
+    lines = meta.get("lines") or []
+    hover = ""
+    if lines:
+        hover = f" data-lines='{html.escape(json.dumps(lines, separators=(',', ':')), quote=True)}'"
+    kind = p.stem.rsplit("__", 1)[-1]
+    return (
+        f"<figure class='fig k-{html.escape(kind)}'{hover}>"
+        f"<img alt='{html.escape(alt, quote=True)}' loading='eager' "
+        f"src='data:image/png;base64,{data}'><span class='tip' hidden></span></figure>"
+    )
+
+
+def _md_alt(text: str) -> str:
+    """Alt text safe inside Markdown's ``![...]``."""
+    return " ".join(str(text).split()).replace("[", "(").replace("]", ")")
 
 
 def _strip_tags(text: str) -> str:
@@ -283,48 +319,103 @@ def provenance_rows(prov: dict) -> list[list[str]]:
     return rows
 
 
-def short_labels(df) -> dict:
-    """Scorecard labels: the integrator alone in a family only one engine runs (the director
-    schemes), the engine alone where it has one integrator in the family, else both."""
-    out = {}
-    for _, fam in df.groupby("family"):
-        single_engine = fam["engine"].nunique() == 1
-        for eng, g in fam.groupby("engine"):
-            integs = set(g["integrator"])
-            for i in integs:
-                if single_engine and len(integs) > 1:
-                    out[(eng, i)] = i
-                else:
-                    out[(eng, i)] = eng if len(integs) == 1 else f"{eng} {i}"
-    return out
+def fmt_cost(ns) -> str:
+    """The time inside the engine per step, ``11.0 µs`` (``-`` when unknown)."""
+    from reports.plots import fmt_cost as _fmt_cost
+
+    return _fmt_cost(ns)
 
 
-def entry_texts(g, labels: dict) -> tuple[str, str, list[str]]:
-    """(outcome, who, figures) of a scorecard entry; figures: short pieces, each kept on
-    one line."""
-    who = ", ".join(labels.get((r["engine"], r["integrator"]), config_label(r)) for r in g.rows)
-    acc = g.first.get("target_accuracy")
-    if isinstance(acc, float) and not math.isnan(acc):
-        who += f" (tol {fmt_level(acc)})"
+def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
+    """(outcome, members, figures, failing) of a scorecard entry: members as (configuration,
+    its time inside the engine per step), every configuration named in full (engine and
+    integrator); figures: short pieces, each kept on one line; failing: the metrics out of
+    bounds (empty unless the verdict is fail)."""
+    who = [(config_label(r), fmt_cost(r.get("engine_ns_per_step"))) for r in g.rows]
     fr = g.figure_row()
     out = g.outcome
     if out == "diverged":
-        return out, who, [f"at t = {fmt(fr['t_diverged'])} s"]
+        return out, who, [f"diverged at t = {fmt(fr['t_diverged'])} s"], ""
     if out == "error":
-        return out, who, ["error"]
+        return out, who, ["error"], ""
     if out == "reference-inaccurate":
-        return out, who, ["reference too coarse to judge"]
+        return out, who, ["reference too coarse to judge"], ""
     figs = [f"{fmt_attitude(fr)} rad", f"E {fmt(fr['energy_drift_max'])}"]
+    failing = ""
     if out == "fail":
         names = [METRIC_SHORT.get(m, m) for m in failed_metrics(g.first["verdict_detail"])]
-        figs.append(f"fails: {', '.join(names)}")
-    return out, who, figs
+        failing = ", ".join(names)
+    return out, who, figs, failing
+
+
+#: what the figures of a scorecard entry are (the legend above the scorecard, the tooltips)
+SCORECARD_TERMS = {
+    "rad": "the max attitude error over the run, rad (< x: below the reference's accuracy x, "
+    "not a measurement)",
+    "E": "the max energy drift relative to the scenario's energy scale",
+    "µs": "the time inside the engine's own calls per step, the cost beside the verdict "
+    "(the suite's glue left out; + suite: the suite's time loop around the engine's "
+    "dynamics, whose own time is this figure)",
+}
+
+
+def scorecard_legend(doc: Doc) -> None:
+    """The key to the scorecard, above it."""
+    md = (
+        "✅ pass · ❌ fail (the metrics out of bounds after *fails*) · 💥 diverged · ⚠️ error "
+        "· ❔ the reference is not accurate enough to judge. Each entry: the verdict, the max "
+        f"attitude error (**rad**: {SCORECARD_TERMS['rad']}), **E**: {SCORECARD_TERMS['E']}, "
+        f"then each configuration with **µs**: {SCORECARD_TERMS['µs']}. Configurations in one "
+        "entry agree to 1e-3 in every metric (round-off-level values aside); each scenario's "
+        "details give their largest difference."
+    )
+    h = (
+        "<span class='v-pass'>✓ pass</span> <span class='v-fail'>✗ fail</span> "
+        "<span class='v-diverged'>↯ diverged</span> <span class='v-error'>⚠ error</span> "
+        "<span class='v-reference-inaccurate'>? reference too coarse to judge</span>. "
+        "Each entry: the verdict, the max attitude error (<b>rad</b>: "
+        f"{html.escape(SCORECARD_TERMS['rad'])}), <b>E</b>: {html.escape(SCORECARD_TERMS['E'])}"
+        "; the metrics out of bounds after <b>fails</b>; then each configuration with "
+        f"<b>µs</b>: {html.escape(SCORECARD_TERMS['µs'])}. Configurations in one entry agree "
+        "to 1e-3 in every metric (round-off-level values aside); each scenario's details give "
+        "their largest difference."
+    )
+    doc.para(md, h, cls="legend")
+
+
+def _entry_html(out: str, who, figs, failing: str, href: str) -> str:
+    spans = []
+    for f in figs:
+        if f.startswith("E "):
+            abbr = f"<abbr title='{html.escape(SCORECARD_TERMS['E'])}'>E</abbr>"
+            spans.append(f"<span class='fig'>{abbr} {html.escape(f[2:])}</span>")
+        else:
+            spans.append(f"<span class='fig'>{html.escape(f)}</span>")
+    fails = f"<span class='fails'>fails: {html.escape(failing)}</span>" if failing else ""
+    members = "".join(
+        f"<li>{html.escape(name)} <span class='cost' title='time inside the engine per step'>"
+        f"{html.escape(cost)}</span></li>"
+        for name, cost in who
+    )
+    return (
+        f"<a class='entry v-{out}'{href}><span class='head'><b>{MARK.get(out, '')}</b> "
+        f"{' · '.join(spans)}</span>{fails}<ul class='who'>{members}</ul></a>"
+    )
 
 
 def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
     fams = sorted({f for s in card for f in s["cells"]}, key=family_key)
-    labels = short_labels(df)
-    header = ["scenario", *fams]
+    header = [
+        Cell(
+            "scenario",
+            html_="<span title='each scenario at its own dt and horizon'>scenario</span>",
+        ),
+        *(
+            Cell(f, html_=f"<span title='integrator family: {html.escape(f)}'>"
+                 f"{html.escape(f)}</span>")
+            for f in fams
+        ),
+    ]  # fmt: skip
     rows = []
     for s in card:
         sid = anchor(s["scenario"])
@@ -340,79 +431,95 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
         for fam in fams:
             md_parts, html_parts = [], []
             for g in s["cells"].get(fam, []):
-                out, who, figs = entry_texts(g, labels)
-                md_parts.append(
-                    f"{SYMBOL.get(out, '')} {md_cell(who)}: {md_cell(' · '.join(figs))}"
-                )
+                out, who, figs, failing = entry_texts(g)
+                text = " · ".join(figs) + (f" · fails: {failing}" if failing else "")
+                members = ", ".join(f"{name} ({cost})" for name, cost in who)
+                md_parts.append(f"{SYMBOL.get(out, '')} {md_cell(text)} — {md_cell(members)}")
                 href = f" href='#{sid}'" if links else ""
-                why = [f for f in figs if f.startswith("fails")]
-                title = f" title='{html.escape(out)}: {html.escape(why[0])}'" if why else ""
-                spans = " · ".join(
-                    f"<span class='fig'>{html.escape(f)}</span>"
-                    for f in figs
-                    if not f.startswith("fails")
-                )
-                html_parts.append(
-                    f"<a class='entry v-{out}'{href}{title}><b>{MARK.get(out, '')}</b> "
-                    f"<span class='who'>{html.escape(who)}</span> {spans}</a>"
-                )
+                html_parts.append(_entry_html(out, who, figs, failing, href))
             row.append(Cell(md="<br>".join(md_parts) or "-", html_="".join(html_parts) or "-"))
         rows.append(row)
-    doc.table("Verdicts at each scenario's own dt", header, rows, cls="scorecard")
-    doc.para(
-        "✅ pass · ❌ fail (the metrics out of bounds in brackets) · 💥 diverged · ⚠️ error · ❔ "
-        "the reference is not accurate enough to judge. Figures: max attitude error [rad] "
-        "(`< x`: below the reference's accuracy x, not a measurement) and E, the max energy "
-        "drift relative to the scenario's energy scale. Configurations in one entry agree to "
-        "1e-3 in every metric (round-off-level values aside); the details give their largest "
-        "difference.",
-        "<span class='v-pass'>✓ pass</span> <span class='v-fail'>✗ fail</span> "
-        "<span class='v-diverged'>↯ diverged</span> <span class='v-error'>⚠ error</span> "
-        "<span class='v-reference-inaccurate'>? reference too coarse to judge</span>. "
-        "Figures: max attitude error [rad] (<code>&lt; x</code>: below the reference's "
-        "accuracy x, not a measurement) and E, the max energy drift relative to the "
-        "scenario's energy scale; hovering over a failing entry names the metrics out of "
-        "bounds (the failures section lists them). "
-        "Configurations in one entry agree to 1e-3 in every metric (round-off-level values "
-        "aside); each scenario's details give their largest difference.",
-    )
+    scorecard_legend(doc)
+    doc.table("Verdicts at each scenario's own dt", header, rows, cls="scorecard stack")
     if len(energy_momentum_rows(df)):
         doc.para("**energy_momentum:** " + ENERGY_MOMENTUM_NOTE, html.escape(ENERGY_MOMENTUM_NOTE))
 
 
-def wp_cell(entry) -> tuple[str, str]:
-    """(Markdown, HTML) of a work-precision answer: configuration, engine and wall time."""
+def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
+    """The scorecard as one picture, with where its files are (to paste into a README or a
+    pull request)."""
+    png = [p for p in paths if p.suffix == ".png" and p.exists()]
+    if not png:
+        return
+    runs = df[df["engine"] != "exact"]
+    card_alt = (
+        f"Scorecard: {runs.groupby(['engine', 'integrator']).ngroups} configurations (rows) "
+        f"on {runs['scenario'].nunique()} scenarios (columns), each cell coloured by its "
+        "verdict (green pass, pink fail, red diverged, grey not run) with the max attitude "
+        "error, the time inside the engine per step and the failing metrics."
+    )
+    names = " and ".join(f"`{p.relative_to(root).as_posix()}`" for p in paths)
+    text = (
+        f"The scorecard as one picture ({names} in this folder, for a README or a pull "
+        "request); the table below has every configuration's figures."
+    )
+    doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)), cls="hint")
+    doc.images(png, root, cls="plots card", alts={png[0]: card_alt})
+
+
+def wp_cell(entry, winner: bool) -> tuple[str, str]:
+    """(Markdown, HTML) of one engine's answer at one accuracy: its cheapest configuration
+    (the engine named in the row), the time inside the engine and the ratio to the cheapest
+    of all engines (the overall winner in bold)."""
     if entry is None:
-        return "none", "none"
-    cost = f"{fmt(entry['engine_time_s'])} s engine, {fmt(entry['wall_time_s'])} s wall"
+        return "-", "<span class='none'>-</span>"
+    conf = entry["configuration"][len(entry["engine"]) :].strip()
+    ratio = "cheapest" if winner else f"x{fmt(entry['cost_ratio'])}"
+    cost = f"{fmt(entry['engine_time_s'])} s, {ratio}"
+    if winner:
+        return (
+            f"**{md_cell(conf)}**<br>{cost}",
+            f"<b>{html.escape(conf)}</b><br><small class='win'>{html.escape(cost)}</small>",
+        )
     return (
-        f"{md_cell(entry['configuration'])}<br>{cost}",
-        f"{html.escape(entry['configuration'])}<br><small>{html.escape(cost)}</small>",
+        f"{md_cell(conf)}<br>{cost}",
+        f"{html.escape(conf)}<br><small>{html.escape(cost)}</small>",
     )
 
 
 def work_precision_section(doc: Doc, df) -> None:
+    """Per scenario and engine, the cheapest configuration of that engine reaching each level
+    of max attitude error, with its time inside the engine and its ratio to the cheapest of
+    all engines."""
     levels = ACCURACY_LEVELS
-    header = ["scenario", *(f"≤ {fmt_level(lv)} rad" for lv in levels)]
+    header = ["scenario", "engine", *(f"≤ {fmt_level(lv)} rad" for lv in levels)]
     rows = []
     for scenario in scenarios_of(df):
-        wp = work_precision(df[df["scenario"] == scenario], levels)
-        row = [scenario_link(scenario)]
-        for lv in wp:
-            m, h = wp_cell(lv["ranked"][0] if lv["ranked"] else None)
-            row.append(Cell(md=m, html_=h))
-        rows.append(row)
+        sub = df[df["scenario"] == scenario]
+        wp = work_precision(sub, levels)
+        engines = sorted(
+            set(sub.loc[(sub["status"] == "ok") & (sub["engine"] != "exact"), "engine"]),
+            key=engine_key,
+        )
+        for k, eng in enumerate(engines):
+            row = [scenario_link(scenario) if k == 0 else Cell(""), Cell(eng)]
+            for lv in wp:
+                mine = [e for e in lv["ranked"] if e["engine"] == eng]
+                winner = bool(mine) and lv["ranked"][0] is mine[0]
+                m, h = wp_cell(mine[0] if mine else None, winner)
+                row.append(Cell(md=m, html_=h, cls="win" if winner else ""))
+            rows.append(row)
     text = (
-        "The cheapest configuration reaching each max attitude error (fixed steps and "
-        "error-controlled runs alike), ranked by the time spent inside the engine's own calls "
-        "(`engine_time_s`); the wall time, which includes the suite's glue, is given beside "
-        "it. `+ suite` marks a configuration whose time loop is the suite's own Python around "
-        "the engine's dynamics: its wall time measures our code, so no ratio here uses it. "
-        "An error below the reference's accuracy reaches no level below that accuracy."
-        + _finer_sweep_note(df)
+        "For each engine, its cheapest configuration reaching each max attitude error (fixed "
+        "steps and error-controlled runs alike), with the time spent inside the engine's own "
+        "calls (`engine_time_s`) and its ratio to the cheapest of all engines (in bold, "
+        "`cheapest`); `-`: no configuration of that engine reaches the level. `+ suite` "
+        "marks a configuration whose time loop is the suite's own Python around the engine's "
+        "dynamics: its wall time measures our code, so no ratio here uses it. An error below "
+        "the reference's accuracy reaches no level below that accuracy." + _finer_sweep_note(df)
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
-    doc.table("Cheapest configuration per accuracy", header, rows, cls="wp")
+    doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp stack")
 
 
 def _finer_sweep_note(df) -> str:
@@ -633,7 +740,17 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
     doc.table(f"{scenario}: cheapest configuration per accuracy", header, body)
 
 
+#: the figures of a scenario shown without a click (the others are in its collapsed part)
+KEY_FIGURES = ("scenario", "errors", "work_precision")
+
+
+def _kind(p: Path) -> str:
+    return p.stem.rsplit("__", 1)[-1]
+
+
 def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
+    """Per scenario: its facts and key figures in view (:data:`KEY_FIGURES`), then, collapsed
+    in HTML, its tables and the other figures."""
     doc.heading(2, "Details")
     for scenario in scenarios_of(df):
         sub = df[df["scenario"] == scenario]
@@ -643,11 +760,11 @@ def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
         n_pass = int((counts["verdict"] == "pass").sum())
         n_bad = int(((counts["verdict"] == "fail") | (counts["status"] == "error")).sum())
         sid = anchor(scenario)
-        summary = (
-            f"<h3>{html.escape(scenario)}</h3> <span class='counts'>{n_pass} pass, {n_bad} "
-            f"fail or error at dt {fmt_step(info['dt'])} s</span>"
+        doc.raw_html(
+            f"<section class='scenario' id='{html.escape(sid)}'><h3>{html.escape(scenario)}</h3>"
+            f" <span class='counts'>{n_pass} pass, {n_bad} fail or error at dt "
+            f"{fmt_step(info['dt'])} s</span>"
         )
-        doc.open_details(summary, id_=sid, md=False)
         doc.md.append(f"### {scenario}\n")
         ref = (
             f"reference: {info['reference_kind']} (accuracy {fmt(info['reference_accuracy'])} rad)"
@@ -658,6 +775,20 @@ def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
         doc.para(
             f"dt = {fmt_step(info['dt'])} s (sweep: {sweep} s), t_end = "
             f"{fmt_step(info['t_end'])} s; {ref}."
+        )
+        figs = plots.get(scenario, [])
+        key = [p for k in KEY_FIGURES for p in figs if _kind(p) == k]
+        rest = [p for p in figs if p not in key]
+        doc.images(key, root, cls="plots key")
+        if key:
+            doc.raw_html(
+                "<p class='hint'>Point at a line in a figure to see which configuration it is.</p>"
+            )
+        doc.open_details(
+            f"Tables and more figures of {html.escape(scenario)}: the verdicts at its dt, the "
+            "dt sweep, the cheapest configuration per accuracy"
+            + (", " + ", ".join(_kind(p).replace("_", " ") for p in rest) if rest else ""),
+            md=False,
         )
         em = energy_momentum_rows(rows)
         if len(em):
@@ -670,8 +801,9 @@ def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
         scenario_table(doc, scenario, rows, info)
         sweep_table(doc, scenario, sub)
         wp_table(doc, scenario, sub)
-        doc.images(plots.get(scenario, []), root)
+        doc.images(rest, root)
         doc.close_details(md=False)
+        doc.raw_html("</section>")
 
 
 def settings_section(doc: Doc, df) -> None:
@@ -717,40 +849,79 @@ CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;font-size:15px;
  line-height:1.4;margin:0 auto;max-width:1320px;padding:0 16px 48px;color:#1b1b1b}
 h1{font-size:1.6em;margin:.6em 0 .2em} h2{margin-top:1.6em;border-bottom:1px solid #ddd}
-h3{display:inline;font-size:1.1em;margin:0}
+h3{display:inline;font-size:1.15em;margin:0}
+section.scenario{margin:18px 0 10px;padding-top:6px;border-top:1px solid #eee}
+section.scenario .counts{color:#555;font-size:.9em;margin-left:.5em}
 .meta{color:#555;font-size:.92em} nav.toc{background:#f6f8fa;padding:6px 10px;margin:10px 0;
  border-radius:6px;font-size:.95em} nav.toc a{margin-right:.6em;white-space:nowrap}
 .scroll{overflow-x:auto;max-width:100%;margin:4px 0 14px}
 .title{font-weight:600;margin-top:12px}
+p.legend,p.hint{font-size:.9em;color:#333} p.legend{background:#f6f8fa;padding:6px 10px;
+ border-radius:6px} p.hint{color:#666;margin:2px 0}
 table{border-collapse:collapse;font-size:13px}
 th{background:#f3f3f3;text-align:left;vertical-align:bottom}
 td,th{border:1px solid #d0d7de;padding:3px 7px;vertical-align:top}
 td.num{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}
-table.scorecard{font-size:12.5px} table.scorecard td{min-width:8em}
+table.scorecard{font-size:12.5px;width:100%} table.scorecard td{min-width:7em}
 table.scorecard td:first-child{min-width:6em}
-a.entry{display:block;margin:2px 0;padding:2px 6px;border-left:4px solid #999;
+a.entry{display:block;margin:2px 0 4px;padding:2px 6px;border-left:4px solid #999;
  border-radius:3px;color:inherit;text-decoration:none}
-a.entry .who{font-size:.92em} a.entry .fig{white-space:nowrap;font-variant-numeric:tabular-nums}
+a.entry .head{display:block} a.entry .fig{white-space:nowrap;font-variant-numeric:tabular-nums}
+a.entry .fails{display:block;color:#a50e0e;font-weight:600;font-size:.92em}
+a.entry ul.who{list-style:none;margin:1px 0 0;padding:0;font-size:.9em}
+a.entry .cost{color:#444;white-space:nowrap;font-variant-numeric:tabular-nums}
+abbr{text-decoration:underline dotted;cursor:help}
 .v-pass{background:#e6f4ea} a.v-pass{border-left-color:#1e8e3e}
 .v-fail{background:#fce8e6} a.v-fail{border-left-color:#d93025}
 .v-diverged{background:#f9d6d2} a.v-diverged{border-left-color:#8c1d18}
 .v-error{background:#fef7e0} a.v-error{border-left-color:#b06000}
 .v-reference-inaccurate{background:#eceff1} a.v-reference-inaccurate{border-left-color:#607d8b}
+td.win{background:#eef6ee} small.win{font-weight:600}
 td.nums{text-align:right;font-variant-numeric:tabular-nums} td.nums span{white-space:nowrap}
 span[class^=v-]{padding:0 4px;border-radius:3px}
-details{margin:6px 0} details>summary{cursor:pointer;padding:4px 0}
-details>summary .counts{color:#555;font-size:.9em;margin-left:.5em}
-.plots{display:grid;grid-template-columns:minmax(0,1fr);gap:10px;max-width:900px}
-.plots img{width:100%;height:auto;border:1px solid #eee}
+details{margin:6px 0} details>summary{cursor:pointer;padding:4px 0;color:#0b57d0}
+.plots{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start;margin:6px 0}
+figure.fig{margin:0;position:relative;flex:1 1 520px;max-width:100%}
+figure.fig.k-scenario,figure.fig.k-scorecard{flex-basis:100%}
+figure.fig img{display:block;max-width:100%;height:auto;border:1px solid #eee}
+figure.fig .tip{position:absolute;pointer-events:none;background:#1b1b1b;color:#fff;
+ font-size:12px;padding:2px 6px;border-radius:3px;white-space:nowrap;z-index:5}
+figure.fig figcaption{font-size:.88em;color:#555}
+@media (max-width:1000px){
+ table.stack,table.stack tbody,table.stack tr,table.stack td{display:block;width:auto}
+ table.stack{border:none} table.stack thead{display:none}
+ table.stack tr{border:1px solid #d0d7de;border-radius:4px;margin:0 0 8px}
+ table.stack td{border:none;border-bottom:1px solid #eee;text-align:left;white-space:normal;
+  min-width:0}
+ table.stack td:empty{display:none}
+ table.stack td::before{content:attr(data-label);display:block;font-size:11px;color:#555;
+  font-weight:600}
+}
 """
 
-#: opens the collapsed section a link points into (the scorecard links to the details)
+#: opens the collapsed section a link points into (the scorecard links to the details), and
+#: names the line under the pointer in a figure (its polylines are the figure's data-lines)
 SCRIPT = """
 function openTarget(){var id=decodeURIComponent(location.hash.slice(1));if(!id)return;
 var el=document.getElementById(id);var t=el;while(el){if(el.tagName==='DETAILS')el.open=true;
 el=el.parentElement;}if(t)t.scrollIntoView();}
+function segDist(px,py,ax,ay,bx,by){var dx=bx-ax,dy=by-ay,l=dx*dx+dy*dy,u=0;
+if(l>0){u=((px-ax)*dx+(py-ay)*dy)/l;u=Math.max(0,Math.min(1,u));}
+var x=ax+u*dx-px,y=ay+u*dy-py;return Math.sqrt(x*x+y*y);}
+function hover(fig){var lines=JSON.parse(fig.getAttribute('data-lines'));
+var img=fig.querySelector('img'),tip=fig.querySelector('.tip');
+img.addEventListener('mousemove',function(e){var r=img.getBoundingClientRect();
+var px=e.clientX-r.left,py=e.clientY-r.top,best='',bd=1e9;
+lines.forEach(function(l){l.paths.forEach(function(p){for(var i=0;i<p.length;i++){
+var a=p[i],b=p[Math.min(i+1,p.length-1)];var d=segDist(px,py,a[0]*r.width,a[1]*r.height,
+b[0]*r.width,b[1]*r.height);if(d<bd){bd=d;best=l.label;}}});});
+if(best&&bd<7){tip.textContent=best;tip.hidden=false;var left=px+14;
+if(left+tip.offsetWidth>r.width)left=Math.max(0,px-14-tip.offsetWidth);
+tip.style.left=left+'px';tip.style.top=(py+12)+'px';}else{tip.hidden=true;}});
+img.addEventListener('mouseleave',function(){tip.hidden=true;});}
 window.addEventListener('hashchange',openTarget);
-document.addEventListener('DOMContentLoaded',openTarget);
+document.addEventListener('DOMContentLoaded',function(){
+document.querySelectorAll('figure[data-lines]').forEach(hover);openTarget();});
 """
 
 
@@ -770,8 +941,9 @@ def _toc(df, has_settings: bool, has_ensemble: bool) -> tuple[str, str]:
     return f"**Contents:** {md}", f"<nav class='toc'><b>Contents:</b> {h}</nav>"
 
 
-def document(df, prov: dict, plots: dict, root: Path, edf=None) -> tuple[str, str]:
-    """(report.md, report.html) of a results table."""
+def document(df, prov: dict, plots: dict, root: Path, edf=None, card_figures=()) -> tuple[str, str]:
+    """(report.md, report.html) of a results table; ``card_figures``: the scorecard picture
+    (reports.plots.scorecard_figure: its PNG is shown, its SVG linked)."""
     doc = Doc()
     doc.md.append("# director-bench report\n")
     doc.html.append("<h1 id='director-bench-report'>director-bench report</h1>")
@@ -787,6 +959,7 @@ def document(df, prov: dict, plots: dict, root: Path, edf=None) -> tuple[str, st
     if len(df):
         card = scorecard(df)
         doc.heading(2, "Scorecard")
+        scorecard_picture(doc, [Path(p) for p in card_figures], root, df)
         scorecard_section(doc, df, card)
         doc.heading(2, "Work precision")
         work_precision_section(doc, df)
@@ -828,7 +1001,7 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     ``progress``: a progress bar while figures are drawn (figures whose inputs did not
     change since the last report are reused, reports.plots)."""
     from reports.ensemble import read_ensemble
-    from reports.plots import all_plots
+    from reports.plots import all_plots, scorecard_figure_cached
     from reports.results import STORE_NAME, frame, read_results
 
     root = Path(root)
@@ -839,7 +1012,8 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
         df = frame([])
     prov = read_provenance(root)
     plots = all_plots(df, root, progress=progress)
-    md, page = document(df, prov, plots, root, edf)
+    card_figures = scorecard_figure_cached(df, root) if len(df) else []
+    md, page = document(df, prov, plots, root, edf, card_figures)
     _write(root / "report.md", md)
     _write(root / "report.html", page)
     summary_path = write_summary(root, df, prov)

@@ -533,11 +533,12 @@ def failures(df) -> list[dict]:
 
 def not_run(df) -> list[dict]:
     """Configurations that did not run (unsupported, unavailable), one entry per
-    configuration and message, with the scenarios concerned."""
+    configuration and message (the whole message: its reason and what to do), with the
+    scenarios concerned."""
     rows = df[df["status"].isin(NOT_RUN)]
     out = {}
     for r in records(rows):
-        key = (r["engine"], r["integrator"], r["status"], _first_sentence(r["message"]))
+        key = (r["engine"], r["integrator"], r["status"], " ".join(str(r["message"]).split()))
         out.setdefault(key, set()).add(r["scenario"])
     return [
         {
@@ -549,11 +550,6 @@ def not_run(df) -> list[dict]:
         }
         for (e, i, s, m), scs in sorted(out.items(), key=lambda kv: engine_key(kv[0][0]))
     ]
-
-
-def _first_sentence(text: str) -> str:
-    text = " ".join(str(text).split())
-    return text.split(". ")[0][:200]
 
 
 def settings_table(df) -> list[dict]:

@@ -103,11 +103,12 @@ def test_report_opens_with_the_verdict(folder):
     contents = md.split("## Scorecard")[0]
     assert "**Contents:**" in contents and "(#cone_top)" in contents
     assert "pinocchio + suite RKMK4" in md
-    assert re.search(r"💥 mujoco: at t = 0\.\d+ s", md)  # the divergence, with its time
+    # the divergence, with its time, and the configuration with its cost
+    assert re.search(r"💥 diverged at t = 0\.\d+ s — mujoco Euler \([\d.]+ µs\)", md)
     # the energy-momentum scheme's note, where it runs
     assert "director-form energy" in md and "constraint_velocity_max" in md
     html = (folder / "report.html").read_text()
-    assert "<details id='cone_top'>" in html and "class='entry v-pass'" in html
+    assert "<section class='scenario' id='cone_top'>" in html and "class='entry v-pass'" in html
     assert "class='scroll'" in html
 
 
@@ -172,9 +173,24 @@ def test_figures_are_reused_when_nothing_changed(folder):
     from reports.report import build_report
 
     pngs = sorted((folder / "plots").glob("*.png"))
-    assert len(pngs) == 8  # errors, rates, convergence, work-precision for two scenarios
+    # the scenario picture, errors, rates, convergence, work-precision for two scenarios
+    assert len(pngs) == 10
+    pngs += [folder / "scorecard.png", folder / "scorecard.svg"]
     before = {p: p.stat().st_mtime_ns for p in pngs}
     build_report(folder)
+    assert {p: p.stat().st_mtime_ns for p in pngs} == before
+
+
+def test_figures_are_reused_when_the_folder_is_named_relative_or_absolute(folder, monkeypatch):
+    """The same folder named once relative to the working directory and once absolute is
+    the same folder: nothing is drawn again."""
+    from reports.report import build_report
+
+    pngs = sorted((folder / "plots").glob("*.png"))
+    before = {p: p.stat().st_mtime_ns for p in pngs}
+    monkeypatch.chdir(folder.parent)
+    build_report(folder.name)
+    build_report(folder.resolve())
     assert {p: p.stat().st_mtime_ns for p in pngs} == before
 
 
@@ -192,3 +208,244 @@ def test_readme_block_from_the_scorecard(folder, capsys):
     table = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("| cone_top")]
     assert len(table) == 1 and fam in table[0]
     assert main([str(folder), "--readme", "--scenarios", "no_such"]) == 2
+
+
+def test_scorecard_names_every_configuration_with_its_cost(folder, df):
+    """Every configuration of a scorecard entry is named with its engine and its integrator
+    and its time inside the engine per step (µs); the key to the figures (E among them) is
+    above the table and in a tooltip; failing metrics are visible text, not only a title."""
+    md = (folder / "report.md").read_text()
+    card = md.split("## Scorecard")[1].split("## Work precision")[0]
+    assert card.index("**E**:") < card.index("| scenario |")  # the key above the table
+    lie = [ln for ln in card.splitlines() if ln.startswith("| [cone_top]")][0]
+    for name in ("mujoco RK4", "pinocchio + suite RKMK4", "director rattle4", "mujoco Euler"):
+        assert re.search(re.escape(name) + r" \([\d.e-]+ µs\)", lie), name
+    html = (folder / "report.html").read_text()
+    top = html.split("id='scorecard'")[1].split("id='work-precision'")[0]
+    assert top.index("class='legend'") < top.index("<table class='scorecard")
+    assert "<abbr title='the max energy drift relative to the scenario" in top
+    fails = re.findall(r"<span class='fails'>fails: ([^<]+)</span>", top)
+    failed = df[(df["verdict"] == "fail") & (df["dt"] == 1e-3) & (df["engine"] != "exact")]
+    assert len(failed) == 0 or fails, "a failing verdict without its metrics in view"
+
+
+def test_cheapest_per_accuracy_names_the_best_of_each_engine(folder, df):
+    """The work-precision table has a row per engine and scenario, each engine's cheapest
+    configuration per level with its ratio to the cheapest of all engines."""
+    md = (folder / "report.md").read_text()
+    wp = md.split("## Work precision")[1].split("## Failures")[0]
+    rows = [ln for ln in wp.splitlines() if ln.startswith("| ") and "engine |" not in ln]
+    shown, scen = {}, None
+    for ln in rows:
+        first, engine = ln.split(" | ")[:2]
+        scen = re.search(r"\[(\w+)\]", first).group(1) if "[" in first else scen
+        shown.setdefault(scen, []).append(engine)
+    ran = df[(df["status"] == "ok") & (df["engine"] != "exact")]
+    expected = {s: sorted(set(g["engine"])) for s, g in ran.groupby("scenario")}
+    assert {s: sorted(e) for s, e in shown.items()} == expected
+    assert all(len(e) == len(set(e)) for e in shown.values())  # one row per engine
+    assert "cheapest" in wp and re.search(r"\bx\d", wp)  # the winner and the others' ratios
+
+
+def test_did_not_run_reasons_are_whole():
+    """A long reason is given in full (it ends with what to do), never cut."""
+    import pandas as pd
+
+    from reports.summary import not_run
+
+    reason = "PyBullet cannot hold this body: " + "a long explanation, " * 20 + "use X instead"
+    df = pd.DataFrame(
+        [
+            {"engine": "pybullet", "integrator": "multibody", "status": "unsupported",
+             "message": reason, "scenario": s}
+            for s in ("a", "b")
+        ]
+    )  # fmt: skip
+    (entry,) = not_run(df)
+    assert entry["message"] == " ".join(reason.split()) and entry["scenarios"] == ["a", "b"]
+
+
+def _capture_figures(monkeypatch):
+    """Keep each figure the plot functions save (instead of closing it) for inspection."""
+    import reports.plots as plots
+
+    kept = []
+    real = plots._write_png
+
+    def keep(fig, path, **kw):
+        real(fig, path, **kw)
+        kept.append((path, fig))
+
+    monkeypatch.setattr(plots, "_write_png", keep)
+    monkeypatch.setattr(plots, "_plt", _no_close(plots._plt))
+    return kept
+
+
+def _no_close(real_plt):
+    def wrapped():
+        plt = real_plt()
+
+        class NoClose:
+            def __getattr__(self, name):
+                return getattr(plt, name)
+
+            def close(self, fig=None):
+                pass
+
+        return NoClose()
+
+    return wrapped
+
+
+def _outside(fig, path) -> list:
+    """The legends, titles, axis labels and drawn tick labels of a figure that reach beyond
+    the image saved from it (1 px of slack), by matplotlib's own extents."""
+    r = fig.canvas.get_renderer()
+    box = fig.bbox
+    if path.name == "scorecard.png":  # saved with its tight box: compare with that
+        box = fig.get_tightbbox(r).padded(0.1).transformed(fig.dpi_scale_trans)
+    texts = [("figure legend", leg.get_window_extent(r)) for leg in fig.legends]
+    for ax in fig.axes:
+        if ax.get_legend() is not None:
+            texts.append(("legend", ax.get_legend().get_window_extent(r)))
+        if ax.name == "3d":
+            continue
+        lo, hi = sorted(ax.get_ylim())
+        drawn = [  # the tick labels drawn: those of ticks within the axes' range
+            tk.label1 for tk in ax.yaxis.get_major_ticks() if lo <= tk.get_loc() <= hi
+        ]
+        for t in (ax.title, ax.xaxis.label, ax.yaxis.label, *drawn):
+            if t.get_text() and t.get_visible():
+                texts.append((t.get_text(), t.get_window_extent(r)))
+    return [
+        (path.name, what, ext)
+        for what, ext in texts
+        if not (ext.x0 >= box.x0 - 1 and ext.x1 <= box.x1 + 1 and ext.y0 >= box.y0 - 1
+                and ext.y1 <= box.y1 + 1)
+    ]  # fmt: skip
+
+
+LONG = "RK4 with a long display name (error-controlled, for this test)"
+
+
+def test_every_legend_and_label_lies_inside_its_figure(folder, df, tmp_path, monkeypatch):
+    """Every figure of a scenario, with one configuration given a long display name: the
+    legend, the tick labels, the axis labels and the titles lie inside the saved figure
+    (matplotlib's own extents), whatever the label lengths; the figure's hover file names
+    the long configuration."""
+    import json
+
+    import reports.plots as plots
+
+    df = df.copy()
+    df.loc[(df["engine"] == "mujoco") & (df["integrator"] == "RK4"), "integrator"] = LONG
+    kept = _capture_figures(monkeypatch)
+    styles, cache = plots.Styles(df), plots.SeriesCache(folder)
+    for kind in plots.KINDS:
+        plots.scenario_plot(kind, df, cache, tmp_path, "cone_top", styles)
+    plots.scorecard_figure(df, tmp_path)
+    assert len(kept) == 6
+    for path, fig in kept:
+        assert _outside(fig, path) == []
+    errors = json.loads((tmp_path / "cone-top__errors.json").read_text())
+    labels = {ln["label"] for ln in errors["lines"]}
+    assert any(LONG in lab for lab in labels), labels
+    for ln in errors["lines"]:
+        for path in ln["paths"]:
+            assert all(0 <= x <= 1 and 0 <= y <= 1 for x, y in path)
+    assert "cone_top" in errors["alt"] and "diverged" in errors["alt"]
+
+
+def test_the_legend_check_catches_a_cut_legend(folder, df, tmp_path, monkeypatch):
+    """The check above fails on a figure that is not fitted around its legend (the figure
+    left at its first size): the long label reaches beyond the image."""
+    import reports.plots as plots
+
+    df = df.copy()
+    df.loc[(df["engine"] == "mujoco") & (df["integrator"] == "RK4"), "integrator"] = LONG
+    kept = _capture_figures(monkeypatch)
+    monkeypatch.setattr(plots, "_new_figure", _narrow(plots._new_figure))
+    monkeypatch.setattr(plots, "_fit", lambda fig, notes="": None)
+    plots.work_precision_plot(df, tmp_path, "cone_top", plots.Styles(df))
+    ((path, fig),) = kept
+    assert any(what == "legend" for _, what, _ in _outside(fig, path))
+
+
+def _narrow(real):
+    """``_new_figure`` with the figure only 1.5 in wider than its axes."""
+
+    def new(*args, **kw):
+        fig, axes = real(*args, **kw)
+        w, h = fig.get_size_inches()
+        fig.set_size_inches(1.0 + 5.6 + 1.5, h)
+        for ax in axes:
+            p = ax.get_position()
+            ax.set_position([1.0 / 8.1, p.y0, 5.6 / 8.1, p.height])
+        return fig, axes
+
+    return new
+
+
+def test_figures_name_what_they_leave_out(folder, df, tmp_path):
+    """A configuration not drawn (never within 0.1 rad, no run finished) or cut off at a
+    panel's top is named under the figure, not counted."""
+    import reports.plots as plots
+
+    plots.work_precision_plot(df, tmp_path, "cone_top", plots.Styles(df))
+    meta = plots.figure_meta(tmp_path / "cone-top__work_precision.png")
+    # semi-implicit Euler diverges on cone_top at both steps: no finished run to draw
+    euler = df[(df["scenario"] == "cone_top") & (df["integrator"] == "Euler")]
+    assert set(euler["status"]) == {"diverged"}
+    assert "not drawn" in meta["alt"] and "mujoco Euler" in meta["alt"]
+
+
+def test_report_html_shows_key_figures_with_hover_and_alt_text(folder):
+    """Without a click: the scorecard picture and, per scenario, its picture, errors and
+    work-precision figures (outside any <details>); every embedded image has an alt text that
+    describes it (not a file name) and the line figures carry their hover data."""
+    import html as htmlmod
+
+    page = (folder / "report.html").read_text()
+    visible = re.sub(r"<details.*?</details>", "", page, flags=re.S)
+    for kind in ("scorecard", "scenario", "errors", "work_precision"):
+        assert f"class='fig k-{kind}'" in visible, kind
+    alts = [htmlmod.unescape(a) for a in re.findall(r"<img alt='([^']*)'", page)]
+    assert len(alts) == page.count("<img ") >= 11
+    assert all(len(a) > 40 and "__" not in a and not a.endswith(".png") for a in alts), alts
+    assert page.count("data-lines=") >= 6
+    md = (folder / "report.md").read_text()
+    assert "![cone_top: running maximum of the attitude error" in md
+
+
+def test_scenario_box_has_the_scenario_s_moments():
+    """The box drawn for a body has its mass and principal moments: its inertia, integrated
+    by the midpoint rule on a 40^3 grid (an independent quadrature, relative error of order
+    1/40^2 = 6e-4), matches the scenario's moments to 1e-3."""
+    import numpy as np
+
+    from reports.plots import body_box
+
+    for name in ("dzhanibekov", "heavy_top", "gazebo_boxes_complex", "pendulum_through_vertical"):
+        sc = scenarios.load(name)
+        half = body_box(sc)
+        n = 40
+        grids = [(np.arange(n) + 0.5) / n * 2 * h - h for h in half]
+        x, y, z = np.meshgrid(*grids, indexing="ij")
+        dm = sc.mass / x.size
+        moments = [
+            float(np.sum(y**2 + z**2) * dm),
+            float(np.sum(x**2 + z**2) * dm),
+            float(np.sum(x**2 + y**2) * dm),
+        ]
+        assert np.allclose(moments, sc.inertia, rtol=1e-3), (name, moments, sc.inertia)
+
+
+def test_scenario_figures_for_the_docs(tmp_path):
+    """``python -m reports.plots --scenario-figures DIR NAME`` writes a small PNG per
+    scenario; an unknown name is an error naming it."""
+    from reports.plots import main
+
+    assert main(["--scenario-figures", str(tmp_path), "cone_top"]) == 0
+    png = tmp_path / "scenario_cone_top.png"
+    assert png.exists() and png.stat().st_size < 60_000
+    assert main(["--scenario-figures", str(tmp_path), "no_such_scenario"]) == 2

@@ -51,8 +51,9 @@ def test_rows_files_and_report(tmp_path, dzh):
     assert md.index("## Scorecard") < md.index("## Details")
     assert "**dzhanibekov at dt = 0.001 s**" in md and "rattle" in md.split("## Details")[0]
     html = rep["html"].read_text()
-    # four figures (errors, rates, convergence, work-precision), embedded
-    assert html.count("data:image/png;base64,") == 4 and "src='plots/" not in html
+    # six figures (the scorecard, the scenario, errors, rates, convergence, work-precision),
+    # embedded
+    assert html.count("data:image/png;base64,") == 6 and "src='plots/" not in html
     assert (tmp_path / "summary.json").exists()
 
 
@@ -222,8 +223,9 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
 #: added to a copy of report.html: opens every collapsed section, then writes into the page
-#: what it measured (images that did not load, tables whose container reaches beyond the
-#: page, a page that scrolls sideways), which --dump-dom prints
+#: what it measured (images that did not load, tables wider than their container or the
+#: page, a page that scrolls sideways, the name shown when the pointer is on a line of a
+#: figure), which --dump-dom prints
 LAYOUT_CHECK = """<script>
 window.addEventListener('load', function () {
   document.querySelectorAll('details').forEach(function (d) { d.open = true; });
@@ -233,14 +235,27 @@ window.addEventListener('load', function () {
     if (!(imgs[i].complete && imgs[i].naturalWidth > 0)) broken++;
   }
   tables.forEach(function (t, k) {
-    var box = t.parentElement, r = box.getBoundingClientRect();
+    var box = t.parentElement, r = box.getBoundingClientRect(), tr = t.getBoundingClientRect();
     if (!box.classList.contains('scroll')) bad.push(k + ': not in a scrolling container');
     if (r.left < -1 || r.right > vw + 1) bad.push(k + ': ' + r.left + '..' + r.right);
+    if (vw <= 800 && (t.scrollWidth > box.clientWidth + 1 || tr.right > vw + 1))
+      bad.push(k + ': table ' + t.scrollWidth + ' px in ' + box.clientWidth + ' px');
   });
+  var fig = document.querySelector('figure[data-lines]'), hover = null;
+  if (fig) {
+    var lines = JSON.parse(fig.getAttribute('data-lines')), img = fig.querySelector('img');
+    var p = lines[0].paths[0][Math.floor(lines[0].paths[0].length / 2)];
+    fig.scrollIntoView();
+    var r = img.getBoundingClientRect();
+    img.dispatchEvent(new MouseEvent('mousemove', {clientX: r.left + p[0] * r.width,
+      clientY: r.top + p[1] * r.height, bubbles: true}));
+    var tip = fig.querySelector('.tip');
+    hover = {line: lines[0].label, shown: tip.hidden ? null : tip.textContent};
+  }
   var pre = document.createElement('pre');
   pre.id = 'layout-check';
   pre.textContent = JSON.stringify({width: vw, images: imgs.length, broken: broken,
-    tables: tables.length, overflow: bad,
+    tables: tables.length, overflow: bad, hover: hover,
     page_scrolls: document.documentElement.scrollWidth > vw + 1});
   document.body.appendChild(pre);
 });
@@ -253,9 +268,12 @@ window.addEventListener('load', function () {
     "(apt-get install chromium) - the report is not rendered in a browser",
 )
 def test_report_renders_in_headless_chromium(tmp_path, dzh):
-    """At 1400 and 800 px wide: every embedded figure loads, every table sits in a container
-    that scrolls instead of widening the page, and the page itself never scrolls sideways;
-    a screenshot of each width is a rendered page (not blank)."""
+    """At 1400 and 800 px wide: every embedded figure loads (the scorecard picture, the
+    scenario picture and the four figures), every table sits in a container that scrolls
+    instead of widening the page, at 800 px no table is wider than its container (they turn
+    into cards), the page itself never scrolls sideways, and the pointer on a line of a figure
+    shows that line's configuration; a screenshot of each width is a rendered page (not
+    blank)."""
     import html as htmlmod
 
     run_suite(specs_for(dzh), tmp_path, progress=False)
@@ -263,6 +281,8 @@ def test_report_renders_in_headless_chromium(tmp_path, dzh):
 
     rep = build_report(tmp_path)
     page = rep["html"].read_text()
+    n_images = page.count("<img ")
+    assert n_images == 6
     probe = tmp_path / "probe.html"
     probe.write_text(page.replace("</body>", LAYOUT_CHECK + "</body>"))
     flags = [
@@ -289,9 +309,11 @@ def test_report_renders_in_headless_chromium(tmp_path, dzh):
         found = re.search(r'<pre id="layout-check">(.*?)</pre>', dom, flags=re.S)
         assert found, f"no layout result in the DOM at {width} px: {dom[-500:]}"
         check = json.loads(htmlmod.unescape(found.group(1)))
-        assert check["width"] <= width and check["images"] == 4 and check["broken"] == 0
+        assert check["width"] <= width and check["images"] == n_images, check
+        assert check["broken"] == 0, check
         assert check["tables"] >= 5 and check["overflow"] == [], check
         assert not check["page_scrolls"], check
+        assert check["hover"] and check["hover"]["shown"] == check["hover"]["line"], check
         shot = tmp_path / f"report_{width}.png"
         subprocess.run(
             [CHROMIUM, *flags, f"--window-size={width},1600", f"--screenshot={shot}",
