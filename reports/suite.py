@@ -171,8 +171,8 @@ def run(
     out = check_out(out)
     write_provenance(out, engines)
     df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
+    path = junit.write(df, out / "junit.xml")  # first: the verdicts never wait on the report
     rep = build_report(out, progress=progress) if report else {}
-    path = junit.write(df, out / "junit.xml")
     return RunSummary(out, n_run, len(specs) - n_run, df, rep, path, unloadable)
 
 
