@@ -54,6 +54,7 @@ from references.exact._util import (
     rot_axis,
     rot_x,
     rot_z,
+    rotation_angle,
 )
 
 _PARITY = {(0, 1, 2): 1, (1, 2, 0): 1, (2, 0, 1): 1, (0, 2, 1): -1, (2, 1, 0): -1, (1, 0, 2): -1}
@@ -74,7 +75,10 @@ class FreeBody:
     ``intermediate_axis`` (index of the intermediate moment, None if two are equal).
     """
 
-    def __init__(self, inertia, omega0, rotation0):
+    def __init__(self, inertia, omega0, rotation0, _s_factor: float = 1.0):
+        # _s_factor scales the separatrix distance S (a probe of the conditioning, see
+        # :meth:`accuracy`); 1 for the body itself
+        self._s_factor = float(_s_factor)
         I = np.array(inertia, dtype=float)
         W0 = np.array(omega0, dtype=float)
         R0 = np.array(rotation0, dtype=float)
@@ -124,8 +128,7 @@ class FreeBody:
     # -- asymmetric bodies ---------------------------------------------------------------
     def _init_asymmetric(self, I, W0, R0, order):
         lo, mid, hi = (int(i) for i in order)
-        # separatrix distance L^2 - 2 E I_mid without cancellation (docs/numerics.md section 4)
-        D = I[lo] * (I[lo] - I[mid]) * W0[lo] ** 2 + I[hi] * (I[hi] - I[mid]) * W0[hi] ** 2
+        D = separatrix_distance(I, W0) * self._s_factor
         if D >= 0:
             perm, self.case = (lo, mid, hi), ("A" if D > 0 else "separatrix")
         else:
@@ -199,6 +202,7 @@ class FreeBody:
         if self.case != "separatrix":
             self.phi_per_period = 2.0 * self._G.total / self.lam
             self.quadrature_error = self._G.error / self.lam
+        self._probe = None  # the body with S perturbed, built when accuracy() first needs it
 
     # -- evaluation ----------------------------------------------------------------------
     def omega(self, t) -> np.ndarray:
@@ -248,7 +252,7 @@ class FreeBody:
         """Estimated maximum attitude error (rad) over the times ``t``: round-off of the phase
         arguments, which grows with the accumulated rotation angle (~ 16 eps per radian of
         rotation), plus the estimated quadrature error of phi per period times the number of
-        periods."""
+        periods, plus the conditioning term :meth:`modulus_error` of an asymmetric body."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         tmax = float(np.max(np.abs(t))) if len(t) else 0.0
         wmax = float(np.max(np.linalg.norm(self.omega(np.linspace(0, tmax, 65)), axis=1)))
@@ -257,7 +261,65 @@ class FreeBody:
             err += self.quadrature_error * (1.0 + tmax / self.period)
         elif self.case == "separatrix":
             err += self._G.error / self.lam  # panel estimate of the last evaluation
-        return err
+        return err + self.modulus_error(tmax)
+
+    def modulus_error(self, tmax: float) -> float:
+        """The attitude error (rad) over [0, tmax] that the rounding of the modulus causes.
+
+        The separatrix distance S = |L^2 - 2 E I_mid| is exact to its last rounding
+        (:func:`separatrix_distance`), but m1 = 1 - k^2 = |I_c - I_a| S/(|I_c - I_b| Q) is
+        formed with a few more roundings: a relative error up to :data:`MODULUS_RTOL`. Near the
+        separatrix K(m) ~ ln(4/sqrt(m1)), the flip time and the precession per period all
+        depend on m1, and their errors grow with the number of periods. The effect is measured
+        by a probe, the same body with S scaled by 1 + :data:`PROBE_RTOL` (far above
+        round-off, in the linear range), evaluated at 1025 times over [0, tmax]: the largest
+        angle between the two attitudes, times MODULUS_RTOL/PROBE_RTOL; pi (nothing can be
+        said) if that angle exceeds :data:`PROBE_LINEAR` or the probe changes the case. If
+        S = 0 exactly (the separatrix itself), or the body is not asymmetric, there is no
+        modulus to round: 0.
+        """
+        if self.case not in ("A", "B") or tmax <= 0.0:
+            return 0.0
+        if self._probe is None:
+            self._probe = FreeBody(
+                self.inertia, self.omega0, self.rotation0, self._s_factor * (1.0 + PROBE_RTOL)
+            )
+        tt = np.linspace(0.0, tmax, 1025)
+        diff = rotation_angle(self.rotation(tt), self._probe.rotation(tt))
+        worst = float(np.max(diff)) if np.all(np.isfinite(diff)) else math.inf
+        if self._probe.case != self.case or not worst <= PROBE_LINEAR:
+            return math.pi  # the probe crossed the separatrix or left the linear range
+        return worst * MODULUS_RTOL / PROBE_RTOL
+
+
+#: relative error bound of m1 = |I_c - I_a| S/(|I_c - I_b| Q): S correctly rounded (1/2 ulp),
+#: the two differences (1/2 ulp each), Q a sum of two products of three factors (4 ulp), the
+#: product and quotient (3/2 ulp): 7 ulp, rounded up to 8 ulp = 4 eps
+MODULUS_RTOL = 4.0 * EPS
+#: relative perturbation of S by the conditioning probe of :meth:`FreeBody.modulus_error`,
+#: and the largest attitude difference (rad) it may cause for the response to count as linear
+PROBE_RTOL = 1e-9
+PROBE_LINEAR = 1e-2
+
+
+def separatrix_distance(inertia, omega) -> float:
+    """L^2 - 2 E I_mid = I_lo (I_lo - I_mid) W_lo^2 + I_hi (I_hi - I_mid) W_hi^2, kg^2 m^4/s^2,
+    computed exactly from the doubles given (rational arithmetic) and rounded once.
+
+    Its sign decides the case (A: > 0, B: < 0, the separatrix: 0) and its relative value sets
+    m1 = 1 - k^2, on which the flip time depends logarithmically. In floating point the two
+    terms, each of size ~L^2, cancel near the separatrix, and the rounding of each, a few
+    ulp of L^2, becomes the whole result: a body 1e-16 off the separatrix (relative) would be
+    put on it, or on the wrong side, and a body 4e-12 off would have m1 wrong by 1e-4
+    relative. The exact value leaves only its final rounding, 1/2 ulp of itself.
+    """
+    from fractions import Fraction
+
+    I = [Fraction(float(x)) for x in inertia]
+    W = [Fraction(float(x)) for x in omega]
+    lo, mid, hi = (int(i) for i in np.argsort(np.asarray(inertia, dtype=float), kind="stable"))
+    D = I[lo] * (I[lo] - I[mid]) * W[lo] ** 2 + I[hi] * (I[hi] - I[mid]) * W[hi] ** 2
+    return float(D)
 
 
 def free_flight(x0, v0, g, t) -> tuple[np.ndarray, np.ndarray]:
