@@ -176,3 +176,21 @@ def test_the_modulus_term_is_the_flip_time_shift_of_a_rounded_modulus(body):
     got = fb.modulus_error(tmax)
     assert first_order / 10 <= got <= 10 * first_order, (got, first_order)
     assert fb.accuracy([tmax]) >= got
+
+
+def test_beyond_the_linear_range_the_closed_form_claims_nothing():
+    """Over 1e9 s the probe (S scaled by 1 + 1e-9) moves the attitude by more than 1e-2 rad:
+    the modulus term is pi, and a free-body reference asked for explicitly refuses, naming
+    its accuracy (``auto`` hands over to the numerical reference). Below that it grows as the
+    horizon (a lag proportional to the number of periods)."""
+    from references.exact import ReferenceNotApplicable
+
+    I, W, _ = FEW_ULP_A
+    fb = FreeBody(I, W, np.eye(3))
+    small, large = fb.modulus_error(1e5), fb.modulus_error(1e7)
+    assert large / small == pytest.approx(100, rel=0.05)
+    assert fb.modulus_error(1e9) == math.pi
+    sc = Scenario(name="s", description="", mass=1.0, inertia=I, rotation=np.eye(3),
+                  omega_body=W, t_end=1e9, dt=1e3)  # fmt: skip
+    with pytest.raises(ReferenceNotApplicable, match="estimated accuracy 3.14 rad exceeds"):
+        reference_trajectory(sc, [0.0, 1e9], kind="free_body")
