@@ -53,6 +53,11 @@ DMV_MAXIT = 40
 QUAT_BIG = 2.0**128
 QUAT_SHRINK = 2.0**-64
 
+#: the minimum-norm solves drop singular values below SOLVE_TOL sigma_1 (redundant rows give
+#: sigma ~ 1e-16 sigma_1; a configuration 1e-12 away from a singular one keeps its direction,
+#: so Newton still closes the constraints there)
+SOLVE_TOL = 1e-14
+
 OK = 0
 FAIL_NEWTON = 1  # the joint multipliers did not converge
 FAIL_DMV = 2  # a body's rotation equation has no admissible solution (step too large)
@@ -480,6 +485,9 @@ def _substep(
     rank = 0
     it = 0
     while True:
+        # the chord matrix of the first iterate; from the fourth on a new one at every
+        # iterate (plain Newton: linear convergence near a singular configuration)
+        fresh = it == 0 or it >= 3
         if nrow > 0:
             _forces(rint, Jold, lam, F, T)
         for i in range(nb):
@@ -503,7 +511,7 @@ def _substep(
             WG[i, 2] = w2
             Dj = _mm(Di, _qmat(1.0, w0, w1, w2))
             _put9(Dnew, i, Dj)
-            if it == 0 and nrow > 0:
+            if fresh and nrow > 0:
                 # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, the rotation's response to a torque
                 K = (
                     Ai[0] - (-w2 * Ai[3] + w1 * Ai[6]),
@@ -530,10 +538,10 @@ def _substep(
             break
         if it >= MAXIT:
             return FAIL_NEWTON
-        if it == 0:
+        if fresh:
             if minnorm:
                 _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, False, bw)
-                rank = _svd_factor(Ad, rank_tol, U, sv, Vt)
+                rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
             else:
                 _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, True, bw)
                 if not _band_lu(Ab, bw):
@@ -582,9 +590,13 @@ def _substep(
             _put9(Mth, i, _mmt(DI, Dj))
         if minnorm:
             _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, False, bw)
-            rank = _svd_factor(Ad, rank_tol, U, sv, Vt)
+            rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
             _svd_solve(U, sv, Vt, rank, r0, dl)
-            if rank < rank_nom:
+            nrank = 0
+            for k in range(sv.shape[0]):
+                if sv[k] > rank_tol * sv[0]:
+                    nrank += 1
+            if nrank < rank_nom:
                 diag[D_RANKDROP] += 1
             if rank_nom > 0 and sv[0] > 0.0:
                 rel = sv[rank_nom - 1] / sv[0]
