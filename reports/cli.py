@@ -393,6 +393,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_ensemble(sub)
     _add_folder_commands(sub)
     _add_compare(sub)
+    from reports.versions.cli import add_subcommands  # versions, history
+
+    types = dict(csv=_csv_list, floats=_float_list, accuracies=_accuracy_list)
+    types.update(positive=_positive, whole=_whole, factor=_factor)
+    add_subcommands(sub, types)
     return p
 
 

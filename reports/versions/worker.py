@@ -1,0 +1,48 @@
+"""Run a given list of runs into a folder, inside an environment of the matrix.
+
+``python -m reports.versions.worker FOLDER SPECS.json``: SPECS.json is a list of objects
+(scenario file, engine, integrator, dt, accuracy, t_end); each run's row is committed to
+FOLDER's store as it finishes (:func:`reports.runner.run_suite`, in this process, in order).
+The matrix uses it to go on after an engine took its process down (an abort in native code):
+unlike ``run``, it runs exactly the runs it is given, so a run already recorded as having
+crashed is not tried again within the same matrix.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+
+def main(argv: list[str]) -> int:
+    import scenarios
+    from references.engines import get_engine
+    from reports.parallel import serial
+    from reports.results import RunSpec
+    from reports.runner import run_suite
+
+    folder, spec_file = Path(argv[0]), Path(argv[1])
+    items = json.loads(spec_file.read_text())
+    loaded: dict = {}
+    specs = []
+    for it in items:
+        sc = loaded.setdefault(it["scenario"], scenarios.load(it["scenario"]))
+        version = get_engine(it["engine"]).version()
+        specs.append(
+            RunSpec(
+                sc,
+                it["engine"],
+                it["integrator"],
+                it["dt"],
+                t_end=it.get("t_end"),
+                engine_version=version,
+                accuracy=it.get("accuracy"),
+            )  # fmt: skip
+        )
+    run_suite(specs, folder, progress=False, mapper=serial(folder))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
