@@ -45,6 +45,7 @@ from reports.summary import (
     FAMILY_ORDER,
     NOT_RUN,
     at_scenario_dt,
+    config_label,
     engine_key,
     family_key,
     fmt,
@@ -115,6 +116,10 @@ FLOOR = 1e-17
 #: the rates plot shows a configuration only if its W error exceeds this fraction of max |W|
 RATES_VISIBLE = 0.01
 
+#: the rates plot's panels widen to show a drawn run up to this many times max |W| of the
+#: reference (a run beyond is cut where it leaves)
+RATES_REACH = 2.0
+
 #: a fast oscillation in the rates plot is shown over its last RATES_PERIODS periods
 RATES_PERIODS = 12
 
@@ -180,9 +185,9 @@ class Styles:
 
 
 def plot_label(rows, width: int = 34) -> str:
-    """A legend label for configurations that coincide: ``mujoco RK4, pinocchio RKMK4``,
-    wrapped."""
-    text = ", ".join(f"{r['engine']} {r['integrator']}" for r in rows)
+    """A legend label for configurations that coincide, named as in the tables
+    (``mujoco RK4, pinocchio + suite RKMK4``), wrapped."""
+    text = ", ".join(config_label(r) for r in rows)
     wrapped = textwrap.wrap(text, width, break_long_words=False, break_on_hyphens=False)
     return "\n".join(wrapped) or text
 
@@ -334,8 +339,8 @@ def _write_png(fig, path: Path, **kw) -> None:
     fig.savefig(buf, format="png", dpi=DPI, **kw)
     buf.seek(0)
     with Image.open(buf) as im:
-        im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(
-            path, format="PNG", optimize=True
+        im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(
+            path, format="PNG"
         )
 
 
@@ -514,10 +519,19 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
         return None
     exact = rows[rows["engine"] == "exact"]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
-    fig, axes = _new_figure(3)
+    # a panel only for a quantity measured here (the momentum of a pivoted body under
+    # gravity is not conserved: no series)
+    panels = [
+        p
+        for p in ERROR_PANELS
+        if any(p[0] in s and np.any(np.isfinite(s[p[0]]) & (s[p[0]] > 0)) for _, s in groups)
+    ]
+    if not panels:
+        return None
+    fig, axes = _new_figure(len(panels))
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
     off = {}
-    for ax, (column, ylabel, scale_col, unit) in zip(axes, ERROR_PANELS, strict=True):
+    for ax, (column, ylabel, scale_col, unit) in zip(axes, panels, strict=True):
         left = _error_panel(ax, rows, groups, ref, column, styles, show_notes=ax is axes[0])
         for name, t_left in left:
             off.setdefault(name, []).append((column, t_left))
@@ -540,8 +554,11 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
         )
     diverged = [g for g, _ in groups if g.outcome == "diverged"]
     alt = (
-        f"{scenario}: running maximum of the attitude error, energy drift and momentum drift "
-        f"against time at dt = {fmt_step(h)} s for {len(groups)} line(s) of configurations"
+        f"{scenario}: running maximum of the "
+        + name_list(
+            [f"{words[p[0]]} {'error' if p[0] == 'attitude_error' else 'drift'}" for p in panels]
+        )
+        + f" against time at dt = {fmt_step(h)} s for {len(groups)} line(s) of configurations"
         + (f"; diverged: {name_list(g.label for g in diverged)}" if diverged else "; none diverged")
         + "."
     )
@@ -652,9 +669,10 @@ def _clipped_line(ax, tt, y, lim, st, label, gid):
 def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
     """Body rates W_1, W_2, W_3 against the reference (thick grey), one panel each. Only the
     configurations whose W error exceeds RATES_VISIBLE of max |W| are drawn (the others are
-    named under the figure); y ranges are the reference's (a blown-up run is cut where it
-    leaves them, and named). A fast oscillation is shown over its last periods, ending where
-    the last drawn run diverged when every drawn run diverged before the end."""
+    named under the figure); y ranges are the reference's widened to the drawn runs up to
+    RATES_REACH max |W| (a blown-up run is cut where it leaves them, and named). A fast
+    oscillation is shown over its last periods, ending where the last drawn run diverged when
+    every drawn run diverged before the end."""
     rows, h = _plot_rows(df, scenario)
     exact = rows[rows["engine"] == "exact"]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
@@ -685,6 +703,14 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
     for k, ax in enumerate(axes):
         w = w_ref[sel, k]
         lo, hi = float(w.min()), float(w.max())
+        # the drawn runs widen the range up to RATES_REACH max|W| (then they are cut), so
+        # that a run leaving the reference is seen leaving it
+        for g in shown:
+            s = cache.get(g.first)
+            y = s[("wx", "wy", "wz")[k]][(s["t"] >= t0) & (s["t"] <= t1)]
+            y = y[np.isfinite(y) & (np.abs(y) <= RATES_REACH * wmax)]
+            if y.size:
+                lo, hi = min(lo, float(y.min())), max(hi, float(y.max()))
         pad = 0.15 * max(hi - lo, 0.05 * wmax)
         lims.append((lo - pad, hi + pad))
         ax.plot(*_thin(t_ref[sel], w), color="0.6", lw=4.0, label="exact reference", zorder=1)
@@ -774,7 +800,7 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
     groups = [g for g in sweep_groups(sub) if len(g.dts) >= 2]
     if not groups:
         return None
-    fig, (ax,) = _new_figure(height=3.8)
+    fig, (ax,) = _new_figure(height=4.4)
     vals = sub.loc[sub["status"] == "ok", "attitude_error_max"]
     vals = vals[np.isfinite(vals) & (vals > 0)]
     bottom = max(FLOOR, float(vals.min()) / 3.0) if len(vals) else 1e-12
@@ -881,7 +907,7 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     sub = sub[sub["cost"] > 0]
     if sub.empty:
         return None
-    fig, (ax,) = _new_figure(height=3.8)
+    fig, (ax,) = _new_figure(height=4.4)
     left_out = []
     configs = sorted(
         sub.groupby(["engine", "integrator"]),
@@ -916,10 +942,12 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         )
         line.set_gid(name + (", error-controlled (points: target accuracies)" if adaptive else ""))
         drawn.append(name)
-    unfinished = sorted(
-        {f"{e} {i}" for e, i in zip(every["engine"], every["integrator"], strict=True)}
-        - {f"{e} {i}" for e, i in zip(sub["engine"], sub["integrator"], strict=True)}
-    )
+    finished = set(zip(sub["engine"], sub["integrator"], strict=True))
+    unfinished = [
+        config_label(r)
+        for r in records(every.drop_duplicates(["engine", "integrator"]))
+        if (r["engine"], r["integrator"]) not in finished
+    ]
     _shade_reference(ax, sub, bottom)
     ax.set_ylim(bottom, CAPS["attitude_error"])
     _log_axes(ax, x=True)
@@ -1333,7 +1361,6 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
     own dt (an error-controlled integrator at its tightest target accuracy)."""
     from reports.summary import (
         METRIC_SHORT,
-        config_label,
         failed_metrics,
         fmt_attitude,
         outcome,
