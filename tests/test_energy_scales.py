@@ -179,3 +179,16 @@ def test_engines_semi_implicit_euler_free_fall(name):
     m = metrics.compute_metrics(FALL, out.trajectory)
     # 1e-6: the engines' own float arithmetic over 2500 steps (measured 4.0000e-4)
     assert m["energy_drift_trans_max"] == pytest.approx(FALL.dt / FALL.t_end, rel=1e-6)
+
+
+def test_a_row_carries_the_energy_scale_of_its_own_horizon():
+    """With the horizon set on the command line (``--t-end``), the row's energy_scale is that
+    of the run's horizon, the one its energy metrics were divided by: a fall of 2 s has
+    m g^2 (2 s)^2/2 in play, not the 5 s of the file."""
+    from reports.results import RunSpec
+    from reports.runner import execute
+
+    row = execute(RunSpec(FALL, "director", "rattle", FALL.dt, t_end=2.0))
+    assert row["status"] == "ok", row["message"]
+    want = _rot_energy(FALL) + FALL.mass * G**2 * 2.0**2 / 2
+    assert row["energy_scale"] == pytest.approx(want, rel=1e-14)
