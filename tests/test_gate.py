@@ -193,6 +193,8 @@ def test_each_invariant_can_fail(tmp_path):
     path = junit.write(good, tmp_path / "junit.xml")
     cases = {
         "energy drift": row(energy_drift_max=1.5),  # blew up, yet ok
+        "energy drift rot 2": row(energy_drift_rot_max=2.0),  # a free body's rotation blew up
+        "energy drift trans 3": row(energy_drift_trans_max=3.0),  # ... or its translation
         "with verdict ''": row(verdict=""),  # ok without a verdict
         "verdict 'pass'": row(status="diverged", verdict="pass"),  # diverged cannot pass
         "fitted order 2.9": row(order=4.0, convergence_order=2.9, convergence_points=2.0),
