@@ -367,3 +367,23 @@ def test_chaotic_double_spherical_pendulum_agrees_inside_its_horizon():
     scale = 1.8 * 9.81 * 0.5
     assert np.ptp(fine.energy) < 1e-11 * scale
     assert np.ptp(fine.angular_momentum[:, 2]) < 1e-13
+
+
+def test_conical_pendulum_angles_agree_with_the_director_examples_balance():
+    """Two derivations of the steady double conical pendulum: the augmented potential here
+    (references/exact/multibody/exact.py) and the Newton-Euler balance of each link in
+    director_model.system.examples (its rods: 1 m, 1 kg and 0.8 m, 0.7 kg, transverse moments
+    m L^2/12 + 0.005, axial 0.01, joints at the rods' ends)."""
+    examples = pytest.importorskip("director_model.system.examples")
+    _, _, _, angles = examples.double_conical_pendulum(3.0)
+    It = [m * L**2 / 12 + 0.005 for m, L in ((1.0, 1.0), (0.7, 0.8))]
+    cp = DoubleConicalPendulum(
+        m=(1.0, 0.7),
+        J=((0.01, It[0], It[0]), (0.01, It[1], It[1])),
+        l=(0.5, 0.4),
+        L1=1.0,
+        g=9.81,
+        rate=3.0,
+    )
+    # both solved to ~1e-15 (Brent here, fsolve at xtol 1e-13 there): measured 1.1e-16 apart
+    assert np.max(np.abs(np.asarray(angles) - cp.phi)) < 1e-12
