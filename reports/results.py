@@ -13,9 +13,16 @@ exports written from the store (atomically, by rename); ``report``, ``check`` an
 A run's identity (:attr:`RunSpec.run_id`) is a hash of everything that determines its
 result: the scenario's content hash, the engine and its version, the integrator, dt, the
 horizon, save_every, the segmenting and the suite's version. A rerun skips a run whose
-identity is in the store; a changed input runs again. Rows of older identities of the same
-configuration stay in the store; :func:`current` keeps the newest one per (scenario, engine,
-integrator, dt) for tables and reports.
+identity is in the store; a changed input runs again. Rows of older identities stay in the
+store as history: :func:`current` keeps, per scenario, only the rows of its newest identity
+(:data:`IDENTITY_COLUMNS`: scenario content, horizon, segmenting, suite version; per engine
+its newest version, per integrator its newest save_every), then the newest row per
+configuration (:data:`CONFIG_KEY`); tables, reports and convergence fits read that view. The
+gate and ``compare`` match runs on the configuration and name every identity column that
+differs (:func:`identity_differences`).
+
+The store is refused, never converted, when the file is an SQLite database of another
+application (:data:`APPLICATION_ID`, the tables it holds).
 """
 
 from __future__ import annotations
@@ -38,6 +45,11 @@ from scenarios.model import TOLERANCE_METRICS
 STORE_NAME = "results.sqlite"
 #: version of the store's layout, checked on open
 STORE_FORMAT = 1
+#: SQLite ``application_id`` of a results store ("DBR1" in ASCII); a database with another
+#: non-zero id, or with tables of its own, is not ours and is refused
+APPLICATION_ID = 0x44425231
+#: the tables of a results store
+STORE_TABLES = frozenset({"runs", "meta"})
 
 #: metric columns, see reports.metrics: every metric a scenario's ``[tolerances]`` may bound
 #: ("lower is better"), and the measured convergence order
@@ -67,6 +79,10 @@ RESULT_COLUMNS = (
     "wall_time_s",
     "engine_time_s",
     "glue_time_s",
+    "wall_time_max_s",
+    "engine_time_max_s",
+    "timing_repeats",
+    "cpu_share",
     "ns_per_step",
     "engine_ns_per_step",
     "evals_per_step",
@@ -121,10 +137,30 @@ RETRY_STATUSES = frozenset({"unavailable", "error"})
 #: target_accuracy is NaN for fixed-step integrators
 CONFIG_KEY = ("scenario", "engine", "integrator", "dt", "target_accuracy")
 
+#: the columns of a run's identity (:attr:`RunSpec.run_id`) beyond its configuration: two
+#: rows of one configuration that differ in any of them are different runs
+IDENTITY_COLUMNS = (
+    "scenario_hash",
+    "t_end",
+    "save_every",
+    "segment",
+    "engine_version",
+    "suite_version",
+)
+#: the identity columns shared by every run of a scenario in one invocation (the engine's
+#: version is per engine, save_every per integrator: an error-controlled one saves at its
+#: checkpoints)
+SCENARIO_IDENTITY = ("scenario_hash", "t_end", "segment", "suite_version")
+
 
 class StoreDamaged(RuntimeError):
     """The results store cannot be read as results (not a database, malformed, a row whose
     checksum does not match); the message names the file and what to do."""
+
+
+class StoreForeign(StoreDamaged):
+    """The file named like a results store is another application's SQLite database; it is
+    refused, never read and never converted."""
 
 
 class StoreUnwritable(RuntimeError):
@@ -192,6 +228,41 @@ def config_key(scenario: str, engine: str, integrator: str, dt: float, accuracy=
     """A hashable configuration key; an absent or NaN target accuracy is None."""
     acc = None if accuracy is None or accuracy != accuracy else float(f"{float(accuracy):.12g}")
     return (str(scenario), str(engine), str(integrator), float(f"{float(dt):.12g}"), acc)
+
+
+def _ident_value(col: str, v):
+    """An identity value in comparable form: numbers as floats (NaN and empty: None), text
+    as text."""
+    if col in NUMERIC_COLUMNS:
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            return None
+        return None if math.isnan(f) else float(f"{f:.12g}")
+    return "" if v is None else str(v)
+
+
+def _show(col: str, v) -> str:
+    if v is None or v == "":
+        return "none"
+    if col == "scenario_hash":
+        return str(v)[:12]
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def identity_differences(a, b, vary: Iterable[str] = ()) -> list[str]:
+    """The identity columns (:data:`IDENTITY_COLUMNS`) in which rows ``a`` and ``b`` (of one
+    configuration) differ, each as ``"<column> <a> vs <b>"`` (e.g. ``"t_end 30 vs 10"``);
+    columns named in ``vary`` are allowed to differ. An empty list: the same run."""
+    out = []
+    for col in IDENTITY_COLUMNS:
+        if col in vary:
+            continue
+        x, y = _ident_value(col, a.get(col)), _ident_value(col, b.get(col))
+        if x != y:
+            what = "scenario content (scenario_hash)" if col == "scenario_hash" else col
+            out.append(f"{what} {_show(col, x)} vs {_show(col, y)}")
+    return out
 
 
 def blank_row(spec: RunSpec) -> dict:
@@ -299,7 +370,9 @@ class Store:
         try:
             con = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
             con.execute("PRAGMA busy_timeout = 60000")
+            self._refuse_foreign(con)
             if create:
+                con.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                 con.execute("PRAGMA journal_mode = WAL")
                 con.execute("PRAGMA synchronous = FULL")
                 con.execute(
@@ -315,6 +388,33 @@ class Store:
             raise self._damaged(exc) from None
         except sqlite3.Error as exc:  # pragma: no cover - other sqlite failures
             raise StoreUnwritable(f"{self.path}: cannot open the results store: {exc}") from None
+
+    def _refuse_foreign(self, con) -> None:
+        """Raise :class:`StoreForeign` when the file is another application's database (an
+        application_id not ours, or tables other than a store's), before anything is
+        written to it: a database that is not ours is never converted."""
+        app = con.execute("PRAGMA application_id").fetchone()[0]
+        tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if app not in (0, APPLICATION_ID) or not tables <= STORE_TABLES:
+            other = ", ".join(sorted(tables - STORE_TABLES)) or "none"
+            raise StoreForeign(
+                f"{self.path} is not a director-bench results store (SQLite application_id "
+                f"{app:#x}, ours is {APPLICATION_ID:#x}; tables not ours: {other}). Nothing was "
+                "read or changed. Give another output folder (--out), or move that file "
+                "elsewhere if it does not belong there"
+            )
+        if tables and app == 0:  # a store written before the application_id was set
+            try:
+                fmt = con.execute("SELECT value FROM meta WHERE key = 'format'").fetchone()
+            except sqlite3.Error:
+                fmt = None
+            if fmt is None:
+                raise StoreForeign(
+                    f"{self.path} is not a director-bench results store (tables "
+                    f"{', '.join(sorted(tables))} without the store's format record). Nothing "
+                    "was read or changed. Give another output folder (--out), or move that "
+                    "file elsewhere if it does not belong there"
+                )
 
     def _check(self, con) -> None:
         ok = con.execute("PRAGMA quick_check").fetchone()[0]
@@ -389,27 +489,32 @@ class Store:
 
     # -- reading --------------------------------------------------------------------------
     def done_ids(self) -> set[str]:
-        """Identities of the runs a rerun skips (every status but :data:`RETRY_STATUSES`)."""
-        try:
-            cur = self._con.execute("SELECT run_id, status FROM runs")
-            return {rid for rid, st in cur if st not in RETRY_STATUSES}
-        except sqlite3.DatabaseError as exc:
-            raise self._damaged(exc) from None
+        """Identities of the runs a rerun skips (every status but :data:`RETRY_STATUSES`),
+        read from the checksummed rows (:meth:`rows`), so a status changed outside the
+        store cannot make a rerun skip or retry a run."""
+        return {r["run_id"] for r in self.rows() if r.get("status") not in RETRY_STATUSES}
 
     def rows(self) -> list[dict]:
         """Every row, checksums verified (:class:`StoreDamaged` on a mismatch)."""
         try:
-            cur = self._con.execute("SELECT run_id, row_json, checksum FROM runs ORDER BY rowid")
+            cur = self._con.execute(
+                "SELECT run_id, status, row_json, checksum FROM runs ORDER BY rowid"
+            )
             data = cur.fetchall()
         except sqlite3.DatabaseError as exc:
             raise self._damaged(exc) from None
         out, bad = [], []
-        for run_id, text, chk in data:
+        for run_id, status, text, chk in data:
             try:
                 row = json.loads(text)
             except ValueError:
                 row = None
-            if row is None or checksum(text) != chk or row.get("run_id") != run_id:
+            if (
+                not isinstance(row, dict)
+                or checksum(text) != chk
+                or row.get("run_id") != run_id
+                or row.get("status") != status
+            ):
                 bad.append(run_id)
                 continue
             out.append(row)
@@ -437,16 +542,45 @@ def frame(rows: list[dict]):
 
 
 def current(df):
-    """The newest row of each configuration (:data:`CONFIG_KEY`), sorted by it, with the
-    convergence orders of the dt sweeps filled in (reports.metrics)."""
+    """The current view of the stored rows, sorted by :data:`CONFIG_KEY`, with the
+    convergence orders of the dt sweeps filled in (reports.metrics).
+
+    Per scenario, only the rows of its newest identity count (:data:`SCENARIO_IDENTITY`:
+    the scenario's content, horizon, segmenting and suite version of its newest row; per
+    engine, the version of that engine's newest row; per integrator, the save_every of its
+    newest row); older rows are history, never current and never in a fit. Of the rest, the
+    newest row of each configuration."""
     from reports.metrics import add_convergence_orders
 
     if df.empty:
         return df
     df = df.sort_values("finished_at", kind="stable")
+    df = df[_newest_identity(df)]
     df = df.drop_duplicates(subset=list(CONFIG_KEY), keep="last")  # NaN accuracies match
     df = df.sort_values(list(CONFIG_KEY), ignore_index=True)
     return add_convergence_orders(df)
+
+
+def _newest_identity(df):
+    """Mask of the rows (sorted oldest first) that share their scenario's newest identity
+    and their engine's newest version."""
+    import pandas as pd
+
+    keep = pd.Series(True, index=df.index)
+    for group, cols in (
+        (["scenario"], SCENARIO_IDENTITY),
+        (["scenario", "engine"], ("engine_version",)),
+        (["scenario", "engine", "integrator"], ("save_every",)),
+    ):
+        ident = pd.Series(
+            [tuple(_ident_value(c, v) for c, v in zip(cols, vals, strict=True))
+             for vals in df[list(cols)].itertuples(index=False)],
+            index=df.index,
+            dtype=object,
+        )  # fmt: skip
+        newest = ident.groupby([df[g] for g in group], sort=False).transform("last")
+        keep &= ident == newest
+    return keep
 
 
 def read_results(folder: str | Path, all_rows: bool = False):
