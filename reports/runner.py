@@ -151,6 +151,8 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
         sc = spec.scenario
         if spec.t_end is not None and spec.horizon != sc.t_end:
             sc = sc.replace(t_end=spec.horizon)
+            # the scales of the horizon run (a free fall's energy in play grows with it)
+            row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
         recorder = _recorder(spec, sc)
         timings = ()
         try:
