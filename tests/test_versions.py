@@ -194,6 +194,11 @@ def matrix(tmp_path_factory, free):
     for v, c in (("1.0", 1000.0), ("1.1", 3000.0), ("1.2", 3900.0)):
         for k, dt in enumerate((1e-3, 5e-4)):
             rows.append(_row(free, v, "costly", dt=dt, engine_ns_per_step=c * (1.0, 1.2)[k]))
+    # cost noise: the median moves 2.5x beyond both spreads, but one step size did not move
+    # beyond the factor: the machine's load, not the engine (never flagged)
+    for v, costs in (("1.0", (1000.0, 1000.0, 1000.0)), ("1.1", (2500.0, 2500.0, 1500.0))):
+        for dt, c in zip((1e-3, 5e-4, 2.5e-4), costs, strict=True):
+            rows.append(_row(free, v, "noisy", dt=dt, engine_ns_per_step=c))
     with Store(folder, create=True) as st:
         for r in rows:
             st.put(r)

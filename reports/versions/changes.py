@@ -15,9 +15,12 @@ for:
 - ``integrator``: a configuration ``unsupported`` in one version and run in the next (new) or
   the reverse (vanished);
 - ``cost``: the median engine time per step of (scenario, engine, integrator) over its dt
-  sweep moved by more than ``factor`` AND by more than the spread measured across that sweep
-  in both versions (per-step cost does not depend on dt for a fixed-step method, so the
-  sweep's spread is the measurement's noise); without a sweep no cost change is claimed.
+  sweep moved by more than ``factor`` AND by more than the product of the spreads measured
+  across that sweep in both versions (per-step cost does not depend on dt for a fixed-step
+  method, so the sweep's spread is the measurement's noise), AND the cost moved beyond the
+  factor, the same way, at every dt of the sweep (the machine's load changes between the
+  times two versions run, which no spread within one version shows; a real change of the
+  engine moves every step size); without a sweep no cost change is claimed.
 
 A pair in which one side is ``unavailable`` is not compared (its reason is listed). A
 configuration with no change between a pair counts as ``identical`` (every metric bit for bit)
@@ -36,7 +39,7 @@ import numpy as np
 from reports.compare import STATUS_RANK, classify
 from reports.gate import FLOORS
 from reports.metrics import HIGHER_IS_BETTER
-from reports.results import CONFIG_KEY, METRIC_COLUMNS, config_key, current, read_results
+from reports.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from scenarios.schema import InputError
 
 #: the cost column compared (time inside the engine's own calls, per step)
@@ -188,6 +191,17 @@ def _records(df) -> list[dict]:
     return out
 
 
+def _newest(rows):
+    """The newest row of each configuration among the rows of ONE engine version (the
+    identity of a run already fixes everything else), with the convergence orders of its dt
+    sweeps fitted (reports.metrics)."""
+    from reports.metrics import add_convergence_orders
+
+    rows = rows.sort_values("finished_at", kind="stable")
+    rows = rows.drop_duplicates(subset=list(CONFIG_KEY), keep="last")  # NaN accuracies match
+    return add_convergence_orders(rows.sort_values(list(CONFIG_KEY), ignore_index=True))
+
+
 def load_table(folder, factor: float = 2.0, behaviour: bool = True) -> VersionTable:
     """Every engine version's current rows of ``folder`` (the newest row of each configuration
     within each version, convergence orders fitted per version), and the energy behaviour of
@@ -199,7 +213,7 @@ def load_table(folder, factor: float = 2.0, behaviour: bool = True) -> VersionTa
     versions, rows, beh = {}, {}, {}
     for (eng, ver), grp in df.groupby(["engine", "engine_version"], sort=False):
         versions.setdefault(eng, []).append(ver)
-        for r in _records(current(grp)):
+        for r in _records(_newest(grp)):
             key = config_key(*(r[c] for c in CONFIG_KEY))
             rows[(key, ver)] = r
             if behaviour and r["status"] in ("ok", "diverged"):
@@ -326,6 +340,21 @@ def _cost_stats(tab, engine, integ_key, version):
     return float(np.median(vals)), spread
 
 
+def _paired_cost_ratios(tab, engine, sc, integ, va, vb) -> list[float]:
+    """The cost ratio b/a at each dt both versions ran (fixed-step, ok or diverged)."""
+    out = []
+    for k in tab.configs(engine):
+        if (k[0], k[2], k[4]) != (sc, integ, None):
+            continue
+        a, b = tab.row(k, va), tab.row(k, vb)
+        if a is None or b is None:
+            continue
+        x, y = _num(a.get(COST_COLUMN)), _num(b.get(COST_COLUMN))
+        if x > 0 and y > 0 and math.isfinite(x) and math.isfinite(y):
+            out.append(y / x)
+    return out
+
+
 def _cost_changes(tab, engine, va, vb) -> list[Change]:
     out = []
     ikeys = sorted(
@@ -340,7 +369,11 @@ def _cost_changes(tab, engine, va, vb) -> list[Change]:
             continue
         ratio = mb / ma
         noise = max(tab.factor, sa * sb)
-        if ratio > noise or ratio < 1.0 / noise:
+        paired = _paired_cost_ratios(tab, engine, sc, integ, va, vb)
+        consistent = bool(paired) and (
+            min(paired) > tab.factor if ratio > 1 else max(paired) < 1.0 / tab.factor
+        )
+        if (ratio > noise or ratio < 1.0 / noise) and consistent:
             out.append(
                 Change(
                     sc,

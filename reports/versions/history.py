@@ -8,7 +8,8 @@ charts are SVG drawn by a short inline script), with
   scenario and metric, x = the engine's versions in release order, one line per configuration
   (engine, integrator, dt, target accuracy), the changes between consecutive versions
   (:mod:`reports.versions.changes`) marked with a ring (red worse, green better, amber
-  changed);
+  changed) on the chart of the metric that changed (a change of energy behaviour on the
+  energy chart; of status, verdict or integrator on the energy and attitude charts);
 - with two or more folders (e.g. nightly runs of an engine's main branch): the same charts
   with x = the folders in the order given, changes between consecutive folders marked the same
   way (metric beyond its factor and floor, status, verdict).
@@ -124,7 +125,13 @@ def _version_view(folder: Path, factor: float) -> list[dict]:
                 continue
             xi = versions.index(c.to_version)
             text = f"{c.from_version} -> {c.to_version}: {c.column} {c.direction}"
-            cols = [c.column] if c.kind in ("metric", "cost") else _metrics()
+            cols = {
+                "metric": [c.column],
+                "cost": [c.column],
+                "behaviour": ["energy_drift_max"],
+            }.get(
+                c.kind, ["energy_drift_max", "attitude_error_max"]
+            )  # status, verdict, integrator: on the two charts every scenario has
             targets = (
                 [k for k in keys if k == c.key]
                 if c.dt is not None
@@ -175,7 +182,7 @@ def _folder_view(folders: list[Path], factor: float) -> dict:
                 continue
             text0 = f"{xs[i - 1]} -> {xs[i]}"
             if a["status"] != b["status"] or a["verdict"] != b["verdict"]:
-                for col in _metrics():
+                for col in ("energy_drift_max", "attitude_error_max"):
                     marks.setdefault((k, col), []).append(
                         (i, "changed", f"{text0}: {a['status']}/{a['verdict']} -> "
                          f"{b['status']}/{b['verdict']}")

@@ -295,6 +295,7 @@ def run_matrix(
             return EnvRun(env, sub_folder(out, target), len(rows), 0.0, None, env.reason)
         how = "reused" if env.reused else f"created in {env.seconds:.1f} s"
         log(f"[env {k}/{n}] {target.engine} {target.label}: {how} ({env.path})")
+        t_run = time.perf_counter()
         if not opts.get("redo") and not _missing(env, scenarios, opts, out):
             run = EnvRun(env, sub_folder(out, target), returncode=0)  # every run is done
         else:
@@ -303,11 +304,12 @@ def run_matrix(
             n_err = _isolate(env, scenarios, opts, run)
             log(
                 f"[run] {target.engine} {target.label}: the run process ended early "
-                f"({run.error}); the unfinished runs ran one per process, {n_err} of them "
-                "ended their process too (error rows)"
+                f"({run.error}); the unfinished runs went on in processes of their own, "
+                f"{n_err} of them ended their process too (error rows)"
             )
             run.error = ""
             run.crashed = n_err
+            run.seconds = time.perf_counter() - t_run
         run.rows = merge(out, target, run.folder)
         done["runs"] += 1
         state = f"FAILED: {run.error}" if run.error else "done"

@@ -76,7 +76,8 @@ def figure(tab: VersionTable, key: tuple, changes: list, path: Path) -> Path:
             r = tab.row(key, v)
             s = signed_energy_error(tab.folder, r) if r else None
             if s is not None:
-                ax2.plot(s[0], s[1], lw=1, label=v)
+                step = max(1, len(s[0]) // 1500)  # a figure's width holds no more points
+                ax2.plot(s[0][::step], s[1][::step], lw=1, label=v)
                 drawn = True
     if drawn:
         ax2.set_yscale("symlog", linthresh=1e-12)
@@ -141,6 +142,10 @@ def write_report(tab: VersionTable, out: Path, environments=None, figures: bool 
     by_key: dict = {}
     for c in tab.changes:
         by_key.setdefault(c.key, []).append(c)
+    figdir = out / "versions-figures"
+    if figures and figdir.is_dir():
+        for old in figdir.glob("*.png"):  # the figures of an earlier report
+            old.unlink()
     if by_key:
         lines += ["## Changed configurations", ""]
     for key, cs in by_key.items():
