@@ -350,8 +350,8 @@ def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
 
 #: what the figures of a scorecard entry are (the legend above the scorecard, the tooltips)
 SCORECARD_TERMS = {
-    "rad": "the max attitude error over the run, rad (< x: below the reference's accuracy x, "
-    "not a measurement)",
+    "rad": "the max attitude error over the run (< x: below the reference's accuracy x, not "
+    "a measurement)",
     "E": "the max energy drift relative to the scenario's energy scale",
     "µs": "the time inside the engine's own calls per step, the cost beside the verdict "
     "(the suite's glue left out; + suite: the suite's time loop around the engine's "
@@ -363,8 +363,8 @@ def scorecard_legend(doc: Doc) -> None:
     """The key to the scorecard, above it."""
     md = (
         "✅ pass · ❌ fail (the metrics out of bounds after *fails*) · 💥 diverged · ⚠️ error "
-        "· ❔ the reference is not accurate enough to judge. Each entry: the verdict, the max "
-        f"attitude error (**rad**: {SCORECARD_TERMS['rad']}), **E**: {SCORECARD_TERMS['E']}, "
+        "· ❔ the reference is not accurate enough to judge. Each entry: the verdict, "
+        f"**rad**: {SCORECARD_TERMS['rad']}, **E**: {SCORECARD_TERMS['E']}, "
         f"then each configuration with **µs**: {SCORECARD_TERMS['µs']}. Configurations in one "
         "entry agree to 1e-3 in every metric (round-off-level values aside); each scenario's "
         "details give their largest difference."
@@ -373,8 +373,8 @@ def scorecard_legend(doc: Doc) -> None:
         "<span class='v-pass'>✓ pass</span> <span class='v-fail'>✗ fail</span> "
         "<span class='v-diverged'>↯ diverged</span> <span class='v-error'>⚠ error</span> "
         "<span class='v-reference-inaccurate'>? reference too coarse to judge</span>. "
-        "Each entry: the verdict, the max attitude error (<b>rad</b>: "
-        f"{html.escape(SCORECARD_TERMS['rad'])}), <b>E</b>: {html.escape(SCORECARD_TERMS['E'])}"
+        "Each entry: the verdict, <b>rad</b>: "
+        f"{html.escape(SCORECARD_TERMS['rad'])}, <b>E</b>: {html.escape(SCORECARD_TERMS['E'])}"
         "; the metrics out of bounds after <b>fails</b>; then each configuration with "
         f"<b>µs</b>: {html.escape(SCORECARD_TERMS['µs'])}. Configurations in one entry agree "
         "to 1e-3 in every metric (round-off-level values aside); each scenario's details give "
@@ -390,7 +390,8 @@ def _entry_html(out: str, who, figs, failing: str, href: str) -> str:
             abbr = f"<abbr title='{html.escape(SCORECARD_TERMS['E'])}'>E</abbr>"
             spans.append(f"<span class='fig'>{abbr} {html.escape(f[2:])}</span>")
         else:
-            spans.append(f"<span class='fig'>{html.escape(f)}</span>")
+            wrap = " wrap" if f.startswith(("diverged", "reference")) else ""
+            spans.append(f"<span class='fig{wrap}'>{html.escape(f)}</span>")
     fails = f"<span class='fails'>fails: {html.escape(failing)}</span>" if failing else ""
     members = "".join(
         f"<li>{html.escape(name)} <span class='cost' title='time inside the engine per step'>"
@@ -403,6 +404,15 @@ def _entry_html(out: str, who, figs, failing: str, href: str) -> str:
     )
 
 
+def _family_tip(family: str) -> str:
+    """The tooltip of a scorecard column: what its entries show."""
+    return (
+        f"integrator family {family}. Each entry: the verdict; rad: "
+        f"{SCORECARD_TERMS['rad']}; E: {SCORECARD_TERMS['E']}; then each configuration "
+        f"with µs: {SCORECARD_TERMS['µs']}"
+    )
+
+
 def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
     fams = sorted({f for s in card for f in s["cells"]}, key=family_key)
     header = [
@@ -411,7 +421,7 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
             html_="<span title='each scenario at its own dt and horizon'>scenario</span>",
         ),
         *(
-            Cell(f, html_=f"<span title='integrator family: {html.escape(f)}'>"
+            Cell(f, html_=f"<span title='{html.escape(_family_tip(f), quote=True)}'>"
                  f"{html.escape(f)}</span>")
             for f in fams
         ),
@@ -424,8 +434,8 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
         row = [
             Cell(
                 md=f"{name_md}<br>{where}",
-                html_=f"<a href='#{sid}'>{html.escape(s['scenario'])}</a>"
-                f"<br><small>{html.escape(where)}</small>",
+                html_=f"<a href='#{sid}'>{html.escape(s['scenario']).replace('_', '_<wbr>')}"
+                f"</a><br><small>{html.escape(where)}</small>",
             )
         ]
         for fam in fams:
@@ -862,8 +872,9 @@ table{border-collapse:collapse;font-size:13px}
 th{background:#f3f3f3;text-align:left;vertical-align:bottom}
 td,th{border:1px solid #d0d7de;padding:3px 7px;vertical-align:top}
 td.num{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}
-table.scorecard{font-size:12.5px;width:100%} table.scorecard td{min-width:7em}
-table.scorecard td:first-child{min-width:6em}
+table.scorecard{font-size:12.5px;width:100%;table-layout:fixed}
+table.scorecard th:first-child{width:9.5em}
+table.scorecard td{overflow-wrap:break-word} a.entry .fig.wrap{white-space:normal}
 a.entry{display:block;margin:2px 0 4px;padding:2px 6px;border-left:4px solid #999;
  border-radius:3px;color:inherit;text-decoration:none}
 a.entry .head{display:block} a.entry .fig{white-space:nowrap;font-variant-numeric:tabular-nums}
