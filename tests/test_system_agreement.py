@@ -4,9 +4,10 @@ reduced-coordinate reference (references/exact/multibody: joint coordinates, com
 body + recursive Newton-Euler, DOP853) and against the exact multibody motions.
 
 Tolerance of each comparison: the reference's own error estimate (``accuracy``, see
-references/exact/multibody/integrate.py) plus the director run's own error, estimated by step
-halving: with D(h) the run at step h and p the scheme's order, D(h/2) errs by about
-|D(h) - D(h/2)|/(2^p - 1); a factor 2 is added on that estimate. The two formulations share
+references/exact/multibody/integrate.py) plus the director run's own error, estimated from a
+run at a finer step: with D(h) the run at step h, p the scheme's order and f the refinement (2,
+or 4 for the four-bar), D(h/f) errs by about |D(h) - D(h/f)|/(f^p - 1); a factor 2 is added
+on that estimate. The two formulations share
 nothing but the physics, so agreement to that sum (itself required to be far below any
 physical scale) is evidence that both are right; a planted mistake (one body 1e-6 heavier in
 the reference) shows the comparison can fail.
