@@ -879,6 +879,13 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
         )
     if absent:
         parts.append("Not drawn, no run finished at any dt: " + "; ".join(absent))
+    adaptive = df[(df["scenario"] == scenario) & df["target_accuracy"].notna()]
+    adaptive = adaptive[~adaptive["status"].isin(NOT_RUN)]
+    if len(adaptive):
+        names = [config_label(r).split(" tol ")[0] for r in records(adaptive)]
+        parts.append(
+            "Error-controlled, no fixed dt (see the work-precision figure): " + name_list(names)
+        )
     alt = (
         f"{scenario}: max attitude error against the time step (log-log) for "
         f"{len(drawn)} line(s) of configurations with their fitted convergence orders"
