@@ -1448,7 +1448,7 @@ def scorecard_figure(df, out: Path) -> list[Path]:
                     )  # fmt: skip
         for j, sc in enumerate(scens):
             ax.text(
-                j + 0.5, -0.15, sc.replace("_", "_\u200b"), ha="left", va="bottom",
+                j + 0.5, -0.15, sc, ha="left", va="bottom",
                 rotation=25, rotation_mode="anchor", fontsize=8.5,
             )  # fmt: skip
         handles = [
