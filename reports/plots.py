@@ -1159,7 +1159,7 @@ def scenario_plot_from_results(df, cache: SeriesCache, out: Path, scenario: str)
     return path
 
 
-def scenario_figures(names, out: Path, samples: int = 400) -> list[Path]:
+def scenario_figures(names, out: Path, samples: int = 401) -> list[Path]:
     """The pictures of library scenarios for the documentation, each from its exact reference
     at ``samples`` times: ``scenario_<name>.png`` in ``out``."""
     import scenarios
