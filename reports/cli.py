@@ -456,6 +456,11 @@ def _work_failed(exc: BaseException) -> int:
             file=sys.stderr,
         )
         return 1
+    from reports.parallel import ClusterLost
+
+    if isinstance(exc, ClusterLost):
+        print(f"director-bench: error: {exc}", file=sys.stderr)
+        return 1
     if isinstance(exc, MemoryError):
         print(
             "director-bench: error: out of memory; finished runs are kept in the results "

@@ -46,6 +46,43 @@ def members(scenario, n: int, seed: int = 0) -> list:
     ]
 
 
+def check_ensemble(scenario, n: int, dt: float, t_end: float, jobs: int | None = None) -> None:
+    """Every input of an ensemble, checked before anything runs or is written
+    (:class:`~scenarios.schema.InputError` naming the value and the rule): the size, the step
+    (a whole number of steps, at most 2^53), the magnitudes over the horizon, and memory by
+    run's rule (:func:`reports.runner.max_states`), here for the ``n`` members a batched
+    engine (director_model, MJX) holds at once in one process."""
+    import os
+
+    from references.engines import step_plan
+    from reports.runner import BYTES_PER_STATE, max_states
+    from scenarios.schema import magnitude_problems, step_count_problem
+
+    members(scenario, 1)  # the size and the rotational energy the members keep
+    if n < 1:
+        raise InputError(f"ensemble size n = {n}: must be >= 1")
+    problem = step_count_problem(t_end, dt)
+    problems = [problem] if problem else []
+    problems += [f"{f} = {v:.3g}: {rule}" for f, v, rule in magnitude_problems(scenario, t_end)]
+    if not problems:
+        try:
+            nstep, _ = step_plan(dt, t_end, scenario.save_every)
+        except ValueError as exc:
+            problems.append(str(exc))
+    if problems:
+        raise InputError(f"ensemble of {scenario.name!r}: {problems[0]}")
+    kept = n * (nstep // scenario.save_every + 2)
+    limit = min(max_states(1), n * max_states(jobs or os.cpu_count() or 1))
+    if kept > limit:
+        raise InputError(
+            f"ensemble of {n} members of {scenario.name!r} at dt = {dt:g} s to t_end = "
+            f"{t_end:g} s keeps {kept:.3g} states at once (~{kept * BYTES_PER_STATE / 2**30:.3g} "
+            f"GiB), more than a quarter of this machine's memory "
+            f"({limit * BYTES_PER_STATE / 2**30:.3g} GiB): fewer members (--n), a shorter "
+            "horizon (--t-end) or a larger step (--dt)"
+        )
+
+
 def _director_batch(mems, specs) -> list[dict]:
     """All members of one director scheme in one call of director_model's batched path; the
     rows are built like every other run's (reports.runner)."""
@@ -147,13 +184,16 @@ def run_ensemble(
     ensemble store (``ensemble.sqlite``, exported as ``ensemble.csv``); members already in it
     are skipped. Returns the DataFrame of rows (member x configuration)."""
     from references.engines import engine_names, get_engine
+    from reports.parallel import log_dir, working_directory
     from reports.results import Store
 
-    out = Path(out)
+    out = Path(out).resolve()
     dt = scenario.dt if dt is None else float(dt)
     t_end = scenario.t_end if t_end is None else float(t_end)
+    check_ensemble(scenario, n, dt, t_end)
     mems = members(scenario, n, seed)
-    with Store(out, create=True, name=ENSEMBLE_STORE) as store:
+    # engines write their logs (MUJOCO_LOG.TXT) into the working directory: out/logs
+    with Store(out, create=True, name=ENSEMBLE_STORE) as store, working_directory(log_dir(out)):
         done = store.done_ids()
         specs = []
         for name in engines or engine_names():

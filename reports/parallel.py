@@ -14,6 +14,12 @@ MUJOCO_LOG.TXT into the current directory), so nothing is written outside the ou
 Local worker processes end with their parent, also when it is killed (SIGKILL included):
 each asks the kernel for SIGKILL on its parent's death (Linux ``PR_SET_PDEATHSIG``) and
 watches its parent's process id as a fallback.
+
+Lost workers: a local worker that dies (killed, out of memory) breaks the pool, and a Dask
+cluster whose scheduler goes away, or which has no worker for :data:`NO_WORKER_S` seconds
+while runs are pending, is given up: :class:`ClusterLost` says how many runs did not finish
+and what to do; every finished row is already in the store. A run whose Dask worker died
+each time it was tried (Dask's ``KilledWorker``) is an ``error`` row; the others go on.
 """
 
 from __future__ import annotations
@@ -26,6 +32,18 @@ from collections.abc import Callable
 from pathlib import Path
 
 from scenarios.schema import InputError
+
+#: seconds between checks of a Dask cluster while runs are pending
+POLL_S = 1.0
+
+#: a Dask cluster with no worker for this long while runs are pending is lost (s): long
+#: enough for a worker to restart (its nanny restarts it within seconds)
+NO_WORKER_S = 30.0
+
+
+class ClusterLost(RuntimeError):
+    """The workers or the scheduler running the sweep went away; the message says how many
+    runs did not finish and what to do. Finished rows are kept."""
 
 
 def log_dir(out: Path | None) -> Path | None:
@@ -91,6 +109,7 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
     def mapper(fn, specs):
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures.process import BrokenProcessPool
 
         specs = list(specs)
         if jobs == 1 or len(specs) <= 1:
@@ -107,8 +126,17 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
         )
         futures = [pool.submit(fn, s) for s in specs]
         try:
-            for fut in as_completed(futures):
-                yield fut.result()
+            for n_done, fut in enumerate(as_completed(futures)):
+                try:
+                    result = fut.result()
+                except BrokenProcessPool:
+                    raise ClusterLost(
+                        f"a local worker process died (killed, or out of memory): "
+                        f"{len(specs) - n_done} of {len(specs)} units of work did not finish; "
+                        "finished runs are kept in the results store: rerun the same command "
+                        "to run the rest (--jobs 1 runs them in this process)"
+                    ) from None
+                yield result
         finally:
             for fut in futures:
                 fut.cancel()
@@ -117,13 +145,15 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
     return mapper
 
 
-def dask_cluster(address: str, timeout: float = 20.0) -> Callable:
+def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None = None) -> Callable:
     """A mapper over the Dask cluster whose scheduler listens at ``address``
     (e.g. ``tcp://127.0.0.1:8786``). Needs ``pip install director-bench[dask]``; the workers
     need the suite installed and must see the output folder (same machine or shared disk).
-    ``timeout``: seconds to wait for the scheduler before giving up with an error."""
+    ``timeout``: seconds to wait for the scheduler before giving up with an error;
+    ``no_worker_s``: seconds without any worker, runs pending, before the cluster counts as
+    lost (default :data:`NO_WORKER_S`)."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError as exc:
         raise InputError(
             f"--scheduler {address}: Dask's distributed package is not installed "
@@ -144,15 +174,88 @@ def dask_cluster(address: str, timeout: float = 20.0) -> Callable:
         try:
             futures = client.map(fn, specs, pure=False)
             try:
-                for fut in as_completed(futures):
-                    yield fut.result()
+                yield from _watch(
+                    client,
+                    dict(zip(futures, specs, strict=True)),
+                    address,
+                    NO_WORKER_S if no_worker_s is None else no_worker_s,
+                )
             except BaseException:
-                client.cancel(futures)
+                with contextlib.suppress(Exception):
+                    client.cancel(futures)
                 raise
         finally:
-            client.close()
+            with contextlib.suppress(Exception):
+                client.close(timeout=10)
 
     return mapper
+
+
+def _watch(client, spec_of: dict, address: str, no_worker_s: float):
+    """Yield the results of the futures in ``spec_of`` as they finish, checking the cluster
+    every :data:`POLL_S` seconds (see the module docstring)."""
+    import time
+    from concurrent.futures import CancelledError
+
+    from distributed import wait
+    from distributed.scheduler import KilledWorker
+
+    pending, total, idle_since = set(spec_of), len(spec_of), None
+    while pending:
+        try:
+            res = wait(list(pending), timeout=POLL_S, return_when="FIRST_COMPLETED")
+            done, pending = set(res.done), set(res.not_done)
+        except (TimeoutError, CancelledError):
+            done = set()
+        for fut in done:
+            try:
+                yield fut.result()
+            except KilledWorker as exc:
+                yield _error_rows(spec_of[fut], f"its Dask worker died each time it ran it: {exc}")
+        if client.status != "running" or any(f.cancelled() for f in pending):
+            raise _lost(
+                f"the Dask scheduler at {address} went away: {len(pending)} of {total} units "
+                "of work did not finish; finished runs are kept in the results store. "
+                "Restart the scheduler and its workers and rerun the same command (finished "
+                "runs are skipped), or run without --scheduler"
+            )
+        try:
+            workers = len(client.scheduler_info()["workers"])
+        except Exception:  # noqa: BLE001 - the next round sees the client's status
+            continue
+        idle_since = None if workers else (idle_since or time.monotonic())
+        if pending and idle_since is not None and time.monotonic() - idle_since > no_worker_s:
+            raise _lost(
+                f"the Dask cluster at {address} has had no worker for {no_worker_s:g} s "
+                f"(killed or lost) with {len(pending)} of {total} units of work pending; "
+                "finished runs are kept in the results store. Start workers (`dask worker "
+                f"{address}`) and rerun the same command (finished runs are skipped), or run "
+                "without --scheduler"
+            )
+
+
+def _lost(message: str) -> ClusterLost:
+    """The error for a lost cluster, after silencing Dask's loggers: its client would go on
+    logging reconnection attempts and their tracebacks after our message."""
+    import logging
+
+    names = [n for n in logging.root.manager.loggerDict if n.startswith(("distributed", "tornado"))]
+    for name in [*names, "asyncio"]:
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    return ClusterLost(message)
+
+
+def _error_rows(unit, message: str):
+    """The ``error`` rows of a unit of work (a RunSpec, or a bundle of them) that could not
+    run, shaped like what the mapped function returns for it."""
+    from reports.results import blank_row, finish_time
+
+    def row(spec):
+        r = blank_row(spec)
+        r.update(status="error", message=message, finished_at=finish_time())
+        return r
+
+    return [row(s) for s in unit] if isinstance(unit, list) else row(unit)
 
 
 def make_mapper(

@@ -167,6 +167,40 @@ class StoreUnwritable(RuntimeError):
     """The results store cannot be written (read-only folder, disk full, file-size limit)."""
 
 
+class StoreLocked(StoreUnwritable):
+    """Another process held the store's write lock for longer than :data:`BUSY_TIMEOUT_S`:
+    the store is fine, the message names the holder and says to wait."""
+
+
+#: how long a writer waits for another process's write lock on the store (s)
+BUSY_TIMEOUT_S = 60.0
+
+
+def lock_holders(path: Path) -> list[str]:
+    """The processes holding a POSIX lock on the database ``path`` or its -wal/-shm files, as
+    ``pid (command line)`` (Linux ``/proc/locks``; empty where that is not available)."""
+    inodes = set()
+    for suffix in ("", "-wal", "-shm"):
+        with contextlib.suppress(OSError):
+            inodes.add(os.stat(f"{path}{suffix}").st_ino)
+    holders = []
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/locks").read_text().splitlines():
+            parts = line.split()
+            if len(parts) < 6 or parts[1] != "POSIX" or parts[4] == str(os.getpid()):
+                continue
+            if int(parts[5].rsplit(":", 1)[-1]) in inodes and parts[4] not in holders:
+                holders.append(parts[4])
+    out = []
+    for pid in holders:
+        try:
+            cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except OSError:
+            cmd = "?"
+        out.append(f"process {pid} ({' '.join(cmd.split())[:120]})")
+    return out
+
+
 def suite_version() -> str:
     from reports import __version__
 
@@ -368,8 +402,8 @@ class Store:
 
     def _open(self, create: bool) -> sqlite3.Connection:
         try:
-            con = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
-            con.execute("PRAGMA busy_timeout = 60000")
+            con = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+            con.execute(f"PRAGMA busy_timeout = {int(1000 * BUSY_TIMEOUT_S)}")
             self._refuse_foreign(con)
             if create:
                 con.execute(f"PRAGMA application_id = {APPLICATION_ID}")
@@ -433,6 +467,14 @@ class Store:
 
     def _damaged(self, exc) -> Exception:
         text = str(exc)
+        if "locked" in text or "busy" in text:
+            who = ", ".join(lock_holders(self.path)) or "another process"
+            return StoreLocked(
+                f"results store {self.path} is locked by {who}, which held its write lock "
+                f"for more than {BUSY_TIMEOUT_S:g} s ({text}); the store is not damaged: wait "
+                "for that process to finish (or stop it) and run the same command again; "
+                "finished runs are kept"
+            )
         if "readonly" in text or "unable to open" in text:
             return StoreUnwritable(f"{self.path}: cannot write the results store: {text}")
         if "full" in text or "disk I/O" in text:

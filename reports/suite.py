@@ -193,12 +193,15 @@ def ensemble(
 ):
     """Run ``n`` members of one scenario on every engine/integrator into ``out/ensemble.csv``
     (see :mod:`reports.ensemble`), and refresh the report of ``out``."""
-    from reports.ensemble import run_ensemble
+    from reports.ensemble import check_ensemble, run_ensemble
     from reports.parallel import make_mapper
     from reports.provenance import write_provenance
     from reports.report import build_report
 
     (sc,) = resolve_scenarios([name])
+    check_count("--jobs", jobs)
+    check_jobs(jobs)
+    check_ensemble(sc, n, sc.dt if dt is None else dt, sc.t_end if t_end is None else t_end, jobs)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if not (out / "provenance.json").exists():
@@ -212,7 +215,7 @@ def ensemble(
         integrators=integrators,
         dt=dt,
         t_end=t_end,
-        mapper=make_mapper(jobs, scheduler),
+        mapper=make_mapper(jobs, scheduler, out),
         progress=progress,
     )
     rep = build_report(out) if report else {}

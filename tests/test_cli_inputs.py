@@ -44,6 +44,8 @@ def cases(tmp_path):
     empty_dir = tmp_path / "empty"
     empty_dir.mkdir()
     return [
+        *hostile_files(tmp_path, out),
+        *hostile_options(out),
         (["run", "dzhanibekov", "--t-end", "1e9", "--out", out], 2, ["GiB", "--save-every"]),
         (["run", "free_tumbling", "--out", a_file], 2, ["a_file.txt", "not a folder"]),
         (["run", "/dev/zero", "--out", out], 2, ["/dev/zero", "not a regular file"]),
@@ -75,6 +77,61 @@ def cases(tmp_path):
         (["ensemble", "dzhanibekov", "--n", "0", "--out", out], 2, ["--n", ">= 1"]),
         (["run", "--out", out, "--scheduler", "tcp://127.0.0.1:9"], 2, ["scheduler"]),
     ]
+
+
+def edited(tmp_path, name: str, old: str, new: str) -> str:
+    """free_tumbling.toml with ``old`` replaced by ``new``, as a user's file."""
+    text = FREE.read_text()
+    assert old in text
+    return user_file(tmp_path, name, text.replace(old, new))
+
+
+def hostile_files(tmp_path, out) -> list:
+    """(argv, exit code, words): scenario files at the limits of the schema, each refused
+    before any work."""
+    sweep = "dt_sweep = [4e-3, 2e-3, 1e-3]"
+    tiny = FREE.read_text().replace(sweep, "").replace("dt = 1e-3", "dt = 5e-324")
+    deep = FREE.read_text() + "\n[tolerances]\nx = " + "[" * 100_000 + "]" * 100_000 + "\n"
+    files = [
+        (edited(tmp_path, "m400.toml", "mass = 2.0", "mass = " + "9" * 400),
+         ["body.mass", "finite"]),
+        (edited(tmp_path, "m308.toml", "mass = 2.0", "mass = 1e308"), ["body.mass", "1e+150"]),
+        (edited(tmp_path, "i320.toml", "[0.9, 1.4, 2.0]", "[1e-320, 1e-320, 1e-320]"),
+         ["body.inertia", "at least 1e-150"]),
+        (edited(tmp_path, "v.toml", "[0.5, -0.3, 0.2]", "[1e200, 0, 0]"),
+         ["speed of the centre of mass", "1e+200"]),
+        (edited(tmp_path, "g.toml", "[run]", "[environment]\ngravity = [0, 0, -1e308]\n[run]"),
+         ["potential energy", "inf"]),
+        (user_file(tmp_path, "dt.toml", tiny), ["run.dt", "5e-324", "2^53"]),
+        (edited(tmp_path, "s400.toml", "save_every = 10", "save_every = " + "9" * 400),
+         ["run.save_every", "18 digits"]),
+        (edited(tmp_path, "big.toml", "mass = 2.0", "mass = " + "9" * 5000), ["not valid TOML"]),
+        (user_file(tmp_path, "deep.toml", deep), ["deep.toml", "nested more than 8 levels"]),
+        (edited(tmp_path, "n250.toml", '"free_tumbling"', '"' + "a" * 250 + '"'),
+         ["name", "at most 128", "255 bytes"]),
+        (edited(tmp_path, "n500.toml", '"free_tumbling"', '"' + "a" * 500 + '"'),
+         ["name", "at most 128"]),
+    ]  # fmt: skip
+    return [(["run", f, "--engines", "exact", "--out", out], 2, w) for f, w in files]
+
+
+def hostile_options(out) -> list:
+    """(argv, exit code, words): options at their limits."""
+    ex = ["--engines", "exact", "--out", out]
+    many = "9" * 400
+    return [
+        (["run", "free_tumbling", "--dt", "5e-324", *ex], 2, ["2^53", "inf steps"]),
+        (["run", "free_tumbling", "--t-end", "1e300", "--dt", "1e297", *ex], 2,
+         ["distance travelled by the centre of mass", "1e+150"]),
+        (["run", "free_tumbling", "--save-every", many, *ex], 2, ["--save-every", "at most"]),
+        (["run", "free_tumbling", "--segment", many, *ex], 2, ["--segment", "at most"]),
+        (["run", "free_tumbling", "--jobs", "100000", *ex], 2, ["--jobs", "4 per core"]),
+        (["ensemble", "free_tumbling", "--n", many, *ex], 2, ["--n", "at most"]),
+        (["ensemble", "free_tumbling", "--n", "1000000000", *ex], 2, ["members", "memory"]),
+        (["ensemble", "free_tumbling", "--seed", "-1", *ex], 2, ["--seed", "2^64"]),
+        (["ensemble", "free_tumbling", "--dt", "5e-324", *ex], 2, ["2^53"]),
+        (["ensemble", "free_tumbling", "--dt", "7e-3", *ex], 2, ["whole number of steps"]),
+    ]  # fmt: skip
 
 
 def test_every_bad_input_exits_with_a_message(tmp_path, capsys):

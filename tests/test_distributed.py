@@ -3,17 +3,19 @@ loopback, through the running interpreter (``python -m distributed.cli...``, so 
 command needs to be on PATH). The rows equal a serial run's (runs are deterministic), and an
 interrupted distributed sweep resumes without redoing finished runs."""
 
+import contextlib
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 import pandas as pd
 import pytest
 
 import scenarios
-from reports.parallel import dask_cluster
-from reports.results import read_results
+from reports.parallel import ClusterLost, dask_cluster
+from reports.results import RunSpec, read_results
 from reports.runner import plan, run_suite
 
 pytest.importorskip(
@@ -171,3 +173,105 @@ def test_cli_accepts_scheduler(tmp_path, cluster):
     )
     assert code.returncode == 0, code.stderr
     assert list(read_results(out)["status"]) == ["ok"]
+
+
+# -- a cluster that loses its workers or its scheduler -------------------------------------------
+
+
+def start_cluster(n_workers: int):
+    """A scheduler and ``n_workers`` workers of one thread, each in a session of its own (so
+    that a worker and its nanny can be killed together); returns (address, scheduler, workers)."""
+    from distributed import Client
+
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    scheduler = subprocess.Popen(
+        [*SCHEDULER, "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet
+    )
+    args = ["--nworkers", "1", "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"]
+    workers = [subprocess.Popen([*WORKER, address, *args], **quiet) for _ in range(n_workers)]
+    deadline = time.monotonic() + 90
+    while True:
+        try:
+            with Client(address, timeout="5s") as c:
+                if len(c.scheduler_info()["workers"]) == n_workers:
+                    return address, scheduler, workers
+        except OSError:
+            pass
+        if time.monotonic() > deadline:
+            pytest.fail("the Dask scheduler and its workers did not come up in 90 s")
+        time.sleep(0.5)
+
+
+def kill(proc) -> None:
+    import os
+    import signal
+
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
+def kill_after_first_row(folder, proc) -> threading.Thread:
+    """Kill ``proc`` (its whole session) once the store in ``folder`` holds a row."""
+
+    def watch():
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            with contextlib.suppress(Exception):
+                if len(read_results(folder, all_rows=True)):
+                    break
+            time.sleep(0.2)
+        kill(proc)
+
+    thread = threading.Thread(target=watch, daemon=True)
+    thread.start()
+    return thread
+
+
+@pytest.fixture
+def short_and_long():
+    """A run of a second, then one of ~1e7 steps (far longer than the test waits)."""
+    sc = scenarios.load("major_axis_spin").replace(dt_sweep=())
+    return [
+        RunSpec(sc, "director", "rattle", 1e-3, t_end=1.0),
+        RunSpec(sc, "director", "rattle", 1e-5, t_end=100.0, save_every=10_000),
+    ]
+
+
+def test_a_killed_worker_is_detected_and_finished_rows_kept(tmp_path, short_and_long):
+    address, scheduler, (worker,) = start_cluster(1)
+    try:
+        watcher = kill_after_first_row(tmp_path, worker)
+        mapper = dask_cluster(address, no_worker_s=3.0)
+        with pytest.raises(ClusterLost, match="no worker for 3 s .* 1 of 2 units") as info:
+            run_suite(short_and_long, tmp_path, progress=False, mapper=mapper)
+        watcher.join()
+    finally:
+        kill(scheduler)
+    assert "dask worker" in str(info.value) and "rerun the same command" in str(info.value)
+    df = read_results(tmp_path)
+    assert df[["dt", "status"]].values.tolist() == [[1e-3, "ok"]]
+
+
+def test_a_killed_scheduler_is_a_message_not_a_traceback(tmp_path, short_and_long, capsys):
+    """`run --scheduler` whose scheduler is killed mid-run: exit 1, what happened and what to
+    do, the finished row kept."""
+    from reports.cli import main
+
+    address, scheduler, (worker,) = start_cluster(1)
+    try:
+        watcher = kill_after_first_row(tmp_path / "out", scheduler)
+        code = main(["run", "major_axis_spin", "--engines", "director", "--integrators",
+                     "rattle", "--dt", "1e-3,1e-5", "--t-end", "1", "--out",
+                     str(tmp_path / "out"), "--scheduler", address, "--quiet",
+                     "--no-report"])  # fmt: skip
+        watcher.join()
+    finally:
+        kill(worker)
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert f"the Dask scheduler at {address} went away" in err and "Traceback" not in err
+    assert "1 of 2 units of work did not finish" in err
+    assert read_results(tmp_path / "out")["dt"].tolist() == [1e-3]

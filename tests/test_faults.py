@@ -366,3 +366,181 @@ def test_nothing_is_written_outside_the_output_folder(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert list(cwd.iterdir()) == []
     assert read_results(out)["status"].tolist() == ["diverged"]
+
+
+# -- every hang bounded, every failure of the work a message ------------------------------------
+
+
+def test_the_numerical_reference_stops_at_its_step_and_time_bounds(monkeypatch):
+    """dzhanibekov over 30 s takes ~1 900 DOP853 steps in its main solution alone: a bound of
+    500 steps (above the 360 of the estimate made before any step) stops it mid-way, and a
+    time bound of 1 ns stops it at its first step; each message names the bound, its figures
+    and the variable that raises it."""
+    import numpy as np
+
+    import scenarios
+    from references.exact.numerical import ReferenceCostExceeded, solve
+
+    sc = scenarios.load("dzhanibekov")
+    t = np.linspace(0.0, sc.t_end, 31)
+    with pytest.raises(ReferenceCostExceeded, match=r"step bound: 501 steps > 500, at t = "):
+        solve(sc, t, max_steps=500)
+    with pytest.raises(ReferenceCostExceeded, match="time bound: .* s > 1e-09 s") as info:
+        solve(sc, t, max_seconds=1e-9)
+    assert "DIRECTOR_BENCH_REFERENCE_MAX_SECONDS" in str(info.value)
+    # |W| = 1e11 rad/s for 10 s: 1e12 rad cannot fit 2e6 steps; refused before any step
+    fast = sc.replace(omega_body=[1e11, 0.0, 0.0], t_end=10.0)
+    monkeypatch.setenv("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", "2e6")
+    with pytest.raises(ReferenceCostExceeded, match="before any step: .* 1e\\+12 rad"):
+        solve(fast, np.linspace(0.0, 10.0, 11))
+    monkeypatch.setenv("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", "-1")
+    with pytest.raises(ValueError, match="DIRECTOR_BENCH_REFERENCE_MAX_STEPS='-1'"):
+        solve(sc, t)
+
+
+def test_a_reference_over_its_bound_is_said_in_the_rows(monkeypatch):
+    """The exact engine's row is `unsupported` with the bound's message; an engine's run
+    keeps its metrics and is `reference-inaccurate` with the same message."""
+    import math
+
+    import scenarios
+    from reports.results import RunSpec
+    from reports.runner import _reference_cached, execute
+
+    monkeypatch.setenv("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", "50")
+    _reference_cached.cache_clear()
+    sc = scenarios.load("free_tumbling").replace(reference="numerical", t_end=1.0, dt_sweep=())
+    exact = execute(RunSpec(sc, "exact", "reference", 1e-2))
+    rattle = execute(RunSpec(sc, "director", "rattle", 1e-2))
+    _reference_cached.cache_clear()
+    assert exact["status"] == "unsupported", exact["message"]
+    assert "step bound" in exact["message"] and "MAX_STEPS" in exact["message"]
+    assert rattle["status"] == "reference-inaccurate", rattle["message"]
+    assert "step bound" in rattle["message"] and rattle["verdict"] == ""
+    assert math.isfinite(rattle["energy_drift_max"]) and rattle["nstep"] == 100
+
+
+def test_a_write_lock_held_too_long_is_a_locked_store_not_a_damaged_one(
+    tmp_path, monkeypatch, capsys
+):
+    """Another process holds the store's write lock past the wait: exit 1, the holder named,
+    'wait', and no advice to move the store aside; the store is intact."""
+    import reports.results as results
+    from reports.cli import main
+
+    Store(tmp_path, create=True).close()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sqlite3, sys, time\n"
+         f"c = sqlite3.connect({str(tmp_path / 'results.sqlite')!r}, isolation_level=None)\n"
+         "c.execute('BEGIN IMMEDIATE'); print('locked', flush=True); time.sleep(120)"],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        monkeypatch.setattr(results, "BUSY_TIMEOUT_S", 0.5)
+        code = main(["run", "free_tumbling", "--engines", "exact", "--no-sweep", "--t-end", "1",
+                     "--out", str(tmp_path), "--quiet", "--jobs", "1", "--no-report"])  # fmt: skip
+    finally:
+        holder.kill()
+        holder.wait()
+    assert code == 1
+    err = capsys.readouterr().err
+    assert f"locked by process {holder.pid}" in err and "wait" in err, err
+    assert "damaged" not in err.replace("not damaged", "") and "mv " not in err
+    assert read_results(tmp_path, all_rows=True).empty
+
+
+def test_a_figure_that_cannot_be_drawn_costs_neither_report_nor_junit(tmp_path, capsys):
+    """RATTLE at dt = 0.5 and 0.25 s on free_tumbling: both runs are above 0.1 rad, the
+    work-precision figure has nothing a log axis can show; the run still exits 0 with its
+    report and junit.xml, and says which figure was left out."""
+    from reports.cli import main
+
+    out = tmp_path / "out"
+    code = main(["run", "free_tumbling", "--engines", "director", "--integrators", "rattle",
+                 "--dt", "0.5,0.25", "--out", str(out), "--quiet", "--jobs", "1"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "work_precision figure of free_tumbling was not drawn" in err
+    assert (out / "report.md").exists() and (out / "junit.xml").exists()
+    assert len(read_results(out)) == 2
+
+
+@pytest.fixture
+def broken_plugin(tmp_path, monkeypatch):
+    """An engine adapter whose module raises on import, registered beside the built-ins."""
+    import references.engines as engines
+
+    (tmp_path / "broken_adapter.py").write_text("raise RuntimeError('broken on purpose')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    registry = {**engines._registry(), "broken": "broken_adapter:Adapter"}
+    monkeypatch.setattr(engines, "_registry", lambda: registry)
+    return "broken"
+
+
+def test_an_adapter_that_fails_to_import_is_unavailable_and_the_others_run(
+    tmp_path, broken_plugin, capsys
+):
+    from reports.cli import main
+    from reports.suite import catalog
+
+    entry = next(e for e in catalog()["engines"] if e["name"] == broken_plugin)
+    assert entry["available"] is False and entry["integrators"] == []
+    assert "RuntimeError: broken on purpose" in entry["why"]
+    assert main(["list"]) == 0
+    assert "NOT AVAILABLE: engine 'broken'" in capsys.readouterr().out
+    out = tmp_path / "out"
+    code = main(["run", "free_tumbling", "--engines", "exact,broken", "--no-sweep", "--t-end",
+                 "1", "--out", str(out), "--quiet", "--jobs", "1", "--no-report"])  # fmt: skip
+    printed = capsys.readouterr().out
+    assert code == 0 and "not run:      engine 'broken'" in printed
+    assert read_results(out)[["engine", "status"]].values.tolist() == [["exact", "ok"]]
+
+
+def test_report_needs_no_engine_registered_here(tmp_path, capsys):
+    """Rows of an engine this machine does not have (a plug-in installed elsewhere, with its
+    own family) are reported like any other."""
+    from reports.cli import main
+
+    out = tmp_path / "out"
+    argv = ["run", "free_tumbling", "--engines", "exact", "--no-sweep", "--t-end", "1",
+            "--out", str(out), "--quiet", "--jobs", "1", "--no-report"]  # fmt: skip
+    assert main(argv) == 0
+    with Store(out, create=True) as st:
+        row = dict(st.rows()[0])
+        row.update(run_id="elsewhere", engine="elsewhere", integrator="magic",
+                   family="a family registered elsewhere")  # fmt: skip
+        st.put(row)
+    assert main(["report", str(out)]) == 0, capsys.readouterr().err
+    assert "elsewhere magic" in (out / "report.md").read_text()
+
+
+def test_a_value_error_of_the_work_is_exit_1_not_bad_input(tmp_path, monkeypatch, capsys):
+    import reports.report
+    from reports.cli import main
+
+    def fails(*args, **kwargs):
+        raise ValueError("a failure deep inside the work")
+
+    monkeypatch.setattr(reports.report, "build_report", fails)
+    assert main(["report", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "the work failed: ValueError: a failure deep inside the work" in err
+    assert "test_faults.py" in err and "not of the input" in err and "Traceback" not in err
+
+
+def test_an_ensemble_writes_nothing_outside_its_folder(tmp_path, monkeypatch, capsys):
+    """MuJoCo's Euler diverges on heavy_top at dt = 4e-3 and MuJoCo writes MUJOCO_LOG.TXT
+    into the working directory: the ensemble's engines run in the output folder's logs."""
+    from reports.cli import main
+
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    out = tmp_path / "out"
+    code = main(["ensemble", "heavy_top", "--n", "2", "--engines", "mujoco", "--integrators",
+                 "Euler", "--dt", "4e-3", "--out", str(out), "--quiet", "--jobs", "1",
+                 "--no-report"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert list(cwd.iterdir()) == []
+    assert (out / "logs" / "MUJOCO_LOG.TXT").exists()
