@@ -879,6 +879,13 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
         )
     if absent:
         parts.append("Not drawn, no run finished at any dt: " + "; ".join(absent))
+    adaptive = df[(df["scenario"] == scenario) & df["target_accuracy"].notna()]
+    adaptive = adaptive[~adaptive["status"].isin(NOT_RUN)]
+    if len(adaptive):
+        names = [config_label(r).split(" tol ")[0] for r in records(adaptive)]
+        parts.append(
+            "Error-controlled, no fixed dt (see the work-precision figure): " + name_list(names)
+        )
     alt = (
         f"{scenario}: max attitude error against the time step (log-log) for "
         f"{len(drawn)} line(s) of configurations with their fitted convergence orders"
@@ -1152,7 +1159,7 @@ def scenario_plot_from_results(df, cache: SeriesCache, out: Path, scenario: str)
     return path
 
 
-def scenario_figures(names, out: Path, samples: int = 400) -> list[Path]:
+def scenario_figures(names, out: Path, samples: int = 401) -> list[Path]:
     """The pictures of library scenarios for the documentation, each from its exact reference
     at ``samples`` times: ``scenario_<name>.png`` in ``out``."""
     import scenarios
@@ -1441,7 +1448,7 @@ def scorecard_figure(df, out: Path) -> list[Path]:
                     )  # fmt: skip
         for j, sc in enumerate(scens):
             ax.text(
-                j + 0.5, -0.15, sc.replace("_", "_\u200b"), ha="left", va="bottom",
+                j + 0.5, -0.15, sc, ha="left", va="bottom",
                 rotation=25, rotation_mode="anchor", fontsize=8.5,
             )  # fmt: skip
         handles = [

@@ -140,7 +140,7 @@ def scenario_link(scenario: str) -> Cell:
     a = anchor(scenario)
     return Cell(
         md=f"[{md_cell(scenario)}](#{a})",
-        html_=f"<a href='#{a}'>{html.escape(scenario)}</a>",
+        html_=f"<a href='#{a}'>{html.escape(scenario).replace('_', '_<wbr>')}</a>",
     )
 
 
@@ -184,9 +184,10 @@ class Doc:
         """A table with its one-line title; header entries and cells are text or
         :class:`Cell`. In HTML inside a container that scrolls should the table be wider than
         the page; a table of class ``stack`` turns into one card per row on a narrow screen,
-        each cell labelled with its column (``data-label``)."""
+        each cell labelled with its column (``data-label``); so does every table of more than
+        seven columns."""
         heads = [h if isinstance(h, Cell) else Cell(h) for h in header]
-        if len(heads) > 4 and "stack" not in cls.split():
+        if len(heads) > 7 and "stack" not in cls.split():
             cls = f"{cls} stack".strip()
         cells = [[c if isinstance(c, Cell) else Cell(c) for c in r] for r in rows]
         md = [f"**{md_cell(title)}**", ""] if title else []
@@ -529,7 +530,7 @@ def work_precision_section(doc: Doc, df) -> None:
         "the reference's accuracy reaches no level below that accuracy." + _finer_sweep_note(df)
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
-    doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp stack")
+    doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp")
 
 
 def _finer_sweep_note(df) -> str:
@@ -831,7 +832,7 @@ def settings_section(doc: Doc, df) -> None:
         "Settings changed from the engines' defaults, every value that ran",
         ["engine", "integrator", "setting", "values", "scenarios"],
         rows,
-        cls="settings",
+        cls="settings stack",
     )
     doc.close_details()
 
@@ -872,6 +873,7 @@ table{border-collapse:collapse;font-size:13px}
 th{background:#f3f3f3;text-align:left;vertical-align:bottom}
 td,th{border:1px solid #d0d7de;padding:3px 7px;vertical-align:top}
 td.num{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}
+table.settings td{overflow-wrap:anywhere}
 table.scorecard{font-size:12.5px;width:100%;table-layout:fixed}
 table.scorecard th:first-child{width:9.5em}
 table.scorecard td{overflow-wrap:break-word} a.entry .fig.wrap{white-space:normal}

@@ -80,6 +80,8 @@ METRIC_SHORT = {
     "flip_interval_error": "flip interval",
     "nutation_period_error": "nutation period",
     "energy_drift_max": "energy",
+    "energy_drift_rot_max": "rotational energy",
+    "energy_drift_trans_max": "translational energy",
     "momentum_drift_max": "momentum",
     "orthonormality_max": "orthonormality",
     "constraint_velocity_max": "velocity constraint",

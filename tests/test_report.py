@@ -449,3 +449,25 @@ def test_scenario_figures_for_the_docs(tmp_path):
     png = tmp_path / "scenario_cone_top.png"
     assert png.exists() and png.stat().st_size < 60_000
     assert main(["--scenario-figures", str(tmp_path), "no_such_scenario"]) == 2
+
+
+def test_every_configuration_has_a_colour_of_its_own(df):
+    """No two configurations of a folder share a colour (the director's four schemes were
+    once all one blue)."""
+    import reports.plots as plots
+
+    styles = plots.Styles(df)
+    configs = {(e, i) for e, i in zip(df["engine"], df["integrator"], strict=True)} - {
+        ("exact", "reference")
+    }
+    colours = [styles.of({"engine": e, "integrator": i, "family": ""})["color"] for e, i in configs]
+    assert len(configs) >= 6 and len(set(colours)) == len(configs)
+
+
+def test_scorecard_picture_is_written_as_png_and_svg_with_text(folder):
+    """The scorecard picture for a README: a PNG and an SVG whose words are text (found by
+    search, small), naming every scenario and configuration."""
+    svg = (folder / "scorecard.svg").read_text()
+    assert (folder / "scorecard.png").stat().st_size > 10_000
+    for word in ("cone_top", "free_tumbling", "director rattle4", "pinocchio + suite RKMK4"):
+        assert word in svg, word

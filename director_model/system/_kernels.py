@@ -229,7 +229,7 @@ def _dmv(I0, I1, I2, p0, p1, p2, h):
     return ok, w0, w1, w2, Ai
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _rows(rint, rvec, X, D, gv, Jc):
     """Row values gv (nrow,) and Jacobians Jc (nrow, 12) at positions X (nb, 3) and
     directors D (nb, 9); body index -1 is the ground (x = 0, D = 1)."""
@@ -313,7 +313,7 @@ def _rows(rint, rvec, X, D, gv, Jc):
             Jc[r, 11] = rb0 * u1 - rb1 * u0
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _forces(rint, Jc, lam, F, T):
     """Joint forces -G^T lam per body: F (nb, 3) force, T (nb, 3) world torque."""
     F[:] = 0.0
@@ -331,10 +331,11 @@ def _forces(rint, Jc, lam, F, T):
                 T[b, c] -= Jc[r, 9 + c] * lr
 
 
-@njit(cache=True)
-def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw):
+@njit(inline="always")
+def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
     """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
-    (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]."""
+    (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]; with ``upper`` only the
+    entries s >= r (a symmetric A, JL = JR and Mth symmetric)."""
     A[:] = 0.0
     nb = ptr.shape[0] - 1
     for i in range(nb):
@@ -351,6 +352,8 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw):
             l5 = t0 * Mth[i, 2] + t1 * Mth[i, 5] + t2 * Mth[i, 8]
             for e2 in range(ptr[i], ptr[i + 1]):
                 s = idx[e2]
+                if upper and s < r:
+                    continue
                 o2 = 6 * side[e2]
                 v = (
                     l0 * JR[s, o2] + l1 * JR[s, o2 + 1] + l2 * JR[s, o2 + 2]
@@ -362,7 +365,7 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw):
                     A[r, s] += v
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _band_lu(A, bw):
     """In-place LU without pivoting of the banded A (n, 2 bw + 1). Returns False on a pivot
     below 1e-13 times the largest diagonal entry (a singular configuration)."""
@@ -385,7 +388,7 @@ def _band_lu(A, bw):
     return True
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _band_solve(A, bw, b, x):
     """Solve with the factors of :func:`_band_lu`: x = A^{-1} b."""
     n = A.shape[0]
@@ -399,6 +402,50 @@ def _band_solve(A, bw, b, x):
         for j in range(i + 1, min(i + bw + 1, n)):
             s -= A[i, bw + j - i] * x[j]
         x[i] = s / A[i, bw]
+
+
+@njit(inline="always")
+def _band_ldl(A, bw):
+    """In-place L D L^T of the symmetric banded A, upper band stored (A[k, bw + j - k],
+    j >= k): D on the diagonal, L[i, k] in A[k, bw + i - k]. Returns False on a pivot
+    below 1e-13 times the largest diagonal entry (positive definite otherwise)."""
+    n = A.shape[0]
+    big = 0.0
+    for k in range(n):
+        big = max(big, abs(A[k, bw]))
+    tiny = 1e-13 * big
+    for k in range(n):
+        d = A[k, bw]
+        if not d > tiny:
+            return False
+        idd = 1.0 / d
+        for i in range(k + 1, min(k + bw + 1, n)):
+            aki = A[k, bw + i - k]
+            if aki != 0.0:
+                li = aki * idd
+                for j in range(i, min(k + bw + 1, n)):
+                    A[i, bw + j - i] -= li * A[k, bw + j - k]
+                A[k, bw + i - k] = li
+    return True
+
+
+@njit(inline="always")
+def _band_ldl_solve(A, bw, b, x):
+    """Solve with the factors of :func:`_band_ldl`: x = A^{-1} b."""
+    n = A.shape[0]
+    for i in range(n):
+        x[i] = b[i]
+    for k in range(n):
+        xk = x[k]
+        for i in range(k + 1, min(k + bw + 1, n)):
+            x[i] -= A[k, bw + i - k] * xk
+    for k in range(n):
+        x[k] /= A[k, bw]
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for j in range(i + 1, min(i + bw + 1, n)):
+            t -= A[i, bw + j - i] * x[j]
+        x[i] = t
 
 
 @njit(cache=True)
@@ -416,7 +463,7 @@ def _svd_factor(A, rank_tol, U, s, Vt):
     return rank
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _svd_solve(U, s, Vt, rank, b, x):
     """Minimum-norm x = V S^+ U^T b over the first ``rank`` singular values."""
     n = x.shape[0]
@@ -461,212 +508,15 @@ def _mul(D, t0, t1, t2):
     )
 
 
-@njit(cache=True)
-def _substep(
-    h, B, D0, rint, rvec, ptr, idx, side, g, S, mu, minnorm, bw, rank_nom, rank_tol, tol_rel,
-    Lsc, diag, nstep_now, Dn, Dnew, VH, PI, WG, F, T, Mx, Mth, Jold, Jnew, gv, lam, dl, Ab,
-    Ad, r0, U, sv, Vt, Fn, Tn,
-):  # fmt: skip
-    """One RATTLE step of size h (negative in a composition's backward sub-step); the
-    arrays after ``nstep_now`` are workspace. Returns a status code."""
-    nb = S.shape[0]
-    nrow = rint.shape[0]
-    hh = 0.5 * h
-    xmax = Lsc
-    for i in range(nb):
-        _put9(Dn, i, _mm(_row9(D0, i), _qmat(S[i, 12], S[i, 13], S[i, 14], S[i, 15])))
-        for c in range(3):
-            xmax = max(xmax, abs(S[i, c]))
-    tol = tol_rel * xmax
-    if nrow > 0:
-        _rows(rint, rvec, S, Dn, gv, Jold)
-    for r in range(nrow):
-        lam[r] = mu[r]
-    rank = 0
-    it = 0
-    while True:
-        # the chord matrix of the first iterate; from the fourth on a new one at every
-        # iterate (plain Newton: linear convergence near a singular configuration)
-        fresh = it == 0 or it >= 3
-        if nrow > 0:
-            _forces(rint, Jold, lam, F, T)
-        for i in range(nb):
-            m = B[i, 0]
-            Di = _row9(Dn, i)
-            for c in range(3):
-                VH[i, c] = S[i, 6 + c] + hh * (g[c] + F[i, c] / m)
-                WG[i, 3 + c] = S[i, c] + h * VH[i, c]  # x_{n+1}
-            t0, t1, t2 = _tmul(Di, T[i, 0], T[i, 1], T[i, 2])
-            p0 = S[i, 20] + hh * t0
-            p1 = S[i, 21] + hh * t1
-            p2 = S[i, 22] + hh * t2
-            PI[i, 0] = p0
-            PI[i, 1] = p1
-            PI[i, 2] = p2
-            ok, w0, w1, w2, Ai = _dmv(B[i, 1], B[i, 2], B[i, 3], p0, p1, p2, h)
-            if not ok:
-                return FAIL_DMV
-            WG[i, 0] = w0
-            WG[i, 1] = w1
-            WG[i, 2] = w2
-            Dj = _mm(Di, _qmat(1.0, w0, w1, w2))
-            _put9(Dnew, i, Dj)
-            if fresh and nrow > 0:
-                # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, the rotation's response to a torque
-                K = (
-                    Ai[0] - (-w2 * Ai[3] + w1 * Ai[6]),
-                    Ai[1] - (-w2 * Ai[4] + w1 * Ai[7]),
-                    Ai[2] - (-w2 * Ai[5] + w1 * Ai[8]),
-                    Ai[3] - (w2 * Ai[0] - w0 * Ai[6]),
-                    Ai[4] - (w2 * Ai[1] - w0 * Ai[7]),
-                    Ai[5] - (w2 * Ai[2] - w0 * Ai[8]),
-                    Ai[6] - (-w1 * Ai[0] + w0 * Ai[3]),
-                    Ai[7] - (-w1 * Ai[1] + w0 * Ai[4]),
-                    Ai[8] - (-w1 * Ai[2] + w0 * Ai[5]),
-                )
-                _put9(Mth, i, _mmt(_mm(Dj, K), Di))
-                Mx[i] = 0.5 / m
-        if nrow == 0:
-            break
-        _rows(rint, rvec, WG[:, 3:6], Dnew, gv, Jnew)
-        err = 0.0
-        for r in range(nrow):
-            err = max(err, abs(gv[r]))
-        if not err < math.inf:
-            return FAIL_NONFINITE
-        if err <= tol:
-            break
-        if it >= MAXIT:
-            return FAIL_NEWTON
-        if fresh:
-            if minnorm:
-                _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, False, bw)
-                rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
-            else:
-                _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, True, bw)
-                if not _band_lu(Ab, bw):
-                    return FAIL_SINGULAR
-        if minnorm:
-            _svd_solve(U, sv, Vt, rank, gv, dl)
-        else:
-            _band_solve(Ab, bw, gv, dl)
-        ih2 = 1.0 / (h * h)
-        for r in range(nrow):
-            lam[r] += dl[r] * ih2
-        it += 1
-    diag[D_ITER] += it
-    diag[D_MAXIT] = max(diag[D_MAXIT], it)
-    # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h);
-    # Tn holds the world angular velocity of u0, VH its velocity
-    for i in range(nb):
-        w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
-        I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
-        rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
-        c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
-        c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
-        c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-        W0 = (PI[i, 0] - rq * c0) * B[i, 4]
-        W1 = (PI[i, 1] - rq * c1) * B[i, 5]
-        W2 = (PI[i, 2] - rq * c2) * B[i, 6]
-        Tn[i, 0], Tn[i, 1], Tn[i, 2] = _mul(_row9(Dnew, i), W0, W1, W2)
-        for c in range(3):
-            VH[i, c] = VH[i, c] + hh * g[c]
-    if nrow > 0:
-        for r in range(nrow):
-            a = rint[r, 1]
-            b = rint[r, 2]
-            s = Jnew[r, 0] * VH[a, 0] + Jnew[r, 1] * VH[a, 1] + Jnew[r, 2] * VH[a, 2]
-            s += Jnew[r, 3] * Tn[a, 0] + Jnew[r, 4] * Tn[a, 1] + Jnew[r, 5] * Tn[a, 2]
-            if b >= 0:
-                s += Jnew[r, 6] * VH[b, 0] + Jnew[r, 7] * VH[b, 1] + Jnew[r, 8] * VH[b, 2]
-                s += Jnew[r, 9] * Tn[b, 0] + Jnew[r, 10] * Tn[b, 1] + Jnew[r, 11] * Tn[b, 2]
-            r0[r] = s
-        for i in range(nb):
-            Mx[i] = 1.0 / B[i, 0]
-            Dj = _row9(Dnew, i)
-            DI = (Dj[0] * B[i, 4], Dj[1] * B[i, 5], Dj[2] * B[i, 6],
-                  Dj[3] * B[i, 4], Dj[4] * B[i, 5], Dj[5] * B[i, 6],
-                  Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
-            _put9(Mth, i, _mmt(DI, Dj))
-        if minnorm:
-            _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, False, bw)
-            rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
-            _svd_solve(U, sv, Vt, rank, r0, dl)
-            nrank = 0
-            for k in range(sv.shape[0]):
-                if sv[k] > rank_tol * sv[0]:
-                    nrank += 1
-            if nrank < rank_nom:
-                diag[D_RANKDROP] += 1
-            if rank_nom > 0 and sv[0] > 0.0:
-                rel = sv[rank_nom - 1] / sv[0]
-                if rel < diag[D_SMIN]:
-                    diag[D_SMIN] = rel
-                    diag[D_TSMIN] = nstep_now
-        else:
-            _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, True, bw)
-            if not _band_lu(Ab, bw):
-                return FAIL_SINGULAR
-            _band_solve(Ab, bw, r0, dl)
-    return _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, dl, rint, Jnew, nrow, Fn, Tn)
+@njit(inline="always")
+def _fail(info, n, h, status):
+    """Record a failure at sub-step h of step n (info[0] = steps completed) and return it."""
+    info[0] = n - 1
+    info[1] = h
+    return status
 
 
-@njit(cache=True)
-def _commit(h, B, S, mu, g, F, T, Dn, Dnew, WG, VH, nu, rint, Jnew, nrow, Fn, Tn):
-    """Compensated update of the state from the step's solution; mu = 2 nu / h. Fn, Tn are
-    work arrays (nb, 3) for the forces of the velocity multipliers nu."""
-    nb = S.shape[0]
-    hh = 0.5 * h
-    if nrow > 0:
-        _forces(rint, Jnew, nu, Fn, Tn)
-    else:
-        Fn[:] = 0.0
-        Tn[:] = 0.0
-    for r in range(nrow):
-        mu[r] = 2.0 * nu[r] / h
-    for i in range(nb):
-        m = B[i, 0]
-        I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
-        w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
-        # x += h v_half; v += h/2 (g + F/m) + h/2 g + Fn/m  (VH holds v_half + h/2 g)
-        for c in range(3):
-            vh = VH[i, c] - hh * g[c]
-            S[i, c], S[i, 3 + c] = _kahan(S[i, c], S[i, 3 + c], h * vh)
-            dv = hh * (g[c] + F[i, c] / m) + hh * g[c] + Fn[i, c] / m
-            S[i, 6 + c], S[i, 9 + c] = _kahan(S[i, 6 + c], S[i, 9 + c], dv)
-        # Pi += h/2 Dn^T T - 4 c/(q h) + Dnew^T Tn
-        rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
-        c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
-        c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
-        c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-        a0, a1, a2 = _tmul(_row9(Dn, i), T[i, 0], T[i, 1], T[i, 2])
-        b0, b1, b2 = _tmul(_row9(Dnew, i), Tn[i, 0], Tn[i, 1], Tn[i, 2])
-        S[i, 20], S[i, 23] = _kahan(S[i, 20], S[i, 23], (hh * a0 - rq * c0) + b0)
-        S[i, 21], S[i, 24] = _kahan(S[i, 21], S[i, 24], (hh * a1 - rq * c1) + b1)
-        S[i, 22], S[i, 25] = _kahan(S[i, 22], S[i, 25], (hh * a2 - rq * c2) + b2)
-        # p += p (x) (0, w)
-        p0, p1, p2, p3 = S[i, 12], S[i, 13], S[i, 14], S[i, 15]
-        dp0 = -((p1 * w0 + p2 * w1) + p3 * w2)
-        dp1 = p0 * w0 + (p2 * w2 - p3 * w1)
-        dp2 = p0 * w1 + (p3 * w0 - p1 * w2)
-        dp3 = p0 * w2 + (p1 * w1 - p2 * w0)
-        S[i, 12], S[i, 16] = _kahan(p0, S[i, 16], dp0)
-        S[i, 13], S[i, 17] = _kahan(p1, S[i, 17], dp1)
-        S[i, 14], S[i, 18] = _kahan(p2, S[i, 18], dp2)
-        S[i, 15], S[i, 19] = _kahan(p3, S[i, 19], dp3)
-        nn = (S[i, 12] * S[i, 12] + S[i, 13] * S[i, 13]) + (
-            S[i, 14] * S[i, 14] + S[i, 15] * S[i, 15]
-        )
-        if nn > QUAT_BIG:
-            for c in range(12, 20):
-                S[i, c] *= QUAT_SHRINK
-        for c in range(NS):
-            if not abs(S[i, c]) < math.inf:
-                return FAIL_NONFINITE
-    return OK
-
-
-@njit(cache=True)
+@njit(inline="always")
 def _store(B, D0, S, X, V, D, W, k):
     for i in range(S.shape[0]):
         for c in range(3):
@@ -713,23 +563,199 @@ def run_system(
     Vt = np.zeros((nd, nd))
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
-    k = 0
+    ks = 0
     if saves.shape[0] > 0 and saves[0] == 0:
         _store(B, D0, S, X, V, D, W, 0)
-        k = 1
+        ks = 1
     for n in range(1, nstep + 1):
         for j in range(coef.shape[0]):
             h = coef[j] * dt
-            st = _substep(
-                h, B, D0, rint, rvec, ptr, idx, side, g, S, mu, minnorm, bw, rank_nom,
-                rank_tol, tol_rel, Lsc, diag, n, Dn, Dnew, VH, PI, WG, F, T, Mx, Mth, Jold,
-                Jnew, gv, lam, dl, Ab, Ad, r0, U, sv, Vt, Fn, Tn,
-            )  # fmt: skip
-            if st != OK:
-                info[0] = n - 1
-                info[1] = h
-                return st
-        if k < saves.shape[0] and saves[k] == n:
-            _store(B, D0, S, X, V, D, W, k)
-            k += 1
+            hh = 0.5 * h
+            xmax = Lsc
+            for i in range(nb):
+                _put9(Dn, i, _mm(_row9(D0, i), _qmat(S[i, 12], S[i, 13], S[i, 14], S[i, 15])))
+                for c in range(3):
+                    xmax = max(xmax, abs(S[i, c]))
+            tol = tol_rel * xmax
+            if nrow > 0:
+                _rows(rint, rvec, S, Dn, gv, Jold)
+            for r in range(nrow):
+                lam[r] = mu[r]
+            rank = 0
+            it = 0
+            while True:
+                # the chord matrix of the first iterate; from the fourth on a new one at every
+                # iterate (plain Newton: linear convergence near a singular configuration)
+                fresh = it == 0 or it >= 3
+                if nrow > 0:
+                    _forces(rint, Jold, lam, F, T)
+                for i in range(nb):
+                    m = B[i, 0]
+                    Di = _row9(Dn, i)
+                    for c in range(3):
+                        VH[i, c] = S[i, 6 + c] + hh * (g[c] + F[i, c] / m)
+                        WG[i, 3 + c] = S[i, c] + h * VH[i, c]  # x_{n+1}
+                    t0, t1, t2 = _tmul(Di, T[i, 0], T[i, 1], T[i, 2])
+                    p0 = S[i, 20] + hh * t0
+                    p1 = S[i, 21] + hh * t1
+                    p2 = S[i, 22] + hh * t2
+                    PI[i, 0] = p0
+                    PI[i, 1] = p1
+                    PI[i, 2] = p2
+                    ok, w0, w1, w2, Ai = _dmv(B[i, 1], B[i, 2], B[i, 3], p0, p1, p2, h)
+                    if not ok:
+                        return _fail(info, n, h, FAIL_DMV)
+                    WG[i, 0] = w0
+                    WG[i, 1] = w1
+                    WG[i, 2] = w2
+                    Dj = _mm(Di, _qmat(1.0, w0, w1, w2))
+                    _put9(Dnew, i, Dj)
+                    if fresh and nrow > 0:
+                        # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, the rotation's response to a torque
+                        K = (
+                            Ai[0] - (-w2 * Ai[3] + w1 * Ai[6]),
+                            Ai[1] - (-w2 * Ai[4] + w1 * Ai[7]),
+                            Ai[2] - (-w2 * Ai[5] + w1 * Ai[8]),
+                            Ai[3] - (w2 * Ai[0] - w0 * Ai[6]),
+                            Ai[4] - (w2 * Ai[1] - w0 * Ai[7]),
+                            Ai[5] - (w2 * Ai[2] - w0 * Ai[8]),
+                            Ai[6] - (-w1 * Ai[0] + w0 * Ai[3]),
+                            Ai[7] - (-w1 * Ai[1] + w0 * Ai[4]),
+                            Ai[8] - (-w1 * Ai[2] + w0 * Ai[5]),
+                        )
+                        _put9(Mth, i, _mmt(_mm(Dj, K), Di))
+                        Mx[i] = 0.5 / m
+                if nrow == 0:
+                    break
+                _rows(rint, rvec, WG[:, 3:6], Dnew, gv, Jnew)
+                err = 0.0
+                for r in range(nrow):
+                    err = max(err, abs(gv[r]))
+                if not err < math.inf:
+                    return _fail(info, n, h, FAIL_NONFINITE)
+                if err <= tol:
+                    break
+                if it >= MAXIT:
+                    return _fail(info, n, h, FAIL_NEWTON)
+                if fresh:
+                    if minnorm:
+                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, False, bw, False)
+                        rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                    else:
+                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, True, bw, False)
+                        if not _band_lu(Ab, bw):
+                            return _fail(info, n, h, FAIL_SINGULAR)
+                if minnorm:
+                    _svd_solve(U, sv, Vt, rank, gv, dl)
+                else:
+                    _band_solve(Ab, bw, gv, dl)
+                ih2 = 1.0 / (h * h)
+                for r in range(nrow):
+                    lam[r] += dl[r] * ih2
+                it += 1
+            diag[D_ITER] += it
+            diag[D_MAXIT] = max(diag[D_MAXIT], it)
+            # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h);
+            # Tn holds the world angular velocity of u0, VH its velocity
+            for i in range(nb):
+                w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
+                I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
+                rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
+                c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
+                c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
+                c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
+                W0 = (PI[i, 0] - rq * c0) * B[i, 4]
+                W1 = (PI[i, 1] - rq * c1) * B[i, 5]
+                W2 = (PI[i, 2] - rq * c2) * B[i, 6]
+                Tn[i, 0], Tn[i, 1], Tn[i, 2] = _mul(_row9(Dnew, i), W0, W1, W2)
+                for c in range(3):
+                    VH[i, c] = VH[i, c] + hh * g[c]
+            if nrow > 0:
+                for r in range(nrow):
+                    a = rint[r, 1]
+                    b = rint[r, 2]
+                    s = Jnew[r, 0] * VH[a, 0] + Jnew[r, 1] * VH[a, 1] + Jnew[r, 2] * VH[a, 2]
+                    s += Jnew[r, 3] * Tn[a, 0] + Jnew[r, 4] * Tn[a, 1] + Jnew[r, 5] * Tn[a, 2]
+                    if b >= 0:
+                        s += Jnew[r, 6] * VH[b, 0] + Jnew[r, 7] * VH[b, 1] + Jnew[r, 8] * VH[b, 2]
+                        s += Jnew[r, 9] * Tn[b, 0] + Jnew[r, 10] * Tn[b, 1] + Jnew[r, 11] * Tn[b, 2]
+                    r0[r] = s
+                for i in range(nb):
+                    Mx[i] = 1.0 / B[i, 0]
+                    Dj = _row9(Dnew, i)
+                    DI = (Dj[0] * B[i, 4], Dj[1] * B[i, 5], Dj[2] * B[i, 6],
+                          Dj[3] * B[i, 4], Dj[4] * B[i, 5], Dj[5] * B[i, 6],
+                          Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
+                    _put9(Mth, i, _mmt(DI, Dj))
+                if minnorm:
+                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, False, bw, False)
+                    rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                    _svd_solve(U, sv, Vt, rank, r0, dl)
+                    nrank = 0
+                    for k in range(sv.shape[0]):
+                        if sv[k] > rank_tol * sv[0]:
+                            nrank += 1
+                    if nrank < rank_nom:
+                        diag[D_RANKDROP] += 1
+                    if rank_nom > 0 and sv[0] > 0.0:
+                        rel = sv[rank_nom - 1] / sv[0]
+                        if rel < diag[D_SMIN]:
+                            diag[D_SMIN] = rel
+                            diag[D_TSMIN] = n
+                else:
+                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, True, bw, True)
+                    if not _band_ldl(Ab, bw):
+                        return _fail(info, n, h, FAIL_SINGULAR)
+                    _band_ldl_solve(Ab, bw, r0, dl)
+
+            if nrow > 0:
+                _forces(rint, Jnew, dl, Fn, Tn)
+            else:
+                Fn[:] = 0.0
+                Tn[:] = 0.0
+            for r in range(nrow):
+                mu[r] = 2.0 * dl[r] / h
+            for i in range(nb):
+                m = B[i, 0]
+                I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
+                w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
+                # x += h v_half; v += h/2 (g + F/m) + h/2 g + Fn/m  (VH holds v_half + h/2 g)
+                for c in range(3):
+                    vh = VH[i, c] - hh * g[c]
+                    S[i, c], S[i, 3 + c] = _kahan(S[i, c], S[i, 3 + c], h * vh)
+                    dv = hh * (g[c] + F[i, c] / m) + hh * g[c] + Fn[i, c] / m
+                    S[i, 6 + c], S[i, 9 + c] = _kahan(S[i, 6 + c], S[i, 9 + c], dv)
+                # Pi += h/2 Dn^T T - 4 c/(q h) + Dnew^T Tn
+                rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
+                c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
+                c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
+                c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
+                a0, a1, a2 = _tmul(_row9(Dn, i), T[i, 0], T[i, 1], T[i, 2])
+                b0, b1, b2 = _tmul(_row9(Dnew, i), Tn[i, 0], Tn[i, 1], Tn[i, 2])
+                S[i, 20], S[i, 23] = _kahan(S[i, 20], S[i, 23], (hh * a0 - rq * c0) + b0)
+                S[i, 21], S[i, 24] = _kahan(S[i, 21], S[i, 24], (hh * a1 - rq * c1) + b1)
+                S[i, 22], S[i, 25] = _kahan(S[i, 22], S[i, 25], (hh * a2 - rq * c2) + b2)
+                # p += p (x) (0, w)
+                p0, p1, p2, p3 = S[i, 12], S[i, 13], S[i, 14], S[i, 15]
+                dp0 = -((p1 * w0 + p2 * w1) + p3 * w2)
+                dp1 = p0 * w0 + (p2 * w2 - p3 * w1)
+                dp2 = p0 * w1 + (p3 * w0 - p1 * w2)
+                dp3 = p0 * w2 + (p1 * w1 - p2 * w0)
+                S[i, 12], S[i, 16] = _kahan(p0, S[i, 16], dp0)
+                S[i, 13], S[i, 17] = _kahan(p1, S[i, 17], dp1)
+                S[i, 14], S[i, 18] = _kahan(p2, S[i, 18], dp2)
+                S[i, 15], S[i, 19] = _kahan(p3, S[i, 19], dp3)
+                nn = (S[i, 12] * S[i, 12] + S[i, 13] * S[i, 13]) + (
+                    S[i, 14] * S[i, 14] + S[i, 15] * S[i, 15]
+                )
+                if nn > QUAT_BIG:
+                    for c in range(12, 20):
+                        S[i, c] *= QUAT_SHRINK
+                for c in range(NS):
+                    if not abs(S[i, c]) < math.inf:
+                        return _fail(info, n, h, FAIL_NONFINITE)
+
+        if ks < saves.shape[0] and saves[ks] == n:
+            _store(B, D0, S, X, V, D, W, ks)
+            ks += 1
     return OK

@@ -38,6 +38,7 @@ class EnvRun:
     returncode: int | None = None
     error: str = ""
     crashed: int = 0  # runs whose own process ended without a result (error rows)
+    skipped: bool = False  # every run was in the store already: nothing started
 
 
 @dataclass
@@ -297,7 +298,7 @@ def run_matrix(
         log(f"[env {k}/{n}] {target.engine} {target.label}: {how} ({env.path})")
         t_run = time.perf_counter()
         if not opts.get("redo") and not _missing(env, scenarios, opts, out):
-            run = EnvRun(env, sub_folder(out, target), returncode=0)  # every run is done
+            run = EnvRun(env, sub_folder(out, target), returncode=0, skipped=True)
         else:
             run = _run_in_env(env, scenarios, opts, out)
         if run.returncode not in (0, None):
@@ -313,6 +314,8 @@ def run_matrix(
         run.rows = merge(out, target, run.folder)
         done["runs"] += 1
         state = f"FAILED: {run.error}" if run.error else "done"
+        if run.skipped:
+            state = "every run already in the store"
         log(
             f"[run {done['runs']}/{n}] {target.engine} {target.label}: {run.rows} rows in "
             f"{run.seconds:.1f} s, {state}"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from reports.metrics import HIGHER_IS_BETTER
 from reports.versions.changes import (
     CHANGE_HEAD,
     SUMMARY_HEAD,
@@ -62,6 +63,11 @@ def figure(tab: VersionTable, key: tuple, changes: list, path: Path) -> Path:
             r = tab.row(key, v)
             ok = r is not None and r["status"] == "ok"
             ys.append(float(r[col]) if ok and r.get(col) is not None else math.nan)
+        if col in HIGHER_IS_BETTER:  # an order, not an error: its own linear axis
+            twin = ax1.twinx()
+            twin.plot(xs, ys, "s--", color="k", label=col)
+            twin.set_ylabel(col, fontsize=8)
+            continue
         ax1.plot(xs, ys, "o-", label=col)
     for c in changes:
         i = versions.index(c.to_version)

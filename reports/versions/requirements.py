@@ -108,6 +108,10 @@ def parse_requirements(texts, known_engines=None) -> list[Target]:
         if op == "@":
             out.append(_wheel_target(engine, package, rest, where))
             continue
+        if op == "=":
+            raise InputError(
+                f"{where}: '=' is not an operator; write {engine}=={rest or 'VERSION'}"
+            )
         if op != "==":
             raise InputError(
                 f"{where}: {op!r} is a range; a version matrix needs exact versions: "

@@ -10,7 +10,8 @@ make an agreement between them worth having (docs/numerics.md, section "The inde
 multibody reference").
 
 - :mod:`.tree`: bodies, joints (free root, spherical, revolute), validation, world states to
-  joint coordinates and back.
+  joint coordinates and back, and a tree built from bodies in their world state and joints
+  between pairs of bodies (:func:`.tree.tree_from_world`, the form of a director system).
 - :mod:`.dynamics`: composite-rigid-body algorithm, recursive Newton-Euler, invariants.
 - :mod:`.integrate`: DOP853 at rtol 1e-13, error estimate, cost bound, per-body world output.
 - :mod:`.exact`: a straight chain spinning about a perpendicular principal axis, a double
@@ -41,7 +42,7 @@ from references.exact.multibody.integrate import (
     solve,
     solve_from_states,
 )
-from references.exact.multibody.tree import Body, Joint, Tree
+from references.exact.multibody.tree import Body, Joint, Tree, tree_from_world
 
 __all__ = [
     "RTOL",
@@ -62,4 +63,5 @@ __all__ = [
     "solve_from_states",
     "straight_chain",
     "trajectory_horizon",
+    "tree_from_world",
 ]

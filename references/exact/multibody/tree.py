@@ -317,3 +317,114 @@ def quat_to_R(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a (not necessarily unit) quaternion (w, x, y, z)."""
     q = np.asarray(q, dtype=float)
     return quat_wxyz_to_matrix(q / np.linalg.norm(q))
+
+
+def tree_from_world(bodies, joints, gravity=(0.0, 0.0, 0.0)):
+    """A :class:`Tree` and its joint state (q, u) from bodies given by their world state and
+    joints given between two bodies or a body and the ground, the form a director-form
+    system or a scenario file uses.
+
+    ``bodies``: objects with ``name``, ``mass``, ``inertia`` (principal moments), ``position``
+    (x_G, world), ``rotation`` (R, body to world), ``velocity`` (v_G, world) and
+    ``omega_body`` (W, body axes). ``joints``: objects with ``kind`` ("spherical" or
+    "revolute"; "fixed_point" is a spherical joint to the ground), ``body_a``, ``body_b`` (a
+    body name, or None for the ground), ``anchor_a``, ``anchor_b`` (the joint point in each
+    body's principal frame relative to its centre of mass; a world point for the ground) and,
+    for a revolute, ``axis_a``, ``axis_b`` (the hinge axis in each frame; world for the
+    ground). Each body joined to nothing becomes a free root. The parent of each joint is the
+    side nearer the ground (or the first body listed, for a floating system); a revolute's
+    angle is measured from the initial configuration (offset = R_parent^T R_child at t = 0).
+
+    Returns (tree, q0, u0). Raises ``ValueError`` naming the joint for a closed loop (a tree
+    has none), an unknown body, a kind this reference does not treat, axes that are not
+    aligned at t = 0, and whatever :meth:`Tree.to_joint` refuses (anchor gaps, velocities
+    that violate a joint).
+    """
+    bodies = list(bodies)
+    names = [b.name for b in bodies]
+    known = set(names)
+    adj = {n: [] for n in names}
+    ground = []
+    for k, j in enumerate(joints):
+        what = f"joint {getattr(j, 'name', None) or k} ({j.kind} {j.body_a!r}-{j.body_b!r})"
+        if j.kind not in ("spherical", "fixed_point", "revolute"):
+            raise ValueError(
+                f"{what}: kind {j.kind!r} is not treated by the reduced reference "
+                "(spherical, fixed_point, revolute)"
+            )
+        for side in (j.body_a, j.body_b):
+            if side is not None and side not in known:
+                raise ValueError(f"{what}: body {side!r} unknown; bodies: {names}")
+        if j.body_a is None:
+            raise ValueError(f"{what}: body_a must be a body (body_b None is the ground)")
+        if j.body_b is None:
+            ground.append((j, what))
+        else:
+            adj[j.body_a].append((j, what))
+            adj[j.body_b].append((j, what))
+    parent_joint = {}
+    seen = set()
+    order = []
+
+    def attach(child, parent, j, what):
+        if child in seen:
+            raise ValueError(f"{what}: closes a loop; the reduced reference treats trees only")
+        seen.add(child)
+        order.append(child)
+        parent_joint[child] = (parent, j, what)
+
+    def grow(root):
+        stack = [root]
+        while stack:
+            p = stack.pop()
+            for j, what in adj[p]:
+                if parent_joint[p][1] is j:
+                    continue  # the joint to p's own parent
+                other = j.body_b if j.body_a == p else j.body_a
+                attach(other, p, j, what)
+                stack.append(other)
+
+    for j, what in ground:  # bodies on the ground first, then the floating ones
+        attach(j.body_a, None, j, what)
+    for j, _ in ground:
+        grow(j.body_a)
+    for n in names:
+        if n not in seen:
+            attach(n, None, None, "free root")
+            grow(n)
+    by = dict(zip(names, bodies, strict=True))
+    tb, tj = [], []
+    for n in order:
+        b = by[n]
+        tb.append(Body(n, float(b.mass), tuple(float(v) for v in b.inertia)))
+        parent, j, what = parent_joint[n]
+        if j is None:
+            tj.append(Joint("free", n))
+            continue
+        child_is_a = j.body_a == n
+        ca, pa = (j.anchor_a, j.anchor_b) if child_is_a else (j.anchor_b, j.anchor_a)
+        if j.kind != "revolute":
+            tj.append(Joint("spherical", n, parent, tuple(pa), tuple(ca)))
+            continue
+        cax, pax = (j.axis_a, j.axis_b) if child_is_a else (j.axis_b, j.axis_a)
+        cax = np.asarray(cax, dtype=float) / np.linalg.norm(cax)
+        pax = np.asarray(pax, dtype=float) / np.linalg.norm(pax)
+        Rc = np.asarray(b.rotation, dtype=float)
+        Rp = np.eye(3) if parent is None else np.asarray(by[parent].rotation, dtype=float)
+        mis = float(np.linalg.norm(Rc @ cax - Rp @ pax))
+        if mis > STATE_TOL:
+            raise ValueError(
+                f"{what}: the axes differ by {mis:.3g} rad at t = 0 (world "
+                f"{(Rc @ cax).tolist()} and {(Rp @ pax).tolist()}); they must "
+                "coincide"
+            )
+        tj.append(Joint("revolute", n, parent, tuple(pa), tuple(ca), tuple(cax), Rp.T @ Rc))
+    tree = Tree(tb, tj, gravity)
+    st = [by[n] for n in tree.names]
+    q0, u0 = tree.to_joint(
+        [b.position for b in st],
+        [b.rotation for b in st],
+        [b.velocity for b in st],
+        [b.omega_body for b in st],
+    )
+    return tree, q0, u0
