@@ -25,6 +25,8 @@ import os
 import sys
 from pathlib import Path
 
+from reports.suite import ENSEMBLE_OUT, RUN_OUT
+
 
 def _csv_list(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
@@ -99,26 +101,73 @@ def _positive(text: str) -> float:
     return v
 
 
+#: the widths `list` lays its text out in: the terminal's, within these bounds
+LIST_WIDTH = (60, 100)
+#: the column where the text beside a scenario's or an integrator's name begins
+LIST_COLUMN = 28
+
+
+def _columns(left: str, text: str, width: int) -> list[str]:
+    """``left`` then ``text`` wrapped at word boundaries from column LIST_COLUMN to ``width``
+    (a word is never cut, not even at a hyphen; a NUL in ``text`` is a space that does not
+    break); a ``left`` too wide for its column gets a line of its own."""
+    import textwrap
+
+    pad = " " * LIST_COLUMN
+    lines = textwrap.wrap(
+        text, width - LIST_COLUMN, break_long_words=False, break_on_hyphens=False
+    ) or [""]
+    lines = [line.replace("\0", " ") for line in lines]
+    if len(left) < LIST_COLUMN:
+        first = [f"{left:<{LIST_COLUMN}}{lines[0]}".rstrip()]
+        return first + [pad + line for line in lines[1:]]
+    return [left] + [pad + line for line in lines]
+
+
+def _first_sentence(text: str) -> str:
+    import re
+
+    text = " ".join(text.split())
+    return re.split(r"(?<=[.!?])\s+(?=[A-Z])", text, maxsplit=1)[0]
+
+
 def cmd_list(args) -> int:
+    import shutil
+    import textwrap
+
     from reports.suite import catalog
 
     cat = catalog()
     if args.json:
         print(json.dumps(cat, indent=1))
         return 0
-    print("Scenarios (* = default suite):")
+    lo, hi = LIST_WIDTH
+    width = min(max(shutil.get_terminal_size((80, 24)).columns, lo), hi)
+    out = ["Scenarios (* = in the default suite):"]
     for s in cat["scenarios"]:
         mark = "*" if s["default"] else " "
-        print(
-            f" {mark} {s['name']:<24} t_end={s['t_end']:g} s dt={s['dt']:g} s  "
-            f"{s['description'].splitlines()[0][:70]}"
-        )
-    print("\nEngines and integrators:")
+        text = f"{s['t_end']:g} s at dt {s['dt']:g} s. {_first_sentence(s['description'])}"
+        out += _columns(f"{mark} {s['name']}", text, width)
+    out += [""] + textwrap.wrap(
+        "Engines and integrators (* = in the default suite). Give an integrator by the name on "
+        "the left (--integrators semi-implicit-euler); case does not matter, and the display "
+        'name, quoted, works too ("semi-implicit Euler").',
+        width,
+        break_on_hyphens=False,
+    )
     for e in cat["engines"]:
         state = e["version"] if e["available"] else f"NOT AVAILABLE: {e['why']}"
-        print(f"  {e['name']:<10} {state}")
+        out += textwrap.wrap(
+            f"{e['name']} {state}", width, subsequent_indent="    ", break_on_hyphens=False
+        )
         for i in e["integrators"]:
-            print(f"      {i['name']:<22} order {i['order']}  [{i['family']}]")
+            mark = "*" if i["default"] else " "
+            text = f"order {i['order']}, {i['family']}"
+            if i["name"] != i["slug"]:
+                shown = i["name"].replace(" ", "\0")  # a display name stays on one line
+                text += f'; shown as "{shown}"'
+            out += _columns(f"  {mark} {i['slug']}", text, width)
+    print("\n".join(out))
     return 0
 
 
@@ -275,8 +324,30 @@ def _add_compare(sub) -> None:
     s.set_defaults(func=cmd_compare)
 
 
+RUN_EXAMPLES = """\
+examples:
+  director-bench run                          the default suite into results/
+  director-bench run dzhanibekov heavy_top --engines mujoco,director
+  director-bench run --engines mujoco --integrators rk4 --dt 1e-3,5e-4
+  director-bench run --integrators semi-implicit-euler,runge_kutta5-error-controlled
+  director-bench run my_top.toml --out /tmp/mine --jobs 1
+  director-bench run --full --engines drake     every Drake integrator
+
+Integrators are named as `director-bench list` shows them on the left
+(semi-implicit-euler, rk4-float32, ...), in any case; the display names work
+too when quoted ("semi-implicit Euler").
+"""
+
+
 def _add_run(sub) -> None:
-    s = sub.add_parser("run", help="run scenarios on engines and write the report")
+    s = sub.add_parser(
+        "run",
+        help="run scenarios on engines and write the report",
+        description="Run scenarios x engines x integrators x steps into a results folder and "
+        "write its report (report.html, report.md), junit.xml and the results store.",
+        epilog=RUN_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     s.add_argument(
         "scenarios",
         nargs="*",
@@ -290,8 +361,13 @@ def _add_run(sub) -> None:
         help="every integrator of every engine (not only the default suite's) and the full "
         "sweep of target accuracies",
     )
-    s.add_argument("--engines", type=_csv_list, help="comma-separated engine names")
-    s.add_argument("--integrators", type=_csv_list, help="comma-separated integrator names")
+    s.add_argument("--engines", type=_csv_list, metavar="A,B", help="comma-separated engine names")
+    s.add_argument(
+        "--integrators",
+        type=_csv_list,
+        metavar="X,Y",
+        help="comma-separated integrator names, as `list` shows them (e.g. rk4,rattle4)",
+    )
     s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")
     s.add_argument("--t-end", type=_positive, help="horizon in s (overrides files)")
     s.add_argument("--no-sweep", action="store_true", help="only each scenario's default dt")
@@ -308,7 +384,7 @@ def _add_run(sub) -> None:
         metavar="N",
         help="long horizons: metrics over every step, updated every N steps, memory O(N)",
     )
-    s.add_argument("--out", default="results", help="output folder (default: results)")
+    s.add_argument("--out", default=RUN_OUT, help=f"output folder (default: {RUN_OUT})")
     s.add_argument("--redo", action="store_true", help="run again runs already in the results")
     s.add_argument(
         "--format", choices=["parquet", "csv"], default="parquet", help="trajectory file format"
@@ -334,14 +410,25 @@ def _add_ensemble(sub) -> None:
         help="one scenario over N initial conditions (random "
         "directions of W at the scenario's rotational energy)",
     )
-    s.add_argument("scenario", metavar="SCENARIO_OR_FILE")
+    s.add_argument(
+        "scenario", metavar="SCENARIO_OR_FILE", help="a library name or a path to a TOML file"
+    )
     s.add_argument("--n", type=_whole, default=64, help="number of members (default 64)")
     s.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
-    s.add_argument("--engines", type=_csv_list, help="comma-separated engine names")
-    s.add_argument("--integrators", type=_csv_list, help="comma-separated integrator names")
+    s.add_argument("--engines", type=_csv_list, metavar="A,B", help="comma-separated engine names")
+    s.add_argument(
+        "--integrators",
+        type=_csv_list,
+        metavar="X,Y",
+        help="comma-separated integrator names, as `list` shows them",
+    )
     s.add_argument("--dt", type=_positive, help="step size (default: the scenario's)")
     s.add_argument("--t-end", type=_positive, help="horizon in s (overrides the file)")
-    s.add_argument("--out", default="results", help="output folder (default: results)")
+    s.add_argument(
+        "--out",
+        default=ENSEMBLE_OUT,
+        help=f"output folder (default: {ENSEMBLE_OUT}, apart from run's {RUN_OUT})",
+    )
     s.add_argument("--jobs", type=_whole, default=None, help="local worker processes")
     s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="Dask scheduler")
     s.add_argument("--no-report", action="store_true", help="skip the report")
@@ -351,17 +438,24 @@ def _add_ensemble(sub) -> None:
 
 def _add_folder_commands(sub) -> None:
     s = sub.add_parser("report", help="regenerate plots and reports from a results folder")
-    s.add_argument("dir")
+    s.add_argument("dir", metavar="DIR", help="a results folder (run's or ensemble's --out)")
     s.set_defaults(func=cmd_report)
 
     s = sub.add_parser("baseline", help="write a baseline from a results folder")
-    s.add_argument("dir")
-    s.add_argument("--write", required=True, metavar="FILE")
+    s.add_argument("dir", metavar="DIR", help="the results folder the baseline is taken from")
+    s.add_argument(
+        "--write", required=True, metavar="FILE", help="the baseline file to write (JSON)"
+    )
     s.set_defaults(func=cmd_baseline)
 
     s = sub.add_parser("check", help="compare a results folder with a baseline (CI gate)")
-    s.add_argument("dir")
-    s.add_argument("--baseline", required=True, metavar="FILE")
+    s.add_argument("dir", metavar="DIR", help="the results folder to check")
+    s.add_argument(
+        "--baseline",
+        required=True,
+        metavar="FILE",
+        help="the baseline to compare with (written by `baseline`)",
+    )
     s.add_argument(
         "--factor",
         type=_factor,
@@ -384,10 +478,14 @@ def build_parser() -> argparse.ArgumentParser:
         prog="director-bench",
         description="Validation and benchmark suite for rigid-body dynamics.",
     )
-    p.add_argument("--version", action="version", version=f"director-bench {__version__}")
+    p.add_argument("-V", "--version", action="version", version=f"director-bench {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("list", help="scenarios, engines and integrators with availability")
-    s.add_argument("--json", action="store_true", help="machine-readable output")
+    s.add_argument(
+        "--json",
+        action="store_true",
+        help="machine-readable output (each integrator with its slug and default flag)",
+    )
     s.set_defaults(func=cmd_list)
     _add_run(sub)
     _add_ensemble(sub)

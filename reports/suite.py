@@ -8,6 +8,9 @@ from pathlib import Path
 from scenarios.schema import InputError
 
 DEFAULT_BASELINE = Path(__file__).resolve().parent / "baselines" / "default.json"
+#: the default output folder of ``run`` and, apart from it, of ``ensemble``
+RUN_OUT = "results"
+ENSEMBLE_OUT = "results-ensemble"
 
 
 @dataclass
@@ -46,8 +49,18 @@ def resolve_scenarios(names, all_: bool = False) -> list:
     return out
 
 
+def _did_you_mean(word: str, candidates) -> str:
+    """The hint `` (did you mean 'x'?)`` naming the candidates closest to ``word`` (difflib),
+    or "" when none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
+    return f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""
+
+
 def check_engines(engines) -> list[str]:
-    """The engine names asked for (None: every registered engine), each checked."""
+    """The engine names asked for (None: every registered engine), each checked; a name
+    matches in any case ("MuJoCo" is ``mujoco``)."""
     from references.engines import engine_names
 
     known = engine_names()
@@ -55,30 +68,42 @@ def check_engines(engines) -> list[str]:
         return known
     if not engines:
         raise InputError(f"--engines: an empty list; give one or more of {', '.join(known)}")
-    bad = [e for e in engines if e not in known]
+    by_lower = {k.lower(): k for k in known}
+    bad = [e for e in engines if e.lower() not in by_lower]
     if bad:
+        hint = _did_you_mean(bad[0].lower(), by_lower)
         raise InputError(
-            f"--engines: unknown {', '.join(map(repr, bad))}; known: {', '.join(known)}"
+            f"--engines: unknown {', '.join(map(repr, bad))}{hint}; known: {', '.join(known)}"
         )
-    return list(dict.fromkeys(engines))
+    return list(dict.fromkeys(by_lower[e.lower()] for e in engines))
 
 
 def check_integrators(integrators, engines: list[str]) -> list[str] | None:
-    """The integrator names asked for, each offered by at least one of ``engines``."""
+    """The display names of the integrators asked for, each offered by at least one of
+    ``engines``. A name is given as displayed ("semi-implicit Euler", quoted in a shell) or
+    as its slug (``semi-implicit-euler``, :func:`references.engines.base.slug`), in any case;
+    it selects every integrator of these engines with that slug."""
     from references.engines import get_engine
+    from references.engines.base import slug
 
     if integrators is None:
         return None
-    offered = {i.name: e for e in engines for i in get_engine(e).integrators}
+    offered: dict[str, list[str]] = {}  # slug -> display names
+    for e in engines:
+        for i in get_engine(e).integrators:
+            names = offered.setdefault(i.slug, [])
+            if i.name not in names:
+                names.append(i.name)
     if not integrators:
         raise InputError(f"--integrators: an empty list; give one or more of {', '.join(offered)}")
-    bad = [i for i in integrators if i not in offered]
+    bad = [i for i in integrators if slug(i) not in offered]
     if bad:
+        hint = _did_you_mean(slug(bad[0]), offered)
         raise InputError(
             f"--integrators: {', '.join(map(repr, bad))} offered by none of the engines "
-            f"{', '.join(engines)}; they offer: {', '.join(offered)}"
+            f"{', '.join(engines)}{hint}; they offer: {', '.join(offered)}"
         )
-    return list(dict.fromkeys(integrators))
+    return list(dict.fromkeys(n for i in integrators for n in offered[slug(i)]))
 
 
 def check_count(name: str, value) -> None:
@@ -124,7 +149,7 @@ def run(
     dts=None,
     t_end=None,
     sweep: bool = True,
-    out="results",
+    out=RUN_OUT,
     redo: bool = False,
     fmt: str = "parquet",
     report: bool = True,
@@ -185,25 +210,28 @@ def ensemble(
     integrators=None,
     dt=None,
     t_end=None,
-    out="results",
+    out=ENSEMBLE_OUT,
     jobs=None,
     scheduler=None,
     progress=True,
     report: bool = True,
 ):
     """Run ``n`` members of one scenario on every engine/integrator into ``out/ensemble.csv``
-    (see :mod:`reports.ensemble`), and refresh the report of ``out``."""
+    (see :mod:`reports.ensemble`), and refresh the report of ``out``. The default folder is
+    :data:`ENSEMBLE_OUT`, apart from the suite's ``results``, so that an ensemble never
+    joins the main report unless asked to."""
     from reports.ensemble import check_ensemble, run_ensemble
     from reports.parallel import make_mapper
     from reports.provenance import write_provenance
     from reports.report import build_report
 
     (sc,) = resolve_scenarios([name])
+    engines = check_engines(engines)
+    integrators = check_integrators(integrators, engines)
     check_count("--jobs", jobs)
     check_jobs(jobs)
     check_ensemble(sc, n, sc.dt if dt is None else dt, sc.t_end if t_end is None else t_end, jobs)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_out(out)
     if not (out / "provenance.json").exists():
         write_provenance(out)
     df = run_ensemble(
@@ -223,7 +251,9 @@ def ensemble(
 
 
 def catalog() -> dict:
-    """Scenarios, engines (with version or why unavailable) and their integrators."""
+    """Scenarios, engines (with version or why unavailable) and their integrators: each
+    with its display ``name``, its ``slug`` (the name as typed on a command line) and
+    ``default`` (part of the default suite)."""
     import scenarios
     from references.engines import engine_names, get_engine
 
@@ -254,6 +284,8 @@ def catalog() -> dict:
                 "integrators": [
                     {
                         "name": i.name,
+                        "slug": i.slug,
+                        "default": i.default,
                         "family": i.family,
                         "order": i.order,
                         "description": i.description,

@@ -169,3 +169,173 @@ def test_list_json_is_valid_json():
     )  # fmt: skip
     doc = json.loads(proc.stdout)
     assert {"scenarios", "engines"} <= set(doc)
+
+
+# -- names a shell can type, `list` at 80 columns, help for every argument ----------------------
+
+
+def test_the_slug_rule_on_names_written_out_by_hand():
+    from references.engines.base import slug
+
+    # expected values written from the rule in its docstring, not computed by it
+    assert slug("semi-implicit Euler") == "semi-implicit-euler"
+    assert slug("runge_kutta5 (error-controlled)") == "runge_kutta5-error-controlled"
+    assert slug("RK4 (float32)") == "rk4-float32"
+    assert slug("discrete SAP") == "discrete-sap"
+    assert slug("RK4") == "rk4"
+    assert slug("rattle4") == "rattle4"
+
+
+def test_every_integrator_has_a_name_a_shell_types_unquoted():
+    import re
+    import shlex
+
+    from references.engines import engine_names, get_engine
+
+    for e in engine_names():
+        slugs = [i.slug for i in get_engine(e).integrators]
+        assert len(set(slugs)) == len(slugs), (e, slugs)
+        for s in slugs:
+            assert re.fullmatch(r"[a-z0-9_.-]+", s) and shlex.split(s) == [s], (e, s)
+
+
+def test_two_integrators_with_one_slug_are_refused_when_the_adapter_is_defined():
+    import pytest
+
+    from references.engines import EngineBase, Integrator
+
+    with pytest.raises(ValueError, match="same typed name 'rk4'"):
+
+        class Twins(EngineBase):  # noqa: F841 - defining it is the test
+            name = "twins"
+            integrators = (
+                Integrator("RK4", "4th-order Lie-group", 4, "one"),
+                Integrator("rk4", "4th-order Lie-group", 4, "the other"),
+            )
+
+
+def test_integrators_by_slug_or_display_name_in_any_case():
+    from reports.suite import check_integrators
+
+    engines = ["mujoco", "pinocchio", "drake", "mjx"]
+    asked = [
+        "rk4",
+        "RK4",
+        "Semi-Implicit-Euler",
+        "runge_kutta5 (error-controlled)",
+        "EULER-float64",
+    ]
+    got = check_integrators(asked, engines)
+    want = ["RK4", "semi-implicit Euler", "runge_kutta5 (error-controlled)", "Euler (float64)"]
+    assert got == want
+
+
+def test_a_misspelt_name_gets_a_suggestion(tmp_path, capsys):
+    out = str(tmp_path / "out")
+    argv = ["run", "--engines", "mujoco", "--integrators", "rk5", "--out", out]
+    code, err = run_main(argv, capsys)
+    assert code == 2 and "did you mean 'rk4'?" in err, err
+    code, err = run_main(["run", "--engines", "pinocho", "--out", out], capsys)
+    assert code == 2 and "did you mean 'pinocchio'?" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_mujoco_rk4_by_its_slug(tmp_path, capsys):
+    from reports.results import read_results
+
+    out = tmp_path / "out"
+    argv = ["run", "free_tumbling", "--engines", "mujoco", "--integrators", "rk4",
+            "--no-sweep", "--t-end", "0.1", "--no-report", "--quiet", "--jobs", "1",
+            "--out", str(out)]  # fmt: skip
+    code, err = run_main(argv, capsys)
+    assert code == 0, err
+    df = read_results(out)
+    assert list(df["integrator"]) == ["RK4"] and list(df["status"]) == ["ok"]
+
+
+def _list_lines(columns: int) -> list[str]:
+    import os
+
+    env = {**os.environ, "COLUMNS": str(columns)}
+    proc = subprocess.run(
+        [sys.executable, "-m", "reports.cli", "list"],
+        capture_output=True, text=True, timeout=120, env=env,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout.splitlines()
+
+
+def test_list_fits_80_columns_cuts_no_word_and_marks_the_defaults():
+    import re
+
+    from reports.suite import catalog
+
+    lines = _list_lines(80)
+    assert max(map(len, lines)) <= 80, [line for line in lines if len(line) > 80]
+    words = set(" ".join(lines).split())
+    cat = catalog()
+    for s in cat["scenarios"]:
+        # the first sentence: up to a full stop before a capital letter ("0.489 .. 0.512"
+        # is inside a sentence)
+        first = re.split(r"(?<=\.)\s+(?=[A-Z])", " ".join(s["description"].split()))[0]
+        assert set(first.split()) <= words, s["name"]  # every word whole, none cut
+    marked = {line.split()[1] for line in lines if line.startswith("* ")}
+    assert marked == {s["name"] for s in cat["scenarios"] if s["default"]}
+    marked = {line.split()[1] for line in lines if line.startswith("  * ")}
+    assert marked == {i["slug"] for e in cat["engines"] for i in e["integrators"] if i["default"]}
+    unmarked = {line.split()[0] for line in lines if line.startswith("    ") and line[4] != " "}
+    assert unmarked == {
+        i["slug"] for e in cat["engines"] for i in e["integrators"] if not i["default"]
+    }
+
+
+def test_list_json_has_slugs_and_default_flags():
+    proc = subprocess.run(
+        [sys.executable, "-m", "reports.cli", "list", "--json"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    doc = json.loads(proc.stdout)
+    mujoco = next(e for e in doc["engines"] if e["name"] == "mujoco")
+    rk4 = next(i for i in mujoco["integrators"] if i["name"] == "RK4")
+    assert rk4["slug"] == "rk4" and rk4["default"] is True
+    drake = next(e for e in doc["engines"] if e["name"] == "drake")
+    assert {i["default"] for i in drake["integrators"]} == {True, False}
+
+
+def test_every_argument_has_help_and_run_help_has_examples(capsys):
+    import argparse
+
+    from reports.cli import build_parser
+
+    missing = []
+
+    def walk(parser, path):
+        for a in parser._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for name, sub in a.choices.items():
+                    walk(sub, [*path, name])
+            elif not a.help:
+                missing.append(
+                    " ".join([*path, a.option_strings[0] if a.option_strings else a.dest])
+                )
+
+    walk(build_parser(), [])
+    assert not missing, missing
+    code, _ = run_main(["-V"], capsys)  # argparse prints the version to stdout and exits 0
+    assert code == 0
+    try:
+        main(["run", "--help"])
+    except SystemExit:
+        pass
+    text = capsys.readouterr().out
+    assert "examples:" in text and "--engines mujoco --integrators rk4" in text
+
+
+def test_ensemble_writes_apart_from_the_main_results(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    argv = ["ensemble", "free_tumbling", "--n", "2", "--engines", "mujoco", "--integrators",
+            "euler", "--t-end", "0.05", "--jobs", "1", "--no-report", "--quiet"]  # fmt: skip
+    code, err = run_main(argv, capsys)
+    assert code == 0, err
+    assert (tmp_path / "results-ensemble" / "ensemble.csv").exists()
+    assert not (tmp_path / "results").exists()

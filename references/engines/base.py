@@ -82,6 +82,7 @@ __all__ = [
     "Unsupported",
     "import_engine",
     "register_family",
+    "slug",
     "step_plan",
 ]
 
@@ -151,6 +152,17 @@ READBACK_RTOL = 1e-15
 # -- what is built ----------------------------------------------------------------------------
 
 
+def slug(name: str) -> str:
+    """The form of an integrator's name a shell can type, the one rule for every engine: lower
+    case, and every run of characters other than letters, digits, ``_`` and ``.`` one ``-``,
+    none at either end ("semi-implicit Euler" -> ``semi-implicit-euler``, "runge_kutta5
+    (error-controlled)" -> ``runge_kutta5-error-controlled``, "RK4 (float32)" ->
+    ``rk4-float32``). The command line matches a name given in either form through it, so
+    matching ignores case; an engine's integrators have distinct slugs (checked when the
+    adapter class is defined)."""
+    return re.sub(r"[^a-z0-9_.]+", "-", name.lower()).strip("-")
+
+
 @dataclass(frozen=True)
 class Integrator:
     """An integrator an engine offers, named for what it is.
@@ -203,6 +215,11 @@ class Integrator:
     def suite_integrated(self) -> bool:
         """True when the time integration is the suite's code around the engine's dynamics."""
         return self.ours or self.stepping != "native"
+
+    @property
+    def slug(self) -> str:
+        """The name as a shell types it (:func:`slug`); ``name`` is the display name."""
+        return slug(self.name)
 
 
 @dataclass(frozen=True)
@@ -514,12 +531,24 @@ class EngineBase(ABC):
             return str(exc)
         return None
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        slugs: dict[str, str] = {}
+        for integ in cls.__dict__.get("integrators", ()):
+            prev = slugs.setdefault(integ.slug, integ.name)
+            if prev != integ.name:
+                raise ValueError(
+                    f"{cls.__name__}: integrators {prev!r} and {integ.name!r} have the same "
+                    f"typed name {integ.slug!r} (references.engines.base.slug); rename one"
+                )
+
     @classmethod
     def integrator(cls, name: str) -> Integrator:
+        """The integrator called ``name``, by its display name or its slug, in any case."""
         for integ in cls.integrators:
-            if integ.name == name:
+            if integ.slug == slug(name):
                 return integ
-        names = ", ".join(i.name for i in cls.integrators)
+        names = ", ".join(i.slug for i in cls.integrators)
         raise Unsupported(f"engine {cls.name!r} has no integrator {name!r}; it offers: {names}")
 
     def check_supported(self, scenario, integrator: Integrator) -> None:  # noqa: B027
