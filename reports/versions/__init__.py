@@ -46,6 +46,7 @@ def run_versions(
     (:func:`reports.versions.changes.check`)."""
     from reports.versions.changes import check as check_upgrade
     from reports.versions.changes import load_table
+    from reports.versions.cost import confirm
     from reports.versions.history import write_history
     from reports.versions.matrix import environments_record, run_matrix
     from reports.versions.report import write_report
@@ -68,6 +69,12 @@ def run_versions(
         envs = json.loads((out / ENVIRONMENTS_FILE).read_text())
     tab = load_table(out, factor)
     res = check_upgrade(tab, *check, cost_factor=cost_factor) if check else None
+    memo: dict = {}  # cost candidates timed side by side once, for the table and the gate
+    cache = run_options.get("cache")
+    tab.changes, tab.cost_candidates = confirm(tab, tab.changes, factor, cache, log=log, memo=memo)
+    if res is not None:
+        res.changes, res.cost_candidates = confirm(tab, res.changes, factor, cache, log=log,
+                                                   memo=memo)  # fmt: skip
     paths = write_report(tab, out, envs, figures=figures)
     paths["history"] = write_history([out], out / "history.html", factor)
     return VersionsSummary(out, matrix, tab, paths, res)

@@ -168,6 +168,9 @@ class VersionTable:
     behaviour: dict = field(default_factory=dict)  # (config key, version) -> energy_behaviour
     changes: list = field(default_factory=list)
     pairs: list = field(default_factory=list)
+    #: cost differences found in the rows that timing side by side did not confirm
+    #: (reports.versions.cost): (Change, reason)
+    cost_candidates: list = field(default_factory=list)
 
     def configs(self, engine: str | None = None) -> list[tuple]:
         keys = {k for k, _ in self.rows if engine is None or k[1] == engine}
@@ -436,6 +439,7 @@ class CheckResult:
     changes: list
     factor: float = 2.0
     cost_factor: float | None = None
+    cost_candidates: list = field(default_factory=list)
 
     @property
     def failures(self) -> list[Change]:
@@ -593,6 +597,9 @@ def to_json(tab: VersionTable, environments: list | None = None) -> dict:
         "environments": environments or [],
         "pairs": [asdict(p) for p in tab.pairs],
         "changes": [_json_obj(asdict(c)) for c in tab.changes],
+        "cost_candidates": [
+            {**_json_obj(asdict(c)), "reason": why} for c, why in tab.cost_candidates
+        ],
         "series": series,
     }
 

@@ -144,6 +144,15 @@ def write_report(tab: VersionTable, out: Path, environments=None, figures: bool 
         lines += _md_table(CHANGE_HEAD, change_rows(tab.changes)) + ["", "</details>", ""]
     else:
         lines += ["None: every configuration is the same within its factor and floor.", ""]
+    if tab.cost_candidates:
+        lines += [
+            f"Cost differences seen in the stored rows but not confirmed by timing the two "
+            f"versions side by side ({len(tab.cost_candidates)}; not changes):",
+            "",
+        ]
+        lines += [f"- {_name(c.key)} {c.from_version} -> {c.to_version}: {why}"
+                  for c, why in tab.cost_candidates]  # fmt: skip
+        lines.append("")
     paths = {}
     by_key: dict = {}
     for c in tab.changes:

@@ -15,7 +15,25 @@ import sys
 from pathlib import Path
 
 
+def time_one(argv: list[str]) -> int:
+    """``--time SCENARIO ENGINE INTEGRATOR DT``: run it once, nothing written, and print its
+    engine time per step (ns) as JSON: the probe of :func:`reports.versions.cost.confirm`."""
+    import scenarios
+    from references.engines import get_engine
+    from reports.results import RunSpec
+    from reports.runner import execute
+
+    name, engine, integrator, dt = argv[0], argv[1], argv[2], float(argv[3])
+    spec = RunSpec(scenarios.load(name), engine, integrator, dt,
+                   engine_version=get_engine(engine).version())  # fmt: skip
+    row = execute(spec, None)
+    print(json.dumps({"status": row["status"], "engine_ns_per_step": row["engine_ns_per_step"]}))
+    return 0
+
+
 def main(argv: list[str]) -> int:
+    if argv and argv[0] == "--time":
+        return time_one(argv[1:])
     import scenarios
     from references.engines import get_engine
     from reports.parallel import serial

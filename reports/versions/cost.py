@@ -1,0 +1,102 @@
+"""Cost changes confirmed by timing the two versions side by side.
+
+The runs of two engine versions happen at different times, and a shared machine's load moves
+a run's time per step by a factor of two or more between them, which no spread within one
+version's runs shows. A cost difference between two versions found in the stored rows
+(:func:`reports.versions.changes._cost_changes`) is therefore only a candidate; it becomes a
+change when timing probes of the two versions, interleaved (A, B, A, B, ...: each round sees
+about the same load), give medians more than the factor apart AND ranges that do not overlap.
+A candidate that cannot be timed (its environment is gone) stays a candidate, never a change.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+from pathlib import Path
+
+#: interleaved rounds per candidate (each times both versions once)
+ROUNDS = 3
+PROBE_TIMEOUT_S = 600
+
+
+def _python(engine: str, version: str, root: Path | None) -> Path | None:
+    from reports.versions.envs import MARKER, env_path
+    from reports.versions.requirements import ENGINE_PACKAGES, Target
+
+    pkg = ENGINE_PACKAGES.get(engine, engine)
+    target = Target(engine, pkg, f"{pkg}=={version}", version, version)
+    path = env_path(target, root)
+    return path / "bin" / "python" if (path / MARKER).exists() else None
+
+
+def _probe(python: Path, change, dt: float) -> float | None:
+    args = [str(python), "-m", "reports.versions.worker", "--time", change.scenario,
+            change.engine, change.integrator, repr(dt)]  # fmt: skip
+    try:
+        p = subprocess.run(args, capture_output=True, text=True, timeout=PROBE_TIMEOUT_S,
+                           check=False)  # fmt: skip
+        out = json.loads(p.stdout.strip().splitlines()[-1])
+        return float(out["engine_ns_per_step"]) if out["status"] in ("ok", "diverged") else None
+    except (subprocess.TimeoutExpired, ValueError, IndexError, KeyError, TypeError):
+        return None
+
+
+def confirm(
+    tab,
+    changes: list,
+    factor: float,
+    root: Path | None = None,
+    rounds: int = ROUNDS,
+    log=None,
+    memo: dict | None = None,
+) -> tuple[list, list]:
+    """(changes with the cost changes that timing side by side confirmed, their values replaced
+    by the probes' medians; the cost candidates it did not confirm, each with the reason).
+    ``memo`` keeps the verdicts of candidates already timed (the table and the gate share
+    them)."""
+    memo = {} if memo is None else memo
+    kept, cands = [], []
+    for c in changes:
+        if c.kind != "cost":
+            kept.append(c)
+            continue
+        key = (c.scenario, c.engine, c.integrator, c.from_version, c.to_version)
+        if key not in memo:
+            memo[key] = _time(tab, c, factor, root, rounds, log)
+        ok, values, why = memo[key]
+        if ok:
+            c.a, c.b, c.ratio = values
+            kept.append(c)
+        else:
+            cands.append((c, why))
+    return kept, cands
+
+
+def _time(tab, c, factor, root, rounds, log):
+    """(confirmed?, (median a, median b, ratio), why) of one cost candidate."""
+    pa, pb = _python(c.engine, c.from_version, root), _python(c.engine, c.to_version, root)
+    if pa is None or pb is None:
+        return False, None, "no environment to time it in"
+    dts = sorted(k[3] for k in tab.configs(c.engine)
+                 if (k[0], k[2], k[4]) == (c.scenario, c.integrator, None))  # fmt: skip
+    dt = dts[len(dts) // 2]
+    ta, tb = [], []
+    for _ in range(rounds):
+        ta.append(_probe(pa, c, dt))
+        tb.append(_probe(pb, c, dt))
+    if None in ta or None in tb:
+        return False, None, "a timing probe failed"
+    ma, mb = statistics.median(ta), statistics.median(tb)
+    ratio = mb / ma
+    apart = max(tb) < min(ta) if ratio < 1 else min(tb) > max(ta)
+    ranges = f"{min(ta):.3g}-{max(ta):.3g} vs {min(tb):.3g}-{max(tb):.3g}"
+    text = f"side by side at dt={dt:g}, {rounds} rounds: {ma:.3g} vs {mb:.3g} ns"
+    text += f" (x{ratio:.2g}; {ranges})"
+    if log:
+        log(f"[cost] {c.scenario} {c.engine} {c.integrator} {c.from_version} -> "
+            f"{c.to_version}: {text}")  # fmt: skip
+    if (ratio > factor or ratio < 1.0 / factor) and apart:
+        return True, (ma, mb, ratio), text
+    return False, None, f"not confirmed {text}"
