@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import itertools
 import json
 import math
 import time
@@ -500,7 +501,7 @@ def run_suite(
         done = set() if redo else store.done_ids()
         todo = [s for s in specs if s.run_id not in done]
         n_run = 0
-        bar = _bar(len(todo)) if progress and todo else None
+        bar = _bar(todo) if progress and todo else None
         if mapper is None:
             from reports.parallel import serial
 
@@ -519,8 +520,8 @@ def run_suite(
                     n_run += 1
                     if bar is not None:
                         label = f"{row['scenario']}/{row['engine']}/{row['integrator']}"
-                        bar.set_postfix_str(label)
-                        bar.update(1)
+                        warm = warm_up(row["engine"], row["integrator"])
+                        bar.update(1, key=warm and warm[0], label=label)
         finally:
             if bar is not None:
                 bar.close()
@@ -533,10 +534,37 @@ def execute_bundle(specs, out: Path | None = None, fmt: str = "parquet") -> list
     return [execute(s, out, fmt) for s in specs]
 
 
+@functools.cache
+def warm_up(engine: str, integrator: str) -> tuple[str, str] | None:
+    """(key, what it compiles) of the warm-up that the first run of this configuration in a
+    process goes through, or None: the engine's own (``EngineBase.warm_up``; one per
+    integrator when the engine bundles its runs) or the suite's compiled RKMK4."""
+    from references.engines import EngineError, get_engine
+    from references.engines.liegroup import RKMK4_WARM_UP
+
+    try:
+        cls = get_engine(engine)
+        if cls.warm_up:
+            if cls.bundle_runs:
+                return f"{engine}/{integrator}", f"{cls.warm_up} for {engine} {integrator}"
+            return engine, cls.warm_up
+        if cls.integrator(integrator).stepping == "rkmk4":
+            return "rkmk4", RKMK4_WARM_UP
+    except EngineError:
+        pass  # an engine that does not load runs nothing to warm up: its rows say why
+    return None
+
+
 def bundles(specs) -> list[list[RunSpec]]:
     """The specs as units of work for a mapper: one spec each, except that the runs of an
     engine whose runs share a warm-up (``bundle_runs``, e.g. MJX's compilation) go together,
-    one bundle per integrator, so that each compiles once, in one worker."""
+    one bundle per integrator, so that each compiles once, in one worker.
+
+    Order: first the bundles that start a warm-up (:func:`warm_up`), a bundled engine's and
+    another alternately, so that the workers compile different things at once and a second
+    run of a warm-up key starts only after its first has been handed out (compilers write
+    their caches: the later runs load them instead of compiling again); then the longest
+    bundles, so that the single runs fill the other workers meanwhile."""
     from references.engines import EngineError, get_engine
 
     out, grouped = [], {}
@@ -553,8 +581,19 @@ def bundles(specs) -> list[list[RunSpec]]:
             grouped[key].append(s)
         else:
             out.append([s])
-    # the long bundles first, so that the single runs fill the other workers meanwhile
-    return sorted(out, key=len, reverse=True)
+    out.sort(key=len, reverse=True)
+    firsts: dict[str, list[RunSpec]] = {}  # warm-up key -> the first bundle going through it
+    for b in out:
+        warm = warm_up(b[0].engine, b[0].integrator)
+        if warm is not None:
+            firsts.setdefault(warm[0], b)
+    lead = [id(b) for b in firsts.values()]
+    bundled = [b for b in firsts.values() if (b[0].engine, b[0].integrator) in grouped]
+    single = [b for b in firsts.values() if (b[0].engine, b[0].integrator) not in grouped]
+    pairs = itertools.zip_longest(bundled, single)
+    return [b for pair in pairs for b in pair if b is not None] + [
+        b for b in out if id(b) not in lead
+    ]
 
 
 def _export_quietly(out: Path):
@@ -567,10 +606,13 @@ def _export_quietly(out: Path):
     return df
 
 
-def _bar(n: int):
-    from tqdm.auto import tqdm
+def _bar(todo: list[RunSpec]):
+    """The progress display of ``todo`` (reports.progress), told which warm-ups its first
+    runs go through."""
+    from reports.progress import Progress
 
-    return tqdm(total=n, unit="run", desc="director-bench", dynamic_ncols=True)
+    warming = dict(filter(None, (warm_up(s.engine, s.integrator) for s in todo)))
+    return Progress(len(todo), warming=warming)
 
 
 def _inner(bar, spec):

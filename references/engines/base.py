@@ -516,6 +516,9 @@ class EngineBase(ABC):
     #: the runs of one integrator share an expensive warm-up in a process (MJX compiles its
     #: step): a runner executes them one after another in one worker instead of spreading them
     bundle_runs: ClassVar[bool] = False
+    #: what the first run in a process compiles before it steps ("" if nothing), shown by the
+    #: progress display while it lasts (per integrator when ``bundle_runs``)
+    warm_up: ClassVar[str] = ""
 
     @classmethod
     @abstractmethod

@@ -67,6 +67,7 @@ class DirectorEngine(Engine):
     """The director formulation integrated by director_model's compiled schemes."""
 
     name = "director"
+    warm_up = "the director kernels (numba)"
     description = "director_model: RATTLE, energy-momentum and compositions in director form"
     integrators = _integrators()
 

@@ -180,6 +180,11 @@ class RKMK4Stepper:
         return BodyState(self.q[1], self.u[3:], self.q[0], self.u[:3])
 
 
+#: what the first run of the suite's RKMK4 in a process compiles (numba's cache then serves
+#: later processes), named by the progress display while it lasts
+RKMK4_WARM_UP = "the RKMK4 stages (numba)"
+
+
 class CompiledRKMK4Stepper:
     """The same RKMK4 with the state in one flat array (rotation as a unit quaternion) and the
     stage arithmetic compiled (:mod:`references.engines._rkmk4`): per step four calls of the

@@ -1,0 +1,68 @@
+"""The progress display: a log gets plain lines (no carriage return), a tenth of the work at a
+time; compilation is named while it lasts and kept out of the estimate; the first runs of
+each warm-up are handed out first."""
+
+from __future__ import annotations
+
+import io
+import re
+
+from reports.progress import Progress
+
+
+def test_outside_a_terminal_one_line_per_tenth_and_no_carriage_return():
+    log = io.StringIO()
+    bar = Progress(441, warming={"director": "the director kernels (numba)"}, stream=log)
+    for i in range(441):
+        bar.update(1, key="director" if i == 0 else None, label=f"run {i}")
+        bar.set_postfix_str("a running run at 50%")
+    bar.close()
+    text = log.getvalue()
+    assert "\r" not in text
+    lines = text.splitlines()
+    # a first line naming what compiles, one per tenth reached before the end (10 % .. 90 %),
+    # and the last line
+    assert len(lines) == 1 + 9 + 1, lines
+    assert "compiling first: the director kernels (numba)" in lines[0]
+    assert re.match(r"director-bench: 441/441 runs in \d+:\d\d$", lines[-1])
+    percents = [int(m) for m in re.findall(r"\((\d+) %\)", text)]
+    assert percents == sorted(percents) and len(percents) == 9
+
+
+def test_compiling_is_named_until_the_first_run_of_each_warm_up_and_has_no_estimate(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # a line is cut to the terminal's width
+    log = io.StringIO()
+    warming = {"mjx/Euler": "MJX's step (JAX) for mjx Euler", "rkmk4": "the RKMK4 stages"}
+    bar = Progress(100, warming=warming, stream=log, terminal=True)
+    for _ in range(10):
+        bar.update(1)
+    frame = log.getvalue().split("\r")[-1]
+    assert "compiling MJX's step (JAX) for mjx Euler, the RKMK4 stages" in frame
+    assert bar.eta() is None
+    bar.update(1, key="mjx/Euler")
+    assert "compiling the RKMK4 stages" in log.getvalue().split("\r")[-1]
+    assert bar.eta() is None
+    bar.update(1, key="rkmk4")  # the warm-ups are over: the estimate starts from here
+    assert bar.n_warm == 12 and bar.eta() is None
+    bar.update(1)
+    assert bar.eta() is not None and "left" in log.getvalue().split("\r")[-1]
+    bar.close()
+    assert log.getvalue().endswith("\n")
+
+
+def test_the_first_run_of_each_warm_up_goes_first():
+    import scenarios
+    from reports.runner import bundles, plan, warm_up
+
+    specs = plan([scenarios.load("dzhanibekov")], ["director", "mujoco", "pinocchio", "mjx"])
+    order = bundles(specs)
+    keys = [warm_up(b[0].engine, b[0].integrator) for b in order]
+    firsts = [k[0] for k in keys if k is not None]
+    distinct = list(dict.fromkeys(firsts))
+    # every warm-up key opens with its first bundle, before any second run of any key
+    assert firsts[: len(distinct)] == distinct
+    assert {"director", "rkmk4", "mjx/Euler (float64)", "mjx/RK4 (float32)"} <= set(distinct)
+    # MJX's compiles and the numba ones alternate, so that two workers compile different code
+    lead = [k[0].startswith("mjx/") for k in keys[: len(distinct)]]
+    assert lead[:4] == [True, False, True, False]
+    assert sorted(map(id, (s for b in order for s in b))) == sorted(map(id, specs))
