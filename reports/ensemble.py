@@ -217,19 +217,15 @@ def run_ensemble(
                         store.put(row)
                 else:
                     specs += group
-        bar = None
-        if progress and specs:
-            from tqdm.auto import tqdm
+        from reports.progress import Progress
 
-            bar = tqdm(total=len(specs), unit="run", desc=f"ensemble {scenario.name}")
+        bar = Progress(len(specs), desc=f"ensemble {scenario.name}", disable=not progress)
         try:
             for row in (mapper or _serial)(execute, specs):
                 store.put(row)
-                if bar is not None:
-                    bar.update(1)
+                bar.update(1)
         finally:
-            if bar is not None:
-                bar.close()
+            bar.close()
         df = ensemble_frame(store.rows())
     df.to_csv(out / "ensemble.csv", index=False)
     return df

@@ -1285,11 +1285,11 @@ def all_plots(
 
     A scenario whose figures exist and were made from the same inputs (rows, series files,
     styles and this code: :data:`CACHE_FILE` in the plots folder) is not drawn again, so a
-    report regenerated from an unchanged store draws nothing. ``progress``: a progress bar
-    over the figures (shown once drawing takes over a second)."""
+    report regenerated from an unchanged store draws nothing. ``progress``: the progress of
+    the figures (:class:`reports.progress.Progress`; nothing when none is drawn)."""
     import json
 
-    from tqdm.auto import tqdm
+    from reports.progress import Progress
 
     root = Path(root)
     out = Path(out) if out is not None else root / "plots"
@@ -1316,7 +1316,7 @@ def all_plots(
             made[scenario] = []
             made_from[scenario] = {"key": key, "files": []}
             todo += [(scenario, k) for k in KINDS]
-    bar = tqdm(total=len(todo), desc="plots", unit="fig", disable=not progress, delay=1.0)
+    bar = Progress(len(todo), desc="plots", unit="figure", disable=not progress)
     for scenario, names in _draw_all(todo, df, cache, root, out, styles, bar):
         made[scenario] = [out / n for n in names]
         made_from[scenario]["files"] = names

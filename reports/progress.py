@@ -38,7 +38,8 @@ class Progress:
 
     ``update(n, key)`` counts ``n`` finished units of warm-up key ``key`` (or None);
     ``set_postfix_str(text)`` shows what is running (a terminal only); ``close()`` ends the
-    display. ``terminal``: draw in place (default: whether ``stream`` is a terminal)."""
+    display. ``terminal``: draw in place (default: whether ``stream`` is a terminal);
+    ``disable``: show nothing. No work (``total`` 0) shows nothing either."""
 
     def __init__(
         self,
@@ -48,8 +49,11 @@ class Progress:
         warming: Mapping[str, str] | None = None,
         stream=None,
         terminal: bool | None = None,
+        disable: bool = False,
     ):
-        self.total, self.desc, self.unit = max(int(total), 0), desc, unit
+        # nothing to show: no work, or the caller asked for quiet
+        self.total = 0 if disable else max(int(total), 0)
+        self.desc, self.unit = desc, unit
         self.stream = sys.stderr if stream is None else stream
         if terminal is None:
             isatty = getattr(self.stream, "isatty", None)
@@ -65,7 +69,9 @@ class Progress:
         self.logged = 0  # tenths of the work reported outside a terminal
         self._drawn = 0.0
         self._width = 0
-        if not self.terminal and self.total:
+        if not self.total:
+            return
+        if not self.terminal:
             first = f"{self.desc}: {self.total} {self.unit}s"
             if self.warming:
                 first += "; compiling first: " + ", ".join(self.warming.values())
@@ -78,6 +84,8 @@ class Progress:
     def update(self, n: int = 1, key: str | None = None, label: str = "") -> None:
         """``n`` more units finished; ``key``: their warm-up key (its compilation is over);
         ``label``: what finished (shown in a terminal)."""
+        if not self.total:
+            return
         self.n += n
         if key is not None and self.warming.pop(key, None) is not None and not self.warming:
             self.t_warm, self.n_warm = time.monotonic(), self.n
@@ -95,11 +103,13 @@ class Progress:
         """What is running now (a run's own progress); a terminal shows it, a log does not."""
         self.postfix = text
         now = time.monotonic()
-        if self.terminal and refresh and now - self._drawn >= REDRAW_S:
+        if self.total and self.terminal and refresh and now - self._drawn >= REDRAW_S:
             self._draw()
 
     def close(self) -> None:
         """The final state: the count and the time taken."""
+        if not self.total:
+            return
         if self.terminal:
             self.postfix = ""
             self._draw(final=True)

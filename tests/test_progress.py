@@ -66,3 +66,22 @@ def test_the_first_run_of_each_warm_up_goes_first():
     lead = [k[0].startswith("mjx/") for k in keys[: len(distinct)]]
     assert lead[:4] == [True, False, True, False]
     assert sorted(map(id, (s for b in order for s in b))) == sorted(map(id, specs))
+
+
+def test_nothing_to_show_shows_nothing_and_a_terminal_line_fits(monkeypatch):
+    for kwargs in ({"total": 0}, {"total": 5, "disable": True}):
+        for terminal in (False, True):
+            log = io.StringIO()
+            bar = Progress(**kwargs, stream=log, terminal=terminal)
+            bar.update(1)
+            bar.set_postfix_str("x")
+            bar.close()
+            assert log.getvalue() == ""
+    monkeypatch.setenv("COLUMNS", "60")
+    log = io.StringIO()
+    bar = Progress(1000, warming={"a": "a very long description of what compiles " * 3})
+    bar.stream, bar.terminal = log, True
+    for i in range(1000):
+        bar.update(1, key="a" if i == 500 else None, label="scenario/engine/integrator " * 4)
+    frames = log.getvalue().split("\r")
+    assert max(len(f.rstrip()) for f in frames) <= 59
