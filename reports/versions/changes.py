@@ -518,8 +518,10 @@ def summary_rows(changes) -> list[list[str]]:
         g = groups.setdefault((r[0], r[1]), {"worse": [], "better": [], "changed": []})
         if c.kind in ("metric", "cost"):
             item = c.column + (f" x{c.ratio:.2g}" if c.ratio is not None else " (gone)")
-        elif c.kind == "integrator":
-            item = f"integrator {c.direction} ({_short(c.b, 30)})"
+        elif c.kind == "integrator":  # unsupported on one side: absent, or refused the run
+            item = ("runs now" if c.direction == "new" else "no longer runs") + (
+                f" ({_short(c.b, 30)})" if c.direction == "new" else f" ({_short(c.b, 60)})"
+            )
         else:
             item = f"{c.kind} {_short(c.a, 30)} -> {_short(c.b, 30)}"
         word = {"new": "better", "vanished": "worse"}.get(c.direction, c.direction)
