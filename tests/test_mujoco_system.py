@@ -1,0 +1,365 @@
+"""The MuJoCo builder for systems of bodies (references/engines/mujoco_system.py).
+
+Expected values come from formulations that share nothing with MuJoCo: the reduced-coordinate
+reference (references/exact/multibody: its own recursive dynamics, DOP853 at rtol 1e-13),
+director_model.system's RATTLE6 (director form, constraints as equations), the planar pendulum
+of the parallelogram four-bar (scipy DOP853 on one ODE), and the conservation of momentum.
+The system scenarios are stand-ins with exactly the contract's fields (name, gravity, bodies,
+joints), built from director_model.system's Body and Joint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+pytest.importorskip("mujoco")
+
+from director_model.system import Body, Joint  # noqa: E402
+from director_model.system import simulate_system as director_simulate  # noqa: E402
+from director_model.system.examples import (  # noqa: E402
+    parallelogram_four_bar,
+    rod_chain,
+    rot_y,
+)
+from references.engines import mujoco_system as ms  # noqa: E402
+from references.errors import EngineError, Unsupported  # noqa: E402
+from references.exact.multibody import solve, tree_from_world  # noqa: E402
+
+G = np.array([0.0, 0.0, -9.81])
+
+
+def scenario(name, bodies, joints, gravity=G):
+    return types.SimpleNamespace(
+        name=name, gravity=np.asarray(gravity, float), bodies=tuple(bodies), joints=tuple(joints)
+    )
+
+
+def revolute_chain():
+    """Four links hanging from a hinge at the origin, hinge axes along world y, links 1 and 3
+    with principal frames turned by 90 degrees about their x axis (the rod along body e2, the
+    hinge along body -e3), so that an axis given in the parent's frame differs from the
+    child's. Unequal lengths, masses, initial angles and rates."""
+    turned = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+    th, om = [0.4, -0.3, 0.9, 0.2], [1.0, -2.0, 0.5, 1.5]
+    L, m = [1.0, 0.7, 0.9, 0.5], [1.0, 0.6, 0.8, 0.4]
+    y = np.array([0.0, 1.0, 0.0])
+    bodies, joints = [], []
+    top, vtop = np.zeros(3), np.zeros(3)
+    prev = None
+    for i in range(4):
+        B = np.eye(3) if i % 2 == 0 else turned
+        R = rot_y(th[i]) @ B
+        It, Ia = m[i] * L[i] ** 2 / 12 + 0.01, 0.02
+        inertia = (It, It, Ia) if i % 2 == 0 else (It, Ia, It)
+        half = rot_y(th[i]) @ np.array([0.0, 0.0, -L[i] / 2])
+        w = om[i] * y
+        bodies.append(
+            Body(f"l{i}", m[i], inertia, top + half, R, vtop + np.cross(w, half), R.T @ w)
+        )
+        up, ax = B.T @ np.array([0.0, 0.0, L[i] / 2]), B.T @ y
+        if prev is None:
+            joints.append(Joint("revolute", "l0", None, up, (0, 0, 0), ax, y, name="h0"))
+        else:
+            joints.append(
+                Joint("revolute", f"l{i - 1}", f"l{i}", -prev[0], up, prev[1], ax, name=f"h{i}")
+            )
+        prev = (up, ax)
+        top, vtop = top + 2 * half, vtop + np.cross(w, 2 * half)
+    return bodies, joints
+
+
+def reference(bodies, joints, t, gravity=G):
+    tree, q0, u0 = tree_from_world(bodies, joints, gravity)
+    sol = solve(tree, q0, u0, t)
+    perm = [tree.names.index(b.name) for b in bodies]
+    return sol, perm
+
+
+def max_err(out, sol_x, sol_R):
+    return max(np.abs(out["x"] - sol_x).max(), np.abs(out["R"] - sol_R).max())
+
+
+CASES = {
+    "3-body spherical chain": lambda: rod_chain(3, hang=True),
+    "4-link revolute chain": revolute_chain,
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_rk4_agrees_with_the_reduced_reference_and_rattle6(case):
+    """MuJoCo RK4 at dt = 2 ms and 1 ms over 2 s against the reduced-coordinate reference.
+
+    Tolerance: RK4 is order 4, so its error at dt is e(dt) ~ C dt^4, and the difference of
+    its two runs estimates it (Richardson): e(1 ms) ~ |y(1 ms) - y(2 ms)| / 15. Asserted: the
+    observed order log2(e(2 ms) / e(1 ms)) within 3.5 .. 4.5 (measured 3.9 and 4.0), and
+    e(1 ms) within 2 x the Richardson estimate plus the reference's own error estimate. A
+    frame, anchor or axis mistake gives an O(1) error that shrinks at no order.
+    director_model.system's RATTLE6 (order 6, dt 1 ms) must agree with MuJoCo to the same
+    bound plus RATTLE6's own measured error against the reference."""
+    bodies, joints = CASES[case]()
+    sc = scenario(case, bodies, joints)
+    out2 = ms.simulate_system(sc, "RK4", 2e-3, 1000, 50)
+    out1 = ms.simulate_system(sc, "RK4", 1e-3, 2000, 100)
+    np.testing.assert_array_equal(out1["t"], out2["t"])
+    sol, perm = reference(bodies, joints, out1["t"])
+    sx, sR = sol.x[:, perm], sol.R[:, perm]
+    e2, e1 = max_err(out2, sx, sR), max_err(out1, sx, sR)
+    order = np.log2(e2 / e1)
+    assert 3.5 <= order <= 4.5, (e2, e1, order)
+    rich = max(np.abs(out1["x"] - out2["x"]).max(), np.abs(out1["R"] - out2["R"]).max()) / 15
+    ref_err = max(sol.accuracy["position"], sol.accuracy["attitude"])
+    assert e1 <= 2 * rich + ref_err, (e1, rich, ref_err)
+    assert (
+        np.abs(out1["W"] - sol.W[:, perm]).max()
+        <= 2 * np.abs(out1["W"] - out2["W"]).max() / 15 + sol.accuracy["omega"]
+    )
+    tr = director_simulate(
+        bodies, joints, gravity=G, scheme="rattle6", dt=1e-3, t_end=2.0, save_every=100
+    )
+    r6 = max(np.abs(tr.position - sx).max(), np.abs(tr.rotation - sR).max())
+    assert r6 < 1e-11  # RATTLE6 is two orders more accurate than RK4 here (measured 3e-13)
+    d = max(np.abs(out1["x"] - tr.position).max(), np.abs(out1["R"] - tr.rotation).max())
+    assert d <= 2 * rich + r6, (d, rich, r6)
+
+
+def test_free_floating_chain_keeps_its_momentum():
+    """Five rods joined by spherical joints, floating in zero gravity (free root): total
+    linear momentum sum m v and angular momentum about the origin sum (x x m v + R I W) are
+    invariants of the motion. RK4 keeps them to its discretisation error: the drift shrinks
+    at order 4 (measured ratio 16.0 from 2 ms to 1 ms) and at 1 ms stays below 1e-9 of the
+    momenta's scale (measured 6e-11 and 2e-11 relative)."""
+    bodies, joints = rod_chain(5, hang=False)
+    sc = scenario("free chain", bodies, joints, gravity=np.zeros(3))
+    m = np.array([b.mass for b in bodies])
+    inertia = np.array([b.inertia for b in bodies])
+    drift = {}
+    for dt in (2e-3, 1e-3):
+        n = round(2.0 / dt)
+        out = ms.simulate_system(sc, "RK4", dt, n, n // 20)
+        assert out["settings"]["tree"]["b0"] == "free to ground"
+        p = np.einsum("b,nbi->ni", m, out["v"])
+        L = np.einsum("b,nbi->ni", m, np.cross(out["x"], out["v"]))
+        L += np.einsum("nbij,nbj->ni", out["R"], inertia * out["W"])
+        drift[dt] = (
+            np.abs(p - p[0]).max() / np.linalg.norm(p[0]),
+            np.abs(L - L[0]).max() / np.linalg.norm(L[0]),
+        )
+    for k in range(2):
+        assert 3.5 <= np.log2(drift[2e-3][k] / drift[1e-3][k]) <= 4.5, drift
+        assert drift[1e-3][k] < 1e-9, drift
+
+
+def loop_gap(out, bodies, joint):
+    """The gap of a joint's anchors (m) over time from the returned states."""
+    names = [b.name for b in bodies]
+    a, b = names.index(joint.body_a), names.index(joint.body_b)
+    pa = out["x"][:, a] + np.einsum("nij,j->ni", out["R"][:, a], joint.anchor_a)
+    pb = out["x"][:, b] + np.einsum("nij,j->ni", out["R"][:, b], joint.anchor_b)
+    return np.linalg.norm(pa - pb, axis=1)
+
+
+def test_four_bar_loop_closure_gap_default_and_stiff_solref():
+    """The parallelogram four-bar over 2 s (theta' = 7 rad/s from the bottom: it passes the
+    singular, collinear configuration twice per swing), closed by two connects on the hinge
+    axis of joint B1, with MuJoCo's default solref (0.02, 1) and a stiffer (0.002, 1).
+
+    Expected: the gap of a soft constraint scales with the square of its time constant (the
+    constraint's reference stiffness is 1/(d_max tc dr)^2): ten times shorter, ~100 times
+    smaller (measured 51: max 2.9e-4 m and 5.7e-6 m); asserted: more than 10 times smaller.
+    The crank angle follows the exact planar pendulum I_eff theta'' = -|g| k sin(theta)
+    (multibody.md section 5; scipy DOP853 at rtol 1e-12) to an error set by the softness
+    (measured 1.1e-2 and 2.4e-4 rad); asserted below 0.05 and 1e-3 rad: the linkage stays on
+    its branch (the crossed branch would be off by O(1))."""
+    bodies, joints, I_eff, k = parallelogram_four_bar()
+    sc = scenario("parallelogram four-bar", bodies, joints)
+    t = np.linspace(0.0, 2.0, 201)
+    exact = solve_ivp(lambda _, y: [y[1], -9.81 * k / I_eff * np.sin(y[0])], (0, 2), [0.0, 7.0],
+                      t_eval=t, rtol=1e-12, atol=1e-12, method="DOP853").y[0]  # fmt: skip
+    gaps, theta_err = {}, {}
+    for solref in ((0.02, 1.0), (0.002, 1.0)):
+        out = ms.simulate_system(sc, "RK4", 1e-3, 2000, 10, solref=solref)
+        s = out["settings"]
+        assert s["solref"] == list(solref) and s["solref effective"] == list(solref)
+        assert s["solimp"] == list(ms.DEFAULT_SOLIMP)
+        assert (
+            "two site-to-site connects" in s["loop closures"][0] and "'B1'" in s["loop closures"][0]
+        )
+        gaps[solref] = loop_gap(out, bodies, joints[3])
+        # with theta' > 0 about +y the crank's tip swings to -x
+        theta = np.arctan2(-out["x"][:, 0, 0], -out["x"][:, 0, 2])
+        theta_err[solref] = np.abs(theta - exact).max()
+    g_def, g_stiff = gaps[(0.02, 1.0)].max(), gaps[(0.002, 1.0)].max()
+    assert gaps[(0.02, 1.0)][0] < 1e-12 and 1e-6 < g_def < 1e-3, g_def
+    assert g_stiff < g_def / 10, (g_def, g_stiff)
+    assert theta_err[(0.02, 1.0)] < 0.05 and theta_err[(0.002, 1.0)] < 1e-3, theta_err
+
+
+def test_refsafe_raises_a_short_time_constant_and_says_so():
+    bodies, joints, _, _ = parallelogram_four_bar()
+    out = ms.simulate_system(scenario("fb", bodies, joints), "Euler", 2e-3, 5, 5, solref=(0.002, 1))
+    assert out["settings"]["solref effective"] == [0.004, 1.0]
+    assert "refsafe" in out["settings"]["solref note"]
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "implicit", "implicitfast", "RK4"])
+def test_every_integrator_runs_the_closed_loop(integrator):
+    """Each integrator builds and steps the four-bar; the first saved state is the scenario's."""
+    bodies, joints, _, _ = parallelogram_four_bar()
+    out = ms.simulate_system(scenario("fb", bodies, joints), integrator, 1e-3, 200, 50)
+    assert out["x"].shape == (5, 3, 3) and out["R"].shape == (5, 3, 3, 3)
+    np.testing.assert_allclose(out["t"], [0, 0.05, 0.1, 0.15, 0.2])
+    np.testing.assert_allclose(out["x"][0], [b.position for b in bodies], atol=1e-14)
+    np.testing.assert_allclose(out["W"][0], [b.omega_body for b in bodies], atol=1e-13)
+    assert out["settings"]["integrator"] == integrator and out["engine_time_s"] > 0
+    assert loop_gap(out, bodies, joints[3]).max() < 1e-3
+
+
+# -- planted mistakes at the builder's boundary ----------------------------------------------
+
+
+def _replace(joints, i, **kw):
+    joints = list(joints)
+    joints[i] = dataclasses.replace(joints[i], **kw)
+    return joints
+
+
+def test_planted_axis_in_the_parents_frame_is_refused():
+    bodies, joints = revolute_chain()
+    bad = _replace(joints, 1, axis_b=joints[1].axis_a)  # l0's frame instead of l1's
+    with pytest.raises(ms.InconsistentSystem, match=r"'h1'.*axis misalignment .*\) 1 rad"):
+        ms.simulate_system(scenario("rev", bodies, bad), "RK4", 1e-3, 10, 10)
+
+
+def test_planted_anchor_from_the_body_origin_is_refused():
+    """Rod b1's anchor given from its end (a link frame at the joint) instead of its COM."""
+    bodies, joints = rod_chain(3, hang=True)
+    bad = _replace(joints, 1, anchor_b=(0.0, 0.0, 0.0))
+    with pytest.raises(ms.InconsistentSystem, match=r"joint1.*anchor gap .* 0\.5 m"):
+        ms.simulate_system(scenario("sph", bodies, bad), "RK4", 1e-3, 10, 10)
+
+
+def test_planted_swapped_parent_and_child_is_refused():
+    bodies, joints = rod_chain(3, hang=True)
+    j = joints[2]
+    bad = _replace(joints, 2, body_a=j.body_b, body_b=j.body_a)
+    with pytest.raises(ms.InconsistentSystem, match=r"joint2' \(spherical 'b2'-'b1'\).*anchor gap"):
+        ms.simulate_system(scenario("sph", bodies, bad), "RK4", 1e-3, 10, 10)
+
+
+def test_planted_loop_closure_violation_is_refused():
+    bodies, joints, _, _ = parallelogram_four_bar()
+    bad = _replace(joints, 3, anchor_b=(0.5 + 1e-6, 0.0, 0.0))
+    with pytest.raises(ms.InconsistentSystem, match=r"'B1'.*anchor gap .*1e-06 m"):
+        ms.simulate_system(scenario("fb", bodies, bad), "RK4", 1e-3, 10, 10)
+
+
+PLANTS = {
+    # the hinge axis of l1 written in l0's frame (0 1 0) instead of l1's (0 0 -1)
+    "axis in the parent's frame": (
+        lambda x: x.replace(
+            'type="hinge" pos="0.0 0.35 0.0" axis="0.0 0.0 -1.0"',
+            'type="hinge" pos="0.0 0.35 0.0" axis="0.0 1.0 0.0"',
+        ),
+        r"'h1'.*jnt_axis",
+    ),  # fmt: skip
+    # l1's joint placed at its anchor measured from the link's end instead of its COM
+    "anchor from the body origin": (
+        lambda x: x.replace('type="hinge" pos="0.0 0.35 0.0"', 'type="hinge" pos="0.0 0.0 0.0"'),
+        r"'h1'.*jnt_pos",
+    ),
+    "COM off the body frame": (
+        lambda x: x.replace('<inertial pos="0 0 0"', '<inertial pos="0 0 0.01"', 1),
+        r"body 'l0': body_ipos",
+    ),
+    "joint damping": (lambda x: x.replace('damping="0"', 'damping="0.01"', 1), "dof_damping"),
+    "joint limits": (
+        lambda x: x.replace('limited="false"', 'limited="true" range="-1 1"', 1),
+        "jnt_limited",
+    ),
+    "contacts on": (lambda x: x.replace('contact="disable" ', ""), "mjDSBL_CONTACT"),
+    "sleeping on": (
+        lambda x: x.replace('contact="disable"', 'contact="disable" sleep="enable"'),
+        "mjENBL_SLEEP",
+    ),
+    "solver override on": (
+        lambda x: x.replace('contact="disable"', 'contact="disable" override="enable"'),
+        "mjENBL_OVERRIDE",
+    ),
+    "gravity compensation": (
+        lambda x: x.replace('gravcomp="0"', 'gravcomp="1"', 1),
+        "body_gravcomp",
+    ),
+}
+
+
+@pytest.mark.parametrize("plant", PLANTS)
+def test_planted_model_mistakes_are_caught_by_the_read_back(plant, monkeypatch):
+    """A mistake written into the MJCF (the builder's boundary with MuJoCo) is caught when the
+    compiled model is read back and compared with the scenario."""
+    change, pattern = PLANTS[plant]
+    real = ms.model_xml
+    seen = []
+
+    def planted(*a, **kw):
+        xml = real(*a, **kw)
+        out = change(xml)
+        seen.append(out != xml)
+        return out
+
+    monkeypatch.setattr(ms, "model_xml", planted)
+    bodies, joints = revolute_chain()
+    with pytest.raises(EngineError, match=pattern):
+        ms.simulate_system(scenario("rev", bodies, joints), "RK4", 1e-3, 10, 10)
+    assert seen == [True]  # the plant took effect
+
+
+def test_swapped_nesting_is_caught_by_the_read_back(monkeypatch):
+    """The tree's parent and child swapped inside the builder (l1 attached as l0's parent):
+    the read-back's expectations come from the same (wrong) plan, so MuJoCo's kinematics of
+    the initial state, compared with the scenario's world states, catch it."""
+    real = ms.plan
+
+    def planted(sc):
+        pl = real(sc)
+        pl.tree[1].parent, pl.tree[0].parent = -1, 1
+        pl.order = [1, 0, 2, 3]
+        return pl
+
+    monkeypatch.setattr(ms, "plan", planted)
+    bodies, joints = revolute_chain()
+    with pytest.raises(
+        EngineError, match=r"kinematics of the initial state differ.*body 'l0': COM position"
+    ):
+        ms.simulate_system(scenario("rev", bodies, joints), "RK4", 1e-3, 10, 10)
+
+
+def test_unsupported_joints_and_bad_settings():
+    bodies, joints = revolute_chain()
+    cyl = _replace(joints, 2, kind="cylindrical")
+    with pytest.raises(Unsupported, match="cylindrical"):
+        ms.simulate_system(scenario("c", bodies, cyl), "RK4", 1e-3, 10, 10)
+    fb, fj, _, _ = parallelogram_four_bar()
+    pri = _replace(fj, 3, kind="prismatic")
+    with pytest.raises(Unsupported, match=r"'B1'.*prismatic closure"):
+        ms.simulate_system(scenario("p", fb, pri), "RK4", 1e-3, 10, 10)
+    with pytest.raises(ValueError, match="unknown settings"):
+        ms.simulate_system(scenario("fb", fb, fj), "RK4", 1e-3, 10, 10, solrf=(0.02, 1))
+    with pytest.raises(ValueError, match="integrator 'RK45' unknown"):
+        ms.simulate_system(scenario("fb", fb, fj), "RK45", 1e-3, 10, 10)
+
+
+def test_default_solref_and_solimp_are_mujocos():
+    """DEFAULT_SOLREF/SOLIMP are what MuJoCo compiles for a connect with none given."""
+    mujoco = pytest.importorskip("mujoco")
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="a"><freejoint/><inertial pos="0 0 0" mass="1" '
+        'diaginertia="1 1 1"/></body></worldbody><equality><connect body1="a" '
+        'anchor="0 0 0"/></equality></mujoco>'
+    )
+    np.testing.assert_array_equal(m.eq_solref[0], ms.DEFAULT_SOLREF)
+    np.testing.assert_array_equal(m.eq_solimp[0], ms.DEFAULT_SOLIMP)
