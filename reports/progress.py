@@ -10,7 +10,9 @@ suite's RKMK4 numba kernels, MJX's step with JAX); such a run takes seconds wher
 take milliseconds. The runner names these warm-ups (``warming``: key -> what compiles) and
 says which key each finished run belongs to; until the first run of every key has finished,
 the display says what is compiling and gives no estimate, and the estimate afterwards uses
-only the runs finished since then, so that compilation does not inflate it.
+only the runs finished since then, so that compilation does not inflate it. A warm-up at the
+start of a bundle of runs that finish together (MJX's) is only named at the start
+(``bundled``): its end is not seen before the whole bundle's.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from __future__ import annotations
 import shutil
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 #: a terminal line is redrawn at most this often (s) for a running run's own progress
 REDRAW_S = 0.2
@@ -50,6 +52,7 @@ class Progress:
         stream=None,
         terminal: bool | None = None,
         disable: bool = False,
+        bundled: Sequence[str] = (),
     ):
         # nothing to show: no work, or the caller asked for quiet
         self.total = 0 if disable else max(int(total), 0)
@@ -75,6 +78,8 @@ class Progress:
             first = f"{self.desc}: {self.total} {self.unit}s"
             if self.warming:
                 first += "; compiling first: " + ", ".join(self.warming.values())
+            if bundled:
+                first += "; at the start of their bundles: " + ", ".join(bundled)
             self._line(first)
         else:
             self._draw()

@@ -555,6 +555,16 @@ def warm_up(engine: str, integrator: str) -> tuple[str, str] | None:
     return None
 
 
+def _bundled(engine: str) -> bool:
+    """Whether the engine's runs go in bundles (``EngineBase.bundle_runs``)."""
+    from references.engines import EngineError, get_engine
+
+    try:
+        return get_engine(engine).bundle_runs
+    except EngineError:
+        return False
+
+
 def bundles(specs) -> list[list[RunSpec]]:
     """The specs as units of work for a mapper: one spec each, except that the runs of an
     engine whose runs share a warm-up (``bundle_runs``, e.g. MJX's compilation) go together,
@@ -565,15 +575,9 @@ def bundles(specs) -> list[list[RunSpec]]:
     run of a warm-up key starts only after its first has been handed out (compilers write
     their caches: the later runs load them instead of compiling again); then the longest
     bundles, so that the single runs fill the other workers meanwhile."""
-    from references.engines import EngineError, get_engine
-
     out, grouped = [], {}
     for s in specs:
-        try:
-            shared = get_engine(s.engine).bundle_runs
-        except EngineError:
-            shared = False
-        if shared:
+        if _bundled(s.engine):
             key = (s.engine, s.integrator)
             if key not in grouped:
                 grouped[key] = []
@@ -608,11 +612,15 @@ def _export_quietly(out: Path):
 
 def _bar(todo: list[RunSpec]):
     """The progress display of ``todo`` (reports.progress), told which warm-ups its first
-    runs go through."""
+    runs go through (those of bundled runs apart: their rows arrive with the bundle's end)."""
     from reports.progress import Progress
 
-    warming = dict(filter(None, (warm_up(s.engine, s.integrator) for s in todo)))
-    return Progress(len(todo), warming=warming)
+    warming, bundled = {}, {}
+    for s in todo:
+        warm = warm_up(s.engine, s.integrator)
+        if warm is not None:
+            (bundled if _bundled(s.engine) else warming)[warm[0]] = warm[1]
+    return Progress(len(todo), warming=warming, bundled=list(bundled.values()))
 
 
 def _inner(bar, spec):

@@ -85,3 +85,16 @@ def test_nothing_to_show_shows_nothing_and_a_terminal_line_fits(monkeypatch):
         bar.update(1, key="a" if i == 500 else None, label="scenario/engine/integrator " * 4)
     frames = log.getvalue().split("\r")
     assert max(len(f.rstrip()) for f in frames) <= 59
+
+
+def test_warm_ups_of_bundled_runs_are_named_at_the_start_and_do_not_hold_the_estimate(capsys):
+    import scenarios
+    from reports.runner import _bar, plan
+
+    bar = _bar(plan([scenarios.load("dzhanibekov")], ["director", "mjx"]))
+    assert list(bar.warming) == ["director"]  # MJX's rows arrive with their bundle's end
+    first = capsys.readouterr().err  # standard error is no terminal here: the first line
+    assert "compiling first: the director kernels (numba)" in first
+    assert "at the start of their bundles: MJX's step (JAX) for mjx Euler (float64)" in first
+    bar.update(1, key="director")
+    assert bar.t_warm is not None
