@@ -252,6 +252,16 @@ def cmd_ensemble(args) -> int:
 def cmd_report(args) -> int:
     from reports.report import build_report
 
+    folder = Path(args.dir)
+    if (folder / "results.sqlite").is_file() and not os.access(folder, os.W_OK):
+        # the store reads fine (compare and check work here); the report is written beside it
+        print(
+            f"director-bench: error: {folder} is read-only and the report is written into the "
+            f"results folder: copy it somewhere writable (`cp -r {folder} COPY`) and run "
+            "`director-bench report COPY`",
+            file=sys.stderr,
+        )
+        return 1
     rep = build_report(args.dir, progress=True)
     print(f"report: {rep['html']}\n        {rep['markdown']}")
     return 0

@@ -961,7 +961,7 @@ def document(df, prov: dict, plots: dict, root: Path, edf=None, card_figures=())
     doc.md.append("# director-bench report\n")
     doc.html.append("<h1 id='director-bench-report'>director-bench report</h1>")
     doc.para(
-        f"{provenance_line(prov)}. {count_line(df)}",
+        md_cell(f"{provenance_line(prov)}. {count_line(df)}"),  # provenance.json is text
         f"<span class='meta'>{html.escape(provenance_line(prov))}.</span> "
         f"<b>{html.escape(count_line(df))}</b>",
     )

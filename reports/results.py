@@ -402,6 +402,15 @@ class Store:
 
     def _open(self, create: bool) -> sqlite3.Connection:
         try:
+            writable = os.access(self.path.parent, os.W_OK) and os.access(self.path, os.W_OK)
+            if not create and not writable:
+                # a store nobody can write here (a read-only folder or file): read it as it
+                # is, without the -shm and -wal files a writable WAL database needs
+                uri = f"{self.path.resolve().as_uri()}?immutable=1"
+                con = sqlite3.connect(uri, uri=True, isolation_level=None)
+                self._refuse_foreign(con)
+                self._check(con)
+                return con
             con = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
             con.execute(f"PRAGMA busy_timeout = {int(1000 * BUSY_TIMEOUT_S)}")
             self._refuse_foreign(con)

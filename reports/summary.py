@@ -738,11 +738,12 @@ def write_summary(root: str | Path, df, prov: dict | None = None) -> Path:
 
 
 def md_cell(text) -> str:
-    """Text safe in a GitHub-flavoured Markdown table cell: pipes and backslashes escaped,
-    ``<`` as an entity (so ``<1e-12`` is not read as a tag), one line."""
+    """Text safe in a GitHub-flavoured Markdown table cell or paragraph, shown as it is:
+    backslashes, pipes and backticks escaped, ``&`` and ``<`` as entities (so ``<1e-12`` is
+    not read as a tag, nor ``&lt;`` as a character), one line (newlines would end the row)."""
     text = " ".join(str(text).split())
-    text = text.replace("\\", "\\\\").replace("|", "\\|").replace("<", "&lt;")
-    return text
+    text = text.replace("\\", "\\\\").replace("|", "\\|").replace("`", "\\`")
+    return text.replace("&", "&amp;").replace("<", "&lt;")
 
 
 def md_table(header, rows) -> str:

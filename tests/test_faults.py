@@ -544,3 +544,60 @@ def test_an_ensemble_writes_nothing_outside_its_folder(tmp_path, monkeypatch, ca
     assert code == 0, capsys.readouterr().err
     assert list(cwd.iterdir()) == []
     assert (out / "logs" / "MUJOCO_LOG.TXT").exists()
+
+
+def test_a_read_only_results_folder_can_be_compared(tmp_path):
+    """A results folder that cannot be written: its store is read as it is (no -wal/-shm
+    files to create), so compare works there; report, which writes into the folder, says so
+    and what to do. Nothing in the folder changes."""
+    from reports.cli import main
+
+    ro = tmp_path / "ro"
+    argv = ["run", "free_tumbling", "--engines", "exact", "--no-sweep", "--t-end", "1",
+            "--out", str(ro), "--quiet", "--jobs", "1", "--no-report"]  # fmt: skip
+    assert main(argv) == 0
+    before = sorted(p.name for p in ro.iterdir())
+    cmd = _read_only_command(ro, ["compare", str(ro), str(ro)])
+    if cmd is None:
+        pytest.skip("running as root without user namespaces: no way to make a folder read-only")
+    compared = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    cmd = _read_only_command(ro, ["report", str(ro)])
+    reported = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    ro.chmod(0o755)
+    assert compared.returncode == 0, compared.stderr
+    assert "cannot write the results store" not in compared.stderr
+    assert "Traceback" not in compared.stderr + reported.stderr
+    assert reported.returncode == 1
+    assert "is read-only" in reported.stderr and "cp -r" in reported.stderr
+    assert sorted(p.name for p in ro.iterdir()) == before
+
+
+def test_report_md_escapes_what_it_inserts(tmp_path, capsys):
+    """Text from provenance.json and from the store (a message) with Markdown and HTML in
+    it: report.md shows it as text (no tag, no heading, no extra table cell or line)."""
+    import json
+
+    from reports.cli import main
+
+    out = tmp_path / "out"
+    argv = ["run", "free_tumbling", "--engines", "exact", "--no-sweep", "--t-end", "1",
+            "--out", str(out), "--quiet", "--jobs", "1", "--no-report"]  # fmt: skip
+    assert main(argv) == 0
+    evil = "a | b\n# Heading `code` <script>alert(1)</script> &lt;img&gt;"
+    prov = json.loads((out / "provenance.json").read_text())
+    prov["machine"]["cpu"] = evil
+    prov["note"] = evil
+    (out / "provenance.json").write_text(json.dumps(prov))
+    with Store(out, create=True) as st:
+        row = dict(st.rows()[0])
+        row.update(run_id="evil", integrator="evil", status="error", verdict="", message=evil)
+        st.put(row)
+    assert main(["report", str(out)]) == 0, capsys.readouterr().err
+    md = (out / "report.md").read_text()
+    assert "<script" not in md and "<img" not in md
+    assert not [line for line in md.splitlines() if line.startswith("# Heading")]
+    lines = [line for line in md.splitlines() if "alert(1)" in line]
+    assert len(lines) >= 3  # the provenance line, its table, the failed run
+    for line in lines:
+        assert "a \\| b # Heading \\`code\\` &lt;script>" in line, line
+        assert "&amp;lt;img&amp;gt;" in line, line
