@@ -536,7 +536,12 @@ def run_system(
     """Advance the system nstep steps of dt (each step the composition ``coef`` of RATTLE
     sub-steps), storing the states at the step indices ``saves`` (increasing, 0 = the start)
     into X, V (nsave, nb, 3), D (nsave, nb, 3, 3), W (nsave, nb, 3). Returns a status; on
-    failure info[0] = steps completed, info[1] = the failing sub-step's h."""
+    failure info[0] = steps completed, info[1] = the failing sub-step's h.
+
+    ``mu`` (length nr (1 + 2 ns) + 1, nr = max(nrow, 1), ns = len(coef)): the last velocity
+    multipliers (0:nr), the position multipliers of each sub-step j of the last step
+    (nr (1 + j) ...) and of the step before (nr (1 + ns + j) ...), and the number of steps
+    in that history (0, 1, 2) in the last entry: the integrator state besides S."""
     nb = S.shape[0]
     nrow = rint.shape[0]
     nr = max(nrow, 1)
@@ -563,6 +568,8 @@ def run_system(
     Vt = np.zeros((nd, nd))
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
+    ns = coef.shape[0]
+    nhist = int(mu[nr * (1 + 2 * ns)])
     ks = 0
     if saves.shape[0] > 0 and saves[0] == 0:
         _store(B, D0, S, X, V, D, W, 0)
@@ -579,8 +586,18 @@ def run_system(
             tol = tol_rel * xmax
             if nrow > 0:
                 _rows(rint, rvec, S, Dn, gv, Jold)
+            # start value: in the banded solver the position multipliers of this sub-step
+            # extrapolated linearly from the same sub-step of the two previous steps
+            # (history in mu, see run_system); else the last velocity multipliers
+            ho1 = nr * (1 + j)
+            ho2 = nr * (1 + ns + j)
             for r in range(nrow):
-                lam[r] = mu[r]
+                if minnorm or nhist == 0:
+                    lam[r] = mu[r]
+                elif nhist == 1:
+                    lam[r] = mu[ho1 + r]
+                else:
+                    lam[r] = 2.0 * mu[ho1 + r] - mu[ho2 + r]
             rank = 0
             it = 0
             while True:
@@ -715,6 +732,8 @@ def run_system(
                 Tn[:] = 0.0
             for r in range(nrow):
                 mu[r] = 2.0 * dl[r] / h
+                mu[ho2 + r] = mu[ho1 + r]
+                mu[ho1 + r] = lam[r]
             for i in range(nb):
                 m = B[i, 0]
                 I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
@@ -755,6 +774,8 @@ def run_system(
                     if not abs(S[i, c]) < math.inf:
                         return _fail(info, n, h, FAIL_NONFINITE)
 
+        nhist = min(nhist + 1, 2)
+        mu[nr * (1 + 2 * ns)] = nhist
         if ks < saves.shape[0] and saves[ks] == n:
             _store(B, D0, S, X, V, D, W, ks)
             ks += 1
