@@ -396,3 +396,24 @@ def test_a_crashing_run_costs_one_row_not_the_rest(tmp_path, free, monkeypatch):
     # run 0 alone (ok), run 1 alone (the first culprit), runs 2-8 together (die at run 6, after
     # recording 2-5), run 6 alone (the second culprit), runs 7-8 together: 5 processes
     assert launches == [1, 1, 7, 1, 2]
+
+
+def test_worker_records_the_planned_identity(tmp_path, free):
+    """The runs the matrix hands to reports.versions.worker come back under the identity it
+    planned them with (horizon, decimation and all): otherwise it would wait for rows that
+    never come."""
+    from reports.versions import matrix
+    from reports.versions.envs import Env
+    from reports.versions.requirements import Target
+
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        pytest.skip("mujoco is not installed")
+    env = Env(Target("mujoco", "mujoco", "x", "x", "x"), Path(sys.executable).parents[1], True)
+    spec = RunSpec(free, "mujoco", "Euler", 1e-3, t_end=0.05, save_every=7,
+                   engine_version=mujoco.__version__)  # fmt: skip
+    code = matrix._launch(env, [spec], tmp_path, {}, tmp_path / "log")
+    assert code == 0, (tmp_path / "log").read_text()
+    with Store(tmp_path) as st:
+        assert {r["run_id"] for r in st.rows()} == {spec.run_id}

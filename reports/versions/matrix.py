@@ -165,7 +165,8 @@ def _launch(env: Env, specs: list, folder: Path, opts: dict, log: Path):
 
     items = [
         {"scenario": str(s.scenario.path), "engine": s.engine, "integrator": s.integrator,
-         "dt": s.dt, "accuracy": s.accuracy, "t_end": opts.get("t_end")}
+         "dt": s.dt, "accuracy": s.accuracy, "t_end": s.t_end, "save_every": s.save_every,
+         "segment": s.segment}
         for s in specs
     ]  # fmt: skip
     spec_file = folder / "isolated-specs.json"
@@ -197,7 +198,10 @@ def _isolate(env: Env, scenarios, opts: dict, run: EnvRun) -> int:
     log = run.folder / "isolated.log"
     crashed: set[str] = set()
     singles = True
-    while True:
+    todo = _missing(env, scenarios, opts, out)
+    # each round records a row or finds a culprit; the bound guards against a worker that
+    # records nothing (its runs then stay missing, as after any interrupted run)
+    for _ in range(2 * len(todo) + 2):
         todo = [s for s in _missing(env, scenarios, opts, out) if s.run_id not in crashed]
         if not todo:
             return len(crashed)
@@ -222,6 +226,7 @@ def _isolate(env: Env, scenarios, opts: dict, run: EnvRun) -> int:
             singles = False  # the culprit is recorded: the rest together
         else:
             singles = True  # the batch crashed: find its culprit one run at a time
+    return len(crashed)
 
 
 def merge(out: Path, target: Target, folder: Path) -> int:

@@ -1,8 +1,9 @@
 """Run a given list of runs into a folder, inside an environment of the matrix.
 
 ``python -m reports.versions.worker FOLDER SPECS.json``: SPECS.json is a list of objects
-(scenario file, engine, integrator, dt, accuracy, t_end); each run's row is committed to
-FOLDER's store as it finishes (:func:`reports.runner.run_suite`, in this process, in order).
+(scenario file, engine, integrator, dt, accuracy, t_end, save_every, segment: the planned
+run's own values, so that each row gets the identity the matrix looks for); each run's row is
+committed to FOLDER's store as it finishes (:func:`reports.runner.run_suite`, here, in order).
 The matrix uses it to go on after an engine took its process down (an abort in native code):
 unlike ``run``, it runs exactly the runs it is given, so a run already recorded as having
 crashed is not tried again within the same matrix.
@@ -54,6 +55,8 @@ def main(argv: list[str]) -> int:
                 it["integrator"],
                 it["dt"],
                 t_end=it.get("t_end"),
+                save_every=it.get("save_every"),
+                segment=it.get("segment"),
                 engine_version=version,
                 accuracy=it.get("accuracy"),
             )  # fmt: skip
