@@ -439,3 +439,31 @@ def test_heavy_top_defeats_a_first_order_stepper_at_dt_1e_3():
 
     assert energy_ratio(1e-3) == pytest.approx(114, rel=0.05)  # "by 114"
     assert energy_ratio(5e-4) == pytest.approx(1.15, rel=0.05)  # "by 1.15"
+
+
+def test_a_name_of_the_longest_length_fits_every_file_a_run_writes(tmp_path, capsys):
+    """A scenario named with MAX_NAME_BYTES characters runs, reports and ensembles: every file
+    it writes (and the temporary name each is first written to, `.<name>.<pid>.tmp` with a
+    7-digit process id) fits the file system's 255 bytes; one character more is refused."""
+    from reports.cli import main
+    from scenarios.schema import MAX_NAME_BYTES
+
+    text = scenarios.library_path().joinpath("free_tumbling.toml").read_text()
+    long_name = "n" * MAX_NAME_BYTES
+    path = tmp_path / "long.toml"
+    path.write_text(text.replace('"free_tumbling"', f'"{long_name}"'))
+    out = tmp_path / "out"
+    argv = ["run", str(path), "--engines", "exact,director", "--integrators", "reference,rattle",
+            "--t-end", "1", "--out", str(out), "--quiet", "--jobs", "1"]  # fmt: skip
+    assert main(argv) == 0, capsys.readouterr().err
+    argv = ["ensemble", str(path), "--n", "2", "--engines", "director", "--integrators",
+            "rattle", "--t-end", "1", "--out", str(out), "--quiet", "--jobs", "1"]  # fmt: skip
+    assert main(argv) == 0, capsys.readouterr().err
+    names = [p.name for p in out.rglob("*")]
+    assert any(long_name in n for n in names)  # the name is in the file names
+    assert any(n.startswith(f"{long_name}__ensemble_") for n in names)  # the longest kind
+    longest = max(len(n.encode()) for n in names)
+    assert longest + len(".") + len(".9999999.tmp") <= 255, longest
+    path.write_text(text.replace('"free_tumbling"', f'"{long_name}n"'))
+    with pytest.raises(ScenarioError, match=f"at most {MAX_NAME_BYTES}"):
+        scenarios.load(path)
