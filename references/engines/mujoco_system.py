@@ -392,7 +392,9 @@ def check_consistent(scenario, pl: _Plan | None = None) -> None:
             across = float(np.linalg.norm(gap - (gap @ ua) * ua))
             if across > tol_x:
                 refuse("anchor offset across the axis", across, tol_x, "m")
-            s_across = float(np.linalg.norm(slip - (slip @ ua) * ua))
+            # b's anchor relative to the point of a that coincides with it
+            rel_v = vpb - va - np.cross(wa, pb - xa)
+            s_across = float(np.linalg.norm(rel_v - (rel_v @ ua) * ua))
             if s_across > tol_v:
                 refuse("anchor slip across the axis", s_across, tol_v, "m/s")
         if j.kind == "prismatic":
@@ -678,9 +680,14 @@ def check_initial(mujoco, m, d, scenario, pl: _Plan, bid: dict) -> None:
         jid = m.body_jntadr[bid[c]]
         xc, Rc, _, _ = _world(pl, c)
         xp, Rp, _, _ = _world(pl, tj.parent)
-        sides = [("child", xc + Rc @ tj.Y)]
-        if tj.mj != "slide":
-            sides.append(("parent", xp + Rp @ tj.X))
+        if tj.mj == "slide":
+            # MuJoCo's xanchor of a slide joint is taken before the slide's translation: the
+            # child's anchor moved back by qpos along the axis, which is the parent's anchor
+            d0 = float(d.qpos[m.jnt_qposadr[jid]])
+            sides = [("child", xc + Rc @ tj.Y - d0 * (Rc @ tj.axis_c))]
+        else:
+            sides = [("child", xc + Rc @ tj.Y)]
+        sides.append(("parent", xp + Rp @ tj.X))
         for side, p in sides:
             err = _close(d.xanchor[jid], p, pl.length)
             if not err <= tol:
