@@ -236,3 +236,133 @@ class Trajectory:
         path = Path(path)
         df = pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
         return cls.from_frame(df)
+
+
+# -- systems of bodies ----------------------------------------------------------------------
+
+
+@dataclass
+class SystemTrajectory:
+    """Saved states of one run of a system of ``nb`` bodies at ``n`` times, bodies in the
+    order of the scenario's ``bodies`` (each body's frame its principal frame at its centre
+    of mass):
+
+    =================  ==============  ====================================================
+    ``t``              (n,)            time, s
+    ``position``       (n, nb, 3)      centres of mass, world axes, m
+    ``velocity``       (n, nb, 3)      centre-of-mass velocities, world axes, m/s
+    ``rotation``       (n, nb, 3, 3)   body-to-world rotations
+    ``omega_body``     (n, nb, 3)      angular velocities in body axes, rad/s
+    ``body_names``     (nb,)           names of the bodies
+    =================  ==============  ====================================================
+
+    Energy, momenta and joint residuals are computed by the suite from these states
+    (``reports.system_metrics``), never taken from an engine. On disk (Parquet) the columns
+    are ``t`` and, per body ``<name>``, ``<name>.x ... <name>.R22 ... <name>.wz`` in the
+    layout of :data:`COLUMNS` (without energy and momentum).
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    omega_body: np.ndarray
+    body_names: tuple = ()
+
+    def __post_init__(self):
+        self.t = np.asarray(self.t, dtype=float)
+        n = len(self.t)
+        nb = len(self.body_names)
+        shapes = {
+            "position": (n, nb, 3),
+            "velocity": (n, nb, 3),
+            "rotation": (n, nb, 3, 3),
+            "omega_body": (n, nb, 3),
+        }
+        for name, shape in shapes.items():
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != shape:
+                raise ValueError(
+                    f"SystemTrajectory field {name!r} has shape {arr.shape}, expected {shape} "
+                    f"(n = {n} saved times, nb = {nb} bodies)"
+                )
+            setattr(self, name, arr)
+        self.body_names = tuple(self.body_names)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def head(self, k: int) -> SystemTrajectory:
+        """The first ``k`` saved states."""
+        return SystemTrajectory(
+            self.t[:k], self.position[:k], self.velocity[:k], self.rotation[:k],
+            self.omega_body[:k], self.body_names,
+        )  # fmt: skip
+
+    #: per-body columns on disk, in order
+    BODY_COLUMNS = COLUMNS[1:19]
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The on-disk columns, name -> (n,) array (see the class docstring)."""
+        n = len(self)
+        cols = {"t": self.t}
+        for b, name in enumerate(self.body_names):
+            block = np.column_stack(
+                [
+                    self.position[:, b],
+                    self.velocity[:, b],
+                    self.rotation[:, b].reshape(n, 9),
+                    self.omega_body[:, b],
+                ]
+            )
+            for i, c in enumerate(self.BODY_COLUMNS):
+                cols[f"{name}.{c}"] = block[:, i]
+        return cols
+
+    @classmethod
+    def from_columns(cls, cols, body_names) -> SystemTrajectory:
+        """The inverse of :meth:`columns` (``cols``: a mapping or a DataFrame)."""
+        t = np.asarray(cols["t"], dtype=float)
+        n, nb = len(t), len(body_names)
+        block = np.empty((n, nb, len(cls.BODY_COLUMNS)))
+        for b, name in enumerate(body_names):
+            for i, c in enumerate(cls.BODY_COLUMNS):
+                block[:, b, i] = np.asarray(cols[f"{name}.{c}"], dtype=float)
+        return cls(
+            t, block[:, :, 0:3], block[:, :, 3:6], block[:, :, 6:15].reshape(n, nb, 3, 3),
+            block[:, :, 15:18], tuple(body_names),
+        )  # fmt: skip
+
+    @classmethod
+    def read(cls, path: str | Path) -> SystemTrajectory:
+        """Read a system trajectory written by the suite (Parquet); the body names are the
+        column prefixes, in order."""
+        import pandas as pd
+
+        df = pd.read_parquet(path)
+        names = list(dict.fromkeys(c.rsplit(".", 1)[0] for c in df.columns if c.endswith(".x")))
+        return cls.from_columns(df, names)
+
+
+def system_energy(scenario, traj: SystemTrajectory) -> np.ndarray:
+    """E = sum_b 1/2 m_b |v_b|^2 + 1/2 W_b . I_b W_b - m_b g . x_b of a system's states, (n,),
+    J (the bodies' masses and principal moments from ``scenario.bodies``)."""
+    m = np.array([b.mass for b in scenario.bodies])
+    inertia = np.array([b.inertia for b in scenario.bodies])
+    v, W, x = traj.velocity, traj.omega_body, traj.position
+    t_trans = 0.5 * np.einsum("b,nbi,nbi->n", m, v, v)
+    t_rot = 0.5 * np.einsum("nbi,bi,nbi->n", W, inertia, W)
+    return (t_trans + t_rot) - np.einsum("b,nbi,i->n", m, x, np.asarray(scenario.gravity))
+
+
+def system_momenta(scenario, traj: SystemTrajectory, about) -> tuple[np.ndarray, np.ndarray]:
+    """(linear momentum (n, 3) kg m/s, angular momentum about the world point ``about``
+    (n, 3) kg m^2/s) of a system's states: sum m_b v_b and
+    sum (x_b - about) x m_b v_b + R_b I_b W_b."""
+    m = np.array([b.mass for b in scenario.bodies])
+    inertia = np.array([b.inertia for b in scenario.bodies])
+    p_b = m[None, :, None] * traj.velocity
+    spin = np.einsum("nbij,nbj->nbi", traj.rotation, inertia[None] * traj.omega_body)
+    r = traj.position - np.asarray(about, dtype=float)
+    L = np.sum(np.cross(r, p_b) + spin, axis=1)
+    return p_b.sum(axis=1), L

@@ -8,6 +8,7 @@ The library is one TOML file per scenario in this package's directory (see
     sc = scenarios.load("dzhanibekov")  # a library name ...
     sc = scenarios.load("my_body.toml") # ... or the path of a user's file
     scenarios.default_suite()           # names of the files tagged "default"
+    scenarios.list_systems()            # systems of bodies (files in systems/)
 
 Invalid files raise :class:`ScenarioError` (a ``ValueError``) naming the file, the field, the
 value and the rule.
@@ -18,16 +19,23 @@ from __future__ import annotations
 from pathlib import Path
 
 from scenarios.model import REFERENCE_KINDS, Scenario
-from scenarios.schema import ScenarioError, load_file, validate
+from scenarios.schema import ScenarioError
+from scenarios.system import SystemBody, SystemJoint, SystemScenario, load_file, validate
 
 __all__ = [
     "REFERENCE_KINDS",
     "Scenario",
     "ScenarioError",
+    "SystemBody",
+    "SystemJoint",
+    "SystemScenario",
     "default_suite",
+    "default_systems",
     "library_path",
     "list_scenarios",
+    "list_systems",
     "load",
+    "systems_path",
     "validate",
 ]
 
@@ -47,7 +55,22 @@ def default_suite() -> list[str]:
     return [name for name in list_scenarios() if "default" in load(name).tags]
 
 
-def load(name_or_path: str | Path) -> Scenario:
+def systems_path() -> Path:
+    """The directory holding the library's files of systems of bodies (``[[bodies]]``)."""
+    return library_path() / "systems"
+
+
+def list_systems() -> list[str]:
+    """Names of the library's systems of bodies (file stems), sorted."""
+    return sorted(p.stem for p in systems_path().glob("*.toml"))
+
+
+def default_systems() -> list[str]:
+    """Names of the library's systems tagged ``"default"``, sorted."""
+    return [name for name in list_systems() if "default" in load(name).tags]
+
+
+def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     """Load a scenario: a library name (e.g. ``"dzhanibekov"``) or the path of a ``.toml`` file.
 
     A string is taken as a path if it ends in ``.toml`` or contains a path separator; otherwise
@@ -61,7 +84,9 @@ def load(name_or_path: str | Path) -> Scenario:
         return load_file(s)
     path = library_path() / f"{s}.toml"
     if not path.is_file():
-        names = ", ".join(list_scenarios())
+        path = systems_path() / f"{s}.toml"
+    if not path.is_file():
+        names = ", ".join(list_scenarios() + list_systems())
         raise ScenarioError(
             f"no scenario named {s!r} in the library ({library_path()}); available: {names}. "
             "To load a file of your own, pass its path (ending in .toml)."

@@ -43,6 +43,10 @@ TOLERANCE_METRICS = (
     "position_error_max",
     "flip_interval_error",
     "nutation_period_error",
+    # systems of bodies (reports.system_metrics)
+    "joint_gap_max",
+    "joint_angle_gap_max",
+    "branch_error",
 )
 
 

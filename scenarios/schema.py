@@ -299,7 +299,9 @@ def _fmt(v) -> str:
 
 def validate(data: dict, path: str | None = None) -> Scenario:
     """Validate parsed TOML ``data`` into a :class:`Scenario`; raise :class:`ScenarioError`
-    listing every problem. ``path`` is used in messages and stored on the scenario."""
+    listing every problem. ``path`` is used in messages and stored on the scenario. A file
+    with ``[[bodies]]`` describes a system of bodies, read by :func:`scenarios.load` and
+    :func:`scenarios.system.validate_system`."""
     probs: list[tuple] = []
     where = path if path is not None else "<scenario data>"
 
@@ -365,7 +367,10 @@ def magnitude_problems(sc: Scenario, t_end: float | None = None) -> list[tuple]:
     norm) computed before any work from the initial state: a free body's rotational energy and
     angular momentum are conserved and its centre of mass follows the parabola
     x0 + v0 t + g t^2/2; a pivoted body's kinetic energy stays below its initial one plus the
-    largest potential drop, 2 m |g| |c|."""
+    largest potential drop, 2 m |g| |c|. A system of bodies checks its own
+    (:meth:`scenarios.system.SystemScenario.magnitude_problems`)."""
+    if getattr(sc, "is_system", False):
+        return sc.magnitude_problems(t_end)
     t = sc.t_end if t_end is None else float(t_end)
     lim = MAX_MAGNITUDE
     probs = []
@@ -562,6 +567,12 @@ def _message(where: str, probs: list[tuple]) -> str:
 
 def load_file(path: str | Path) -> Scenario:
     """Read and validate one scenario file (a regular file of at most ``MAX_FILE_BYTES``)."""
+    return validate(read_file(path), path=str(path))
+
+
+def read_file(path: str | Path) -> dict:
+    """The parsed TOML of one scenario file (a regular file of at most ``MAX_FILE_BYTES``,
+    nested at most ``MAX_DEPTH`` deep), or :class:`ScenarioError` saying why not."""
     path = Path(path)
     try:
         if not path.exists():
@@ -599,7 +610,7 @@ def load_file(path: str | Path) -> Scenario:
             "levels deep (a scenario file nests at most 3)",
             path=str(path),
         )
-    return validate(data, path=str(path))
+    return data
 
 
 def nesting_depth(value) -> int:

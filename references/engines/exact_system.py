@@ -1,0 +1,249 @@
+"""The reference of a system of bodies, presented as the ``exact`` engine's system builder
+(:mod:`references.engines.system`) and used by the suite to measure every engine's errors.
+
+Kinds (``[reference] kind`` of the file, :data:`scenarios.system.SYSTEM_REFERENCE_KINDS`):
+
+- ``spinning_chain``, ``conical_pendulum``, ``four_bar``: the closed forms of
+  :mod:`references.exact.multibody.exact`, built from the file's bodies and the parameters
+  of its ``[reference]`` table; the closed form's state at t = 0 must equal the file's
+  initial state (:data:`INITIAL_TOL`), so a file whose state is not that motion's is refused
+  rather than compared with another motion. Accuracy: the closed form's round-off estimate.
+- ``numerical`` (``auto`` for a tree): the reduced-coordinate tree of
+  :func:`references.exact.multibody.tree_from_world` (a formulation that shares nothing with
+  the director model) integrated by DOP853 at rtol 1e-13 with its error estimate
+  (:func:`references.exact.multibody.solve`), and the horizon over which it is meaningful
+  (:func:`references.exact.multibody.trajectory_horizon`: perturbed runs depart by less than
+  :data:`HORIZON_ATTITUDE` rad and HORIZON_POSITION times the system's size): trajectory
+  errors are judged only up to that horizon, the accuracy is the estimate's over it.
+- ``none`` (``auto`` for a closed loop): no independent reference; the exact engine's row is
+  ``unsupported`` with that reason and other engines' trajectory errors are not measured
+  (their invariants and joint gaps are).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from references.errors import EngineError, Unsupported
+from references.trajectory import SystemTrajectory
+
+#: the closed form's initial state must equal the file's to this, relative to the system's
+#: size (positions), 1 (rotations) and the rate scale (velocities): the files print 17
+#: digits, so a mismatch beyond 1e-12 is a different motion, not rounding
+INITIAL_TOL = 1e-12
+#: the horizon of a numerical reference: perturbed runs stay within this attitude (rad), a
+#: tenth of the default attitude tolerance 0.1 rad (reports.verdicts, REFERENCE_MARGIN), and
+#: this fraction of the system's size in position
+HORIZON_ATTITUDE = 1e-2
+HORIZON_POSITION = 1e-2
+
+
+@dataclass
+class SystemReference:
+    """A system's reference at the times ``t``: ``trajectory`` (bodies in the scenario's
+    order), ``kind``, ``accuracy`` (rad, the attitude error estimate over the trusted
+    horizon), ``accuracy_position`` (m), ``horizon`` (s: trajectory errors are judged on
+    t <= horizon; t_end when the whole run is trusted), ``method`` and ``wall_time_s``."""
+
+    trajectory: SystemTrajectory
+    kind: str
+    accuracy: float
+    accuracy_position: float
+    horizon: float
+    method: str
+    wall_time_s: float = 0.0
+    notes: dict = field(default_factory=dict)
+
+
+def reference_kind(scenario) -> str:
+    """The reference kind a scenario gets (``auto`` resolved)."""
+    if scenario.reference != "auto":
+        return scenario.reference
+    return "numerical" if scenario.is_tree else "none"
+
+
+def _order(names_from, names_to) -> list[int]:
+    idx = {n: i for i, n in enumerate(names_from)}
+    return [idx[n] for n in names_to]
+
+
+def _check_initial(scenario, x, R, v, W, what: str) -> None:
+    """Refuse a closed form whose initial state is not the file's (module docstring)."""
+    size = scenario.length_scale
+    rate = max(1.0, max(float(np.linalg.norm(b.omega_body)) for b in scenario.bodies))
+    for i, b in enumerate(scenario.bodies):
+        gaps = {
+            "centre of mass": float(np.linalg.norm(x[i] - b.position)) / size,
+            "rotation": float(np.max(np.abs(R[i] - b.rotation))),
+            "velocity": float(np.linalg.norm(v[i] - b.velocity)) / (rate * size),
+            "angular velocity": float(np.linalg.norm(W[i] - b.omega_body)) / rate,
+        }
+        for k, g in gaps.items():
+            if not g <= INITIAL_TOL:
+                raise Unsupported(
+                    f"{what}: the exact motion's initial {k} of body {b.name!r} differs from "
+                    f"the scenario's by {g:.3g} (relative; at most {INITIAL_TOL:g}): the file's "
+                    "state is not this motion's; fix the file or its [reference] parameters"
+                )
+
+
+def _param(scenario, key: str) -> float:
+    p = scenario.reference_params
+    if key not in p:
+        raise Unsupported(
+            f"reference {scenario.reference!r} needs the parameter {key!r} in the file's "
+            f"[reference] table (it has {sorted(p)})"
+        )
+    return p[key]
+
+
+def _closed_form(scenario):
+    """The closed form of the scenario's kind, in the scenario's body order: (motion(t) ->
+    (x, R, v, W) in scenario order, accuracy(t) -> dict)."""
+    from references.exact._util import ReferenceNotApplicable
+    from references.exact.multibody import exact as ex
+    from references.exact.multibody import tree_from_world
+
+    kind = scenario.reference
+    by = {b.name: b for b in scenario.bodies}
+    try:
+        if kind == "spinning_chain":
+            tree, _, _ = tree_from_world(scenario.bodies, scenario.joints, scenario.gravity)
+            root = by[tree.names[0]]
+            m = scenario.total_mass
+            vc = sum(b.mass * b.velocity for b in scenario.bodies) / m
+            motion = ex.SpinningChain(tree, _param(scenario, "rate"),
+                                      int(_param(scenario, "axis")), root.rotation,
+                                      scenario.centre_of_mass, vc)  # fmt: skip
+            names = tree.names
+        elif kind == "conical_pendulum":
+            g = np.asarray(scenario.gravity)
+            if not (g[0] == 0 and g[1] == 0 and g[2] < 0):
+                raise Unsupported("conical_pendulum: the reference needs gravity along -z")
+            b1, b2 = scenario.bodies[0], scenario.bodies[1]
+            motion = ex.DoubleConicalPendulum(
+                (b1.mass, b2.mass), (tuple(b1.inertia), tuple(b2.inertia)),
+                (_param(scenario, "l1"), _param(scenario, "l2")), _param(scenario, "L1"),
+                -float(g[2]), _param(scenario, "rate"),
+            )  # fmt: skip
+            names = [b1.name, b2.name]
+        elif kind == "four_bar":
+            g = np.asarray(scenario.gravity)
+            if not (g[0] == 0 and g[1] == 0 and g[2] < 0):
+                raise Unsupported("four_bar: the reference needs gravity along -z")
+            missing = {"crank", "rocker", "coupler"} - set(by)
+            if missing:
+                raise Unsupported(f"four_bar: the reference needs bodies named {sorted(missing)}")
+            parts = [(by[n].mass, tuple(by[n].inertia)) for n in ("crank", "rocker", "coupler")]
+            P = {k: _param(scenario, k) for k in
+                 ("L", "D", "LA", "LB", "coupler_com", "theta0", "thetadot0")}  # fmt: skip
+            motion = ex.ParallelogramFourBar(P["L"], P["D"], *parts, P["LA"], P["LB"],
+                                             P["coupler_com"], -float(g[2]), P["theta0"],
+                                             P["thetadot0"])  # fmt: skip
+            names = motion.names
+        else:  # pragma: no cover - kinds are validated by the scenario layer
+            raise Unsupported(f"no closed form of kind {kind!r}")
+    except (ReferenceNotApplicable, ValueError) as exc:
+        raise Unsupported(f"reference {kind}: {exc}") from None
+    order = _order(names, scenario.body_names)
+
+    def at(t):
+        x, R, v, W = motion.motion(np.asarray(t, dtype=float))
+        return x[:, order], R[:, order], v[:, order], W[:, order]
+
+    x0, R0, v0, W0 = (a[0] for a in at(np.zeros(1)))
+    _check_initial(scenario, x0, R0, v0, W0, f"reference {kind}")
+    return at, motion.accuracy
+
+
+@functools.lru_cache(maxsize=16)
+def _cached(scenario, t_bytes: bytes) -> SystemReference:
+    return _compute(scenario, np.frombuffer(t_bytes, dtype=float))
+
+
+def reference(scenario, t) -> SystemReference:
+    """The reference of a system scenario at the times ``t`` (s), cached per process (the
+    engines of one scenario share a grid). Raises :class:`Unsupported` when there is none."""
+    return _cached(scenario, np.ascontiguousarray(t, dtype=float).tobytes())
+
+
+def _compute(scenario, t) -> SystemReference:
+    kind = reference_kind(scenario)
+    start = time.perf_counter()
+    if kind == "none":
+        why = "closes a loop" if scenario.loop_joints else "asks for none"
+        raise Unsupported(
+            f"{scenario.name}: no independent reference (the system {why}: the "
+            "reduced-coordinate reference treats trees, and no closed form is known); its "
+            "rows judge invariants and joint gaps, not trajectory errors"
+        )
+    if kind != "numerical":
+        at, accuracy = _closed_form(scenario)
+        x, R, v, W = at(t)
+        acc = accuracy(t)
+        traj = SystemTrajectory(t, x, v, R, W, scenario.body_names)
+        return SystemReference(traj, kind, float(acc["attitude"]), float(acc["position"]),
+                               float(t[-1]), f"closed form ({kind}), references.exact.multibody",
+                               time.perf_counter() - start)  # fmt: skip
+    return _numerical(scenario, t, start)
+
+
+def _numerical(scenario, t, start) -> SystemReference:
+    from references.exact.multibody import (
+        ReferenceCostExceeded,
+        solve,
+        trajectory_horizon,
+        tree_from_world,
+    )
+
+    try:
+        tree, q0, u0 = tree_from_world(scenario.bodies, scenario.joints, scenario.gravity)
+        sol = solve(tree, q0, u0, t)
+        size = scenario.length_scale
+        hz = trajectory_horizon(tree, q0, u0, t, HORIZON_ATTITUDE, HORIZON_POSITION * size)
+    except ReferenceCostExceeded as exc:
+        raise Unsupported(
+            f"{scenario.name}: the numerical reference is too costly: {exc}"
+        ) from None
+    except ValueError as exc:
+        raise Unsupported(f"{scenario.name}: the numerical reference refuses: {exc}") from None
+    order = _order(sol.names, scenario.body_names)
+    traj = SystemTrajectory(t, sol.x[:, order], sol.v[:, order], sol.R[:, order],
+                            sol.W[:, order], scenario.body_names)  # fmt: skip
+    inside = t <= hz.horizon
+    acc = float(np.max(sol.accuracy_t["attitude"][inside]))
+    acc_x = float(np.max(sol.accuracy_t["position"][inside]))
+    method = sol.method + (
+        f"; trusted horizon {hz.horizon:.6g} s of {t[-1]:.6g} s (perturbed runs stay within "
+        f"{HORIZON_ATTITUDE:g} rad and {HORIZON_POSITION:g} of the size"
+        + (")" if hz.within else f"; growth rate {hz.growth_rate:.3g} 1/s)")
+    )
+    return SystemReference(traj, "numerical", acc, acc_x, float(hz.horizon), method,
+                           time.perf_counter() - start,
+                           {"growth rate 1/s": hz.growth_rate})  # fmt: skip
+
+
+def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
+                    **settings) -> dict:  # fmt: skip
+    """The reference at the saved steps, as the ``exact`` engine's system run."""
+    from references.engines.base import step_plan
+
+    if integrator != "reference":
+        raise EngineError(f"exact: no integrator {integrator!r} (it has 'reference')")
+    _, saves = step_plan(dt, nstep * dt, save_every)
+    ref = reference(scenario, saves * dt)
+    tr = ref.trajectory
+    return {
+        "t": tr.t, "x": tr.position, "R": tr.rotation, "v": tr.velocity, "W": tr.omega_body,
+        "engine_time_s": ref.wall_time_s,
+        "settings": {"reference kind": ref.kind, "accuracy": ref.accuracy,
+                     "accuracy (position, m)": ref.accuracy_position,
+                     "trusted horizon (s)": ref.horizon, "method": ref.method},
+    }  # fmt: skip
+
+
+__all__ = ["SystemReference", "reference", "reference_kind", "simulate_system"]

@@ -1,0 +1,215 @@
+"""Metrics of systems of bodies, computed by the suite from the states of a run
+(:class:`references.trajectory.SystemTrajectory`) and the scenario
+(:class:`scenarios.SystemScenario`), identically for every engine. The columns are those of
+one body where the meaning carries over (the largest over the bodies) and three more:
+
+=========================  ============================================================  =====
+``energy_drift_max``       max_t |E(t) - E0| / E_c, E0 of the scenario's initial state,   1
+                           E_c :attr:`SystemScenario.energy_scale` (never E0)
+``momentum_drift_max``     the conserved momenta's largest drift: floating, |L_G - L_G0|   1
+                           / L_c (about the moving centre of mass) and |p - p0 - m g t|
+                           / p_c; hanging from one point joint, the angular momentum
+                           about that point along g (every component without gravity)
+                           / L_c; NaN when no momentum is conserved (a closed loop, a
+                           hinge not along g)
+``orthonormality_max``     max over t and bodies of ||R^T R - 1||_F                       1
+``attitude_error_max``     max over t <= the reference's trusted horizon and bodies of    rad
+                           the geodesic angle to the reference (as for one body)
+``omega_error_max``        the same of |W - W_ref|                                        rad/s
+``position_error_max``     the same of |x_G - x_G,ref|                                    m
+``joint_gap_max``          max over t and every joint, loop closures included, of the     m
+                           distance between its two anchor points (the distance of b's
+                           point from a's axis line for cylindrical and prismatic)
+``joint_angle_gap_max``    max over t and joints of the angle between a hinge's (or a     rad
+                           cylindrical or prismatic joint's) two axes; a universal
+                           joint's departure from perpendicular axes
+``branch_error``           a mechanism through a singular configuration: for the          rad
+                           parallelogram four-bar, the largest rotation of the coupler
+                           from its initial attitude (it translates on the parallelogram
+                           branch and turns on the crossed one); NaN otherwise
+=========================  ============================================================  =====
+
+The joints' rules are those of the scenario layer (:func:`scenarios.system.joint_residuals`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from references.trajectory import system_energy, system_momenta
+from reports.metrics import _max, attitude_error, nearest_rotation
+from scenarios.system import joint_residuals
+
+#: the metrics only systems have (declared as result columns in scenarios.model)
+SYSTEM_METRICS = ("joint_gap_max", "joint_angle_gap_max", "branch_error")
+
+
+def _initial(scenario):
+    """The scenario's initial state as a one-sample trajectory."""
+    from references.trajectory import SystemTrajectory
+
+    bs = scenario.bodies
+    return SystemTrajectory(
+        [0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
+        [[b.rotation for b in bs]], [[b.omega_body for b in bs]], scenario.body_names,
+    )  # fmt: skip
+
+
+def energy_drift(scenario, traj) -> np.ndarray:
+    """|E(t) - E0| / E_c, (n,)."""
+    E0 = float(system_energy(scenario, _initial(scenario))[0])
+    return np.abs(system_energy(scenario, traj) - E0) / scenario.energy_scale
+
+
+def energy(scenario, traj) -> np.ndarray:
+    """E(t) - E0, J, (n,) (the figure's series)."""
+    E0 = float(system_energy(scenario, _initial(scenario))[0])
+    return system_energy(scenario, traj) - E0
+
+
+def momentum_drift(scenario, traj) -> np.ndarray | None:
+    """The drift of the conserved momenta over their scales, (n,), or None (module
+    docstring)."""
+    init = _initial(scenario)
+    if scenario.floating:
+        m = scenario.total_mass
+        p0, L0 = system_momenta(scenario, init, np.zeros(3))
+        p, L = system_momenta(scenario, traj, np.zeros(3))
+        xc = np.einsum("b,nbi->ni", [b.mass for b in scenario.bodies], traj.position) / m
+        LG = L - np.cross(xc, p)
+        LG0 = L0[0] - np.cross(scenario.centre_of_mass, p0[0])
+        dp = p - p0[0] - m * np.outer(traj.t, scenario.gravity)
+        return np.maximum(
+            np.linalg.norm(LG - LG0, axis=1) / scenario.momentum_scale,
+            np.linalg.norm(dp, axis=1) / scenario.linear_momentum_scale,
+        )
+    point = scenario.ground_point
+    ground = [j for j in scenario.joints if j.body_b is None]
+    if point is None or ground[0].kind not in ("spherical", "fixed_point"):
+        return None
+    _, L0 = system_momenta(scenario, init, point)
+    _, L = system_momenta(scenario, traj, point)
+    d = L - L0[0]
+    if scenario.has_gravity:
+        g = np.asarray(scenario.gravity) / np.linalg.norm(scenario.gravity)
+        return np.abs(d @ g) / scenario.momentum_scale
+    return np.linalg.norm(d, axis=1) / scenario.momentum_scale
+
+
+def joint_gaps(scenario, traj) -> dict[str, dict[str, np.ndarray]]:
+    """Every joint's residuals over time, {joint name: {"gap": m, "angle": rad}}."""
+    return {
+        j.name: joint_residuals(scenario.bodies, j, traj.position, traj.rotation)
+        for j in scenario.joints
+    }
+
+
+def loop_gap(scenario, traj) -> np.ndarray | None:
+    """The largest gap of the loop closures over time (m), (n,), or None for a tree: the
+    figure's series of how far a loop drifts open."""
+    if not scenario.loop_joints:
+        return None
+    gaps = joint_gaps(scenario, traj)
+    return np.max([gaps[n]["gap"] for n in scenario.loop_joints], axis=0)
+
+
+def orthonormality(traj) -> np.ndarray:
+    """max over bodies of ||R^T R - 1||_F, (n,)."""
+    R = traj.rotation
+    E = np.einsum("nbki,nbkj->nbij", R, R) - np.eye(3)
+    return np.max(np.linalg.norm(E, axis=(2, 3)), axis=1)
+
+
+def _per_body_attitude(traj, ref) -> np.ndarray:
+    n, nb = traj.rotation.shape[:2]
+
+    class _Flat:  # the single-body metric on the bodies stacked
+        def __init__(self, R):
+            self.rotation = R.reshape(n * nb, 3, 3)
+
+    return attitude_error(_Flat(traj.rotation), _Flat(ref.rotation)).reshape(n, nb)
+
+
+def attitude_errors(traj, ref) -> np.ndarray:
+    """Largest attitude error over the bodies (rad), (n,)."""
+    return np.max(_per_body_attitude(traj, ref), axis=1)
+
+
+def position_errors(traj, ref) -> np.ndarray:
+    return np.max(np.linalg.norm(traj.position - ref.position, axis=2), axis=1)
+
+
+def omega_errors(traj, ref) -> np.ndarray:
+    return np.max(np.linalg.norm(traj.omega_body - ref.omega_body, axis=2), axis=1)
+
+
+def branch_error(scenario, traj) -> np.ndarray | None:
+    """The four-bar's branch check (module docstring), rad, (n,), or None."""
+    if scenario.reference != "four_bar" or "coupler" not in scenario.body_names:
+        return None
+    i = scenario.body_names.index("coupler")
+    Q = nearest_rotation(traj.rotation[:, i])
+    R0 = scenario.bodies[i].rotation
+    d = np.linalg.norm(Q - R0[None], axis=(1, 2)) / (2.0 * math.sqrt(2.0))
+    return 2.0 * np.arcsin(np.clip(d, 0.0, 1.0))
+
+
+def _inside(traj, ref):
+    """The samples of ``traj`` and ``ref`` up to the reference's trusted horizon."""
+    k = int(np.searchsorted(traj.t, ref.horizon * (1 + 1e-12), side="right"))
+    return traj.head(k), ref.trajectory.head(k)
+
+
+def compute_system_metrics(scenario, traj, ref=None) -> dict[str, float]:
+    """Every metric of one system run (module docstring). ``ref``: the
+    :class:`references.engines.exact_system.SystemReference` at the same times, or None
+    (error metrics NaN)."""
+    md = momentum_drift(scenario, traj)
+    gaps = joint_gaps(scenario, traj)
+    br = branch_error(scenario, traj)
+    m = {
+        "energy_drift_max": _max(energy_drift(scenario, traj)),
+        "momentum_drift_max": math.nan if md is None else _max(md),
+        "orthonormality_max": _max(orthonormality(traj)),
+        "joint_gap_max": _max([g["gap"] for g in gaps.values()]) if gaps else math.nan,
+        "joint_angle_gap_max": _max([g["angle"] for g in gaps.values()]) if gaps else math.nan,
+        "branch_error": math.nan if br is None else _max(br),
+        "attitude_error_max": math.nan,
+        "omega_error_max": math.nan,
+        "position_error_max": math.nan,
+    }
+    if ref is not None:
+        rt = ref.trajectory
+        if len(rt) != len(traj) or not np.allclose(rt.t, traj.t, rtol=0, atol=1e-9):
+            raise ValueError("the system reference is sampled at other times than the run")
+        a, b = _inside(traj, ref)
+        m["attitude_error_max"] = _max(attitude_errors(a, b))
+        m["omega_error_max"] = _max(omega_errors(a, b))
+        m["position_error_max"] = _max(position_errors(a, b))
+    return m
+
+
+def error_series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
+    """Per-sample series of one system run, written beside its trajectory so that figures
+    are pure functions of files: energy (E - E0, J) and its drift, momentum drift, joint and
+    loop gaps (m), and, with a reference, the attitude error (NaN beyond its horizon)."""
+    cols = {
+        "energy_change": energy(scenario, traj),
+        "energy_drift": energy_drift(scenario, traj),
+        "orthonormality": orthonormality(traj),
+    }
+    md = momentum_drift(scenario, traj)
+    if md is not None:
+        cols["momentum_drift"] = md
+    gaps = joint_gaps(scenario, traj)
+    if gaps:
+        cols["joint_gap"] = np.max([g["gap"] for g in gaps.values()], axis=0)
+    lg = loop_gap(scenario, traj)
+    if lg is not None:
+        cols["loop_gap"] = lg
+    if ref is not None:
+        err = attitude_errors(traj, ref.trajectory)
+        cols["attitude_error"] = np.where(traj.t <= ref.horizon * (1 + 1e-12), err, np.nan)
+    return cols

@@ -1,0 +1,170 @@
+"""One run of a system of bodies, from its spec to its result row: the system counterpart of
+:func:`reports.runner.execute` (which hands system scenarios here).
+
+Flow: the engine's system builder (:func:`references.engines.system.run_system`) -> the
+states (:class:`references.trajectory.SystemTrajectory`) -> the reference
+(:func:`references.engines.exact_system.reference`) -> the metrics
+(:mod:`reports.system_metrics`) -> status and verdict (:mod:`reports.verdicts`) -> the
+trajectory file (Parquet, per-body columns and the error series). A failure of the run is a
+row with its status and message, never an exception.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import traceback
+from pathlib import Path
+
+from reports import verdicts
+from reports.metrics import roundoff_floor
+from reports.results import StoreUnwritable, finish_time, trajectory_path
+
+
+def execute_system(spec, row: dict, out: Path | None = None, fmt: str = "parquet") -> dict:
+    """Run the system spec ``spec`` into ``row`` (its blank row) and return the row."""
+    from references.engines import Diverged, EngineError, get_engine
+    from references.engines.system import run_system
+
+    try:
+        cls = get_engine(spec.engine)
+        if not row["engine_version"]:
+            row["engine_version"] = cls.version()
+        integ = cls.integrator(spec.integrator)
+        row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
+        sc = spec.scenario
+        if spec.t_end is not None and spec.horizon != sc.t_end:
+            sc = sc.replace(t_end=spec.horizon)
+            row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
+        if spec.accuracy is not None:
+            from references.engines import Unsupported
+
+            raise Unsupported(f"{spec.engine} {integ.name}: systems run at fixed steps only")
+        try:
+            output = run_system(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
+            diverged = None
+        except Diverged as exc:
+            output, diverged = exc.output, exc
+        ref = _measure(row, spec, sc, output, out, fmt)
+        _judge(row, sc, integ, diverged, ref)
+    except EngineError as exc:
+        row["status"] = exc.status
+        row["message"] = str(exc)
+    except StoreUnwritable:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a run's failure is a row, never a crash
+        row["status"] = "error"
+        tb = traceback.extract_tb(exc.__traceback__)[-1]
+        row["message"] = f"{type(exc).__name__}: {exc} (at {Path(tb.filename).name}:{tb.lineno})"
+    row["finished_at"] = finish_time()
+    return row
+
+
+def _measure(row, spec, sc, output, out, fmt):
+    """Timings, settings, metrics and the trajectory file of a run's output; returns the
+    reference used (None: none)."""
+    from references.engines import Unsupported
+    from references.engines.exact_system import reference
+    from reports.system_metrics import compute_system_metrics, error_series
+
+    if output is None:
+        return None
+    traj = output.trajectory
+    n = max(output.nstep, 1)
+    row.update(
+        nstep=output.nstep,
+        wall_time_s=output.wall_time_s,
+        engine_time_s=output.engine_time_s,
+        glue_time_s=output.glue_time_s,
+        ns_per_step=1e9 * output.wall_time_s / n,
+        engine_ns_per_step=1e9 * output.engine_time_s / n,
+        wall_time_max_s=output.wall_time_s,
+        engine_time_max_s=output.engine_time_s,
+        timing_repeats=1,
+        evals_per_step=output.evals_per_step,
+        settings=json.dumps(output.settings, sort_keys=True, default=str),
+        roundoff_floor=roundoff_floor(sc, output.nstep),
+    )
+    ref = None
+    if spec.engine == "exact":
+        row["reference_kind"] = output.settings.get("reference kind", "")
+        row["reference_accuracy"] = float(output.settings.get("accuracy", math.nan))
+    elif len(traj):
+        try:
+            ref = reference(sc, traj.t)
+            row["reference_kind"] = ref.kind
+            row["reference_accuracy"] = ref.accuracy
+            if ref.horizon < traj.t[-1]:
+                row["message"] = (
+                    f"trajectory errors judged up to the reference's trusted horizon "
+                    f"t = {ref.horizon:.4g} s (chaotic motion); invariants and joints over "
+                    "the whole run"
+                )
+        except Unsupported as exc:
+            row["reference_kind"] = "none"
+            row["message"] = f"no reference, trajectory errors not measured: {exc}"
+    if len(traj):
+        row.update(compute_system_metrics(sc, traj, ref))
+    if out is not None and len(traj):
+        _write(row, spec, traj, error_series(sc, traj, ref), Path(out), fmt)
+    return ref
+
+
+def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
+    """The run's trajectory: Parquet with per-body columns, the error series and the run's
+    identity (CSV is not offered for systems: the file is written as Parquet)."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from references.trajectory import UNITS
+
+    rel = trajectory_path(spec, "parquet")
+    path = out / rel
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols = traj.columns()
+    units = {c: UNITS[c.rsplit(".", 1)[1]] for c in cols if c != "t"} | {"t": "s"}
+    keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
+    meta = {
+        "director_bench.units": units
+        | {"energy_change": "J", "joint_gap": "m", "loop_gap": "m", "attitude_error": "rad"},
+        "director_bench.frames": {
+            "<body>.x .. <body>.vz": "world axes, centre of mass of the body",
+            "<body>.R00 .. R22": "body-to-world rotation, row-major; columns: principal axes",
+            "<body>.wx .. wz": "body axes",
+        },
+        "director_bench.bodies": list(traj.body_names),
+        "director_bench.run": {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")},
+    }
+    table = pa.table({**cols, **{k: np.asarray(v, dtype=float) for k, v in series.items()}})
+    schema_meta = dict(table.schema.metadata or {})
+    schema_meta.update({k.encode(): json.dumps(v).encode() for k, v in meta.items()})
+    table = table.replace_schema_metadata(schema_meta)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        pq.write_table(table, tmp)
+        tmp.replace(path)
+    except OSError as exc:
+        raise StoreUnwritable(f"{path}: cannot write the run's trajectory ({exc})") from exc
+    row["trajectory"] = rel.as_posix()
+
+
+def _judge(row, sc, integ, diverged, ref) -> None:
+    """Status and verdict: as for one body, except that a system with no reference is
+    judged on what is measured (invariants, joints) with the reason in the message."""
+    bounds = verdicts.tolerances(sc, integ)
+    if diverged is not None:
+        row["status"] = "diverged"
+        row["t_diverged"] = diverged.t_diverged
+        row["message"] = str(diverged)
+    else:
+        why = None
+        if row["reference_kind"] not in ("", "none"):
+            why = verdicts.reference_problem(row["reference_accuracy"], bounds)
+        if why is not None:
+            row["status"] = "reference-inaccurate"
+            row["message"] = row["message"] or f"{why} (reference: {row['reference_kind']})"
+        else:
+            row["status"] = "ok"
+    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)

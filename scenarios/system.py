@@ -1,0 +1,803 @@
+"""Scenario files of systems of rigid bodies joined by joints (chains, trees, closed loops).
+
+A system file is a scenario file whose top level has ``[[bodies]]`` and ``[[joints]]`` arrays
+of tables instead of ``[body]`` and ``[initial]`` (docs/scenarios.md, "Systems of bodies")::
+
+    [[bodies]]
+    name = "upper"
+    mass = 1.0
+    inertia = [0.09, 0.09, 0.02]      # principal moments about the centre of mass, kg m^2
+    position = [0.0, 0.0, -0.5]       # centre of mass, world, m
+    rotation_vector = [0.3, 0.0, 0.0] # or rotation = [[...]] or quaternion_wxyz = [...]
+    velocity = [0.0, 0.0, 0.0]        # centre-of-mass velocity, world, m/s (default 0)
+    omega_body = [0.0, 0.0, 0.0]      # body angular velocity, body axes, rad/s (default 0)
+
+    [[joints]]
+    name = "shoulder"                 # default "joint<index>"
+    kind = "spherical"                # spherical, fixed_point, revolute, universal,
+                                      # cylindrical, prismatic
+    body_a = "upper"
+    body_b = "ground"                 # a body's name, or "ground"
+    anchor_a = [0.0, 0.0, 0.5]        # in a's principal frame, relative to its centre of mass
+    anchor_b = [0.0, 0.0, 0.0]        # in b's principal frame; for the ground a WORLD point
+    # axis_a, axis_b for revolute, universal, cylindrical, prismatic (world for the ground)
+
+with ``[environment] gravity``, ``[run]``, ``[tolerances]`` as for one body and
+``[reference] kind`` one of :data:`SYSTEM_REFERENCE_KINDS` (with the parameters of an exact
+motion beside it).
+
+Every problem of a file is listed in one :class:`~scenarios.schema.ScenarioError` naming the
+file, the field (``bodies[1].inertia``, ``joints[0].anchor_b``), the value and the rule: the
+bodies' physics (as for one body), unknown or repeated names, the joints' shape, and the
+joints holding at t = 0 in position (:data:`JOINT_TOL`) and velocity. Nothing is repaired.
+
+The spanning tree (from the ground outwards, breadth first; a floating system from its first
+body) and the loop closures (every joint the tree does not need) are computed once here:
+:attr:`SystemScenario.tree_joints`, :attr:`SystemScenario.loop_joints`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: joint kinds (the same names and meanings as ``director_model.system.Joint``)
+JOINT_KINDS = ("spherical", "fixed_point", "revolute", "universal", "cylindrical", "prismatic")
+#: the kinds with a point constraint (anchor_a and anchor_b coincide)
+POINT_KINDS = ("spherical", "fixed_point", "revolute", "universal")
+#: kinds that need axes
+AXIS_KINDS = ("revolute", "universal", "cylindrical", "prismatic")
+
+#: reference kinds of a system: "auto" (numerical for a tree, none for a loop), the exact
+#: motions of references.exact.multibody.exact, the reduced-coordinate DOP853 reference
+#: ("numerical", trees only) and "none" (no independent reference: trajectory errors are
+#: not measured, invariants and joint gaps are)
+SYSTEM_REFERENCE_KINDS = (
+    "auto",
+    "spinning_chain",
+    "conical_pendulum",
+    "four_bar",
+    "numerical",
+    "none",
+)
+
+#: a joint must hold at t = 0 to this, m for points and rad for axes: the tolerance of
+#: director_model.system (INIT_TOL), so that a file accepted here runs there (files give
+#: their numbers with 17 significant digits, whose rounding is ~1e-16 m)
+JOINT_TOL = 1e-10
+
+
+def _frozen(a) -> np.ndarray:
+    arr = np.array(a, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class SystemBody:
+    """One body of a system, with exactly the fields of ``director_model.system.Body``."""
+
+    name: str
+    mass: float
+    inertia: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    omega_body: np.ndarray
+
+    def __post_init__(self):
+        for k in ("inertia", "position", "rotation", "velocity", "omega_body"):
+            object.__setattr__(self, k, _frozen(getattr(self, k)))
+        object.__setattr__(self, "mass", float(self.mass))
+
+
+@dataclass(frozen=True, eq=False)
+class SystemJoint:
+    """One joint, with exactly the fields of ``director_model.system.Joint``; ``body_b`` None
+    is the ground (then ``anchor_b`` and ``axis_b`` are world coordinates)."""
+
+    name: str
+    kind: str
+    body_a: str
+    body_b: str | None
+    anchor_a: np.ndarray
+    anchor_b: np.ndarray
+    axis_a: np.ndarray | None = None
+    axis_b: np.ndarray | None = None
+
+    def __post_init__(self):
+        for k in ("anchor_a", "anchor_b", "axis_a", "axis_b"):
+            v = getattr(self, k)
+            if v is not None:
+                object.__setattr__(self, k, _frozen(v))
+
+
+def spanning_tree(bodies, joints) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(names of the tree joints, names of the loop closures): breadth first from the ground
+    (the joints to the ground in file order; a second one to a body already reached closes
+    a loop through the ground), then from each body not yet reached (a floating part). A
+    joint whose two sides are already in the tree closes a loop."""
+    reached: set[str] = set()
+    tree: list[str] = []
+    loops: list[str] = []
+    adj: dict[str, list] = {b.name: [] for b in bodies}
+    for j in joints:
+        if j.body_b is not None:
+            adj[j.body_a].append(j)
+            adj[j.body_b].append(j)
+    used: set[str] = set()
+    queue: deque[str] = deque()
+    for j in joints:
+        if j.body_b is not None:
+            continue
+        used.add(j.name)
+        if j.body_a in reached:
+            loops.append(j.name)
+        else:
+            tree.append(j.name)
+            reached.add(j.body_a)
+            queue.append(j.body_a)
+    while True:
+        while queue:
+            p = queue.popleft()
+            for j in adj[p]:
+                if j.name in used:
+                    continue
+                used.add(j.name)
+                other = j.body_b if j.body_a == p else j.body_a
+                if other in reached:
+                    loops.append(j.name)
+                else:
+                    tree.append(j.name)
+                    reached.add(other)
+                    queue.append(other)
+        rest = [b.name for b in bodies if b.name not in reached]
+        if not rest:
+            break
+        reached.add(rest[0])
+        queue.append(rest[0])
+    return tuple(tree), tuple(loops)
+
+
+def system_inertia(bodies, about) -> np.ndarray:
+    """3x3 inertia tensor of the bodies about the world point ``about`` in their initial
+    configuration, kg m^2."""
+    J = np.zeros((3, 3))
+    for b in bodies:
+        r = b.position - np.asarray(about, dtype=float)
+        J += b.rotation @ np.diag(b.inertia) @ b.rotation.T
+        J += b.mass * (float(r @ r) * np.eye(3) - np.outer(r, r))
+    return J
+
+
+@dataclass(frozen=True, eq=False)
+class SystemScenario:
+    """A validated system scenario (build it with :func:`scenarios.load`).
+
+    ``bodies`` and ``joints`` are tuples of :class:`SystemBody` and :class:`SystemJoint`;
+    ``gravity`` (3,) m/s^2; run settings, ``reference``, ``tolerances``, ``source``, ``tags``
+    and ``path`` as for one body (:class:`scenarios.model.Scenario`); ``reference_params``:
+    the ``[reference]`` table's parameters of an exact motion (name -> number).
+    ``tree_joints`` and ``loop_joints``: joint names of the spanning tree and of the loop
+    closures (:func:`spanning_tree`)."""
+
+    name: str
+    description: str
+    bodies: tuple
+    joints: tuple
+    t_end: float
+    dt: float
+    gravity: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
+    dt_sweep: tuple[float, ...] = ()
+    save_every: int = 1
+    accuracies: tuple[float, ...] = ()
+    reference: str = "auto"
+    reference_params: dict = field(default_factory=dict)
+    tolerances: dict = field(default_factory=dict)
+    source: str = ""
+    tags: tuple[str, ...] = ()
+    path: str | None = None
+
+    #: single-body code paths test this attribute
+    is_system = True
+    #: the single-body field (a system is tied to the ground by joints instead)
+    pivot = None
+    pivoted = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "bodies", tuple(self.bodies))
+        object.__setattr__(self, "joints", tuple(self.joints))
+        object.__setattr__(self, "gravity", _frozen(self.gravity))
+        object.__setattr__(self, "dt_sweep", tuple(float(h) for h in self.dt_sweep))
+        object.__setattr__(self, "accuracies", tuple(float(a) for a in self.accuracies))
+        object.__setattr__(self, "tags", tuple(self.tags))
+        object.__setattr__(self, "t_end", float(self.t_end))
+        object.__setattr__(self, "dt", float(self.dt))
+        object.__setattr__(self, "reference_params", dict(self.reference_params))
+        object.__setattr__(
+            self,
+            "tolerances",
+            {str(f): {str(k): float(v) for k, v in b.items()} for f, b in self.tolerances.items()},
+        )
+        tree, loops = spanning_tree(self.bodies, self.joints)
+        object.__setattr__(self, "tree_joints", tree)
+        object.__setattr__(self, "loop_joints", loops)
+
+    # -- structure ------------------------------------------------------------------------
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        return tuple(b.name for b in self.bodies)
+
+    @property
+    def is_tree(self) -> bool:
+        """No loop closure (every joint is in the spanning tree)."""
+        return not self.loop_joints
+
+    @property
+    def floating(self) -> bool:
+        """No joint to the ground: the total angular momentum about the centre of mass and
+        the linear momentum less m_tot g t are conserved."""
+        return all(j.body_b is not None for j in self.joints)
+
+    @property
+    def ground_point(self) -> np.ndarray | None:
+        """The world point of the only joint to the ground when it is a point joint
+        (spherical, fixed_point, revolute, universal), else None."""
+        ground = [j for j in self.joints if j.body_b is None]
+        if len(ground) == 1 and ground[0].kind in POINT_KINDS:
+            return ground[0].anchor_b
+        return None
+
+    @property
+    def has_gravity(self) -> bool:
+        return bool(np.any(self.gravity != 0.0))
+
+    @property
+    def total_mass(self) -> float:
+        return float(sum(b.mass for b in self.bodies))
+
+    @property
+    def centre_of_mass(self) -> np.ndarray:
+        """The system's centre of mass at t = 0, world, m."""
+        return sum(b.mass * b.position for b in self.bodies) / self.total_mass
+
+    @property
+    def length_scale(self) -> float:
+        """The system's size (m): the largest distance between two of its centres of mass
+        and joint points at t = 0 (a one-point system: its heaviest body's radius of
+        gyration), never 0."""
+        pts = [b.position for b in self.bodies]
+        by = {b.name: b for b in self.bodies}
+        for j in self.joints:
+            a = by[j.body_a]
+            pts.append(a.position + a.rotation @ j.anchor_a)
+        P = np.array(pts)
+        d = float(np.max(np.linalg.norm(P[:, None, :] - P[None, :, :], axis=2)))
+        if d > 0:
+            return d
+        b = max(self.bodies, key=lambda b: b.mass)
+        return math.sqrt(float(np.max(b.inertia)) / b.mass)
+
+    # -- physical scales of the metrics ---------------------------------------------------
+    def kinetic_energy0(self) -> float:
+        """The initial kinetic energy, J."""
+        return float(
+            sum(
+                0.5 * b.mass * float(b.velocity @ b.velocity)
+                + 0.5 * float(b.omega_body @ (b.inertia * b.omega_body))
+                for b in self.bodies
+            )
+        )
+
+    @property
+    def energy_scale(self) -> float:
+        """E_c (J), never E0 (it depends on where the potential's zero is): the initial
+        kinetic energy plus the potential energy in play: tied to the ground, m_tot |g|
+        times the system's size (:attr:`length_scale`, at least the largest distance from
+        a ground joint to a centre of mass); floating, the translational kinetic energy
+        gravity can give the centre of mass over the horizon, 1/2 m_tot max(|v_c|^2,
+        |v_c + g t_end|^2). 1 J if all of it is 0."""
+        m = self.total_mass
+        g = float(np.linalg.norm(self.gravity))
+        e = self.kinetic_energy0()
+        if self.floating:
+            if g > 0:
+                vc = sum(b.mass * b.velocity for b in self.bodies) / m
+                v1 = vc + self.gravity * self.t_end
+                e += 0.5 * m * max(float(vc @ vc), float(v1 @ v1))
+        else:
+            e += m * g * self.length_scale
+        return e if e > 0 else 1.0
+
+    @property
+    def energy_scales(self) -> dict[str, float]:
+        return {"total": self.energy_scale}
+
+    @property
+    def momentum_point(self) -> np.ndarray:
+        """The point angular momentum is measured about: the ground's joint point (a single
+        point joint to the ground), the centre of mass (floating), else the world origin."""
+        p = self.ground_point
+        if p is not None:
+            return np.asarray(p, dtype=float)
+        if self.floating:
+            return self.centre_of_mass
+        return np.zeros(3)
+
+    @property
+    def momentum_scale(self) -> float:
+        """L_c = sqrt(2 E_c J_max) (kg m^2/s), J_max the largest principal moment of the
+        system about :attr:`momentum_point` at t = 0: the largest angular momentum the
+        system can have with the energy in play (never 0 when L0 is)."""
+        J = system_inertia(self.bodies, self.momentum_point)
+        return math.sqrt(2.0 * self.energy_scale * float(np.max(np.linalg.eigvalsh(J))))
+
+    @property
+    def linear_momentum_scale(self) -> float:
+        """p_c = sqrt(2 m_tot E_c) (kg m/s): the largest linear momentum with that energy."""
+        return math.sqrt(2.0 * self.total_mass * self.energy_scale)
+
+    @property
+    def rate_scale(self) -> float:
+        """w_c = sqrt(2 E_c / I_min), I_min the smallest moment of any body (rad/s)."""
+        imin = min(float(np.min(b.inertia)) for b in self.bodies)
+        return math.sqrt(2.0 * self.energy_scale / imin)
+
+    # -- identity -------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        def v(a):
+            return None if a is None else np.asarray(a).tolist()
+
+        bodies = [
+            {k: (getattr(b, k) if k in ("name", "mass") else v(getattr(b, k)))
+             for k in ("name", "mass", "inertia", "position", "rotation", "velocity",
+                       "omega_body")}
+            for b in self.bodies
+        ]  # fmt: skip
+        joints = [
+            {"name": j.name, "kind": j.kind, "body_a": j.body_a, "body_b": j.body_b,
+             "anchor_a": v(j.anchor_a), "anchor_b": v(j.anchor_b), "axis_a": v(j.axis_a),
+             "axis_b": v(j.axis_b)}
+            for j in self.joints
+        ]  # fmt: skip
+        return {
+            "name": self.name,
+            "description": self.description,
+            "bodies": bodies,
+            "joints": joints,
+            "environment": {"gravity": v(self.gravity)},
+            "run": {
+                "t_end": self.t_end,
+                "dt": self.dt,
+                "dt_sweep": list(self.dt_sweep),
+                "save_every": self.save_every,
+                "accuracies": list(self.accuracies),
+            },
+            "reference": self.reference,
+            "reference_params": dict(self.reference_params),
+            "tolerances": self.tolerances,
+        }
+
+    @property
+    def scenario_hash(self) -> str:
+        """As :attr:`scenarios.model.Scenario.scenario_hash`: the content that determines a
+        result (everything but the description)."""
+        d = self.to_dict()
+        d.pop("description")
+        blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:12]
+
+    def magnitude_problems(self, t_end: float | None = None) -> list[tuple]:
+        """See :func:`magnitude_problems`."""
+        return magnitude_problems(self, t_end)
+
+    def replace(self, **changes) -> SystemScenario:
+        """A copy with some fields changed (e.g. ``t_end`` from the command line)."""
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
+
+
+# -- validation ---------------------------------------------------------------------------------
+
+_BODY_KEYS = {
+    "name": "name",
+    "mass": "number",
+    "inertia": "vec3",
+    "position": "vec3",
+    "rotation": "mat3",
+    "quaternion_wxyz": "vec4",
+    "rotation_vector": "vec3",
+    "velocity": "vec3",
+    "omega_body": "vec3",
+}
+_BODY_REQUIRED = ("name", "mass", "inertia", "position")
+_JOINT_KEYS = {
+    "name": "name",
+    "kind": "str",
+    "body_a": "str",
+    "body_b": "str",
+    "anchor_a": "vec3",
+    "anchor_b": "vec3",
+    "axis_a": "vec3",
+    "axis_b": "vec3",
+}
+_JOINT_REQUIRED = ("kind", "body_a", "body_b", "anchor_a", "anchor_b")
+_TOP_KEYS = (
+    "name",
+    "description",
+    "source",
+    "tags",
+    "bodies",
+    "joints",
+    "environment",
+    "run",
+    "reference",
+    "tolerances",
+)
+
+
+def validate(data: dict, path: str | None = None):
+    """A scenario of one body (:func:`scenarios.schema.validate`) or, for data with
+    ``[[bodies]]``, of a system (:func:`validate_system`)."""
+    from scenarios import schema
+
+    if isinstance(data, dict) and "bodies" in data:
+        return validate_system(data, path)
+    return schema.validate(data, path)
+
+
+def load_file(path):
+    """Read and validate one scenario file of one body or of a system."""
+    from scenarios import schema
+
+    return validate(schema.read_file(path), path=str(path))
+
+
+def validate_system(data: dict, path: str | None = None) -> SystemScenario:
+    """Validate parsed TOML ``data`` of a system file into a :class:`SystemScenario`; raise
+    :class:`~scenarios.schema.ScenarioError` listing every problem."""
+    from scenarios import schema as sch
+
+    probs: list[tuple] = []
+    where = path if path is not None else "<scenario data>"
+
+    def bad(f, value, rule):
+        probs.append((f, value, rule))
+
+    for key in data:
+        if key not in _TOP_KEYS:
+            bad(key, data[key], f"unknown key in a system file; allowed: {', '.join(_TOP_KEYS)}")
+    _typed(data, {"name": "name", "description": "str"}, ("name", "description"), "", bad)
+    env = _table(data, "environment", bad)
+    run = _table(data, "run", bad, required=True)
+    ref = _table(data, "reference", bad)
+    gravity = np.array(_typed(env, {"gravity": "vec3"}, (), "environment", bad).get(
+        "gravity", [0.0, 0.0, 0.0]), dtype=float)  # fmt: skip
+    spec = {k: kind for k, (kind, _) in sch._SPEC["run"].items()}
+    required = [k for k, (_, req) in sch._SPEC["run"].items() if req]
+    good_run = _typed(run, spec, required, "run", bad)
+    sweep, save_every = sch._check_run(good_run, bad)
+    kind = ref.get("kind", "auto")
+    if kind not in SYSTEM_REFERENCE_KINDS:
+        bad("reference.kind", kind, f"must be one of {', '.join(SYSTEM_REFERENCE_KINDS)}")
+    params = {}
+    for key, value in ref.items():
+        if key == "kind":
+            continue
+        if not sch._finite(value):
+            bad(f"reference.{key}", value, "a parameter of an exact motion is a finite number")
+        else:
+            params[key] = float(value)
+    tolerances = sch._check_tolerances(data.get("tolerances"), bad)
+    bodies = _bodies(data.get("bodies"), bad)
+    joints = _joints(data.get("joints"), bodies, bad)
+    if not probs and joints:
+        _initial_gaps(bodies, joints, bad)
+    if probs:
+        raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
+    sc = SystemScenario(
+        name=data["name"],
+        description=data["description"],
+        bodies=bodies,
+        joints=joints,
+        gravity=gravity,
+        t_end=float(good_run["t_end"]),
+        dt=float(good_run["dt"]),
+        dt_sweep=tuple(float(h) for h in sweep),
+        save_every=int(save_every),
+        accuracies=tuple(float(a) for a in good_run.get("accuracies", ())),
+        reference=kind,
+        reference_params=params,
+        tolerances=tolerances,
+        source=data.get("source", ""),
+        tags=tuple(data.get("tags", ())),
+        path=path,
+    )
+    probs = magnitude_problems(sc)
+    if kind == "numerical" and sc.loop_joints:
+        probs.append(("reference.kind", kind, "the reduced-coordinate reference treats trees "
+                      f"only; joints {list(sc.loop_joints)} close loops (give none, or an "
+                      "exact motion)"))  # fmt: skip
+    if probs:
+        raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
+    return sc
+
+
+def _table(data, key, bad, required=False) -> dict:
+    v = data.get(key)
+    if v is None:
+        if required:
+            bad(key, "<missing>", "required: a table")
+        return {}
+    if not isinstance(v, dict):
+        bad(key, v, "must be a table")
+        return {}
+    return v
+
+
+def _typed(tab, keys, required, prefix, bad) -> dict:
+    """The entries of ``tab`` of the right type; unknown, missing and mistyped ones are
+    reported with the field ``prefix.key``."""
+    from scenarios import schema as sch
+
+    def dotted(key):
+        return f"{prefix}.{key}" if prefix else key
+
+    good = {}
+    for key in tab:
+        if key not in keys and prefix:
+            bad(dotted(key), tab[key], f"unknown key; allowed here: {', '.join(keys)}")
+    for key, kind in keys.items():
+        if key not in tab:
+            if key in required:
+                bad(dotted(key), "<missing>", f"required: {sch._KIND_TEXT[kind]}")
+        elif not sch._type_ok(kind, tab[key]):
+            bad(dotted(key), tab[key], f"must be {sch._KIND_TEXT[kind]}")
+        else:
+            good[key] = tab[key]
+    return good
+
+
+def _attitude(tab: dict, prefix: str, bad) -> np.ndarray:
+    """The body's initial rotation: at most one of three forms (none: identity)."""
+    from scenarios import schema as sch
+
+    forms = [k for k in ("rotation", "quaternion_wxyz", "rotation_vector") if k in tab]
+    if len(forms) > 1:
+        bad(prefix, forms, "give the initial attitude exactly once")
+        return np.eye(3)
+    if not forms:
+        return np.eye(3)
+    k = forms[0]
+    if k == "rotation":
+        R = np.array(tab[k], dtype=float)
+        dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
+        if dev > sch.ROTATION_TOL:
+            bad(f"{prefix}.rotation", tab[k], f"not orthonormal: max |R^T R - 1| = {dev:.3g} > "
+                f"{sch.ROTATION_TOL:g} (give 17 digits, or use rotation_vector)")  # fmt: skip
+        elif float(np.linalg.det(R)) < 0:
+            bad(f"{prefix}.rotation", tab[k], "det R = -1: a reflection, not a rotation")
+        return R
+    if k == "quaternion_wxyz":
+        q = np.array(tab[k], dtype=float)
+        if abs(float(np.linalg.norm(q)) - 1.0) > sch.ROTATION_TOL:
+            bad(f"{prefix}.quaternion_wxyz", tab[k], "not a unit quaternion")
+            return np.eye(3)
+        return sch.rotation_from_quaternion(q)
+    return sch.rotation_from_vector(tab[k])
+
+
+def _bodies(raw, bad) -> list[SystemBody]:
+    from scenarios import schema as sch
+
+    if not isinstance(raw, list) or not raw or not all(isinstance(b, dict) for b in raw):
+        bad("bodies", "<missing>" if raw is None else raw, "required: an array of [[bodies]] "
+            "tables, one per body")  # fmt: skip
+        return []
+    out, seen = [], set()
+    z = [0.0, 0.0, 0.0]
+    for i, tab in enumerate(raw):
+        p = f"bodies[{i}]"
+        good = _typed(tab, _BODY_KEYS, _BODY_REQUIRED, p, bad)
+        name = good.get("name", f"body{i}")
+        if name == "ground":
+            bad(f"{p}.name", name, "'ground' names the fixed world in joints; rename the body")
+        if name in seen:
+            bad(f"{p}.name", name, "body names must be unique")
+        seen.add(name)
+        for f, v, rule in sch.body_problems(good.get("mass"), good.get("inertia"), p):
+            bad(f, v, rule)
+        R = _attitude(good, p, bad)
+        out.append(
+            SystemBody(
+                name=name,
+                mass=float(good.get("mass", 1.0)),
+                inertia=np.array(good.get("inertia", [1.0, 1.0, 1.0]), dtype=float),
+                position=np.array(good.get("position", z), dtype=float),
+                rotation=R,
+                velocity=np.array(good.get("velocity", z), dtype=float),
+                omega_body=np.array(good.get("omega_body", z), dtype=float),
+            )
+        )
+    return out
+
+
+def _joints(raw, bodies, bad) -> list[SystemJoint]:
+    if raw is None:
+        raw = []
+    if not isinstance(raw, list) or not all(isinstance(j, dict) for j in raw):
+        bad("joints", raw, "must be an array of [[joints]] tables")
+        return []
+    names = {b.name for b in bodies}
+    out, seen = [], set()
+    for i, tab in enumerate(raw):
+        p = f"joints[{i}]"
+        good = _typed(tab, _JOINT_KEYS, _JOINT_REQUIRED, p, bad)
+        name = good.get("name", f"joint{i}")
+        if name in seen:
+            bad(f"{p}.name", name, "joint names must be unique")
+        seen.add(name)
+        kind = good.get("kind", "spherical")
+        if kind not in JOINT_KINDS:
+            bad(f"{p}.kind", kind, f"must be one of {', '.join(JOINT_KINDS)}")
+        a, b = good.get("body_a"), good.get("body_b")
+        known = ", ".join(sorted(names))
+        if a is not None and a not in names:
+            bad(f"{p}.body_a", a, f"not a body of this file; bodies: {known}")
+        if b is not None and b != "ground" and b not in names:
+            bad(f"{p}.body_b", b, f"not a body of this file nor 'ground'; bodies: {known}")
+        if a is not None and a == b:
+            bad(f"{p}.body_b", b, "a joint joins two different bodies")
+        if kind == "fixed_point" and b != "ground":
+            bad(f"{p}.body_b", b, "a fixed_point joint ties a body to the ground: 'ground'")
+        axes = {}
+        for k in ("axis_a", "axis_b"):
+            v = good.get(k)
+            if kind in AXIS_KINDS and k not in tab:
+                bad(f"{p}.{k}", "<missing>", f"required for a {kind} joint: 3 numbers")
+            elif v is not None and kind not in AXIS_KINDS:
+                bad(f"{p}.{k}", v, f"a {kind} joint takes no axis")
+            elif v is not None and not float(np.linalg.norm(v)) > 0:
+                bad(f"{p}.{k}", v, "an axis must be non-zero")
+            elif v is not None:
+                axes[k] = np.asarray(v, dtype=float) / float(np.linalg.norm(v))
+        out.append(
+            SystemJoint(
+                name=name,
+                kind=kind,
+                body_a=a if a in names else "",
+                body_b=None if b == "ground" or b not in names else b,
+                anchor_a=np.array(good.get("anchor_a", [0.0, 0.0, 0.0]), dtype=float),
+                anchor_b=np.array(good.get("anchor_b", [0.0, 0.0, 0.0]), dtype=float),
+                axis_a=axes.get("axis_a"),
+                axis_b=axes.get("axis_b"),
+            )
+        )
+    return out
+
+
+def joint_residuals(bodies, joint, x, R, v=None, W=None) -> dict[str, np.ndarray]:
+    """Violations of one joint at a stack of states, each (n,):
+
+    ``"gap"`` (m): for a point joint |x_a + R_a anchor_a - x_b - R_b anchor_b|; for a
+    cylindrical or prismatic joint the distance of point b from the line through point a
+    along u_a; ``"angle"`` (rad): the angle between the axes u_a = R_a axis_a and
+    u_b = R_b axis_b (revolute, cylindrical, prismatic; a prismatic joint's locked rotation
+    about the axis is not measured), a universal joint's departure from perpendicular axes,
+    0 for spherical joints; atan2 of cross and dot, accurate when small. With ``v``, ``W``
+    also ``"gap_rate"`` (m/s): the relative velocity of the two anchor points (across the
+    line for cylindrical and prismatic joints).
+
+    ``x`` (n, nb, 3), ``R`` (n, nb, 3, 3), ``v`` (n, nb, 3), ``W`` (n, nb, 3, body axes) in
+    the order of ``bodies``; the ground is x = 0, R = 1. The one implementation of the
+    joints' rules: the file check and the metrics use it.
+    """
+    idx = {b.name: i for i, b in enumerate(bodies)}
+    x = np.asarray(x, dtype=float)
+    R = np.asarray(R, dtype=float)
+    n = x.shape[0]
+    ia = idx[joint.body_a]
+    ra = R[:, ia] @ joint.anchor_a
+    pa = x[:, ia] + ra
+    if joint.body_b is None:
+        rb = np.zeros_like(pa)
+        pb = np.broadcast_to(joint.anchor_b, pa.shape)
+        Rb = np.broadcast_to(np.eye(3), (n, 3, 3))
+    else:
+        ib = idx[joint.body_b]
+        Rb = R[:, ib]
+        rb = Rb @ joint.anchor_b
+        pb = x[:, ib] + rb
+    d = pb - pa
+    out: dict[str, np.ndarray] = {}
+    ua = R[:, ia] @ joint.axis_a if joint.axis_a is not None else None
+    if joint.kind in POINT_KINDS:
+        out["gap"] = np.linalg.norm(d, axis=1)
+    else:
+        out["gap"] = np.linalg.norm(d - np.einsum("ni,ni->n", d, ua)[:, None] * ua, axis=1)
+    if joint.kind in AXIS_KINDS:
+        ub = Rb @ joint.axis_b
+        c = np.einsum("ni,ni->n", ua, ub)
+        s = np.linalg.norm(np.cross(ua, ub), axis=1)
+        out["angle"] = np.abs(np.arctan2(c, s)) if joint.kind == "universal" else np.arctan2(s, c)
+    else:
+        out["angle"] = np.zeros(n)
+    if v is not None and W is not None:
+        v = np.asarray(v, dtype=float)
+        W = np.asarray(W, dtype=float)
+        va = v[:, ia] + np.cross(np.einsum("nij,nj->ni", R[:, ia], W[:, ia]), ra)
+        if joint.body_b is None:
+            vb = np.zeros_like(va)
+        else:
+            vb = v[:, ib] + np.cross(np.einsum("nij,nj->ni", Rb, W[:, ib]), rb)
+        rel = vb - va
+        if ua is not None and joint.kind not in POINT_KINDS:
+            rel = rel - np.einsum("ni,ni->n", rel, ua)[:, None] * ua
+        out["gap_rate"] = np.linalg.norm(rel, axis=1)
+    return out
+
+
+def _initial_gaps(bodies, joints, bad) -> None:
+    """Each joint must hold at t = 0: position and axes to :data:`JOINT_TOL`, the relative
+    velocity of the anchor points to JOINT_TOL times the bodies' speed scale (m/s)."""
+    x = np.array([b.position for b in bodies])[None]
+    R = np.array([b.rotation for b in bodies])[None]
+    v = np.array([b.velocity for b in bodies])[None]
+    W = np.array([b.omega_body for b in bodies])[None]
+    size = max([1.0] + [float(np.linalg.norm(a)) for j in joints for a in (j.anchor_a,)])
+    speed = max(
+        [1.0]
+        + [float(np.linalg.norm(b.velocity)) for b in bodies]
+        + [float(np.linalg.norm(b.omega_body)) * size for b in bodies]
+    )
+    for i, j in enumerate(joints):
+        r = joint_residuals(bodies, j, x, R, v, W)
+        if r["gap"][0] > JOINT_TOL:
+            bad(f"joints[{i}].anchor_b", j.anchor_b.tolist(), f"joint {j.name!r} is open at "
+                f"t = 0 by {r['gap'][0]:.3g} m (the anchors must coincide to {JOINT_TOL:g} m; "
+                "anchors are in each body's principal frame relative to its centre of mass, "
+                "a ground anchor in world axes)")  # fmt: skip
+        elif r["angle"][0] > JOINT_TOL:
+            rule = "perpendicular" if j.kind == "universal" else "aligned"
+            bad(
+                f"joints[{i}].axis_b",
+                j.axis_b.tolist(),
+                f"joint {j.name!r}: the axes are off "
+                f"by {r['angle'][0]:.3g} rad at t = 0 (must be {rule} to {JOINT_TOL:g})",
+            )
+            # fmt: skip
+        elif r["gap_rate"][0] > JOINT_TOL * speed:
+            bad(
+                f"joints[{i}]",
+                j.name,
+                f"the initial velocities violate joint {j.name!r}: the "
+                f"anchor points separate at {r['gap_rate'][0]:.3g} m/s (at most "
+                f"{JOINT_TOL * speed:.3g}); give velocities consistent with the joints",
+            )
+            # fmt: skip
+
+
+def magnitude_problems(sc: SystemScenario, t_end: float | None = None) -> list[tuple]:
+    """Masses and moments within [1/MAX_MAGNITUDE, MAX_MAGNITUDE] and the energy scale over
+    the horizon ``t_end`` below MAX_MAGNITUDE (as :func:`scenarios.schema.magnitude_problems`
+    for one body)."""
+    from scenarios.schema import MAX_MAGNITUDE as lim
+
+    probs = []
+    for i, b in enumerate(sc.bodies):
+        for f, value in ((f"bodies[{i}].mass", b.mass),
+                         (f"bodies[{i}].inertia", float(np.min(b.inertia)))):  # fmt: skip
+            if not 1.0 / lim <= value <= lim:
+                probs.append((f, value, f"must be in [{1 / lim:g}, {lim:g}] (SI units)"))
+    sc2 = sc if t_end is None else sc.replace(t_end=float(t_end))
+    with np.errstate(over="ignore", invalid="ignore"):
+        e = sc2.energy_scale
+    if not e <= lim:
+        probs.append(("energy scale", e, f"above {lim:g} J: state the system in moderate units"))
+    return probs
