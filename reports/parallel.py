@@ -163,7 +163,7 @@ def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None 
     def connect():
         try:
             return Client(address, timeout=f"{timeout}s")
-        except OSError as exc:
+        except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address
             raise InputError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from exc
 
     connect().close()  # an unreachable scheduler is bad input, said before anything runs

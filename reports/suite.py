@@ -178,8 +178,11 @@ def run(
         check_count(name, value)
     check_jobs(jobs)
     out = Path(out).expanduser().resolve()
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: is a file, not a folder")
+    try:
+        if out.exists() and not out.is_dir():
+            raise InputError(f"--out {out}: is a file, not a folder")
+    except OSError as exc:  # a name the file system cannot hold (over 255 bytes)
+        raise InputError(f"--out {out}: {exc.strerror or exc}") from None
     scs = resolve_scenarios(names, all_scenarios)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)

@@ -118,7 +118,7 @@ def hostile_files(tmp_path, out) -> list:
 def hostile_options(out) -> list:
     """(argv, exit code, words): options at their limits."""
     ex = ["--engines", "exact", "--out", out]
-    many = "9" * 400
+    many, too_long = "9" * 400, "o" * 300  # a file name holds 255 bytes
     return [
         (["run", "free_tumbling", "--dt", "5e-324", *ex], 2, ["2^53", "inf steps"]),
         (["run", "free_tumbling", "--t-end", "1e300", "--dt", "1e297", *ex], 2,
@@ -131,6 +131,10 @@ def hostile_options(out) -> list:
         (["ensemble", "free_tumbling", "--seed", "-1", *ex], 2, ["--seed", "2^64"]),
         (["ensemble", "free_tumbling", "--dt", "5e-324", *ex], 2, ["2^53"]),
         (["ensemble", "free_tumbling", "--dt", "7e-3", *ex], 2, ["whole number of steps"]),
+        (["run", "free_tumbling", "--scheduler", "nonsense://x", *ex], 2,
+         ["--scheduler nonsense://x", "address scheme"]),
+        (["run", "free_tumbling", "--engines", "exact", "--out", str(Path(out).parent / too_long)],
+         2, ["--out", "File name too long"]),
     ]  # fmt: skip
 
 
