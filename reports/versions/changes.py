@@ -525,6 +525,8 @@ def summary_rows(changes) -> list[list[str]]:
         else:
             item = f"{c.kind} {_short(c.a, 30)} -> {_short(c.b, 30)}"
         word = {"new": "better", "vanished": "worse"}.get(c.direction, c.direction)
+        if c.direction == "new" and c.b != "ok":
+            word = "changed"  # it runs now, but does not end ok
         g[word].append(item)
     return [[k[0], k[1], "; ".join(v["worse"]), "; ".join(v["better"]), "; ".join(v["changed"])]
             for k, v in groups.items()]  # fmt: skip
