@@ -8,9 +8,12 @@ world, columns = principal axes), ``velocity`` (COM, world), ``omega_body`` (bod
 body's principal frame relative to its COM; a world point for the ground), ``axis_a, axis_b``
 (same frames), ``name``), the fields of ``director_model.system.Body`` and ``Joint``.
 
-Spanning tree. Joints to the ground first (in the order listed, each attaching its ``body_a``),
-then outwards depth-first; a body joined to nothing on the way becomes a floating root with a
-``free`` joint. Every joint that would attach a body a second time closes a loop.
+Spanning tree. The loop closures are the scenario's ``loop_joints`` (names) when it has them
+(``scenarios.SystemScenario``), and the other joints must then form a tree; else the same rule
+as ``scenarios.system.spanning_tree``: joints to the ground first (in the order listed, each
+attaching its ``body_a``), then outwards breadth-first; a body joined to nothing on the way
+becomes a floating root with a ``free`` joint; a joint that would attach a body a second time
+closes a loop.
 
 Frames. Every MuJoCo body frame IS the body's principal frame at its centre of mass: each body
 has an explicit ``<inertial pos="0 0 0" quat="1 0 0 0" mass diaginertia>`` (no inertia is
@@ -220,41 +223,54 @@ def plan(scenario) -> _Plan:
     order: list[int] = []
     closing: list[tuple] = []
     used: set[int] = set()
+    # the scenarios layer's choice of loop closures when the scenario carries it
+    given = getattr(scenario, "loop_joints", None)
+    if given is not None:
+        for k, j in enumerate(joints):
+            if getattr(j, "name", None) in given:
+                closing.append((k, j))
+                used.add(k)
 
     def attach(child, parent, k, j):
         parent_of[child] = (parent, k, j)
         order.append(child)
         used.add(k)
 
-    def grow(root):
-        stack = [root]
-        while stack:
-            p = stack.pop()
+    def close(k, j):
+        if given is not None:
+            raise ValueError(
+                f"{_label(j, k)} closes a loop of the tree left by the scenario's loop "
+                f"closures {list(given)}; the scenario's spanning tree is inconsistent"
+            )
+        closing.append((k, j))
+        used.add(k)
+
+    def grow(queue):  # breadth first, as scenarios.system.spanning_tree
+        while queue:
+            p = queue.pop(0)
             for k, j in adj[p]:
                 if k in used:
                     continue
                 other = idx[j.body_b] if idx[j.body_a] == p else idx[j.body_a]
                 if other in parent_of:
-                    closing.append((k, j))
-                    used.add(k)
+                    close(k, j)
                     continue
                 attach(other, p, k, j)
-                stack.append(other)
+                queue.append(other)
 
     for k, j in ground:
+        if k in used:
+            continue
         a = idx[j.body_a]
         if a in parent_of:
-            closing.append((k, j))
-            used.add(k)
+            close(k, j)
         else:
             attach(a, -1, k, j)
-    for k, j in ground:
-        if parent_of[idx[j.body_a]][1] == k:
-            grow(idx[j.body_a])
+    grow(list(order))
     for i in range(len(bodies)):
         if i not in parent_of:
             attach(i, -1, None, None)
-            grow(i)
+            grow([i])
 
     R = [np.asarray(b.rotation, dtype=float) for b in bodies]
     anchors = [np.zeros(3)]
