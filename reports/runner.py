@@ -143,6 +143,10 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     from references.engines import Diverged, EngineError, get_engine
 
     row = blank_row(spec)
+    if getattr(spec.scenario, "is_system", False):  # a system of bodies: reports.system_runner
+        from reports.system_runner import execute_system
+
+        return execute_system(spec, row, out, fmt)
     try:
         cls = get_engine(spec.engine)
         if not row["engine_version"]:

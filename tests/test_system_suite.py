@@ -1,0 +1,162 @@
+"""Systems of bodies through the suite: scenario files validated with every problem named,
+references checked against a formulation that shares nothing with them, metrics that catch
+planted mistakes, and one run end to end through the runner."""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+import scenarios
+from references.engines.exact_system import reference
+from references.trajectory import SystemTrajectory
+from reports.system_metrics import compute_system_metrics
+from scenarios import ScenarioError
+from scenarios.system import validate_system
+
+LIBRARY = ["bricard", "conical_pendulum", "double_pendulum_3d", "four_bar", "free_chain_5",
+           "planar_chain_4", "spinning_chain"]  # fmt: skip
+
+
+def _data(name: str) -> dict:
+    return tomllib.loads((scenarios.systems_path() / f"{name}.toml").read_text())
+
+
+def _initial_traj(sc) -> SystemTrajectory:
+    bs = sc.bodies
+    return SystemTrajectory([0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
+                            [[b.rotation for b in bs]], [[b.omega_body for b in bs]],
+                            sc.body_names)  # fmt: skip
+
+
+# -- the library and the schema ----------------------------------------------------------------
+
+
+def test_library_systems_load_with_their_structure():
+    assert scenarios.list_systems() == LIBRARY
+    for name in LIBRARY:
+        sc = scenarios.load(name)
+        assert sc.name == name and sc.is_system and len(sc.source) > 40
+    # the loops: the four-bar's second rocker joint and one joint of Bricard's ring
+    assert scenarios.load("four_bar").loop_joints == ("B1",)
+    assert len(scenarios.load("bricard").loop_joints) == 1
+    assert len(scenarios.load("bricard").tree_joints) == 5
+    for name in ("free_chain_5", "double_pendulum_3d", "spinning_chain", "conical_pendulum"):
+        assert scenarios.load(name).is_tree
+    # single-body files are unchanged objects
+    assert not getattr(scenarios.load("heavy_top"), "is_system", False)
+
+
+def test_every_problem_is_listed_with_its_field():
+    d = _data("free_chain_5")
+    d["bodies"][1]["mass"] = -1.0
+    d["bodies"][2]["inertia"] = [1.0, 0.1, 0.1]  # triangle inequality
+    d["bodies"][3]["colour"] = "red"
+    d["joints"][0]["body_b"] = "nobody"
+    d["joints"][1]["kind"] = "weld"
+    with pytest.raises(ScenarioError) as err:
+        validate_system(d, "x.toml")
+    fields = [p[0] for p in err.value.problems]
+    assert fields == ["bodies[1].mass", "bodies[2].inertia", "bodies[3].colour",
+                      "joints[0].body_b", "joints[1].kind"]  # fmt: skip
+    assert "x.toml" in str(err.value)
+
+
+def test_open_joints_misaligned_axes_and_bad_velocities_are_refused():
+    d = _data("free_chain_5")
+    d["joints"][2]["anchor_a"][2] += 1e-3  # the joint opens by 1 mm
+    d["bodies"][4]["velocity"][0] += 0.1  # the last joint's anchor points separate
+    with pytest.raises(ScenarioError) as err:
+        validate_system(d)
+    probs = {p[0]: p[2] for p in err.value.problems}
+    assert "open at t = 0 by 0.001 m" in probs["joints[2].anchor_b"]
+    assert "separate at 0.1 m/s" in probs["joints[3]"]
+    d = _data("four_bar")
+    d["joints"][2]["axis_b"] = [0.0, 0.01, 1.0]  # 0.01 rad off
+    with pytest.raises(ScenarioError, match=r"axes are off by 0.01 rad"):
+        validate_system(d)
+    d = _data("four_bar")
+    d["reference"]["kind"] = "numerical"  # the reduced reference cannot close the loop
+    with pytest.raises(ScenarioError, match="treats trees only"):
+        validate_system(d)
+
+
+# -- references ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["spinning_chain", "conical_pendulum"])
+def test_closed_forms_agree_with_the_reduced_coordinate_tree(name):
+    """The closed form (in the file's body order) against the DOP853 tree reference of the
+    same file, a formulation sharing nothing with it: equal within the tree's estimate."""
+    sc = scenarios.load(name).replace(t_end=0.5)
+    t = np.linspace(0.0, 0.5, 11)
+    exact = reference(sc, t)
+    num = reference(sc.replace(reference="numerical"), t)
+    assert exact.kind == name and num.kind == "numerical"
+    m = compute_system_metrics(sc, num.trajectory, exact)
+    assert m["attitude_error_max"] <= num.accuracy + exact.accuracy
+    assert m["position_error_max"] <= num.accuracy_position + exact.accuracy_position
+    assert num.accuracy < 1e-9
+
+
+def test_a_closed_form_whose_state_is_not_the_files_is_refused():
+    from references.errors import Unsupported
+
+    sc = scenarios.load("conical_pendulum")
+    wrong = sc.replace(reference_params={**sc.reference_params, "rate": 2.9})
+    with pytest.raises(Unsupported, match="initial"):
+        reference(wrong, [0.0, 0.1])
+    with pytest.raises(Unsupported, match="no independent reference"):
+        reference(scenarios.load("bricard"), [0.0, 0.1])
+
+
+# -- metrics -------------------------------------------------------------------------------------
+
+
+def test_metrics_catch_planted_joint_and_momentum_mistakes():
+    sc = scenarios.load("free_chain_5")
+    tr = _initial_traj(sc)
+    m0 = compute_system_metrics(sc, tr)
+    assert m0["joint_gap_max"] < 1e-14 and m0["momentum_drift_max"] < 1e-14
+    bad = copy.deepcopy(tr)
+    bad.position[0, 2] += np.array([0.0, 3e-4, 4e-4])  # body 2 displaced by 5e-4 m
+    assert compute_system_metrics(sc, bad)["joint_gap_max"] == pytest.approx(5e-4, rel=1e-9)
+    bad = copy.deepcopy(tr)
+    bad.velocity[0, 0] += np.array([0.01, 0.0, 0.0])  # linear momentum off by 0.01 kg m/s
+    md = compute_system_metrics(sc, bad)["momentum_drift_max"]
+    assert md >= 0.01 / sc.linear_momentum_scale * (1 - 1e-9)
+    # a hinge's axes 1e-3 rad apart: rotate the coupler about x (perpendicular to its axis)
+    fb = scenarios.load("four_bar")
+    tr = _initial_traj(fb)
+    c, s = math.cos(1e-3), math.sin(1e-3)
+    tr.rotation[0, 2] = np.array([[1, 0, 0], [0, c, -s], [0, s, c]]) @ tr.rotation[0, 2]
+    m = compute_system_metrics(fb, tr)
+    assert m["joint_angle_gap_max"] == pytest.approx(1e-3, rel=1e-6)
+    assert m["branch_error"] == pytest.approx(1e-3, rel=1e-6)
+
+
+# -- end to end ------------------------------------------------------------------------------------
+
+
+def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
+    from reports.results import RunSpec
+    from reports.runner import execute
+
+    sc = scenarios.load("spinning_chain")
+    row = execute(RunSpec(sc, "director", "rattle4", 1e-3, t_end=0.5), tmp_path)
+    assert row["status"] == "ok" and row["verdict"] == "pass", row["message"]
+    assert row["reference_kind"] == "spinning_chain"
+    # round-off: constraints, momentum and energy of a relative equilibrium
+    assert row["joint_gap_max"] < 1e-12 and row["momentum_drift_max"] < 1e-12
+    assert row["attitude_error_max"] < 1e-9
+    tr = SystemTrajectory.read(tmp_path / row["trajectory"])
+    assert tr.body_names == sc.body_names and len(tr) == 51
+    assert np.max(np.abs(tr.position[0] - [b.position for b in sc.bodies])) == 0.0
+    row = execute(RunSpec(sc, "director", "energy_momentum", 1e-3, t_end=0.5), tmp_path)
+    assert row["status"] == "unsupported" and "rattle" in row["message"]
+    row = execute(RunSpec(sc, "exact", "reference", 1e-3, t_end=0.5), tmp_path)
+    assert row["status"] == "ok" and row["reference_accuracy"] < 1e-12
