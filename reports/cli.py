@@ -269,7 +269,10 @@ def cmd_report(args) -> int:
 
 def cmd_baseline(args) -> int:
     from reports.gate import write_baseline
+    from scenarios.schema import InputError
 
+    if Path(args.write).is_dir():
+        raise InputError(f"--write {args.write}: is a folder; give the baseline file's name")
     path = write_baseline(args.dir, args.write)
     print(f"baseline written: {path}")
     return 0
@@ -535,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
         if exc.errno is None:  # ours, naming a folder or file given as an argument
             print(f"director-bench: error: {exc}", file=sys.stderr)
             return 2
-        return _work_failed(exc)
+        return _work_failed(exc, args.command)
     except (StoreDamaged, StoreUnwritable) as exc:
         print(f"director-bench: error: {exc}", file=sys.stderr)
         return 1
@@ -549,20 +552,22 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 130
     except Exception as exc:  # noqa: BLE001 - the work failed: a message, never a traceback
-        return _work_failed(exc)
+        return _work_failed(exc, args.command)
 
 
-def _work_failed(exc: BaseException) -> int:
+def _work_failed(exc: BaseException, command: str = "") -> int:
     """Exit 1 for a failure of the work, with a message that fits its cause: a file that
     cannot be written (disk full, a file-size limit, a read-only folder), memory, or a fault
     of the suite, located (file:line) so that it can be reported."""
     if isinstance(exc, OSError):
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(
-            f"director-bench: error: {where}{exc.strerror or exc}; finished runs are kept in "
-            "the results store, rerun (or `director-bench report DIR`) when the cause is fixed",
-            file=sys.stderr,
-        )
+        advice = "; the results store is unchanged"
+        if command in ("run", "ensemble", "report"):
+            advice = (
+                "; finished runs are kept in the results store, rerun (or `director-bench "
+                "report DIR`) when the cause is fixed"
+            )
+        print(f"director-bench: error: {where}{exc.strerror or exc}{advice}", file=sys.stderr)
         return 1
     from reports.parallel import ClusterLost
 

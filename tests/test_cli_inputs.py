@@ -135,6 +135,7 @@ def hostile_options(out) -> list:
          ["--scheduler nonsense://x", "address scheme"]),
         (["run", "free_tumbling", "--engines", "exact", "--out", str(Path(out).parent / too_long)],
          2, ["--out", "File name too long"]),
+        (["baseline", out, "--write", str(Path(out).parent)], 2, ["--write", "is a folder"]),
     ]  # fmt: skip
 
 
