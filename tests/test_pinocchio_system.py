@@ -13,20 +13,24 @@ joints), built from director_model.system's Body and Joint.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import types
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-pytest.importorskip("pinocchio")
+from director_model.system import Body, Joint
+from director_model.system.examples import parallelogram_four_bar, rod_chain
+from references.conventions import rotvec_to_matrix
+from references.engines import pinocchio_system as ps
+from references.errors import EngineError, Unsupported
+from references.exact.multibody import solve, tree_from_world
 
-from director_model.system import Body, Joint  # noqa: E402
-from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
-from references.conventions import rotvec_to_matrix  # noqa: E402
-from references.engines import pinocchio_system as ps  # noqa: E402
-from references.errors import EngineError, Unsupported  # noqa: E402
-from references.exact.multibody import solve, tree_from_world  # noqa: E402
+# a skip mark, not importorskip: tests/test_dart_system.py imports the stand-ins from here
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("pinocchio") is None, reason="pinocchio (pin) is not installed"
+)
 
 G = np.array([0.0, 0.0, -9.81])
 EULER, RK = "semi-implicit Euler", "RKMK4"

@@ -1,0 +1,499 @@
+"""DART (dartpy) builder for systems of rigid bodies: one Skeleton in DART's reduced coordinates,
+loops closed by DART's own joint constraints inside ``World.step``.
+
+Input: a system scenario as for :mod:`references.engines.pinocchio_system` (the contract's
+``name, gravity, bodies, joints``); the spanning tree, the reference orientations and the frames
+are that module's :func:`~references.engines.pinocchio_system.plan` and
+:func:`~references.engines.pinocchio_system.engine_frames` (one definition for both engines):
+every DART body frame sits at its joint point, parallel to the body's principal frame, with the
+local COM at -Y (``setLocalCOM``) and ``Inertia(m, -Y, diag(I))`` (moments about the COM); the
+joint's transform from the parent body node is (R_ref, X - Y_p) and from the child body node the
+identity.
+
+==================  ========================  ===========================================
+scenario kind       DART joint                positions and velocities at t = 0
+==================  ========================  ===========================================
+spherical,          ``BallJoint``             rotation vector of R_p^T R_c; velocities
+fixed_point                                   W_c - R_rel^T W_p (child axes)
+revolute            ``RevoluteJoint`` (axis   0; n . (W_c - R_rel^T W_p)
+                    = the child's axis)
+(floating root)     ``FreeJoint``             [rotation vector, x]; [w WORLD, v WORLD]
+others              -                         unsupported (not built by this adapter)
+==================  ========================  ===========================================
+
+Loop closures (``World.step`` only; DART's constraint solver is not part of
+``computeForwardDynamics``): a closing spherical joint is a ``BallJointConstraint``, a closing
+revolute joint a ``RevoluteJointConstraint`` (both created at the initial configuration, from
+the world anchor and axes). DART solves them as velocity-level impulses (a boxed LCP) with a
+position correction set by its global error reduction parameter (ERP), error allowance, maximum
+error-reduction velocity and constraint force mixing: read back and recorded, DART's defaults
+unless ``erp`` is given. A closure under RKMK4 is unsupported (the constraint would be ignored
+by ``computeForwardDynamics``), as is any other closing kind.
+
+Integrators: ``semi-implicit Euler`` is ``World.step`` (DART's only stepper); ``RKMK4`` is the
+suite's Runge-Kutta-Munthe-Kaas of order 4 (:mod:`references.engines.liegroup`) on the product
+of each joint's group (SO(3) for a ball joint, R for a hinge, SO(3) x R^3 for a free root with
+body-axes W and world v_G), accelerations from ``Skeleton.computeForwardDynamics``.
+
+Neutralised and read back: deactivation (sleeping) off, joint damping, spring stiffness, Coulomb
+friction 0, limit enforcement off, no shape nodes (nothing collides), gravity set (DART's default
+is (0, 0, -9.81)), every body subject to gravity. The initial world state must come back from
+DART's kinematics for every body and every joint (anchors and axes from both sides), else
+:class:`~references.errors.EngineError` names the body or joint.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+from references import conventions as cv
+from references.engines import pinocchio_system as ps
+from references.engines.base import import_engine
+from references.engines.liegroup import so3_right_jacobian_inverse
+from references.errors import Diverged, EngineError, Unsupported
+
+INTEGRATORS = ("semi-implicit Euler", "RKMK4")
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+_SETTINGS = ("erp", "revolute_closure")
+
+#: how a closing revolute joint is expressed: DART's RevoluteJointConstraint (5 equations), or
+#: a BallJointConstraint at the anchor ("ball": 3 of the hinge's 5 equations; enough for a
+#: planar loop whose tree hinges are parallel, recorded as such, never chosen silently)
+REVOLUTE_CLOSURES = ("revolute", "ball")
+
+#: DART's default error reduction parameter of its dynamic joint constraints (DART 6.20
+#: DynamicJointConstraint; read back in the tests from a fresh World)
+DEFAULT_ERP = 0.01
+
+
+def _import():
+    return import_engine("dartpy", "DART (dartpy)", "dartpy")
+
+
+@contextmanager
+def dart_warnings():
+    """Collect what DART writes to the process's stderr (file descriptor 2) inside the block
+    into the yielded list (one string): DART reports a non-finite state there and replaces it
+    by zeros or identities ("to avoid instability"), so positions can stay finite and wrong."""
+    box: list[str] = []
+    with tempfile.TemporaryFile() as tmp:
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield box
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            box.append(tmp.read().decode(errors="replace"))
+
+
+def engine_frames(pl: ps.Plan, c: int) -> ps.EngineFrames:
+    """The builder's boundary: what DART is given for body c's joint (module docstring)."""
+    return ps.engine_frames(pl, c)
+
+
+def _iso(dart, R, p):
+    T = dart.math.Isometry3()
+    T.set_rotation(np.asarray(R, float))
+    T.set_translation(np.asarray(p, float))
+    return T
+
+
+class _Model:
+    """DART's world, skeleton, joints and bodies (scenario order), and the loop constraints."""
+
+    def __init__(self, dart, pl: ps.Plan, dt: float):
+        self.dart, self.pl = dart, pl
+        world = dart.simulation.World()
+        world.setGravity(pl.gravity)
+        world.setTimeStep(dt)
+        opts = world.getDeactivationOptions()
+        opts.mEnabled = False
+        world.setDeactivationOptions(opts)
+        skel = dart.dynamics.Skeleton(str(pl.name))
+        self.joint, self.body, self.frames = {}, {}, {}
+        create = {
+            "free": skel.createFreeJointAndBodyNodePair,
+            "spherical": skel.createBallJointAndBodyNodePair,
+            "revolute": skel.createRevoluteJointAndBodyNodePair,
+        }
+        for c in pl.order:
+            f = engine_frames(pl, c)
+            tj = pl.tree[c]
+            if tj.parent < 0:
+                joint, body = create[f.kind]()
+            else:
+                joint, body = create[f.kind](self.body[tj.parent])
+            joint.setName(f"{pl.names[c]}_joint")
+            body.setName(pl.names[c])
+            joint.setTransformFromParentBodyNode(_iso(dart, f.R, f.p))
+            joint.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
+            if f.kind == "revolute":
+                joint.setAxis(f.axis)
+            b = pl.bodies[c]
+            moments = np.diag(np.asarray(b.inertia, float))
+            body.setInertia(dart.dynamics.Inertia(float(b.mass), f.body_offset, moments))
+            for i in range(joint.getNumDofs()):
+                joint.setDampingCoefficient(i, 0.0)
+                joint.setSpringStiffness(i, 0.0)
+                joint.setCoulombFriction(i, 0.0)
+            joint.setLimitEnforcement(False)
+            self.joint[c], self.body[c], self.frames[c] = joint, body, f
+        world.addSkeleton(skel)
+        self.world, self.skel = world, skel
+        self.constraints = []
+        self.clock = 0.0
+
+    # -- initial state -----------------------------------------------------------------------
+    def set_initial(self) -> None:
+        pl = self.pl
+        for c in pl.order:
+            tj, joint = pl.tree[c], self.joint[c]
+            x, R, vG, w = ps.world(pl, c)
+            if tj.kind == "free":
+                pos, vel = cv.dart_free_from_state(x, vG, R, R.T @ w)
+            elif tj.kind == "spherical":
+                pos, vel = cv.dart_ball_from_state(*ps.relative_state(pl, tj))
+            else:
+                pos, vel = [0.0], [float(tj.axis_c @ ps.relative_state(pl, tj)[1])]
+            joint.setPositions(np.asarray(pos, float))
+            joint.setVelocities(np.asarray(vel, float))
+
+    def add_loops(self, erp, revolute_closure: str) -> None:
+        """DART's joint constraints for the closures, at the initial configuration."""
+        dart, pl = self.dart, self.pl
+        C = dart.constraint
+        # a global of DART's process: set on every build (DART's default unless given)
+        C.DynamicJointConstraint.setErrorReductionParameter(float(erp))
+        for lp in pl.loops:
+            xa, Ra, _, _ = ps.world(pl, lp.a)
+            Xa = lp.pairs[0][0]
+            point = xa + Ra @ Xa
+            ba = self.body[lp.a]
+            if lp.kind == "revolute" and revolute_closure == "revolute":
+                na = Ra @ (lp.pairs[1][0] - Xa) / pl.length
+                if lp.b < 0:
+                    con = C.RevoluteJointConstraint(ba, point, na)
+                else:
+                    _, Rb, _, _ = ps.world(pl, lp.b)
+                    nb = Rb @ (lp.pairs[1][1] - lp.pairs[0][1]) / pl.length
+                    con = C.RevoluteJointConstraint(ba, self.body[lp.b], point, na, nb)
+            elif lp.b < 0:
+                con = C.BallJointConstraint(ba, point)
+            else:
+                con = C.BallJointConstraint(ba, self.body[lp.b], point)
+            self.world.getConstraintSolver().addConstraint(con)
+            self.constraints.append((lp, con))
+
+    # -- read-out ----------------------------------------------------------------------------
+    def states(self):
+        """(x, R, v, W) per body (scenario order) from DART's kinematics."""
+        nb = len(self.pl.bodies)
+        x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
+        v, W = np.empty((nb, 3)), np.empty((nb, 3))
+        for c, body in self.body.items():
+            Rc = body.getWorldTransform().rotation()
+            R[c] = Rc
+            x[c] = body.getCOM()
+            v[c] = body.getCOMLinearVelocity()
+            W[c] = Rc.T @ body.getAngularVelocity()
+        return x, R, v, W
+
+    def joint_world(self):
+        """World joint points and hinge axes of the tree joints (by scenario joint name)."""
+        points, axes = {}, {}
+        for c, joint in self.joint.items():
+            tj = self.pl.tree[c]
+            if tj.kind == "free":
+                continue
+            T = self.body[c].getWorldTransform().multiply(joint.getTransformFromChildBodyNode())
+            points[tj.name] = T.translation()
+            if tj.kind == "revolute":
+                axes[tj.name] = T.rotation() @ joint.getAxis()
+        return points, axes
+
+    # -- RKMK4 on the product of the joints' groups (trees) ------------------------------------
+    def pack(self):
+        """(q, u): q a list of per-joint group elements (R, angle, or (R, x)), u the velocities
+        with each free root's angular part in body axes."""
+        q, u = [], []
+        for c in self.pl.order:
+            j, kind = self.joint[c], self.pl.tree[c].kind
+            p, v = j.getPositions(), j.getVelocities()
+            if kind == "free":
+                st = cv.dart_free_to_state(p, v)
+                q.append((st.rotation, st.position))
+                u.append(np.concatenate([st.omega_body, st.velocity]))
+            elif kind == "spherical":
+                R, W = cv.dart_ball_to_state(p, v)
+                q.append((R,))
+                u.append(W)
+            else:
+                q.append((float(p[0]),))
+                u.append(np.array(v, float))
+        return q, np.concatenate(u)
+
+    def _blocks(self):
+        out, k = [], 0
+        for c in self.pl.order:
+            n = {"free": 6, "spherical": 3, "revolute": 1}[self.pl.tree[c].kind]
+            out.append((c, self.pl.tree[c].kind, slice(k, k + n)))
+            k += n
+        return out
+
+    def integrate(self, q, theta):
+        out = []
+        for (_, kind, s), g in zip(self._blocks(), q, strict=True):
+            th = theta[s]
+            if kind == "revolute":
+                out.append((g[0] + float(th[0]),))
+            elif kind == "spherical":
+                out.append((g[0] @ cv.rotvec_to_matrix(th),))
+            else:
+                out.append((g[0] @ cv.rotvec_to_matrix(th[:3]), g[1] + th[3:]))
+        return out
+
+    def dexpinv(self, theta, u):
+        out = np.array(u, float)
+        for _, kind, s in self._blocks():
+            if kind != "revolute":
+                r = slice(s.start, s.start + 3)
+                out[r] = so3_right_jacobian_inverse(theta[r]) @ out[r]
+        return out
+
+    def unpack(self, q, u) -> None:
+        """Set DART's positions and velocities from (q, u)."""
+        for (c, kind, s), g in zip(self._blocks(), q, strict=True):
+            j = self.joint[c]
+            if kind == "free":
+                pos, vel = cv.dart_free_from_state(g[1], u[s][3:], g[0], u[s][:3])
+            elif kind == "spherical":
+                pos, vel = cv.dart_ball_from_state(g[0], u[s])
+            else:
+                pos, vel = [g[0]], u[s]
+            j.setPositions(np.asarray(pos, float))
+            j.setVelocities(np.asarray(vel, float))
+
+    def accel(self, q, u):
+        self.unpack(q, u)
+        t0 = time.perf_counter()
+        self.skel.computeForwardDynamics()
+        a = np.array(self.skel.getAccelerations())
+        self.clock += time.perf_counter() - t0
+        out = np.empty_like(a)
+        for (c, kind, s), g in zip(self._blocks(), q, strict=True):
+            idx = self.joint[c].getIndexInSkeleton(0)
+            ac = a[idx : idx + (s.stop - s.start)]
+            if kind == "free":  # world angular acceleration -> body: dW/dt = R^T dw/dt
+                ac = np.concatenate([g[0].T @ ac[:3], ac[3:]])
+            out[s] = ac
+        return out
+
+    def step_rkmk4(self, q, u, h):
+        k1t, k1v = u, self.accel(q, u)
+        th = 0.5 * h * k1t
+        u2 = u + 0.5 * h * k1v
+        k2t, k2v = self.dexpinv(th, u2), self.accel(self.integrate(q, th), u2)
+        th = 0.5 * h * k2t
+        u3 = u + 0.5 * h * k2v
+        k3t, k3v = self.dexpinv(th, u3), self.accel(self.integrate(q, th), u3)
+        th = h * k3t
+        u4 = u + h * k3v
+        k4t, k4v = self.dexpinv(th, u4), self.accel(self.integrate(q, th), u4)
+        theta = (h / 6.0) * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
+        return self.integrate(q, theta), u + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+
+
+def read_back(dm: _Model, scenario, dt: float) -> None:
+    """Compare DART's model with the scenario (module docstring)."""
+    pl, world, skel = dm.pl, dm.world, dm.skel
+    bad = []
+
+    def want(what, got, exp, tol=ps.CHECK_TOL):
+        got, exp = np.asarray(got, float), np.asarray(exp, float)
+        scale = max(1.0, float(np.max(np.abs(exp))) if exp.size else 1.0)
+        if got.shape != exp.shape or not np.all(np.abs(got - exp) <= tol * scale):
+            bad.append(f"{what}: {np.round(got, 12).tolist()}, expected "
+                       f"{np.round(exp, 12).tolist()}")  # fmt: skip
+
+    kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint"}
+    want("number of bodies", skel.getNumBodyNodes(), len(pl.bodies))
+    for c, body in dm.body.items():
+        b, tj, joint = pl.bodies[c], pl.tree[c], dm.joint[c]
+        name = f"body {b.name!r} ({tj.label})"
+        if joint.getType() != kinds[tj.kind]:
+            bad.append(f"{name}: joint {joint.getType()}, needs {kinds[tj.kind]}")
+        parent = body.getParentBodyNode()
+        got_parent = "ground" if parent is None else parent.getName()
+        exp_parent = "ground" if tj.parent < 0 else pl.names[tj.parent]
+        if got_parent != exp_parent:
+            bad.append(f"{name}: parent {got_parent!r}, needs {exp_parent!r}")
+        inr = body.getInertia()
+        want(f"{name}: mass", inr.getMass(), b.mass)
+        want(f"{name}: moments about the COM", inr.getMoment(), np.diag(np.asarray(b.inertia)))
+        want(f"{name}: local COM", body.getLocalCOM(), -tj.Y)
+        want(f"{name}: transform to the child body", joint.getTransformFromChildBodyNode().matrix(),
+             np.eye(4))  # fmt: skip
+        n = joint.getNumDofs()
+        for what, get in (("damping", joint.getDampingCoefficient),
+                          ("spring stiffness", joint.getSpringStiffness),
+                          ("Coulomb friction", joint.getCoulombFriction)):  # fmt: skip
+            want(f"{name}: joint {what}", [get(i) for i in range(n)], [0.0] * n)
+        if joint.areLimitsEnforced():
+            bad.append(f"{name}: joint limits enforced")
+        if not body.getGravityMode():
+            bad.append(f"{name}: not subject to gravity")
+    want("gravity (world)", world.getGravity(), pl.gravity)
+    want("gravity (skeleton)", skel.getGravity(), pl.gravity)
+    want("time step", world.getTimeStep(), dt)
+    want("number of shape nodes", skel.getNumShapeNodes(), 0)
+    if world.getDeactivationOptions().mEnabled:
+        bad.append("deactivation (sleeping) enabled")
+    if not skel.isMobile():
+        bad.append("skeleton not mobile")
+    if bad:
+        raise EngineError(
+            f"dart: system {scenario.name!r}: the model differs from the scenario: "
+            + "; ".join(bad)
+        )
+
+
+def _constraint_record(dm: _Model) -> dict:
+    C = dm.dart.constraint.DynamicJointConstraint
+    return {
+        "error reduction parameter (ERP)": float(C.getErrorReductionParameter()),
+        "error allowance (m)": float(C.getErrorAllowance()),
+        "max error reduction velocity (m/s)": float(C.getMaxErrorReductionVelocity()),
+        "constraint force mixing": float(C.getConstraintForceMixing()),
+        "LCP solver": type(dm.world.getConstraintSolver().getBoxedLcpSolver()).__name__,
+        "split impulse": bool(dm.world.getConstraintSolver().isSplitImpulseEnabled()),
+    }
+
+
+def build(scenario, integrator: str, dt: float, **settings):
+    """(_Model, settings record) of ``scenario``: planned, built, read back, the initial state
+    set and checked against DART's kinematics, the loops closed."""
+    ps.check_run_args(integrator, dt, INTEGRATORS)
+    unknown = sorted(set(settings) - set(_SETTINGS))
+    if unknown:
+        raise ValueError(f"dart simulate_system: unknown settings {unknown}; known: "
+                         f"{list(_SETTINGS)}")  # fmt: skip
+    erp = settings.get("erp")
+    if erp is not None and not (isinstance(erp, (int, float)) and 0 <= erp <= 1):
+        raise ValueError(f"erp {erp!r}: DART's error reduction parameter, a number in [0, 1]")
+    closure = settings.get("revolute_closure", "revolute")
+    if closure not in REVOLUTE_CLOSURES:
+        raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
+    dart = _import()
+    pl = ps.plan(scenario, "dart")
+    if pl.loops and integrator == "RKMK4":
+        raise Unsupported(
+            f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
+            "World.step (its constraint solver), which the suite's RKMK4 around "
+            "computeForwardDynamics does not call"
+        )
+    dm = _Model(dart, pl, float(dt))
+    read_back(dm, scenario, float(dt))
+    dm.set_initial()
+    x, R, v, W = dm.states()
+    points, axes = dm.joint_world()
+    ps.check_states("dart", pl, x, R, v, W, points, axes)
+    dm.add_loops(DEFAULT_ERP if erp is None else erp, closure)
+    rec = {
+        "engine": f"dart {dart.__version__}",
+        "integrator": integrator,
+        "stepping": "World.step"
+        if integrator != "RKMK4"
+        else "the suite's RKMK4 around Skeleton.computeForwardDynamics (World.step not used)",
+        "dt": float(dt),
+        "gravity": pl.gravity.tolist(),
+        "tree": {
+            pl.names[c]: f"{pl.tree[c].kind} to "
+            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
+            for c in pl.order
+        },  # fmt: skip
+        "frames": "each body frame at its joint point, parallel to its principal frame "
+        "(local COM -Y)",
+        "deactivation (sleeping)": False,
+        "joint damping, spring stiffness, Coulomb friction": 0.0,
+        "joint limit enforcement": False,
+        "collision": "none (no shape nodes)",
+    }
+    if dm.constraints:
+        rec["loop closures"] = [
+            f"{lp.label}: "
+            + (
+                "RevoluteJointConstraint"
+                if lp.kind == "revolute" and closure == "revolute"
+                else "BallJointConstraint"
+                + (" at the anchor (3 of the hinge's 5 equations)" if lp.kind == "revolute" else "")
+            )
+            for lp, _ in dm.constraints
+        ]
+        rec["constraint solver"] = _constraint_record(dm)
+        rec["ERP"] = "given" if erp is not None else "DART's default"
+    return dm, rec
+
+
+def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
+                    **settings) -> dict:  # fmt: skip
+    """Run ``scenario`` (module docstring) on DART.
+
+    ``integrator``: "semi-implicit Euler" (World.step) or "RKMK4" (trees only); ``dt`` s;
+    ``nstep`` steps saved at 0, s, 2s, ..., nstep; ``settings``: ``erp`` (DART's error reduction
+    parameter of its joint constraints, a global of DART; default: DART's own).
+
+    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio_system.
+    simulate_system`), ``engine_time_s`` (inside World.step, or computeForwardDynamics for
+    RKMK4) and ``settings``. Raises :class:`Unsupported`, :class:`EngineError` (read-back or
+    initial-state mismatch) and :class:`Diverged` (non-finite state).
+    """
+    steps = ps.saves(nstep, save_every)
+    dm, rec = build(scenario, integrator, dt, **settings)
+    nb, n = len(dm.pl.bodies), len(steps)
+    x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
+    R = np.empty((n, nb, 3, 3))
+    x[0], R[0], v[0], W[0] = dm.states()
+    rk = integrator == "RKMK4"
+    if rk:
+        q, u = dm.pack()
+    world, skel = dm.world, dm.skel
+    done = 0
+    h = float(dt)
+    for k in range(1, n):
+        m = int(steps[k] - done)
+        with dart_warnings() as said:
+            if rk:
+                for _ in range(m):
+                    q, u = dm.step_rkmk4(q, u, h)
+                dm.unpack(q, u)
+            else:
+                t0 = time.perf_counter()
+                for _ in range(m):
+                    world.step()
+                dm.clock += time.perf_counter() - t0
+        done = int(steps[k])
+        pos, vel = skel.getPositions(), skel.getVelocities()
+        patched = [_ANSI.sub("", ln).strip() for ln in said[0].splitlines() if "Non-finite" in ln]
+        if patched or not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
+            why = f"DART replaced a non-finite quantity ({patched[0]})" if patched else (
+                "a non-finite state")  # fmt: skip
+            raise Diverged(
+                f"dart {integrator} at dt = {dt:g} s: {why} between t = "
+                f"{steps[k - 1] * dt:.6g} and {done * dt:.6g} s (reduce dt"
+                + (", or the constraints' ERP)" if dm.constraints else ")"),
+                done * dt,
+                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
+            )
+        x[k], R[k], v[k], W[k] = dm.states()
+    if not math.isfinite(dm.clock):
+        dm.clock = 0.0
+    return ps.output(steps, dt, x, R, v, W, dm.clock, rec)

@@ -1,0 +1,172 @@
+"""The DART builder for systems of bodies (references/engines/dart_system.py).
+
+Expected values come from formulations that share nothing with DART: the reduced-coordinate
+reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
+parallelogram four-bar (scipy DOP853 on one ODE) and the conservation of momentum. Tolerances
+come from the integrators' orders (halving dt divides the error by about 2^p, accepted within a
+factor 1.6, as in tests/test_pinocchio_system.py, whose stand-in systems are reused).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dartpy")
+
+from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
+from references.engines import dart_system as ds  # noqa: E402
+from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
+from references.exact.multibody import solve, tree_from_world  # noqa: E402
+from tests.test_pinocchio_system import (  # noqa: E402
+    EULER,
+    RK,
+    assert_order,
+    four_bar_gap,
+    four_bar_theta_error,
+    hinge_chain,
+    momentum,
+    scenario,
+)
+
+
+def errors_vs_reference(sc, integrator, dt, t_end=1.0):
+    n = int(round(t_end / dt))
+    out = ds.simulate_system(sc, integrator, dt, n, n // 10)
+    tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
+    ref = solve(tree, q0, u0, out["t"], estimate=False)
+    order = [ref.names.index(b.name) for b in sc.bodies]
+    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
+            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
+)
+@pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
+def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system, integrator,
+                                                                          dt, p):  # fmt: skip
+    if system == "spherical3":
+        sc = scenario(system, *rod_chain(3, True, seed=1))
+    else:
+        sc = scenario(system, *hinge_chain())
+    ex1, eR1 = errors_vs_reference(sc, integrator, dt)
+    ex2, eR2 = errors_vs_reference(sc, integrator, dt / 2)
+    assert_order(ex1, ex2, p)
+    assert_order(eR1, eR2, p)
+    # measured (DART 6.20): World.step at 5e-4: 6e-4 m (spherical), 6e-3 m (hinge);
+    # RKMK4 at 5e-3: 1.2e-8 m, 1.3e-7 m
+    assert ex2 < (1e-2 if integrator == EULER else 1e-6)
+
+
+@pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
+def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
+    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
+    drifts = []
+    for h in (dt, dt / 2):
+        out = ds.simulate_system(sc, integrator, h, int(round(1.0 / h)), 10)
+        P, L = momentum(sc, out)
+        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
+    assert_order(drifts[0][0], drifts[1][0], p)
+    assert_order(drifts[0][1], drifts[1][1], p)
+
+
+def test_four_bar_closed_by_dart_joint_constraints():
+    """World.step at dt = 1e-3 over 2 s (four singular passages). DART's RevoluteJointConstraint
+    at its default ERP 0.01 keeps the gap at 1.4e-8 m (measured) and follows the pendulum to
+    the accuracy of the step (9e-6 rad, the same as Pinocchio's semi-implicit Euler);
+    a BallJointConstraint at the anchor (3 of the hinge's 5 equations, enough for this planar
+    loop) keeps 6e-12 m. The RevoluteJointConstraint of this rank-deficient loop blows up at
+    ERP 0.1, which DART hides by replacing non-finite values: the builder reports it."""
+    bodies, joints, I_eff, k = parallelogram_four_bar()
+    sc = scenario("four_bar", bodies, joints)
+    out = ds.simulate_system(sc, EULER, 1e-3, 2000, 50)
+    gap, axis = four_bar_gap(sc, out)
+    assert gap.max() < 1e-7 and axis.max() < 1e-12
+    assert four_bar_theta_error(out, I_eff, k) < 1e-4
+    s = out["settings"]
+    assert s["constraint solver"]["error reduction parameter (ERP)"] == ds.DEFAULT_ERP
+    assert "RevoluteJointConstraint" in s["loop closures"][0]
+    ball = ds.simulate_system(sc, EULER, 1e-3, 2000, 50, revolute_closure="ball")
+    assert four_bar_gap(sc, ball)[0].max() < 1e-10
+    assert "BallJointConstraint at the anchor" in ball["settings"]["loop closures"][0]
+    with pytest.raises(Diverged, match="non-finite"):
+        ds.simulate_system(sc, EULER, 1e-3, 2000, 50, erp=0.1)
+    with pytest.raises(Unsupported, match="World.step"):
+        ds.simulate_system(sc, RK, 1e-3, 10, 1)
+
+
+def test_default_erp_is_dart_s():
+    """The default recorded as DART's is DART's (read in a fresh process: the ERP is a global
+    that the builder sets on every build)."""
+    code = (
+        "import dartpy; "
+        "print(dartpy.constraint.DynamicJointConstraint.getErrorReductionParameter())"
+    )
+    got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert float(got.stdout.split()[-1]) == ds.DEFAULT_ERP
+
+
+def _plant(monkeypatch, mistake):
+    orig = ds.engine_frames
+
+    def planted(pl, c):
+        f = orig(pl, c)
+        tj = pl.tree[c]
+        if tj.kind == "free" or tj.parent < 0:
+            return f
+        j = next(j for j in pl.joints if j.name == tj.name)
+        child_is_a = j.body_a == pl.names[c]
+        Yp = pl.tree[tj.parent].Y
+        if mistake == "axis in the parent's frame":
+            return dataclasses.replace(f, axis=ds.ps.unit(j.axis_b if child_is_a else j.axis_a, ""))
+        if mistake == "anchor from the body origin":
+            return dataclasses.replace(f, p=tj.X)  # the parent's anchor not moved by -Y_p
+        return dataclasses.replace(f, p=tj.Y - Yp, body_offset=-tj.X)  # sides swapped
+
+    monkeypatch.setattr(ds, "engine_frames", planted)
+
+
+@pytest.mark.parametrize(
+    "mistake",
+    ["axis in the parent's frame", "anchor from the body origin", "parent and child swapped"],
+)
+def test_planted_joint_mistakes_are_caught(monkeypatch, mistake):
+    sc = scenario("hinge4", *hinge_chain())
+    ds.simulate_system(sc, RK, 1e-2, 2, 1)  # the true builder passes
+    _plant(monkeypatch, mistake)
+    with pytest.raises(EngineError, match=r"joint 'h1'|body 'link1'") as exc:
+        ds.simulate_system(sc, RK, 1e-2, 2, 1)
+    assert "differ" in str(exc.value)
+
+
+def test_planted_default_is_caught(monkeypatch):
+    """Joint damping left on (a distorting default) is read back and named."""
+    orig = ds._Model.__init__
+
+    def damped(self, *a):
+        orig(self, *a)
+        self.joint[1].setDampingCoefficient(0, 0.01)
+
+    monkeypatch.setattr(ds._Model, "__init__", damped)
+    with pytest.raises(EngineError, match="body 'link1'.*joint damping"):
+        ds.simulate_system(scenario("hinge4", *hinge_chain()), EULER, 1e-3, 1, 1)
+
+
+def test_unsupported_and_bad_arguments():
+    b, j = rod_chain(2, True, seed=0)
+    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
+    with pytest.raises(Unsupported, match="joint1.*universal"):
+        ds.simulate_system(scenario("u", b, bad), RK, 1e-3, 1, 1)
+    sc = scenario("s", b, j)
+    with pytest.raises(ValueError, match="unknown settings"):
+        ds.simulate_system(sc, EULER, 1e-3, 1, 1, baumgarte=(1, 1))
+    with pytest.raises(ValueError, match="erp"):
+        ds.simulate_system(sc, EULER, 1e-3, 1, 1, erp=2.0)
+    out = ds.simulate_system(sc, EULER, 1e-3, 5, 2)
+    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
+    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
