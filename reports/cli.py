@@ -279,34 +279,31 @@ def cmd_baseline(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from reports.gate import compare, format_comparison, invariants, read_baseline, write_junit
-    from reports.results import read_results
-    from scenarios.schema import InputError
+    from reports.gate import check
 
-    try:  # the baseline file is input: what is wrong with it is the user's to fix (exit 2)
-        read_baseline(args.baseline)
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    cmp = compare(args.dir, args.baseline, factor=args.factor, timing_factor=args.timing_factor)
-    print(format_comparison(cmp))
-    write_junit(cmp, Path(args.dir) / "check-junit.xml")
-    junit = Path(args.dir) / "junit.xml"
-    problems = invariants(read_results(args.dir), junit if junit.exists() else None)
-    if problems:
-        print(f"FAIL: {len(problems)} statement(s) the results must make true do not hold:")
-        print("\n".join(f"  {p}" for p in problems))
-    else:
-        print("OK: the results' invariants hold (no blown-up run ok, verdicts match statuses, "
-              "fitted orders within 0.3 of declared, junit.xml agrees).")  # fmt: skip
-    return 0 if cmp.ok and not problems else 1
+    return check(
+        args.dir,
+        args.baseline,
+        factor=args.factor,
+        timing_factor=args.timing_factor,
+        markdown=args.markdown,
+        json_path=args.json,
+    )
 
 
 def cmd_compare(args) -> int:
-    from reports.compare import compare_folders, format_comparison
+    from reports.compare import run_compare
 
-    cmp = compare_folders(args.a, args.b, factor=args.factor, cost_factor=args.cost_factor)
-    print(format_comparison(cmp, show_all=args.all))
-    return 0 if cmp.ok else 1
+    return run_compare(
+        args.a,
+        args.b,
+        factor=args.factor,
+        cost_factor=args.cost_factor,
+        vary=tuple(args.vary or ()),
+        show_all=args.all,
+        markdown=args.markdown,
+        json_path=args.json,
+    )
 
 
 def _add_compare(sub) -> None:
@@ -315,8 +312,10 @@ def _add_compare(sub) -> None:
         help="compare two results folders run by run (e.g. two engine versions)",
         description="Match the runs of two results folders on scenario, engine, integrator, "
         "dt and target accuracy and give, per metric and cost, the ratio B/A: worse, better or "
-        "the same within --factor (above round-off floors). Exit 1 when a run got worse in a "
-        "metric, its status or its verdict; 2 for bad input.",
+        "the same within --factor (above round-off floors; a cost only beyond its measured "
+        "spread). Runs whose identity differs (horizon, scenario content, versions...) are a "
+        "mismatch. Exit 1 when a run got worse in a metric, its status or its verdict, on a "
+        "mismatch, or when nothing is comparable; 2 for bad input.",
     )
     s.add_argument("a", metavar="A", help="the reference results folder")
     s.add_argument("b", metavar="B", help="the results folder compared with it")
@@ -334,6 +333,16 @@ def _add_compare(sub) -> None:
         "default: timings follow the machine's load)",
     )
     s.add_argument("--all", action="store_true", help="list unchanged metrics too")
+    s.add_argument(
+        "--vary",
+        type=_csv_list,
+        default=(),
+        metavar="FIELD[,FIELD]",
+        help="identity fields allowed to differ between A and B, e.g. engine_version to "
+        "compare two engine versions (by default any difference is a mismatch)",
+    )
+    s.add_argument("--markdown", metavar="FILE", help="the Markdown summary (default B/compare.md)")
+    s.add_argument("--json", metavar="FILE", help="the JSON summary (default B/compare.json)")
     s.set_defaults(func=cmd_compare)
 
 
@@ -480,6 +489,15 @@ def _add_folder_commands(sub) -> None:
         type=_factor,
         default=None,
         help="also gate ns_per_step by this factor (off by default: noisy)",
+    )
+    s.add_argument(
+        "--markdown",
+        metavar="FILE",
+        help="write the Markdown summary here (default DIR/check.md; also appended to "
+        "$GITHUB_STEP_SUMMARY when set)",
+    )
+    s.add_argument(
+        "--json", metavar="FILE", help="write the JSON summary here (default DIR/check.json)"
     )
     s.set_defaults(func=cmd_check)
 

@@ -1,20 +1,32 @@
 """Compare two result folders, run by run: ``director-bench compare A B``.
 
 The runs of A and B are matched on their configuration (scenario, engine, integrator, dt,
-target accuracy: :data:`reports.results.CONFIG_KEY`), whatever the engine versions, so two
-folders made with two versions of an engine compare directly. For each run in both, every
-metric and the cost get a ratio B/A and a word, as airspeed velocity's ``asv compare`` does:
-``worse`` when B is more than ``factor`` times A, ``better`` when less than A / ``factor``,
-``same`` otherwise. An error metric is compared above its round-off floor
-(:data:`reports.gate.FLOORS`: ``max(value, floor)`` on both sides), so that 3e-16 against
-9e-15 is ``same``, not a regression; the fitted convergence order is compared by difference
-(:data:`reports.gate.ORDER_SLACK`). A status that got worse (ok to diverged or error) or a
-verdict that went from pass to fail is ``worse`` whatever the numbers.
+target accuracy: :data:`reports.results.CONFIG_KEY`) and must be the same run: a pair whose
+identity differs (:data:`reports.results.IDENTITY_COLUMNS`: scenario content, horizon,
+save_every, segmenting, engine and suite versions) is a ``mismatch`` naming each field
+(``t_end 30 vs 10``), never compared as if it were the same run. To compare two engine
+versions (or two suite versions) on purpose, name the field that may differ: ``--vary
+engine_version`` (docs/results.md has the recipe).
 
-Exit code of the command: 1 when some run got worse in a metric, its status or its verdict;
-the cost (ns per step inside the engine and wall) is reported but gates only with
-``cost_factor`` (timings vary with the machine's load far more than the metrics do). Runs
-found in only one folder are listed and do not gate.
+For each run in both, every metric and the cost get a ratio B/A and a word, as airspeed
+velocity's ``asv compare`` does: ``worse`` when B is more than ``factor`` times A, ``better``
+when less than A / ``factor``, ``same`` otherwise. An error metric is compared above its
+round-off floor (:data:`reports.gate.FLOORS`: ``max(value, floor)`` on both sides), so that
+3e-16 against 9e-15 is ``same``, not a regression; the fitted convergence order is compared
+by difference (:data:`reports.gate.ORDER_SLACK`). A status that got worse (ok to diverged or
+error) or a verdict that went from pass to fail is ``worse`` whatever the numbers.
+
+A cost (ns per step inside the engine and wall) is a range measured with the run
+(reports.runner): from the fastest timed repeat times the process's CPU share during the
+timing (on a busy machine the process ran only that part of the wall time) up to the slowest
+repeat. As in asv, a cost change is significant only when the ratio of the fastest times
+exceeds the factor AND the two ranges do not overlap; a ratio beyond the factor with
+overlapping ranges is ``not significant`` (the noise, measured, is as large as the change).
+
+Exit code of the command: 1 when some run got worse in a metric, its status or its verdict,
+when a pair of runs is a mismatch, or when nothing is comparable (an empty folder, no run in
+both); the cost gates only with ``cost_factor`` (timings vary with the machine's load far
+more than the metrics do). Runs found in only one folder are listed and do not gate.
 
 This is not the CI gate (reports.gate): that compares a folder against a committed baseline
 file; this compares two folders, e.g. two engine versions (docs/results.md has the recipe).
@@ -26,13 +38,22 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.gate import FLOORS, ORDER_SLACK
+from reports.gate import FLOORS, ORDER_SLACK, NothingComparable, md_escape
 from reports.metrics import HIGHER_IS_BETTER
-from reports.results import METRIC_COLUMNS, config_key, read_results
+from reports.results import (
+    IDENTITY_COLUMNS,
+    METRIC_COLUMNS,
+    config_key,
+    identity_differences,
+    read_results,
+)
 from reports.summary import fmt, fmt_level, fmt_step, records
+from scenarios.schema import InputError
 
-#: cost columns compared (ns per step: inside the engine's calls, and wall)
+#: cost columns compared (ns per step: inside the engine's calls, and wall), each with the
+#: column of the slowest repeat's time that bounds its range
 COST_COLUMNS = ("engine_ns_per_step", "ns_per_step")
+COST_MAX = {"engine_ns_per_step": "engine_time_max_s", "ns_per_step": "wall_time_max_s"}
 
 #: statuses in order of how bad they are for a run that should have run
 STATUS_RANK = {"ok": 0, "reference-inaccurate": 1, "diverged": 2, "error": 3}
@@ -41,16 +62,16 @@ STATUS_RANK = {"ok": 0, "reference-inaccurate": 1, "diverged": 2, "error": 3}
 @dataclass
 class Change:
     key: tuple
-    column: str  # a metric, a cost column, "status" or "verdict"
+    column: str  # a metric, a cost column, "status", "verdict" or "identity"
     a: object
     b: object
     ratio: float
-    change: str  # "better", "worse", "same"
-    gates: bool = False  # a "worse" that makes the command exit 1
+    change: str  # "better", "worse", "same", "not significant" or "mismatch"
+    gates: bool = False  # a "worse" (or a mismatch) that makes the command exit 1
 
     @property
     def worse(self) -> bool:
-        return self.change == "worse"
+        return self.change in ("worse", "mismatch")
 
 
 @dataclass
@@ -59,6 +80,7 @@ class Comparison:
     b: Path
     factor: float
     cost_factor: float | None
+    vary: tuple = ()
     both: list = field(default_factory=list)
     only_a: list = field(default_factory=list)  # (key, status)
     only_b: list = field(default_factory=list)
@@ -107,6 +129,46 @@ def classify(column: str, a: float, b: float, factor: float) -> tuple[float, str
     return ratio, ("better" if ratio < 1.0 / factor else "same")
 
 
+def classify_cost(a, b, factor: float) -> tuple[float, str] | None:
+    """(ratio of the fastest times B/A, word) of a cost measured on each side as
+    (fastest, low, high) (:func:`cost_range`; a NaN low or high end: the fastest time).
+    asv's rule: ``worse`` (``better``) only when the ratio exceeds ``factor`` (falls below
+    1/factor) AND the ranges [low, high] do not overlap; ``not significant`` when the ratio
+    is beyond the factor but they overlap; ``same`` within the factor."""
+    (a_fast, a_lo, a_hi), (b_fast, b_lo, b_hi) = (tuple(_num(v) for v in side) for side in (a, b))
+    if math.isnan(a_fast) and math.isnan(b_fast):
+        return None
+    if math.isnan(a_fast) or math.isnan(b_fast) or a_fast <= 0:
+        return math.nan, "same"
+
+    def span(fast, lo, hi):
+        lo = fast if math.isnan(lo) else min(lo, fast)
+        hi = fast if math.isnan(hi) else max(hi, fast)
+        return lo, hi
+
+    (a_lo, a_hi), (b_lo, b_hi) = span(a_fast, a_lo, a_hi), span(b_fast, b_lo, b_hi)
+    ratio = b_fast / a_fast
+    if ratio > factor:
+        return ratio, ("worse" if b_lo > a_hi else "not significant")
+    if ratio < 1.0 / factor:
+        return ratio, ("better" if b_hi < a_lo else "not significant")
+    return ratio, "same"
+
+
+def cost_range(row, column: str) -> tuple[float, float, float]:
+    """The cost of a run in ``column`` (ns per step): (fastest repeat, the range's low end,
+    its high end). The high end is the slowest repeat; the low end is the fastest repeat
+    times the process's CPU share during the timing (``cpu_share``: on a busy machine the
+    process ran only that fraction of the wall time, so the engine's own cost may be that
+    much lower than the wall clock says)."""
+    fastest = _num(row.get(column))
+    n = _num(row.get("nstep"))
+    hi = 1e9 * _num(row.get(COST_MAX[column])) / n if n and n > 0 else math.nan
+    share = _num(row.get("cpu_share"))
+    lo = fastest * share if 0.0 < share < 1.0 else fastest
+    return fastest, lo, hi
+
+
 def _by_key(df) -> dict:
     return {
         config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"]): r
@@ -115,21 +177,46 @@ def _by_key(df) -> dict:
 
 
 def compare_folders(
-    a: str | Path, b: str | Path, factor: float = 2.0, cost_factor: float | None = None
+    a: str | Path,
+    b: str | Path,
+    factor: float = 2.0,
+    cost_factor: float | None = None,
+    vary=(),
 ) -> Comparison:
     """Compare the results of folders ``a`` and ``b`` (see the module docstring); a folder
-    without a results store is a FileNotFoundError naming it."""
+    without a results store is a FileNotFoundError naming it; :class:`NothingComparable`
+    when either folder holds no run or they share none. ``vary``: identity columns that may
+    differ between the two (e.g. ``("engine_version",)``)."""
     if not factor >= 1.0:
-        raise ValueError(f"--factor {factor!r}: must be a number >= 1")
+        raise InputError(f"--factor {factor!r}: must be a number >= 1")
     if cost_factor is not None and not cost_factor >= 1.0:
-        raise ValueError(f"--cost-factor {cost_factor!r}: must be a number >= 1")
+        raise InputError(f"--cost-factor {cost_factor!r}: must be a number >= 1")
+    bad = [v for v in vary if v not in IDENTITY_COLUMNS]
+    if bad:
+        raise InputError(
+            f"--vary {bad[0]!r}: not an identity column (one of {', '.join(IDENTITY_COLUMNS)})"
+        )
     ra, rb = _by_key(read_results(a)), _by_key(read_results(b))
-    cmp = Comparison(Path(a), Path(b), factor, cost_factor)
+    for folder, runs in ((a, ra), (b, rb)):
+        if not runs:
+            raise NothingComparable(f"{folder}: the results store holds no run: nothing to compare")
+    if not set(ra) & set(rb):
+        raise NothingComparable(
+            f"{a} ({len(ra)} runs) and {b} ({len(rb)} runs) share no run (scenario, engine, "
+            "integrator, dt, target accuracy): nothing was compared"
+        )
+    cmp = Comparison(Path(a), Path(b), factor, cost_factor, tuple(vary))
     cmp.only_a = [(k, ra[k]["status"]) for k in sorted(ra, key=_sort_key) if k not in rb]
     cmp.only_b = [(k, rb[k]["status"]) for k in sorted(rb, key=_sort_key) if k not in ra]
     for key in sorted(set(ra) & set(rb), key=_sort_key):
         cmp.both.append(key)
         x, y = ra[key], rb[key]
+        diff = identity_differences(x, y, vary)
+        if diff:
+            cmp.changes.append(
+                Change(key, "identity", "A", "; ".join(diff), math.nan, "mismatch", gates=True)
+            )
+            continue
         cmp.changes += _run_changes(key, x, y, factor, cost_factor)
     return cmp
 
@@ -160,7 +247,7 @@ def _run_changes(key, x, y, factor, cost_factor) -> list[Change]:
         if got is not None:
             out.append(Change(key, m, _num(x[m]), _num(y[m]), got[0], got[1], gates=True))
     for c in COST_COLUMNS:
-        got = classify(c, x[c], y[c], cost_factor or factor)
+        got = classify_cost(cost_range(x, c), cost_range(y, c), cost_factor or factor)
         if got is not None:
             gates = cost_factor is not None
             out.append(Change(key, c, _num(x[c]), _num(y[c]), got[0], got[1], gates=gates))
@@ -177,46 +264,197 @@ def _value(v) -> str:
     return v if isinstance(v, str) else fmt(v)
 
 
-def format_comparison(cmp: Comparison, show_all: bool = False) -> str:
-    """The comparison as text: a summary line, then every change that is not ``same``
-    (every change with ``show_all``), worse first, then the runs in one folder only."""
-    runs_worse = {c.key for c in cmp.changes if c.worse and c.gates}
-    runs_better = {c.key for c in cmp.changes if c.change == "better"} - runs_worse
+def _counts(cmp: Comparison) -> dict:
+    worse = {c.key for c in cmp.changes if c.worse and c.gates}
+    mismatch = {c.key for c in cmp.changes if c.change == "mismatch"}
+    better = {c.key for c in cmp.changes if c.change == "better"} - worse
+    return {
+        "in_both": len(cmp.both),
+        "worse": len(worse - mismatch),
+        "mismatch": len(mismatch),
+        "better": len(better),
+        "same": len(cmp.both) - len(worse) - len(better),
+        "cost_not_significant": sum(1 for c in cmp.changes if c.change == "not significant"),
+        "only_a": len(cmp.only_a),
+        "only_b": len(cmp.only_b),
+    }
+
+
+_ORDER = {"mismatch": 0, "worse": 1, "better": 2, "not significant": 3, "same": 4}
+
+
+def _shown(cmp: Comparison, show_all: bool) -> list[Change]:
+    shown = [c for c in cmp.changes if show_all or c.change != "same"]
+    shown.sort(key=lambda c: (_ORDER[c.change], not c.gates, _sort_key(c.key), c.column))
+    return shown
+
+
+def _word(c: Change) -> str:
+    return c.change + ("" if c.gates or c.change != "worse" else " (not gated)")
+
+
+def _verdict(cmp: Comparison) -> str:
+    n = _counts(cmp)
+    if n["mismatch"]:
+        return (
+            f"FAIL: {n['mismatch']} run(s) are not the same run in A and B (identity mismatch), "
+            f"{n['worse']} got worse beyond a factor {cmp.factor:g}."
+        )
+    if n["worse"]:
+        return f"FAIL: {n['worse']} run(s) got worse beyond a factor {cmp.factor:g}."
+    return "OK: no run got worse."
+
+
+def _summary_line(cmp: Comparison) -> str:
+    n = _counts(cmp)
     cost_note = (
         f"cost gated at {cmp.cost_factor:g}x"
         if cmp.cost_factor is not None
         else "cost not gated (--cost-factor F to gate it)"
     )
-    lines = [
-        f"A: {cmp.a}",
-        f"B: {cmp.b}",
-        f"{len(cmp.both)} runs in both: {len(runs_worse)} worse, {len(runs_better)} better, "
-        f"{len(cmp.both) - len(runs_worse) - len(runs_better)} the same within a factor "
-        f"{cmp.factor:g} (above round-off floors; {cost_note}); {len(cmp.only_a)} only in A, "
-        f"{len(cmp.only_b)} only in B.",
-    ]
-    order = {"worse": 0, "better": 1, "same": 2}
-    shown = [c for c in cmp.changes if show_all or c.change != "same"]
-    shown.sort(key=lambda c: (order[c.change], not c.gates, _sort_key(c.key), c.column))
+    vary = f"; allowed to differ: {', '.join(cmp.vary)}" if cmp.vary else ""
+    return (
+        f"{n['in_both']} runs in both: {n['mismatch']} identity mismatch(es), {n['worse']} worse, "
+        f"{n['better']} better, {n['same']} the same within a factor {cmp.factor:g} (above "
+        f"round-off floors; {cost_note}; {n['cost_not_significant']} cost change(s) beyond the "
+        f"factor but within the measured spread: not significant{vary}); {n['only_a']} only "
+        f"in A, {n['only_b']} only in B."
+    )
+
+
+def format_comparison(cmp: Comparison, show_all: bool = False) -> str:
+    """The comparison as text: a summary line, then every change that is not ``same``
+    (every change with ``show_all``), mismatches and worse first, then the runs in one
+    folder only."""
+    lines = [f"A: {cmp.a}", f"B: {cmp.b}", _summary_line(cmp)]
+    shown = _shown(cmp, show_all)
     if shown:
         head = ["change", "run", "what", "A", "B", "B/A"]
         rows = []
         for c in shown:
-            word = c.change + ("" if c.gates or c.change != "worse" else " (not gated)")
             ratio = "" if math.isnan(c.ratio) else fmt(c.ratio)
-            rows.append([word, _run_name(c.key), c.column, _value(c.a), _value(c.b), ratio])
+            rows.append([_word(c), _run_name(c.key), c.column, _value(c.a), _value(c.b), ratio])
         lines += ["", *_text_table(head, rows)]
     for title, items in (("Only in A", cmp.only_a), ("Only in B", cmp.only_b)):
         if items:
             lines += ["", f"{title} ({len(items)}):"]
             lines += [f"  {_run_name(k)} ({status})" for k, status in items]
-    lines.append("")
-    lines.append(
-        f"FAIL: {len(runs_worse)} run(s) got worse beyond a factor {cmp.factor:g}."
-        if runs_worse
-        else "OK: no run got worse."
-    )
+    lines += ["", _verdict(cmp)]
     return "\n".join(lines)
+
+
+def _json_num(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def as_json(cmp: Comparison) -> dict:
+    """The comparison as a JSON-ready dict (every change that is not ``same``)."""
+
+    def run(key):
+        sc, eng, integ, dt, acc = key
+        return {
+            "scenario": sc,
+            "engine": eng,
+            "integrator": integ,
+            "dt": dt,
+            "target_accuracy": acc,
+        }
+
+    return {
+        "ok": cmp.ok,
+        "a": str(cmp.a),
+        "b": str(cmp.b),
+        "factor": cmp.factor,
+        "cost_factor": cmp.cost_factor,
+        "vary": list(cmp.vary),
+        "counts": _counts(cmp),
+        "changes": [
+            {
+                "run": run(c.key),
+                "what": c.column,
+                "change": c.change,
+                "gates": c.gates,
+                "a": _json_num(c.a),
+                "b": _json_num(c.b),
+                "ratio": _json_num(c.ratio),
+            }
+            for c in _shown(cmp, False)
+        ],
+        "only_a": [{"run": run(k), "status": st} for k, st in cmp.only_a],
+        "only_b": [{"run": run(k), "status": st} for k, st in cmp.only_b],
+    }
+
+
+def as_markdown(cmp: Comparison) -> str:
+    """The comparison as Markdown (a pull-request comment or a job summary)."""
+    out = [
+        f"## director-bench compare: {'OK' if cmp.ok else 'FAIL'}",
+        "",
+        f"A `{md_escape(cmp.a)}`, B `{md_escape(cmp.b)}`.",
+        "",
+        md_escape(_summary_line(cmp)),
+    ]
+    shown = _shown(cmp, False)
+    if shown:
+        out += ["", "| change | run | what | A | B | B/A |", "|---|---|---|---|---|---:|"]
+        for c in shown:
+            ratio = "" if math.isnan(c.ratio) else fmt(c.ratio)
+            cells = (_word(c), _run_name(c.key), c.column, _value(c.a), _value(c.b), ratio)
+            out.append("| " + " | ".join(md_escape(x) for x in cells) + " |")
+    for title, items in (("Only in A", cmp.only_a), ("Only in B", cmp.only_b)):
+        if items:
+            out += ["", f"{title} ({len(items)}):", ""]
+            out += [f"- {md_escape(_run_name(k))} ({md_escape(st)})" for k, st in items]
+    out += ["", md_escape(_verdict(cmp))]
+    return "\n".join(out) + "\n"
+
+
+def run_compare(
+    a,
+    b,
+    factor: float = 2.0,
+    cost_factor: float | None = None,
+    vary=(),
+    show_all: bool = False,
+    markdown=None,
+    json_path=None,
+) -> int:
+    """``director-bench compare``: print the table, write the Markdown and JSON summaries
+    (default ``B/compare.md`` and ``B/compare.json``; appended to ``$GITHUB_STEP_SUMMARY``
+    when set) and return the exit code (0 nothing worse, 1 worse, a mismatch or nothing
+    comparable)."""
+    import json
+    import os
+    import sys
+
+    try:
+        cmp = compare_folders(a, b, factor=factor, cost_factor=cost_factor, vary=vary)
+    except NothingComparable as exc:
+        print(f"director-bench: error: {exc}", file=sys.stderr)
+        return 1
+    print(format_comparison(cmp, show_all=show_all))
+    md = as_markdown(cmp)
+    md_path = Path(markdown) if markdown else Path(b) / "compare.md"
+    js_path = Path(json_path) if json_path else Path(b) / "compare.json"
+    try:
+        for path, text in ((md_path, md), (js_path, json.dumps(as_json(cmp), indent=1) + "\n")):
+            tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+            tmp.write_text(text)
+            tmp.replace(path)
+        print(f"written: {md_path}, {js_path}")
+    except OSError as exc:
+        print(
+            f"director-bench: warning: cannot write {exc.filename or md_path} "
+            f"({exc.strerror or exc}); give --markdown FILE and --json FILE elsewhere",
+            file=sys.stderr,
+        )
+    summary = os.environ.get("GITHUB_STEP_SUMMARY")
+    if summary:
+        with open(summary, "a") as fh:
+            fh.write(md)
+    return 0 if cmp.ok else 1
 
 
 def _text_table(head, rows) -> list[str]:

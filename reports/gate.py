@@ -1,10 +1,21 @@
 """The CI regression gate: baselines of a run's metrics and the comparison against them.
 
-A baseline is a JSON file with one entry per run (scenario, engine, integrator, dt) holding its
-status and metrics. :func:`compare` reports, for every run, each metric that got worse than the
-baseline by more than a factor, every run whose status got worse, and runs missing from or new
-to the results. Timing metrics are not gated unless a timing factor is given: shared CI
-machines vary by far more than the accuracy metrics do.
+A baseline is a JSON file with one entry per run holding its configuration (scenario, engine,
+integrator, dt, target accuracy), its identity (:data:`reports.results.IDENTITY_COLUMNS`:
+scenario content hash, horizon, save_every, segmenting, engine and suite versions), its
+status, verdict and reason, and its metrics. :func:`compare` matches the runs of a results
+folder to the baseline on the configuration and reports:
+
+- a run whose identity differs (``t_end 30 vs 10``, a changed scenario file): a mismatch, never
+  a pass, since the two runs did not do the same thing;
+- each metric worse than the baseline by more than a factor, a status that got worse, a
+  verdict that went from pass to fail, a failing run that fails a check it passed before;
+- runs missing from or new to the results.
+
+Every one of these is a regression (the gate fails, JUnit shows a ``<failure>``). A run that
+fails exactly as in the baseline is a *known failure*: listed with its reason, never a
+failure. Timing metrics are not gated unless a timing factor is given: shared CI machines
+vary by far more than the accuracy metrics do.
 
 Round-off floors: a metric at round-off level (e.g. an energy drift of 3e-15) may double from
 one platform or library build to another without meaning anything, so a value is compared
@@ -16,12 +27,13 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from xml.sax.saxutils import escape, quoteattr
 
 from reports.metrics import HIGHER_IS_BETTER
-from reports.results import METRIC_COLUMNS, config_key, read_results
+from reports.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
+from scenarios.schema import InputError
 
 FLOORS = {
     "energy_drift_max": 1e-11,
@@ -39,25 +51,72 @@ FLOORS = {
 #: A fitted convergence order may fall by this much before it counts as a regression.
 ORDER_SLACK = 0.3
 TIMING_METRICS = ("ns_per_step",)
-#: version of the baseline file layout
-BASELINE_FORMAT = 2
-_ENTRY_KEYS = ("scenario", "engine", "integrator", "dt", "status")
+#: version of the baseline file layout (3: with each run's identity and failure reason)
+BASELINE_FORMAT = 3
+_ENTRY_KEYS = ("scenario", "engine", "integrator", "dt", "status", *IDENTITY_COLUMNS)
+#: a baseline file larger than this is refused before it is read (the default suite's is
+#: about 0.5 MB)
+MAX_BASELINE_BYTES = 64 * 2**20
+#: statuses in order of how bad they are for a run that ran in the baseline
+STATUS_RANK = {
+    "ok": 0,
+    "reference-inaccurate": 1,
+    "diverged": 2,
+    "error": 3,
+    "unsupported": 4,
+    "unavailable": 4,
+}
+#: a failure reason is cut to this many characters in baselines and reports
+REASON_CHARS = 400
+
+
+class NothingComparable(RuntimeError):
+    """The two sides share no run (an empty folder, disjoint runs): nothing was compared,
+    which is never a pass."""
+
+
+def _reason(r) -> str:
+    """Why a run fails: its verdict detail, or its status and message."""
+    status = str(r.get("status", ""))
+    detail = str(r.get("verdict_detail", "") or "")
+    if status == "ok":
+        text = f"fail: {detail}"
+    else:
+        text = f"{status}: {r.get('message', '') or detail}"
+    return text if len(text) <= REASON_CHARS else text[: REASON_CHARS - 3] + "..."
+
+
+def failing(r) -> bool:
+    """True when a row is a failing test case (a failed verdict or a fault of the suite)."""
+    return r.get("verdict") == "fail" or r.get("status") == "error"
+
+
+def failed_checks(r) -> set[str]:
+    """The checks a row fails: the metric names of its verdict detail (``"attitude_error_max
+    0.5 > 0.1; ..."``), or its status when it did not run to the end."""
+    if r.get("status") != "ok":
+        return {str(r.get("status"))} if failing(r) else set()
+    detail = str(r.get("verdict_detail", "") or "")
+    return {part.split()[0] for part in detail.split("; ") if part.strip()}
 
 
 def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
     """Write the baseline of the run in ``results_dir`` to ``path`` (JSON)."""
     from reports.provenance import read_provenance
+    from reports.results import read_results
 
     df = read_results(results_dir)
     runs = []
     for _, r in df.sort_values(["scenario", "engine", "integrator", "dt"]).iterrows():
-        entry = {
-            k: r[k]
-            for k in ("scenario", "engine", "integrator", "engine_version", "status", "verdict")
-        }
+        entry = {k: r[k] for k in ("scenario", "engine", "integrator", "status", "verdict")}
         entry["dt"] = float(r["dt"])
         acc = float(r["target_accuracy"])
         entry["target_accuracy"] = None if math.isnan(acc) else acc
+        for col in IDENTITY_COLUMNS:
+            v = r[col]
+            entry[col] = (None if math.isnan(v) else v) if isinstance(v, float) else v
+        entry["reason"] = _reason(r) if failing(r) or r["status"] != "ok" else ""
+        entry["failed_checks"] = sorted(failed_checks(r))
         for m in (*METRIC_COLUMNS, *TIMING_METRICS):
             v = float(r[m]) if r[m] == r[m] else None  # NaN -> null
             entry[m] = v
@@ -72,37 +131,63 @@ def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
 
 def read_baseline(path: str | Path) -> dict:
     """A baseline file, checked: a JSON object of format BASELINE_FORMAT whose ``runs`` are
-    objects with scenario, engine, integrator, dt and status (ValueError naming the file and
-    the first problem otherwise)."""
+    objects with the configuration, identity and status of a run and numbers (or null) as
+    metrics (ValueError naming the file, the entry, the field and the rule otherwise)."""
     path = Path(path)
+    if path.exists() and not path.is_file():
+        raise InputError(f"{path}: not a baseline file (not a regular file)")
     try:
-        doc = json.loads(path.read_text())
+        with path.open("rb") as fh:
+            data = fh.read(MAX_BASELINE_BYTES + 1)
+        if len(data) > MAX_BASELINE_BYTES:
+            raise InputError(
+                f"{path}: not a baseline file (larger than {MAX_BASELINE_BYTES} bytes)"
+            )
+        doc = json.loads(data.decode())
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: baseline file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the baseline file ({exc})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not a baseline file (invalid JSON: {exc})") from None
+        raise InputError(f"{path}: cannot read the baseline file ({exc})") from None
+    except ValueError as exc:  # invalid JSON, or an integer of more than 4300 digits
+        raise InputError(f"{path}: not a baseline file (invalid JSON: {exc})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a baseline file (JSON nested too deeply)") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("runs"), list):
-        raise ValueError(f"{path}: not a baseline file (expected an object with a 'runs' list)")
+        raise InputError(f"{path}: not a baseline file (expected an object with a 'runs' list)")
     if doc.get("format") != BASELINE_FORMAT:
-        raise ValueError(
+        raise InputError(
             f"{path}: baseline format {doc.get('format')!r}, this suite reads format "
-            f"{BASELINE_FORMAT}; write it again with `director-bench baseline DIR --write FILE`"
+            f"{BASELINE_FORMAT} (with each run's identity: scenario content, horizon, "
+            "save_every, segmenting, engine and suite versions); write it again with "
+            "`director-bench baseline DIR --write FILE`"
         )
     for i, run in enumerate(doc["runs"]):
         missing = [k for k in _ENTRY_KEYS if not isinstance(run, dict) or k not in run]
         if missing:
-            raise ValueError(f"{path}: runs[{i}] lacks {', '.join(missing)}")
-        if not isinstance(run["dt"], int | float) or isinstance(run["dt"], bool):
-            raise ValueError(f"{path}: runs[{i}].dt = {run['dt']!r} is not a number")
+            raise InputError(f"{path}: runs[{i}] lacks {', '.join(missing)}")
+        for k in ("dt", *METRIC_COLUMNS, *TIMING_METRICS):
+            v = run.get(k)
+            if (v is not None or k == "dt") and (
+                not isinstance(v, int | float) or isinstance(v, bool)
+            ):
+                raise InputError(f"{path}: runs[{i}].{k} = {v!r} is not a number")
     return doc
+
+
+def entry_key(b: dict) -> tuple:
+    return config_key(
+        b["scenario"], b["engine"], b["integrator"], b["dt"], b.get("target_accuracy")
+    )
+
+
+def row_key(r) -> tuple:
+    return config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"])
 
 
 @dataclass
 class Finding:
     key: tuple
-    what: str  # "metric", "status", "verdict", "missing", "new"
+    what: str  # "metric", "status", "verdict", "mismatch", "missing", "new"
     metric: str = ""
     baseline: object = None
     current: object = None
@@ -114,12 +199,40 @@ class Finding:
         except (TypeError, ValueError, ZeroDivisionError):
             return math.nan
 
+    @property
+    def message(self) -> str:
+        if self.what == "mismatch":
+            return f"not the baseline's run: {self.current}"
+        if self.what == "missing":
+            if self.current:  # the store holds the run as history (see results.current)
+                return (
+                    f"missing run (in the baseline with status {self.baseline}); the store "
+                    f"holds it as {self.current}"
+                )
+            return f"missing run (in the baseline with status {self.baseline})"
+        if self.what == "new":
+            return (
+                f"new run, not in the baseline (status {self.current}); write the baseline "
+                "again if it belongs to the suite"
+            )
+        if self.what == "metric":
+            ratio = "" if math.isnan(self.ratio) else f" ({self.ratio:.3g}x)"
+            return f"{self.metric}: baseline {_fmt(self.baseline)}, now {_fmt(self.current)}{ratio}"
+        return (
+            f"{self.metric or self.what}: baseline {_fmt(self.baseline)}, now {_fmt(self.current)}"
+        )
+
 
 @dataclass
 class Comparison:
     factor: float
     findings: list[Finding] = field(default_factory=list)
     checked: list[tuple] = field(default_factory=list)
+    #: runs failing as in the baseline: key -> (current reason, baseline reason)
+    known: dict = field(default_factory=dict)
+    results_dir: str = ""
+    baseline_path: str = ""
+    baseline_provenance: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -127,6 +240,11 @@ class Comparison:
 
     def for_key(self, key) -> list[Finding]:
         return [f for f in self.findings if f.key == key]
+
+    @property
+    def regressed(self) -> list[tuple]:
+        """The runs with at least one finding, in order of first finding."""
+        return list(dict.fromkeys(f.key for f in self.findings))
 
 
 def _worse(metric, base, cur, factor, timing_factor) -> bool:
@@ -147,53 +265,91 @@ def compare(
     factor: float = 2.0,
     timing_factor: float | None = None,
     only_present: bool = False,
+    df=None,
 ) -> Comparison:
-    """Compare the run in ``results_dir`` against the baseline file.
+    """Compare the run in ``results_dir`` (or the current rows ``df``) against the baseline.
 
     ``only_present``: compare only the runs present in both (a partial run, e.g. one
-    scenario); by default missing and new runs are findings too."""
+    scenario); by default missing and new runs are findings too. Raises
+    :class:`NothingComparable` when the results hold no run or share none with the
+    baseline."""
+    from reports.results import current as current_view
+    from reports.results import read_results
+
     if not factor >= 1.0:
-        raise ValueError(f"--factor {factor!r}: must be a number >= 1")
+        raise InputError(f"--factor {factor!r}: must be a number >= 1")
     base = read_baseline(baseline_path)
-    df = read_results(results_dir)
-    current = {
-        config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"]): r
-        for _, r in df.iterrows()
-    }
-    expected = {
-        config_key(
-            b["scenario"], b["engine"], b["integrator"], b["dt"], b.get("target_accuracy")
-        ): b
-        for b in base["runs"]
-    }
-    cmp = Comparison(factor)
+    stored = read_results(results_dir, all_rows=True) if df is None else df
+    df = current_view(stored) if df is None else df
+    current = {row_key(r): r for _, r in df.iterrows()}
+    history = {row_key(r): r for _, r in stored.iterrows()}  # newest stored row per key
+    expected = {entry_key(b): b for b in base["runs"]}
+    if not current:
+        raise NothingComparable(
+            f"{results_dir}: the results store holds no run, so nothing was checked against "
+            f"{baseline_path}; run the suite first (`director-bench run --out {results_dir}`)"
+        )
+    if not set(current) & set(expected):
+        raise NothingComparable(
+            f"{results_dir}: none of its {len(current)} run(s) is in the baseline "
+            f"{baseline_path} ({len(expected)} runs): nothing was compared (another suite, "
+            "or another baseline?)"
+        )
+    cmp = Comparison(factor, results_dir=str(results_dir), baseline_path=str(baseline_path))
+    cmp.baseline_provenance = base.get("provenance") or {}
     for key, b in expected.items():
         r = current.get(key)
         if r is None and only_present:
             continue
         cmp.checked.append(key)
         if r is None:
-            cmp.findings.append(Finding(key, "missing", baseline=b["status"]))
+            old = history.get(key)
+            why = None
+            if old is not None:
+                diff = identity_differences(b, old)
+                why = (
+                    f"history only: {'; '.join(diff)}"
+                    if diff
+                    else "history only: its scenario's newest runs have another identity"
+                )
+            cmp.findings.append(Finding(key, "missing", baseline=b["status"], current=why))
             continue
-        if b["status"] == "ok" and r["status"] != "ok":
-            cmp.findings.append(
-                Finding(key, "status", "status", b["status"], f"{r['status']}: {r['message']}")
-            )
-            continue
-        if r["status"] != "ok":
-            continue
-        if b.get("verdict") == "pass" and r["verdict"] == "fail":
-            cmp.findings.append(
-                Finding(key, "verdict", "verdict", "pass", f"fail: {r['verdict_detail']}")
-            )
-        for m in (*METRIC_COLUMNS, *TIMING_METRICS):
-            cur = float(r[m])
-            if _worse(m, b.get(m), cur, factor, timing_factor):
-                cmp.findings.append(Finding(key, "metric", m, b.get(m), cur))
+        found = _run_findings(key, b, r, factor, timing_factor)
+        cmp.findings += found
+        if not found and failing(r):
+            cmp.known[key] = (_reason(r), b.get("reason", ""))
     for key in current:
         if key not in expected and not only_present:
             cmp.findings.append(Finding(key, "new", current=current[key]["status"]))
     return cmp
+
+
+def _run_findings(key, b, r, factor, timing_factor) -> list[Finding]:
+    diff = identity_differences(b, r)
+    if diff:
+        return [Finding(key, "mismatch", "identity", "baseline", "; ".join(diff))]
+    bs, rs = b["status"], r["status"]
+    if STATUS_RANK.get(rs, 5) > STATUS_RANK.get(bs, 5):
+        return [Finding(key, "status", "status", bs, f"{rs}: {r['message']}")]
+    out = []
+    if rs != "ok" or bs != "ok":
+        if failing(r) and not failing(b):
+            out.append(Finding(key, "verdict", "verdict", "pass", _reason(r)))
+        return out
+    if b.get("verdict") == "pass" and r["verdict"] == "fail":
+        out.append(Finding(key, "verdict", "verdict", "pass", _reason(r)))
+    elif b.get("verdict") == "fail" and r["verdict"] == "fail":
+        new = failed_checks(r) - set(b.get("failed_checks") or [])
+        if new:
+            out.append(
+                Finding(key, "verdict", "failed checks", b.get("reason", ""),
+                        f"now also fails {', '.join(sorted(new))}: {_reason(r)}")
+            )  # fmt: skip
+    for m in (*METRIC_COLUMNS, *TIMING_METRICS):
+        cur = float(r[m])
+        if _worse(m, b.get(m), cur, factor, timing_factor):
+            out.append(Finding(key, "metric", m, b.get(m), cur))
+    return out
 
 
 def _fmt(v) -> str:
@@ -204,28 +360,42 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def run_name(key) -> str:
+    sc, eng, integ, dt, acc = key
+    return f"{sc} {eng}/{integ}/dt={dt:g}" + ("" if acc is None else f"/accuracy={acc:g}")
+
+
+_PROBLEM = {
+    "metric": "",
+    "status": "status got worse",
+    "verdict": "verdict got worse",
+    "mismatch": "identity mismatch",
+    "missing": "missing run",
+    "new": "new run (not in baseline)",
+}
+
+
 def format_comparison(cmp: Comparison) -> str:
-    """A readable plain-text table of the findings (empty findings: a one-line summary)."""
+    """A readable plain-text summary and table of the findings and the known failures."""
+    head_line = (
+        f"{len(cmp.checked)} runs checked against the baseline (factor {cmp.factor:g}): "
+        f"{len(cmp.regressed)} regressed, {len(cmp.known)} known failure(s) failing as in the "
+        "baseline (expected, not regressions)"
+    )
     if cmp.ok:
-        return f"OK: {len(cmp.checked)} runs match the baseline (factor {cmp.factor:g})."
+        return f"OK: {head_line}."
     head = ["scenario", "engine", "integrator", "dt", "problem", "baseline", "current", "ratio"]
     rows = []
     for f in cmp.findings:
         sc, eng, integ, dt, acc = f.key
-        problem = {
-            "metric": f.metric,
-            "status": "status got worse",
-            "verdict": "verdict got worse",
-            "missing": "missing run",
-            "new": "new run (not in baseline)",
-        }[f.what]
+        problem = _PROBLEM[f.what] or f.metric
         ratio = f"{f.ratio:.3g}" if f.what == "metric" and not math.isnan(f.ratio) else ""
         integ = integ if acc is None else f"{integ} (accuracy {acc:g})"
         rows.append([sc, eng, integ, f"{dt:g}", problem, _fmt(f.baseline), _fmt(f.current), ratio])
     widths = [max(len(str(x)) for x in col) for col in zip(head, *rows, strict=False)]
     line = "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True))
     out = [
-        f"FAIL: {len(cmp.findings)} finding(s) against the baseline (factor {cmp.factor:g}):",
+        f"FAIL: {len(cmp.findings)} finding(s) in {len(cmp.regressed)} run(s); {head_line}:",
         line,
         "-" * len(line),
     ]
@@ -233,37 +403,222 @@ def format_comparison(cmp: Comparison) -> str:
     return "\n".join(out)
 
 
-def write_junit(cmp: Comparison, path: str | Path) -> Path:
-    """JUnit XML of a comparison with a baseline: one test case per run compared, failing
-    when the run regressed (``director-bench check`` writes it as ``check-junit.xml``)."""
-    keys = list(cmp.checked) + [f.key for f in cmp.findings if f.what == "new"]
-    cases = []
-    nfail = 0
-    for key in keys:
-        sc, eng, integ, dt, acc = key
-        name = f"{eng}/{integ}/dt={dt:g}" + ("" if acc is None else f"/accuracy={acc:g}")
-        fails = cmp.for_key(key)
-        body = ""
-        if fails:
-            nfail += 1
-            msg = "; ".join(
-                f"{f.metric or f.what}: baseline {_fmt(f.baseline)}, current {_fmt(f.current)}"
-                for f in fails
-            )
-            body = f"<failure message={quoteattr(msg)}>{escape(msg)}</failure>"
-        cases.append(
-            f"  <testcase classname={quoteattr('director_bench.' + sc)} "
-            f"name={quoteattr(name)}>{body}</testcase>"
+def junit_notes(cmp: Comparison) -> tuple[dict, list]:
+    """What a baseline says about each run, for :func:`reports.junit.write`: a dict
+    key -> ("known", reason) | ("regression", message), and the missing runs as
+    (key, message)."""
+    notes = {key: ("known", reason) for key, (reason, _) in cmp.known.items()}
+    missing = []
+    for key in cmp.regressed:
+        msg = "; ".join(f.message for f in cmp.for_key(key))
+        if any(f.what == "missing" for f in cmp.for_key(key)):
+            missing.append((key, msg))
+        else:
+            notes[key] = ("regression", msg)
+    return notes, missing
+
+
+def annotation(title: str, message: str, level: str = "error") -> str:
+    """A GitHub Actions workflow command (``::error title=...::message``), escaped as the
+    runner requires (%, CR and LF in the message; also ':' and ',' in the title)."""
+
+    def data(s: str) -> str:
+        return s.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+
+    def prop(s: str) -> str:
+        return data(s).replace(":", "%3A").replace(",", "%2C")
+
+    return f"::{level} title={prop(title)}::{data(message)}"
+
+
+def annotations(cmp: Comparison) -> list[str]:
+    """One GitHub error annotation per regressed run."""
+    return [
+        annotation(
+            f"director-bench regression: {run_name(key)}",
+            "; ".join(f.message for f in cmp.for_key(key)),
         )
-    xml = [
-        '<?xml version="1.0" encoding="utf-8"?>',
-        f'<testsuite name="director-bench check" tests="{len(keys)}" failures="{nfail}">',
-        *cases,
-        "</testsuite>",
+        for key in cmp.regressed
     ]
-    path = Path(path)
-    path.write_text("\n".join(xml) + "\n")
-    return path
+
+
+def _num(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def _run_dict(key) -> dict:
+    sc, eng, integ, dt, acc = key
+    return {"scenario": sc, "engine": eng, "integrator": integ, "dt": dt, "target_accuracy": acc}
+
+
+def as_json(cmp: Comparison, problems: list[str]) -> dict:
+    """The comparison as a JSON-ready dict (NaN written as null)."""
+    return {
+        "ok": cmp.ok and not problems,
+        "results": cmp.results_dir,
+        "baseline": cmp.baseline_path,
+        "baseline_git_commit": cmp.baseline_provenance.get("git_commit"),
+        "factor": cmp.factor,
+        "counts": {
+            "checked": len(cmp.checked),
+            "regressed": len(cmp.regressed),
+            "known_failures": len(cmp.known),
+            "passed": len(cmp.checked)
+            - len(set(cmp.regressed) & set(cmp.checked))
+            - len(cmp.known),
+            "findings": len(cmp.findings),
+            "invariant_problems": len(problems),
+        },
+        "findings": [
+            {
+                "run": _run_dict(f.key),
+                "what": f.what,
+                "metric": f.metric,
+                "baseline": _num(f.baseline),
+                "current": _num(f.current),
+                "ratio": _num(f.ratio) if f.what == "metric" else None,
+                "message": f.message,
+            }
+            for f in cmp.findings
+        ],
+        "known_failures": [
+            {"run": _run_dict(k), "reason": reason, "baseline_reason": was}
+            for k, (reason, was) in cmp.known.items()
+        ],
+        "invariant_problems": list(problems),
+    }
+
+
+def md_escape(text) -> str:
+    """Text safe inside a Markdown table cell (pipes, HTML, line breaks)."""
+    s = str(text).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return s.replace("|", "\\|").replace("\n", " ").replace("`", "'")
+
+
+def as_markdown(cmp: Comparison, problems: list[str]) -> str:
+    """The comparison as Markdown, for a job summary or a pull-request comment."""
+    doc = as_json(cmp, problems)
+    c = doc["counts"]
+    verdict = "OK" if doc["ok"] else "FAIL"
+    commit = doc["baseline_git_commit"] or "unknown commit"
+    out = [
+        f"## director-bench check: {verdict}",
+        "",
+        f"Results `{md_escape(cmp.results_dir)}` against the baseline "
+        f"`{md_escape(cmp.baseline_path)}` ({md_escape(commit)}), factor {cmp.factor:g}.",
+        "",
+        "| runs checked | passed | known failures (as in the baseline) | regressed | "
+        "invariant problems |",
+        "|---:|---:|---:|---:|---:|",
+        f"| {c['checked']} | {c['passed']} | {c['known_failures']} | {c['regressed']} | "
+        f"{c['invariant_problems']} |",
+    ]
+    if cmp.findings:
+        out += ["", "### Regressions", "", "| run | problem | baseline | now | ratio |"]
+        out.append("|---|---|---|---|---:|")
+        for f in cmp.findings:
+            ratio = f"{f.ratio:.3g}" if f.what == "metric" and not math.isnan(f.ratio) else ""
+            out.append(
+                f"| {md_escape(run_name(f.key))} | {md_escape(_PROBLEM[f.what] or f.metric)} | "
+                f"{md_escape(_fmt(f.baseline))} | {md_escape(_fmt(f.current))} | {ratio} |"
+            )
+    if problems:
+        out += ["", "### Invariants that do not hold", ""]
+        out += [f"- {md_escape(p)}" for p in problems]
+    if cmp.known:
+        out += [
+            "",
+            f"<details><summary>{len(cmp.known)} known failure(s), failing as in the "
+            "baseline</summary>",
+            "",
+            "| run | reason |",
+            "|---|---|",
+        ]
+        out += [f"| {md_escape(run_name(k))} | {md_escape(r)} |" for k, (r, _) in cmp.known.items()]
+        out += ["", "</details>"]
+    return "\n".join(out) + "\n"
+
+
+def write_outputs(cmp: Comparison, problems: list[str], markdown: Path, json_path: Path) -> None:
+    """Write check.md and check.json, and append the Markdown to ``$GITHUB_STEP_SUMMARY``
+    when that variable is set (GitHub Actions' job summary)."""
+    md = as_markdown(cmp, problems)
+    _atomic_write(Path(markdown), md)
+    _atomic_write(Path(json_path), json.dumps(as_json(cmp, problems), indent=1) + "\n")
+    summary = os.environ.get("GITHUB_STEP_SUMMARY")
+    if summary:
+        with open(summary, "a") as fh:
+            fh.write(md)
+
+
+def check(
+    results_dir: str | Path,
+    baseline_path: str | Path,
+    factor: float = 2.0,
+    timing_factor: float | None = None,
+    markdown: str | Path | None = None,
+    json_path: str | Path | None = None,
+) -> int:
+    """``director-bench check``: compare, check the invariants, rewrite ``junit.xml`` with the
+    baseline's expectations, print the table and GitHub annotations of the regressions, write
+    the Markdown and JSON summaries (default ``DIR/check.md``, ``DIR/check.json``). Returns
+    the exit code: 0 when nothing regressed and every invariant holds, 1 otherwise (also
+    when nothing could be compared)."""
+    import sys
+
+    from reports import junit as junit_xml
+    from reports.results import read_results
+
+    folder = Path(results_dir)
+    markdown = Path(markdown) if markdown else folder / "check.md"
+    json_path = Path(json_path) if json_path else folder / "check.json"
+    read_baseline(baseline_path)  # a bad baseline is named before the results are read
+    df = read_results(folder)
+    try:
+        cmp = compare(folder, baseline_path, factor, timing_factor)
+    except NothingComparable as exc:
+        print(f"director-bench: error: {exc}", file=sys.stderr)
+        print(annotation("director-bench check: nothing compared", str(exc)))
+        return 1
+    junit = folder / "junit.xml"
+    problems = invariants(df, junit if junit.exists() else None)
+    print(format_comparison(cmp))
+    if problems:
+        print(f"FAIL: {len(problems)} statement(s) the results must make true do not hold:")
+        print("\n".join(f"  {p}" for p in problems))
+    else:
+        print(
+            "OK: the results' invariants hold (no blown-up run ok, verdicts match statuses, "
+            "fitted orders within 0.3 of declared, junit.xml agrees)."
+        )
+    for line in annotations(cmp):
+        print(line)
+    for p in problems:
+        print(annotation("director-bench invariant", p))
+    notes, missing = junit_notes(cmp)
+    written = []
+    try:
+        written.append(junit_xml.write(df, junit, notes, missing, baseline=str(baseline_path)))
+        write_outputs(cmp, problems, markdown, json_path)
+        written += [markdown, json_path]
+    except OSError as exc:
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(
+            f"director-bench: warning: {where}{exc.strerror or exc}; the verdict above stands, "
+            "but junit.xml and the summaries were not all written",
+            file=sys.stderr,
+        )
+    if written:
+        print("written: " + ", ".join(str(p) for p in written))
+    return 0 if cmp.ok and not problems else 1
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
 
 
 # -- invariants of a suite: statements the results must make true ------------------------------
@@ -281,7 +636,8 @@ def invariants(df, junit_path: str | Path | None = None) -> list[str]:
       unavailable and reference-inaccurate runs have none;
     - a fixed-step integrator's fitted order is within :data:`ORDER_TOLERANCE` of its
       declared order wherever at least two points are in the asymptotic range;
-    - ``junit.xml`` (if given) counts the same failures, errors and skips as the results.
+    - ``junit.xml`` (if given, as ``run`` wrote it) counts the same failures, errors and skips
+      as the results.
     """
     from references.engines.base import DIVERGENCE_ENERGY
 
@@ -324,6 +680,8 @@ def _junit_agrees(df, path: Path) -> list[str]:
         suite = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as exc:
         return [f"{path}: not readable JUnit XML ({exc})"]
+    if suite.get("baseline") is not None:
+        return []  # written by `check` from these results with a baseline's expectations
     want = {
         "tests": len(df),
         "failures": int(((df["verdict"] == "fail") & (df["status"] != "error")).sum()),

@@ -12,6 +12,13 @@ One test case per run (classname ``director_bench.<scenario>``, name
 
 The counts in the ``<testsuite>`` element therefore agree with the report's status and
 verdict counts.
+
+With a baseline (``director-bench check DIR --baseline FILE`` rewrites ``DIR/junit.xml``;
+the ``<testsuite>`` then names the baseline in its ``baseline`` attribute), a run that fails
+as in the baseline is a *known failure*: ``<skipped message="known failure (as in baseline):
+<reason>">``, which JUnit reporters show as not failed; a regression (a metric, status or
+verdict worse than the baseline, an identity mismatch, a new or a missing run) is a
+``<failure>`` naming what changed, even when the run itself passes.
 """
 
 from __future__ import annotations
@@ -23,18 +30,35 @@ from xml.sax.saxutils import escape, quoteattr
 SKIPPED = frozenset({"unsupported", "unavailable", "reference-inaccurate"})
 
 
-def _case(r) -> tuple[str, str]:
-    """(kind, XML of one test case); kind is "pass", "failure", "error" or "skipped"."""
+def _name(r) -> str:
     name = f"{r['engine']}/{r['integrator']}/dt={float(r['dt']):g}"
     if not math.isnan(float(r["target_accuracy"])):
         name += f"/accuracy={float(r['target_accuracy']):g}"
-    wall = float(r["wall_time_s"]) if not math.isnan(float(r["wall_time_s"])) else 0.0
-    head = (
-        f"  <testcase classname={quoteattr('director_bench.' + str(r['scenario']))} "
+    return name
+
+
+def _head(scenario, name: str, wall: float) -> str:
+    return (
+        f"  <testcase classname={quoteattr('director_bench.' + str(scenario))} "
         f'name={quoteattr(name)} time="{wall:.6f}">'
     )
+
+
+def _body(kind: str, msg) -> str:
+    return f"<{kind} message={quoteattr(str(msg))}>{escape(str(msg))}</{kind}>"
+
+
+def _case(r, note: tuple[str, str] | None = None) -> tuple[str, str]:
+    """(kind, XML of one test case); kind is "pass", "failure", "error" or "skipped".
+    ``note``: what a baseline says of the run, ("known", reason) or ("regression", what)."""
+    wall = float(r["wall_time_s"]) if not math.isnan(float(r["wall_time_s"])) else 0.0
+    head = _head(r["scenario"], _name(r), wall)
     status, verdict = r["status"], r["verdict"]
-    if status == "error":
+    if note is not None and note[0] == "regression":
+        kind, msg = "failure", f"regression against the baseline: {note[1]}"
+    elif note is not None and note[0] == "known":
+        kind, msg = "skipped", f"known failure (as in baseline): {note[1]}"
+    elif status == "error":
         kind, msg = "error", r["message"]
     elif status in SKIPPED:
         kind, msg = "skipped", f"{status}: {r['message']}"
@@ -45,22 +69,41 @@ def _case(r) -> tuple[str, str]:
             msg += f" ({r['message']})"
     else:
         return "pass", head + "</testcase>"
-    body = f"<{kind} message={quoteattr(str(msg))}>{escape(str(msg))}</{kind}>"
-    return kind, head + body + "</testcase>"
+    return kind, head + _body(kind, msg) + "</testcase>"
 
 
-def write(df, path: str | Path) -> Path:
-    """Write the JUnit XML of the results ``df`` (one row per run) to ``path``."""
+def write(
+    df,
+    path: str | Path,
+    notes: dict | None = None,
+    missing: list | None = None,
+    baseline: str | None = None,
+) -> Path:
+    """Write the JUnit XML of the results ``df`` (one row per run) to ``path``.
+
+    With a baseline (see the module docstring): ``notes`` maps a run's configuration key
+    (:func:`reports.results.config_key`) to ("known", reason) or ("regression", message);
+    ``missing`` lists (key, message) of the baseline's runs absent from ``df`` (each a
+    failing case); ``baseline`` names the baseline file."""
+    from reports.results import config_key
+
+    notes = notes or {}
     cases, counts = [], {"failure": 0, "error": 0, "skipped": 0, "pass": 0}
     for _, r in df.iterrows():
-        kind, xml = _case(r)
+        key = config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"])
+        kind, xml = _case(r, notes.get(key))
         counts[kind] += 1
         cases.append(xml)
+    for (sc, eng, integ, dt, acc), msg in missing or []:
+        name = f"{eng}/{integ}/dt={dt:g}" + ("" if acc is None else f"/accuracy={acc:g}")
+        counts["failure"] += 1
+        cases.append(_head(sc, name, 0.0) + _body("failure", msg) + "</testcase>")
     total = float(df["wall_time_s"].fillna(0.0).sum()) if len(df) else 0.0
+    attr = "" if baseline is None else f" baseline={quoteattr(str(baseline))}"
     doc = [
         '<?xml version="1.0" encoding="utf-8"?>',
         f'<testsuite name="director-bench" tests="{len(cases)}" failures="{counts["failure"]}" '
-        f'errors="{counts["error"]}" skipped="{counts["skipped"]}" time="{total:.6f}">',
+        f'errors="{counts["error"]}" skipped="{counts["skipped"]}" time="{total:.6f}"{attr}>',
         *cases,
         "</testsuite>",
     ]

@@ -2,6 +2,7 @@
 error made 10 times worse, one round-off-level energy drift made 5 times larger (still
 round-off: not a regression) and one more run."""
 
+import json
 import math
 import shutil
 
@@ -9,7 +10,7 @@ import pytest
 
 import scenarios
 from reports.cli import main
-from reports.compare import classify, compare_folders
+from reports.compare import classify, classify_cost, compare_folders, cost_range
 from reports.results import RunSpec, Store, read_results
 from reports.runner import plan, run_suite
 
@@ -83,16 +84,114 @@ def test_classification():
     assert classify("ns_per_step", math.nan, math.nan, 2.0) is None
 
 
-def test_runs_match_across_engine_versions(folders, tmp_path):
-    """Two folders made with two versions of an engine: the version is not part of the
-    match, so every run compares."""
+def test_another_engine_version_is_a_mismatch_unless_allowed(folders, tmp_path, capsys):
+    """Two folders made with two versions of an engine are not the same runs: a mismatch
+    named field by field, exit 1, unless the version is declared to vary (--vary)."""
     a, _ = folders
     c = tmp_path / "c"
     shutil.copytree(a, c)
     with Store(c) as st:
         for r in st.rows():
+            old = r["engine_version"]
             r["engine_version"] = "9.9.9"
             st.put(r)
     assert set(read_results(c)["engine_version"]) == {"9.9.9"}
     cmp = compare_folders(a, c)
-    assert len(cmp.both) == 2 and not cmp.only_a and not cmp.only_b and cmp.ok
+    assert len(cmp.both) == 2 and not cmp.ok
+    assert {ch.change for ch in cmp.changes} == {"mismatch"}
+    assert all(f"engine_version {old} vs 9.9.9" in ch.b for ch in cmp.changes)
+    assert main(["compare", str(a), str(c)]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL: 2 run(s) are not the same run in A and B (identity mismatch)" in out
+    cmp = compare_folders(a, c, vary=("engine_version",))
+    assert cmp.ok and "mismatch" not in {ch.change for ch in cmp.changes}
+    assert main(["compare", str(a), str(c), "--vary", "engine_version"]) == 0
+    assert main(["compare", str(a), str(c), "--vary", "colour"]) == 2
+    assert "--vary 'colour': not an identity column" in capsys.readouterr().err
+
+
+def test_a_shorter_horizon_is_a_mismatch_not_a_comparison(folders, tmp_path, capsys):
+    a, _ = folders
+    sc = scenarios.load("free_tumbling").replace(t_end=0.5, dt_sweep=())  # A's scenario
+    d = tmp_path / "d"
+    run_suite(plan([sc], ["mujoco"], ["Euler", "RK4"], t_end=0.25), d, progress=False)
+    assert main(["compare", str(a), str(d)]) == 1
+    out = capsys.readouterr().out
+    assert out.count("t_end 0.5 vs 0.25") == 2 and "scenario content" not in out
+    # written beside the table: Markdown for a pull-request comment, and JSON
+    md = (d / "compare.md").read_text()
+    assert md.startswith("## director-bench compare: FAIL") and "t_end 0.5 vs 0.25" in md
+    doc = json.loads((d / "compare.json").read_text())
+    assert doc["counts"]["mismatch"] == 2 and not doc["ok"]
+
+
+def test_nothing_comparable_exits_1(folders, tmp_path, capsys):
+    a, _ = folders
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with Store(empty, create=True):
+        pass
+    assert main(["compare", str(a), str(empty)]) == 1
+    assert "holds no run: nothing to compare" in capsys.readouterr().err
+    other = tmp_path / "other"
+    sc = scenarios.load("free_tumbling").replace(t_end=0.5, dt_sweep=())
+    run_suite([RunSpec(sc, "mujoco", "Euler", 2.5e-4)], other, progress=False)
+    assert main(["compare", str(a), str(other)]) == 1
+    assert "share no run" in capsys.readouterr().err
+
+
+def test_cost_changes_count_only_beyond_the_measured_spread():
+    """asv's rule on the ranges (fastest, low, high) of the timed repeats."""
+    nan = math.nan
+    # 3x slower, ranges apart: worse; 3x slower on the fastest, yet A's slowest repeat
+    # reaches B's range: not significant; within the factor: same
+    assert classify_cost((1.0, 1.0, 1.2), (3.0, 3.0, 3.3), 2.0) == (pytest.approx(3.0), "worse")
+    assert classify_cost((1.0, 1.0, 3.5), (3.0, 3.0, 3.3), 2.0)[1] == "not significant"
+    assert classify_cost((1.0, 1.0, 1.1), (1.5, 1.5, 1.6), 2.0)[1] == "same"
+    assert classify_cost((3.0, 3.0, 3.3), (1.0, 1.0, 1.2), 2.0) == (pytest.approx(1 / 3), "better")
+    assert classify_cost((3.0, 3.0, 3.3), (1.0, 1.0, 3.1), 2.0)[1] == "not significant"
+    # B ran 4x slower on the wall clock while its process had a quarter of a CPU (cpu_share
+    # 0.25: low end 1.0): the load, not the engine
+    assert classify_cost((1.0, 1.0, 1.1), (4.0, 1.0, 4.4), 2.0)[1] == "not significant"
+    # measured once, on an idle machine (no slowest time, share 1): the range is the point
+    assert classify_cost((1.0, nan, nan), (3.0, nan, nan), 2.0)[1] == "worse"
+    assert classify_cost((nan, nan, nan), (nan, nan, nan), 2.0) is None
+
+
+def test_cost_range_of_a_row():
+    r = {"ns_per_step": 100.0, "nstep": 1000, "wall_time_max_s": 2e-4, "cpu_share": 0.5}
+    assert cost_range(r, "ns_per_step") == (100.0, 50.0, pytest.approx(200.0))
+    r["cpu_share"] = 1.0
+    assert cost_range(r, "ns_per_step")[1] == 100.0
+
+
+def _scale_wall(src, dst, lo: float, hi: float) -> None:
+    """Copy folder ``src`` to ``dst`` with the RK4 run's wall time range set to ``lo`` and
+    ``hi`` times its fastest stepping in ``src``, timed on an idle machine (CPU share 1)."""
+    shutil.copytree(src, dst)
+    with Store(dst) as st:
+        for r in st.rows():
+            if r["integrator"] == "RK4":
+                wall = r["wall_time_s"]
+                r.update(wall_time_s=lo * wall, wall_time_max_s=hi * wall, cpu_share=1.0)
+                r["ns_per_step"] = 1e9 * r["wall_time_s"] / r["nstep"]
+                st.put(r)
+
+
+def test_a_cost_change_within_the_spread_is_not_significant(folders, tmp_path, capsys):
+    """B's fastest stepping 3x A's, but A's own repeats spread to 4x: not significant, and
+    it does not gate even with --cost-factor; 5x against the same A gates."""
+    a, _ = folders
+    noisy_a, slower, much_slower = tmp_path / "na", tmp_path / "s", tmp_path / "m"
+    _scale_wall(a, noisy_a, 1.0, 4.0)
+    _scale_wall(a, slower, 3.0, 3.2)
+    _scale_wall(a, much_slower, 5.0, 5.5)
+    cmp = compare_folders(noisy_a, slower, cost_factor=2.0)
+    (wall,) = [c for c in cmp.changes if c.key[2] == "RK4" and c.column == "ns_per_step"]
+    assert wall.ratio == pytest.approx(3.0) and wall.change == "not significant" and cmp.ok
+    assert main(["compare", str(noisy_a), str(slower), "--cost-factor", "2"]) == 0
+    assert "1 cost change(s) beyond the factor but within the measured spread" in (
+        capsys.readouterr().out
+    )
+    assert main(["compare", str(noisy_a), str(much_slower), "--cost-factor", "2"]) == 1
+    assert "worse" in capsys.readouterr().out

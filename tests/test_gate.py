@@ -1,5 +1,7 @@
 """The regression gate on hand-written results: a clean run passes, a regression, a status
-change, a verdict change, a missing run and a new run each fail with a readable line."""
+change, a verdict change, a missing run, a new run and a run whose identity differs (another
+horizon, an edited scenario) each fail with a readable line, in JUnit and as an annotation; a
+run failing as in the baseline is a known failure, never a JUnit failure."""
 
 import json
 import math
@@ -9,7 +11,7 @@ import pytest
 
 from reports import gate
 from reports.cli import main
-from reports.results import NUMERIC_COLUMNS, RESULT_COLUMNS, Store
+from reports.results import NUMERIC_COLUMNS, RESULT_COLUMNS, Store, suite_version
 
 
 def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, status="ok", **m):
@@ -26,6 +28,11 @@ def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, stat
         verdict="pass" if status == "ok" else "",
         ns_per_step=1000.0,
         finished_at="2026-11-22T00:00:00+00:00",
+        scenario_hash=f"hash-of-{scenario}",
+        t_end=30.0,
+        save_every=10,
+        engine_version="3.3.0",
+        suite_version=suite_version(),
     )
     r.update(energy_drift_max=1e-8, attitude_error_max=1e-6)
     r.update(m)
@@ -141,7 +148,15 @@ def test_timing_is_gated_only_on_request(tmp_path, baseline):
     assert not gate.compare(cur, baseline, timing_factor=3.0).ok
 
 
-def test_junit_has_one_case_per_checked_run(tmp_path, baseline):
+def junit_cases(folder) -> tuple[dict, dict]:
+    suite = ET.parse(folder / "junit.xml").getroot()
+    cases = {
+        c.get("name"): (c[0].tag, c[0].get("message")) if len(c) else ("pass", "") for c in suite
+    }
+    return suite.attrib, cases
+
+
+def test_junit_with_a_baseline_fails_exactly_the_regressed_run(tmp_path, baseline, capsys):
     cur = write(
         tmp_path / "cur",
         [
@@ -149,21 +164,153 @@ def test_junit_has_one_case_per_checked_run(tmp_path, baseline):
             row(engine="pybullet", integrator="multibody", energy_drift_max=0.3),
         ],
     )
-    path = gate.write_junit(gate.compare(cur, baseline), tmp_path / "check-junit.xml")
-    suite = ET.parse(path).getroot()
-    assert suite.get("tests") == "2" and suite.get("failures") == "1"
-    failed = [c for c in suite if c.find("failure") is not None]
-    assert failed[0].get("name") == "mujoco/RK4/dt=0.001"
+    assert main(["check", str(cur), "--baseline", str(baseline)]) == 1
+    attrib, cases = junit_cases(cur)
+    assert attrib["tests"] == "2" and attrib["failures"] == "1"
+    kind, msg = cases["mujoco/RK4/dt=0.001"]
+    assert kind == "failure" and msg.startswith("regression against the baseline: energy_drift_max")
+    assert cases["pybullet/multibody/dt=0.001"] == ("pass", "")
+    out = capsys.readouterr().out
+    # one GitHub annotation, for the regressed run only
+    notes = [ln for ln in out.splitlines() if ln.startswith("::error")]
+    assert len(notes) == 1
+    assert notes[0].startswith(
+        "::error title=director-bench regression%3A dzhanibekov mujoco/RK4/dt=0.001::"
+        "energy_drift_max: baseline 1.000e-08, now 1.000e+00"
+    )
+
+
+def failing_row(**kw):
+    detail = "attitude_error_max 0.5 > 0.1"
+    return row(verdict="fail", verdict_detail=detail, attitude_error_max=0.5, **kw)
+
+
+def test_a_known_failure_is_expected_not_failed(tmp_path, capsys, monkeypatch):
+    """A run failing exactly as in the baseline: JUnit <skipped> with its reason, listed in
+    the Markdown summary (also appended to $GITHUB_STEP_SUMMARY) and the JSON, exit 0."""
+    rows = [failing_row(), row(engine="pybullet", integrator="multibody")]
+    bl = gate.write_baseline(write(tmp_path / "base", rows), tmp_path / "bl.json")
+    cur = write(tmp_path / "cur", rows)
+    summary = tmp_path / "step-summary.md"
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(summary))
+    assert main(["check", str(cur), "--baseline", str(bl)]) == 0
+    out = capsys.readouterr().out
+    assert "1 known failure(s) failing as in the baseline" in out and "::error" not in out
+    attrib, cases = junit_cases(cur)
+    assert attrib["failures"] == "0" and attrib["skipped"] == "1" and attrib["baseline"]
+    assert cases["mujoco/RK4/dt=0.001"] == (
+        "skipped",
+        "known failure (as in baseline): fail: attitude_error_max 0.5 > 0.1",
+    )
+    md = (cur / "check.md").read_text()
+    assert md.startswith("## director-bench check: OK")
+    assert "| dzhanibekov mujoco/RK4/dt=0.001 | fail: attitude_error_max 0.5 &gt; 0.1 |" in md
+    assert summary.read_text() == md
+    doc = json.loads((cur / "check.json").read_text())
+    assert doc["ok"] and doc["counts"]["known_failures"] == 1 and doc["counts"]["passed"] == 1
+    assert doc["known_failures"][0]["reason"] == "fail: attitude_error_max 0.5 > 0.1"
+
+
+def test_a_known_failure_failing_one_more_check_is_a_regression(tmp_path, capsys):
+    bl = gate.write_baseline(write(tmp_path / "base", [failing_row()]), tmp_path / "bl.json")
+    worse = failing_row(energy_drift_max=0.5)
+    worse["verdict_detail"] += "; energy_drift_max 0.5 > 0.01"
+    cur = write(tmp_path / "cur", [worse])
+    assert main(["check", str(cur), "--baseline", str(bl)]) == 1
+    _, cases = junit_cases(cur)
+    kind, msg = cases["mujoco/RK4/dt=0.001"]
+    assert kind == "failure" and "now also fails energy_drift_max" in msg
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "words"),
+    [
+        ("t_end", 10.0, "t_end 30 vs 10"),
+        (
+            "scenario_hash",
+            "edited-file",
+            "scenario content (scenario_hash) hash-of-dzha vs edited-file",
+        ),
+        ("save_every", 1, "save_every 10 vs 1"),
+        ("segment", 1000, "segment none vs 1000"),
+        ("engine_version", "3.4.0", "engine_version 3.3.0 vs 3.4.0"),
+        ("suite_version", "99.0", f"suite_version {suite_version()} vs 99.0"),
+    ],
+)
+def test_a_run_of_another_identity_is_a_mismatch_never_a_pass(
+    tmp_path, baseline, capsys, field, value, words
+):
+    """Same configuration, another run (a shorter horizon, an edited scenario file, ...):
+    every metric may match, yet the gate fails naming the field."""
+    changed = row(**{field: value})
+    cur = write(
+        tmp_path / "cur",
+        [
+            changed,
+            row(engine="pybullet", integrator="multibody", energy_drift_max=0.3, **{field: value}),
+        ],
+    )
+    cmp = gate.compare(cur, baseline)
+    assert {f.what for f in cmp.findings} == {"mismatch"} and len(cmp.findings) == 2
+    assert words in cmp.findings[0].current
+    assert main(["check", str(cur), "--baseline", str(baseline)]) == 1
+    out = capsys.readouterr().out
+    assert "identity mismatch" in out and words in out
+    _, cases = junit_cases(cur)
+    kind, msg = cases["mujoco/RK4/dt=0.001"]
+    assert kind == "failure" and words in msg
+
+
+def test_history_rows_are_missing_runs_with_the_reason(tmp_path, baseline):
+    """A folder where one scenario was run again with an edited file: the new run is a
+    mismatch, and the baseline's other runs of that scenario, stored only with the old
+    content, are missing (history), named so."""
+    edited = row(scenario_hash="edited", finished_at="2026-11-23T00:00:00+00:00", run_id="new")
+    cur = write(
+        tmp_path / "cur",
+        [row(), row(engine="pybullet", integrator="multibody", energy_drift_max=0.3), edited],
+    )
+    cmp = gate.compare(cur, baseline)
+    what = {(f.key[1], f.what) for f in cmp.findings}
+    assert what == {("mujoco", "mismatch"), ("pybullet", "missing")}
+    (missing,) = [f for f in cmp.findings if f.what == "missing"]
+    assert "history" in missing.message and "newest runs have another identity" in missing.message
+
+
+def test_nothing_comparable_exits_1(tmp_path, baseline, capsys):
+    empty = write(tmp_path / "empty", [])
+    assert main(["check", str(empty), "--baseline", str(baseline)]) == 1
+    assert "holds no run" in capsys.readouterr().err
+    other = write(tmp_path / "other", [row(scenario="heavy_top")])
+    assert main(["check", str(other), "--baseline", str(baseline)]) == 1
+    err = capsys.readouterr().err
+    assert "none of its 1 run(s) is in the baseline" in err and "nothing was compared" in err
+
+
+def test_annotation_escapes_what_github_requires():
+    line = gate.annotation("a: b, c", "50% done\nnext")
+    assert line == "::error title=a%3A b%2C c::50%25 done%0Anext"
 
 
 def test_bad_baseline_file_is_a_clear_error(tmp_path, capsys):
     cur = write(tmp_path / "cur", [row()])
-    for text in ("{not json", "[1, 2]", '{"format": 2, "runs": [{"scenario": "x"}]}'):
+    entry = json.loads(gate.write_baseline(cur, tmp_path / "good.json").read_text())["runs"][0]
+    cases = {
+        "{not json": "invalid JSON",
+        "[1, 2]": "expected an object with a 'runs' list",
+        '{"format": 3, "runs": [{"scenario": "x"}]}': "runs[0] lacks engine",
+        '{"format": 2, "runs": []}': "baseline format 2, this suite reads format 3",
+        json.dumps({"format": 3, "runs": [{**entry, "attitude_error_max": "1e-3"}]}): (
+            "runs[0].attitude_error_max = '1e-3' is not a number"
+        ),
+        "[" * 100000: "nested too deeply",
+    }
+    for text, words in cases.items():
         bad = tmp_path / "bad.json"
         bad.write_text(text)
         assert main(["check", str(cur), "--baseline", str(bad)]) == 2
         err = capsys.readouterr().err
-        assert "bad.json:" in err and "Traceback" not in err
+        assert "bad.json:" in err and words in err and "Traceback" not in err, (words, err)
 
 
 # -- invariants ---------------------------------------------------------------------------------
