@@ -56,6 +56,10 @@ MAX_DEPTH = 8
 #: suffixes; tests/test_scenarios.py writes every file of a run with a name this long.
 MAX_NAME_BYTES = 128
 
+#: Largest angle of a rotation vector (rad): rounding shifts an angle x by about eps x, so
+#: beyond ROTATION_TOL/eps (4.5e3 rad) the angle modulo 2 pi is not known to ROTATION_TOL.
+MAX_ROTATION_ANGLE = ROTATION_TOL / float(np.finfo(float).eps)
+
 #: Largest number of steps in a run, t_end/dt: 2^53, beyond which the step index k of the
 #: time t = k dt is no longer exact in double precision (and dt = 5e-324 would give an
 #: infinite count).
@@ -457,7 +461,8 @@ def _check_attitude(init: dict, raw_init: dict, bad) -> np.ndarray:
         return np.eye(3)
     if given == ["rotation"]:
         R = np.array(init["rotation"], dtype=float)
-        dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
+        with np.errstate(over="ignore", invalid="ignore"):  # entries of 1e200: dev = inf
+            dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
         if dev > ROTATION_TOL:
             bad(
                 "initial.rotation",
@@ -480,7 +485,18 @@ def _check_attitude(init: dict, raw_init: dict, bad) -> np.ndarray:
             return np.eye(3)
         return rotation_from_quaternion(q)
     if given == ["rotation_vector"]:
-        return rotation_from_vector(init["rotation_vector"])
+        r = init["rotation_vector"]
+        angle = math.hypot(*(float(x) for x in r))
+        if not angle <= MAX_ROTATION_ANGLE:
+            bad(
+                "initial.rotation_vector",
+                r,
+                f"its angle |r| = {angle:.3g} rad exceeds {MAX_ROTATION_ANGLE:.3g} rad, beyond "
+                f"which the angle modulo 2 pi is lost to rounding by more than {ROTATION_TOL:g} "
+                "rad: give the angle reduced to [0, 2 pi)",
+            )
+            return np.eye(3)
+        return rotation_from_vector(r)
     return np.eye(3)
 
 

@@ -111,6 +111,8 @@ def hostile_files(tmp_path, out) -> list:
          ["name", "at most 128", "255 bytes"]),
         (edited(tmp_path, "n500.toml", '"free_tumbling"', '"' + "a" * 500 + '"'),
          ["name", "at most 128"]),
+        (edited(tmp_path, "r.toml", "[0.4, -0.9, 1.3]", "[1e300, 0, 0]"),
+         ["initial.rotation_vector", "modulo 2 pi"]),
     ]  # fmt: skip
     return [(["run", f, "--engines", "exact", "--out", out], 2, w) for f, w in files]
 
