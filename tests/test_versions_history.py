@@ -31,9 +31,17 @@ class DevTools:
         to_child_r, self._w = os.pipe()
         self._r, from_child_w = os.pipe()
 
-        def fds():  # in the child, before exec: its ends become fds 3 and 4
-            os.dup2(to_child_r, 3)
-            os.dup2(from_child_w, 4)
+        def fds():  # in the child, before exec: its ends become fds 3 and 4, inheritable
+            # (moved above 10 first: a pipe end may itself be fd 3 or 4, and dup2 onto the same
+            # number would leave it close-on-exec)
+            import fcntl
+
+            a = fcntl.fcntl(to_child_r, fcntl.F_DUPFD, 10)
+            b = fcntl.fcntl(from_child_w, fcntl.F_DUPFD, 10)
+            os.dup2(a, 3)
+            os.dup2(b, 4)
+            os.set_inheritable(3, True)
+            os.set_inheritable(4, True)
 
         self.proc = subprocess.Popen(
             [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--remote-debugging-pipe",

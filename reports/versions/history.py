@@ -38,6 +38,8 @@ from scenarios.schema import InputError
 #: metrics drawn, in this order, with their units
 UNITS = {
     "energy_drift_max": "E_c",
+    "energy_drift_rot_max": "E_rot,c",
+    "energy_drift_trans_max": "E_tr,c",
     "momentum_drift_max": "L_c",
     "orthonormality_max": "1",
     "constraint_velocity_max": "w_c",
