@@ -24,8 +24,9 @@ first iterate,
 assembled row pair by row pair over the rows that share a body (block tridiagonal for a
 chain: solved by banded LU without pivoting, cost linear in the number of bodies), or dense
 with a rank-revealing SVD and the minimum-norm solution (closed loops, redundant rows). The
-velocity stage solves the linear system sum_i G_i blockdiag(1/m_i, D I^-1 D^T) G_i^T nu = G u0
-for the multipliers of G(q_{n+1}) u_{n+1} = 0, with the same two solvers.
+velocity stage solves the symmetric positive definite system
+sum_i G_i blockdiag(1/m_i, D I^-1 D^T) G_i^T nu = G u0 for the multipliers of
+G(q_{n+1}) u_{n+1} = 0, by banded L D L^T (upper band) or the same SVD.
 
 Rows: joint constraint rows (see model.py) with, per row, the 12 numbers
 (dg/dx_a, dg/dtheta_a, dg/dx_b, dg/dtheta_b), theta the world rotation increment
@@ -33,10 +34,14 @@ Rows: joint constraint rows (see model.py) with, per row, the 12 numbers
 
 State per body (``S`` rows, length NS): x (0:3) and its compensation (3:6), v (6:9) and
 (9:12), the unnormalised attitude quaternion p (12:16) with D = D_0 R(p/|p|) and (16:20),
-Pi = I W (20:23) and (23:26). Sums into x, v, p, Pi are compensated (Kahan). ``mu`` (nrow)
-holds the velocity multipliers of the last step (force units): the start value of the
-position multipliers of the next step, so a stepper restarted from (S, mu) continues bit for
-bit.
+Pi = I W (20:23) and (23:26). Sums into x, v, p, Pi are compensated (Kahan). ``mu`` holds
+the last velocity multipliers and the position multipliers of each sub-step of the two last
+steps (force units; layout in :func:`run_system`): the start values of the next position
+multipliers, so a stepper restarted from (S, mu) continues bit for bit.
+
+The step is written out inside :func:`run_system` and the array kernels are inlined: a call
+with some thirty array arguments per sub-step cost about 0.4 us (1 body: 540 ns per step with
+the call, 130 ns without).
 """
 
 from __future__ import annotations
