@@ -66,7 +66,8 @@ class SystemTrajectory:
     (steps at which the velocity-stage matrix had a numerical rank, singular values above
     RANK_TOL sigma_1, below the nominal rank: a singular configuration), ``min_singular_value``
     (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps, NaN for the banded
-    solver, which does not compute it) and ``min_singular_step`` (the step where it occurred).
+    solver, which does not compute it) and ``min_singular_step`` (the absolute step index where
+    it occurred; -1 for the banded solver).
     The invariants and residuals are computed from the saved states in numpy, independently
     of the compiled step.
     """
@@ -306,7 +307,9 @@ class SystemStepper:
             newton_iterations=int(diag[K.D_ITER]), max_iterations=int(diag[K.D_MAXIT]),
             rank_nominal=self.rank_nominal, rank_drop_steps=int(diag[K.D_RANKDROP]),
             min_singular_value=smin if math.isfinite(smin) else math.nan,
-            min_singular_step=int(diag[K.D_TSMIN]) + self.nstep_done - nstep,
+            min_singular_step=(
+                int(diag[K.D_TSMIN]) + self.nstep_done - nstep if math.isfinite(smin) else -1
+            ),
         )  # fmt: skip
 
 
