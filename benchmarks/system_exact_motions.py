@@ -76,7 +76,7 @@ def main() -> None:
     for s in SCHEMES:
         e, tr = four_bar_error(s, 1e-3)
         print(f"| parallelogram four-bar vs planar pendulum (DOP853), 3 s | {s} | 0.001 | "
-              f"{e:.2e} rad | rank {tr.rank_nominal} of {20}, {tr.rank_drop_steps} steps with "
+              f"{e:.2e} rad | rank {tr.rank_nominal} of {20}, {tr.rank_drop_steps} sub-steps with "
               f"a rank drop, min sigma/sigma_1 {tr.min_singular_value:.1e}, joints "
               f"{tr.constraint_position.max():.1e} m |")  # fmt: skip
     print()

@@ -63,8 +63,9 @@ class SystemTrajectory:
     minimum-norm multipliers), ``newton_iterations`` (chord-Newton iterations of the
     position multipliers over all sub-steps), ``max_iterations`` (most in one sub-step),
     ``rank_nominal`` (rank of the constraint Jacobian at t = 0), ``rank_drop_steps``
-    (steps at which the velocity-stage matrix had a numerical rank, singular values above
-    RANK_TOL sigma_1, below the nominal rank: a singular configuration), ``min_singular_value``
+    (RATTLE sub-steps at which the velocity-stage matrix had a numerical rank, singular
+    values above RANK_TOL sigma_1, below the nominal rank: a singular configuration),
+    ``min_singular_value``
     (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps, NaN for the banded
     solver, which does not compute it) and ``min_singular_step`` (the absolute step index where
     it occurred; -1 for the banded solver).
