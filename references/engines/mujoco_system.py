@@ -809,10 +809,10 @@ def build(scenario, integrator: str, dt: float, **settings):
         ) + ("; time constant raised to 2 dt by MuJoCo (refsafe)" if refsafe > solref[0] else "")
         rec["solimp"] = list(solimp)
         rec["solver"] = {
-            "solver": int(m.opt.solver),
+            "solver": mujoco.mjtSolver(int(m.opt.solver)).name,
             "iterations": int(m.opt.iterations),
             "tolerance": float(m.opt.tolerance),
-            "jacobian": int(m.opt.jacobian),
+            "jacobian": mujoco.mjtJacobian(int(m.opt.jacobian)).name,
         }
     return mujoco, m, d, pl, bid, rec
 
