@@ -182,8 +182,23 @@ def test_joints_are_added_depth_first():
     """A breadth-first joint order (crank, rocker, coupler under the crank) makes Pinocchio's
     crba and constraintDynamics wrong silently (aba is not affected): the plan is depth first."""
     bodies, joints, _, _ = parallelogram_four_bar()
-    pl = ps.plan(scenario("four_bar", bodies, joints), "pinocchio")
+    sc = scenario("four_bar", bodies, joints)
+    pl = ps.plan(sc, "pinocchio")
     assert [pl.names[c] for c in pl.order] == ["crank", "coupler", "rocker"]
+
+
+def test_a_breadth_first_joint_order_is_caught(monkeypatch):
+    bodies, joints, _, _ = parallelogram_four_bar()
+    orig = ps.plan
+
+    def breadth_first(*a, **k):
+        pl = orig(*a, **k)
+        pl.order = sorted(pl.order, key=lambda c: (pl.tree[c].parent >= 0, c))
+        return pl
+
+    monkeypatch.setattr(ps, "plan", breadth_first)
+    with pytest.raises(EngineError, match="joint 'crank_joint'.*not contiguous"):
+        ps.simulate_system(scenario("four_bar", bodies, joints), RK, 1e-3, 1, 1)
 
 
 # -- planted joint mistakes at the builder's boundary (engine_frames) ---------------------------

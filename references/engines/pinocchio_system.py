@@ -579,6 +579,13 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
         # the inertia about the COM in the joint frame = principal moments (frames parallel)
         want(f"{name}: inertia about the COM", inr.inertia, np.diag(np.asarray(b.inertia, float)))
         want(f"{name}: COM in the joint frame", inr.lever, -tj.Y)
+    for jid in range(1, model.njoints):
+        # crba and constraintDynamics need every subtree's velocities contiguous (depth first)
+        idx = sorted(i for k in model.subtrees[jid]
+                     for i in range(model.idx_vs[k], model.idx_vs[k] + model.nvs[k]))  # fmt: skip
+        if idx != list(range(idx[0], idx[0] + len(idx))):
+            bad.append(f"joint {model.names[jid]!r}: its subtree's velocities are not contiguous "
+                       f"({idx}): joints not added depth first")  # fmt: skip
     want("gravity", model.gravity.linear, pl.gravity)
     want("gravity (angular part)", model.gravity.angular, np.zeros(3))
     for what in ("damping", "armature", "friction"):
