@@ -1205,6 +1205,11 @@ def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Style
         return scenario_plot_from_results(df, cache, out, scenario)
     if kind == "errors":
         return errors_plot(df, cache, out, scenario, styles)
+    if kind == "rates" and "wx" not in (_first_series(df, cache, scenario) or {"wx": 0}):
+        from reports.system_plots import system_plot  # a system of bodies: joints, invariants
+
+        rows, h = _plot_rows(df, scenario)
+        return system_plot(rows, h, cache, out, scenario, _plt(), _save)
     if kind == "rates":
         return rates_plot(df, cache, out, scenario, styles)
     if kind == "convergence":
@@ -1212,6 +1217,15 @@ def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Style
     if kind == "work_precision":
         return work_precision_plot(df, out, scenario, styles)
     raise ValueError(f"unknown plot kind {kind!r}; known: {', '.join(KINDS)}")
+
+
+def _first_series(df, cache, scenario: str) -> dict | None:
+    """The series of the scenario's first run that has a file (None: no run has one)."""
+    for _, row in df[df["scenario"] == scenario].iterrows():
+        s = cache.get(row)
+        if s is not None:
+            return s
+    return None
 
 
 #: the file in the plots folder that remembers what each scenario's figures were made from

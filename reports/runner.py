@@ -417,7 +417,9 @@ def plan(
                     common = (t_end, every, segment, versions[name])
                     specs += [RunSpec(sc, name, integ, h, *common, float(a)) for a in accs]
                 else:
-                    run_at = steps_e + _halvings(cls.integrator(integ), steps, sweep and not dts)
+                    # a system's sweep is its file's (the halvings serve the fast tops)
+                    swept = sweep and not dts and not getattr(sc, "is_system", False)
+                    run_at = steps_e + _halvings(cls.integrator(integ), steps, swept)
                     for h in run_at[len(steps_e) :]:
                         _check_states(sc, h, horizon, keep, segment, max_states)
                     specs += [RunSpec(sc, name, integ, h, *common) for h in run_at]

@@ -31,9 +31,9 @@ def resolve_scenarios(names, all_: bool = False) -> list:
     import scenarios
 
     if all_:
-        names = scenarios.list_scenarios()
+        names = scenarios.list_scenarios() + scenarios.list_systems()
     elif not names:
-        names = scenarios.default_suite()
+        names = scenarios.default_suite() + scenarios.default_systems()
     out, seen = [], {}
     for n in names:
         sc = scenarios.load(n)
@@ -229,6 +229,8 @@ def ensemble(
     from reports.report import build_report
 
     (sc,) = resolve_scenarios([name])
+    if getattr(sc, "is_system", False):
+        raise InputError(f"ensemble: {name!r} is a system of bodies; ensembles perturb one body")
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)
     check_count("--jobs", jobs)

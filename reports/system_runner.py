@@ -37,10 +37,13 @@ def execute_system(spec, row: dict, out: Path | None = None, fmt: str = "parquet
         if spec.t_end is not None and spec.horizon != sc.t_end:
             sc = sc.replace(t_end=spec.horizon)
             row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
-        if spec.accuracy is not None:
+        if spec.accuracy is not None or spec.segment:
             from references.engines import Unsupported
 
-            raise Unsupported(f"{spec.engine} {integ.name}: systems run at fixed steps only")
+            raise Unsupported(
+                f"{spec.engine} {integ.name}: systems of bodies run at fixed steps with the "
+                "metrics at the saved states (no target accuracy, no --segment streaming)"
+            )
         try:
             output = run_system(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
             diverged = None

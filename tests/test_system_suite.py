@@ -158,5 +158,16 @@ def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
     assert np.max(np.abs(tr.position[0] - [b.position for b in sc.bodies])) == 0.0
     row = execute(RunSpec(sc, "director", "energy_momentum", 1e-3, t_end=0.5), tmp_path)
     assert row["status"] == "unsupported" and "rattle" in row["message"]
-    row = execute(RunSpec(sc, "exact", "reference", 1e-3, t_end=0.5), tmp_path)
-    assert row["status"] == "ok" and row["reference_accuracy"] < 1e-12
+    row_exact = execute(RunSpec(sc, "exact", "reference", 1e-3, t_end=0.5), tmp_path)
+    assert row_exact["status"] == "ok" and row_exact["reference_accuracy"] < 1e-12
+    # the system figure is drawn from the files the runs wrote
+    import pandas as pd
+
+    from reports.plots import SeriesCache, _plt, _save
+    from reports.system_plots import system_plot
+
+    first = execute(RunSpec(sc, "director", "rattle", 1e-3, t_end=0.5), tmp_path)
+    rows = pd.DataFrame([first, row_exact])
+    png = system_plot(rows, 1e-3, SeriesCache(tmp_path), tmp_path / "plots", sc.name, _plt(),
+                      _save)  # fmt: skip
+    assert png.exists() and png.stat().st_size > 1000

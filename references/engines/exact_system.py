@@ -160,15 +160,22 @@ def _closed_form(scenario):
     return at, motion.accuracy
 
 
+#: the scenarios of the cache's keys (content hash -> scenario)
+_BY_HASH: dict = {}
+
+
 @functools.lru_cache(maxsize=16)
-def _cached(scenario, t_bytes: bytes) -> SystemReference:
-    return _compute(scenario, np.frombuffer(t_bytes, dtype=float))
+def _cached(scenario_hash: str, t_bytes: bytes) -> SystemReference:
+    return _compute(_BY_HASH[scenario_hash], np.frombuffer(t_bytes, dtype=float))
 
 
 def reference(scenario, t) -> SystemReference:
-    """The reference of a system scenario at the times ``t`` (s), cached per process (the
-    engines of one scenario share a grid). Raises :class:`Unsupported` when there is none."""
-    return _cached(scenario, np.ascontiguousarray(t, dtype=float).tobytes())
+    """The reference of a system scenario at the times ``t`` (s), cached per process by the
+    scenario's content (the engines of one scenario share a grid, and a worker process
+    receives a new copy of the scenario with each run). Raises :class:`Unsupported` when
+    there is none."""
+    _BY_HASH.setdefault(scenario.scenario_hash, scenario)
+    return _cached(scenario.scenario_hash, np.ascontiguousarray(t, dtype=float).tobytes())
 
 
 def _compute(scenario, t) -> SystemReference:
