@@ -533,10 +533,108 @@ def _store(B, D0, S, X, V, D, W, k):
             D[k, i, c // 3, c % 3] = R[c]
 
 
+@njit(inline="always")
+def _blk(J, r, o):
+    """The 3x3 block J[r:r + 3, o:o + 3] as a row-major 9-tuple."""
+    return (
+        J[r, o], J[r, o + 1], J[r, o + 2],
+        J[r + 1, o], J[r + 1, o + 1], J[r + 1, o + 2],
+        J[r + 2, o], J[r + 2, o + 1], J[r + 2, o + 2],
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
+    """Block-tridiagonal assembly for joints of three point rows listed along a chain (joint
+    k has the rows 3k .. 3k + 2; joints sharing a body are adjacent): the blocks
+    sum_i (sigma sigma' Mx_i 1 + C_k Mth_i C_l^T), C the rotation part of a joint's rows on
+    body i and sigma = +-1 its translation part (+-identity). Dg[k] = block (k, k),
+    Up[k] = (k, k + 1), Lo[k] = (k + 1, k), each a row-major 9-vector."""
+    Dg[:] = 0.0
+    Up[:] = 0.0
+    Lo[:] = 0.0
+    for i in range(jptr.shape[0] - 1):
+        M = _row9(Mth, i)
+        mx = Mx[i]
+        for e1 in range(jptr[i], jptr[i + 1]):
+            k = jidx[e1]
+            o1 = 6 * jside[e1]
+            CLM = _mm(_blk(JL, 3 * k, o1 + 3), M)
+            sl = JL[3 * k, o1] * mx
+            for e2 in range(jptr[i], jptr[i + 1]):
+                m = jidx[e2]
+                o2 = 6 * jside[e2]
+                Bk = _mmt(CLM, _blk(JR, 3 * m, o2 + 3))
+                d = sl * JR[3 * m, o2]
+                if m == k:
+                    for c in range(9):
+                        Dg[k, c] += Bk[c]
+                    Dg[k, 0] += d
+                    Dg[k, 4] += d
+                    Dg[k, 8] += d
+                elif m == k + 1:
+                    for c in range(9):
+                        Up[k, c] += Bk[c]
+                    Up[k, 0] += d
+                    Up[k, 4] += d
+                    Up[k, 8] += d
+                else:
+                    for c in range(9):
+                        Lo[m, c] += Bk[c]
+                    Lo[m, 0] += d
+                    Lo[m, 4] += d
+                    Lo[m, 8] += d
+
+
+@njit(inline="always")
+def _blk_lu(Dg, Up, Lo):
+    """In-place block LU of the block-tridiagonal matrix: Dg[k] becomes the inverse of the
+    k-th pivot block, Lo[k] the multiplier block L_{k+1,k}. False on a singular pivot."""
+    K = Dg.shape[0]
+    for k in range(K):
+        P = _row9(Dg, k)
+        if k > 0:
+            LU = _mm(_row9(Lo, k - 1), _row9(Up, k - 1))
+            P = (P[0] - LU[0], P[1] - LU[1], P[2] - LU[2], P[3] - LU[3], P[4] - LU[4],
+                 P[5] - LU[5], P[6] - LU[6], P[7] - LU[7], P[8] - LU[8])  # fmt: skip
+        nrm = 0.0
+        for c in range(9):
+            nrm = max(nrm, abs(P[c]))
+        det, Pi = _inv3(P)
+        if not abs(det) > 1e-36 * nrm * nrm * nrm:
+            return False
+        _put9(Dg, k, Pi)
+        if k < K - 1:
+            _put9(Lo, k, _mm(_row9(Lo, k), Pi))
+    return True
+
+
+@njit(inline="always")
+def _blk_solve(Dg, Up, Lo, b, x):
+    """Solve with the factors of :func:`_blk_lu`: x = A^{-1} b."""
+    K = Dg.shape[0]
+    for k in range(K):
+        y0, y1, y2 = b[3 * k], b[3 * k + 1], b[3 * k + 2]
+        if k > 0:
+            l0, l1, l2 = _mul(_row9(Lo, k - 1), x[3 * k - 3], x[3 * k - 2], x[3 * k - 1])
+            y0 -= l0
+            y1 -= l1
+            y2 -= l2
+        x[3 * k], x[3 * k + 1], x[3 * k + 2] = y0, y1, y2
+    for k in range(K - 1, -1, -1):
+        y0, y1, y2 = x[3 * k], x[3 * k + 1], x[3 * k + 2]
+        if k < K - 1:
+            u0, u1, u2 = _mul(_row9(Up, k), x[3 * k + 3], x[3 * k + 4], x[3 * k + 5])
+            y0 -= u0
+            y1 -= u1
+            y2 -= u2
+        x[3 * k], x[3 * k + 1], x[3 * k + 2] = _mul(_row9(Dg, k), y0, y1, y2)
+
+
 @njit(cache=True)
 def run_system(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, blk, jptr, jidx, jside,
 ):  # fmt: skip
     """Advance the system nstep steps of dt (each step the composition ``coef`` of RATTLE
     sub-steps), storing the states at the step indices ``saves`` (increasing, 0 = the start)
@@ -573,6 +671,10 @@ def run_system(
     Vt = np.zeros((nd, nd))
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
+    nK = nrow // 3 if blk else 1
+    Dg = np.zeros((nK, 9))
+    Up = np.zeros((nK, 9))
+    Lo = np.zeros((nK, 9))
     ns = coef.shape[0]
     nhist = int(mu[nr * (1 + 2 * ns)])
     ks = 0
@@ -663,12 +765,18 @@ def run_system(
                     if minnorm:
                         _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, False, bw, False)
                         rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                    elif blk:
+                        _blk_assemble(jptr, jidx, jside, Jnew, Jold, Mx, Mth, Dg, Up, Lo)
+                        if not _blk_lu(Dg, Up, Lo):
+                            return _fail(info, n, h, FAIL_SINGULAR)
                     else:
                         _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, True, bw, False)
                         if not _band_lu(Ab, bw):
                             return _fail(info, n, h, FAIL_SINGULAR)
                 if minnorm:
                     _svd_solve(U, sv, Vt, rank, gv, dl)
+                elif blk:
+                    _blk_solve(Dg, Up, Lo, gv, dl)
                 else:
                     _band_solve(Ab, bw, gv, dl)
                 ih2 = 1.0 / (h * h)
@@ -724,6 +832,11 @@ def run_system(
                         if rel < diag[D_SMIN]:
                             diag[D_SMIN] = rel
                             diag[D_TSMIN] = n
+                elif blk:
+                    _blk_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Dg, Up, Lo)
+                    if not _blk_lu(Dg, Up, Lo):
+                        return _fail(info, n, h, FAIL_SINGULAR)
+                    _blk_solve(Dg, Up, Lo, r0, dl)
                 else:
                     _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, True, bw, True)
                     if not _band_ldl(Ab, bw):

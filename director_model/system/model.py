@@ -153,7 +153,10 @@ class Assembly:
     (DOT rows). ``row_joint`` (nrow,) the joint index of each row. ``bodies`` (nb, 7): m,
     I_1, I_2, I_3, 1/I_1, 1/I_2, 1/I_3. ``brow_ptr``, ``brow_idx``, ``brow_side``: the rows
     touching each body (CSR; side 0 = the row's body a, 1 = body b). ``bandwidth``: the
-    largest |r - s| over rows r, s sharing a body."""
+    largest |r - s| over rows r, s sharing a body. ``block3``: every joint is three point
+    rows (spherical, fixed point) and joints sharing a body are adjacent in the list (a chain
+    listed along itself), so the multiplier matrices are block tridiagonal with 3x3 blocks;
+    ``jptr``, ``jidx``, ``jside``: the joints touching each body (CSR, side as above)."""
 
     names: tuple
     joint_names: tuple
@@ -166,6 +169,10 @@ class Assembly:
     brow_side: np.ndarray
     bandwidth: int
     length_scale: float
+    block3: bool
+    jptr: np.ndarray
+    jidx: np.ndarray
+    jside: np.ndarray
 
 
 def assemble(bodies, joints) -> Assembly:
@@ -270,6 +277,21 @@ def assemble(bodies, joints) -> Assembly:
     L = 1.0
     if rvec.size:
         L = max(1.0, float(np.abs(rvec[:, 0:6]).max()))
+    jptr, jidx, jside = [0], [], []
+    for i in range(nb):
+        for k, jt in enumerate(joints):
+            bi = index[jt.body_a], (-1 if jt.body_b is None else index[jt.body_b])
+            for s_ in (0, 1):
+                if bi[s_] == i:
+                    jidx.append(k)
+                    jside.append(s_)
+        jptr.append(len(jidx))
+    block3 = bool(rint.shape[0]) and bool(np.all(rint[:, 0] == POINT))
+    block3 = block3 and rint.shape[0] == 3 * len(joints)
+    for i in range(nb):
+        ks = jidx[jptr[i] : jptr[i + 1]]
+        if len(ks) > 2 or (len(ks) == 2 and abs(ks[0] - ks[1]) != 1):
+            block3 = False
     return Assembly(
         names=names,
         joint_names=tuple(jnames),
@@ -282,6 +304,10 @@ def assemble(bodies, joints) -> Assembly:
         brow_side=np.array(side, dtype=np.int64),
         bandwidth=int(bw),
         length_scale=L,
+        block3=block3,
+        jptr=np.array(jptr, dtype=np.int64),
+        jidx=np.array(jidx, dtype=np.int64),
+        jside=np.array(jside, dtype=np.int64),
     )
 
 

@@ -162,7 +162,11 @@ class SystemStepper:
     solver : str
         "auto" (default): "minnorm" if the joint rows are redundant at t = 0 (rank of the
         Jacobian below the number of rows: closed loops such as a planar four-bar of
-        revolute joints, or Bricard's mechanism), else "banded". "banded": block-banded LU
+        revolute joints, or Bricard's mechanism), else "block" where it applies, else
+        "banded". "block": chains of spherical (and fixed-point) joints listed along the
+        chain; the matrices are block tridiagonal with 3x3 blocks, assembled and eliminated
+        block by block in straight-line code (same equations as "banded", to round-off).
+        "banded": block-banded LU
         without pivoting of the multiplier matrices (rows ordered as the joints are given;
         bandwidth = the largest row distance between rows sharing a body, so a chain whose
         joints are listed along it has cost linear in its length); a singular configuration
@@ -200,10 +204,17 @@ class SystemStepper:
             raise InvalidStateError(f"gravity = {gravity!r}: expected 3 finite real numbers")
         nrow = asm.rint.shape[0]
         if solver == "auto":
-            solver = "minnorm" if rank < nrow else "banded"
-        if solver not in ("banded", "minnorm"):
-            raise InvalidRunError(f"solver = {solver!r}: expected 'auto', 'banded' or 'minnorm'")
-        if solver == "banded" and rank < nrow:
+            solver = "minnorm" if rank < nrow else ("block" if asm.block3 else "banded")
+        if solver not in ("banded", "block", "minnorm"):
+            raise InvalidRunError(
+                f"solver = {solver!r}: expected 'auto', 'block', 'banded' or 'minnorm'"
+            )
+        if solver == "block" and not asm.block3:
+            raise InvalidRunError(
+                "solver = 'block': needs spherical or fixed-point joints only, listed along a "
+                "chain (joints sharing a body adjacent in the list); use 'banded' or 'auto'"
+            )
+        if solver in ("banded", "block") and rank < nrow:
             raise InvalidRunError(
                 f"solver = 'banded': the {nrow} joint rows have rank {rank} at t = 0 "
                 "(redundant constraints, e.g. a closed loop): use solver='minnorm' or 'auto'"
@@ -265,7 +276,7 @@ class SystemStepper:
             asm.bodies, self._D0, rint, asm.rvec, asm.brow_ptr, asm.brow_idx, asm.brow_side,
             self._g, self._S, self._mu, self._coef, self.dt, nstep, saves, X, V, D, W,
             minnorm, asm.bandwidth, self.rank_nominal, RANK_TOL, TOL_EPS * K.EPS,
-            asm.length_scale, diag, info,
+            asm.length_scale, diag, info, self.solver == "block", asm.jptr, asm.jidx, asm.jside,
         )  # fmt: skip
         wall = time.perf_counter() - t0
         cpu = time.thread_time() - c0
