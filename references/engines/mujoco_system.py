@@ -31,9 +31,11 @@ fixed_point                               R_p^T R_c, qvel = W_c - R_rel^T W_p (c
 revolute            ``hinge``             R_p^T R_c at t = 0; qpos = 0, qvel = n . w_rel
 prismatic           ``slide``             R_p^T R_c at t = 0; qpos = the anchors' offset
                                           along the axis, qvel its rate
+universal           two ``hinge``         R_p^T R_c at t = 0; the first about the
+                                          parent-fixed axis, the second about the
+                                          child-fixed one; qpos = 0, qvel = each axis . w_rel
+cylindrical         ``hinge`` + ``slide`` R_p^T R_c at t = 0; both on the axis; as above
 (floating root)     ``free``              body pos/quat = the initial x, R
-universal,          -                     unsupported (MuJoCo would need two joints in
-cylindrical                               one body; not built here)
 ==================  ====================  =============================================
 
 Loop closures (MuJoCo documentation, "XML Reference / equality / connect"): a spherical joint
@@ -114,6 +116,8 @@ _KINDS = {
     "fixed_point": "ball",
     "revolute": "hinge",
     "prismatic": "slide",
+    "universal": "universal",
+    "cylindrical": "cylindrical",
 }
 
 _SETTINGS = ("solref", "solimp")
@@ -151,7 +155,10 @@ class _TreeJoint:
     X: np.ndarray = field(default_factory=lambda: np.zeros(3))  # parent anchor (or world)
     Y: np.ndarray = field(default_factory=lambda: np.zeros(3))  # child anchor
     axis_c: np.ndarray | None = None  # child frame, unit
+    axis_p: np.ndarray | None = None  # parent frame (world for the ground), unit
     R_ref: np.ndarray = field(default_factory=lambda: np.eye(3))
+    #: MuJoCo joints of the body, in order: (type, axis in the child frame or None)
+    parts: list = field(default_factory=list)
 
 
 @dataclass
@@ -218,7 +225,7 @@ def plan(scenario) -> _Plan:
             raise ValueError(f"{what}: body_b {j.body_b!r} is not a body (None is the ground)")
         if j.body_b == j.body_a:
             raise ValueError(f"{what}: joins body {j.body_a!r} to itself")
-        if j.kind not in _KINDS and j.kind not in ("universal", "cylindrical"):
+        if j.kind not in _KINDS:
             raise ValueError(f"{what}: kind {j.kind!r} unknown")
         if j.body_b is None:
             ground.append((k, j))
@@ -295,24 +302,30 @@ def plan(scenario) -> _Plan:
         p, k, j = parent_of[c]
         if j is None:
             tree[c] = _TreeJoint(f"free root {names[c]!r}", "free", "free", c, -1, R_ref=R[c])
+            tree[c].parts = [("free", None)]
             continue
         what = _label(j, k)
-        mj = _KINDS.get(j.kind)
-        if mj is None:
-            raise Unsupported(
-                f"mujoco: {what}: a {j.kind} joint in a tree is not built by this adapter "
-                "(MuJoCo would need two joints in one body)"
-            )
+        mj = _KINDS[j.kind]
         child_is_a = idx[j.body_a] == c
         Y, X = (j.anchor_a, j.anchor_b) if child_is_a else (j.anchor_b, j.anchor_a)
         tj = _TreeJoint(what, j.kind, mj, c, p, _vec(X, what), _vec(Y, what))
-        if mj != "ball":
-            ax = j.axis_a if child_is_a else j.axis_b
-            if ax is None:
+        if mj == "ball":
+            tj.parts = [("ball", None)]
+        else:
+            ax, axp = (j.axis_a, j.axis_b) if child_is_a else (j.axis_b, j.axis_a)
+            if ax is None or axp is None:
                 raise ValueError(f"{what}: a {j.kind} joint needs axis_a and axis_b")
             tj.axis_c = _unit(ax, f"{what}: the child's axis")
+            tj.axis_p = _unit(axp, f"{what}: the parent's axis")
             Rp = np.eye(3) if p < 0 else R[p]
             tj.R_ref = Rp.T @ R[c]
+            tj.parts = {
+                "hinge": [("hinge", tj.axis_c)],
+                "slide": [("slide", tj.axis_c)],
+                # about the parent-fixed axis, then about the child-fixed one
+                "universal": [("hinge", tj.R_ref.T @ tj.axis_p), ("hinge", tj.axis_c)],
+                "cylindrical": [("hinge", tj.axis_c), ("slide", tj.axis_c)],
+            }[mj]
         tree[c] = tj
     loops = []
     for k, j in closing:
@@ -410,6 +423,10 @@ def check_consistent(scenario, pl: _Plan | None = None) -> None:
             dot = abs(float(ua @ ub))
             if dot > STATE_TOL:
                 refuse("|u_a . u_b| (the axes must be perpendicular)", dot, STATE_TOL, "")
+            # d/dt (u_a . u_b) = (w_b - w_a) . (u_a x u_b)
+            rate = abs(float((wb - wa) @ np.cross(ua, ub)))
+            if rate > STATE_TOL * pl.rate / pl.length:
+                refuse("d/dt (u_a . u_b)", rate, STATE_TOL * pl.rate / pl.length, "rad/s")
         if j.kind in ("prismatic", "cylindrical"):
             across = float(np.linalg.norm(gap - (gap @ ua) * ua))
             if across > tol_x:
@@ -457,10 +474,11 @@ def model_xml(scenario, pl: _Plan, integrator: str, dt: float, solref, solimp) -
         else:
             pos = tj.X - tj.R_ref @ tj.Y
             quat = cv.matrix_to_quat_wxyz(tj.R_ref)
-            axis = "" if tj.axis_c is None else f' axis="{_num(tj.axis_c)}"'
-            joint = (
-                f'<joint name="j{c}" type="{tj.mj}" pos="{_num(tj.Y)}"{axis} limited="false" '
-                'damping="0" armature="0" frictionloss="0" stiffness="0"/>'
+            joint = "\n".join(
+                f'<joint name="j{c}_{i}" type="{typ}" pos="{_num(tj.Y)}"'
+                + ("" if ax is None else f' axis="{_num(ax)}"')
+                + ' limited="false" damping="0" armature="0" frictionloss="0" stiffness="0"/>'
+                for i, (typ, ax) in enumerate(tj.parts)
             )
         inner = "\n".join(
             [
@@ -522,10 +540,11 @@ def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solim
             )
 
     L = pl.length
-    if m.nbody != len(pl.bodies) + 1 or m.njnt != len(pl.bodies):
+    njnt = sum(len(tj.parts) for tj in pl.tree.values())
+    if m.nbody != len(pl.bodies) + 1 or m.njnt != njnt:
         raise EngineError(
             f"mujoco: the model has {m.nbody - 1} bodies and {m.njnt} joints; the scenario "
-            f"{len(pl.bodies)} and one joint per body"
+            f"{len(pl.bodies)} and {njnt}"
         )
     jtypes = {
         "free": mujoco.mjtJoint.mjJNT_FREE,
@@ -550,26 +569,29 @@ def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solim
         want(f"{nm}: body_ipos (COM in the body frame)", m.body_ipos[i], np.zeros(3), L)
         want(f"{nm}: body_iquat (principal axes)", m.body_iquat[i], [1, 0, 0, 0], quat=True)
         want(f"{nm}: body_gravcomp", m.body_gravcomp[i], 0.0)
-        if m.body_jntnum[i] != 1:
-            bad.append(f"{nm}: {m.body_jntnum[i]} joints, the tree needs 1")
+        if m.body_jntnum[i] != len(tj.parts):
+            bad.append(f"{nm}: {m.body_jntnum[i]} joints, the tree needs {len(tj.parts)}")
             continue
-        jid = m.body_jntadr[i]
         jn = f"{tj.label} (MuJoCo {tj.mj} of {b.name!r})"
-        if m.jnt_type[jid] != jtypes[tj.mj]:
-            bad.append(f"{jn}: jnt_type {int(m.jnt_type[jid])}, needs {int(jtypes[tj.mj])}")
+        for part, (typ, ax) in enumerate(tj.parts):
+            jid = m.body_jntadr[i] + part
+            if m.jnt_type[jid] != jtypes[typ]:
+                bad.append(f"{jn}: jnt_type {int(m.jnt_type[jid])}, needs {int(jtypes[typ])}")
+            if typ == "free":
+                continue
+            want(f"{jn}: jnt_pos (the child's anchor, child frame)", m.jnt_pos[jid], tj.Y, L)
+            if ax is not None:
+                want(f"{jn}: jnt_axis (the child's axis, child frame)", m.jnt_axis[jid], ax)
+            if m.jnt_limited[jid]:
+                bad.append(f"{jn}: jnt_limited is on; a joint of the scenario has no limits")
         if tj.mj == "free":
             want(f"{nm}: body_pos (root at the initial COM)", m.body_pos[i], b.position, L)
             want(f"{nm}: body_quat (root)", m.body_quat[i], cv.matrix_to_quat_wxyz(b.rotation),
                  quat=True)  # fmt: skip
             continue
-        want(f"{jn}: jnt_pos (the child's anchor, child frame)", m.jnt_pos[jid], tj.Y, L)
-        if tj.axis_c is not None:
-            want(f"{jn}: jnt_axis (the child's axis, child frame)", m.jnt_axis[jid], tj.axis_c)
         want(f"{jn}: body_pos (X - R_ref Y)", m.body_pos[i], tj.X - tj.R_ref @ tj.Y, L)
         want(f"{jn}: body_quat (R_ref)", m.body_quat[i], cv.matrix_to_quat_wxyz(tj.R_ref),
              quat=True)  # fmt: skip
-        if m.jnt_limited[jid]:
-            bad.append(f"{jn}: jnt_limited is on; a joint of the scenario has no limits")
     for name in ("dof_damping", "dof_armature", "dof_frictionloss"):
         if np.any(getattr(m, name) != 0):
             bad.append(f"{name} {getattr(m, name).tolist()}: must be 0 (it distorts the motion)")
@@ -637,24 +659,27 @@ def initial_qpos_qvel(m, pl: _Plan, bid: dict) -> tuple[np.ndarray, np.ndarray]:
     qvel = np.zeros(m.nv)
     for c in pl.order:
         tj = pl.tree[c]
-        jid = m.body_jntadr[bid[c]]
-        qa, va = m.jnt_qposadr[jid], m.jnt_dofadr[jid]
         x, R, v, w = _world(pl, c)
         xp, Rp, vp, wp = _world(pl, tj.parent)
-        if tj.mj == "free":
-            q, u = cv.mujoco_free_from_state(x, v, R, R.T @ w)
-        elif tj.mj == "ball":
-            Rrel = Rp.T @ R
-            q, u = cv.matrix_to_quat_wxyz(Rrel), R.T @ (w - wp)
-        elif tj.mj == "hinge":
-            q, u = [0.0], [float(tj.axis_c @ (R.T @ (w - wp)))]
-        else:  # slide: the child's frame offset along the axis from the reference placement
-            u_w = R @ tj.axis_c
-            d0 = float((x + R @ tj.Y - xp - Rp @ tj.X) @ u_w)
-            rate = float((v - vp - np.cross(wp, x - xp)) @ u_w)
-            q, u = [d0], [rate]
-        qpos[qa : qa + len(q)] = q
-        qvel[va : va + len(u)] = u
+        w_rel = R.T @ (w - wp)  # child axes
+        for part, (typ, ax) in enumerate(tj.parts):
+            jid = m.body_jntadr[bid[c]] + part
+            qa, va = m.jnt_qposadr[jid], m.jnt_dofadr[jid]
+            if typ == "free":
+                q, u = cv.mujoco_free_from_state(x, v, R, R.T @ w)
+            elif typ == "ball":
+                q, u = cv.matrix_to_quat_wxyz(Rp.T @ R), w_rel
+            elif typ == "hinge":
+                # at the reference (initial) configuration the hinge axes are the child's
+                # axes ax; a universal's two are perpendicular, a cylindrical's hinge is alone
+                q, u = [0.0], [float(ax @ w_rel)]
+            else:  # slide: the anchors' offset along the axis and its rate
+                u_w = R @ ax
+                d0 = float((x + R @ tj.Y - xp - Rp @ tj.X) @ u_w)
+                rate = float((v - vp - np.cross(wp, x - xp)) @ u_w)
+                q, u = [d0], [rate]
+            qpos[qa : qa + len(q)] = q
+            qvel[va : va + len(u)] = u
     return qpos, qvel
 
 
@@ -699,25 +724,33 @@ def check_initial(mujoco, m, d, scenario, pl: _Plan, bid: dict) -> None:
         tj = pl.tree[c]
         if tj.mj == "free":
             continue
-        jid = m.body_jntadr[bid[c]]
         xc, Rc, _, _ = _world(pl, c)
         xp, Rp, _, _ = _world(pl, tj.parent)
-        if tj.mj == "slide":
-            # MuJoCo's xanchor of a slide joint is taken before the slide's translation: the
-            # child's anchor moved back by qpos along the axis, which is the parent's anchor
-            d0 = float(d.qpos[m.jnt_qposadr[jid]])
-            sides = [("child", xc + Rc @ tj.Y - d0 * (Rc @ tj.axis_c))]
-        else:
-            sides = [("child", xc + Rc @ tj.Y)]
+        # MuJoCo's xanchor of every joint of a body is taken before any slide's translation:
+        # the child's anchor moved back by the slide's qpos along the axis
+        d0 = 0.0
+        for part, (typ, _) in enumerate(tj.parts):
+            if typ == "slide":
+                d0 = float(d.qpos[m.jnt_qposadr[m.body_jntadr[bid[c]] + part]])
+        shift = d0 * (Rc @ tj.axis_c) if d0 else np.zeros(3)
+        sides = [("child", xc + Rc @ tj.Y - shift)]
         sides.append(("parent", xp + Rp @ tj.X))
-        for side, p in sides:
-            err = _close(d.xanchor[jid], p, pl.length)
-            if not err <= tol:
-                bad.append(f"{tj.label}: anchor (xanchor) vs the {side}'s {err:.3g} relative")
-        if tj.axis_c is not None:
-            err = _close(d.xaxis[jid], Rc @ tj.axis_c)
-            if not err <= tol:
-                bad.append(f"{tj.label}: axis (xaxis) vs the child's {err:.3g}")
+        for part, (_, ax) in enumerate(tj.parts):
+            jid = m.body_jntadr[bid[c]] + part
+            for side, p in sides:
+                err = _close(d.xanchor[jid], p, pl.length)
+                if not err <= tol:
+                    bad.append(f"{tj.label}: anchor (xanchor) vs the {side}'s {err:.3g} relative")
+            if ax is None:
+                continue
+            axes = [("child", Rc @ ax)]
+            if part == 0:  # the first axis is also the parent's (fixed in the parent)
+                axes.append(("parent", Rp @ tj.axis_p))
+            for side, u in axes:
+                # a hinge's two axes may be given antiparallel (checked at t = 0)
+                err = min(_close(d.xaxis[jid], u), _close(d.xaxis[jid], -u))
+                if not err <= tol:
+                    bad.append(f"{tj.label}: axis (xaxis) vs the {side}'s {err:.3g}")
     if bad:
         raise EngineError(
             f"mujoco: system {scenario.name!r}: MuJoCo's kinematics of the initial state differ "
