@@ -156,18 +156,24 @@ def four_bar_theta_error(out, I_eff, k):
 
 def test_four_bar_closed_by_constraint_dynamics_with_baumgarte():
     """The parallelogram four-bar (B1 closes the loop) over 2 s, through its singular
-    configuration four times. With the default Baumgarte gains (omega dt = 0.1) RKMK4 at
-    dt = 1e-3 keeps the gap at round-off (measured 1.8e-15 m) and follows the planar pendulum
-    (measured 1.8e-11 rad); with Pinocchio's default gains (0) the loop drifts open (2e-4 m)
-    and the mechanism leaves the parallelogram branch at a singular passage."""
+    configuration four times. The default Baumgarte gains are critical at omega = 10 x 7 rad/s
+    (7 rad/s: the initial crank rate, the system's fastest rate at its length scale of 1 m), so
+    Kp = 4900, Kd = 140, the same at every dt. RKMK4 at dt = 1e-3 keeps the gap at round-off
+    (measured 3.1e-15 m) and follows the planar pendulum (1.7e-11 rad) at order 4 (2.9e-10 rad
+    at 2e-3); with Pinocchio's default gains (0) the loop drifts open (2e-4 m) and the
+    mechanism leaves the parallelogram branch at a singular passage."""
     bodies, joints, I_eff, k = parallelogram_four_bar()
     sc = scenario("four_bar", bodies, joints)
     out = ps.simulate_system(sc, RK, 1e-3, 2000, 50)
     gap, axis = four_bar_gap(sc, out)
     assert gap.max() < 1e-12 and axis.max() < 1e-12
-    assert four_bar_theta_error(out, I_eff, k) < 1e-9
+    e1 = four_bar_theta_error(out, I_eff, k)
+    assert e1 < 1e-9
+    e2 = four_bar_theta_error(ps.simulate_system(sc, RK, 2e-3, 1000, 25), I_eff, k)
+    assert_order(e2, e1, 4)
     s = out["settings"]
-    assert s["Baumgarte (Kp, Kd)"] == [1e4, 200.0] and s["forward dynamics"] == "constraintDynamics"
+    assert s["Baumgarte (Kp, Kd)"] == pytest.approx([4900.0, 140.0], rel=1e-12)
+    assert s["forward dynamics"] == "constraintDynamics"
     assert "two CONTACT_3D" in s["loop closures"][0]
     off = ps.simulate_system(sc, RK, 1e-3, 2000, 50, baumgarte=(0.0, 0.0))
     assert four_bar_gap(sc, off)[0].max() > 1e-6

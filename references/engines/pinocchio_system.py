@@ -34,8 +34,10 @@ anchors moved by the system's length scale along the hinge axis: six equations f
 five (one redundant), which ``constraintDynamics``' proximal solver accepts (its ``mu`` > 0
 regularises the rank-deficient system). Pinocchio's Baumgarte gains default to 0 (read back):
 without them the loop drifts open; here Kp = omega^2, Kd = 2 omega (critical damping) with
-omega = ``baumgarte_omega_dt`` / dt (default 0.1 / dt), or ``baumgarte=(Kp, Kd)`` given. Other
-closures are unsupported.
+omega = ``baumgarte_omega`` (rad/s; default :data:`BAUMGARTE_FACTOR` times the system's frequency
+scale max(sqrt(|g| / L), V / L), L and V its length and rate scales), or ``baumgarte=(Kp, Kd)``
+given. The gains do not depend on dt, so that a sweep over dt integrates one system and shows
+the integrator's order. Other closures are unsupported.
 
 Time stepping (Pinocchio has none; both loops are ours and drawn from Pinocchio's calls only):
 ``semi-implicit Euler``: v += h a(q, v); q = integrate(q, h v); quaternions renormalised
@@ -72,13 +74,13 @@ INTEGRATORS = ("semi-implicit Euler", "RKMK4")
 #: exact up to a few operations of round-off per body along a chain.
 CHECK_TOL = 1e-10
 
-#: default Baumgarte frequency times dt (omega = this / dt; Kp = omega^2, Kd = 2 omega)
-BAUMGARTE_OMEGA_DT = 0.1
+#: default Baumgarte frequency over the system's frequency scale (Kp = omega^2, Kd = 2 omega)
+BAUMGARTE_FACTOR = 10.0
 
 #: proximal settings of constraintDynamics: accuracy, mu (regularisation), iterations
 PROX = (1e-12, 1e-8, 10)
 
-_SETTINGS = ("baumgarte", "baumgarte_omega_dt", "prox")
+_SETTINGS = ("baumgarte", "baumgarte_omega", "prox")
 _TREE_KINDS = ("spherical", "fixed_point", "revolute")
 
 
@@ -629,31 +631,42 @@ def _loop_gaps(pm: _Model) -> list:
     return out
 
 
-def _settings(kw: dict, dt: float):
+def frequency_scale(pl: Plan) -> float:
+    """max(sqrt(|g| / L), V / L), rad/s: the fastest rate gravity or the initial motion sets."""
+    return max(math.sqrt(float(np.linalg.norm(pl.gravity)) / pl.length), pl.rate / pl.length)
+
+
+def _settings(kw: dict, pl: Plan):
     unknown = sorted(set(kw) - set(_SETTINGS))
     if unknown:
         raise ValueError(f"pinocchio simulate_system: unknown settings {unknown}; known: "
                          f"{list(_SETTINGS)}")  # fmt: skip
-    od = float(kw.get("baumgarte_omega_dt", BAUMGARTE_OMEGA_DT))
-    if not (math.isfinite(od) and od >= 0):
-        raise ValueError(f"baumgarte_omega_dt {od!r}: a finite number >= 0")
-    omega = od / dt
+    fs = frequency_scale(pl)
+    omega = float(kw.get("baumgarte_omega", BAUMGARTE_FACTOR * fs))
+    if not (math.isfinite(omega) and omega >= 0):
+        raise ValueError(f"baumgarte_omega {omega!r}: a finite number >= 0 (rad/s)")
     gains = tuple(float(g) for g in kw.get("baumgarte", (omega**2, 2.0 * omega)))
     if len(gains) != 2 or not all(math.isfinite(g) and g >= 0 for g in gains):
         raise ValueError(f"baumgarte {gains}: (Kp 1/s^2, Kd 1/s), finite and >= 0")
     prox = tuple(kw.get("prox", PROX))
     if len(prox) != 3 or not (prox[0] > 0 and prox[1] >= 0 and int(prox[2]) >= 1):
         raise ValueError(f"prox {prox}: (accuracy > 0, mu >= 0, max_iter >= 1)")
-    return gains, prox, ("given" if "baumgarte" in kw else f"omega = {od:g}/dt, critical")
+    rule = (
+        "given"
+        if "baumgarte" in kw
+        else f"critical, omega = {omega:.6g} rad/s"
+        + ("" if "baumgarte_omega" in kw else f" ({BAUMGARTE_FACTOR:g} x {fs:.6g} rad/s)")
+    )
+    return gains, prox, rule
 
 
 def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, q0, v0, settings record) of ``scenario``: planned, built, read back, with the
     initial state checked against Pinocchio's kinematics."""
     check_run_args(integrator, dt)
-    gains, prox, gain_rule = _settings(settings, float(dt))
     pin = _import()
     pl = plan(scenario, "pinocchio")
+    gains, prox, gain_rule = _settings(settings, pl)
     pm = _Model(pin, pl, float(dt), gains, prox)
     read_back(pm, scenario, gains, prox)
     q, v = pm.initial()
@@ -702,9 +715,9 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     """Run ``scenario`` (module docstring) on Pinocchio.
 
     ``integrator``: "semi-implicit Euler" or "RKMK4"; ``dt`` s; ``nstep`` steps saved at 0, s,
-    2s, ..., nstep; ``settings``: ``baumgarte`` (Kp 1/s^2, Kd 1/s) or ``baumgarte_omega_dt``
-    (omega dt, default 0.1: Kp = omega^2, Kd = 2 omega), ``prox`` (accuracy, mu, max_iter) of
-    constraintDynamics; used only when the scenario closes a loop.
+    2s, ..., nstep; ``settings``: ``baumgarte`` (Kp 1/s^2, Kd 1/s) or ``baumgarte_omega``
+    (rad/s, Kp = omega^2, Kd = 2 omega; default: module docstring), ``prox`` (accuracy, mu,
+    max_iter) of constraintDynamics; used only when the scenario closes a loop.
 
     Returns a dict: ``t`` (n,) s; ``x`` (n, nb, 3) COM world m; ``R`` (n, nb, 3, 3) body to
     world; ``v`` (n, nb, 3) COM velocity world m/s; ``W`` (n, nb, 3) body angular velocity,
