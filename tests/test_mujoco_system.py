@@ -568,3 +568,16 @@ def test_universal_and_cylindrical_joints_agree_with_rattle6():
     bad[0] = dataclasses.replace(bodies[0], omega_body=bodies[0].omega_body + (0, 0, 0.1))
     with pytest.raises(ms.InconsistentSystem, match=r"'U'.*d/dt \(u_a \. u_b\)"):
         ms.simulate_system(scenario("cardan", bad, joints), "RK4", 1e-3, 10, 10)
+
+
+def test_a_blow_up_is_reported_with_the_states_before_it():
+    """Euler at dt = 0.2 s on the spinning 3-rod chain (rates of a few rad/s: h w ~ 1) blows
+    up; MuJoCo flags it and the run ends as Diverged carrying the saved states before it."""
+    from references.errors import Diverged
+
+    bodies, joints = rod_chain(3, hang=True)
+    with pytest.raises(Diverged, match="MuJoCo flagged an unstable state") as info:
+        ms.simulate_system(scenario("c", bodies, joints), "Euler", 0.2, 2000, 10)
+    out = info.value.output
+    assert 0 < info.value.t_diverged <= 400 and out["t"][0] == 0.0
+    assert np.all(np.isfinite(out["x"])) and out["x"].shape[0] == len(out["t"])
