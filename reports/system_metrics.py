@@ -23,8 +23,9 @@ one body where the meaning carries over (the largest over the bodies) and three 
 ``joint_angle_gap_max``    max over t and joints of the angle between a hinge's (or a     rad
                            cylindrical or prismatic joint's) two axes; a universal
                            joint's departure from perpendicular axes
-``branch_error``           a mechanism through a singular configuration: for the          rad
-                           parallelogram four-bar, the largest rotation of the coupler
+``branch_error``           a mechanism through a singular configuration: for a            rad
+                           parallelogram four-bar (a scenario tagged ``parallelogram``
+                           with a body ``coupler``), the largest rotation of the coupler
                            from its initial attitude (it translates on the parallelogram
                            branch and turns on the crossed one); NaN otherwise
 =========================  ============================================================  =====
@@ -147,7 +148,7 @@ def omega_errors(traj, ref) -> np.ndarray:
 
 def branch_error(scenario, traj) -> np.ndarray | None:
     """The four-bar's branch check (module docstring), rad, (n,), or None."""
-    if scenario.reference != "four_bar" or "coupler" not in scenario.body_names:
+    if "parallelogram" not in scenario.tags or "coupler" not in scenario.body_names:
         return None
     i = scenario.body_names.index("coupler")
     Q = nearest_rotation(traj.rotation[:, i])

@@ -171,3 +171,36 @@ def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
     png = system_plot(rows, 1e-3, SeriesCache(tmp_path), tmp_path / "plots", sc.name, _plt(),
                       _save)  # fmt: skip
     assert png.exists() and png.stat().st_size > 1000
+
+
+def test_trajectory_errors_are_judged_only_inside_the_trusted_horizon():
+    """A run that departs from the reference after the reference's horizon: its attitude
+    error counts only up to the horizon; its invariants count over the whole run."""
+    from references.engines.exact_system import SystemReference
+
+    sc = scenarios.load("spinning_chain").replace(t_end=1.0)
+    t = np.linspace(0.0, 1.0, 11)
+    exact = reference(sc, t)
+    tr = copy.deepcopy(exact.trajectory)
+    c, s = math.cos(0.5), math.sin(0.5)
+    late = t > 0.55
+    tr.rotation[late] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ tr.rotation[late]
+    trusted = SystemReference(exact.trajectory, "numerical", 1e-12, 1e-12, 0.5, "test")
+    assert compute_system_metrics(sc, tr, trusted)["attitude_error_max"] < 1e-12
+    whole = SystemReference(exact.trajectory, "numerical", 1e-12, 1e-12, 1.0, "test")
+    assert compute_system_metrics(sc, tr, whole)["attitude_error_max"] == pytest.approx(0.5)
+
+
+def test_a_system_without_reference_is_judged_on_its_invariants_and_joints(tmp_path):
+    from reports.results import RunSpec
+    from reports.runner import execute
+
+    sc = scenarios.load("four_bar").replace(reference="none", t_end=0.02)
+    row = execute(RunSpec(sc, "director", "rattle", 2e-3), tmp_path)
+    assert row["status"] == "ok" and row["verdict"] == "pass", row["message"]
+    assert "no reference" in row["message"] and math.isnan(row["attitude_error_max"])
+    assert row["joint_gap_max"] < 1e-12 and row["branch_error"] < 1e-12
+    row = execute(RunSpec(sc, "exact", "reference", 2e-3), tmp_path)
+    assert row["status"] == "unsupported" and "no independent reference" in row["message"]
+    row = execute(RunSpec(sc, "drake", "semi_explicit_euler", 2e-3), tmp_path)
+    assert row["status"] in ("unsupported", "unavailable")
