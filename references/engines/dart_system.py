@@ -283,8 +283,8 @@ class _Model:
             j.setVelocities(np.asarray(vel, float))
 
     def accel(self, q, u):
+        t0 = time.perf_counter()  # DART's setters are engine calls too
         self.unpack(q, u)
-        t0 = time.perf_counter()
         self.skel.computeForwardDynamics()
         a = np.array(self.skel.getAccelerations())
         self.clock += time.perf_counter() - t0
@@ -452,9 +452,10 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     parameter of its joint constraints, a global of DART; default: DART's own).
 
     Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio_system.
-    simulate_system`), ``engine_time_s`` (inside World.step, or computeForwardDynamics for
-    RKMK4) and ``settings``. Raises :class:`Unsupported`, :class:`EngineError` (read-back or
-    initial-state mismatch) and :class:`Diverged` (non-finite state).
+    simulate_system`), ``engine_time_s`` (inside World.step, or computeForwardDynamics and the
+    state setters for RKMK4) and ``settings``. Raises :class:`Unsupported`,
+    :class:`EngineError` (read-back or initial-state mismatch) and :class:`Diverged`
+    (non-finite state, or one DART replaced).
     """
     steps = ps.saves(nstep, save_every)
     dm, rec = build(scenario, integrator, dt, **settings)
