@@ -180,3 +180,17 @@ def test_unsupported_and_bad_arguments():
     out = ds.simulate_system(sc, EULER, 1e-3, 5, 2)
     assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
     assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
+
+
+def test_library_four_bar_runs_through_the_suite():
+    """The library's four-bar file through the suite's system path: World.step runs it, the
+    suite's RKMK4 is unsupported with the reason."""
+    import scenarios
+    from references.engines.system import run_system
+
+    sc = scenarios.load("four_bar")
+    out = run_system("dart", sc, EULER, 2e-3, t_end=0.2, save_every=10)
+    assert out.trajectory.position.shape == (11, len(sc.bodies), 3)
+    assert "constraint solver" in out.settings
+    with pytest.raises(Unsupported, match="World.step"):
+        run_system("dart", sc, RK, 2e-3, t_end=0.2, save_every=10)
