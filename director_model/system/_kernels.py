@@ -22,7 +22,8 @@ first iterate,
     Mth_i = D_{n+1} (1 - hat(w)) A^{-1} D_n^T,   A = dF/dw of the DMV residual F,
 
 assembled row pair by row pair over the rows that share a body (block tridiagonal for a
-chain: solved by banded LU without pivoting, cost linear in the number of bodies), or dense
+chain: solved by banded LU without pivoting, cost linear in the number of bodies; for chains
+of spherical joints assembled and eliminated as 3x3 blocks in straight-line code), or dense
 with a rank-revealing SVD and the minimum-norm solution (closed loops, redundant rows). The
 velocity stage solves the symmetric positive definite system
 sum_i G_i blockdiag(1/m_i, D I^-1 D^T) G_i^T nu = G u0 for the multipliers of

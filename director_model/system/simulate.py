@@ -59,9 +59,10 @@ class SystemTrajectory:
 
     Scalars: ``body_names``, ``joint_names`` (tuples), ``nstep`` (steps of this run or
     chunk), ``dt``, ``scheme``, ``wall_time_s``/``cpu_time_s`` (the compiled stepping
-    alone), ``solver`` ("banded": block-banded LU, or "minnorm": dense SVD with the
-    minimum-norm multipliers), ``newton_iterations`` (chord-Newton iterations of the
-    position multipliers over all sub-steps), ``max_iterations`` (most in one sub-step),
+    alone), ``solver`` ("block": 3x3-block tridiagonal elimination, "banded": banded LU and
+    L D L^T, or "minnorm": dense SVD with the minimum-norm multipliers),
+    ``newton_iterations`` (chord-Newton iterations of the position multipliers over all
+    sub-steps), ``max_iterations`` (most in one sub-step),
     ``rank_nominal`` (rank of the constraint Jacobian at t = 0), ``rank_drop_steps``
     (RATTLE sub-steps at which the velocity-stage matrix had a numerical rank, singular
     values above RANK_TOL sigma_1, below the nominal rank: a singular configuration),
