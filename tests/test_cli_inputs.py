@@ -41,6 +41,8 @@ def cases(tmp_path):
         tmp_path, "fam.toml", FREE.read_text() + '\n[tolerances."RK9000"]\nattitude_error_max = 1\n'
     )
     list_json = user_file(tmp_path, "list.json", "[1, 2, 3]")
+    digits = "1" + "0" * 5000  # an integer beyond Python's 4300-digit conversion limit
+    big_dt = user_file(tmp_path, "big_dt.json", '{"format": 3, "runs": [{"dt": ' + digits + "}]}")
     empty_dir = tmp_path / "empty"
     empty_dir.mkdir()
     return [
@@ -74,6 +76,8 @@ def cases(tmp_path):
         (["check", str(empty_dir), "--baseline", str(tmp_path / "no.json")], 2, ["no.json"]),
         (["check", str(empty_dir), "--baseline", list_json, "--factor", "0.5"], 2, [">= 1"]),
         (["check", str(empty_dir), "--baseline", str(FREE)], 2, ["free_tumbling.toml", "JSON"]),
+        (["check", str(empty_dir), "--baseline", "/dev/zero"], 2, ["/dev/zero", "not a regular"]),
+        (["check", str(empty_dir), "--baseline", big_dt], 2, ["big_dt.json", "4300 digits"]),
         (["ensemble", "dzhanibekov", "--n", "0", "--out", out], 2, ["--n", ">= 1"]),
         (["run", "--out", out, "--scheduler", "tcp://127.0.0.1:9"], 2, ["scheduler"]),
     ]
