@@ -263,8 +263,8 @@ def catalog() -> dict:
     from references.engines import engine_names, get_engine
 
     scs = []
-    default = set(scenarios.default_suite())
-    for name in scenarios.list_scenarios():
+    default = set(scenarios.default_suite()) | set(scenarios.default_systems())
+    for name in scenarios.list_scenarios() + scenarios.list_systems():
         sc = scenarios.load(name)
         scs.append(
             {
