@@ -78,6 +78,10 @@ METRIC_TITLES = {
     "momentum_drift_max": "momentum drift [L_c]",
     "orthonormality_max": "‖RᵀR − 1‖",
     "constraint_velocity_max": "velocity constraint [w_c]",
+    # systems of bodies (reports.system_metrics)
+    "joint_gap_max": "joint gap [m]",
+    "joint_angle_gap_max": "joint axes gap [rad]",
+    "branch_error": "branch error [rad]",
 }
 
 #: a mark per outcome in the HTML scorecard, beside its colour (the words are in the legend)
