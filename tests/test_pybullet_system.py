@@ -1,0 +1,217 @@
+"""The PyBullet builder for systems of bodies (references/engines/pybullet_system.py).
+
+Expected values come from formulations that share nothing with PyBullet: the reduced-coordinate
+reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
+parallelogram four-bar (scipy DOP853 on one ODE) and the conservation of momentum. Bullet's
+multibody stepper is first order, so the tolerances are orders (halving dt divides the error by
+about 2, accepted within a factor 1.6, as in tests/test_pinocchio_system.py, whose stand-in
+systems are reused).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("pybullet") is None or importlib.util.find_spec("pinocchio") is None,
+    reason="pybullet (and pin, for the shared stand-ins) not installed",
+)
+
+from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
+from references.engines import pybullet_system as bs  # noqa: E402
+from references.errors import EngineError, Unsupported  # noqa: E402
+from references.exact.multibody import solve, tree_from_world  # noqa: E402
+from tests.test_pinocchio_system import (  # noqa: E402
+    assert_order,
+    four_bar_gap,
+    four_bar_theta_error,
+    hinge_chain,
+    momentum,
+    scenario,
+    two_ball_hinge_errors,
+)
+
+MB = "multibody"
+
+
+def errors_vs_reference(sc, dt, t_end=1.0):
+    n = int(round(t_end / dt))
+    out = bs.simulate_system(sc, MB, dt, n, n // 10)
+    tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
+    ref = solve(tree, q0, u0, out["t"], estimate=False)
+    order = [ref.names.index(b.name) for b in sc.bodies]
+    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
+            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
+)
+def test_chains_agree_with_the_reduced_reference_at_first_order(system):
+    """Measured (pybullet 3.2.7, dt 1 and 0.5 ms over 1 s): 1.21e-3 / 6.08e-4 m (spherical),
+    1.13e-2 / 5.62e-3 m (hinge): order 1, the same errors as Pinocchio's and DART's
+    semi-implicit Euler on these systems."""
+    if system == "spherical3":
+        sc = scenario(system, *rod_chain(3, True, seed=1))
+    else:
+        sc = scenario(system, *hinge_chain())
+    ex1, eR1 = errors_vs_reference(sc, 1e-3)
+    ex2, eR2 = errors_vs_reference(sc, 5e-4)
+    assert_order(ex1, ex2, 1)
+    assert_order(eR1, eR2, 1)
+    assert ex2 < 1e-2
+
+
+def test_a_floating_chain_keeps_its_momentum_to_first_order():
+    """A floating 5-body chain (the base of its own multibody) in zero gravity."""
+    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
+    drifts = []
+    for h in (1e-3, 5e-4):
+        out = bs.simulate_system(sc, MB, h, int(round(1.0 / h)), 10)
+        P, L = momentum(sc, out)
+        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
+    assert_order(drifts[0][0], drifts[1][0], 1)
+    assert_order(drifts[0][1], drifts[1][1], 1)
+
+
+def test_four_bar_closed_by_point_to_point_constraints():
+    """Two JOINT_POINT2POINT on the closing hinge, dt = 1 ms over 2 s (four singular passages).
+    Measured: at Bullet's default erp 0.2 the gap reaches 1.86e-6 m (4.7e-7 m at 0.5 ms) and
+    the crank follows the pendulum to 8.0e-6 rad (the step's accuracy); at erp 0.9 the gap is
+    3.7e-7 m; with erp 0 the loop drifts open (2.4e-3 m) and the mechanism leaves its branch
+    (1.27 rad off the pendulum)."""
+    bodies, joints, I_eff, k = parallelogram_four_bar()
+    sc = scenario("four_bar", bodies, joints)
+    out = bs.simulate_system(sc, MB, 1e-3, 2000, 50)
+    gap, axis = four_bar_gap(sc, out)
+    assert gap.max() < 3e-6 and axis.max() < 1e-12
+    assert four_bar_theta_error(out, I_eff, k) < 1e-4
+    half = bs.simulate_system(sc, MB, 5e-4, 4000, 100)
+    assert four_bar_gap(sc, half)[0].max() < gap.max() / 2
+    s = out["settings"]
+    assert "two JOINT_POINT2POINT" in s["loop closures"][0]
+    assert [c["erp"] for c in s["constraints"]] == [bs.DEFAULT_ERP] * 2
+    assert [c["maxAppliedForce (N)"] for c in s["constraints"]] == [bs.DEFAULT_MAX_FORCE] * 2
+    stiff = bs.simulate_system(sc, MB, 1e-3, 2000, 50, erp=0.9)
+    assert four_bar_gap(sc, stiff)[0].max() < gap.max() / 2
+    off = bs.simulate_system(sc, MB, 1e-3, 2000, 50, erp=0.0)
+    assert four_bar_gap(sc, off)[0].max() > 1e-3
+    assert four_bar_theta_error(off, I_eff, k) > 1.0
+
+
+def test_default_erp_is_bullet_s(monkeypatch):
+    """DEFAULT_ERP is Bullet's: a run whose global erp is left at Bullet's default equals the
+    run at DEFAULT_ERP bit for bit (the global erp cannot be read back)."""
+    sc = scenario("four_bar", *parallelogram_four_bar()[:2])
+    out = bs.simulate_system(sc, MB, 1e-3, 300, 300)
+    orig = bs._Model.add_loops
+
+    def defaults(self, erp, max_force):
+        p = self.p
+        real = p.setPhysicsEngineParameter
+        monkeypatch.setattr(p, "setPhysicsEngineParameter", lambda **kw: None)
+        try:
+            orig(self, erp, max_force)
+        finally:
+            monkeypatch.setattr(p, "setPhysicsEngineParameter", real)
+
+    monkeypatch.setattr(bs._Model, "add_loops", defaults)
+    assert np.array_equal(bs.simulate_system(sc, MB, 1e-3, 300, 300)["x"], out["x"])
+
+
+def test_a_loop_through_the_ground_is_the_hinge_it_makes():
+    """A plate on two ground point-to-point constraints follows the reduced reference of the
+    hinge at order 1; the anchors stay within 1e-4 m."""
+    g1, e1 = two_ball_hinge_errors(bs, MB, 1e-3)
+    g2, e2 = two_ball_hinge_errors(bs, MB, 5e-4)
+    assert_order(e1, e2, 1)
+    assert max(g1, g2) < 1e-4 and e2 < 1e-2
+
+
+def _plant(monkeypatch, mistake):
+    orig = bs.engine_frames
+
+    def planted(pl, c):
+        f = orig(pl, c)
+        tj = pl.tree[c]
+        if tj.kind == "free" or tj.parent < 0:
+            return f
+        j = next(j for j in pl.joints if j.name == tj.name)
+        child_is_a = j.body_a == pl.names[c]
+        Yp = pl.tree[tj.parent].Y
+        if mistake == "axis in the parent's frame":
+            return dataclasses.replace(f, axis=bs.ps.unit(j.axis_b if child_is_a else j.axis_a, ""))
+        if mistake == "anchor from the body origin":
+            return dataclasses.replace(f, p=tj.X)  # the parent's anchor not moved by -Y_p
+        return dataclasses.replace(f, p=tj.Y - Yp, body_offset=-tj.X)  # sides swapped
+
+    monkeypatch.setattr(bs, "engine_frames", planted)
+
+
+@pytest.mark.parametrize(
+    "mistake",
+    ["axis in the parent's frame", "anchor from the body origin", "parent and child swapped"],
+)
+def test_planted_joint_mistakes_are_caught(monkeypatch, mistake):
+    sc = scenario("hinge4", *hinge_chain())
+    bs.simulate_system(sc, MB, 1e-3, 2, 1)  # the true builder passes
+    _plant(monkeypatch, mistake)
+    with pytest.raises(EngineError, match=r"joint 'h1'|body 'link1'") as exc:
+        bs.simulate_system(sc, MB, 1e-3, 2, 1)
+    assert "differ" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    "system", ["spherical3", "hinge4"], ids=["spherical joints", "revolute joints"]
+)
+def test_default_motors_left_on_are_caught(monkeypatch, system):
+    """PyBullet's default joint motors (never switched off) show in the probe step."""
+    if system == "spherical3":
+        sc = scenario(system, *rod_chain(3, True, seed=1))
+    else:
+        sc = scenario(system, *hinge_chain())
+    monkeypatch.setattr(bs._Model, "motors_off", lambda self, *a: None)
+    with pytest.raises(EngineError, match="joint motor, damping or the velocity clamp"):
+        bs.simulate_system(sc, MB, 1e-3, 1, 1)
+
+
+@pytest.mark.parametrize(
+    "default",
+    [
+        {"angularDamping": 0.04, "linearDamping": 0.04},
+        {"maxJointVelocity": 100.0},
+        {"jointDamping": 0.01},
+    ],  # fmt: skip
+    ids=["damping", "velocity clamp", "joint damping"],
+)
+def test_planted_defaults_are_caught(monkeypatch, default):
+    orig = bs._Model.motors_off
+
+    def planted(self, mb, links, kinds):
+        orig(self, mb, links, kinds)
+        self.p.changeDynamics(mb, links[-1], **default, physicsClientId=self.cid)
+
+    monkeypatch.setattr(bs._Model, "motors_off", planted)
+    with pytest.raises(EngineError, match="velocity clamp|joint damping"):
+        bs.simulate_system(scenario("s", *rod_chain(3, True, seed=1)), MB, 1e-3, 1, 1)
+
+
+def test_unsupported_and_bad_arguments():
+    b, j = rod_chain(2, True, seed=0)
+    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
+    with pytest.raises(Unsupported, match="joint1.*universal"):
+        bs.simulate_system(scenario("u", b, bad), MB, 1e-3, 1, 1)
+    sc = scenario("s", b, j)
+    with pytest.raises(Unsupported, match="maximal coordinates"):
+        bs.simulate_system(sc, "maximal coordinates", 1e-3, 1, 1)
+    with pytest.raises(ValueError, match="unknown settings"):
+        bs.simulate_system(sc, MB, 1e-3, 1, 1, baumgarte=(1, 1))
+    with pytest.raises(ValueError, match="erp"):
+        bs.simulate_system(sc, MB, 1e-3, 1, 1, erp=2.0)
+    out = bs.simulate_system(sc, MB, 1e-3, 5, 2)
+    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
+    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
