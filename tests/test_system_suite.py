@@ -204,3 +204,18 @@ def test_a_system_without_reference_is_judged_on_its_invariants_and_joints(tmp_p
     assert row["status"] == "unsupported" and "no independent reference" in row["message"]
     row = execute(RunSpec(sc, "drake", "semi_explicit_euler", 2e-3), tmp_path)
     assert row["status"] in ("unsupported", "unavailable")
+
+
+def test_system_fields_are_the_director_models():
+    """The scenario's bodies and joints carry exactly the fields of director_model.system's
+    Body and Joint (the contract with the engine builders)."""
+    import dataclasses
+
+    from director_model.system import Body, Joint
+    from scenarios import SystemBody, SystemJoint
+
+    def names(cls):
+        return {f.name for f in dataclasses.fields(cls)}
+
+    assert names(SystemBody) == names(Body)
+    assert names(SystemJoint) == names(Joint)
