@@ -17,11 +17,12 @@ by difference (:data:`reports.gate.ORDER_SLACK`). A status that got worse (ok to
 error) or a verdict that went from pass to fail is ``worse`` whatever the numbers.
 
 A cost (ns per step inside the engine and wall) is a range measured with the run
-(reports.runner): from the fastest timed repeat times the process's CPU share during the
-timing (on a busy machine the process ran only that part of the wall time) up to the slowest
-repeat. As in asv, a cost change is significant only when the ratio of the fastest times
-exceeds the factor AND the two ranges do not overlap; a ratio beyond the factor with
-overlapping ranges is ``not significant`` (the noise, measured, is as large as the change).
+(reports.runner): from the fastest timed repeat scaled by the process's CPU time over the
+wall time of its stepping (on a busy machine the process ran only that part of the wall
+time) up to the slowest repeat. After asv's rule, a cost change is significant only when the
+ratio of the fastest times exceeds the factor AND the ranges are that far apart (B's low end
+over A's high end beyond the factor, for a slowdown); otherwise it is ``not significant``:
+the noise measured with the runs could account for it.
 
 Exit code of the command: 1 when some run got worse in a metric, its status or its verdict,
 when a pair of runs is a mismatch, or when nothing is comparable (an empty folder, no run in
@@ -132,9 +133,11 @@ def classify(column: str, a: float, b: float, factor: float) -> tuple[float, str
 def classify_cost(a, b, factor: float) -> tuple[float, str] | None:
     """(ratio of the fastest times B/A, word) of a cost measured on each side as
     (fastest, low, high) (:func:`cost_range`; a NaN low or high end: the fastest time).
-    asv's rule: ``worse`` (``better``) only when the ratio exceeds ``factor`` (falls below
-    1/factor) AND the ranges [low, high] do not overlap; ``not significant`` when the ratio
-    is beyond the factor but they overlap; ``same`` within the factor."""
+    After asv's rule (a change beyond the factor whose ranges do not overlap), taken at the
+    ranges' nearest ends: ``worse`` only when the ratio of the fastest times exceeds
+    ``factor`` AND so does B's low end over A's high end (``better``: B's high end below A's
+    low end over the factor); ``not significant`` when the fastest times differ beyond the
+    factor but the ranges allow less; ``same`` within the factor."""
     (a_fast, a_lo, a_hi), (b_fast, b_lo, b_hi) = (tuple(_num(v) for v in side) for side in (a, b))
     if math.isnan(a_fast) and math.isnan(b_fast):
         return None
@@ -149,23 +152,24 @@ def classify_cost(a, b, factor: float) -> tuple[float, str] | None:
     (a_lo, a_hi), (b_lo, b_hi) = span(a_fast, a_lo, a_hi), span(b_fast, b_lo, b_hi)
     ratio = b_fast / a_fast
     if ratio > factor:
-        return ratio, ("worse" if b_lo > a_hi else "not significant")
+        return ratio, ("worse" if b_lo > factor * a_hi else "not significant")
     if ratio < 1.0 / factor:
-        return ratio, ("better" if b_hi < a_lo else "not significant")
+        return ratio, ("better" if factor * b_hi < a_lo else "not significant")
     return ratio, "same"
 
 
 def cost_range(row, column: str) -> tuple[float, float, float]:
     """The cost of a run in ``column`` (ns per step): (fastest repeat, the range's low end,
     its high end). The high end is the slowest repeat; the low end is the fastest repeat
-    times the process's CPU share during the timing (``cpu_share``: on a busy machine the
-    process ran only that fraction of the wall time, so the engine's own cost may be that
-    much lower than the wall clock says)."""
+    scaled by the process's CPU time over its wall time during the stepping (``cpu_time_s``
+    / ``wall_time_s``, at most 1): on a busy machine the process waited for a CPU part of
+    the wall time, so the engine's own cost may be that much lower than the clock says."""
     fastest = _num(row.get(column))
     n = _num(row.get("nstep"))
     hi = 1e9 * _num(row.get(COST_MAX[column])) / n if n and n > 0 else math.nan
-    share = _num(row.get("cpu_share"))
-    lo = fastest * share if 0.0 < share < 1.0 else fastest
+    wall, cpu = _num(row.get("wall_time_s")), _num(row.get("cpu_time_s"))
+    share = cpu / wall if wall > 0 else math.nan
+    lo = fastest * share if 0.0 <= share < 1.0 else fastest
     return fastest, lo, hi
 
 

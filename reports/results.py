@@ -82,7 +82,7 @@ RESULT_COLUMNS = (
     "wall_time_max_s",
     "engine_time_max_s",
     "timing_repeats",
-    "cpu_share",
+    "cpu_time_s",
     "ns_per_step",
     "engine_ns_per_step",
     "evals_per_step",

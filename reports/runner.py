@@ -161,7 +161,7 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
         recorder = _recorder(spec, sc)
         timings = ()
         try:
-            t0, c0 = time.perf_counter(), time.process_time()
+            t0 = time.perf_counter()
             output = cls().run(
                 sc,
                 integ.name,
@@ -174,7 +174,7 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
             )
             diverged = None
             if recorder is None:
-                call = (time.perf_counter() - t0, time.process_time() - c0)
+                call = time.perf_counter() - t0
                 output, timings = _timed_again(cls, sc, integ.name, spec, output, call)
         except Diverged as exc:
             output, diverged = exc.output, exc
@@ -198,27 +198,22 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
 
 #: a cheap run is run again for its timing: repeated while the calls so far and one more of
 #: the fastest stay within TIMING_BUDGET_S, at most TIMING_REPEATS runs in all; the row keeps
-#: the fastest stepping (wall_time_s, engine_time_s), the slowest (the *_max_s columns) and
-#: the share of the calls' wall time the process spent on a CPU (cpu_share)
+#: the fastest stepping (wall_time_s, engine_time_s, cpu_time_s) and the slowest (the *_max_s
+#: columns)
 TIMING_BUDGET_S = 0.05
 TIMING_REPEATS = 5
 
 
-def _timed_again(cls, sc, integrator: str, spec: RunSpec, output, call: tuple) -> tuple:
+def _timed_again(cls, sc, integrator: str, spec: RunSpec, output, call_s: float) -> tuple:
     """(``output`` with its stepping times the minimum over repeated runs of the same spec,
-    the timings: a tuple of every run's (wall, engine) stepping times, then the process's
-    CPU time over the wall time of all the calls, at most 1).
-
-    A repeat is a fresh engine's whole run, so no adapter state carries over; only cheap
-    runs repeat (``call``: the first run's whole call, (wall, CPU) seconds, counts against
-    TIMING_BUDGET_S); a repeat that fails or takes another number of steps ends them. The
-    CPU share says how much of the time the process was running: on a busy machine it
-    falls below 1, and the wall times overstate the engine's cost by up to its inverse."""
-    walls, engines = [output.wall_time_s], [output.engine_time_s]
-    spent, cpu = call
-    fastest = spent
-    while len(walls) < TIMING_REPEATS and spent + fastest <= TIMING_BUDGET_S:
-        t0, c0 = time.perf_counter(), time.process_time()
+    every run's (wall, engine, CPU) stepping times). A repeat is a fresh engine's whole run,
+    so no adapter state carries over; only cheap runs repeat (``call_s``, the first run's
+    whole call, counts against TIMING_BUDGET_S); a repeat that fails or takes another number
+    of steps ends them."""
+    times = [(output.wall_time_s, output.engine_time_s, output.cpu_time_s)]
+    spent = fastest = call_s
+    while len(times) < TIMING_REPEATS and spent + fastest <= TIMING_BUDGET_S:
+        t0 = time.perf_counter()
         try:
             again = cls().run(
                 sc, integrator, spec.dt, spec.horizon, spec.saving, accuracy=spec.accuracy
@@ -227,15 +222,15 @@ def _timed_again(cls, sc, integrator: str, spec: RunSpec, output, call: tuple) -
             break
         took = time.perf_counter() - t0
         spent += took
-        cpu += time.process_time() - c0
         fastest = min(fastest, took)
         if again.nstep != output.nstep:
             break
-        walls.append(again.wall_time_s)
-        engines.append(again.engine_time_s)
-    fast = dataclasses.replace(output, wall_time_s=min(walls), engine_time_s=min(engines))
-    share = min(cpu / spent, 1.0) if spent > 0 else math.nan
-    return fast, (tuple(zip(walls, engines, strict=True)), share)
+        times.append((again.wall_time_s, again.engine_time_s, again.cpu_time_s))
+    walls, engines, cpus = zip(*times, strict=True)
+    fast = dataclasses.replace(
+        output, wall_time_s=min(walls), engine_time_s=min(engines), cpu_time_s=min(cpus)
+    )
+    return fast, tuple(times)
 
 
 def _recorder(spec: RunSpec, sc):
@@ -251,10 +246,9 @@ def _recorder(spec: RunSpec, sc):
 
 def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
     """Timings, settings and metrics of a run's output (also of a diverged run's part);
-    ``timings``: the repeats' (wall, engine) stepping times and CPU share (_timed_again)."""
+    ``timings``: the repeats' (wall, engine, CPU) stepping times (see _timed_again)."""
     if output is None:
         return
-    timed, share = timings or ((), math.nan)
     traj = output.trajectory
     n = max(output.nstep, 1)
     row.update(
@@ -264,10 +258,10 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
         glue_time_s=output.glue_time_s,
         ns_per_step=1e9 * output.wall_time_s / n,
         engine_ns_per_step=1e9 * output.engine_time_s / n,
-        wall_time_max_s=max((w for w, _ in timed), default=output.wall_time_s),
-        engine_time_max_s=max((e for _, e in timed), default=output.engine_time_s),
-        timing_repeats=max(len(timed), 1),
-        cpu_share=share,
+        cpu_time_s=output.cpu_time_s,
+        wall_time_max_s=max((t[0] for t in timings), default=output.wall_time_s),
+        engine_time_max_s=max((t[1] for t in timings), default=output.engine_time_s),
+        timing_repeats=max(len(timings), 1),
         evals_per_step=output.evals_per_step,
         settings=json.dumps(output.settings, sort_keys=True, default=str),
         roundoff_floor=roundoff_floor(sc, output.nstep),

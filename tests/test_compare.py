@@ -150,8 +150,8 @@ def test_cost_changes_count_only_beyond_the_measured_spread():
     assert classify_cost((1.0, 1.0, 1.1), (1.5, 1.5, 1.6), 2.0)[1] == "same"
     assert classify_cost((3.0, 3.0, 3.3), (1.0, 1.0, 1.2), 2.0) == (pytest.approx(1 / 3), "better")
     assert classify_cost((3.0, 3.0, 3.3), (1.0, 1.0, 3.1), 2.0)[1] == "not significant"
-    # B ran 4x slower on the wall clock while its process had a quarter of a CPU (cpu_share
-    # 0.25: low end 1.0): the load, not the engine
+    # B ran 4x slower on the wall clock while its process had a quarter of a CPU (CPU time
+    # a quarter of the wall time: low end 1.0): the load, not the engine
     assert classify_cost((1.0, 1.0, 1.1), (4.0, 1.0, 4.4), 2.0)[1] == "not significant"
     # measured once, on an idle machine (no slowest time, share 1): the range is the point
     assert classify_cost((1.0, nan, nan), (3.0, nan, nan), 2.0)[1] == "worse"
@@ -159,9 +159,10 @@ def test_cost_changes_count_only_beyond_the_measured_spread():
 
 
 def test_cost_range_of_a_row():
-    r = {"ns_per_step": 100.0, "nstep": 1000, "wall_time_max_s": 2e-4, "cpu_share": 0.5}
+    r = {"ns_per_step": 100.0, "nstep": 1000, "wall_time_s": 1e-4, "wall_time_max_s": 2e-4}
+    r["cpu_time_s"] = 0.5e-4  # the process ran half of the stepping's wall time
     assert cost_range(r, "ns_per_step") == (100.0, 50.0, pytest.approx(200.0))
-    r["cpu_share"] = 1.0
+    r["cpu_time_s"] = 1.2e-4  # other threads of the process: no lower than the fastest
     assert cost_range(r, "ns_per_step")[1] == 100.0
 
 
@@ -173,19 +174,20 @@ def _scale_wall(src, dst, lo: float, hi: float) -> None:
         for r in st.rows():
             if r["integrator"] == "RK4":
                 wall = r["wall_time_s"]
-                r.update(wall_time_s=lo * wall, wall_time_max_s=hi * wall, cpu_share=1.0)
+                r.update(wall_time_s=lo * wall, wall_time_max_s=hi * wall)
+                r["cpu_time_s"] = r["wall_time_s"]
                 r["ns_per_step"] = 1e9 * r["wall_time_s"] / r["nstep"]
                 st.put(r)
 
 
 def test_a_cost_change_within_the_spread_is_not_significant(folders, tmp_path, capsys):
     """B's fastest stepping 3x A's, but A's own repeats spread to 4x: not significant, and
-    it does not gate even with --cost-factor; 5x against the same A gates."""
+    it does not gate even with --cost-factor; 10x (beyond twice A's slowest) gates."""
     a, _ = folders
     noisy_a, slower, much_slower = tmp_path / "na", tmp_path / "s", tmp_path / "m"
     _scale_wall(a, noisy_a, 1.0, 4.0)
     _scale_wall(a, slower, 3.0, 3.2)
-    _scale_wall(a, much_slower, 5.0, 5.5)
+    _scale_wall(a, much_slower, 10.0, 11.0)
     cmp = compare_folders(noisy_a, slower, cost_factor=2.0)
     (wall,) = [c for c in cmp.changes if c.key[2] == "RK4" and c.column == "ns_per_step"]
     assert wall.ratio == pytest.approx(3.0) and wall.change == "not significant" and cmp.ok

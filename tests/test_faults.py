@@ -39,7 +39,7 @@ VOLATILE = {
     "wall_time_max_s",
     "engine_time_max_s",
     "timing_repeats",
-    "cpu_share",
+    "cpu_time_s",
     "ns_per_step",
     "engine_ns_per_step",
     "finished_at",

@@ -318,6 +318,8 @@ class RunContext:
     #: the run's horizon, s
     t_end: float = 0.0
     clock: Clock = field(default_factory=Clock)
+    #: the process's CPU time over the stepping so far, s (beside the wall time the loop sums)
+    cpu_time: float = 0.0
     handle: Any = None
     #: dynamics evaluations so far (adapters with a varying count add to it)
     nevals: float = 0.0
@@ -420,6 +422,9 @@ class RunOutput:
     stats: dict[str, float] = field(default_factory=dict)
     #: the integrator family of the algorithm that ran (see RunContext.family)
     family: str = ""
+    #: the process's CPU time over the stepping (all its threads): on a busy machine less than
+    #: the wall time, by the time the process waited for a CPU
+    cpu_time_s: float = math.nan
 
     @property
     def glue_time_s(self) -> float:
@@ -856,9 +861,11 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
         try:
             with ctx.stderr:  # set by Engine.run, the only caller
                 t0 = time.perf_counter()  # after the redirection is in place
+                c0 = time.process_time()
                 states = stepper.run(steps)
         except StepFailure as exc:
             wall += time.perf_counter() - t0
+            ctx.cpu_time += time.process_time() - c0
             t_div, span = _failed_step(exc, done, block[-1], dt)
             kept = getattr(exc, "states", None)  # the checkpoints completed before it
             if kept is not None and len(kept[0]):
@@ -868,6 +875,7 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
                 engine, ctx, rec, done, wall, t_div, f"{span} could not be taken: {exc}"
             ) from exc
         wall += time.perf_counter() - t0
+        ctx.cpu_time += time.process_time() - c0
         _record_checked(engine, ctx, rec, block, states, done, wall, energy0)
         done = block[-1]
         if progress is not None:
@@ -924,6 +932,7 @@ def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
         nstep=int(steps_done),
         wall_time_s=float(wall),
         engine_time_s=float(min(ctx.clock.elapsed, wall)),
+        cpu_time_s=float(ctx.cpu_time),
         evals_per_step=float(per),
         settings=settings,
         stats=dict(ctx.stats),
