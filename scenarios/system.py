@@ -199,6 +199,8 @@ class SystemScenario:
     reference: str = "auto"
     reference_params: dict = field(default_factory=dict)
     tolerances: dict = field(default_factory=dict)
+    #: settings handed to one engine's builder, {engine: {name: value}} (``[engine_settings]``)
+    engine_settings: dict = field(default_factory=dict)
     source: str = ""
     tags: tuple[str, ...] = ()
     path: str | None = None
@@ -381,6 +383,7 @@ class SystemScenario:
             "reference": self.reference,
             "reference_params": dict(self.reference_params),
             "tolerances": self.tolerances,
+            "engine_settings": self.engine_settings,
         }
 
     @property
@@ -439,6 +442,7 @@ _TOP_KEYS = (
     "run",
     "reference",
     "tolerances",
+    "engine_settings",
 )
 
 
@@ -495,6 +499,7 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         else:
             params[key] = float(value)
     tolerances = sch._check_tolerances(data.get("tolerances"), bad)
+    engine_settings = _engine_settings(data.get("engine_settings"), bad)
     bodies = _bodies(data.get("bodies"), bad)
     joints = _joints(data.get("joints"), bodies, bad)
     if not probs and joints:
@@ -515,6 +520,7 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         reference=kind,
         reference_params=params,
         tolerances=tolerances,
+        engine_settings=engine_settings,
         source=data.get("source", ""),
         tags=tuple(data.get("tags", ())),
         path=path,
@@ -527,6 +533,36 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
     if probs:
         raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
     return sc
+
+
+def _engine_settings(table, bad) -> dict:
+    """``[engine_settings.<engine>]``: name = a number, a string, a boolean or a list of
+    numbers, handed to that engine's system builder as keyword arguments (e.g. MuJoCo's
+    ``solref`` of the loop closures); the builder refuses a name it does not take."""
+    from scenarios import schema as sch
+
+    if table is None:
+        return {}
+    if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
+        bad("engine_settings", table, "must hold one table per engine: [engine_settings.<name>]")
+        return {}
+    out: dict = {}
+    for engine, values in table.items():
+        for k, v in values.items():
+            ok = (
+                isinstance(v, str | bool)
+                or sch._finite(v)
+                or (isinstance(v, list) and v and sch._finite_numbers(v))
+            )
+            if not ok:
+                bad(
+                    f"engine_settings.{engine}.{k}",
+                    v,
+                    "must be a number, a string, a boolean or a list of numbers",
+                )
+            else:
+                out.setdefault(str(engine), {})[str(k)] = v
+    return out  # fmt: skip
 
 
 def _table(data, key, bad, required=False) -> dict:

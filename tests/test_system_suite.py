@@ -219,3 +219,20 @@ def test_system_fields_are_the_director_models():
 
     assert names(SystemBody) == names(Body)
     assert names(SystemJoint) == names(Joint)
+
+
+def test_engine_settings_reach_the_builder_and_bad_ones_are_named():
+    from references.engines.system import run_system
+    from references.errors import EngineError
+
+    d = _data("four_bar")
+    d["engine_settings"] = {"mujoco": {"solref": [0.004, 1.0], "solimp": {"a": 1}}}
+    with pytest.raises(ScenarioError) as err:
+        validate_system(d)
+    assert [p[0] for p in err.value.problems] == ["engine_settings.mujoco.solimp"]
+    sc = scenarios.load("spinning_chain").replace(
+        t_end=0.01, engine_settings={"director": {"solver": "no-such-solver"}}
+    )
+    with pytest.raises(EngineError, match="no-such-solver"):
+        run_system("director", sc, "rattle", 1e-3)
+    assert run_system("director", sc.replace(engine_settings={}), "rattle", 1e-3).nstep == 10

@@ -80,13 +80,15 @@ def run_system(
     **settings,
 ) -> SystemRunOutput:
     """Run the system ``scenario`` on ``engine``'s builder with ``integrator`` at step
-    ``dt`` up to ``t_end`` (default: the scenario's), saving every ``save_every`` steps.
+    ``dt`` up to ``t_end`` (default: the scenario's), saving every ``save_every`` steps,
+    with the builder's ``settings`` (the file's ``[engine_settings.<engine>]``, then these).
     Raises :class:`Unsupported`, :class:`Diverged` (with the output up to the last good
     state) or :class:`EngineError` (a builder's output that breaks the contract)."""
     t_end = scenario.t_end if t_end is None else float(t_end)
     save_every = scenario.save_every if save_every is None else int(save_every)
     nstep, saves = step_plan(dt, t_end, save_every)
     mod = builder(engine)
+    settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
     t0 = time.perf_counter()
     res = mod.simulate_system(scenario, integrator, float(dt), int(nstep), int(save_every),
                               **settings)  # fmt: skip
