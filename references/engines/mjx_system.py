@@ -46,6 +46,18 @@ _NOT_IN_MJX = ("implicit", "discrete")
 _STEP = {}
 
 
+def _base_name(integrator: str) -> str:
+    """The MuJoCo integrator of one of the MJX adapter's configurations ("Euler (float64)" ->
+    "Euler"); the float32 configurations are refused, since this builder runs in float64 only."""
+    name, _, precision = integrator.partition(" (")
+    if precision.rstrip(")") == "float32":
+        raise Unsupported(
+            "mjx: systems run in float64 only (a float32 tree would be checked against a "
+            "float64 state it cannot hold)"
+        )
+    return name
+
+
 def _step_fn():
     """``(model, data, k) -> data`` after k steps, jitted (one function per process)."""
     from references.engines.mjx_engine import _import
@@ -64,6 +76,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     as :func:`references.engines.mujoco_system.simulate_system` (no settings: a tree has no
     soft constraint). Raises :class:`Unsupported` for a loop, a joint the C builder does not
     build, or an integrator MJX does not implement."""
+    integrator = _base_name(integrator)
     if integrator in _NOT_IN_MJX:
         raise Unsupported(
             f"mjx: MJX's JAX backend does not implement MuJoCo's {integrator} integrator"
