@@ -9,10 +9,12 @@ solved for its angles; the one-degree-of-freedom pendulum of a parallelogram lin
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import fsolve
+from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 from director_model.system.model import Body, Joint, project_velocities
+
+RTOL = 4 * np.finfo(float).eps  # relative tolerance of the Brent solves (round-off)
 
 
 def rot_y(t: float) -> np.ndarray:
@@ -90,13 +92,29 @@ def straight_chain(omega: float = 2.0, gravity=(0.0, 0.0, -9.81), v_com=(0.3, -0
 def double_conical_pendulum(omega: float = 3.0, g: float = 9.81):
     """Two rods (1 m, 1 kg and 0.8 m, 0.7 kg; transverse moments m L^2/12 + 0.005, axial
     0.01) hanging from a spherical joint at the origin, joined by a spherical joint, in
-    steady rotation at ``omega`` about the vertical (gravity -z). The angles (theta_1,
-    theta_2) from the downward vertical solve the Newton-Euler balance of each link in the
-    rotating plane: m a = m g + joint forces with a the centripetal acceleration, and the
-    torque of the joint forces about each centre of mass equal to omega e_z x L_k (the
-    gyroscopic torque of a link spinning about a non-principal axis), here by scipy's fsolve
-    to 1e-15. Returns (bodies, joints, exact, angles) with exact(t) -> (X (2, 3),
-    [R_1, R_2]) = rotation of the initial state by omega t about e_z."""
+    steady rotation at ``omega`` (rad/s) about the vertical (gravity -z, ``g`` = |g| m/s^2).
+    The angles (theta_1, theta_2) from the downward vertical solve the Newton-Euler balance
+    of each link in the rotating plane: m a = m g + joint forces with a the centripetal
+    acceleration, and the torque of the joint forces about each centre of mass equal to
+    omega e_z x L_k (the gyroscopic torque of a link spinning about a non-principal axis).
+
+    The branch solved for is the in-phase cone: both links below the pivot and tilted to the
+    same side, 0 < theta_k < pi/2, which exists for |omega| above the lowest frequency of
+    small swings (2.86093 rad/s with g = 9.81) and tends to pi/2 as |omega| grows. It is
+    bracketed, not guessed: for theta_1 in (0, pi/2) link 2's balance has exactly one root
+    theta_2 in (0, pi/2) (its residual over cos theta_2 is concave in theta_2, positive at 0,
+    negative towards pi/2); link 1's balance with that theta_2 is negative at theta_1 = pi/2
+    and positive just above 0 when |omega| exceeds the lowest frequency. Both are solved by
+    Brent's method to round-off. A rate with no such solution (at or below the lowest
+    frequency, or not finite) raises ValueError naming the rate and that frequency.
+
+    Returns (bodies, joints, exact, angles) with exact(t) -> (X (2, 3), [R_1, R_2]) =
+    rotation of the initial state by omega t about e_z, and angles (2,) rad."""
+    if not (np.isfinite(omega) and np.isfinite(g) and g > 0):
+        raise ValueError(
+            f"double_conical_pendulum: omega = {omega!r} rad/s and g = {g!r} m/s^2 must be "
+            "finite, with g > 0"
+        )
     m = (1.0, 0.7)
     L = (1.0, 0.8)
     It = tuple(mm * LL**2 / 12 + 0.005 for mm, LL in zip(m, L, strict=True))
@@ -115,7 +133,7 @@ def double_conical_pendulum(omega: float = 3.0, g: float = 9.81):
             top = x - R[k] @ np.array([0.0, 0.0, L[k] / 2])
         return R, xs, tops
 
-    def balance(th):
+    def balance(th, w=w):
         R, xs, tops = geometry(th)
         acc = [np.cross(w, np.cross(w, x)) for x in xs]
         F1 = m[1] * (acc[1] - gv)  # on link 2 at its top, from link 1
@@ -127,9 +145,33 @@ def double_conical_pendulum(omega: float = 3.0, g: float = 9.81):
             if Fbot is not None:
                 tau = tau + np.cross(tops[1] - xs[k], Fbot)
             res.append((tau - np.cross(w, Lk))[1])
-        return res
+        return np.array(res)
 
-    th = fsolve(balance, (0.6, 0.9), xtol=1e-13)
+    def theta2(th1):
+        return brentq(lambda t2: balance((th1, t2))[1], 0.0, np.pi / 2, xtol=1e-16, rtol=RTOL)
+
+    def link1(th1):
+        return balance((th1, theta2(th1)))[0]
+
+    lo, hi = 1e-6, np.pi / 2 - 1e-9
+    if np.sign(link1(lo)) == np.sign(link1(hi)):
+        # the linearised balance at theta = 0 is (K - omega^2 M) theta: K from the Jacobian
+        # at rest, M from its change per unit omega^2 (central differences, error ~1e-10)
+        def jac(rate):
+            e = 1e-6 * np.eye(2)
+            wr = np.array([0.0, 0.0, rate])
+            return np.column_stack([(balance(e[i], wr) - balance(-e[i], wr)) / 2e-6
+                                    for i in range(2)])  # fmt: skip
+
+        K, M = jac(0.0), jac(0.0) - jac(1.0)
+        w_low = np.sqrt(np.min(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+        raise ValueError(
+            f"double_conical_pendulum: at omega = {omega!r} rad/s there is no steady rotation "
+            "with both links below the pivot on one side (0 < theta < pi/2): |omega| must "
+            f"exceed the lowest frequency of small swings, {w_low:.6g} rad/s"
+        )
+    th1 = brentq(link1, lo, hi, xtol=1e-16, rtol=RTOL)
+    th = np.array([th1, theta2(th1)])
     R, xs, tops = geometry(th)
     bodies = [
         Body(f"l{k}", m[k], (It[k], It[k], Ia[k]), xs[k], R[k], np.cross(w, xs[k]), R[k].T @ w)
@@ -144,14 +186,18 @@ def double_conical_pendulum(omega: float = 3.0, g: float = 9.81):
         Q = rot_z(omega * t)
         return np.array([Q @ x for x in xs]), [Q @ r for r in R]
 
-    return bodies, joints, exact, np.asarray(th)
+    return bodies, joints, exact, th
 
 
 def parallelogram_four_bar(theta0: float = 0.0, theta_dot0: float = 7.0):
     """A planar parallelogram four-bar of revolute joints (axes along y) in the x-z plane:
     crank (0.5 m, 1 kg) pivoting at the origin, rocker (0.5 m, 1.5 kg) at (1, 0, 0), coupler
     (1 m, 2 kg) joining their tips; uniform rods with the centres of mass at mid-length.
-    theta is the crank and rocker angle from the downward vertical; the coupler translates.
+    theta is the crank and rocker angle from the downward vertical: both are turned by
+    rot_y(theta) about their ground pivots (a turn about +y, so the tips sit at
+    L (-sin theta, 0, -cos theta) from the pivots and theta' > 0 moves them towards -x), with
+    angular velocity theta' e_y; the coupler translates with the tips. Any theta0, theta_dot0
+    gives a state on the joints (positions and velocities), the collinear theta0 = pi/2 too.
     Twenty joint rows of rank 17 (three redundant: a planar loop of revolutes in space). With
     theta_dot0 = 7 rad/s from theta0 = 0 it swings to 1.666 rad, through the singular
     configuration theta = pi/2 (all links collinear) twice per swing.
@@ -159,13 +205,18 @@ def parallelogram_four_bar(theta0: float = 0.0, theta_dot0: float = 7.0):
     Returns (bodies, joints, I_eff, k): the exact motion is the planar pendulum
     I_eff theta'' = -|g| k sin(theta) (multibody.md section 5) with I_eff = I_A + I_B +
     m_c L^2 (I_A, I_B about the ground pivots) and k = m_A L_A + m_B L_B + m_c L."""
+    if not (np.isfinite(theta0) and np.isfinite(theta_dot0)):
+        raise ValueError(
+            f"parallelogram_four_bar: theta0 = {theta0!r} rad and theta_dot0 = {theta_dot0!r} "
+            "rad/s must be finite"
+        )
     L, d = 0.5, 1.0
     mA, mB, mC = 1.0, 1.5, 2.0
     IA = (mA * L**2 / 12 + 0.001, mA * L**2 / 12 + 0.002, 0.002)
     IB = (mB * L**2 / 12 + 0.001, mB * L**2 / 12 + 0.002, 0.002)
     IC = (0.003, mC * d**2 / 12 + 0.001, mC * d**2 / 12 + 0.002)
     R = rot_y(theta0)
-    tip = np.array([L * np.sin(theta0), 0.0, -L * np.cos(theta0)])
+    tip = R @ np.array([0.0, 0.0, -L])  # crank tip from its pivot (rocker's likewise)
     vtip = np.cross([0.0, theta_dot0, 0.0], tip)
     W = (0.0, theta_dot0, 0.0)
     bodies = [
