@@ -393,7 +393,7 @@ def test_conical_pendulum_angles_agree_with_the_director_examples_balance():
         g=9.81,
         rate=3.0,
     )
-    # both solved to ~1e-15 (Brent here, fsolve at xtol 1e-13 there): measured 1.1e-16 apart
+    # both solved to round-off by Brent's method on the two formulations: measured 1.1e-16 apart
     assert np.max(np.abs(np.asarray(angles) - cp.phi)) < 1e-12
 
 
