@@ -1,0 +1,438 @@
+"""Drake builder for systems of rigid bodies: one MultibodyPlant in Drake's reduced coordinates
+(``BallRpyJoint``, ``RevoluteJoint``, ``QuaternionFloatingJoint`` for a floating root), loops
+closed by ``AddBallConstraint`` on discrete (SAP) plants only.
+
+Input: a system scenario as for :mod:`references.engines.pinocchio_system` (the contract's
+``name, gravity, bodies, joints``); the spanning tree is that module's
+:func:`~references.engines.pinocchio_system.plan` (one definition for every reduced-coordinate
+engine).
+
+Frames. Every Drake body frame is the body's principal frame at its COM
+(``SpatialInertia.MakeFromCentralInertia(m, 0, RotationalInertia(I1, I2, I3))``), so Drake's
+body poses and spatial velocities are the suite's states with no conversion. A tree joint
+connects a frame F on the parent (``FixedOffsetFrame`` at the parent's anchor X, in the parent's
+principal frame relative to its COM, a world point for the ground; rotation R_F = R_p^T R_c at
+t = 0) to a frame M on the child (at the child's anchor Y, identity rotation), so every joint's
+coordinates are zero at t = 0 (:func:`engine_frames`, the builder's boundary where the tests
+plant mistakes):
+
+==================  ======================  ================================================
+scenario kind       Drake joint             initial coordinates
+==================  ======================  ================================================
+spherical,          ``BallRpyJoint``        rpy 0; w_FM (in F) = R_F^T R_p^T (w_c - w_p)
+fixed_point
+revolute            ``RevoluteJoint`` (axis  angle 0; rate n . (W_c - R_rel^T W_p)
+                    = the child's, in M)
+(floating root)     ``QuaternionFloatingJoint``  SetFreeBodyPose / SetFreeBodySpatialVelocity
+others              -                       unsupported (not built by this adapter)
+==================  ======================  ================================================
+
+The roll-pitch-yaw chart of a ball joint is singular at pitch = +-pi/2. This builder does not
+switch charts (the single-body adapter does; for a chain each joint would need its own switch):
+a run in which a ball joint's |cos pitch| falls below :data:`RPY_LIMIT_COS` stops there and is
+``Unsupported`` with the joint, the time and the reason (a Simulator monitor after every step).
+
+Loops. A closing spherical joint is one ``AddBallConstraint`` between the anchors (the world
+body for the ground); a closing revolute joint two, at the anchors and at the anchors moved by
+the system's length scale along the hinge (six equations for five; SAP's regularised solve
+accepts the redundancy). Drake honours these constraints only in discrete SAP plants; a
+continuous-time plant with a loop is ``Unsupported`` with that reason (drake#24957 reports a
+constraint silently ignored in continuous mode; the tests show what the suite's gap metric sees
+if the refusal is bypassed).
+
+Integrators: the single-body adapter's names (``references.engines.drake_engine``): the
+fixed-step continuous schemes (``ResetIntegratorFromFlags`` at dt, fixed step mode, read back)
+and ``discrete SAP`` (``MultibodyPlant(time_step=dt)``, kSap). Error-controlled runs are
+unsupported for systems.
+
+Read back before stepping: body masses, central inertias and COMs, joint types, parents,
+frames (F in the parent, M in the child), revolute axes, damping (0), limits (infinite),
+gravity, the numbers of joints, actuators, geometries and constraints, the time stepping; then
+Drake's kinematics of the initial state must reproduce every body and every joint's anchor and
+axis (from both sides), else :class:`~references.errors.EngineError` names the body or joint.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from references.engines import pinocchio_system as ps
+from references.engines.base import import_engine
+from references.errors import Diverged, EngineError, Unsupported
+
+#: fixed-step continuous schemes (Drake's names) and the discrete plant
+CONTINUOUS = (
+    "semi_explicit_euler",
+    "explicit_euler",
+    "runge_kutta2",
+    "runge_kutta3",
+    "bogacki_shampine3",
+    "runge_kutta5",
+    "implicit_euler",
+    "velocity_implicit_euler",
+    "radau1",
+    "radau3",
+)
+DISCRETE = "discrete SAP"
+INTEGRATORS = (*CONTINUOUS, DISCRETE)
+
+#: |cos pitch| of a ball joint's roll-pitch-yaw chart below which the run stops as unsupported
+#: (the chart's rate map grows as 1 / cos pitch; Drake itself refuses near 1e-3)
+RPY_LIMIT_COS = 0.05
+
+_SETTINGS = ()
+
+
+def _import():
+    return import_engine("pydrake", "Drake (pydrake)", "drake")
+
+
+def loops_supported(integrator: str) -> bool:
+    """Whether this builder closes loops with ``integrator``: only on the discrete SAP plant
+    (module docstring; the tests bypass it to show what a continuous plant does)."""
+    return integrator == DISCRETE
+
+
+@dataclass
+class DrakeFrames:
+    """What Drake is given for one tree joint: its kind, frame F on the parent (position in
+    the parent's principal frame at the COM, world for the ground; rotation), frame M on the
+    child (position; identity rotation) and a revolute axis (in F and M)."""
+
+    kind: str
+    p_F: np.ndarray
+    R_F: np.ndarray
+    p_M: np.ndarray
+    axis: np.ndarray | None
+
+
+def engine_frames(pl: ps.Plan, c: int) -> DrakeFrames:
+    """The builder's boundary: the frames of body c's joint (module docstring)."""
+    tj = pl.tree[c]
+    _, Rp, _, _ = ps.world(pl, tj.parent)
+    _, Rc, _, _ = ps.world(pl, c)
+    return DrakeFrames(tj.kind, tj.X, Rp.T @ Rc, tj.Y, tj.axis_c)
+
+
+class _Model:
+    """Drake's plant, context, simulator; joints and bodies per scenario body."""
+
+    def __init__(self, pl: ps.Plan, integrator: str, dt: float):
+        from pydrake.math import RigidTransform, RotationMatrix
+        from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
+        from pydrake.multibody.tree import (
+            BallRpyJoint,
+            FixedOffsetFrame,
+            QuaternionFloatingJoint,
+            RevoluteJoint,
+            RotationalInertia,
+            SpatialInertia,
+        )
+
+        self.pl = pl
+        self.discrete = integrator == DISCRETE
+        plant = MultibodyPlant(time_step=dt if self.discrete else 0.0)
+        if self.discrete:
+            plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
+        self.body, self.joint, self.frames = {}, {}, {}
+        for c in pl.order:
+            b = pl.bodies[c]
+            I1, I2, I3 = (float(v) for v in b.inertia)
+            M = SpatialInertia.MakeFromCentralInertia(
+                float(b.mass), np.zeros(3), RotationalInertia(I1, I2, I3)
+            )
+            self.body[c] = plant.AddRigidBody(b.name, M)
+        for c in pl.order:
+            tj = pl.tree[c]
+            if tj.kind == "free":  # explicit, with zero damping (read back)
+                self.joint[c] = plant.AddJoint(QuaternionFloatingJoint(
+                    f"{pl.names[c]}_joint", plant.world_frame(), self.body[c].body_frame(),
+                    0.0, 0.0))  # fmt: skip
+                continue
+            f = engine_frames(pl, c)
+            parent = plant.world_body() if tj.parent < 0 else self.body[tj.parent]
+            X_F = RigidTransform(RotationMatrix(f.R_F), f.p_F)
+            X_M = RigidTransform(RotationMatrix(), f.p_M)
+            F = plant.AddFrame(FixedOffsetFrame(f"{pl.names[c]}_F", parent.body_frame(), X_F))
+            Mf = plant.AddFrame(
+                FixedOffsetFrame(f"{pl.names[c]}_M", self.body[c].body_frame(), X_M)
+            )
+            if tj.kind == "spherical":
+                joint = BallRpyJoint(f"{pl.names[c]}_joint", F, Mf, 0.0)
+            else:
+                joint = RevoluteJoint(f"{pl.names[c]}_joint", F, Mf, f.axis, 0.0)
+            self.joint[c] = plant.AddJoint(joint)
+            self.frames[c] = f
+        plant.mutable_gravity_field().set_gravity_vector(pl.gravity)
+        self.loops = []
+        if pl.loops and loops_supported(integrator):
+            for lp in pl.loops:
+                B = plant.world_body() if lp.b < 0 else self.body[lp.b]
+                for Xa, Xb in lp.pairs:
+                    plant.AddBallConstraint(self.body[lp.a], Xa, B, Xb)
+                self.loops.append(lp)
+        plant.Finalize()
+        self.plant = plant
+        self.context = plant.CreateDefaultContext()
+        self.clock = 0.0
+
+    def set_initial(self) -> None:
+        from pydrake.math import RigidTransform, RotationMatrix
+        from pydrake.multibody.math import SpatialVelocity
+
+        pl, plant, ctx = self.pl, self.plant, self.context
+        for c in pl.order:
+            tj = pl.tree[c]
+            x, R, v, w = ps.world(pl, c)
+            if tj.kind == "free":
+                plant.SetFreeBodyPose(ctx, self.body[c], RigidTransform(RotationMatrix(R), x))
+                plant.SetFreeBodySpatialVelocity(ctx, self.body[c], SpatialVelocity(w, v))
+                continue
+            _, Rp, _, wp = ps.world(pl, tj.parent)
+            joint, f = self.joint[c], self.frames[c]
+            if tj.kind == "spherical":
+                joint.set_angles(ctx, np.zeros(3))
+                joint.set_angular_velocity(ctx, f.R_F.T @ Rp.T @ (w - wp))
+            else:
+                joint.set_angle(ctx, 0.0)
+                joint.set_angular_rate(ctx, float(tj.axis_c @ (R.T @ (w - wp))))
+
+    def states(self):
+        nb = len(self.pl.bodies)
+        x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
+        v, W = np.empty((nb, 3)), np.empty((nb, 3))
+        for c, body in self.body.items():
+            X = body.EvalPoseInWorld(self.context)
+            V = body.EvalSpatialVelocityInWorld(self.context)
+            R[c] = X.rotation().matrix()
+            x[c] = X.translation()
+            v[c] = V.translational()
+            W[c] = R[c].T @ V.rotational()
+        return x, R, v, W
+
+    def joint_world(self):
+        points, axes = {}, {}
+        for c, joint in self.joint.items():
+            tj = self.pl.tree[c]
+            if tj.kind == "free":
+                continue
+            X = joint.frame_on_child().CalcPoseInWorld(self.context)
+            points[tj.name] = X.translation()
+            if tj.kind == "revolute":
+                XF = joint.frame_on_parent().CalcPoseInWorld(self.context)
+                axes[tj.name] = XF.rotation().matrix() @ joint.revolute_axis()
+        return points, axes
+
+
+def read_back(dm: _Model, scenario) -> None:
+    """Compare Drake's model with the scenario (module docstring)."""
+    pl, plant, ctx = dm.pl, dm.plant, dm.context
+    bad = []
+
+    def want(what, got, exp, tol=ps.CHECK_TOL):
+        got, exp = np.asarray(got, float), np.asarray(exp, float)
+        scale = max(1.0, float(np.max(np.abs(exp))) if exp.size else 1.0)
+        if got.shape != exp.shape or not np.all(np.abs(got - exp) <= tol * scale):
+            bad.append(f"{what}: {np.round(got, 12).tolist()}, expected "
+                       f"{np.round(exp, 12).tolist()}")  # fmt: skip
+
+    types = {"spherical": "ball_rpy", "revolute": "revolute", "free": "quaternion_floating"}
+    for c, body in dm.body.items():
+        b, tj = pl.bodies[c], pl.tree[c]
+        name = f"body {b.name!r} ({tj.label})"
+        M = body.CalcSpatialInertiaInBodyFrame(ctx)
+        want(f"{name}: mass", M.get_mass(), b.mass)
+        want(f"{name}: COM in the body frame", M.get_com(), np.zeros(3))
+        want(f"{name}: central inertia", M.CalcRotationalInertia().CopyToFullMatrix3(),
+             np.diag(np.asarray(b.inertia, float)))  # fmt: skip
+        joint = dm.joint.get(c)
+        if joint is None:
+            bad.append(f"{name}: no joint found")
+            continue
+        if joint.type_name() != types[tj.kind]:
+            bad.append(f"{name}: joint {joint.type_name()}, needs {types[tj.kind]}")
+            continue
+        if joint.child_body().index() != body.index():
+            bad.append(f"{name}: the joint's child is {joint.child_body().name()!r}")
+        exp_parent = "world" if tj.parent < 0 else pl.names[tj.parent]
+        got_parent = "world" if joint.parent_body().index() == plant.world_body().index() else (
+            joint.parent_body().name())  # fmt: skip
+        if got_parent != exp_parent:
+            bad.append(f"{name}: parent {got_parent!r}, needs {exp_parent!r}")
+        nv = joint.num_velocities()
+        want(f"{name}: joint damping", joint.GetDampingVector(ctx), np.zeros(nv))
+        lows = (joint.position_lower_limits(), joint.velocity_lower_limits(),
+                joint.acceleration_lower_limits())  # fmt: skip
+        ups = (joint.position_upper_limits(), joint.velocity_upper_limits(),
+               joint.acceleration_upper_limits())  # fmt: skip
+        if not (all(np.all(np.isneginf(a)) for a in lows)
+                and all(np.all(np.isposinf(a)) for a in ups)):  # fmt: skip
+            bad.append(f"{name}: joint limits not infinite")
+        if tj.kind == "free":
+            continue
+        f = dm.frames[c]
+        XF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
+        XM = joint.frame_on_child().GetFixedPoseInBodyFrame()
+        want(f"{name}: frame F position in the parent", XF.translation(), f.p_F)
+        want(f"{name}: frame F rotation in the parent", XF.rotation().matrix(), f.R_F)
+        want(f"{name}: frame M position in the child", XM.translation(), f.p_M)
+        want(f"{name}: frame M rotation in the child", XM.rotation().matrix(), np.eye(3))
+        if tj.kind == "revolute":
+            want(f"{name}: revolute axis", joint.revolute_axis(), f.axis)
+    want("gravity", plant.gravity_field().gravity_vector(), pl.gravity)
+    want("number of joints", plant.num_joints(), len(dm.body))
+    want("number of actuators", plant.num_actuators(), 0)
+    want("number of collision geometries", plant.num_collision_geometries(), 0)
+    want("number of constraints", plant.num_constraints(),
+         sum(len(lp.pairs) for lp in dm.loops))  # fmt: skip
+    if bad:
+        raise EngineError(
+            f"drake: system {scenario.name!r}: the model differs from the scenario: "
+            + "; ".join(bad)
+        )
+
+
+def build(scenario, integrator: str, dt: float, **settings):
+    """(_Model, settings record): planned, built, read back, the initial state set and checked
+    against Drake's kinematics."""
+    if integrator not in INTEGRATORS and integrator.endswith("(error-controlled)"):
+        raise Unsupported(
+            f"drake: {integrator}: error-controlled runs are not offered for systems (the "
+            "suite refuses target accuracies for systems)"
+        )
+    ps.check_run_args(integrator, dt, INTEGRATORS)
+    unknown = sorted(set(settings) - set(_SETTINGS))
+    if unknown:
+        raise ValueError(f"drake simulate_system: unknown settings {unknown}; known: none")
+    _import()
+    pl = ps.plan(scenario, "drake")
+    if pl.loops and not loops_supported(integrator):
+        raise Unsupported(
+            f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "
+            f"act only in a discrete SAP plant, and {integrator} runs a continuous-time plant, "
+            "where a constraint is not enforced (drake#24957): run 'discrete SAP'"
+        )
+    dm = _Model(pl, integrator, float(dt))
+    read_back(dm, scenario)
+    dm.set_initial()
+    x, R, v, W = dm.states()
+    points, axes = dm.joint_world()
+    ps.check_states("drake", pl, x, R, v, W, points, axes)
+    rec = {
+        "engine": f"drake {importlib.metadata.version('drake')}",
+        "integrator": integrator,
+        "plant": "discrete, DiscreteContactApproximation.kSap"
+        if dm.discrete
+        else "continuous; Simulator with the fixed-step integrator at dt",
+        "dt": float(dt),
+        "gravity": pl.gravity.tolist(),
+        "tree": {
+            pl.names[c]: f"{pl.tree[c].kind} to "
+            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
+            for c in pl.order
+        },  # fmt: skip
+        "frames": "body frames principal at the COM; joint frames F (parent, rotation R_p^T R_c "
+        "at t = 0) and M (child) at the anchors: every joint coordinate 0 at t = 0",
+        "ball joints": f"BallRpyJoint, no chart switch; unsupported below |cos pitch| "
+        f"{RPY_LIMIT_COS:g}",
+        "joint damping": 0.0,
+        "collision": "none (no geometry)",
+    }
+    if dm.loops:
+        rec["loop closures"] = [
+            f"{lp.label}: "
+            + (
+                "two AddBallConstraint on the hinge axis (6 equations for 5)"
+                if lp.kind == "revolute"
+                else "AddBallConstraint"
+            )  # fmt: skip
+            for lp in dm.loops
+        ]
+    return dm, rec
+
+
+def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
+                    **settings) -> dict:  # fmt: skip
+    """Run ``scenario`` (module docstring) on Drake.
+
+    ``integrator``: one of :data:`INTEGRATORS`; ``dt`` s; ``nstep`` steps saved at 0, s, 2s,
+    ..., nstep; no settings. Returns a dict with ``t, x, R, v, W`` (as
+    :func:`references.engines.pinocchio_system.simulate_system`), ``engine_time_s`` (inside
+    Simulator.AdvanceTo) and ``settings``. Raises :class:`Unsupported` (a loop on a continuous
+    plant, a ball joint reaching its chart's singular set), :class:`EngineError` (read-back or
+    initial-state mismatch) and :class:`Diverged` (a failed step or a non-finite state).
+    """
+    from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+    from pydrake.systems.framework import EventStatus
+
+    steps = ps.saves(nstep, save_every)
+    dm, rec = build(scenario, integrator, dt, **settings)
+    pl, plant = dm.pl, dm.plant
+    sim = Simulator(plant, dm.context)
+    ctx = sim.get_mutable_context()
+    dm.context = ctx
+    if not dm.discrete:
+        integ = ResetIntegratorFromFlags(sim, integrator, float(dt))
+        integ.set_fixed_step_mode(True)
+        if not (integ.get_fixed_step_mode() and integ.get_maximum_step_size() == float(dt)):
+            raise EngineError(f"drake: {integrator}: the fixed step {dt:g} s did not take")
+    else:
+        if not (plant.time_step() == float(dt)):
+            raise EngineError(f"drake: the discrete plant's step {plant.time_step()} != {dt}")
+    pitch = [(pl.tree[c].label, dm.joint[c].position_start() + 1)
+             for c in pl.order if pl.tree[c].kind == "spherical"]  # fmt: skip
+    hit: list = []
+
+    def monitor(root):
+        if pitch:
+            q = plant.GetPositions(root)
+            for lab, i in pitch:
+                if abs(math.cos(q[i])) < RPY_LIMIT_COS:
+                    hit.append((lab, root.get_time(), abs(math.cos(q[i]))))
+                    return EventStatus.ReachedTermination(plant, "RPY singular set")
+        return EventStatus.Succeeded()
+
+    sim.set_monitor(monitor)
+    sim.Initialize()
+    nb, n = len(pl.bodies), len(steps)
+    x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
+    R = np.empty((n, nb, 3, 3))
+    x[0], R[0], v[0], W[0] = dm.states()
+    t = 0.0
+    for k in range(1, n):
+        for _ in range(int(steps[k] - steps[k - 1])):
+            t += float(dt)  # the Simulator's own running sum (drake_engine's docstring)
+        t0 = time.perf_counter()
+        try:
+            sim.AdvanceTo(t)
+        except RuntimeError as exc:
+            raise Diverged(
+                f"drake {integrator} at dt = {dt:g} s: a step failed between t = "
+                f"{steps[k - 1] * dt:.6g} and {steps[k] * dt:.6g} s: {str(exc)[:300]}",
+                steps[k - 1] * dt,
+                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
+            ) from None
+        dm.clock += time.perf_counter() - t0
+        if hit:
+            lab, th, cs = hit[0]
+            raise Unsupported(
+                f"drake: {lab}: its roll-pitch-yaw chart reached |cos pitch| = {cs:.3g} < "
+                f"{RPY_LIMIT_COS:g} at t = {th:.6g} s; this builder does not switch charts of "
+                "ball joints in a system (Drake 1.x has no quaternion ball joint)"
+            )
+        x[k], R[k], v[k], W[k] = dm.states()
+        if not (np.all(np.isfinite(x[k])) and np.all(np.isfinite(W[k]))):
+            raise Diverged(
+                f"drake {integrator} at dt = {dt:g} s: a non-finite state at t = "
+                f"{steps[k] * dt:.6g} s",
+                steps[k] * dt,
+                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
+            )
+    if not math.isfinite(dm.clock):
+        dm.clock = 0.0
+    return ps.output(steps, dt, x, R, v, W, dm.clock, rec)

@@ -1,0 +1,177 @@
+"""The Drake builder for systems of bodies (references/engines/drake_system.py).
+
+Expected values come from formulations that share nothing with Drake: the reduced-coordinate
+reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
+parallelogram four-bar (scipy DOP853 on one ODE). Tolerances are orders: halving dt divides the
+error by about 2^p (p = 1 for semi_explicit_euler and discrete SAP, 5 for runge_kutta5),
+accepted within a factor 1.6, as in tests/test_pinocchio_system.py, whose stand-in systems are
+reused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("pydrake") is None or importlib.util.find_spec("pinocchio") is None,
+    reason="drake (and pin, for the shared stand-ins) not installed",
+)
+
+from director_model.system import Body, Joint  # noqa: E402
+from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
+from references.engines import drake_system as ds  # noqa: E402
+from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
+from references.exact.multibody import solve, tree_from_world  # noqa: E402
+from tests.test_pinocchio_system import (  # noqa: E402
+    assert_order,
+    four_bar_gap,
+    four_bar_theta_error,
+    hinge_chain,
+    momentum,
+    scenario,
+)
+
+EULER, RK5, SAP = "semi_explicit_euler", "runge_kutta5", "discrete SAP"
+
+
+def errors_vs_reference(sc, integrator, dt, t_end=1.0):
+    n = int(round(t_end / dt))
+    out = ds.simulate_system(sc, integrator, dt, n, n // 10)
+    tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
+    ref = solve(tree, q0, u0, out["t"], estimate=False)
+    order = [ref.names.index(b.name) for b in sc.bodies]
+    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
+            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
+)
+@pytest.mark.parametrize(
+    "integrator, dt, p, bound",
+    [(EULER, 1e-3, 1, 1e-2), (SAP, 5e-4, 1, 1e-2), (RK5, 1e-2, 5, 1e-8)],
+)
+def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(
+    system, integrator, dt, p, bound
+):
+    """Measured (drake 1.51, at dt/2 over 1 s): semi_explicit_euler 5.5e-4 m (spherical),
+    5.6e-3 m (hinge); runge_kutta5 at 5 ms 3.1e-11, 1.6e-10 m; discrete SAP at 0.25 ms
+    2.8e-3 m (hinge). SAP equals semi_explicit_euler on the hinge chain at dt <= 0.5 ms but not
+    above (1.36e-2 m at 1 ms against Euler's 1.13e-2; attitude ratio 3.5 from 1 to 0.5 ms), so
+    its order is checked from 0.5 ms."""
+    if system == "spherical3":
+        sc = scenario(system, *rod_chain(3, True, seed=1))
+    else:
+        sc = scenario(system, *hinge_chain())
+    ex1, eR1 = errors_vs_reference(sc, integrator, dt)
+    ex2, eR2 = errors_vs_reference(sc, integrator, dt / 2)
+    assert_order(ex1, ex2, p)
+    assert_order(eR1, eR2, p)
+    assert ex2 < bound
+
+
+def test_four_bar_closed_by_ball_constraints_on_the_discrete_plant():
+    """Two AddBallConstraint on the closing hinge of a discrete SAP plant, over 2 s (four
+    singular passages). Measured: gap 4.7e-8 m at dt 1 ms, 3.7e-9 m at 0.5 ms; the crank follows
+    the pendulum to 7.0e-3 and 3.4e-3 rad (order 1)."""
+    bodies, joints, I_eff, k = parallelogram_four_bar()
+    sc = scenario("four_bar", bodies, joints)
+    out = ds.simulate_system(sc, SAP, 1e-3, 2000, 50)
+    half = ds.simulate_system(sc, SAP, 5e-4, 4000, 100)
+    gap, axis = four_bar_gap(sc, out)
+    assert gap.max() < 1e-7 and axis.max() < 1e-12
+    assert four_bar_gap(sc, half)[0].max() < gap.max() / 2
+    assert_order(four_bar_theta_error(out, I_eff, k), four_bar_theta_error(half, I_eff, k), 1)
+    assert "two AddBallConstraint" in out["settings"]["loop closures"][0]
+
+
+def test_a_loop_on_a_continuous_plant_is_refused_and_drake_refuses_it_too(monkeypatch):
+    """The builder refuses a loop on a continuous plant with the reason. With the refusal
+    bypassed, Drake 1.51 does not ignore the ball constraint silently: its first step raises
+    ("Continuous time does not support constraints"), which the builder reports as Diverged
+    with Drake's message."""
+    sc = scenario("four_bar", *parallelogram_four_bar()[:2])
+    with pytest.raises(Unsupported, match="discrete SAP plant"):
+        ds.simulate_system(sc, RK5, 1e-3, 10, 1)
+    monkeypatch.setattr(ds, "loops_supported", lambda integrator: True)
+    with pytest.raises(Diverged, match="Continuous time does not support constraints"):
+        ds.simulate_system(sc, RK5, 1e-3, 10, 1)
+
+
+def test_a_ball_joint_reaching_its_chart_singularity_is_unsupported():
+    """A body on a ground ball joint in zero gravity turning at 3 rad/s about the chart's pitch
+    axis: pitch = 3 t reaches the limit |cos pitch| = 0.05 at t = 0.507 s."""
+    w = np.array([0.0, 3.0, 0.0])
+    x = np.array([0.0, 0.0, -0.5])
+    b = [Body("bob", 1.0, (0.02, 0.03, 0.04), x, np.eye(3), np.cross(w, x), w)]
+    j = [Joint("spherical", "bob", None, (0, 0, 0.5), (0, 0, 0), name="pivot")]
+    sc = scenario("tumble", b, j, gravity=(0, 0, 0))
+    ds.simulate_system(sc, RK5, 1e-3, 400, 100)  # pitch 1.2 rad: fine
+    with pytest.raises(Unsupported, match=r"joint 'pivot'.*cos pitch.*t = 0\.50"):
+        ds.simulate_system(sc, RK5, 1e-3, 1000, 100)
+
+
+def _plant(monkeypatch, mistake):
+    orig = ds.engine_frames
+
+    def planted(pl, c):
+        f = orig(pl, c)
+        tj = pl.tree[c]
+        if tj.kind == "free" or tj.parent < 0:
+            return f
+        j = next(j for j in pl.joints if j.name == tj.name)
+        child_is_a = j.body_a == pl.names[c]
+        if mistake == "axis in the parent's frame":
+            return dataclasses.replace(f, axis=ds.ps.unit(j.axis_b if child_is_a else j.axis_a, ""))
+        if mistake == "anchor from the body origin":
+            # the parent's anchor measured from its joint point (the body origin of the
+            # other builders) instead of its COM
+            return dataclasses.replace(f, p_F=tj.X - pl.tree[tj.parent].Y)
+        return dataclasses.replace(f, p_F=tj.Y, p_M=tj.X)  # sides swapped
+
+    monkeypatch.setattr(ds, "engine_frames", planted)
+
+
+@pytest.mark.parametrize(
+    "mistake",
+    ["axis in the parent's frame", "anchor from the body origin", "parent and child swapped"],
+)
+def test_planted_joint_mistakes_are_caught(monkeypatch, mistake):
+    sc = scenario("hinge4", *hinge_chain())
+    ds.simulate_system(sc, RK5, 1e-2, 2, 1)  # the true builder passes
+    _plant(monkeypatch, mistake)
+    with pytest.raises(EngineError, match=r"joint 'h1'|body 'link1'") as exc:
+        ds.simulate_system(sc, RK5, 1e-2, 2, 1)
+    assert "differ" in str(exc.value)
+
+
+def test_unsupported_and_bad_arguments():
+    b, j = rod_chain(2, True, seed=0)
+    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
+    with pytest.raises(Unsupported, match="joint1.*universal"):
+        ds.simulate_system(scenario("u", b, bad), RK5, 1e-3, 1, 1)
+    sc = scenario("s", b, j)
+    with pytest.raises(Unsupported, match="error-controlled"):
+        ds.simulate_system(sc, "runge_kutta5 (error-controlled)", 1e-3, 1, 1)
+    with pytest.raises(ValueError, match="unknown settings"):
+        ds.simulate_system(sc, EULER, 1e-3, 1, 1, erp=0.2)
+    out = ds.simulate_system(sc, EULER, 1e-3, 5, 2)
+    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
+    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
+
+
+@pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (SAP, 1e-3, 1)])
+def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
+    """A floating 5-body chain (QuaternionFloatingJoint root) in zero gravity."""
+    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
+    drifts = []
+    for h in (dt, dt / 2):
+        out = ds.simulate_system(sc, integrator, h, int(round(1.0 / h)), 10)
+        P, L = momentum(sc, out)
+        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
+    assert_order(drifts[0][0], drifts[1][0], p)
+    assert_order(drifts[0][1], drifts[1][1], p)
