@@ -36,14 +36,15 @@ Loops. A closing spherical joint is one ``AddBallConstraint`` between the anchor
 body for the ground); a closing revolute joint two, at the anchors and at the anchors moved by
 the system's length scale along the hinge (six equations for five; SAP's regularised solve
 accepts the redundancy). Drake honours these constraints only in discrete SAP plants; a
-continuous-time plant with a loop is ``Unsupported`` with that reason (drake#24957 reports a
-constraint silently ignored in continuous mode; the tests show what the suite's gap metric sees
-if the refusal is bypassed).
+continuous-time plant with a loop is ``Unsupported`` with that reason. drake#24957 reports a
+constraint silently ignored in continuous mode; Drake 1.51.1 does not ignore it but raises at
+the first step ("Continuous time does not support constraints", for ball and distance
+constraints alike, measured), which the tests show with the refusal bypassed.
 
 Integrators: the single-body adapter's names (``references.engines.drake_engine``): the
 fixed-step continuous schemes (``ResetIntegratorFromFlags`` at dt, fixed step mode, read back)
-and ``discrete SAP`` (``MultibodyPlant(time_step=dt)``, kSap). Error-controlled runs are
-unsupported for systems.
+and ``discrete SAP`` (``MultibodyPlant(time_step=dt)``, kSap). Error-controlled runs and
+``cenic`` (it needs a SceneGraph diagram) are unsupported for systems.
 
 Read back before stepping: body masses, central inertias and COMs, joint types, parents,
 frames (F in the parent, M in the child), revolute axes, damping (0), limits (infinite),
@@ -305,6 +306,10 @@ def build(scenario, integrator: str, dt: float, **settings):
             f"drake: {integrator}: error-controlled runs are not offered for systems (the "
             "suite refuses target accuracies for systems)"
         )
+    if integrator == "cenic":
+        raise Unsupported(
+            "drake: cenic needs a Diagram with a SceneGraph, which this builder does not build"
+        )
     ps.check_run_args(integrator, dt, INTEGRATORS)
     unknown = sorted(set(settings) - set(_SETTINGS))
     if unknown:
@@ -314,8 +319,9 @@ def build(scenario, integrator: str, dt: float, **settings):
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "
-            f"act only in a discrete SAP plant, and {integrator} runs a continuous-time plant, "
-            "where a constraint is not enforced (drake#24957): run 'discrete SAP'"
+            f"act only in a discrete SAP plant, and {integrator} runs a continuous-time plant "
+            "(Drake 1.51 raises there at the first step; drake#24957 reports a constraint "
+            "silently ignored in continuous mode): run 'discrete SAP'"
         )
     dm = _Model(pl, integrator, float(dt))
     read_back(dm, scenario)
