@@ -82,7 +82,7 @@ def test_four_bar_closed_by_point_to_point_constraints():
     """Two JOINT_POINT2POINT on the closing hinge, dt = 1 ms over 2 s (four singular passages).
     Measured: at Bullet's default erp 0.2 the gap reaches 1.86e-6 m (4.7e-7 m at 0.5 ms) and
     the crank follows the pendulum to 8.0e-6 rad (the step's accuracy); at erp 0.9 the gap is
-    3.7e-7 m; with erp 0 the loop drifts open (2.4e-3 m) and the mechanism leaves its branch
+    a third of that; with erp 0 the loop drifts open (2.4e-3 m) and the mechanism leaves its branch
     (1.27 rad off the pendulum)."""
     bodies, joints, I_eff, k = parallelogram_four_bar()
     sc = scenario("four_bar", bodies, joints)
