@@ -26,6 +26,11 @@ with ``[environment] gravity``, ``[run]``, ``[tolerances]`` as for one body and
 ``[reference] kind`` one of :data:`SYSTEM_REFERENCE_KINDS` (with the parameters of an exact
 motion beside it).
 
+A tree may instead give joint coordinates (``angle``/``rate`` of a revolute joint,
+``rotation_vector``/``omega`` of a spherical one, the child relative to its parent in the
+parent's axes) and no body states but a floating root's: :func:`_tree_states` places the
+bodies by forward kinematics (docs/scenarios.md, "Initial state by joint coordinates").
+
 Every problem of a file is listed in one :class:`~scenarios.schema.ScenarioError` naming the
 file, the field (``bodies[1].inertia``, ``joints[0].anchor_b``), the value and the rule: the
 bodies' physics (as for one body), unknown or repeated names, the joints' shape, and the
@@ -429,6 +434,10 @@ _JOINT_KEYS = {
     "anchor_b": "vec3",
     "axis_a": "vec3",
     "axis_b": "vec3",
+    "angle": "number",
+    "rate": "number",
+    "rotation_vector": "vec3",
+    "omega": "vec3",
 }
 _JOINT_REQUIRED = ("kind", "body_a", "body_b", "anchor_a", "anchor_b")
 _TOP_KEYS = (
@@ -500,8 +509,12 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
             params[key] = float(value)
     tolerances = sch._check_tolerances(data.get("tolerances"), bad)
     engine_settings = _engine_settings(data.get("engine_settings"), bad)
-    bodies = _bodies(data.get("bodies"), bad)
+    by_joints = _uses_joint_coordinates(data.get("joints"))
+    n_probs = len(probs)
+    bodies = _bodies(data.get("bodies"), bad, by_joints)
     joints = _joints(data.get("joints"), bodies, bad)
+    if by_joints and len(probs) == n_probs:
+        bodies = _tree_states(bodies, joints, data["bodies"], data["joints"], bad)
     if not probs and joints:
         _initial_gaps(bodies, joints, bad)
     if probs:
@@ -629,7 +642,9 @@ def _attitude(tab: dict, prefix: str, bad) -> np.ndarray:
     return sch.rotation_from_vector(tab[k])
 
 
-def _bodies(raw, bad) -> list[SystemBody]:
+def _bodies(raw, bad, by_joints: bool = False) -> list[SystemBody]:
+    """The ``[[bodies]]`` tables; ``by_joints``: the initial state comes from the joint
+    coordinates (:func:`_tree_states`), so ``position`` is not required here."""
     from scenarios import schema as sch
 
     if not isinstance(raw, list) or not raw or not all(isinstance(b, dict) for b in raw):
@@ -640,7 +655,8 @@ def _bodies(raw, bad) -> list[SystemBody]:
     z = [0.0, 0.0, 0.0]
     for i, tab in enumerate(raw):
         p = f"bodies[{i}]"
-        good = _typed(tab, _BODY_KEYS, _BODY_REQUIRED, p, bad)
+        required = _BODY_REQUIRED[:3] if by_joints else _BODY_REQUIRED
+        good = _typed(tab, _BODY_KEYS, required, p, bad)
         name = good.get("name", f"body{i}")
         if name == "ground":
             bad(f"{p}.name", name, "'ground' names the fixed world in joints; rename the body")
@@ -715,6 +731,171 @@ def _joints(raw, bodies, bad) -> list[SystemJoint]:
                 axis_b=axes.get("axis_b"),
             )
         )
+    return out
+
+
+#: the joint coordinates of each kind that has them: (angle, rate) of a revolute joint,
+#: (rotation_vector, omega) of a spherical or fixed_point joint
+COORDINATE_KEYS = {
+    "revolute": ("angle", "rate"),
+    "spherical": ("rotation_vector", "omega"),
+    "fixed_point": ("rotation_vector", "omega"),
+}
+_ALL_COORDINATES = ("angle", "rate", "rotation_vector", "omega")
+#: a body's initial-state fields (per-body form)
+_STATE_KEYS = ("position", "rotation", "quaternion_wxyz", "rotation_vector", "velocity",
+               "omega_body")  # fmt: skip
+
+
+def _uses_joint_coordinates(raw_joints) -> bool:
+    """True when some ``[[joints]]`` table gives a joint coordinate."""
+    return isinstance(raw_joints, list) and any(
+        isinstance(t, dict) and any(k in t for k in _ALL_COORDINATES) for t in raw_joints
+    )
+
+
+def _hinge_zero(u_child: np.ndarray, u_parent: np.ndarray) -> np.ndarray | None:
+    """Q0, the smallest rotation with Q0 u_child = u_parent (a revolute joint at angle 0);
+    None when the axes are (nearly) opposite and Q0 is not unique."""
+    from scenarios import schema as sch
+
+    axis = np.cross(u_child, u_parent)
+    s, c = float(np.linalg.norm(axis)), float(u_child @ u_parent)
+    if s == 0.0 and c > 0.0:
+        return np.eye(3)
+    if c < 0.0 and s < 1e-8:
+        return None
+    return sch.rotation_from_vector(axis / s * math.atan2(s, c))
+
+
+def _tree_states(bodies, joints, raw_bodies, raw_joints, bad) -> list[SystemBody]:
+    """The bodies' initial world states from joint coordinates, by forward kinematics along
+    the spanning tree (:func:`spanning_tree`: from the ground outwards; a floating part
+    from its first body in file order, its root, whose world state its ``[[bodies]]``
+    table gives).
+
+    For a tree joint with parent p (the side nearer the ground or the root; the ground has
+    x = 0, R = 1) and child c, anchors s_p, s_c and axes u_p, u_c on either side (for
+    the ground, world coordinates), the child's attitude relative to the parent is
+    Q = R_p^T R_c: ``rotation_vector`` phi (rad, parent's axes) of a spherical or fixed_point
+    joint gives Q = exp(phi); ``angle`` theta (rad) of a revolute joint gives
+    Q = exp(theta u_p) Q0, Q0 the smallest rotation with Q0 u_c = u_p (the axes aligned;
+    theta positive turns the child about u_p by the right-hand rule). ``omega`` (rad/s,
+    parent's axes), or ``rate`` times u_p, is the child's angular velocity relative to the
+    parent. Then R_c = R_p Q, x_c = x_p + R_p s_p - R_c s_c (the anchors coincide),
+    w_c = w_p + R_p omega, v_c = v_p + w_p x (R_p s_p) - w_c x (R_c s_c) (the anchor points
+    move together). Missing coordinates are 0. Refused (every problem through ``bad``): a
+    loop closure, a tree joint of another kind, a coordinate of the wrong kind, opposite
+    revolute axes, a body state beside the coordinates (the root of a floating part
+    excepted, whose ``position`` is required)."""
+    from scenarios import schema as sch
+
+    tree, loops = spanning_tree(bodies, joints)
+    jidx = {j.name: i for i, j in enumerate(joints)}
+    ok = True
+    for name in loops:
+        i = jidx[name]
+        given = [k for k in _ALL_COORDINATES if k in raw_joints[i]]
+        field_ = f"joints[{i}].{given[0]}" if given else f"joints[{i}]"
+        bad(field_, raw_joints[i][given[0]] if given else name, f"joint {name!r} closes a "
+            "loop: joint coordinates give the initial state of a tree only (the closure "
+            "is not solved); give per-body states")  # fmt: skip
+        ok = False
+    zero = {}
+    for name in tree:
+        i = jidx[name]
+        j = joints[i]
+        keys = COORDINATE_KEYS.get(j.kind)
+        if keys is None:
+            bad(f"joints[{i}].kind", j.kind, "joint coordinates are defined for revolute, "
+                "spherical and fixed_point joints only; give per-body states")  # fmt: skip
+            ok = False
+            continue
+        for k in _ALL_COORDINATES:
+            if k in raw_joints[i] and k not in keys:
+                bad(f"joints[{i}].{k}", raw_joints[i][k], f"a {j.kind} joint's coordinates "
+                    f"are {' and '.join(keys)}")  # fmt: skip
+                ok = False
+    # the tree's traversal: parents before children, roots of floating parts
+    adj: dict[str, list] = {"ground": [], **{b.name: [] for b in bodies}}
+    for name in tree:
+        j = joints[jidx[name]]
+        b = j.body_b if j.body_b is not None else "ground"
+        adj[j.body_a].append((j, b))
+        adj[b].append((j, j.body_a))
+    order, roots, reached = [], [], {"ground"}
+    queue: deque[str] = deque(["ground"])
+    for start in [None] + [b.name for b in bodies]:
+        if start is not None:
+            if start in reached:
+                continue
+            roots.append(start)
+            reached.add(start)
+            queue.append(start)
+        while queue:
+            p = queue.popleft()
+            for j, c in adj[p]:
+                if c not in reached:
+                    reached.add(c)
+                    order.append((j, p, c))
+                    queue.append(c)
+    placed_by = {c: j.name for j, _, c in order}
+    for i, b in enumerate(bodies):
+        tab = raw_bodies[i]
+        if b.name in roots:
+            if "position" not in tab:
+                bad(f"bodies[{i}].position", "<missing>", f"required: body {b.name!r} is the "
+                    "root of a floating tree given by joint coordinates (its world position; "
+                    "its attitude and velocities default to 1 and 0)")  # fmt: skip
+                ok = False
+            continue
+        for k in _STATE_KEYS:
+            if k in tab:
+                bad(f"bodies[{i}].{k}", tab[k], f"body {b.name!r} is placed by joint "
+                    f"{placed_by[b.name]!r}'s coordinates: give either per-body states or "
+                    "joint coordinates, never both")  # fmt: skip
+                ok = False
+    for j, _p, c in order:
+        if j.kind != "revolute":
+            continue
+        u_c, u_p = (j.axis_a, j.axis_b) if j.body_a == c else (j.axis_b, j.axis_a)
+        zero[j.name] = _hinge_zero(u_c, u_p)
+        if zero[j.name] is None:
+            i = jidx[j.name]
+            bad(f"joints[{i}].axis_b", j.axis_b.tolist(), f"joint {j.name!r}: axis_a and "
+                "axis_b point opposite ways, so its angle 0 (the axes aligned) is not "
+                "defined; reverse one of them")  # fmt: skip
+            ok = False
+    if not ok:
+        return bodies
+    by = {b.name: b for b in bodies}
+    z = np.zeros(3)
+    state = {"ground": (z, np.eye(3), z, z)}  # x, R, v, w (world)
+    for r in roots:
+        b = by[r]
+        state[r] = (b.position, b.rotation, b.velocity, b.rotation @ b.omega_body)
+    for j, p, c in order:
+        tab = raw_joints[jidx[j.name]]
+        if j.body_a == c:
+            s_c, s_p, u_p = j.anchor_a, j.anchor_b, j.axis_b
+        else:
+            s_c, s_p, u_p = j.anchor_b, j.anchor_a, j.axis_a
+        if j.kind == "revolute":
+            Q = sch.rotation_from_vector(float(tab.get("angle", 0.0)) * u_p) @ zero[j.name]
+            w_rel = float(tab.get("rate", 0.0)) * u_p
+        else:
+            Q = sch.rotation_from_vector(tab.get("rotation_vector", [0.0, 0.0, 0.0]))
+            w_rel = np.asarray(tab.get("omega", [0.0, 0.0, 0.0]), dtype=float)
+        x_p, R_p, v_p, w_p = state[p]
+        R_c = R_p @ Q
+        w_c = w_p + R_p @ w_rel
+        r_p, r_c = R_p @ s_p, R_c @ s_c
+        state[c] = (x_p + r_p - r_c, R_c, v_p + np.cross(w_p, r_p) - np.cross(w_c, r_c), w_c)
+    out = []
+    for b in bodies:
+        x, R, v, w = state[b.name]
+        out.append(SystemBody(name=b.name, mass=b.mass, inertia=b.inertia, position=x,
+                              rotation=R, velocity=v, omega_body=R.T @ w))  # fmt: skip
     return out
 
 

@@ -19,7 +19,8 @@ from scenarios import ScenarioError
 from scenarios.system import validate_system
 
 LIBRARY = ["bricard", "conical_pendulum", "double_pendulum_3d", "four_bar",
-           "four_bar_stiff_loop", "free_chain_5", "planar_chain_4", "spinning_chain"]  # fmt: skip
+           "four_bar_stiff_loop", "free_chain_5", "planar_chain_3_rates", "planar_chain_4",
+           "spinning_chain"]  # fmt: skip
 
 
 def _data(name: str) -> dict:
