@@ -27,10 +27,14 @@ revolute            ``RevoluteJoint`` (axis  angle 0; rate n . (W_c - R_rel^T W_
 others              -                       unsupported (not built by this adapter)
 ==================  ======================  ================================================
 
-The roll-pitch-yaw chart of a ball joint is singular at pitch = +-pi/2. This builder does not
-switch charts (the single-body adapter does; for a chain each joint would need its own switch):
-a run in which a ball joint's |cos pitch| falls below :data:`RPY_LIMIT_COS` stops there and is
-``Unsupported`` with the joint, the time and the reason (a Simulator monitor after every step).
+The roll-pitch-yaw chart of a ball joint is singular at pitch = +-pi/2. The builder switches
+charts for the whole system at once: a Simulator monitor ends ``AdvanceTo`` at the end of a step
+where any ball joint's |cos pitch| < :data:`CHART_SWITCH_COS`; the plant is then rebuilt by
+:func:`assemble` (the one entry point of every plant, as at t = 0) from every body's current
+world state, so every joint coordinate is 0 again, read back and checked like the first, and a
+new Simulator goes on from the same time. Engine time and steps are summed over the plants
+(the steps must add up to the plan's); the settings record the number of switches, their times
+and the joints that triggered them.
 
 Loops. A closing spherical joint is one ``AddBallConstraint`` between the anchors (the world
 body for the ground); a closing revolute joint two, at the anchors and at the anchors moved by
@@ -55,6 +59,7 @@ axis (from both sides), else :class:`~references.errors.EngineError` names the b
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.metadata
 import math
 import time
@@ -82,9 +87,10 @@ CONTINUOUS = (
 DISCRETE = "discrete SAP"
 INTEGRATORS = (*CONTINUOUS, DISCRETE)
 
-#: |cos pitch| of a ball joint's roll-pitch-yaw chart below which the run stops as unsupported
-#: (the chart's rate map grows as 1 / cos pitch; Drake itself refuses near 1e-3)
-RPY_LIMIT_COS = 0.05
+#: at the end of a step where a ball joint's |cos pitch| is below this, the plant is rebuilt
+#: from the bodies' world states (pitch 0 again): the chart's rate map (1 / cos pitch) never
+#: amplifies more than 2.5x; the single-body adapter's level (drake_engine.CHART_SWITCH_COS)
+CHART_SWITCH_COS = 0.4
 
 _SETTINGS = ()
 
@@ -298,6 +304,30 @@ def read_back(dm: _Model, scenario) -> None:
         )
 
 
+def at_state(pl: ps.Plan, x, R, v, W) -> ps.Plan:
+    """``pl`` with every body's state replaced by (x, R, v, W) (arrays in scenario order; W in
+    body axes): what a chart switch builds from. Anchors, axes and the tree are body-fixed and
+    carry over."""
+    bodies = [
+        dataclasses.replace(b, position=x[c], rotation=R[c], velocity=v[c], omega_body=W[c])
+        for c, b in enumerate(pl.bodies)
+    ]
+    return dataclasses.replace(pl, bodies=bodies)
+
+
+def assemble(scenario, pl: ps.Plan, integrator: str, dt: float) -> _Model:
+    """The single entry point of every plant of a run: Drake's model of ``pl`` built from its
+    bodies' world states (the scenario's at t = 0, the current ones at a chart switch, every
+    joint coordinate 0), read back, the state set and checked against Drake's kinematics."""
+    dm = _Model(pl, integrator, float(dt))
+    read_back(dm, scenario)
+    dm.set_initial()
+    x, R, v, W = dm.states()
+    points, axes = dm.joint_world()
+    ps.check_states("drake", pl, x, R, v, W, points, axes)
+    return dm
+
+
 def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record): planned, built, read back, the initial state set and checked
     against Drake's kinematics."""
@@ -323,12 +353,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "(Drake 1.51 raises there at the first step; drake#24957 reports a constraint "
             "silently ignored in continuous mode): run 'discrete SAP'"
         )
-    dm = _Model(pl, integrator, float(dt))
-    read_back(dm, scenario)
-    dm.set_initial()
-    x, R, v, W = dm.states()
-    points, axes = dm.joint_world()
-    ps.check_states("drake", pl, x, R, v, W, points, axes)
+    dm = assemble(scenario, pl, integrator, dt)
     rec = {
         "engine": f"drake {importlib.metadata.version('drake')}",
         "integrator": integrator,
@@ -343,9 +368,11 @@ def build(scenario, integrator: str, dt: float, **settings):
             for c in pl.order
         },  # fmt: skip
         "frames": "body frames principal at the COM; joint frames F (parent, rotation R_p^T R_c "
-        "at t = 0) and M (child) at the anchors: every joint coordinate 0 at t = 0",
-        "ball joints": f"BallRpyJoint, no chart switch; unsupported below |cos pitch| "
-        f"{RPY_LIMIT_COS:g}",
+        "at t = 0 and at every chart switch) and M (child) at the anchors: every joint "
+        "coordinate 0 at t = 0 and after every switch",
+        "ball joints": "BallRpyJoint; at the end of a step where one has |cos pitch| < "
+        f"{CHART_SWITCH_COS:g} the plant is rebuilt from the bodies' world states (every "
+        "coordinate 0 again)",
         "joint damping": 0.0,
         "collision": "none (no geometry)",
     }
@@ -362,6 +389,82 @@ def build(scenario, integrator: str, dt: float, **settings):
     return dm, rec
 
 
+@dataclass
+class _Stepper:
+    """The Simulator of the current plant, its integrator (None for the discrete plant) and
+    the fixed steps the replaced plants took."""
+
+    dm: _Model
+    sim: object
+    integ: object
+    steps_before: int = 0
+    #: (joint label, time, |cos pitch|) set by the monitor when a step ends below the level
+    pending: tuple | None = None
+
+    def steps(self) -> int:
+        if self.integ is None:
+            n = self.sim.get_num_discrete_updates() + self.sim.get_num_unrestricted_updates()
+        else:
+            n = self.integ.get_num_steps_taken()
+        return self.steps_before + n
+
+
+def _stepper(dm: _Model, integrator: str, dt: float, t: float, steps_before: int) -> _Stepper:
+    """A Simulator on ``dm`` at time ``t`` (fixed step dt, read back) whose monitor ends
+    AdvanceTo at the end of a step where a ball joint's |cos pitch| < :data:`CHART_SWITCH_COS`."""
+    from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+    from pydrake.systems.framework import EventStatus
+
+    plant = dm.plant
+    sim = Simulator(plant, dm.context)
+    ctx = sim.get_mutable_context()
+    dm.context = ctx
+    ctx.SetTime(t)
+    integ = None
+    if not dm.discrete:
+        integ = ResetIntegratorFromFlags(sim, integrator, float(dt))
+        integ.set_fixed_step_mode(True)
+        if not (integ.get_fixed_step_mode() and integ.get_maximum_step_size() == float(dt)):
+            raise EngineError(f"drake: {integrator}: the fixed step {dt:g} s did not take")
+    elif not (plant.time_step() == float(dt)):
+        raise EngineError(f"drake: the discrete plant's step {plant.time_step()} != {dt}")
+    st = _Stepper(dm, sim, integ, steps_before)
+    pl = dm.pl
+    pitch = [(pl.tree[c].label, dm.joint[c].position_start() + 1)
+             for c in pl.order if pl.tree[c].kind == "spherical"]  # fmt: skip
+
+    def monitor(root):
+        if pitch:
+            q = plant.GetPositions(root)
+            for lab, i in pitch:
+                c = abs(math.cos(q[i]))
+                if c < CHART_SWITCH_COS:
+                    st.pending = (lab, root.get_time(), c)
+                    return EventStatus.ReachedTermination(plant, "RPY chart switch")
+        return EventStatus.Succeeded()
+
+    if pitch:
+        sim.set_monitor(monitor)
+    sim.Initialize()
+    return st
+
+
+def switch(st: _Stepper, scenario, integrator: str, dt: float) -> _Stepper:
+    """Carry the run over to a new plant at the end of the step the monitor stopped: built by
+    :func:`assemble` from every body's current world state (ball joints at pitch 0 again), a
+    new Simulator at the same time, the old one's steps carried over."""
+    old = st.dm
+    t = old.context.get_time()
+    steps = st.steps()
+    st.sim.clear_monitor()  # it holds st: a reference cycle through C++
+    try:
+        dm = assemble(scenario, at_state(old.pl, *old.states()), integrator, dt)
+    except EngineError as exc:
+        raise EngineError(f"at the chart switch at t = {t:.6g} s: {exc}") from None
+    dm.clock = old.clock
+    return _stepper(dm, integrator, dt, t, steps)
+
+
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
                     **settings) -> dict:  # fmt: skip
     """Run ``scenario`` (module docstring) on Drake.
@@ -369,76 +472,63 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     ``integrator``: one of :data:`INTEGRATORS`; ``dt`` s; ``nstep`` steps saved at 0, s, 2s,
     ..., nstep; no settings. Returns a dict with ``t, x, R, v, W`` (as
     :func:`references.engines.pinocchio_system.simulate_system`), ``engine_time_s`` (inside
-    Simulator.AdvanceTo) and ``settings``. Raises :class:`Unsupported` (a loop on a continuous
-    plant, a ball joint reaching its chart's singular set), :class:`EngineError` (read-back or
-    initial-state mismatch) and :class:`Diverged` (a failed step or a non-finite state).
+    Simulator.AdvanceTo, summed over the plants of every chart) and ``settings`` (with the
+    number and times of the chart switches). Raises :class:`Unsupported` (a loop on a
+    continuous plant), :class:`EngineError` (read-back or state mismatch at t = 0 or at a chart
+    switch, or Drake's step count off the plan) and :class:`Diverged` (a failed step or a
+    non-finite state).
     """
-    from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
-    from pydrake.systems.framework import EventStatus
-
     steps = ps.saves(nstep, save_every)
     dm, rec = build(scenario, integrator, dt, **settings)
-    pl, plant = dm.pl, dm.plant
-    sim = Simulator(plant, dm.context)
-    ctx = sim.get_mutable_context()
-    dm.context = ctx
-    if not dm.discrete:
-        integ = ResetIntegratorFromFlags(sim, integrator, float(dt))
-        integ.set_fixed_step_mode(True)
-        if not (integ.get_fixed_step_mode() and integ.get_maximum_step_size() == float(dt)):
-            raise EngineError(f"drake: {integrator}: the fixed step {dt:g} s did not take")
-    else:
-        if not (plant.time_step() == float(dt)):
-            raise EngineError(f"drake: the discrete plant's step {plant.time_step()} != {dt}")
-    pitch = [(pl.tree[c].label, dm.joint[c].position_start() + 1)
-             for c in pl.order if pl.tree[c].kind == "spherical"]  # fmt: skip
-    hit: list = []
-
-    def monitor(root):
-        if pitch:
-            q = plant.GetPositions(root)
-            for lab, i in pitch:
-                if abs(math.cos(q[i])) < RPY_LIMIT_COS:
-                    hit.append((lab, root.get_time(), abs(math.cos(q[i]))))
-                    return EventStatus.ReachedTermination(plant, "RPY singular set")
-        return EventStatus.Succeeded()
-
-    sim.set_monitor(monitor)
-    sim.Initialize()
-    nb, n = len(pl.bodies), len(steps)
+    st = _stepper(dm, integrator, dt, 0.0, 0)
+    nb, n = len(dm.pl.bodies), len(steps)
     x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
     R = np.empty((n, nb, 3, 3))
     x[0], R[0], v[0], W[0] = dm.states()
+    switches: list = []
     t = 0.0
     for k in range(1, n):
-        for _ in range(int(steps[k] - steps[k - 1])):
-            t += float(dt)  # the Simulator's own running sum (drake_engine's docstring)
-        t0 = time.perf_counter()
-        try:
-            sim.AdvanceTo(t)
-        except RuntimeError as exc:
-            raise Diverged(
-                f"drake {integrator} at dt = {dt:g} s: a step failed between t = "
-                f"{steps[k - 1] * dt:.6g} and {steps[k] * dt:.6g} s: {str(exc)[:300]}",
-                steps[k - 1] * dt,
-                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
-            ) from None
-        dm.clock += time.perf_counter() - t0
-        if hit:
-            lab, th, cs = hit[0]
-            raise Unsupported(
-                f"drake: {lab}: its roll-pitch-yaw chart reached |cos pitch| = {cs:.3g} < "
-                f"{RPY_LIMIT_COS:g} at t = {th:.6g} s; this builder does not switch charts of "
-                "ball joints in a system (Drake 1.x has no quaternion ball joint)"
-            )
-        x[k], R[k], v[k], W[k] = dm.states()
+        if dm.discrete:  # periodic updates fall at n * dt (Drake's event times)
+            t = float(steps[k]) * float(dt)
+        else:
+            for _ in range(int(steps[k] - steps[k - 1])):
+                t += float(dt)  # the Simulator's own running sum (drake_engine's docstring)
+        while True:
+            t0 = time.perf_counter()
+            try:
+                st.sim.AdvanceTo(t)
+            except RuntimeError as exc:
+                raise Diverged(
+                    f"drake {integrator} at dt = {dt:g} s: a step failed between t = "
+                    f"{steps[k - 1] * dt:.6g} and {steps[k] * dt:.6g} s: {str(exc)[:300]}",
+                    steps[k - 1] * dt,
+                    ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], st.dm.clock, rec),
+                ) from None
+            st.dm.clock += time.perf_counter() - t0
+            if st.pending is None:
+                break
+            lab, th, cs = st.pending
+            switches.append((th, lab, cs))
+            st = switch(st, scenario, integrator, dt)
+            if st.dm.context.get_time() >= t:  # the switch came at the end of the last step
+                break
+        x[k], R[k], v[k], W[k] = st.dm.states()
         if not (np.all(np.isfinite(x[k])) and np.all(np.isfinite(W[k]))):
             raise Diverged(
                 f"drake {integrator} at dt = {dt:g} s: a non-finite state at t = "
                 f"{steps[k] * dt:.6g} s",
                 steps[k] * dt,
-                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
+                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], st.dm.clock, rec),
             )
-    if not math.isfinite(dm.clock):
-        dm.clock = 0.0
-    return ps.output(steps, dt, x, R, v, W, dm.clock, rec)
+    if st.steps() != int(steps[-1]):
+        raise EngineError(
+            f"drake {integrator}: Drake took {st.steps()} steps where the plan had "
+            f"{int(steps[-1])} of {dt!r} s over {len(switches) + 1} plant(s); the time "
+            "bookkeeping of the builder is wrong"
+        )
+    rec["RPY chart switches"] = len(switches)
+    rec["RPY chart switch times s"] = [th for th, _, _ in switches]
+    rec["RPY chart switch joints"] = [lab for _, lab, _ in switches]
+    st.sim.clear_monitor()
+    clock = st.dm.clock if math.isfinite(st.dm.clock) else 0.0
+    return ps.output(steps, dt, x, R, v, W, clock, rec)
