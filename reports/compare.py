@@ -132,25 +132,21 @@ def classify(column: str, a: float, b: float, factor: float) -> tuple[float, str
 
 def classify_cost(a, b, factor: float) -> tuple[float, str] | None:
     """(ratio of the fastest times B/A, word) of a cost measured on each side as
-    (fastest, low, high) (:func:`cost_range`; a NaN low or high end: the fastest time).
-    After asv's rule (a change beyond the factor whose ranges do not overlap), taken at the
-    ranges' nearest ends: ``worse`` only when the ratio of the fastest times exceeds
-    ``factor`` AND so does B's low end over A's high end (``better``: B's high end below A's
-    low end over the factor); ``not significant`` when the fastest times differ beyond the
-    factor but the ranges allow less; ``same`` within the factor."""
+    (fastest, low, high) (:func:`cost_range`; low and high NaN: the spread was not
+    measured). After asv's rule (a change beyond the factor whose ranges do not overlap),
+    taken at the ranges' nearest ends: ``worse`` only when the ratio of the fastest times
+    exceeds ``factor`` AND so does B's low end over A's high end (``better``: B's high end
+    below A's low end over the factor); ``not significant`` when the fastest times differ
+    beyond the factor but the ranges allow less, or a side's spread was not measured (a
+    change cannot be told from noise that was not measured); ``same`` within the factor."""
     (a_fast, a_lo, a_hi), (b_fast, b_lo, b_hi) = (tuple(_num(v) for v in side) for side in (a, b))
     if math.isnan(a_fast) and math.isnan(b_fast):
         return None
     if math.isnan(a_fast) or math.isnan(b_fast) or a_fast <= 0:
         return math.nan, "same"
-
-    def span(fast, lo, hi):
-        lo = fast if math.isnan(lo) else min(lo, fast)
-        hi = fast if math.isnan(hi) else max(hi, fast)
-        return lo, hi
-
-    (a_lo, a_hi), (b_lo, b_hi) = span(a_fast, a_lo, a_hi), span(b_fast, b_lo, b_hi)
     ratio = b_fast / a_fast
+    if not 1.0 / factor <= ratio <= factor and any(math.isnan(v) for v in (a_lo, a_hi, b_lo, b_hi)):
+        return ratio, "not significant"
     if ratio > factor:
         return ratio, ("worse" if b_lo > factor * a_hi else "not significant")
     if ratio < 1.0 / factor:
@@ -163,11 +159,17 @@ def cost_range(row, column: str) -> tuple[float, float, float]:
     its high end). The high end is the slowest repeat; the low end is the fastest repeat
     scaled by the process's CPU time over its wall time during the stepping (``cpu_time_s``
     / ``wall_time_s``, at most 1): on a busy machine the process waited for a CPU part of
-    the wall time, so the engine's own cost may be that much lower than the clock says."""
+    the wall time, so the engine's own cost may be that much lower than the clock says.
+    Without a CPU time and with a single timing (a row written before they were measured,
+    a run path that does not measure them) the spread is unknown: low and high are NaN."""
     fastest = _num(row.get(column))
     n = _num(row.get("nstep"))
-    hi = 1e9 * _num(row.get(COST_MAX[column])) / n if n and n > 0 else math.nan
     wall, cpu = _num(row.get("wall_time_s")), _num(row.get("cpu_time_s"))
+    repeats = _num(row.get("timing_repeats"))
+    if math.isnan(cpu) and not repeats >= 2:
+        return fastest, math.nan, math.nan
+    hi = 1e9 * _num(row.get(COST_MAX[column])) / n if n and n > 0 else math.nan
+    hi = fastest if math.isnan(hi) else max(hi, fastest)
     share = cpu / wall if wall > 0 else math.nan
     lo = fastest * share if 0.0 <= share < 1.0 else fastest
     return fastest, lo, hi

@@ -153,8 +153,11 @@ def test_cost_changes_count_only_beyond_the_measured_spread():
     # B ran 4x slower on the wall clock while its process had a quarter of a CPU (CPU time
     # a quarter of the wall time: low end 1.0): the load, not the engine
     assert classify_cost((1.0, 1.0, 1.1), (4.0, 1.0, 4.4), 2.0)[1] == "not significant"
-    # measured once, on an idle machine (no slowest time, share 1): the range is the point
-    assert classify_cost((1.0, nan, nan), (3.0, nan, nan), 2.0)[1] == "worse"
+    # a side whose spread was not measured (one timing, no CPU time): not significant,
+    # whatever the ratio; within the factor it is the same
+    assert classify_cost((1.0, nan, nan), (30.0, 30.0, 30.0), 2.0)[1] == "not significant"
+    assert classify_cost((1.0, 1.0, 1.0), (0.1, nan, nan), 2.0)[1] == "not significant"
+    assert classify_cost((1.0, nan, nan), (1.5, nan, nan), 2.0)[1] == "same"
     assert classify_cost((nan, nan, nan), (nan, nan, nan), 2.0) is None
 
 
@@ -164,6 +167,9 @@ def test_cost_range_of_a_row():
     assert cost_range(r, "ns_per_step") == (100.0, 50.0, pytest.approx(200.0))
     r["cpu_time_s"] = 1.2e-4  # other threads of the process: no lower than the fastest
     assert cost_range(r, "ns_per_step")[1] == 100.0
+    del r["cpu_time_s"]  # timed once, no CPU time: the spread is unknown
+    assert cost_range(r, "ns_per_step")[0] == 100.0
+    assert all(math.isnan(v) for v in cost_range(r, "ns_per_step")[1:])
 
 
 def _scale_wall(src, dst, lo: float, hi: float) -> None:
