@@ -13,6 +13,9 @@ One figure per scenario and kind (:data:`KINDS`):
   below the reference's accuracy, where attitude errors are not measurements, is shaded;
 - ``rates``: body angular velocity against the reference, with only the configurations that
   visibly leave it drawn; a fast oscillation is shown over its last periods;
+- ``system`` (a system of bodies, in the place of ``scenario`` and ``rates``): the loop
+  closure's (or largest joint's) gap, the energy and the momentum drift over time per
+  configuration (:mod:`reports.system_plots`);
 - ``convergence``: attitude error against dt (log-log), with the fitted orders;
 - ``work_precision``: attitude error against the time spent inside the engine's calls.
 
@@ -1178,8 +1181,13 @@ def scenario_figures(names, out: Path, samples: int = 401) -> list[Path]:
 
 # -- all figures --------------------------------------------------------------------------------
 
-#: the figures of one scenario, in report order
-KINDS = ("scenario", "errors", "rates", "convergence", "work_precision")
+#: the figures of one scenario, in report order (``scenario`` and ``rates`` are a single
+#: body's, ``system`` a system of bodies': :func:`is_system`)
+KINDS = ("scenario", "errors", "rates", "system", "convergence", "work_precision")
+
+#: the figures only a single body has, and the one only a system of bodies has
+SINGLE_BODY_KINDS = ("scenario", "rates")
+SYSTEM_KINDS = ("system",)
 
 
 def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles):
@@ -1201,31 +1209,42 @@ def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles
 
 
 def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles):
+    if kind not in KINDS:
+        raise ValueError(f"unknown plot kind {kind!r}; known: {', '.join(KINDS)}")
+    if kind in (SINGLE_BODY_KINDS if is_system(df, cache, scenario) else SYSTEM_KINDS):
+        return None  # a single body's figure code never sees a system, nor the reverse
     if kind == "scenario":
         return scenario_plot_from_results(df, cache, out, scenario)
     if kind == "errors":
         return errors_plot(df, cache, out, scenario, styles)
-    if kind == "rates" and "wx" not in (_first_series(df, cache, scenario) or {"wx": 0}):
-        from reports.system_plots import system_plot  # a system of bodies: joints, invariants
+    if kind == "system":
+        from reports.system_plots import system_plot  # joints, invariants over time
 
         rows, h = _plot_rows(df, scenario)
-        return system_plot(rows, h, cache, out, scenario, _plt(), _save)
+        return system_plot(
+            rows, h, cache, out, scenario, _plt(), _save, styles, _new_figure, _legend
+        )
     if kind == "rates":
         return rates_plot(df, cache, out, scenario, styles)
     if kind == "convergence":
         return convergence_plot(df, out, scenario, styles)
-    if kind == "work_precision":
-        return work_precision_plot(df, out, scenario, styles)
-    raise ValueError(f"unknown plot kind {kind!r}; known: {', '.join(KINDS)}")
+    return work_precision_plot(df, out, scenario, styles)
 
 
-def _first_series(df, cache, scenario: str) -> dict | None:
-    """The series of the scenario's first run that has a file (None: no run has one)."""
-    for _, row in df[df["scenario"] == scenario].iterrows():
+def is_system(df, cache, scenario: str) -> bool:
+    """Whether a scenario of the results is a system of bodies: a run of it has a system
+    metric (:data:`reports.system_metrics.SYSTEM_METRICS`), or a series file with per-body
+    columns (``<body>.wx``); a single body's runs have neither."""
+    from reports.system_metrics import SYSTEM_METRICS
+
+    sub = df[df["scenario"] == scenario]
+    if any(m in sub and sub[m].notna().any() for m in SYSTEM_METRICS):
+        return True
+    for _, row in sub.iterrows():
         s = cache.get(row)
         if s is not None:
-            return s
-    return None
+            return any("." in c for c in s)
+    return False
 
 
 #: the file in the plots folder that remembers what each scenario's figures were made from

@@ -43,6 +43,7 @@ from reports.summary import (
     METRIC_SHORT,
     NOT_RUN,
     at_scenario_dt,
+    closure_settings,
     config_label,
     energy_momentum_rows,
     engine_key,
@@ -58,6 +59,7 @@ from reports.summary import (
     group_rows,
     md_cell,
     not_run,
+    records,
     scenario_info,
     scenarios_of,
     scorecard,
@@ -657,10 +659,12 @@ def scenario_table(doc: Doc, scenario: str, rows, info) -> None:
     shown = rows[~rows["status"].isin(NOT_RUN)]
     groups = group_rows(shown)
     mcols = metric_columns(shown)
+    knobs = any(closure_settings(r) for r in records(shown))
     header = [
         "family",
         "configurations",
         "verdict",
+        *(["loop closure settings"] if knobs else []),
         *(METRIC_TITLES[m] for m in mcols),
         "fitted order",
         "declared order",
@@ -676,6 +680,9 @@ def scenario_table(doc: Doc, scenario: str, rows, info) -> None:
             ", ".join(config_label(r) for r in g.rows),
             Cell(g.outcome, cls=f"v-{g.outcome}"),
         ]
+        if knobs:  # the settings that shaped the loop closure, per member when they differ
+            vals = list(dict.fromkeys(closure_settings(r) for r in g.rows))
+            cells.append("; ".join(v or "-" for v in vals) if any(vals) else "-")
         for m in mcols:
             cells.append(num(None, fmt_attitude(fr)) if m == "attitude_error_max" else num(fr[m]))
         cells.append(num(None, fmt_order(fr)))
@@ -756,7 +763,7 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
 
 
 #: the figures of a scenario shown without a click (the others are in its collapsed part)
-KEY_FIGURES = ("scenario", "errors", "work_precision")
+KEY_FIGURES = ("scenario", "system", "errors", "work_precision")
 
 
 def _kind(p: Path) -> str:

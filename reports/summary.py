@@ -589,6 +589,56 @@ def settings_table(df) -> list[dict]:
     return out
 
 
+#: the settings that shape a loop closure, per engine: (label, path of keys in the settings)
+CLOSURE_KNOBS = (
+    ("solref", ("solref effective",)),  # what ran (an override applied), else what was set
+    ("solref", ("solref",)),
+    ("solimp", ("solimp",)),
+    ("Baumgarte (Kp, Kd)", ("Baumgarte (Kp, Kd)",)),
+    ("ERP", ("constraint solver", "error reduction parameter (ERP)")),
+    ("CFM", ("constraint solver", "constraint force mixing")),
+    ("erp", ("constraints", "erp")),
+)
+
+
+def closure_settings(row, short: bool = False) -> str:
+    """The settings that shape a run's loop closures, read from its ``settings`` (MuJoCo's
+    ``solref``/``solimp``, Pinocchio's Baumgarte gains, DART's ERP and CFM, PyBullet's
+    constraint ``erp``), or, for an engine with none of those, its closure mechanism as it
+    recorded it; '' for a run without loop closures. ``short``: the stiffness alone (no
+    ``solimp``, no CFM), for a legend."""
+    try:
+        s = json.loads(row.get("settings") or "{}")
+    except ValueError:
+        return ""
+    if not isinstance(s, dict) or not s.get("loop closures"):
+        return ""
+    parts = []
+    for label, path in CLOSURE_KNOBS:
+        v = s.get(path[0])
+        if len(path) == 2 and isinstance(v, dict):
+            v = v.get(path[1])
+        elif len(path) == 2 and isinstance(v, list):  # one entry per constraint
+            vals = {json.dumps(c.get(path[1])) for c in v if isinstance(c, dict)}
+            v = json.loads(vals.pop()) if len(vals) == 1 else sorted(vals) if vals else None
+        if v is None or any(p.startswith(f"{label} ") for p in parts):
+            continue
+        if short and label in ("solimp", "CFM"):
+            continue
+        if isinstance(v, list):
+            v = "(" + ", ".join(_setting(x) for x in v) + ")"
+        parts.append(f"{label} {_setting(v)}")
+    if parts:
+        return ", ".join(parts)
+    first = str(s["loop closures"][0])
+    return first.split(": ", 1)[-1]
+
+
+def _setting(v) -> str:
+    """A setting's value as it was given (``0.02``, ``1e-09``), not rounded like a metric."""
+    return f"{v:g}" if isinstance(v, float | int) and not isinstance(v, bool) else str(v)
+
+
 def _value_key(text: str):
     try:
         return (0, float(text), "")

@@ -1,13 +1,16 @@
 """Figures of systems of bodies, drawn from the per-sample series written beside each run's
 trajectory (:func:`reports.system_metrics.error_series`): pure functions of the results
-folder, like every figure of :mod:`reports.plots`.
+folder, like every figure of :mod:`reports.plots`, and drawn with the helpers it passes
+(the same colour per configuration, the legend beside the axes, hover text, alt text).
 
-:func:`system_plot`: per configuration at the scenario's own dt, over time, (1) the largest
-gap of the loop closures (m; of every joint for a tree), (2) the energy drift |E - E0| / E_c
-and (3) the drift of the conserved momenta (when the system has one), each on a log axis
-(round-off, 1e-16, and a joint open by a millimetre on one figure). A value of exactly 0 (a
-joint a reduced-coordinate engine holds by construction) is drawn at the axis floor
-:data:`FLOOR`.
+:func:`system_plot`: per group of coinciding configurations at the scenario's own dt, over
+time, (1) the largest gap of the loop closures (m; of every joint for a tree), (2) the energy
+drift |E - E0| / E_c and (3) the drift of the conserved momenta (when the system has one),
+each on a log axis (round-off, 1e-16, and a joint open by a millimetre on one figure). A
+value of exactly 0 (a joint a reduced-coordinate engine holds by construction) is drawn at
+the axis floor :data:`FLOOR`. A configuration that closes a loop with settings of its own
+(MuJoCo's ``solref``, Pinocchio's Baumgarte gains, DART's ERP, PyBullet's ``erp``:
+:func:`reports.summary.closure_settings`) carries the stiffness among them in its legend entry.
 """
 
 from __future__ import annotations
@@ -28,47 +31,76 @@ PANELS = (
 )
 
 
-def system_plot(rows, h: float, cache, out: Path, scenario: str, plt, save):
-    """The figure of a system scenario (module docstring) as ``<scenario>__system.png`` in
+def system_plot(
+    rows, h: float, cache, out: Path, scenario: str, plt, save, styles=None, new_figure=None,
+    legend=None,
+):  # fmt: skip
+    """The figure of a system scenario (module docstring) as ``<slug>__system.png`` in
     ``out``, or None when no run has samples. ``rows``: the results to draw (the scenario
     at its dt ``h``); ``cache``: a :class:`reports.plots.SeriesCache` of the folder;
-    ``plt``: matplotlib's pyplot; ``save(fig, path, alt=...)`` writes the figure (the
-    caller's, so that every figure of a report is written alike)."""
+    ``plt``: matplotlib's pyplot; ``save(fig, path, alt=...)`` writes the figure. The
+    caller's helpers, so that every figure of a report looks alike (this module imports
+    nothing of :mod:`reports.plots`, which calls it): ``styles``, an object whose
+    ``of(row)`` gives a configuration's line style (default: a colour per line);
+    ``new_figure(n)``, (figure, n axes sharing t); ``legend(ax)``, the legend of the figure
+    beside the axes (default: matplotlib's, inside the first axes)."""
+    import textwrap
+
+    from reports.results import slug
+    from reports.summary import closure_settings, config_label, group_rows
+
     runs = []
-    for _, row in rows.iterrows():
-        s = cache.get(row)
+    for g in group_rows(rows):
+        s = cache.get(g.first)
         if s is not None and "t" in s:
-            runs.append((f"{row['engine']} {row['integrator']}", s))
+            names = ", ".join(config_label(r) for r in g.rows)
+            label = "\n".join(textwrap.wrap(names, 34, break_on_hyphens=False)) or names
+            knobs = closure_settings(g.first, short=True)
+            if knobs and all(closure_settings(r, short=True) == knobs for r in g.rows):
+                label += f"\n({knobs})"
+            runs.append((g.first, label, s))
     if not runs:
         return None
-    panels = [p for p in PANELS if any(p[0] in s or (p[1] and p[1] in s) for _, s in runs)]
-    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.3 * len(panels)), sharex=True)
-    axes = np.atleast_1d(axes)
-    loops = any("loop_gap" in s for _, s in runs)
-    colours = plt.get_cmap("tab20").colors
+    panels = [p for p in PANELS if any(p[0] in s or (p[1] and p[1] in s) for *_, s in runs)]
+    if new_figure is not None:
+        fig, axes = new_figure(len(panels))
+    else:
+        fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.3 * len(panels)), sharex=True)
+        axes = list(np.atleast_1d(axes))
+    colours = plt.get_cmap("tab10").colors
+    loops = any("loop_gap" in s for *_, s in runs)
     for ax, (col, alt_col, label) in zip(axes, panels, strict=True):
-        for k, (name, s) in enumerate(runs):
+        for k, (row, name, s) in enumerate(runs):
             key = col if col in s else alt_col if alt_col and alt_col in s else None
             if key is None:
                 continue
             y = np.maximum(np.abs(np.asarray(s[key], dtype=float)), FLOOR)
-            style = ("-", "--", ":")[(k // len(colours)) % 3]
-            (line,) = ax.plot(s["t"], y, lw=1.2, ls=style, color=colours[k % len(colours)],
-                              label=name)  # fmt: skip
-            line.set_gid(name)
+            st = styles.of(row) if styles is not None else {"color": colours[k % len(colours)]}
+            if row["engine"] == "exact":
+                st = {"color": "0.55", "linestyle": "-", "lw": 2.4, "alpha": 0.6}
+            st.pop("marker", None)
+            (line,) = ax.plot(s["t"], y, lw=st.pop("lw", 1.3), label=name, **st)
+            line.set_gid(" ".join(name.split()))
         ax.set_yscale("log")
-        what = "loop closure" if (col == "loop_gap" and loops) else None
-        ax.set_ylabel(label if what is None else f"loop closure {label}")
+        if col == "loop_gap":
+            label = f"{'loop closure' if loops else 'largest joint'} {label}"
+        ax.set_ylabel(label)
         ax.grid(True, which="major", alpha=0.3)
     axes[-1].set_xlabel("t [s]")
-    axes[0].legend(fontsize=7, ncol=2, loc="best")
+    axes[-1].set_xlim(0, max(float(s["t"][-1]) for *_, s in runs))
     dt = "" if math.isnan(h) else f" at dt = {h:g} s"
     axes[0].set_title(f"{scenario}: joints, energy and momentum over time{dt}", fontsize=10)
+    if legend is not None:
+        legend(axes[0])
+    else:
+        axes[0].legend(fontsize=7, ncol=2, loc="best")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     alt = (
         f"{scenario}: per engine and integrator{dt}, the "
         + ("loop closure's gap" if loops else "largest joint gap")
-        + " in m, the energy drift and the momentum drift over time, log axes"
+        + " in m, the energy drift"
+        + (" and the momentum drift" if any("momentum_drift" in s for *_, s in runs) else "")
+        + f" over time, log axes, {len(runs)} line(s) of configurations"
     )
-    return save(fig, out / f"{scenario}__system.png", alt=alt)
+    return save(fig, out / f"{slug(scenario)}__system.png", alt=alt)

@@ -1,0 +1,173 @@
+"""The report of systems of bodies: on a small real results folder (the four-bar loop on the
+director model, MuJoCo and Pinocchio, its exact reference, and one single body), a system
+scenario gets its own figure (loop-closure gap, energy and momentum over time) in view and
+never a single body's figure or an error on the standard error; its table shows the settings
+that shaped each loop closure; the cheapest configuration per accuracy includes it; every
+line of the system figure is named in its legend (and a planted unnamed line is caught)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import scenarios
+from reports.results import read_results
+from reports.runner import plan, run_suite
+
+#: 0.1 s of the four-bar at its own dt (2 ms): 50 steps per run, a second or so in all
+ENGINES = ("director", "exact", "mujoco", "pinocchio")
+INTEGRATORS = ("rattle", "reference", "RK4", "RKMK4")
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The results folder of the four-bar and free_tumbling, with its report."""
+    out = tmp_path_factory.mktemp("system-report")
+    bar = scenarios.load("four_bar").replace(t_end=0.1)
+    free = scenarios.load("free_tumbling").replace(t_end=0.1, dt_sweep=(2e-3,))
+    run_suite(plan([bar, free], ENGINES, INTEGRATORS), out, progress=False)
+    from reports.report import build_report
+
+    build_report(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def df(built):
+    return read_results(built)
+
+
+def test_a_system_gets_its_own_figure_in_view_and_no_error(built, capfd):
+    from reports.report import build_report
+
+    (built / "plots" / ".made-from.json").unlink(missing_ok=True)  # draw every figure again
+    build_report(built)
+    err = capfd.readouterr().err
+    assert "not drawn" not in err and "Error" not in err, err
+    names = {p.name for p in (built / "plots").glob("*.png")}
+    assert "four-bar__system.png" in names
+    # a single body's figures are not drawn for a system, nor the system figure for one body
+    assert not {"four-bar__rates.png", "four-bar__scenario.png"} & names
+    assert "free-tumbling__rates.png" in names and "free-tumbling__system.png" not in names
+    html = (built / "report.html").read_text()
+    section = html[html.index("id='four_bar'") :]
+    section = section[: section.index("</section>")]
+    # in view: before the collapsed part of the section
+    assert section.index("k-system") < section.index("<details")
+
+
+def test_the_system_figure_names_every_line_with_its_closure_settings(built, df, tmp_path):
+    import reports.plots as plots
+
+    styles, cache = plots.Styles(df), plots.SeriesCache(built)
+    png = plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    meta = plots.figure_meta(png)
+    labels = [ln["label"] for ln in meta["lines"]]
+    # MuJoCo's default solref is (0.02, 1) (MuJoCo documentation, "solref"); the row ran it
+    assert any(lab.startswith("mujoco RK4") and "solref (0.02, 1)" in lab for lab in labels)
+    assert any(lab.startswith("pinocchio") and "Baumgarte" in lab for lab in labels)
+    assert any(lab.startswith("director rattle") for lab in labels)
+    assert "loop closure" in meta["alt"] and "four_bar" in meta["alt"]
+
+
+def _unnamed_lines(fig) -> list[str]:
+    """The data lines of a figure (more than two points) that its legend does not name (or
+    names by their settings alone, with no configuration)."""
+    named = set()
+    for ax in fig.axes:
+        if ax.get_legend() is not None:
+            named |= {t.get_text() for t in ax.get_legend().get_texts()}
+    return [
+        repr(ln.get_label())
+        for ax in fig.axes
+        for ln in ax.get_lines()
+        if len(ln.get_xdata()) > 2
+        and (ln.get_label() not in named or not ln.get_label().split("\n")[0].strip())
+    ]
+
+
+def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monkeypatch):
+    import reports.plots as plots
+
+    kept = []
+    real = plots._write_png
+
+    def keep(fig, path, **kw):
+        real(fig, path, **kw)
+        kept.append(fig)
+
+    monkeypatch.setattr(plots, "_write_png", keep)
+    monkeypatch.setattr(plots, "_plt", _no_close(plots._plt))
+    styles, cache = plots.Styles(df), plots.SeriesCache(built)
+    plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    (fig,) = kept
+    assert _unnamed_lines(fig) == []
+    # planted: one configuration's name lost, or hidden from the legend (matplotlib leaves
+    # out a label starting with "_"): each is caught
+    import reports.summary as summary
+
+    real_label = summary.config_label
+    for planted in ("", "_hidden"):
+        monkeypatch.setattr(
+            summary, "config_label", lambda row, planted=planted, **kw: planted
+            if row["engine"] == "mujoco" else real_label(row, **kw),
+        )  # fmt: skip
+        plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+        # the one MuJoCo line of each panel
+        assert len(_unnamed_lines(kept[-1])) == len(kept[-1].axes), planted
+
+
+def _no_close(real_plt):
+    """pyplot whose close() keeps the figures (to inspect them after they are saved)."""
+
+    def wrapped():
+        plt = real_plt()
+
+        class NoClose:
+            def __getattr__(self, name):
+                return getattr(plt, name)
+
+            def close(self, *a, **k):
+                return None
+
+        return NoClose()
+
+    return wrapped
+
+
+def test_system_rows_show_their_closure_settings_and_rank_by_cost(built, df):
+    from reports.summary import closure_settings, work_precision
+
+    bar = df[df["scenario"] == "four_bar"]
+    by = {(r["engine"], r["integrator"]): r for r in bar.to_dict("records")}
+    assert closure_settings(by[("mujoco", "RK4")]).startswith("solref (0.02, 1), solimp (")
+    assert closure_settings(by[("pinocchio", "RKMK4")]).startswith("Baumgarte (Kp, Kd) (")
+    assert closure_settings(by[("director", "rattle")]) == ""  # no settings: held exactly
+    md = (built / "report.md").read_text()
+    assert "loop closure settings" in md and "solref (0.02, 1)" in md
+    # the cheapest configuration per accuracy includes the system (attitude error: the
+    # largest over bodies), ranked by time inside the engine
+    wp = work_precision(bar)
+    ranked = [e for lv in wp for e in lv["ranked"]]
+    assert ranked and all(e["attitude_error_max"] <= lv["level"] for lv in wp
+                          for e in lv["ranked"])  # fmt: skip
+    assert "four_bar: cheapest configuration per accuracy" in md
+    summary = json.loads((built / "summary.json").read_text())
+    assert "four_bar" in json.dumps(summary["scorecard"] if "scorecard" in summary else summary)
+
+
+def test_a_system_without_series_files_gets_no_single_body_figure(built, df, tmp_path, capfd):
+    """A system whose runs left no series file (rows only): no figure of a single body is
+    attempted (nothing on the standard error), and no system figure either."""
+    import reports.plots as plots
+
+    rows = df.copy()
+    rows.loc[rows["scenario"] == "four_bar", "trajectory"] = ""
+    styles, cache = plots.Styles(rows), plots.SeriesCache(built)
+    assert plots.is_system(rows, cache, "four_bar") and not plots.is_system(
+        rows, cache, "free_tumbling"
+    )
+    made = [plots.scenario_plot(k, rows, cache, tmp_path, "four_bar", styles) for k in plots.KINDS]
+    assert all(p is None or p.stem.endswith(("work_precision", "convergence")) for p in made)
+    assert capfd.readouterr().err == ""
