@@ -534,7 +534,10 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     fig, axes = _new_figure(len(panels))
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
     off = {}
+    system = is_system(df, cache, scenario)
     for ax, (column, ylabel, scale_col, unit) in zip(axes, panels, strict=True):
+        if system and column == "attitude_error":
+            ylabel = "attitude error [rad]\n(largest over bodies)"
         left = _error_panel(ax, rows, groups, ref, column, styles, show_notes=ax is axes[0])
         for name, t_left in left:
             off.setdefault(name, []).append((column, t_left))

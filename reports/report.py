@@ -533,7 +533,8 @@ def work_precision_section(doc: Doc, df) -> None:
         "`cheapest`); `-`: no configuration of that engine reaches the level. `+ suite` "
         "marks a configuration whose time loop is the suite's own Python around the engine's "
         "dynamics: its wall time measures our code, so no ratio here uses it. An error below "
-        "the reference's accuracy reaches no level below that accuracy." + _finer_sweep_note(df)
+        "the reference's accuracy reaches no level below that accuracy. For a system of "
+        "bodies the attitude error is the largest over its bodies." + _finer_sweep_note(df)
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
     doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp")
