@@ -29,6 +29,13 @@ import numpy as np
 #: Reference kinds a scenario may request; "auto" lets the suite pick (see references).
 REFERENCE_KINDS = ("auto", "free_body", "lagrange_top", "steady_precession", "numerical")
 
+#: Reference kinds whose motion is a relative equilibrium: a steady rotation (a top in steady
+#: precession, a straight chain spinning about a principal axis, a conical pendulum). On such
+#: a motion the leading term of an integrator's error may vanish (joint rates are constant,
+#: so a reduced-coordinate Euler step is exact up to its attitude update), and an order fitted
+#: there may exceed the integrator's generic one without anything being wrong.
+RELATIVE_EQUILIBRIA = ("steady_precession", "spinning_chain", "conical_pendulum")
+
 #: Metrics a ``[tolerances]`` table may bound (every one "lower is better"; the metrics and
 #: their units are documented in reports.metrics and docs/results.md).
 TOLERANCE_METRICS = (

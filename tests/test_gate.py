@@ -353,3 +353,17 @@ def test_each_invariant_can_fail(tmp_path):
     worse = _frame([row(order=4.0, verdict="fail"), row(engine="pybullet", integrator="multibody")])
     problems = gate.invariants(worse, path)
     assert any("failures = 0, the results say 1" in p for p in problems)
+
+
+def test_an_order_above_the_generic_one_is_allowed_only_on_a_relative_equilibrium():
+    # On a steady rotation the leading error term may vanish (Drake's semi-explicit Euler
+    # fits order 2 on the spinning chain: the quaternion's normalised linear update is its
+    # only error); on a generic motion the same fit means a mislabelled scheme.
+    above = dict(order=1.0, convergence_order=2.0, convergence_points=2.0)
+    steady = row(**above, reference_kind="spinning_chain")
+    assert gate.invariants(_frame([steady])) == []
+    generic = row(**above, reference_kind="free_body")
+    assert len(gate.invariants(_frame([generic]))) == 1
+    below = row(order=4.0, convergence_order=2.9, convergence_points=2.0)
+    below["reference_kind"] = "steady_precession"  # below the order is wrong everywhere
+    assert "fitted order 2.9" in gate.invariants(_frame([below]))[0]
