@@ -11,6 +11,8 @@ Body, Joint, JOINT_KINDS
     a body (name, mass, principal moments, initial pose and velocity) and a joint
 simulate_system, SystemStepper, SystemTrajectory, SYSTEM_SCHEMES
     one run / a run in chunks with bitwise restart / the saved states
+simulate_system_batch, SystemBatchTrajectory
+    N systems of one topology in parallel (numba threads), each bit for bit its own run
 project_velocities
     the explicit projection of initial velocities onto the joints' velocity constraints
 InvalidJointError, InvalidMechanismError
@@ -18,6 +20,7 @@ InvalidJointError, InvalidMechanismError
     InvalidStateError, InvalidRunError and StepSizeError
 """
 
+from director_model.system.batch import SystemBatchTrajectory, simulate_system_batch
 from director_model.system.model import (
     JOINT_KINDS,
     Body,
@@ -37,6 +40,7 @@ __all__ = [
     "JOINT_KINDS",
     "SYSTEM_SCHEMES",
     "Body",
+    "SystemBatchTrajectory",
     "InvalidJointError",
     "InvalidMechanismError",
     "Joint",
@@ -44,4 +48,5 @@ __all__ = [
     "SystemTrajectory",
     "project_velocities",
     "simulate_system",
+    "simulate_system_batch",
 ]
