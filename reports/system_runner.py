@@ -85,6 +85,7 @@ def _measure(row, spec, sc, output, out, fmt):
         wall_time_max_s=output.wall_time_s,
         engine_time_max_s=output.engine_time_s,
         timing_repeats=1,
+        cpu_time_s=output.cpu_time_s,
         evals_per_step=output.evals_per_step,
         settings=json.dumps(output.settings, sort_keys=True, default=str),
         roundoff_floor=roundoff_floor(sc, output.nstep),

@@ -200,3 +200,15 @@ def test_without_budget_a_run_is_timed_once(cheap, monkeypatch):
     monkeypatch.setattr(runner, "TIMING_BUDGET_S", 0.0)
     r = runner.execute(cheap)
     assert r["timing_repeats"] == 1 and r["wall_time_max_s"] == r["wall_time_s"]
+
+
+def test_the_reference_and_a_system_run_record_their_cpu_time():
+    # compare's cost range needs the process's CPU time over the run: without it a slowdown
+    # under load cannot be told from a slower engine (the exact reference was called 2.6x
+    # slower on an identical rerun beside a second suite before it recorded one)
+    sc = scenarios.load("free_tumbling").replace(t_end=0.05, dt_sweep=())
+    r = runner.execute(RunSpec(sc, "exact", "reference", 1e-3))
+    assert r["status"] == "ok" and 0 < r["cpu_time_s"] < 60, r["message"]
+    chain = scenarios.load("spinning_chain").replace(t_end=0.05, dt_sweep=())
+    r = runner.execute(RunSpec(chain, "director", "rattle", 1e-3))
+    assert r["status"] == "ok" and 0 < r["cpu_time_s"] < 60, r["message"]
