@@ -49,8 +49,6 @@ class SystemRunOutput:
     evals_per_step: float = math.nan
     stats: dict = field(default_factory=dict)
     family: str = ""
-    #: the process's CPU time over the builder's call (as RunOutput.cpu_time_s)
-    cpu_time_s: float = math.nan
 
     @property
     def glue_time_s(self) -> float:
@@ -91,10 +89,10 @@ def run_system(
     nstep, saves = step_plan(dt, t_end, save_every)
     mod = builder(engine)
     settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
-    t0, c0 = time.perf_counter(), time.process_time()
+    t0 = time.perf_counter()
     res = mod.simulate_system(scenario, integrator, float(dt), int(nstep), int(save_every),
                               **settings)  # fmt: skip
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    wall = time.perf_counter() - t0
     get = res.get if isinstance(res, dict) else (lambda k, d=None: getattr(res, k, d))
     missing = [k for k in RESULT_KEYS if get(k) is None]
     if missing:
@@ -119,7 +117,6 @@ def run_system(
         settings={**dict(get("settings", {}) or {}), "integrator": integrator, "timestep": dt},
         evals_per_step=float(get("evals_per_step", math.nan) or math.nan),
         stats=dict(get("stats", {}) or {}),
-        cpu_time_s=cpu,
     )
     bad = _first_divergence(scenario, traj)
     if bad is not None:
