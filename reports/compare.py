@@ -22,7 +22,9 @@ wall time of its stepping (on a busy machine the process ran only that part of t
 time) up to the slowest repeat. After asv's rule, a cost change is significant only when the
 ratio of the fastest times exceeds the factor AND the ranges are that far apart (B's low end
 over A's high end beyond the factor, for a slowdown); otherwise it is ``not significant``:
-the noise measured with the runs could account for it.
+the noise measured with the runs could account for it. A change must also hold at every dt
+of the configuration's sweep (:func:`_corroborate_costs`): the engine's own slowdown moves
+every step size, a burst of load on the machine single runs.
 
 Exit code of the command: 1 when some run got worse in a metric, its status or its verdict,
 when a pair of runs is a mismatch, or when nothing is comparable (an empty folder, no run in
@@ -224,7 +226,29 @@ def compare_folders(
             )
             continue
         cmp.changes += _run_changes(key, x, y, factor, cost_factor)
+    _corroborate_costs(cmp.changes)
     return cmp
+
+
+def _corroborate_costs(changes: list) -> None:
+    """Keep a cost change only where every step size of its sweep moved the same way.
+
+    A change of the engine moves the cost per step at every dt of a configuration's sweep
+    (scenario, engine, integrator); a burst of load on the machine hits single runs, and a
+    run's measured spread cannot show load that came and went between two of its repeats.
+    So a ``worse`` (``better``) cost at one dt stays so only when that cost column is
+    ``worse`` (``better``) at every dt of the sweep the two folders share; otherwise it is
+    ``not significant``. A configuration run at one dt only is judged on that run."""
+    groups: dict = {}
+    for c in changes:
+        if c.column in COST_COLUMNS:
+            groups.setdefault((c.key[:3], c.column), []).append(c)
+    for group in groups.values():
+        words = {c.change for c in group}
+        if len(words) > 1:
+            for c in group:
+                if c.change in ("worse", "better"):
+                    c.change = "not significant"
 
 
 def _sort_key(key):

@@ -203,3 +203,27 @@ def test_a_cost_change_within_the_spread_is_not_significant(folders, tmp_path, c
     )
     assert main(["compare", str(noisy_a), str(much_slower), "--cost-factor", "2"]) == 1
     assert "worse" in capsys.readouterr().out
+
+
+def test_a_cost_change_counts_only_when_every_dt_of_its_sweep_moved():
+    """A burst of load on the machine slows single runs; the engine's own slowdown moves every
+    step size (on an identical rerun beside a second suite, 2 of 1164 cost comparisons were
+    called worse, each at one dt of a three-step sweep)."""
+    from reports.compare import Change, _corroborate_costs
+
+    def sweep(words, integ="RK4"):
+        return [
+            Change(("s", "mujoco", integ, dt, None), "ns_per_step", 1.0, 3.0, 3.0, w)
+            for dt, w in zip((1e-3, 2e-3, 4e-3), words, strict=False)
+        ]
+
+    burst = sweep(["same", "worse", "not significant"])
+    _corroborate_costs(burst)
+    assert [c.change for c in burst] == ["same", "not significant", "not significant"]
+    slower = sweep(["worse", "worse", "worse"])
+    _corroborate_costs(slower)
+    assert [c.change for c in slower] == ["worse"] * 3
+    single = sweep(["better"], integ="Euler")
+    metric = [Change(("s", "mujoco", "RK4", 1e-3, None), "attitude_error_max", 1, 9, 9, "worse")]
+    _corroborate_costs(single + metric + sweep(["same", "same", "same"]))
+    assert single[0].change == "better" and metric[0].change == "worse"
