@@ -688,3 +688,17 @@ def _csv_value(v) -> str:
     if isinstance(v, float):
         return "" if math.isnan(v) else repr(v)
     return str(v)
+
+
+def write_parquet_table(table, path: Path, metadata: dict) -> None:
+    """Write the Arrow ``table`` to ``path`` as Parquet, atomically (a temporary file in the
+    same folder, then a rename), with ``metadata`` (JSON values) added to its schema."""
+    import pyarrow.parquet as pq
+
+    if metadata:
+        meta = dict(table.schema.metadata or {})
+        meta.update({k.encode(): json.dumps(v).encode() for k, v in metadata.items()})
+        table = table.replace_schema_metadata(meta)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    pq.write_table(table, tmp)
+    tmp.replace(path)

@@ -35,6 +35,7 @@ from reports.results import (
     finish_time,
     read_results,
     trajectory_path,
+    write_parquet_table,
 )
 from scenarios.schema import InputError, magnitude_problems, step_count_problem
 
@@ -92,7 +93,7 @@ def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) ->
         tmp.replace(path)
         series = {"t": traj.t, "wx": traj.omega_body[:, 0], "wy": traj.omega_body[:, 1],
                   "wz": traj.omega_body[:, 2], **series}  # fmt: skip
-        _write_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), {})
+        write_parquet_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), {})
         return
     n = len(traj)
     data = np.column_stack(
@@ -112,21 +113,7 @@ def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) ->
         },
         "director_bench.run": identity,
     }
-    _write_table(table, path, meta)
-
-
-def _write_table(table, path: Path, metadata: dict) -> None:
-    import os
-
-    import pyarrow.parquet as pq
-
-    if metadata:
-        meta = dict(table.schema.metadata or {})
-        meta.update({k.encode(): json.dumps(v).encode() for k, v in metadata.items()})
-        table = table.replace_schema_metadata(meta)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    tmp.replace(path)
+    write_parquet_table(table, path, meta)
 
 
 # -- one run -----------------------------------------------------------------------------------
@@ -140,49 +127,17 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     trajectory and its per-sample series under ``out/trajectories`` when ``out`` is given.
     Never raises for a failure of the run: the row says what happened.
     """
-    from references.engines import Diverged, EngineError, get_engine
+    from references.engines import EngineError
 
     row = blank_row(spec)
-    if getattr(spec.scenario, "is_system", False):  # a system of bodies: reports.system_runner
-        from reports.system_runner import execute_system
-
-        return execute_system(spec, row, out, fmt)
     try:
-        cls = get_engine(spec.engine)
-        if not row["engine_version"]:
-            row["engine_version"] = cls.version()
-        integ = cls.integrator(spec.integrator)
-        row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
-        sc = spec.scenario
-        if spec.t_end is not None and spec.horizon != sc.t_end:
-            sc = sc.replace(t_end=spec.horizon)
-            # the scales of the horizon run (a free fall's energy in play grows with it)
-            row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
-        recorder = _recorder(spec, sc)
-        timings = ()
-        try:
-            t0 = time.perf_counter()
-            output = cls().run(
-                sc,
-                integ.name,
-                spec.dt,
-                spec.horizon,
-                spec.saving,
-                progress,
-                recorder,
-                accuracy=spec.accuracy,
-            )
-            diverged = None
-            if recorder is None:
-                call = time.perf_counter() - t0
-                output, timings = _timed_again(cls, sc, integ.name, spec, output, call)
-        except Diverged as exc:
-            output, diverged = exc.output, exc
-        if output is not None and output.family and output.family != integ.family:
-            row["family"] = output.family  # the algorithm this model ran (see RunOutput)
-            integ = dataclasses.replace(integ, family=output.family)
-        _measure(row, spec, sc, output, recorder, out, fmt, timings)
-        _judge(row, sc, integ, diverged)
+        cls, integ, sc = _prepare(row, spec)
+        if getattr(sc, "is_system", False):  # a system of bodies: reports.system_runner
+            from reports.system_runner import run_system_spec
+
+            run_system_spec(spec, row, integ, sc, out, fmt)
+        else:
+            _run_body(spec, row, cls, integ, sc, out, fmt, progress)
     except EngineError as exc:
         row["status"] = exc.status
         row["message"] = str(exc)
@@ -194,6 +149,56 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
         row["message"] = f"{type(exc).__name__}: {exc} (at {Path(tb.filename).name}:{tb.lineno})"
     row["finished_at"] = finish_time()
     return row
+
+
+def _prepare(row: dict, spec: RunSpec):
+    """(engine class, integrator, scenario at the run's horizon) of ``spec``, with the row's
+    engine version, integrator facts and, for a horizon other than the file's, its scales."""
+    from references.engines import get_engine
+
+    cls = get_engine(spec.engine)
+    if not row["engine_version"]:
+        row["engine_version"] = cls.version()
+    integ = cls.integrator(spec.integrator)
+    row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
+    sc = spec.scenario
+    if spec.t_end is not None and spec.horizon != sc.t_end:
+        sc = sc.replace(t_end=spec.horizon)
+        # the scales of the horizon run (a free fall's energy in play grows with it)
+        row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
+    return cls, integ, sc
+
+
+def _run_body(spec: RunSpec, row: dict, cls, integ, sc, out, fmt, progress) -> None:
+    """Run a single body's spec through its engine and fill ``row``: timings, metrics,
+    status and verdict (raises for a failure, which :func:`execute` makes a row)."""
+    from references.engines import Diverged
+
+    recorder = _recorder(spec, sc)
+    timings = ()
+    try:
+        t0 = time.perf_counter()
+        output = cls().run(
+            sc,
+            integ.name,
+            spec.dt,
+            spec.horizon,
+            spec.saving,
+            progress,
+            recorder,
+            accuracy=spec.accuracy,
+        )
+        diverged = None
+        if recorder is None:
+            call = time.perf_counter() - t0
+            output, timings = _timed_again(cls, sc, integ.name, spec, output, call)
+    except Diverged as exc:
+        output, diverged = exc.output, exc
+    if output is not None and output.family and output.family != integ.family:
+        row["family"] = output.family  # the algorithm this model ran (see RunOutput)
+        integ = dataclasses.replace(integ, family=output.family)
+    _measure(row, spec, sc, output, recorder, out, fmt, timings)
+    _judge(row, sc, integ, diverged)
 
 
 #: a cheap run is run again for its timing: repeated while the calls so far and one more of

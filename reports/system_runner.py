@@ -1,67 +1,44 @@
 """One run of a system of bodies, from its spec to its result row: the system counterpart of
-:func:`reports.runner.execute` (which hands system scenarios here).
+the single-body run in :func:`reports.runner.execute`, which prepares the row, hands system
+scenarios here and turns a failure into the row's status.
 
 Flow: the engine's system builder (:func:`references.engines.system.run_system`) -> the
 states (:class:`references.trajectory.SystemTrajectory`) -> the reference
 (:func:`references.engines.exact_system.reference`) -> the metrics
 (:mod:`reports.system_metrics`) -> status and verdict (:mod:`reports.verdicts`) -> the
-trajectory file (Parquet, per-body columns and the error series). A failure of the run is a
-row with its status and message, never an exception.
+trajectory file (Parquet, per-body columns and the error series).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import traceback
 from pathlib import Path
 
 from reports import verdicts
 from reports.metrics import roundoff_floor
-from reports.results import StoreUnwritable, finish_time, trajectory_path
+from reports.results import StoreUnwritable, trajectory_path, write_parquet_table
 
 
-def execute_system(spec, row: dict, out: Path | None = None, fmt: str = "parquet") -> dict:
-    """Run the system spec ``spec`` into ``row`` (its blank row) and return the row."""
-    from references.engines import Diverged, EngineError, get_engine
+def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:
+    """Run the system spec ``spec`` (its integrator ``integ``, its scenario at the run's
+    horizon ``sc``) and fill ``row``: timings, metrics, status and verdict. A failure raises;
+    :func:`reports.runner.execute`, which prepared the row, makes it the row's status."""
+    from references.engines import Diverged, Unsupported
     from references.engines.system import run_system
 
+    if spec.accuracy is not None or spec.segment:
+        raise Unsupported(
+            f"{spec.engine} {integ.name}: systems of bodies run at fixed steps with the "
+            "metrics at the saved states (no target accuracy, no --segment streaming)"
+        )
     try:
-        cls = get_engine(spec.engine)
-        if not row["engine_version"]:
-            row["engine_version"] = cls.version()
-        integ = cls.integrator(spec.integrator)
-        row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
-        sc = spec.scenario
-        if spec.t_end is not None and spec.horizon != sc.t_end:
-            sc = sc.replace(t_end=spec.horizon)
-            row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
-        if spec.accuracy is not None or spec.segment:
-            from references.engines import Unsupported
-
-            raise Unsupported(
-                f"{spec.engine} {integ.name}: systems of bodies run at fixed steps with the "
-                "metrics at the saved states (no target accuracy, no --segment streaming)"
-            )
-        try:
-            output = run_system(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
-            diverged = None
-        except Diverged as exc:
-            output, diverged = exc.output, exc
-        ref = _measure(row, spec, sc, output, out, fmt)
-        _judge(row, sc, integ, diverged, ref)
-    except EngineError as exc:
-        row["status"] = exc.status
-        row["message"] = str(exc)
-    except StoreUnwritable:
-        raise
-    except Exception as exc:  # noqa: BLE001 - a run's failure is a row, never a crash
-        row["status"] = "error"
-        tb = traceback.extract_tb(exc.__traceback__)[-1]
-        row["message"] = f"{type(exc).__name__}: {exc} (at {Path(tb.filename).name}:{tb.lineno})"
-    row["finished_at"] = finish_time()
-    return row
+        output = run_system(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
+        diverged = None
+    except Diverged as exc:
+        output, diverged = exc.output, exc
+    ref = _measure(row, spec, sc, output, out, fmt)
+    _judge(row, sc, integ, diverged, ref)
 
 
 def _measure(row, spec, sc, output, out, fmt):
@@ -119,7 +96,6 @@ def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
     identity (CSV is not offered for systems: the file is written as Parquet)."""
     import numpy as np
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     from references.trajectory import UNITS
 
@@ -141,13 +117,8 @@ def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
         "director_bench.run": {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")},
     }
     table = pa.table({**cols, **{k: np.asarray(v, dtype=float) for k, v in series.items()}})
-    schema_meta = dict(table.schema.metadata or {})
-    schema_meta.update({k.encode(): json.dumps(v).encode() for k, v in meta.items()})
-    table = table.replace_schema_metadata(schema_meta)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        pq.write_table(table, tmp)
-        tmp.replace(path)
+        write_parquet_table(table, path, meta)
     except OSError as exc:
         raise StoreUnwritable(f"{path}: cannot write the run's trajectory ({exc})") from exc
     row["trajectory"] = rel.as_posix()
