@@ -79,6 +79,9 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import import_engine
+from references.engines.pinocchio_system import saves as _saves
+from references.engines.pinocchio_system import unit as _unit
+from references.engines.pinocchio_system import vec as _vec
 from references.errors import Diverged, EngineError, Unsupported
 
 #: MuJoCo's integrators offered (``mjtIntegrator``); "discrete" only where MuJoCo has it
@@ -188,21 +191,6 @@ class _Plan:
 def _label(j, k: int) -> str:
     name = getattr(j, "name", None) or f"joint{k}"
     return f"joint {name!r} ({j.kind} {j.body_a!r}-{j.body_b!r})"
-
-
-def _vec(a, what: str) -> np.ndarray:
-    v = np.asarray(a, dtype=float).reshape(-1)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{what}: expected 3 finite numbers, got {np.asarray(a).tolist()}")
-    return v
-
-
-def _unit(a, what: str) -> np.ndarray:
-    v = _vec(a, what)
-    n = float(np.linalg.norm(v))
-    if not n > 0:
-        raise ValueError(f"{what}: the axis {v.tolist()} has zero length")
-    return v / n
 
 
 def plan(scenario) -> _Plan:
@@ -848,17 +836,6 @@ def build(scenario, integrator: str, dt: float, **settings):
             "jacobian": mujoco.mjtJacobian(int(m.opt.jacobian)).name,
         }
     return mujoco, m, d, pl, bid, rec
-
-
-def _saves(nstep: int, save_every: int) -> np.ndarray:
-    if not (isinstance(nstep, (int, np.integer)) and nstep >= 0):
-        raise ValueError(f"nstep {nstep!r}: must be an integer >= 0")
-    if not (isinstance(save_every, (int, np.integer)) and save_every >= 1):
-        raise ValueError(f"save_every {save_every!r}: must be an integer >= 1")
-    s = list(range(0, nstep + 1, save_every))
-    if s[-1] != nstep:
-        s.append(nstep)
-    return np.array(s)
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
