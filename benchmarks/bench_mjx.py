@@ -1,7 +1,7 @@
 """Cost per body-step of MJX's vmapped batch against C MuJoCo's ``mujoco.rollout``, in one run.
 
 The body: a free body, m = 1 kg, I = (1, 2, 3) kg m^2, no gravity, W0 = (0.01, 2, 0.01) rad/s
-with its direction drawn at random per body (the ensemble's rule, reports.ensemble.members:
+with its direction drawn at random per body (the ensemble's rule, reports.run.ensemble.members:
 same kinetic energy), dt = 1e-3 s. Both engines get the same MJCF (the adapters',
 references.engines.mujoco_engine.MujocoEngine.model_xml) and the same initial states.
 
@@ -50,7 +50,7 @@ def scenario():
 
 def initial_qpos_qvel(n: int):
     from references import conventions as cv
-    from reports.ensemble import members
+    from reports.run.ensemble import members
 
     qp, qv = [], []
     for mem in members(scenario(), n, seed=0):

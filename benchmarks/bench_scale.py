@@ -39,7 +39,7 @@ W0 = np.array([0.01, 2.0, 0.01])
 
 def ensemble(nbody: int, seed: int = 0):
     """Initial rotations (identity) and body rates of the ensemble: random directions at the
-    rotational energy of W0 (same rule as reports.ensemble)."""
+    rotational energy of W0 (same rule as reports.run.ensemble)."""
     rng = np.random.default_rng(seed)
     u = rng.normal(size=(nbody, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
@@ -104,7 +104,7 @@ import json, sys, time
 import scenarios
 from references.engines import get_engine
 from references.exact import reference_trajectory
-from reports.metrics import compute_metrics
+from reports.metrics.body import compute_metrics
 def hwm_kb():
     for line in open("/proc/self/status"):
         if line.startswith("VmHWM:"):
@@ -113,7 +113,7 @@ engine, integ, nstep, every = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sy
 segment = int(sys.argv[5]) if len(sys.argv) > 5 else 0
 sc = scenarios.load("dzhanibekov")
 if segment:  # streaming metrics over every step, segments of `segment` steps
-    from reports.runner import RunSpec, execute
+    from reports.run.runner import RunSpec, execute
     execute(RunSpec(sc.replace(t_end=1.0), engine, integ, 1e-3, save_every=every,
                     segment=segment))  # warm-up
     before = hwm_kb()
@@ -177,7 +177,7 @@ FIRST_ENGINES = "director,exact,mujoco,pinocchio,dart,pybullet"
 def default_suite(engines: str | None = None):
     """Wall time of ``director-bench run`` (runs and report) into a fresh folder, the peak
     RSS of the largest process, and the results (for the breakdown below)."""
-    from reports.results import read_results
+    from reports.store.results import read_results
 
     with tempfile.TemporaryDirectory() as tmp:
         cmd = ["director-bench", "run", "--out", tmp, "--quiet"]
@@ -255,7 +255,8 @@ def main(argv=None):
     )
     seg = 20_000
     print(
-        f"\nSame horizon with streaming metrics (reports.streaming): segments of {seg} steps, "
+        f"\nSame horizon with streaming metrics (reports.metrics.streaming): segments of "
+        f"{seg} steps, "
         "every step measured (energy, momentum, attitude... against the exact reference)"
     )
     long_table(nlong, every, [("director", "rattle"), ("mujoco", "Euler")], seg)

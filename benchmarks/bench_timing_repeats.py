@@ -1,6 +1,6 @@
 """What timing cheap runs more than once costs the suite, measured side by side in one run.
 
-The runner repeats a cheap run for its timing (reports.runner.TIMING_BUDGET_S and
+The runner repeats a cheap run for its timing (reports.run.runner.TIMING_BUDGET_S and
 TIMING_REPEATS: repeated while the calls so far and one more stay within the budget). This
 script runs the same suite (the default scenarios on ``--engines``, one process, fresh output
 folders) alternately with repeats off (budget 0) and on (the runner's budget), ``--rounds``
@@ -21,7 +21,7 @@ from pathlib import Path
 
 def one_suite(engines: list[str], budget: float) -> tuple[float, collections.Counter]:
     import scenarios
-    from reports import runner
+    from reports.run import runner
 
     runner.TIMING_BUDGET_S = budget
     suite = [scenarios.load(n) for n in scenarios.default_suite()]
@@ -34,7 +34,7 @@ def one_suite(engines: list[str], budget: float) -> tuple[float, collections.Cou
 
 
 def main() -> None:
-    from reports import runner
+    from reports.run import runner
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--engines", default="director,mujoco")

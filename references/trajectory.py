@@ -257,7 +257,7 @@ class SystemTrajectory:
     =================  ==============  ====================================================
 
     Energy, momenta and joint residuals are computed by the suite from these states
-    (``reports.system_metrics``), never taken from an engine. On disk (Parquet) the columns
+    (``reports.metrics.system``), never taken from an engine. On disk (Parquet) the columns
     are ``t`` and, per body ``<name>``, ``<name>.x ... <name>.R22 ... <name>.wz`` in the
     layout of :data:`COLUMNS` (without energy and momentum).
     """

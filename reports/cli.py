@@ -220,7 +220,7 @@ def _counts(series) -> str:
 
 
 def cmd_ensemble(args) -> int:
-    from reports.ensemble import summary
+    from reports.store.ensemble import summary
     from reports.suite import ensemble
 
     df, rep = ensemble(
@@ -250,7 +250,7 @@ def cmd_ensemble(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     folder = Path(args.dir)
     if (folder / "results.sqlite").is_file() and not os.access(folder, os.W_OK):
@@ -268,7 +268,7 @@ def cmd_report(args) -> int:
 
 
 def cmd_baseline(args) -> int:
-    from reports.gate import write_baseline
+    from reports.gate.check import write_baseline
     from scenarios.schema import InputError
 
     if Path(args.write).is_dir():
@@ -279,7 +279,7 @@ def cmd_baseline(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from reports.gate import check
+    from reports.gate.check import check
 
     return check(
         args.dir,
@@ -292,7 +292,7 @@ def cmd_check(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from reports.compare import run_compare
+    from reports.gate.compare import run_compare
 
     return run_compare(
         args.a,
@@ -540,7 +540,7 @@ def _quiet_exit() -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from reports.results import StoreDamaged, StoreUnwritable
+    from reports.store.results import StoreDamaged, StoreUnwritable
     from scenarios.schema import InputError
 
     parser = build_parser()
@@ -587,7 +587,7 @@ def _work_failed(exc: BaseException, command: str = "") -> int:
             )
         print(f"director-bench: error: {where}{exc.strerror or exc}{advice}", file=sys.stderr)
         return 1
-    from reports.parallel import ClusterLost
+    from reports.run.parallel import ClusterLost
 
     if isinstance(exc, ClusterLost):
         print(f"director-bench: error: {exc}", file=sys.stderr)

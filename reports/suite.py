@@ -168,11 +168,11 @@ def run(
     import os
 
     from references.engines import get_engine
-    from reports import junit
-    from reports.parallel import make_mapper
-    from reports.provenance import write_provenance
-    from reports.report import build_report
-    from reports.runner import max_states, plan, run_suite
+    from reports.report import junit
+    from reports.report.build import build_report
+    from reports.run.parallel import make_mapper
+    from reports.run.runner import max_states, plan, run_suite
+    from reports.store.provenance import write_provenance
 
     for name, value in (("--jobs", jobs), ("--segment", segment), ("--save-every", save_every)):
         check_count(name, value)
@@ -187,7 +187,7 @@ def run(
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
-    limit = max_states(jobs or os.cpu_count() or 1)  # reports.runner
+    limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.runner
     specs = plan(
         scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
     )
@@ -220,13 +220,13 @@ def ensemble(
     report: bool = True,
 ):
     """Run ``n`` members of one scenario on every engine/integrator into ``out/ensemble.csv``
-    (see :mod:`reports.ensemble`), and refresh the report of ``out``. The default folder is
+    (see :mod:`reports.run.ensemble`), and refresh the report of ``out``. The default folder is
     :data:`ENSEMBLE_OUT`, apart from the suite's ``results``, so that an ensemble never
     joins the main report unless asked to."""
-    from reports.ensemble import check_ensemble, run_ensemble
-    from reports.parallel import make_mapper
-    from reports.provenance import write_provenance
-    from reports.report import build_report
+    from reports.report.build import build_report
+    from reports.run.ensemble import check_ensemble, run_ensemble
+    from reports.run.parallel import make_mapper
+    from reports.store.provenance import write_provenance
 
     (sc,) = resolve_scenarios([name])
     if getattr(sc, "is_system", False):

@@ -37,7 +37,7 @@ REFERENCE_KINDS = ("auto", "free_body", "lagrange_top", "steady_precession", "nu
 RELATIVE_EQUILIBRIA = ("steady_precession", "spinning_chain", "conical_pendulum")
 
 #: Metrics a ``[tolerances]`` table may bound (every one "lower is better"; the metrics and
-#: their units are documented in reports.metrics and docs/results.md).
+#: their units are documented in reports.metrics.body and docs/results.md).
 TOLERANCE_METRICS = (
     "energy_drift_max",
     "energy_drift_rot_max",
@@ -50,7 +50,7 @@ TOLERANCE_METRICS = (
     "position_error_max",
     "flip_interval_error",
     "nutation_period_error",
-    # systems of bodies (reports.system_metrics)
+    # systems of bodies (reports.metrics.system)
     "joint_gap_max",
     "joint_angle_gap_max",
     "branch_error",

@@ -252,7 +252,7 @@ def test_a_misspelt_name_gets_a_suggestion(tmp_path, capsys):
 
 
 def test_run_mujoco_rk4_by_its_slug(tmp_path, capsys):
-    from reports.results import read_results
+    from reports.store.results import read_results
 
     out = tmp_path / "out"
     argv = ["run", "free_tumbling", "--engines", "mujoco", "--integrators", "rk4",

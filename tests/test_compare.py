@@ -10,9 +10,9 @@ import pytest
 
 import scenarios
 from reports.cli import main
-from reports.compare import classify, classify_cost, compare_folders, cost_range
-from reports.results import RunSpec, Store, read_results
-from reports.runner import plan, run_suite
+from reports.gate.compare import classify, classify_cost, compare_folders, cost_range
+from reports.run.runner import plan, run_suite
+from reports.store.results import RunSpec, Store, read_results
 
 
 @pytest.fixture(scope="module")
@@ -209,7 +209,7 @@ def test_a_cost_change_counts_only_when_every_dt_of_its_sweep_moved():
     """A burst of load on the machine slows single runs; the engine's own slowdown moves every
     step size (on an identical rerun beside a second suite, 2 of 1164 cost comparisons were
     called worse, each at one dt of a three-step sweep)."""
-    from reports.compare import Change, _corroborate_costs
+    from reports.gate.compare import Change, _corroborate_costs
 
     def sweep(words, integ="RK4"):
         return [

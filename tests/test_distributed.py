@@ -14,9 +14,9 @@ import pandas as pd
 import pytest
 
 import scenarios
-from reports.parallel import ClusterLost, dask_cluster
-from reports.results import RunSpec, read_results
-from reports.runner import plan, run_suite
+from reports.run.parallel import ClusterLost, dask_cluster
+from reports.run.runner import plan, run_suite
+from reports.store.results import RunSpec, read_results
 
 pytest.importorskip(
     "distributed", reason="Dask's distributed is not installed (pip install 'director-bench[dask]')"

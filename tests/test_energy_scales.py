@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from references.trajectory import Trajectory
-from reports import metrics
-from reports.verdicts import DEFAULT_TOLERANCES, verdict
+from reports.metrics import body as metrics
+from reports.metrics.verdicts import DEFAULT_TOLERANCES, verdict
 from scenarios.model import Scenario
 
 G = 9.81
@@ -185,8 +185,8 @@ def test_a_row_carries_the_energy_scale_of_its_own_horizon():
     """With the horizon set on the command line (``--t-end``), the row's energy_scale is that
     of the run's horizon, the one its energy metrics were divided by: a fall of 2 s has
     m g^2 (2 s)^2/2 in play, not the 5 s of the file."""
-    from reports.results import RunSpec
-    from reports.runner import execute
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
 
     row = execute(RunSpec(FALL, "director", "rattle", FALL.dt, t_end=2.0))
     assert row["status"] == "ok", row["message"]

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 import scenarios
-from reports.ensemble import members, run_ensemble, summary
-from reports.runner import RunSpec, execute
+from reports.run.ensemble import members, run_ensemble
+from reports.run.runner import RunSpec, execute
+from reports.store.ensemble import summary
 
 
 @pytest.fixture(scope="module")

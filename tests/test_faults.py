@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from reports.results import (
+from reports.store.results import (
     NUMERIC_COLUMNS,
     RESULT_COLUMNS,
     Store,
@@ -134,7 +134,7 @@ def test_kill_9_at_random_points_of_a_run(tmp_path, clean, seed):
 
 WRITER = """
 import sys
-from reports.results import RESULT_COLUMNS, Store
+from reports.store.results import RESULT_COLUMNS, Store
 folder, tag, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 with Store(folder, create=True) as st:
     for i in range(n):
@@ -404,8 +404,8 @@ def test_a_reference_over_its_bound_is_said_in_the_rows(monkeypatch):
     import math
 
     import scenarios
-    from reports.results import RunSpec
-    from reports.runner import _reference_cached, execute
+    from reports.run.runner import _reference_cached, execute
+    from reports.store.results import RunSpec
 
     monkeypatch.setenv("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", "50")
     _reference_cached.cache_clear()
@@ -425,7 +425,7 @@ def test_a_write_lock_held_too_long_is_a_locked_store_not_a_damaged_one(
 ):
     """Another process holds the store's write lock past the wait: exit 1, the holder named,
     'wait', and no advice to move the store aside; the store is intact."""
-    import reports.results as results
+    import reports.store.results as results
     from reports.cli import main
 
     Store(tmp_path, create=True).close()
@@ -516,13 +516,13 @@ def test_report_needs_no_engine_registered_here(tmp_path, capsys):
 
 
 def test_a_value_error_of_the_work_is_exit_1_not_bad_input(tmp_path, monkeypatch, capsys):
-    import reports.report
+    import reports.report.build
     from reports.cli import main
 
     def fails(*args, **kwargs):
         raise ValueError("a failure deep inside the work")
 
-    monkeypatch.setattr(reports.report, "build_report", fails)
+    monkeypatch.setattr(reports.report.build, "build_report", fails)
     assert main(["report", str(tmp_path)]) == 1
     err = capsys.readouterr().err
     assert "the work failed: ValueError: a failure deep inside the work" in err

@@ -9,9 +9,9 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from reports import gate
 from reports.cli import main
-from reports.results import NUMERIC_COLUMNS, RESULT_COLUMNS, Store, suite_version
+from reports.gate import check as gate
+from reports.store.results import NUMERIC_COLUMNS, RESULT_COLUMNS, Store, suite_version
 
 
 def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, status="ok", **m):
@@ -315,13 +315,13 @@ def test_bad_baseline_file_is_a_clear_error(tmp_path, capsys):
 
 # -- invariants ---------------------------------------------------------------------------------
 def _frame(rows):
-    from reports.results import frame
+    from reports.store.results import frame
 
     return frame(rows)
 
 
 def test_invariants_hold_on_consistent_rows(tmp_path):
-    from reports import junit
+    from reports.report import junit
 
     rows = [
         *sweep(4, convergence_order=4.0, convergence_points=3.0),
@@ -334,7 +334,7 @@ def test_invariants_hold_on_consistent_rows(tmp_path):
 
 
 def test_each_invariant_can_fail(tmp_path):
-    from reports import junit
+    from reports.report import junit
 
     good = _frame([row(order=4.0), row(engine="pybullet", integrator="multibody")])
     path = junit.write(good, tmp_path / "junit.xml")

@@ -18,6 +18,21 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the layers, lowest first; a package may import only its own layer and those below
 LAYERS = ("director_model", "scenarios", "references", "reports")
 
+#: the stages inside ``reports``, lowest first, under the same rule: metrics, then the results
+#: store, then the runner, the report, the gate (check and compare), the suite that strings
+#: them together, the engine-version matrix, and the command line on top. ``reports`` itself
+#: (the package's face: its version) sits below them all.
+STAGES = (
+    "reports.metrics",
+    "reports.store",
+    "reports.run",
+    "reports.report",
+    "reports.gate",
+    "reports.suite",
+    "reports.versions",
+    "reports.cli",
+)
+
 
 def module_name(path: Path, root: Path) -> str:
     rel = path.relative_to(root).with_suffix("")
@@ -116,6 +131,39 @@ def test_no_package_imports_a_layer_above_it():
     assert upward_imports(graph(ROOT)) == []
 
 
+def stage_of(mod: str) -> int | None:
+    """The rank of the ``reports`` stage ``mod`` belongs to (-1 for ``reports`` itself), or None
+    outside ``reports``."""
+    if mod == "reports":
+        return -1
+    for i, stage in enumerate(STAGES):
+        if mod == stage or mod.startswith(stage + "."):
+            return i
+    return None
+
+
+def upward_stage_imports(g: dict[str, set[str]]) -> list[str]:
+    out = []
+    for mod, deps in g.items():
+        rank = stage_of(mod)
+        if rank is None:
+            continue
+        for d in deps:
+            other = stage_of(d)
+            if other is not None and other > rank:
+                out.append(f"{mod} imports {d} (a stage above it)")
+    return sorted(out)
+
+
+def test_every_reports_module_belongs_to_a_stage():
+    g = graph(ROOT)
+    assert [m for m in g if m.startswith("reports") and stage_of(m) is None] == []
+
+
+def test_no_reports_stage_imports_a_stage_above_it():
+    assert upward_stage_imports(graph(ROOT)) == []
+
+
 def test_no_import_cycles():
     assert cycles(graph(ROOT)) == []
 
@@ -148,6 +196,19 @@ def test_an_upward_import_is_caught(tmp_path):
     )
     assert upward_imports(graph(root)) == [
         "scenarios.model imports reports.metrics (a layer above it)"
+    ]
+
+
+def test_an_upward_stage_import_is_caught(tmp_path):
+    root = _tree(
+        tmp_path,
+        {
+            "reports/metrics.py": "def f():\n    from reports.store import rows\n",
+            "reports/store.py": "rows = 1\n",
+        },
+    )
+    assert upward_stage_imports(graph(root)) == [
+        "reports.metrics imports reports.store (a stage above it)"
     ]
 
 

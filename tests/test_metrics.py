@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from references.trajectory import Trajectory
-from reports import metrics
+from reports.metrics import body as metrics
 from scenarios.model import Scenario
 
 

@@ -13,7 +13,7 @@ import pytest
 import scenarios
 from references.exact import expected_observables, reference_trajectory
 from references.exact._util import rot_x, rot_z
-from reports import observables as ob
+from reports.metrics import observables as ob
 
 
 def _cubic_bound(h, d4max, slope):
@@ -310,7 +310,7 @@ def test_nutation_period_under_turned_gravity_against_quadrature(name, turn):
     # sinusoidal u of angular frequency w = 2 pi/T, two events over (n - 1) periods
     w = 2 * math.pi / T
     assert got == pytest.approx(T, rel=2 * 3 / 128 * h**4 * w**3 / ((got.n - 1) * T))
-    from reports.metrics import compute_metrics
+    from reports.metrics.body import compute_metrics
 
     err = compute_metrics(sc, ref, ref, ex)["nutation_period_error"]
     assert err == pytest.approx(abs(got - ex["nutation_period"]) / ex["nutation_period"])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import io
 import re
 
-from reports.progress import Progress
+from reports.run.progress import Progress
 
 
 def test_outside_a_terminal_one_line_per_tenth_and_no_carriage_return():
@@ -52,7 +52,7 @@ def test_compiling_is_named_until_the_first_run_of_each_warm_up_and_has_no_estim
 
 def test_the_first_run_of_each_warm_up_goes_first():
     import scenarios
-    from reports.runner import bundles, plan, warm_up
+    from reports.run.runner import bundles, plan, warm_up
 
     specs = plan([scenarios.load("dzhanibekov")], ["director", "mujoco", "pinocchio", "mjx"])
     order = bundles(specs)
@@ -89,7 +89,7 @@ def test_nothing_to_show_shows_nothing_and_a_terminal_line_fits(monkeypatch):
 
 def test_warm_ups_of_bundled_runs_are_named_at_the_start_and_do_not_hold_the_estimate(capsys):
     import scenarios
-    from reports.runner import _bar, plan
+    from reports.run.runner import _bar, plan
 
     bar = _bar(plan([scenarios.load("dzhanibekov")], ["director", "mjx"]))
     assert list(bar.warming) == ["director"]  # MJX's rows arrive with their bundle's end

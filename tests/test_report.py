@@ -9,9 +9,9 @@ import re
 import pytest
 
 import scenarios
-from reports.results import read_results
-from reports.runner import plan, run_suite
-from reports.summary import failures, fmt, scorecard, work_precision
+from reports.report.summary import failures, fmt, scorecard, work_precision
+from reports.run.runner import plan, run_suite
+from reports.store.results import read_results
 
 #: cone_top at dt = 1e-3 and 2e-3: semi-implicit Euler diverges (at t = 0.22 s at 1e-3 in the
 #: default suite), RK4 and RKMK4 run one algorithm on two engines; 0.5 s keeps it short
@@ -26,7 +26,7 @@ def folder(tmp_path_factory):
     free = scenarios.load("free_tumbling").replace(t_end=0.5, dt_sweep=(2e-3,))
     specs = plan([cone, free], ENGINES, INTEGRATORS)
     run_suite(specs, out, progress=False)
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     build_report(out)
     return out
@@ -157,7 +157,7 @@ def test_summary_json_is_strict_json_with_every_run(folder, df):
 
 
 def test_scorecard_goes_to_the_ci_job_summary(folder, tmp_path, monkeypatch):
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     target = tmp_path / "step_summary.md"
     target.write_text("earlier step\n")
@@ -170,7 +170,7 @@ def test_scorecard_goes_to_the_ci_job_summary(folder, tmp_path, monkeypatch):
 
 def test_figures_are_reused_when_nothing_changed(folder):
     """A report regenerated from an unchanged store draws no figure again."""
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     pngs = sorted((folder / "plots").glob("*.png"))
     # the scenario picture, errors, rates, convergence, work-precision for two scenarios
@@ -184,7 +184,7 @@ def test_figures_are_reused_when_nothing_changed(folder):
 def test_figures_are_reused_when_the_folder_is_named_relative_or_absolute(folder, monkeypatch):
     """The same folder named once relative to the working directory and once absolute is
     the same folder: nothing is drawn again."""
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     pngs = sorted((folder / "plots").glob("*.png"))
     before = {p: p.stat().st_mtime_ns for p in pngs}
@@ -195,7 +195,7 @@ def test_figures_are_reused_when_the_folder_is_named_relative_or_absolute(folder
 
 
 def test_readme_block_from_the_scorecard(folder, capsys):
-    from reports.summary import main
+    from reports.report.summary import main
 
     assert main([str(folder), "--readme"]) == 0
     out = capsys.readouterr().out
@@ -251,7 +251,7 @@ def test_did_not_run_reasons_are_whole():
     """A long reason is given in full (it ends with what to do), never cut."""
     import pandas as pd
 
-    from reports.summary import not_run
+    from reports.report.summary import not_run
 
     reason = "PyBullet cannot hold this body: " + "a long explanation, " * 20 + "use X instead"
     df = pd.DataFrame(
@@ -267,7 +267,7 @@ def test_did_not_run_reasons_are_whole():
 
 def _capture_figures(monkeypatch):
     """Keep each figure the plot functions save (instead of closing it) for inspection."""
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     kept = []
     real = plots._write_png
@@ -335,7 +335,7 @@ def test_every_legend_and_label_lies_inside_its_figure(folder, df, tmp_path, mon
     the long configuration."""
     import json
 
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     df = df.copy()
     df.loc[(df["engine"] == "mujoco") & (df["integrator"] == "RK4"), "integrator"] = LONG
@@ -359,7 +359,7 @@ def test_every_legend_and_label_lies_inside_its_figure(folder, df, tmp_path, mon
 def test_the_legend_check_catches_a_cut_legend(folder, df, tmp_path, monkeypatch):
     """The check above fails on a figure that is not fitted around its legend (the figure
     left at its first size): the long label reaches beyond the image."""
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     df = df.copy()
     df.loc[(df["engine"] == "mujoco") & (df["integrator"] == "RK4"), "integrator"] = LONG
@@ -389,7 +389,7 @@ def _narrow(real):
 def test_figures_name_what_they_leave_out(folder, df, tmp_path):
     """A configuration not drawn (never within 0.1 rad, no run finished) or cut off at a
     panel's top is named under the figure, not counted."""
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     plots.work_precision_plot(df, tmp_path, "cone_top", plots.Styles(df))
     meta = plots.figure_meta(tmp_path / "cone-top__work_precision.png")
@@ -423,7 +423,7 @@ def test_scenario_box_has_the_scenario_s_moments():
     1/40^2 = 6e-4), matches the scenario's moments to 1e-3."""
     import numpy as np
 
-    from reports.plots import body_box
+    from reports.report.plots import body_box
 
     for name in ("dzhanibekov", "heavy_top", "gazebo_boxes_complex", "pendulum_through_vertical"):
         sc = scenarios.load(name)
@@ -441,9 +441,9 @@ def test_scenario_box_has_the_scenario_s_moments():
 
 
 def test_scenario_figures_for_the_docs(tmp_path):
-    """``python -m reports.plots --scenario-figures DIR NAME`` writes a small PNG per
+    """``python -m reports.report.plots --scenario-figures DIR NAME`` writes a small PNG per
     scenario; an unknown name is an error naming it."""
-    from reports.plots import main
+    from reports.report.plots import main
 
     assert main(["--scenario-figures", str(tmp_path), "cone_top"]) == 0
     png = tmp_path / "scenario_cone_top.png"
@@ -454,7 +454,7 @@ def test_scenario_figures_for_the_docs(tmp_path):
 def test_every_configuration_has_a_colour_of_its_own(df):
     """No two configurations of a folder share a colour (the director's four schemes were
     once all one blue)."""
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     styles = plots.Styles(df)
     configs = {(e, i) for e, i in zip(df["engine"], df["integrator"], strict=True)} - {

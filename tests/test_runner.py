@@ -13,8 +13,8 @@ import pytest
 
 import scenarios
 from reports.cli import main
-from reports.results import RunSpec, read_results
-from reports.runner import execute, plan, run_suite
+from reports.run.runner import execute, plan, run_suite
+from reports.store.results import RunSpec, read_results
 
 SHORT = 1.0  # s: long enough for every metric, short enough for a unit test
 
@@ -43,7 +43,7 @@ def test_rows_files_and_report(tmp_path, dzh):
     assert rattle["convergence_order"].iloc[0] == pytest.approx(2.0, abs=0.15)
     euler = df[df["integrator"] == "Euler"]
     assert euler["convergence_order"].iloc[0] == pytest.approx(1.0, abs=0.15)
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     rep = build_report(tmp_path)
     md = rep["markdown"].read_text()
@@ -200,7 +200,7 @@ def test_cli_malformed_file_names_file_field_and_rule(tmp_path, capsys):
 
 def test_parallel_pool_gives_the_serial_rows(tmp_path, dzh):
     """Runs are deterministic: a 2-process pool writes the same metrics as a serial run."""
-    from reports.parallel import process_pool
+    from reports.run.parallel import process_pool
 
     specs = specs_for(dzh, engines=("director", "mujoco"))
     a, _ = run_suite(specs, tmp_path / "a", progress=False)
@@ -277,7 +277,7 @@ def test_report_renders_in_headless_chromium(tmp_path, dzh):
     import html as htmlmod
 
     run_suite(specs_for(dzh), tmp_path, progress=False)
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     rep = build_report(tmp_path)
     page = rep["html"].read_text()

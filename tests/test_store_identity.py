@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import scenarios
-from reports import runner
 from reports.cli import main
-from reports.results import (
+from reports.run import runner
+from reports.store.results import (
     APPLICATION_ID,
     NUMERIC_COLUMNS,
     RESULT_COLUMNS,
@@ -214,7 +214,7 @@ def test_the_reference_records_its_cpu_time():
 def test_a_system_run_timed_once_has_no_measured_spread():
     # a system run is timed once and records no CPU time (its builder's call includes the
     # model's construction), so compare calls its cost changes not significant, never worse
-    from reports.compare import classify_cost, cost_range
+    from reports.gate.compare import classify_cost, cost_range
 
     chain = scenarios.load("spinning_chain").replace(t_end=0.05, dt_sweep=())
     r = runner.execute(RunSpec(chain, "director", "rattle", 1e-3))

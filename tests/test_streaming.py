@@ -7,8 +7,8 @@ import pytest
 
 import scenarios
 from reports.cli import main
-from reports.results import RunSpec, read_results
-from reports.runner import execute
+from reports.run.runner import execute
+from reports.store.results import RunSpec, read_results
 
 POINTWISE = [
     "energy_drift_max",

@@ -12,8 +12,8 @@ import json
 import pytest
 
 import scenarios
-from reports.results import read_results
-from reports.runner import plan, run_suite
+from reports.run.runner import plan, run_suite
+from reports.store.results import read_results
 
 #: 0.1 s of the four-bar at its own dt (2 ms): 50 steps per run, a second or so in all
 ENGINES = ("director", "exact", "mujoco", "pinocchio")
@@ -27,7 +27,7 @@ def built(tmp_path_factory):
     bar = scenarios.load("four_bar").replace(t_end=0.1)
     free = scenarios.load("free_tumbling").replace(t_end=0.1, dt_sweep=(2e-3,))
     run_suite(plan([bar, free], ENGINES, INTEGRATORS), out, progress=False)
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     build_report(out)
     return out
@@ -39,7 +39,7 @@ def df(built):
 
 
 def test_a_system_gets_its_own_figure_in_view_and_no_error(built, capfd):
-    from reports.report import build_report
+    from reports.report.build import build_report
 
     (built / "plots" / ".made-from.json").unlink(missing_ok=True)  # draw every figure again
     build_report(built)
@@ -58,7 +58,7 @@ def test_a_system_gets_its_own_figure_in_view_and_no_error(built, capfd):
 
 
 def test_the_system_figure_names_every_line_with_its_closure_settings(built, df, tmp_path):
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     styles, cache = plots.Styles(df), plots.SeriesCache(built)
     png = plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
@@ -88,7 +88,7 @@ def _unnamed_lines(fig) -> list[str]:
 
 
 def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monkeypatch):
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     kept = []
     real = plots._write_png
@@ -105,7 +105,7 @@ def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monke
     assert _unnamed_lines(fig) == []
     # planted: one configuration's name lost, or hidden from the legend (matplotlib leaves
     # out a label starting with "_"): each is caught
-    import reports.summary as summary
+    import reports.report.summary as summary
 
     real_label = summary.config_label
     for planted in ("", "_hidden"):
@@ -137,7 +137,7 @@ def _no_close(real_plt):
 
 
 def test_system_rows_show_their_closure_settings_and_rank_by_cost(built, df):
-    from reports.summary import closure_settings, work_precision
+    from reports.report.summary import closure_settings, work_precision
 
     bar = df[df["scenario"] == "four_bar"]
     by = {(r["engine"], r["integrator"]): r for r in bar.to_dict("records")}
@@ -160,7 +160,7 @@ def test_system_rows_show_their_closure_settings_and_rank_by_cost(built, df):
 def test_a_system_without_series_files_gets_no_single_body_figure(built, df, tmp_path, capfd):
     """A system whose runs left no series file (rows only): no figure of a single body is
     attempted (nothing on the standard error), and no system figure either."""
-    import reports.plots as plots
+    import reports.report.plots as plots
 
     rows = df.copy()
     rows.loc[rows["scenario"] == "four_bar", "trajectory"] = ""

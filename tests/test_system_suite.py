@@ -14,7 +14,7 @@ import pytest
 import scenarios
 from references.engines.exact_system import reference
 from references.trajectory import SystemTrajectory
-from reports.system_metrics import compute_system_metrics
+from reports.metrics.system import compute_system_metrics
 from scenarios import ScenarioError
 from scenarios.system import validate_system
 
@@ -144,8 +144,8 @@ def test_metrics_catch_planted_joint_and_momentum_mistakes():
 
 
 def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
-    from reports.results import RunSpec
-    from reports.runner import execute
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
 
     sc = scenarios.load("spinning_chain")
     row = execute(RunSpec(sc, "director", "rattle4", 1e-3, t_end=0.5), tmp_path)
@@ -164,8 +164,8 @@ def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
     # the system figure is drawn from the files the runs wrote
     import pandas as pd
 
-    from reports.plots import SeriesCache, _plt, _save
-    from reports.system_plots import system_plot
+    from reports.report.plots import SeriesCache, _plt, _save
+    from reports.report.system_plots import system_plot
 
     first = execute(RunSpec(sc, "director", "rattle", 1e-3, t_end=0.5), tmp_path)
     rows = pd.DataFrame([first, row_exact])
@@ -193,8 +193,8 @@ def test_trajectory_errors_are_judged_only_inside_the_trusted_horizon():
 
 
 def test_a_system_without_reference_is_judged_on_its_invariants_and_joints(tmp_path):
-    from reports.results import RunSpec
-    from reports.runner import execute
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
 
     sc = scenarios.load("four_bar").replace(reference="none", t_end=0.02)
     row = execute(RunSpec(sc, "director", "rattle", 2e-3), tmp_path)

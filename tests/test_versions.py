@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import scenarios
-from reports.gate import FLOORS
-from reports.results import RunSpec, Store, blank_row, finish_time
+from reports.metrics.body import FLOORS
+from reports.store.results import RunSpec, Store, blank_row, finish_time
 from reports.versions.changes import check, energy_behaviour, load_table, sort_versions
 from reports.versions.requirements import parse_requirements
 
@@ -312,7 +312,7 @@ def test_unreachable_index_is_an_unavailable_row_naming_the_requirement(tmp_path
     )  # fmt: skip
     assert p.returncode == 1, p.stdout + p.stderr
     assert "mujoco==3.3.0" in p.stdout and "package index could not be reached" in p.stdout
-    from reports.results import read_results
+    from reports.store.results import read_results
 
     df = read_results(out, all_rows=True)
     assert list(df["status"]) == ["unavailable"]
@@ -335,7 +335,7 @@ def test_partial_matrix_keeps_every_finished_row(tmp_path):
     p = _cli(*args, timeout=1800)
     assert p.returncode == 1, p.stdout + p.stderr
     assert "no such version" in p.stdout and "3.99.0" in p.stdout
-    from reports.results import read_results
+    from reports.store.results import read_results
 
     df = read_results(out, all_rows=True)
     by = df.groupby("engine_version")["status"].apply(sorted).to_dict()

@@ -15,7 +15,7 @@ import time
 import pytest
 
 import scenarios
-from reports.results import RunSpec, Store, blank_row, finish_time
+from reports.store.results import RunSpec, Store, blank_row, finish_time
 from reports.versions.history import build_history, write_history
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

@@ -36,7 +36,7 @@ from references.trajectory import SystemTrajectory
 #: digits, so a mismatch beyond 1e-12 is a different motion, not rounding
 INITIAL_TOL = 1e-12
 #: the horizon of a numerical reference: perturbed runs stay within this attitude (rad), a
-#: tenth of the default attitude tolerance 0.1 rad (reports.verdicts, REFERENCE_MARGIN), and
+#: tenth of the default attitude tolerance 0.1 rad (reports.metrics.verdicts, REFERENCE_MARGIN), and
 #: this fraction of the system's size in position
 HORIZON_ATTITUDE = 1e-2
 HORIZON_POSITION = 1e-2

@@ -309,7 +309,7 @@ def expected_observables(scenario) -> dict[str, float]:
       of a symmetric one (2 pi/|psi'|).
     - ``flip_interval``: T/2, the time between sign changes of the intermediate-axis rate,
       given only when the body tumbles about its intermediate axis (that axis has the largest
-      mean |W_i|, which is what :func:`reports.observables.flip_times` follows by default);
+      mean |W_i|, which is what :func:`reports.metrics.observables.flip_times` follows by default);
       absent for a stable spin.
     - ``nutation_period``: Lagrange top, period of u = cos(tilt) (absent for a steady
       precession); for the planar pendulum the period of cos(theta) (half the swing period).

@@ -6,9 +6,9 @@ accuracy) and each pair of consecutive versions of that engine, a :class:`Change
 for:
 
 - ``metric``: an error metric that moved by more than ``factor`` above its round-off floor, or
-  a fitted order that moved by more than the gate's slack (:func:`reports.compare.classify`,
-  the floors and slack of :mod:`reports.gate`): ``worse`` or ``better``;
-- ``status`` (ok, diverged, error ... ranked as in :data:`reports.compare.STATUS_RANK`) and
+  a fitted order that moved by more than the gate's slack (:func:`reports.gate.compare.classify`,
+  the floors and slack of :mod:`reports.gate.check`): ``worse`` or ``better``;
+- ``status`` (ok, diverged, error ... ranked as in :data:`reports.gate.compare.STATUS_RANK`) and
   ``verdict`` (pass <-> fail);
 - ``behaviour``: the class of the signed energy error over time changed between decisive
   classes (:func:`energy_behaviour`: conserved, gaining, losing);
@@ -36,10 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.compare import STATUS_RANK, classify
-from reports.gate import FLOORS
-from reports.metrics import HIGHER_IS_BETTER
-from reports.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
+from reports.gate.compare import STATUS_RANK, classify
+from reports.metrics.body import FLOORS, HIGHER_IS_BETTER
+from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from scenarios.schema import InputError
 
 #: the cost column compared (time inside the engine's own calls, per step)
@@ -197,8 +196,8 @@ def _records(df) -> list[dict]:
 def _newest(rows):
     """The newest row of each configuration among the rows of ONE engine version (the
     identity of a run already fixes everything else), with the convergence orders of its dt
-    sweeps fitted (reports.metrics)."""
-    from reports.metrics import add_convergence_orders
+    sweeps fitted (reports.metrics.body)."""
+    from reports.metrics.body import add_convergence_orders
 
     rows = rows.sort_values("finished_at", kind="stable")
     rows = rows.drop_duplicates(subset=list(CONFIG_KEY), keep="last")  # NaN accuracies match
@@ -536,7 +535,7 @@ CHANGE_HEAD = ["versions", "configuration", "what", "before", "after", "ratio", 
 
 
 def format_check(res: CheckResult) -> str:
-    from reports.compare import _text_table
+    from reports.gate.compare import _text_table
 
     s = res.summary
     lines = [

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 
 def cmd_versions(args) -> int:
-    from reports.compare import _text_table
+    from reports.gate.compare import _text_table
     from reports.versions import run_versions
     from reports.versions.changes import SUMMARY_HEAD, format_check, summary_rows
     from scenarios.schema import InputError

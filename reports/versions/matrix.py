@@ -96,7 +96,7 @@ def _relabel(row: dict, target: Target) -> dict:
 
 
 def _unavailable_rows(scenarios, target: Target, reason: str, opts: dict) -> list[dict]:
-    from reports.results import blank_row, finish_time
+    from reports.store.results import blank_row, finish_time
 
     specs = _specs(scenarios, target, opts, target.label)
     rows = []
@@ -136,7 +136,7 @@ def _run_in_env(env: Env, scenarios, opts: dict, out: Path) -> EnvRun:
 
 def _specs(scenarios, target: Target, opts: dict, engine_version: str) -> list:
     """The runs one environment is asked for, with the identities they have there."""
-    from reports.runner import plan
+    from reports.run.runner import plan
 
     specs = plan(
         scenarios, [target.engine], opts.get("integrators"), opts.get("dts"), opts.get("t_end"),
@@ -147,7 +147,7 @@ def _specs(scenarios, target: Target, opts: dict, engine_version: str) -> list:
 
 def _missing(env: Env, scenarios, opts: dict, out: Path) -> list:
     """The runs of an environment its folder's store does not hold (yet)."""
-    from reports.results import Store
+    from reports.store.results import Store
 
     folder = sub_folder(out, env.target)
     if not (folder / "results.sqlite").exists():
@@ -192,7 +192,7 @@ def _isolate(env: Env, scenarios, opts: dict, run: EnvRun) -> int:
     process until one takes its process down too (it becomes an ``error`` row with the end of
     its output), then the rest together in one process, and so on until every run has a row.
     Each round records at least one row, so it ends. Returns the number of error rows."""
-    from reports.results import Store, blank_row, finish_time
+    from reports.store.results import Store, blank_row, finish_time
 
     out = run.folder.parent.parent
     log = run.folder / "isolated.log"
@@ -232,7 +232,7 @@ def _isolate(env: Env, scenarios, opts: dict, run: EnvRun) -> int:
 def merge(out: Path, target: Target, folder: Path) -> int:
     """Copy the rows of one environment's folder into the matrix store; returns their number.
     Rows already there with the same content are written again (idempotent)."""
-    from reports.results import Store
+    from reports.store.results import Store
 
     if not (folder / "results.sqlite").exists():
         return 0
@@ -269,7 +269,7 @@ def run_matrix(
     is checked first (InputError naming it). Never raises for a version that cannot be
     installed or whose runs fail: the result lists them, and the store keeps every finished
     row."""
-    from reports.results import Store
+    from reports.store.results import Store
     from reports.suite import check_count, check_integrators, check_out, resolve_scenarios
 
     t0 = time.perf_counter()
@@ -333,7 +333,7 @@ def run_matrix(
         for fut in as_completed(futs):
             runs[futs[fut]] = fut.result()
     result.runs = [runs[i] for i in range(n)]
-    from reports.results import export, read_results
+    from reports.store.results import export, read_results
 
     df = read_results(out, all_rows=True)
     export(out, df)

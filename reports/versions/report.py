@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from reports.metrics import HIGHER_IS_BETTER
+from reports.metrics.body import HIGHER_IS_BETTER
 from reports.versions.changes import (
     CHANGE_HEAD,
     SUMMARY_HEAD,

@@ -3,7 +3,7 @@
 ``python -m reports.versions.worker FOLDER SPECS.json``: SPECS.json is a list of objects
 (scenario file, engine, integrator, dt, accuracy, t_end, save_every, segment: the planned
 run's own values, so that each row gets the identity the matrix looks for); each run's row is
-committed to FOLDER's store as it finishes (:func:`reports.runner.run_suite`, here, in order).
+committed to FOLDER's store as it finishes (:func:`reports.run.runner.run_suite`, here, in order).
 The matrix uses it to go on after an engine took its process down (an abort in native code):
 unlike ``run``, it runs exactly the runs it is given, so a run already recorded as having
 crashed is not tried again within the same matrix.
@@ -21,8 +21,8 @@ def time_one(argv: list[str]) -> int:
     engine time per step (ns) as JSON: the probe of :func:`reports.versions.cost.confirm`."""
     import scenarios
     from references.engines import get_engine
-    from reports.results import RunSpec
-    from reports.runner import execute
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
 
     name, engine, integrator, dt = argv[0], argv[1], argv[2], float(argv[3])
     spec = RunSpec(scenarios.load(name), engine, integrator, dt,
@@ -37,9 +37,9 @@ def main(argv: list[str]) -> int:
         return time_one(argv[1:])
     import scenarios
     from references.engines import get_engine
-    from reports.parallel import serial
-    from reports.results import RunSpec
-    from reports.runner import run_suite
+    from reports.run.parallel import serial
+    from reports.run.runner import run_suite
+    from reports.store.results import RunSpec
 
     folder, spec_file = Path(argv[0]), Path(argv[1])
     items = json.loads(spec_file.read_text())

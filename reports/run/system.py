@@ -1,11 +1,11 @@
 """One run of a system of bodies, from its spec to its result row: the system counterpart of
-the single-body run in :func:`reports.runner.execute`, which prepares the row, hands system
+the single-body run in :func:`reports.run.runner.execute`, which prepares the row, hands system
 scenarios here and turns a failure into the row's status.
 
 Flow: the engine's system builder (:func:`references.engines.system.run_system`) -> the
 states (:class:`references.trajectory.SystemTrajectory`) -> the reference
 (:func:`references.engines.exact_system.reference`) -> the metrics
-(:mod:`reports.system_metrics`) -> status and verdict (:mod:`reports.verdicts`) -> the
+(:mod:`reports.metrics.system`) -> status and verdict (:mod:`reports.metrics.verdicts`) -> the
 trajectory file (Parquet, per-body columns and the error series).
 """
 
@@ -15,15 +15,15 @@ import json
 import math
 from pathlib import Path
 
-from reports import verdicts
-from reports.metrics import roundoff_floor
-from reports.results import StoreUnwritable, trajectory_path, write_parquet_table
+from reports.metrics import verdicts
+from reports.metrics.body import roundoff_floor
+from reports.store.results import StoreUnwritable, trajectory_path, write_parquet_table
 
 
 def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:
     """Run the system spec ``spec`` (its integrator ``integ``, its scenario at the run's
     horizon ``sc``) and fill ``row``: timings, metrics, status and verdict. A failure raises;
-    :func:`reports.runner.execute`, which prepared the row, makes it the row's status."""
+    :func:`reports.run.runner.execute`, which prepared the row, makes it the row's status."""
     from references.engines import Diverged, Unsupported
     from references.engines.system import run_system
 
@@ -46,7 +46,7 @@ def _measure(row, spec, sc, output, out, fmt):
     reference used (None: none)."""
     from references.engines import Unsupported
     from references.engines.exact_system import reference
-    from reports.system_metrics import compute_system_metrics, error_series
+    from reports.metrics.system import compute_system_metrics, error_series
 
     if output is None:
         return None

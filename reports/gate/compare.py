@@ -1,8 +1,8 @@
 """Compare two result folders, run by run: ``director-bench compare A B``.
 
 The runs of A and B are matched on their configuration (scenario, engine, integrator, dt,
-target accuracy: :data:`reports.results.CONFIG_KEY`) and must be the same run: a pair whose
-identity differs (:data:`reports.results.IDENTITY_COLUMNS`: scenario content, horizon,
+target accuracy: :data:`reports.store.results.CONFIG_KEY`) and must be the same run: a pair whose
+identity differs (:data:`reports.store.results.IDENTITY_COLUMNS`: scenario content, horizon,
 save_every, segmenting, engine and suite versions) is a ``mismatch`` naming each field
 (``t_end 30 vs 10``), never compared as if it were the same run. To compare two engine
 versions (or two suite versions) on purpose, name the field that may differ: ``--vary
@@ -11,13 +11,13 @@ engine_version`` (docs/results.md has the recipe).
 For each run in both, every metric and the cost get a ratio B/A and a word, as airspeed
 velocity's ``asv compare`` does: ``worse`` when B is more than ``factor`` times A, ``better``
 when less than A / ``factor``, ``same`` otherwise. An error metric is compared above its
-round-off floor (:data:`reports.gate.FLOORS`: ``max(value, floor)`` on both sides), so that
+round-off floor (:data:`reports.metrics.body.FLOORS`: ``max(value, floor)`` on both sides), so that
 3e-16 against 9e-15 is ``same``, not a regression; the fitted convergence order is compared
-by difference (:data:`reports.gate.ORDER_SLACK`). A status that got worse (ok to diverged or
+by difference (:data:`reports.metrics.body.ORDER_SLACK`). A status that got worse (ok to diverged or
 error) or a verdict that went from pass to fail is ``worse`` whatever the numbers.
 
 A cost (ns per step inside the engine and wall) is a range measured with the run
-(reports.runner): from the fastest timed repeat scaled by the process's CPU time over the
+(reports.run.runner): from the fastest timed repeat scaled by the process's CPU time over the
 wall time of its stepping (on a busy machine the process ran only that part of the wall
 time) up to the slowest repeat. After asv's rule, a cost change is significant only when the
 ratio of the fastest times exceeds the factor AND the ranges are that far apart (B's low end
@@ -31,7 +31,7 @@ when a pair of runs is a mismatch, or when nothing is comparable (an empty folde
 both); the cost gates only with ``cost_factor`` (timings vary with the machine's load far
 more than the metrics do). Runs found in only one folder are listed and do not gate.
 
-This is not the CI gate (reports.gate): that compares a folder against a committed baseline
+This is not the CI gate (reports.gate.check): that compares a folder against a committed baseline
 file; this compares two folders, e.g. two engine versions (docs/results.md has the recipe).
 """
 
@@ -41,16 +41,16 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.gate import FLOORS, ORDER_SLACK, NothingComparable, md_escape
-from reports.metrics import HIGHER_IS_BETTER
-from reports.results import (
+from reports.gate.check import NothingComparable, md_escape
+from reports.metrics.body import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
+from reports.report.summary import fmt, fmt_level, fmt_step, records
+from reports.store.results import (
     IDENTITY_COLUMNS,
     METRIC_COLUMNS,
     config_key,
     identity_differences,
     read_results,
 )
-from reports.summary import fmt, fmt_level, fmt_step, records
 from scenarios.schema import InputError
 
 #: cost columns compared (ns per step: inside the engine's calls, and wall), each with the

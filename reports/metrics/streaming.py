@@ -20,7 +20,7 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import Recorder
-from reports import metrics as M
+from reports.metrics import body as M
 
 #: pointwise metrics folded over every step: name -> (needs the reference, function)
 POINTWISE = {

@@ -2,7 +2,7 @@
 
 ``report.md`` and ``report.html`` are pure functions of the folder (the results store,
 ``provenance.json``, the per-run series files and, if present, the ensemble store); what they
-say comes from reports.summary, the figures from reports.plots. In order:
+say comes from reports.report.summary, the figures from reports.report.plots. In order:
 
 1. a line of provenance and counts, and a table of contents;
 2. the **scorecard**: scenario x integrator family, each cell the verdicts at the scenario's
@@ -20,7 +20,7 @@ say comes from reports.summary, the figures from reports.plots. In order:
 
 Every table is preceded by a one-line title, so that two reports diff cleanly; Markdown
 tables escape what GitHub-flavoured Markdown would otherwise read as cell borders. The
-scorecard is also written to ``summary.json`` (reports.summary) and, when the environment
+scorecard is also written to ``summary.json`` (reports.report.summary) and, when the environment
 variable ``GITHUB_STEP_SUMMARY`` names a file, appended to it.
 """
 
@@ -34,10 +34,8 @@ import os
 import re
 from pathlib import Path
 
-from reports.plots import figure_meta
-from reports.provenance import read_provenance
-from reports.results import STATUSES
-from reports.summary import (
+from reports.report.plots import figure_meta
+from reports.report.summary import (
     ACCURACY_LEVELS,
     ENERGY_MOMENTUM_NOTE,
     METRIC_SHORT,
@@ -68,6 +66,8 @@ from reports.summary import (
     work_precision,
     write_summary,
 )
+from reports.store.provenance import read_provenance
+from reports.store.results import STATUSES
 
 #: column titles of the metrics, with units (no character GitHub's tables would split on)
 METRIC_TITLES = {
@@ -80,7 +80,7 @@ METRIC_TITLES = {
     "momentum_drift_max": "momentum drift [L_c]",
     "orthonormality_max": "‖RᵀR − 1‖",
     "constraint_velocity_max": "velocity constraint [w_c]",
-    # systems of bodies (reports.system_metrics)
+    # systems of bodies (reports.metrics.system)
     "joint_gap_max": "joint gap [m]",
     "joint_angle_gap_max": "joint axes gap [rad]",
     "branch_error": "branch error [rad]",
@@ -235,7 +235,7 @@ class Doc:
         self, paths: list[Path], root: Path, cls: str = "plots", md: bool = True, alts=None
     ) -> None:
         """Figures: in Markdown as links to the files, in HTML embedded (base64), each with
-        its alt text and, where :func:`reports.plots.figure_meta` has them, the lines a
+        its alt text and, where :func:`reports.report.plots.figure_meta` has them, the lines a
         pointer over the figure names (``data-lines``, read by :data:`SCRIPT`)."""
         if not paths:
             return
@@ -328,7 +328,7 @@ def provenance_rows(prov: dict) -> list[list[str]]:
 
 def fmt_cost(ns) -> str:
     """The time inside the engine per step, ``11.0 µs`` (``-`` when unknown)."""
-    from reports.plots import fmt_cost as _fmt_cost
+    from reports.report.plots import fmt_cost as _fmt_cost
 
     return _fmt_cost(ns)
 
@@ -541,15 +541,20 @@ def work_precision_section(doc: Doc, df) -> None:
 
 
 def _finer_sweep_note(df) -> str:
-    """The sentence naming the configurations that ran steps below the shared dt sweep."""
-    from references.engines import EngineError, get_engine
-
+    """The sentence naming the configurations that ran steps below the shared dt sweep, read
+    from the rows: a scenario's sweep ends at the smallest step most of its configurations
+    ran, and a configuration's halvings are its distinct steps below that."""
     finer = []
-    for (engine, name), _ in df.groupby(["engine", "integrator"]):
-        try:
-            n = get_engine(engine).integrator(name).sweep_halvings
-        except EngineError:  # no longer registered or offered: its rows still show
+    halvings: dict[tuple[str, str], int] = {}
+    for _, sc in df.groupby("scenario"):
+        smallest = sc.groupby(["engine", "integrator"])["dt"].min()
+        if smallest.empty:
             continue
+        sweep_end = smallest.mode().max()
+        for key, g in sc.groupby(["engine", "integrator"]):
+            n = int((g["dt"].drop_duplicates() < sweep_end * (1 - 1e-9)).sum())
+            halvings[key] = max(halvings.get(key, 0), n)
+    for (engine, name), n in sorted(halvings.items()):
         if n:
             finer.append(f"{engine} {name} ({n} halvings)")
     if not finer:
@@ -850,8 +855,8 @@ def settings_section(doc: Doc, df) -> None:
 
 
 def ensemble_section(doc: Doc, edf, root: Path) -> None:
-    from reports.ensemble import summary as ens_summary
-    from reports.plots import ensemble_plot
+    from reports.report.plots import ensemble_plot
+    from reports.store.ensemble import summary as ens_summary
 
     doc.heading(2, "Ensembles")
     for scenario, g in edf.groupby("scenario"):
@@ -968,7 +973,7 @@ def _toc(df, has_settings: bool, has_ensemble: bool) -> tuple[str, str]:
 
 def document(df, prov: dict, plots: dict, root: Path, edf=None, card_figures=()) -> tuple[str, str]:
     """(report.md, report.html) of a results table; ``card_figures``: the scorecard picture
-    (reports.plots.scorecard_figure: its PNG is shown, its SVG linked)."""
+    (reports.report.plots.scorecard_figure: its PNG is shown, its SVG linked)."""
     doc = Doc()
     doc.md.append("# director-bench report\n")
     doc.html.append("<h1 id='director-bench-report'>director-bench report</h1>")
@@ -1024,10 +1029,10 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     """Write the figures, report.md, report.html and summary.json for the results folder
     ``root``; with ``GITHUB_STEP_SUMMARY`` set, append the scorecard to that file.
     ``progress``: a progress bar while figures are drawn (figures whose inputs did not
-    change since the last report are reused, reports.plots)."""
-    from reports.ensemble import read_ensemble
-    from reports.plots import all_plots, scorecard_figure_cached
-    from reports.results import STORE_NAME, frame, read_results
+    change since the last report are reused, reports.report.plots)."""
+    from reports.report.plots import all_plots, scorecard_figure_cached
+    from reports.store.ensemble import read_ensemble
+    from reports.store.results import STORE_NAME, frame, read_results
 
     root = Path(root)
     edf = read_ensemble(root)

@@ -51,7 +51,7 @@ APPLICATION_ID = 0x44425231
 #: the tables of a results store
 STORE_TABLES = frozenset({"runs", "meta"})
 
-#: metric columns, see reports.metrics: every metric a scenario's ``[tolerances]`` may bound
+#: metric columns, see reports.metrics.body: every metric a scenario's ``[tolerances]`` may bound
 #: ("lower is better"), and the measured convergence order
 METRIC_COLUMNS = (*TOLERANCE_METRICS, "convergence_order")
 
@@ -594,14 +594,14 @@ def frame(rows: list[dict]):
 
 def current(df):
     """The current view of the stored rows, sorted by :data:`CONFIG_KEY`, with the
-    convergence orders of the dt sweeps filled in (reports.metrics).
+    convergence orders of the dt sweeps filled in (reports.metrics.body).
 
     Per scenario, only the rows of its newest identity count (:data:`SCENARIO_IDENTITY`:
     the scenario's content, horizon, segmenting and suite version of its newest row; per
     engine, the version of that engine's newest row; per integrator, the save_every of its
     newest row); older rows are history, never current and never in a fit. Of the rest, the
     newest row of each configuration."""
-    from reports.metrics import add_convergence_orders
+    from reports.metrics.body import add_convergence_orders
 
     if df.empty:
         return df

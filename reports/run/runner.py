@@ -1,11 +1,11 @@
 """The scenario runner: scenarios x engines x integrators x dt -> one row per run.
 
-Data flow: a :class:`~reports.results.RunSpec` names one run; :func:`execute` runs it
+Data flow: a :class:`~reports.store.results.RunSpec` names one run; :func:`execute` runs it
 (engine adapter -> trajectory in the suite's schema -> metrics against the reference ->
 status and verdict) and returns its row, never raising for a failure of the run itself: a
 missing engine, a diverged run, an unsupported scenario or a fault of the suite become a row
 with a ``status`` and a ``message``. :func:`run_suite` executes many specs and commits each
-row to the output folder's results store as soon as it finishes (reports.results), so an
+row to the output folder's results store as soon as it finishes (reports.store.results), so an
 interruption loses only the runs in flight, and a rerun skips what is done.
 """
 
@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from reports import verdicts
-from reports.metrics import compute_metrics, roundoff_floor
-from reports.results import (
+from reports.metrics import verdicts
+from reports.metrics.body import compute_metrics, roundoff_floor
+from reports.store.results import (
     RunSpec,
     Store,
     StoreUnwritable,
@@ -63,7 +63,7 @@ def expected_for(scenario) -> dict:
 
 def error_series(scenario, traj, ref) -> dict[str, np.ndarray]:
     """Per-sample drifts and errors of one run, so that plots are pure functions of files."""
-    from reports import metrics
+    from reports.metrics import body as metrics
 
     cols = {
         "energy_drift": metrics.energy_drift(scenario, traj),
@@ -120,10 +120,10 @@ def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) ->
 
 
 def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progress=None) -> dict:
-    """Run one spec and return its result row (see ``reports.results.RESULT_COLUMNS``).
+    """Run one spec and return its result row (see ``reports.store.results.RESULT_COLUMNS``).
 
     With ``spec.segment`` the pointwise metrics are streamed over every step
-    (:mod:`reports.streaming`); otherwise they are taken at the saved samples. Writes the
+    (:mod:`reports.metrics.streaming`); otherwise they are taken at the saved samples. Writes the
     trajectory and its per-sample series under ``out/trajectories`` when ``out`` is given.
     Never raises for a failure of the run: the row says what happened.
     """
@@ -132,8 +132,8 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     row = blank_row(spec)
     try:
         cls, integ, sc = _prepare(row, spec)
-        if getattr(sc, "is_system", False):  # a system of bodies: reports.system_runner
-            from reports.system_runner import run_system_spec
+        if getattr(sc, "is_system", False):  # a system of bodies: reports.run.system
+            from reports.run.system import run_system_spec
 
             run_system_spec(spec, row, integ, sc, out, fmt)
         else:
@@ -242,7 +242,7 @@ def _recorder(spec: RunSpec, sc):
     if not spec.segment:
         return None
     from references.engines import step_plan
-    from reports.streaming import StreamingRecorder
+    from reports.metrics.streaming import StreamingRecorder
 
     _, saves = step_plan(spec.dt, spec.horizon, spec.saving)
     ref = None if spec.engine == "exact" else functools.partial(reference_for, sc)
@@ -508,7 +508,7 @@ def run_suite(
         n_run = 0
         bar = _bar(todo) if progress and todo else None
         if mapper is None:
-            from reports.parallel import serial
+            from reports.run.parallel import serial
 
             mapper = serial(out)
         if getattr(mapper, "serial", False):
@@ -616,9 +616,9 @@ def _export_quietly(out: Path):
 
 
 def _bar(todo: list[RunSpec]):
-    """The progress display of ``todo`` (reports.progress), told which warm-ups its first
+    """The progress display of ``todo`` (reports.run.progress), told which warm-ups its first
     runs go through (those of bundled runs apart: their rows arrive with the bundle's end)."""
-    from reports.progress import Progress
+    from reports.run.progress import Progress
 
     warming, bundled = {}, {}
     for s in todo:

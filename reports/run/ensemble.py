@@ -11,18 +11,18 @@ configuration in one vmapped, compiled call; every other engine runs each member
 adapter (distributable like any sweep). Metrics, statuses and verdicts are
 the suite's, member by member, against each member's own reference. Output: the ensemble
 store ``ensemble.sqlite`` in the output folder (the same transactional store as the results,
-reports.results), exported as ``ensemble.csv``, one row per member and configuration.
+reports.store.results), exported as ``ensemble.csv``, one row per member and configuration.
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
-from reports.results import RunSpec
-from reports.runner import execute
+from reports.run.runner import execute
+from reports.store.ensemble import ENSEMBLE_STORE, ensemble_frame
+from reports.store.results import RunSpec
 from scenarios.schema import InputError
 
 
@@ -50,12 +50,12 @@ def check_ensemble(scenario, n: int, dt: float, t_end: float, jobs: int | None =
     """Every input of an ensemble, checked before anything runs or is written
     (:class:`~scenarios.schema.InputError` naming the value and the rule): the size, the step
     (a whole number of steps, at most 2^53), the magnitudes over the horizon, and memory by
-    run's rule (:func:`reports.runner.max_states`), here for the ``n`` members a batched
+    run's rule (:func:`reports.run.runner.max_states`), here for the ``n`` members a batched
     engine (director_model, MJX) holds at once in one process."""
     import os
 
     from references.engines import step_plan
-    from reports.runner import BYTES_PER_STATE, max_states
+    from reports.run.runner import BYTES_PER_STATE, max_states
     from scenarios.schema import magnitude_problems, step_count_problem
 
     members(scenario, 1)  # the size and the rotational energy the members keep
@@ -85,11 +85,11 @@ def check_ensemble(scenario, n: int, dt: float, t_end: float, jobs: int | None =
 
 def _director_batch(mems, specs) -> list[dict]:
     """All members of one director scheme in one call of director_model's batched path; the
-    rows are built like every other run's (reports.runner)."""
+    rows are built like every other run's (reports.run.runner)."""
     import director_model as dm
     from references.engines import RunOutput, get_engine
     from references.trajectory import Trajectory
-    from reports.runner import _judge, _measure
+    from reports.run.runner import _judge, _measure
 
     base, spec0 = mems[0], specs[0]
     integ = get_engine("director").integrator(spec0.integrator)
@@ -135,10 +135,10 @@ def _director_batch(mems, specs) -> list[dict]:
 def _mjx_batch(mems, specs) -> list[dict]:
     """All members of one MJX configuration in one vmapped, compiled call
     (references.engines.mjx_engine.run_batch); the rows are built like every other run's
-    (reports.runner), a diverged member's from its output up to the divergence."""
+    (reports.run.runner), a diverged member's from its output up to the divergence."""
     from references.engines import Diverged, EngineError, Unsupported, get_engine
     from references.engines.mjx_engine import run_batch
-    from reports.runner import _judge, _measure
+    from reports.run.runner import _judge, _measure
 
     spec0 = specs[0]
     integ = get_engine("mjx").integrator(spec0.integrator)
@@ -159,7 +159,7 @@ def _mjx_batch(mems, specs) -> list[dict]:
 
 
 def _start_row(spec, integ) -> dict:
-    from reports.results import blank_row, finish_time
+    from reports.store.results import blank_row, finish_time
 
     row = blank_row(spec)
     row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
@@ -184,8 +184,8 @@ def run_ensemble(
     ensemble store (``ensemble.sqlite``, exported as ``ensemble.csv``); members already in it
     are skipped. Returns the DataFrame of rows (member x configuration)."""
     from references.engines import engine_names, get_engine
-    from reports.parallel import log_dir, working_directory
-    from reports.results import Store
+    from reports.run.parallel import log_dir, working_directory
+    from reports.store.results import Store
 
     out = Path(out).resolve()
     dt = scenario.dt if dt is None else float(dt)
@@ -217,7 +217,7 @@ def run_ensemble(
                         store.put(row)
                 else:
                     specs += group
-        from reports.progress import Progress
+        from reports.run.progress import Progress
 
         bar = Progress(len(specs), desc=f"ensemble {scenario.name}", disable=not progress)
         try:
@@ -233,52 +233,3 @@ def run_ensemble(
 
 def _serial(fn, specs):
     return map(fn, specs)
-
-
-#: the file of the ensemble store inside the output folder
-ENSEMBLE_STORE = "ensemble.sqlite"
-
-
-def ensemble_frame(rows):
-    """Ensemble rows as a DataFrame with a ``member`` column (members are stored as
-    scenarios named ``<scenario>#<k>``)."""
-    from reports.results import frame
-
-    df = frame(rows)
-    parts = df["scenario"].str.rpartition("#")
-    df.insert(0, "member", parts[2].astype(int) if len(df) else [])
-    df["scenario"] = parts[0]
-    return df.sort_values(["scenario", "engine", "integrator", "dt", "member"], ignore_index=True)
-
-
-def read_ensemble(folder):
-    """The ensemble rows of an output folder, or None if it has none."""
-    from reports.results import Store
-
-    if not (Path(folder) / ENSEMBLE_STORE).exists():
-        return None
-    with Store(folder, name=ENSEMBLE_STORE) as st:
-        return ensemble_frame(st.rows())
-
-
-def summary(df, metrics=("attitude_error_max", "energy_drift_max", "momentum_drift_max")):
-    """Median, 90th percentile and maximum of each metric per configuration, and how many
-    members completed."""
-    rows = []
-    for (sc, eng, integ, dt), g in df.groupby(["scenario", "engine", "integrator", "dt"]):
-        ok = g[g["status"] == "ok"]
-        r = {
-            "scenario": sc,
-            "engine": eng,
-            "integrator": integ,
-            "dt": dt,
-            "members": f"{len(ok)}/{len(g)}",
-        }
-        for m in metrics:
-            v = ok[m].astype(float).to_numpy()
-            v = v[np.isfinite(v)]
-            r[f"{m} median"] = float(np.median(v)) if v.size else math.nan
-            r[f"{m} p90"] = float(np.quantile(v, 0.9)) if v.size else math.nan
-            r[f"{m} max"] = float(v.max()) if v.size else math.nan
-        rows.append(r)
-    return rows

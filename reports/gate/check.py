@@ -1,7 +1,7 @@
 """The CI regression gate: baselines of a run's metrics and the comparison against them.
 
 A baseline is a JSON file with one entry per run holding its configuration (scenario, engine,
-integrator, dt, target accuracy), its identity (:data:`reports.results.IDENTITY_COLUMNS`:
+integrator, dt, target accuracy), its identity (:data:`reports.store.results.IDENTITY_COLUMNS`:
 scenario content hash, horizon, save_every, segmenting, engine and suite versions), its
 status, verdict and reason, and its metrics. :func:`compare` matches the runs of a results
 folder to the baseline on the configuration and reports:
@@ -31,26 +31,11 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.metrics import HIGHER_IS_BETTER
-from reports.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
+from reports.metrics.body import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
+from reports.store.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
 from scenarios.model import RELATIVE_EQUILIBRIA
 from scenarios.schema import InputError
 
-FLOORS = {
-    "energy_drift_max": 1e-11,
-    "energy_drift_rot_max": 1e-11,
-    "energy_drift_trans_max": 1e-11,
-    "momentum_drift_max": 1e-11,
-    "orthonormality_max": 1e-11,
-    "constraint_velocity_max": 1e-11,
-    "attitude_error_max": 1e-10,
-    "omega_error_max": 1e-10,
-    "position_error_max": 1e-10,
-    "flip_interval_error": 1e-9,
-    "nutation_period_error": 1e-9,
-}
-#: A fitted convergence order may fall by this much before it counts as a regression.
-ORDER_SLACK = 0.3
 TIMING_METRICS = ("ns_per_step",)
 #: version of the baseline file layout (3: with each run's identity and failure reason)
 BASELINE_FORMAT = 3
@@ -103,8 +88,8 @@ def failed_checks(r) -> set[str]:
 
 def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
     """Write the baseline of the run in ``results_dir`` to ``path`` (JSON)."""
-    from reports.provenance import read_provenance
-    from reports.results import read_results
+    from reports.store.provenance import read_provenance
+    from reports.store.results import read_results
 
     df = read_results(results_dir)
     runs = []
@@ -274,8 +259,8 @@ def compare(
     scenario); by default missing and new runs are findings too. Raises
     :class:`NothingComparable` when the results hold no run or share none with the
     baseline."""
-    from reports.results import current as current_view
-    from reports.results import read_results
+    from reports.store.results import current as current_view
+    from reports.store.results import read_results
 
     if not factor >= 1.0:
         raise InputError(f"--factor {factor!r}: must be a number >= 1")
@@ -405,7 +390,7 @@ def format_comparison(cmp: Comparison) -> str:
 
 
 def junit_notes(cmp: Comparison) -> tuple[dict, list]:
-    """What a baseline says about each run, for :func:`reports.junit.write`: a dict
+    """What a baseline says about each run, for :func:`reports.report.junit.write`: a dict
     key -> ("known", reason) | ("regression", message), and the missing runs as
     (key, message)."""
     notes = {key: ("known", reason) for key, (reason, _) in cmp.known.items()}
@@ -569,8 +554,8 @@ def check(
     when nothing could be compared)."""
     import sys
 
-    from reports import junit as junit_xml
-    from reports.results import read_results
+    from reports.report import junit as junit_xml
+    from reports.store.results import read_results
 
     folder = Path(results_dir)
     markdown = Path(markdown) if markdown else folder / "check.md"
@@ -679,7 +664,7 @@ def _name(r) -> str:
 def _junit_agrees(df, path: Path) -> list[str]:
     import xml.etree.ElementTree as ET
 
-    from reports.junit import SKIPPED
+    from reports.report.junit import SKIPPED
 
     try:
         suite = ET.parse(path).getroot()

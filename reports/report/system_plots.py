@@ -1,6 +1,6 @@
 """Figures of systems of bodies, drawn from the per-sample series written beside each run's
-trajectory (:func:`reports.system_metrics.error_series`): pure functions of the results
-folder, like every figure of :mod:`reports.plots`, and drawn with the helpers it passes
+trajectory (:func:`reports.metrics.system.error_series`): pure functions of the results
+folder, like every figure of :mod:`reports.report.plots`, and drawn with the helpers it passes
 (the same colour per configuration, the legend beside the axes, hover text, alt text).
 
 :func:`system_plot`: per group of coinciding configurations at the scenario's own dt, over
@@ -10,7 +10,8 @@ each on a log axis (round-off, 1e-16, and a joint open by a millimetre on one fi
 value of exactly 0 (a joint a reduced-coordinate engine holds by construction) is drawn at
 the axis floor :data:`FLOOR`. A configuration that closes a loop with settings of its own
 (MuJoCo's ``solref``, Pinocchio's Baumgarte gains, DART's ERP, PyBullet's ``erp``:
-:func:`reports.summary.closure_settings`) carries the stiffness among them in its legend entry.
+:func:`reports.report.summary.closure_settings`) carries the stiffness among them in its
+legend entry.
 """
 
 from __future__ import annotations
@@ -37,17 +38,17 @@ def system_plot(
 ):  # fmt: skip
     """The figure of a system scenario (module docstring) as ``<slug>__system.png`` in
     ``out``, or None when no run has samples. ``rows``: the results to draw (the scenario
-    at its dt ``h``); ``cache``: a :class:`reports.plots.SeriesCache` of the folder;
+    at its dt ``h``); ``cache``: a :class:`reports.report.plots.SeriesCache` of the folder;
     ``plt``: matplotlib's pyplot; ``save(fig, path, alt=...)`` writes the figure. The
     caller's helpers, so that every figure of a report looks alike (this module imports
-    nothing of :mod:`reports.plots`, which calls it): ``styles``, an object whose
+    nothing of :mod:`reports.report.plots`, which calls it): ``styles``, an object whose
     ``of(row)`` gives a configuration's line style (default: a colour per line);
     ``new_figure(n)``, (figure, n axes sharing t); ``legend(ax)``, the legend of the figure
     beside the axes (default: matplotlib's, inside the first axes)."""
     import textwrap
 
-    from reports.results import slug
-    from reports.summary import closure_settings, config_label, group_rows
+    from reports.report.summary import closure_settings, config_label, group_rows
+    from reports.store.results import slug
 
     runs = []
     for g in group_rows(rows):

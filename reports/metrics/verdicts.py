@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 
 #: Default verdict bounds, every family (metric -> largest value that passes). The metrics
-#: and their scales are in reports.metrics; the values are this suite's choice of "right":
+#: and their scales are in reports.metrics.body; the values are this suite's choice of "right":
 #: the attitude to 0.1 rad (a flip at the right time, a top on the right side), energy and
 #: momentum to 1 % of the scenario's scales, phase observables to 1 %, and R orthonormal to
 #: 1e-9 (every engine that renormalises keeps ~1e-15).
@@ -43,7 +43,7 @@ DEFAULT_TOLERANCES = {
     "orthonormality_max": 1e-9,
     "flip_interval_error": 1e-2,
     "nutation_period_error": 1e-2,
-    # systems of bodies (reports.system_metrics): a joint open by 1 mm or its axes 1 mrad
+    # systems of bodies (reports.metrics.system): a joint open by 1 mm or its axes 1 mrad
     # apart on the library's links of 0.5 to 1.4 m is the finer precision class (1e-3) of
     # the IFToMM benchmarks (Gonzalez et al. 2006) on a link's size, and 1e11 times the
     # round-off the director schemes keep; the branch check as the attitude (0.1 rad)

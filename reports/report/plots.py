@@ -6,7 +6,7 @@ One figure per scenario and kind (:data:`KINDS`):
 
 - ``scenario``: the body (the uniform box with its principal moments) and its motion, a
   strip of poses and the trace of one body axis, from the exact reference's run
-  (:func:`scenario_picture`; ``python -m reports.plots --scenario-figures docs/figures``
+  (:func:`scenario_picture`; ``python -m reports.report.plots --scenario-figures docs/figures``
   draws the same pictures for the documentation);
 - ``errors``: running maxima of the attitude, energy and momentum errors against time at the
   scenario's own dt (log scale), the quantities the metrics report, as they grow; the band
@@ -15,7 +15,7 @@ One figure per scenario and kind (:data:`KINDS`):
   visibly leave it drawn; a fast oscillation is shown over its last periods;
 - ``system`` (a system of bodies, in the place of ``scenario`` and ``rates``): the loop
   closure's (or largest joint's) gap, the energy and the momentum drift over time per
-  configuration (:mod:`reports.system_plots`);
+  configuration (:mod:`reports.report.system_plots`);
 - ``convergence``: attitude error against dt (log-log), with the fitted orders;
 - ``work_precision``: attitude error against the time spent inside the engine's calls.
 
@@ -24,7 +24,7 @@ and the scorecard as one picture (:func:`scorecard_figure`, ``scorecard.png`` an
 
 Styles: a colour and a marker per configuration (:data:`PALETTE`, :data:`MARKERS`), a line
 style per integrator family (:data:`FAMILY_STYLE`). Configurations whose results coincide
-(reports.summary's groups) are one line labelled with all of them. Every figure is as wide
+(reports.report.summary's groups) are one line labelled with all of them. Every figure is as wide
 as its legend needs (:func:`_fit`: the legend sits beside the axes and is never cut). A
 curve that leaves the plot (a diverged run, an error beyond :data:`CAPS`) is cut where it
 leaves and marked there; a diverged run's end is marked with its time; every configuration
@@ -41,9 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.metrics import SATURATION
-from reports.results import error_series_path, slug
-from reports.summary import (
+from reports.metrics.body import SATURATION
+from reports.report.summary import (
     ENGINE_ORDER,
     FAMILY_ORDER,
     NOT_RUN,
@@ -59,6 +58,7 @@ from reports.summary import (
     sweep_groups,
     truthy,
 )
+from reports.store.results import error_series_path, slug
 
 #: colours of the configurations, given out in engine and integrator order so that every
 #: configuration of a results folder has its own (tab10, then darker tones of tab20b/c); a
@@ -1221,7 +1221,7 @@ def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Style
     if kind == "errors":
         return errors_plot(df, cache, out, scenario, styles)
     if kind == "system":
-        from reports.system_plots import system_plot  # joints, invariants over time
+        from reports.report.system_plots import system_plot  # joints, invariants over time
 
         rows, h = _plot_rows(df, scenario)
         return system_plot(
@@ -1236,9 +1236,9 @@ def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Style
 
 def is_system(df, cache, scenario: str) -> bool:
     """Whether a scenario of the results is a system of bodies: a run of it has a system
-    metric (:data:`reports.system_metrics.SYSTEM_METRICS`), or a series file with per-body
+    metric (:data:`reports.metrics.system.SYSTEM_METRICS`), or a series file with per-body
     columns (``<body>.wx``); a single body's runs have neither."""
-    from reports.system_metrics import SYSTEM_METRICS
+    from reports.metrics.system import SYSTEM_METRICS
 
     sub = df[df["scenario"] == scenario]
     if any(m in sub and sub[m].notna().any() for m in SYSTEM_METRICS):
@@ -1260,7 +1260,7 @@ def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:
     import hashlib
     import json
 
-    import reports.summary as summary_mod
+    import reports.report.summary as summary_mod
 
     h = hashlib.sha256()
     h.update(Path(__file__).read_bytes())
@@ -1322,10 +1322,10 @@ def all_plots(
     A scenario whose figures exist and were made from the same inputs (rows, series files,
     styles and this code: :data:`CACHE_FILE` in the plots folder) is not drawn again, so a
     report regenerated from an unchanged store draws nothing. ``progress``: the progress of
-    the figures (:class:`reports.progress.Progress`; nothing when none is drawn)."""
+    the figures (:class:`reports.run.progress.Progress`; nothing when none is drawn)."""
     import json
 
-    from reports.progress import Progress
+    from reports.run.progress import Progress
 
     root = Path(root)
     out = Path(out) if out is not None else root / "plots"
@@ -1402,7 +1402,7 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
     """The scorecard figure's content: scenarios (columns), configurations (rows: (engine,
     integrator, label)) and {(row, scenario): (outcome, lines of text)}; each scenario at its
     own dt (an error-controlled integrator at its tightest target accuracy)."""
-    from reports.summary import (
+    from reports.report.summary import (
         METRIC_SHORT,
         failed_metrics,
         fmt_attitude,
@@ -1519,7 +1519,7 @@ def scorecard_figure_cached(df, root: str | Path) -> list[Path]:
     the code drawing it changed (a hash kept in ``plots/.scorecard-made-from``)."""
     import hashlib
 
-    import reports.summary as summary_mod
+    import reports.report.summary as summary_mod
 
     root = Path(root)
     h = hashlib.sha256()
@@ -1593,14 +1593,14 @@ __all__ = [
 
 
 def main(argv=None) -> int:
-    """``python -m reports.plots --scenario-figures DIR [NAME ...]``: the pictures of the
+    """``python -m reports.report.plots --scenario-figures DIR [NAME ...]``: the pictures of the
     default suite's scenarios (or those named) for the documentation."""
     import argparse
 
     import scenarios
 
     p = argparse.ArgumentParser(
-        prog="python -m reports.plots",
+        prog="python -m reports.report.plots",
         description="Draw the pictures of library scenarios (body and motion) into a folder.",
     )
     p.add_argument(
@@ -1616,7 +1616,7 @@ def main(argv=None) -> int:
         for path in scenario_figures(names, Path(args.scenario_figures)):
             print(path)
     except (ValueError, OSError) as exc:
-        print(f"python -m reports.plots: error: {exc}", file=__import__("sys").stderr)
+        print(f"python -m reports.report.plots: error: {exc}", file=__import__("sys").stderr)
         return 2
     return 0
 

@@ -40,7 +40,7 @@ import math
 import numpy as np
 
 from references.trajectory import system_energy, system_momenta
-from reports.metrics import _max, attitude_error, nearest_rotation
+from reports.metrics.body import _max, attitude_error, nearest_rotation
 from scenarios.system import joint_residuals
 
 #: the metrics only systems have (declared as result columns in scenarios.model)

@@ -51,6 +51,23 @@ from references.trajectory import angular_momentum, energy, energy_parts
 #: Metrics where a larger value is better; every other metric is an error (lower is better).
 HIGHER_IS_BETTER = frozenset({"convergence_order"})
 
+#: round-off floors: values below these are round-off, compared as equal (gate, compare, report)
+FLOORS = {
+    "energy_drift_max": 1e-11,
+    "energy_drift_rot_max": 1e-11,
+    "energy_drift_trans_max": 1e-11,
+    "momentum_drift_max": 1e-11,
+    "orthonormality_max": 1e-11,
+    "constraint_velocity_max": 1e-11,
+    "attitude_error_max": 1e-10,
+    "omega_error_max": 1e-10,
+    "position_error_max": 1e-10,
+    "flip_interval_error": 1e-9,
+    "nutation_period_error": 1e-9,
+}
+#: A fitted convergence order may fall by this much before it counts as a regression.
+ORDER_SLACK = 0.3
+
 #: attitude errors at or above this (rad) are saturated, not in the asymptotic range of a
 #: convergence fit (an error of order 1 rad says the phase is lost, not how fast it is)
 SATURATION = 0.1
@@ -242,12 +259,12 @@ def compute_metrics(scenario, traj, ref=None, expected=None) -> dict[str, float]
         m["position_error_max"] = _max(position_error(traj, ref))
     expected = expected or {}
     if "flip_interval" in expected:
-        from reports.observables import flip_interval
+        from reports.metrics.observables import flip_interval
 
         got = flip_interval(traj)
         m["flip_interval_error"] = abs(got - expected["flip_interval"]) / expected["flip_interval"]
     if "nutation_period" in expected and scenario.top_axis is not None:
-        from reports.observables import nutation_period
+        from reports.metrics.observables import nutation_period
 
         got = nutation_period(traj, scenario.top_axis, scenario.vertical)
         exp = expected["nutation_period"]
