@@ -27,7 +27,7 @@ import numpy as np
 
 import scenarios
 from references.engines import get_engine
-from references.engines.base import Diverged, EngineError
+from references.errors import Diverged, EngineError
 from references.exact import reference_trajectory
 
 

@@ -61,7 +61,7 @@ def test_pybullet_defaults_planted_back_are_caught_at_run_time():
 def _blind(cls):
     """An adapter whose "own" quantities are computed from the state the suite reads back
     through its conversions: a consistent mistake then passes every check but the kit's."""
-    from references.engines.base import check_readback  # noqa: F401 - the path under test
+    from references.engines.stepping import check_readback  # noqa: F401 - the path under test
     from references.trajectory import Trajectory
 
     def native_quantities(self, ctx):

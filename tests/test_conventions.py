@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from references import conventions as cv
-from references.engines.base import EngineError
+from references.errors import EngineError
 from scenarios.model import Scenario
 
 #: a few ulp for O(1) numbers that go through a handful of flops

@@ -43,9 +43,9 @@ def _engine_or_skip(name):
 def stepper(request, monkeypatch):
     """Both RKMK4 steppers of the run loop must say where they failed."""
     if request.param == "readable":
-        from references.engines import base, liegroup
+        from references.engines import liegroup, stepping
 
-        monkeypatch.setattr(base, "_stepper", lambda e, c: liegroup.RKMK4Stepper(e, c))
+        monkeypatch.setattr(stepping, "_stepper", lambda e, c: liegroup.RKMK4Stepper(e, c))
     return request.param
 
 

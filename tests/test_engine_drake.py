@@ -19,7 +19,8 @@ import scenarios
 from references import conventions as cv
 from references.engines import conformance as kit
 from references.engines import engine_names, get_engine
-from references.engines.base import BodyModel, Diverged, RunContext, Unsupported
+from references.engines.context import BodyModel, RunContext
+from references.errors import Diverged, Unsupported
 from references.exact import reference_trajectory
 
 EPS = np.finfo(float).eps
@@ -36,7 +37,7 @@ def drake():
 
 def _built(cls, sc, integrator, dt=None, accuracy=None):
     """An adapter and its RunContext after build and set_state (the scenario's state)."""
-    from references.engines.base import initial_state
+    from references.engines.stepping import initial_state
 
     eng = cls()
     integ = cls.integrator(integrator)
@@ -48,7 +49,7 @@ def _built(cls, sc, integrator, dt=None, accuracy=None):
 
 
 def _angle(Ra, Rb) -> np.ndarray:
-    """Rotation angle between stacks of rotations (the attitude error of reports.metrics)."""
+    """Rotation angle between stacks of rotations (the attitude error of reports.metrics.body)."""
     d = np.linalg.norm(np.asarray(Ra) - np.asarray(Rb), axis=(-2, -1)) / (2 * math.sqrt(2))
     return 2 * np.arcsin(np.minimum(d, 1.0))
 
@@ -252,8 +253,8 @@ def test_a_steady_rotation_switches_chart_once(drake):
     roll and never switches again. RK5 integrates the linear angles exactly, so the attitude
     stays on Rx(w t) to round-off (bound: 1000 steps x eps x w t = 7e-13, rounded up to
     1e-12)."""
-    from references.engines.base import initial_state
     from references.engines.drake_engine import CHART_SWITCH_COS
+    from references.engines.stepping import initial_state
 
     w, dt = 3.0, 1e-3
     sc = _steady_rotation(w)
@@ -442,8 +443,8 @@ def test_error_controlled_bookkeeping_across_switches(drake, wobbly, monkeypatch
     (the new integrator's first step: the last one taken before the switch). At 1e-10 the
     run is cut off by the evaluation budget, which only the sum over the integrators
     exceeds."""
-    from references.engines.base import check_readback
     from references.engines.drake_engine import EVAL_BUDGET, DrakeEngine
+    from references.engines.stepping import check_readback
 
     sc, _ = wobbly
     name = "runge_kutta5 (error-controlled)"
@@ -480,7 +481,7 @@ def test_error_controlled_bookkeeping_across_switches(drake, wobbly, monkeypatch
 def test_the_read_back_holds_after_a_switch(drake, wobbly):
     """After a switch the model read back is the new chart's (frames F and M), and it still
     passes the run's read-back check."""
-    from references.engines.base import check_readback
+    from references.engines.stepping import check_readback
 
     sc, _ = wobbly
     eng, ctx = _built(drake, sc, "runge_kutta5")

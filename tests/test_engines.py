@@ -30,8 +30,8 @@ from references.engines import (
     engine_names,
     get_engine,
 )
-from references.engines.base import check_readback
 from references.engines.conformance import free_scenario, pivoted_scenario
+from references.engines.stepping import check_readback
 from scenarios.model import Scenario
 
 #: the third-party engines' adapters (the suite's own "director" and "exact" are tested with
@@ -307,7 +307,7 @@ def test_dart_deactivation_is_switched_off():
 def test_native_stderr_is_kept_for_the_record_not_the_terminal(capfd):
     import os
 
-    from references.engines.base import NativeStderr
+    from references.engines.native import NativeStderr
 
     cap = NativeStderr()
     with cap:

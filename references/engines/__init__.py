@@ -12,24 +12,13 @@ from __future__ import annotations
 import functools
 import importlib
 
-from references.engines.base import (
-    FAMILIES,
-    BodyModel,
-    Diverged,
-    Engine,
-    EngineBase,
-    EngineError,
-    EngineUnavailable,
-    Family,
-    Integrator,
-    ModelReadback,
-    RunContext,
-    RunOutput,
-    StepFailure,
-    Unsupported,
-    register_family,
-    step_plan,
-)
+from references.engines.context import BodyModel, ModelReadback, RunContext, RunOutput
+from references.engines.integrators import FAMILIES, Family, Integrator, register_family, slug
+from references.engines.interface import Engine, EngineBase
+from references.engines.native import import_engine
+from references.engines.recording import Recorder, block_trajectory
+from references.engines.stepping import CHUNK, DIVERGENCE_ENERGY, check_readback, step_plan
+from references.errors import Diverged, EngineError, EngineUnavailable, StepFailure, Unsupported
 
 #: the entry-point group through which other packages register engine adapters
 ENTRY_POINT_GROUP = "director_bench.engines"
@@ -118,6 +107,8 @@ def _stand_in(name: str, why: str) -> type[EngineBase]:
 
 __all__ = [
     "BUILTIN",
+    "CHUNK",
+    "DIVERGENCE_ENERGY",
     "ENTRY_POINT_GROUP",
     "FAMILIES",
     "BodyModel",
@@ -129,13 +120,18 @@ __all__ = [
     "Family",
     "Integrator",
     "ModelReadback",
+    "Recorder",
     "RunContext",
     "RunOutput",
     "StepFailure",
     "UnknownEngine",
     "Unsupported",
+    "block_trajectory",
+    "check_readback",
     "engine_names",
     "get_engine",
+    "import_engine",
     "register_family",
+    "slug",
     "step_plan",
 ]

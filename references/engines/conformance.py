@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import EngineError, Unsupported
+from references.errors import EngineError, Unsupported
 
 #: a measured order may differ from the declared one by this much
 ORDER_SLACK = 0.3
@@ -199,7 +199,7 @@ def _scenarios(cls, integrator):
 
 
 def check_identity(cls) -> list[Check]:
-    from references.engines.base import FAMILIES
+    from references.engines.integrators import FAMILIES
 
     out = [Check("has a name", bool(getattr(cls, "name", "")), "")]
     integs = getattr(cls, "integrators", ())

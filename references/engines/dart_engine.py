@@ -25,7 +25,10 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import _rkmk4
-from references.engines.base import Engine, Integrator, ModelReadback, import_engine
+from references.engines.context import ModelReadback
+from references.engines.integrators import Integrator
+from references.engines.interface import Engine
+from references.engines.native import import_engine
 
 
 def _import():

@@ -55,8 +55,8 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import pinocchio_system as ps
-from references.engines.base import import_engine
 from references.engines.liegroup import so3_right_jacobian_inverse
+from references.engines.native import import_engine
 from references.errors import Diverged, EngineError, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")

@@ -10,15 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import (
-    Engine,
-    EngineError,
-    EngineUnavailable,
-    Integrator,
-    ModelReadback,
-    StepFailure,
-    Unsupported,
-)
+from references.engines.context import ModelReadback
+from references.engines.integrators import Integrator
+from references.engines.interface import Engine
+from references.errors import EngineError, EngineUnavailable, StepFailure, Unsupported
 
 #: dynamics (torque) evaluations per step of each scheme: one per RATTLE sub-step (Yoshida's
 #: composition has 3, Kahan and Li's 9)

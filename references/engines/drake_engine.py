@@ -67,17 +67,11 @@ from typing import Any
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import (
-    Engine,
-    EngineError,
-    Family,
-    Integrator,
-    ModelReadback,
-    StepFailure,
-    Unsupported,
-    import_engine,
-    register_family,
-)
+from references.engines.context import ModelReadback
+from references.engines.integrators import Family, Integrator, register_family
+from references.engines.interface import Engine
+from references.engines.native import import_engine
+from references.errors import EngineError, StepFailure, Unsupported
 
 #: an error-controlled run may make at most this many dynamics evaluations per fixed step of
 #: the scenario (t_end / scenario.dt, at least MIN_FIXED_STEPS) before it is cut off (see the

@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import time
 
-from references.engines.base import EngineBase, Integrator, RunOutput, step_plan
+from references.engines.context import RunOutput
+from references.engines.integrators import Integrator
+from references.engines.interface import EngineBase
+from references.engines.stepping import step_plan
 
 
 class ExactEngine(EngineBase):

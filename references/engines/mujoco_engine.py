@@ -18,14 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import (
-    Engine,
-    EngineError,
-    Integrator,
-    ModelReadback,
-    Unsupported,
-    import_engine,
-)
+from references.engines.context import ModelReadback
+from references.engines.integrators import Integrator
+from references.engines.interface import Engine
+from references.engines.native import import_engine
+from references.errors import EngineError, Unsupported
 
 _INTEGRATOR_ENUM = {
     "Euler": "mjINT_EULER",

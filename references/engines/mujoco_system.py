@@ -78,7 +78,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import import_engine
+from references.engines.native import import_engine
 from references.engines.pinocchio_system import saves as _saves
 from references.engines.pinocchio_system import unit as _unit
 from references.engines.pinocchio_system import vec as _vec

@@ -33,7 +33,11 @@ import math
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import Engine, Integrator, ModelReadback, Unsupported, import_engine
+from references.engines.context import ModelReadback
+from references.engines.integrators import Integrator
+from references.engines.interface import Engine
+from references.engines.native import import_engine
+from references.errors import Unsupported
 
 #: the raised velocity clamp (rad/s and m/s); runs whose speeds come near it are refused
 MAX_JOINT_VELOCITY = 1e6

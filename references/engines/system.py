@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.engines.base import DIVERGENCE_ENERGY, step_plan
+from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
 from references.trajectory import SystemTrajectory, system_energy
 

@@ -1,0 +1,226 @@
+"""The engine interface: what the runner needs of anything that produces trajectories
+(:class:`EngineBase`) and what an engine adapter implements (:class:`Engine`).
+
+An adapter (a subclass of :class:`Engine`) provides only what differs between engines:
+
+==========================  ===============================================================
+``build(ctx)``              the engine's model of ``ctx.model`` (a :class:`BodyModel`), with
+                            the engine's distorting defaults switched off; stored in
+                            ``ctx.handle``
+``read_model(ctx)``         what the built model holds, read back from the engine
+                            (:class:`ModelReadback`); the base compares it with the scenario
+``settings(ctx)``           the settings changed from the engine's defaults (recorded)
+``set_state(ctx, state)``   write a :class:`~references.conventions.BodyState` (the suite's
+                            convention) into the engine, converting in
+                            :mod:`references.conventions`
+``read_state(ctx)``         the engine's current state as a ``BodyState``
+``native_quantities(ctx)``  the engine's OWN energy, angular momentum, rotation (and COM
+                            velocity where it has one), computed by the engine's code from its
+                            own state; they check that the engine holds the state we meant
+``advance(ctx, k)``         k steps with the engine's own integrator (``stepping="native"``)
+``forward_dynamics``        accelerations of a state, for the suite's RKMK4
+(ctx, state)                (``stepping="rkmk4"``, :mod:`references.engines.liegroup`)
+``guard(ctx, state)``       optional: a reason if the engine hit one of its own limits
+``close(ctx)``              optional: release the engine's resources
+==========================  ===============================================================
+
+:meth:`Engine.run` owns everything else, identically for every engine (the run loop of
+:mod:`references.engines.stepping`): the step plan, the read-back of the model, the
+initial-state check through the engine's own quantities, the loop (saves, chunks, progress,
+the stopwatch that separates time inside the engine's calls from the suite's glue), the
+divergence checks and the conversion into the suite's :class:`references.trajectory.Trajectory`.
+Adapters never compute metrics.
+
+Failures are exceptions of the classes below with a ``status``; the runner turns each into a
+result row with that status and the message, so messages say what happened and what to do.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import ClassVar
+
+import numpy as np
+
+from references import conventions as cv
+from references.engines.context import ModelReadback, RunContext, RunOutput
+from references.engines.integrators import Integrator, slug
+from references.engines.recording import Recorder
+from references.engines.stepping import run_loop
+from references.errors import EngineUnavailable, Unsupported
+
+
+class EngineBase(ABC):
+    """What the runner needs of anything that produces trajectories: a name, integrators, a
+    version, and :meth:`run`. :class:`Engine` (an engine adapter) implements :meth:`run` with
+    the shared loop; the exact reference (:mod:`references.engines.exact`) implements it by
+    evaluating closed forms."""
+
+    name: ClassVar[str]
+    integrators: ClassVar[tuple[Integrator, ...]]
+    description: ClassVar[str] = ""
+    #: the runs of one integrator share an expensive warm-up in a process (MJX compiles its
+    #: step): a runner executes them one after another in one worker instead of spreading them
+    bundle_runs: ClassVar[bool] = False
+    #: what the first run in a process compiles before it steps ("" if nothing), shown by the
+    #: progress display while it lasts (per integrator when ``bundle_runs``)
+    warm_up: ClassVar[str] = ""
+
+    @classmethod
+    @abstractmethod
+    def version(cls) -> str:
+        """The engine's version string; raises :class:`EngineUnavailable` if not installed."""
+
+    @classmethod
+    def availability(cls) -> str | None:
+        """None if the engine can run here, else a message saying why not and how to fix it."""
+        try:
+            cls.version()
+        except EngineUnavailable as exc:
+            return str(exc)
+        return None
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        slugs: dict[str, str] = {}
+        for integ in cls.__dict__.get("integrators", ()):
+            prev = slugs.setdefault(integ.slug, integ.name)
+            if prev != integ.name:
+                raise ValueError(
+                    f"{cls.__name__}: integrators {prev!r} and {integ.name!r} have the same "
+                    f"typed name {integ.slug!r} (references.engines.slug); rename one"
+                )
+
+    @classmethod
+    def integrator(cls, name: str) -> Integrator:
+        """The integrator called ``name``, by its display name or its slug, in any case."""
+        for integ in cls.integrators:
+            if integ.slug == slug(name):
+                return integ
+        names = ", ".join(i.slug for i in cls.integrators)
+        raise Unsupported(f"engine {cls.name!r} has no integrator {name!r}; it offers: {names}")
+
+    def check_supported(self, scenario, integrator: Integrator) -> None:  # noqa: B027
+        """Raise :class:`Unsupported` with the reason if this scenario/integrator pair cannot
+        be represented. The default accepts everything."""
+
+    @abstractmethod
+    def run(
+        self,
+        scenario,
+        integrator: str,
+        dt: float,
+        t_end: float | None = None,
+        save_every: int | None = None,
+        progress: Callable[[float], None] | None = None,
+        recorder: Recorder | None = None,
+        accuracy: float | None = None,
+    ) -> RunOutput:
+        """Run ``scenario`` with ``integrator`` at step ``dt`` (see :meth:`Engine.run`)."""
+
+
+class Engine(EngineBase):
+    """Interface of an engine adapter (see the module docstring for what to implement)."""
+
+    # -- what adapters implement -----------------------------------------------------------
+    @abstractmethod
+    def build(self, ctx: RunContext) -> None:
+        """Build the engine's model of ``ctx.model`` for ``ctx.integrator`` and step
+        ``ctx.dt``; store what the other methods need in ``ctx.handle``."""
+
+    @abstractmethod
+    def read_model(self, ctx: RunContext) -> ModelReadback:
+        """What the built model holds, read back from the engine."""
+
+    def settings(self, ctx: RunContext) -> dict:
+        """Every setting changed from the engine's defaults, name -> value (recorded)."""
+        return {}
+
+    @abstractmethod
+    def set_state(self, ctx: RunContext, state: cv.BodyState) -> None:
+        """Write ``state`` (the suite's convention) into the engine."""
+
+    @abstractmethod
+    def read_state(self, ctx: RunContext) -> cv.BodyState:
+        """The engine's current state in the suite's convention."""
+
+    @abstractmethod
+    def native_quantities(self, ctx: RunContext) -> dict:
+        """The engine's own view of its current state, computed by the engine:
+        ``{"energy": E, "angular momentum": L (3,), "rotation": R (3, 3)}`` and, where the
+        engine computes it, ``"COM velocity": v (3,)``. L in world axes about the centre of
+        mass (free body) or the pivot; E = T + V with V = -m g . x_G."""
+
+    def advance(self, ctx: RunContext, k: int) -> None:
+        """Take ``k`` steps with the engine's own integrator (``stepping="native"``)."""
+        raise NotImplementedError(f"{self.name}: no native stepping")
+
+    def advance_saving(self, ctx: RunContext, steps: list[int]) -> cv.BodyState:
+        """Advance by each count in ``steps`` in turn and return the block of states after
+        each (a BodyState of stacked arrays, (k, 3), (k, 3), (k, 3, 3), (k, 3)). The default
+        calls :meth:`advance`, copies the engine's state with :meth:`read_raw` and converts
+        the block at once with :meth:`states_from_raw` where the adapter has them (a copy of
+        a state vector costs a microsecond, its conversion tens: done once per block,
+        vectorised), else reads each state with :meth:`read_state`. An engine whose loop runs
+        in compiled code may save them all in one call (the director model does)."""
+        if type(self).states_from_raw is Engine.states_from_raw:
+            states = []
+            for k in steps:
+                self.advance(ctx, k)
+                states.append(self.read_state(ctx))
+            return cv.stack_states(states)
+        rows = []
+        for k in steps:
+            self.advance(ctx, k)
+            rows.append(self.read_raw(ctx))
+        return self.states_from_raw(ctx, np.array(rows))
+
+    def read_raw(self, ctx: RunContext) -> np.ndarray:
+        """Optional: a copy of the engine's state vector (any layout the adapter's
+        :meth:`states_from_raw` reads)."""
+        raise NotImplementedError
+
+    def states_from_raw(self, ctx: RunContext, raw: np.ndarray) -> cv.BodyState:
+        """Optional: the block of states of rows of :meth:`read_raw` (vectorised)."""
+        raise NotImplementedError
+
+    def forward_dynamics(self, ctx: RunContext, state: cv.BodyState):
+        """(dW/dt (3,) body axes, dv_G/dt (3,) world axes) of ``state``, from the engine's
+        forward dynamics (``stepping="rkmk4"``); for a ball joint the second entry is
+        ignored."""
+        raise NotImplementedError(f"{self.name}: no forward-dynamics call")
+
+    def guard(self, ctx: RunContext, state: cv.BodyState) -> str | None:
+        """A reason if the engine reached one of its own limits (e.g. a velocity clamp): the
+        run then counts as diverged. Checked at every checkpoint."""
+        return None
+
+    def close(self, ctx: RunContext) -> None:  # noqa: B027 - optional hook
+        """Release the engine's resources (called once, also after a failure)."""
+
+    # -- the run ---------------------------------------------------------------------------
+    def run(
+        self,
+        scenario,
+        integrator: str,
+        dt: float,
+        t_end: float | None = None,
+        save_every: int | None = None,
+        progress: Callable[[float], None] | None = None,
+        recorder: Recorder | None = None,
+        accuracy: float | None = None,
+    ) -> RunOutput:
+        """Run ``scenario`` with ``integrator`` at step ``dt`` up to ``t_end`` (default: the
+        scenario's), saving every ``save_every`` steps (default: the scenario's).
+
+        ``progress``, if given, is called now and then with the fraction done (0..1).
+        ``recorder`` (default: a :class:`Recorder` of the saved steps) receives the states.
+        ``accuracy``: the target accuracy of an error-controlled (``adaptive``) integrator,
+        required for those and refused for the others.
+        Raises :class:`Diverged`, :class:`Unsupported`, :class:`EngineUnavailable` or
+        :class:`EngineError`.
+        """
+        return run_loop(
+            self, scenario, integrator, dt, t_end, save_every, progress, recorder, accuracy
+        )

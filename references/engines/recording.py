@@ -1,0 +1,70 @@
+"""Recording a run's states: the :class:`Recorder` keeps the saved steps block by block and
+turns them into the suite's :class:`~references.trajectory.Trajectory`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from references import conventions as cv
+from references.trajectory import Trajectory
+
+
+class Recorder:
+    """Receives the states of a run, block by block (:func:`conventions.block_row`: stacked
+    arrays), and keeps those at the saved step indices. A subclass with ``every_step = True``
+    sees every step (streaming metrics over long horizons keep O(1) memory that way, see
+    :mod:`reports.metrics.streaming`)."""
+
+    every_step = False
+
+    def __init__(self, saves: np.ndarray):
+        self.saves = np.asarray(saves, dtype=np.int64)
+        self.steps: list[np.ndarray] = []
+        self.blocks: list[cv.BodyState] = []
+        self.cv: list[np.ndarray] = []
+        #: the run's residuals by step (RunContext.residuals), consumed as states arrive
+        self.residuals: dict = {}
+
+    def _residuals(self, steps) -> np.ndarray:
+        if not self.residuals:
+            return np.full(len(steps), math.nan)
+        return np.array([self.residuals.pop(int(s), math.nan) for s in steps])
+
+    def record_block(self, steps, block: cv.BodyState) -> None:
+        steps = np.asarray(steps, dtype=np.int64)
+        res = self._residuals(steps)
+        keep = np.isin(steps, self.saves)
+        if keep.all():
+            self.steps.append(steps)
+            self.blocks.append(block)
+            self.cv.append(res)
+        elif keep.any():
+            self.steps.append(steps[keep])
+            self.blocks.append(cv.BodyState(*(a[keep] for a in block)))
+            self.cv.append(res[keep])
+
+    def trajectory(self, scenario, dt: float) -> Trajectory:
+        if not self.blocks:
+            return block_trajectory(scenario, np.zeros(0), None, np.zeros(0))
+        steps = np.concatenate(self.steps)
+        block = cv.BodyState(*(np.concatenate(parts) for parts in zip(*self.blocks, strict=True)))
+        return block_trajectory(scenario, steps * dt, block, np.concatenate(self.cv))
+
+
+def block_trajectory(scenario, t, block, residuals) -> Trajectory:
+    """The trajectory of a block of states; ``residuals`` the engine's own velocity-constraint
+    residuals (NaN where it has none: then computed from R and W)."""
+    t = np.asarray(t, dtype=float)
+    if block is None or not len(t):
+        z = np.zeros((0, 3))
+        return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z)
+    x, v, R, W = block
+    res = np.asarray(residuals, dtype=float)
+    own = None
+    if np.any(np.isfinite(res)):
+        from references.trajectory import velocity_constraint
+
+        own = np.where(np.isfinite(res), res, velocity_constraint(R, W))
+    return Trajectory.from_states(scenario, t, x, v, R, W, own)
