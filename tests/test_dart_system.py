@@ -20,6 +20,7 @@ pytest.importorskip("dartpy")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
 from references.engines import dart_system as ds  # noqa: E402
+from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
 from references.exact.multibody import solve, tree_from_world  # noqa: E402
 from tests.test_pinocchio_system import (  # noqa: E402
@@ -28,9 +29,7 @@ from tests.test_pinocchio_system import (  # noqa: E402
     assert_order,
     four_bar_gap,
     four_bar_theta_error,
-    hinge_chain,
     momentum,
-    scenario,
     two_ball_hinge_errors,
 )
 
@@ -121,37 +120,7 @@ def test_default_erp_is_dart_s():
     assert float(got.stdout.split()[-1]) == ds.DEFAULT_ERP
 
 
-def _plant(monkeypatch, mistake):
-    orig = ds.engine_frames
-
-    def planted(pl, c):
-        f = orig(pl, c)
-        tj = pl.tree[c]
-        if tj.kind == "free" or tj.parent < 0:
-            return f
-        j = next(j for j in pl.joints if j.name == tj.name)
-        child_is_a = j.body_a == pl.names[c]
-        Yp = pl.tree[tj.parent].Y
-        if mistake == "axis in the parent's frame":
-            return dataclasses.replace(f, axis=ds.ps.unit(j.axis_b if child_is_a else j.axis_a, ""))
-        if mistake == "anchor from the body origin":
-            return dataclasses.replace(f, p=tj.X)  # the parent's anchor not moved by -Y_p
-        return dataclasses.replace(f, p=tj.Y - Yp, body_offset=-tj.X)  # sides swapped
-
-    monkeypatch.setattr(ds, "engine_frames", planted)
-
-
-@pytest.mark.parametrize(
-    "mistake",
-    ["axis in the parent's frame", "anchor from the body origin", "parent and child swapped"],
-)
-def test_planted_joint_mistakes_are_caught(monkeypatch, mistake):
-    sc = scenario("hinge4", *hinge_chain())
-    ds.simulate_system(sc, RK, 1e-2, 2, 1)  # the true builder passes
-    _plant(monkeypatch, mistake)
-    with pytest.raises(EngineError, match=r"joint 'h1'|body 'link1'") as exc:
-        ds.simulate_system(sc, RK, 1e-2, 2, 1)
-    assert "differ" in str(exc.value)
+# The planted joint mistakes of every builder: tests/test_system_conformance.py.
 
 
 def test_planted_default_is_caught(monkeypatch):

@@ -1,5 +1,6 @@
 """Drake builder for systems of rigid bodies: one MultibodyPlant in Drake's reduced coordinates
-(``BallRpyJoint``, ``RevoluteJoint``, ``QuaternionFloatingJoint`` for a floating root), loops
+(``BallRpyJoint``, ``RevoluteJoint``, ``PrismaticJoint``, ``QuaternionFloatingJoint`` for a
+floating root), loops
 closed by ``AddBallConstraint`` on discrete (SAP) plants only.
 
 Input: a system scenario as for :mod:`references.engines.pinocchio_system` (the contract's
@@ -13,8 +14,8 @@ body poses and spatial velocities are the suite's states with no conversion. A t
 connects a frame F on the parent (``FixedOffsetFrame`` at the parent's anchor X, in the parent's
 principal frame relative to its COM, a world point for the ground; rotation R_F = R_p^T R_c at
 t = 0) to a frame M on the child (at the child's anchor Y, identity rotation), so every joint's
-coordinates are zero at t = 0 (:func:`engine_frames`, the builder's boundary where the tests
-plant mistakes):
+coordinates are zero at t = 0 but a prismatic joint's, which is the anchors' offset along
+the axis (:func:`engine_frames`, the builder's boundary where the tests plant mistakes):
 
 ==================  ======================  ================================================
 scenario kind       Drake joint             initial coordinates
@@ -23,6 +24,9 @@ spherical,          ``BallRpyJoint``        rpy 0; w_FM (in F) = R_F^T R_p^T (w_
 fixed_point
 revolute            ``RevoluteJoint`` (axis  angle 0; rate n . (W_c - R_rel^T W_p)
                     = the child's, in M)
+prismatic           ``PrismaticJoint`` (axis translation = the anchors' offset along the
+                    = the child's, in M)    axis, rate its rate
+                                            (:func:`~references.engines.pinocchio_system.slide_state`)
 (floating root)     ``QuaternionFloatingJoint``  SetFreeBodyPose / SetFreeBodySpatialVelocity
 others              -                       unsupported (not built by this adapter)
 ==================  ======================  ================================================
@@ -109,7 +113,7 @@ def loops_supported(integrator: str) -> bool:
 class DrakeFrames:
     """What Drake is given for one tree joint: its kind, frame F on the parent (position in
     the parent's principal frame at the COM, world for the ground; rotation), frame M on the
-    child (position; identity rotation) and a revolute axis (in F and M)."""
+    child (position; identity rotation) and a revolute or prismatic axis (in F and M)."""
 
     kind: str
     p_F: np.ndarray
@@ -135,6 +139,7 @@ class _Model:
         from pydrake.multibody.tree import (
             BallRpyJoint,
             FixedOffsetFrame,
+            PrismaticJoint,
             QuaternionFloatingJoint,
             RevoluteJoint,
             RotationalInertia,
@@ -171,6 +176,8 @@ class _Model:
             )
             if tj.kind == "spherical":
                 joint = BallRpyJoint(f"{pl.names[c]}_joint", F, Mf, 0.0)
+            elif tj.kind == "prismatic":
+                joint = PrismaticJoint(f"{pl.names[c]}_joint", F, Mf, f.axis)
             else:
                 joint = RevoluteJoint(f"{pl.names[c]}_joint", F, Mf, f.axis, 0.0)
             self.joint[c] = plant.AddJoint(joint)
@@ -205,6 +212,10 @@ class _Model:
             if tj.kind == "spherical":
                 joint.set_angles(ctx, np.zeros(3))
                 joint.set_angular_velocity(ctx, f.R_F.T @ Rp.T @ (w - wp))
+            elif tj.kind == "prismatic":
+                d0, rate = ps.slide_state(pl, tj)
+                joint.set_translation(ctx, d0)
+                joint.set_translation_rate(ctx, rate)
             else:
                 joint.set_angle(ctx, 0.0)
                 joint.set_angular_rate(ctx, float(tj.axis_c @ (R.T @ (w - wp))))
@@ -229,10 +240,17 @@ class _Model:
             if tj.kind == "free":
                 continue
             X = joint.frame_on_child().CalcPoseInWorld(self.context)
+            XF = joint.frame_on_parent().CalcPoseInWorld(self.context)
             points[tj.name] = X.translation()
             if tj.kind == "revolute":
-                XF = joint.frame_on_parent().CalcPoseInWorld(self.context)
                 axes[tj.name] = XF.rotation().matrix() @ joint.revolute_axis()
+            if tj.kind == "prismatic":
+                # the child's side (M) moves along the axis; the parent's side is F
+                j = next(j for j in self.pl.joints if j.name == tj.name)
+                a_is_child = j.body_a == self.pl.names[c]
+                points[tj.name] = {("a" if a_is_child else "b"): X.translation(),
+                                   ("b" if a_is_child else "a"): XF.translation()}  # fmt: skip
+                axes[tj.name] = XF.rotation().matrix() @ joint.translation_axis()
         return points, axes
 
 
@@ -248,7 +266,8 @@ def read_back(dm: _Model, scenario) -> None:
             bad.append(f"{what}: {np.round(got, 12).tolist()}, expected "
                        f"{np.round(exp, 12).tolist()}")  # fmt: skip
 
-    types = {"spherical": "ball_rpy", "revolute": "revolute", "free": "quaternion_floating"}
+    types = {"spherical": "ball_rpy", "revolute": "revolute", "prismatic": "prismatic",
+             "free": "quaternion_floating"}  # fmt: skip
     for c, body in dm.body.items():
         b, tj = pl.bodies[c], pl.tree[c]
         name = f"body {b.name!r} ({tj.label})"
@@ -291,6 +310,8 @@ def read_back(dm: _Model, scenario) -> None:
         want(f"{name}: frame M rotation in the child", XM.rotation().matrix(), np.eye(3))
         if tj.kind == "revolute":
             want(f"{name}: revolute axis", joint.revolute_axis(), f.axis)
+        if tj.kind == "prismatic":
+            want(f"{name}: prismatic axis", joint.translation_axis(), f.axis)
     want("gravity", plant.gravity_field().gravity_vector(), pl.gravity)
     want("number of joints", plant.num_joints(), len(dm.body))
     want("number of actuators", plant.num_actuators(), 0)
@@ -345,7 +366,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     if unknown:
         raise ValueError(f"drake simulate_system: unknown settings {unknown}; known: none")
     _import()
-    pl = ps.plan(scenario, "drake")
+    pl = ps.plan(scenario, "drake", ps.SLIDING_KINDS)
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "

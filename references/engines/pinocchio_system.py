@@ -24,6 +24,9 @@ spherical,          ``JointModelSpherical``       identity; q = quaternion (x y 
 fixed_point         (quaternion, LOCAL rates)     R_p^T R_c, v = W_c - R_rel^T W_p
 revolute            ``JointModelRevoluteUnaligned``  R_p^T R_c at t = 0; q = 0,
                     (axis = the child's axis)     v = n . (W_c - R_rel^T W_p)
+prismatic           ``JointModelPrismaticUnaligned`` R_p^T R_c at t = 0; q = the anchors'
+                    (axis = the child's axis)     offset along the axis, v its rate
+                                                  (:func:`slide_state`)
 (floating root)     ``JointModelFreeFlyer``       q = [x, quaternion of R], v = [R^T v, W]
 others              -                             unsupported (not built by this adapter)
 ==================  ============================  ==========================================
@@ -82,6 +85,8 @@ PROX = (1e-12, 1e-8, 10)
 
 _SETTINGS = ("baumgarte", "baumgarte_omega", "prox")
 _TREE_KINDS = ("spherical", "fixed_point", "revolute")
+#: the tree joints Pinocchio's builder (and Drake's) build
+SLIDING_KINDS = (*_TREE_KINDS, "prismatic")
 
 
 def _import():
@@ -97,12 +102,12 @@ class TreeJoint:
 
     label: str
     name: str  # the scenario joint's name ("" for a free root)
-    kind: str  # "spherical", "revolute" or "free"
+    kind: str  # "spherical", "revolute", "prismatic" or "free"
     child: int
     parent: int
     X: np.ndarray = field(default_factory=lambda: np.zeros(3))  # parent anchor (world: ground)
     Y: np.ndarray = field(default_factory=lambda: np.zeros(3))  # child anchor (child frame)
-    axis_c: np.ndarray | None = None  # hinge axis, child frame, unit
+    axis_c: np.ndarray | None = None  # hinge or slide axis, child frame, unit
     R_ref: np.ndarray = field(default_factory=lambda: np.eye(3))  # child in parent at q = 0
 
 
@@ -250,12 +255,12 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
             )
         child_is_a = idx[j.body_a] == c
         Y, X = (j.anchor_a, j.anchor_b) if child_is_a else (j.anchor_b, j.anchor_a)
-        kind = "revolute" if j.kind == "revolute" else "spherical"
+        kind = j.kind if j.kind in ("revolute", "prismatic") else "spherical"
         tj = TreeJoint(what, j.name, kind, c, p, vec(X, what), vec(Y, what))
-        if kind == "revolute":
+        if kind in ("revolute", "prismatic"):
             ax = j.axis_a if child_is_a else j.axis_b
             if ax is None:
-                raise ValueError(f"{what}: a revolute joint needs axis_a and axis_b")
+                raise ValueError(f"{what}: a {kind} joint needs axis_a and axis_b")
             tj.axis_c = unit(ax, f"{what}: the child's axis")
             tj.R_ref = (np.eye(3) if p < 0 else R[p]).T @ R[c]
         tree[c] = tj
@@ -313,11 +318,24 @@ def relative_state(pl: Plan, tj: TreeJoint):
     return Rp.T @ Rc, Rc.T @ (wc - wp)
 
 
+def slide_state(pl: Plan, tj: TreeJoint) -> tuple[float, float]:
+    """A prismatic tree joint's initial coordinate and rate: the offset (m) of the child's
+    anchor from the parent's along the axis u (world), and its rate (m/s) seen from the
+    parent, (v_c - v_p - w_p x (x_c - x_p)) . u (the child turns with the parent)."""
+    xc, Rc, vc, _ = world(pl, tj.child)
+    xp, Rp, vp, wp = world(pl, tj.parent)
+    u = Rc @ tj.axis_c
+    d0 = float((xc + Rc @ tj.Y - xp - Rp @ tj.X) @ u)
+    return d0, float((vc - vp - np.cross(wp, xc - xp)) @ u)
+
+
 def check_states(engine: str, pl: Plan, x, R, v, W, joint_points, joint_axes) -> None:
     """Compare an engine's kinematics of the initial state with the scenario: every body's
     (x, R, v, W) (arrays in scenario order), and for every scenario joint the engine's joint
-    point ``joint_points[name]`` against the anchor from both sides, and ``joint_axes[name]``
-    (world) against both sides' axes. Raises :class:`EngineError` naming what differs."""
+    point ``joint_points[name]`` against the anchor from both sides (or, for a joint whose
+    two sides may part along an axis, a dict {"a": point, "b": point} of the engine's point
+    on each side), and ``joint_axes[name]`` (world) against both sides' axes. Raises
+    :class:`EngineError` naming what differs."""
     bad = []
     L, V = pl.length, pl.rate
     for c, b in enumerate(pl.bodies):
@@ -335,9 +353,10 @@ def check_states(engine: str, pl: Plan, x, R, v, W, joint_points, joint_axes) ->
         xa, Ra, _, _ = world(pl, idx[j.body_a])
         xb, Rb, _, _ = world(pl, -1 if j.body_b is None else idx[j.body_b])
         if j.name in joint_points:
-            p = np.asarray(joint_points[j.name])
+            got = joint_points[j.name]
             for side, exp in (("a", xa + Ra @ vec(j.anchor_a, "anchor_a")),
                               ("b", xb + Rb @ vec(j.anchor_b, "anchor_b"))):  # fmt: skip
+                p = np.asarray(got[side] if isinstance(got, dict) else got)
                 err = float(np.max(np.abs(p - exp))) / L
                 if not err <= CHECK_TOL:
                     bad.append(f"{label(j)}: the engine's joint point vs anchor_{side} off by "
@@ -394,8 +413,8 @@ def check_run_args(integrator: str, dt, integrators=INTEGRATORS) -> None:
 @dataclass
 class EngineFrames:
     """What Pinocchio is given for one tree joint: its kind, the joint placement in the
-    parent's joint frame (R, p), the hinge axis in the joint frame, and the body's principal
-    frame in the joint frame (a translation: the frames are parallel)."""
+    parent's joint frame (R, p), the hinge or slide axis in the joint frame, and the body's
+    principal frame in the joint frame (a translation: the frames are parallel)."""
 
     kind: str
     R: np.ndarray
@@ -428,6 +447,8 @@ class _Model:
                 jm = pin.JointModelFreeFlyer()
             elif f.kind == "spherical":
                 jm = pin.JointModelSpherical()
+            elif f.kind == "prismatic":
+                jm = pin.JointModelPrismaticUnaligned(*f.axis)
             else:
                 jm = pin.JointModelRevoluteUnaligned(*f.axis)
             parent = 0 if tj.parent < 0 else self.jid[tj.parent]
@@ -477,6 +498,9 @@ class _Model:
             elif tj.kind == "spherical":
                 Rrel, Wrel = relative_state(pl, tj)
                 qq, vv = cv.pinocchio_spherical_from_state(Rrel, Wrel)
+            elif tj.kind == "prismatic":
+                d0, rate = slide_state(pl, tj)
+                qq, vv = [d0], [rate]
             else:
                 _, Wrel = relative_state(pl, tj)
                 qq, vv = [0.0], [float(tj.axis_c @ Wrel)]
@@ -568,7 +592,8 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
             )
 
     kinds = {"free": "JointModelFreeFlyer", "spherical": "JointModelSpherical",
-             "revolute": "JointModelRevoluteUnaligned"}  # fmt: skip
+             "revolute": "JointModelRevoluteUnaligned",
+             "prismatic": "JointModelPrismaticUnaligned"}  # fmt: skip
     want("number of joints", model.njoints, len(pl.order) + 1)
     for c, jid in pm.jid.items():
         b, tj = pl.bodies[c], pl.tree[c]
@@ -615,7 +640,14 @@ def _joint_world(pm: _Model):
         name = tj.name
         M = pm.data.oMi[jid]
         points[name] = M.translation.copy()
-        if tj.kind == "revolute":
+        if tj.kind == "prismatic":
+            # the child's side moves along the axis; the parent's is the joint placement
+            parent = pm.model.parents[jid]
+            fixed = pm.data.oMi[parent].act(pm.model.jointPlacements[jid]).translation
+            a_is_child = next(j for j in pm.pl.joints if j.name == name).body_a == pm.pl.names[c]
+            child_side, parent_side = ("a", "b") if a_is_child else ("b", "a")
+            points[name] = {child_side: M.translation.copy(), parent_side: fixed.copy()}
+        if tj.kind in ("revolute", "prismatic"):
             axes[name] = M.rotation @ np.asarray(pm.model.joints[jid].extract().axis)
     return points, axes, loops
 
@@ -665,7 +697,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     initial state checked against Pinocchio's kinematics."""
     check_run_args(integrator, dt)
     pin = _import()
-    pl = plan(scenario, "pinocchio")
+    pl = plan(scenario, "pinocchio", SLIDING_KINDS)
     gains, prox, gain_rule = _settings(settings, pl)
     pm = _Model(pin, pl, float(dt), gains, prox)
     read_back(pm, scenario, gains, prox)
