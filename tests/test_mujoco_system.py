@@ -11,7 +11,6 @@ joints), built from director_model.system's Body and Joint.
 from __future__ import annotations
 
 import dataclasses
-import types
 
 import numpy as np
 import pytest
@@ -27,16 +26,11 @@ from director_model.system.examples import (  # noqa: E402
     rot_y,
 )
 from references.engines import mujoco_system as ms  # noqa: E402
+from references.engines.system_conformance import scenario, slider  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
 from references.exact.multibody import solve, tree_from_world  # noqa: E402
 
 G = np.array([0.0, 0.0, -9.81])
-
-
-def scenario(name, bodies, joints, gravity=G):
-    return types.SimpleNamespace(
-        name=name, gravity=np.asarray(gravity, float), bodies=tuple(bodies), joints=tuple(joints)
-    )
 
 
 def revolute_chain():
@@ -258,20 +252,9 @@ def test_planted_loop_closure_violation_is_refused():
         ms.simulate_system(scenario("fb", bodies, bad), "RK4", 1e-3, 10, 10)
 
 
+# The planted joint mistakes (axis in the parent's frame, anchor from the body origin, parent
+# and child swapped) of every builder, MuJoCo's included: tests/test_system_conformance.py.
 PLANTS = {
-    # the hinge axis of l1 written in l0's frame (0 1 0) instead of l1's (0 0 -1)
-    "axis in the parent's frame": (
-        lambda x: x.replace(
-            'type="hinge" pos="0.0 0.35 0.0" axis="0.0 0.0 -1.0"',
-            'type="hinge" pos="0.0 0.35 0.0" axis="0.0 1.0 0.0"',
-        ),
-        r"'h1'.*jnt_axis",
-    ),  # fmt: skip
-    # l1's joint placed at its anchor measured from the link's end instead of its COM
-    "anchor from the body origin": (
-        lambda x: x.replace('type="hinge" pos="0.0 0.35 0.0"', 'type="hinge" pos="0.0 0.0 0.0"'),
-        r"'h1'.*jnt_pos",
-    ),
     "COM off the body frame": (
         lambda x: x.replace('<inertial pos="0 0 0"', '<inertial pos="0 0 0.01"', 1),
         r"body 'l0': body_ipos",
@@ -428,30 +411,6 @@ def test_spherical_loop_closures_follow_rattle6():
         assert np.linalg.norm(pa - pb, axis=1).max() < 1e-4
 
 
-def slider():
-    """A rod hinged at the origin (axis y) and a collar sliding along it (prismatic, the
-    collar's principal axes permuted against the rod's), swinging and sliding at t = 0."""
-    Rw = rot_y(0.5)
-    turned = np.array([[0.0, 1, 0], [0, 0, 1], [1, 0, 0]])
-    y = np.array([0, 1.0, 0])
-    w = 1.2 * y
-    xa = Rw @ np.array([0, 0, -0.5])
-    va = np.cross(w, xa)
-    u = Rw @ np.array([0, 0, -1.0])
-    xb, vb = xa + 0.3 * u, va + np.cross(w, 0.3 * u) - 0.4 * u
-    Rb = Rw @ turned
-    bodies = [
-        Body("rod", 1.0, (0.1, 0.1, 0.02), xa, Rw, va, Rw.T @ w),
-        Body("collar", 0.5, (0.01, 0.012, 0.015), xb, Rb, vb, Rb.T @ w),
-    ]
-    joints = [
-        Joint("revolute", "rod", None, (0, 0, 0.5), (0, 0, 0), (0, 1, 0), y, name="pivot"),
-        Joint("prismatic", "rod", "collar", (0, 0, 0), (0, 0, 0), (0, 0, -1),
-              turned.T @ np.array([0, 0, -1.0]), name="slide"),
-    ]  # fmt: skip
-    return bodies, joints
-
-
 def test_slide_joint_agrees_with_rattle6():
     """A hinge and a slide joint in a tree: MuJoCo RK4 against RATTLE6 (dt 1 ms; its own
     error measured by halving dt: 9e-16). Tolerance: 2 x RK4's Richardson estimate
@@ -469,47 +428,7 @@ def test_slide_joint_agrees_with_rattle6():
     assert d <= 2 * rich + 1e-13, (d, rich)
 
 
-# -- MJX (float64) for trees -----------------------------------------------------------------
-
-
-def test_mjx_refuses_loops_and_the_integrators_it_lacks():
-    from references.engines import mjx_system
-
-    bodies, joints, _, _ = parallelogram_four_bar()
-    with pytest.raises(Unsupported, match=r"trees only.*'B1'"):
-        mjx_system.simulate_system(scenario("fb", bodies, joints), "Euler", 1e-3, 10, 10)
-    bodies, joints = rod_chain(3, hang=True)
-    for name in ("implicit", "discrete"):
-        with pytest.raises(Unsupported, match=f"does not implement MuJoCo's {name}"):
-            mjx_system.simulate_system(scenario("c", bodies, joints), name, 1e-3, 10, 10)
-
-
-@pytest.mark.slow
-def test_mjx_float64_tree_euler_equals_c_mujoco_and_rk4_converges():
-    """MJX's Euler is MuJoCo's algorithm: on the 3-body spherical chain over 1 s (1000 steps)
-    it equals C MuJoCo's Euler to round-off (measured 5e-15 m, 3e-14 rad/s; asserted 1e-12,
-    the growth of a few ulps per step over 1000 steps). MJX's RK4 against the reduced
-    reference at dt 2 ms and 1 ms: its attitude is order 2 (positions advanced once by the
-    exponential map of the mean stage velocity; docs/engines.md, MJX): the observed order
-    lies in 1.5 .. 2.5 (measured 2.00: 7.7e-5, 1.9e-5, 4.8e-6 at 2, 1, 0.5 ms) and the error at
-    1 ms is far above C MuJoCo's RK4 (1.4e-10).
-    JAX compiles the step once per integrator (15 to 45 s on 2 loaded cores)."""
-    pytest.importorskip("mujoco.mjx")
-    from references.engines import mjx_system
-
-    bodies, joints = rod_chain(3, hang=True)
-    sc = scenario("chain", bodies, joints)
-    mjx = mjx_system.simulate_system(sc, "Euler", 1e-3, 1000, 100)
-    c = ms.simulate_system(sc, "Euler", 1e-3, 1000, 100)
-    assert "float64" in mjx["settings"]["precision"]
-    for key in ("x", "R", "v", "W"):
-        assert np.abs(mjx[key] - c[key]).max() < 1e-12, key
-    out = {dt: mjx_system.simulate_system(sc, "RK4", dt, round(1 / dt), round(0.1 / dt))
-           for dt in (2e-3, 1e-3)}  # fmt: skip
-    sol, perm = reference(bodies, joints, out[1e-3]["t"])
-    e = {dt: max_err(o, sol.x[:, perm], sol.R[:, perm]) for dt, o in out.items()}
-    assert 1.5 <= np.log2(e[2e-3] / e[1e-3]) <= 2.5, e
-    assert e[1e-3] > 1e-8, e
+# MJX (float64, trees and loops): tests/test_mjx_system.py.
 
 
 def rot_x(t: float) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""MJX builder for trees of rigid bodies, in float64: MuJoCo's JAX implementation stepping the
-model of the C builder (:mod:`references.engines.mujoco_system`).
+"""MJX builder for systems of rigid bodies (trees and loops), in float64: MuJoCo's JAX
+implementation stepping the model of the C builder (:mod:`references.engines.mujoco_system`).
 
 The model is built, checked and read back exactly as for C MuJoCo (:func:`mujoco_system.build`:
 the spanning tree, the initial states checked against every joint, the compiled ``MjModel``
@@ -20,8 +20,23 @@ Integrators (MJX's JAX backend; docs/engines.md, section MJX): ``Euler`` (MuJoCo
 semi-implicit Euler), ``RK4`` (MJX's: four stages in the velocities, the positions advanced
 once by the exponential map of the mean stage velocity, order 2 in the attitude) and
 ``implicitfast`` (with no damping the Euler step). ``implicit`` and ``discrete`` are not
-implemented by MJX's JAX backend: :class:`Unsupported`. Loop closures are not built for MJX
-here (trees only): :class:`Unsupported` with the joints named.
+implemented by MJX's JAX backend: :class:`Unsupported`.
+
+Loop closures: the C builder's site-to-site ``equality connect`` rows (one per closing
+spherical joint, two per closing revolute joint), with the same ``solref``/``solimp``
+(MuJoCo's defaults unless given) and the same refsafe rule. MJX's JAX backend builds connect
+rows between sites (``mujoco/mjx/_src/constraint.py``, ``_efc_equality_connect``: the sites'
+world points, their Jacobians, the impedance and reference acceleration of MuJoCo's
+documented soft-constraint model) and solves them with the model's solver, iterations and
+tolerance. Before stepping, the builder reads back from the MJX model every connect's type,
+sites, solref and solimp, the solver settings and the disable flags, and compares them with
+the compiled C model. Measured on the four-bar (mujoco-mjx 3.17.0, mujoco 4.0.0): MJX's
+constraint rows (position error, Jacobian, D, K, B, impedance) equal C MuJoCo's, but MJX's
+reference acceleration is MuJoCo's documented aref = -B J v - K imp r (recomputed by hand
+from C MuJoCo's own efc_KBIP, efc_vel and efc_pos: equal to 1e-8) while C MuJoCo 4.0's
+differs from it (by 1.9 % after 20 steps), so on a closed loop MJX's Euler is not C MuJoCo's
+Euler step for step as it is on a tree: 1.4e-3 m apart after the singular passages with
+the default solref, 1.8e-6 m with solref (0.002, 1) (docs/engines.md, MJX).
 """
 
 from __future__ import annotations
@@ -70,12 +85,36 @@ def _step_fn():
     return jax, mjx, _STEP["fn"]
 
 
+def read_back(m, mx, scenario) -> None:
+    """Compare the MJX model ``mx`` with the compiled C model ``m`` (already read back against
+    the scenario): the equality constraints (type, objects, solref, solimp, active), the
+    solver settings and the flags. Raises :class:`EngineError` naming what differs."""
+    bad = []
+    for what in ("eq_type", "eq_objtype", "eq_obj1id", "eq_obj2id", "eq_solref", "eq_solimp",
+                 "site_bodyid", "site_pos"):  # fmt: skip
+        got, exp = np.asarray(getattr(mx, what)), np.asarray(getattr(m, what))
+        if got.shape != exp.shape or not np.array_equal(got.astype(float), exp.astype(float)):
+            bad.append(f"{what}: MJX holds {got.tolist()}, the C model {exp.tolist()}")
+    if not np.array_equal(np.asarray(mx.eq_active0, bool), np.asarray(m.eq_active0, bool)):
+        bad.append("eq_active0 differs from the C model's")
+    for what in ("solver", "iterations", "tolerance", "ls_iterations", "disableflags",
+                 "enableflags", "timestep", "integrator"):  # fmt: skip
+        got, exp = float(getattr(mx.opt, what)), float(getattr(m.opt, what))
+        if got != exp:
+            bad.append(f"opt.{what}: MJX holds {got:g}, the C model {exp:g}")
+    if bad:
+        raise EngineError(
+            f"mjx: system {scenario.name!r}: the MJX model differs from the C model: "
+            + "; ".join(bad)
+        )
+
+
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
                     **settings) -> dict:  # fmt: skip
-    """Run the tree ``scenario`` on MJX in float64 (module docstring); arguments and result
-    as :func:`references.engines.mujoco_system.simulate_system` (no settings: a tree has no
-    soft constraint). Raises :class:`Unsupported` for a loop, a joint the C builder does not
-    build, or an integrator MJX does not implement."""
+    """Run ``scenario`` on MJX in float64 (module docstring); arguments, settings (``solref``
+    and ``solimp`` of the loop-closing connects) and result as
+    :func:`references.engines.mujoco_system.simulate_system`. Raises :class:`Unsupported` for
+    a joint or loop the C builder does not build, or an integrator MJX does not implement."""
     integrator = _base_name(integrator)
     if integrator in _NOT_IN_MJX:
         raise Unsupported(
@@ -83,20 +122,13 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         )
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator {integrator!r} unknown; known: {list(INTEGRATORS)}")
-    if settings:
-        raise ValueError(f"mjx simulate_system: unknown settings {sorted(settings)} (none taken)")
     saves = ms._saves(nstep, save_every)
-    pl = ms.plan(scenario)
-    if pl.loops:
-        raise Unsupported(
-            "mjx: loop closures are not built for MJX (trees only): "
-            + "; ".join(lp.label for lp in pl.loops)
-        )
-    mujoco, m, d, pl, bid, rec = ms.build(scenario, integrator, dt)
+    mujoco, m, d, pl, bid, rec = ms.build(scenario, integrator, dt, **settings)
     jax, mjx, step = _step_fn()
     with jax.enable_x64(True):
         mx = mjx.put_model(m, impl="jax")
         dx = mjx.put_data(m, d, impl="jax")
+    read_back(m, mx, scenario)
     qpos, qvel = np.asarray(dx.qpos), np.asarray(dx.qvel)
     widths = {qpos.dtype.itemsize, qvel.dtype.itemsize, np.asarray(mx.body_mass).dtype.itemsize}
     if widths != {8}:
