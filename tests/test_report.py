@@ -9,8 +9,9 @@ import re
 import pytest
 
 import scenarios
-from reports.report.summary import failures, fmt, scorecard, work_precision
+from reports.report.tables import failures, scorecard, work_precision
 from reports.run.runner import plan, run_suite
+from reports.store.format import fmt
 from reports.store.results import read_results
 
 #: cone_top at dt = 1e-3 and 2e-3: semi-implicit Euler diverges (at t = 0.22 s at 1e-3 in the
@@ -251,7 +252,7 @@ def test_did_not_run_reasons_are_whole():
     """A long reason is given in full (it ends with what to do), never cut."""
     import pandas as pd
 
-    from reports.report.summary import not_run
+    from reports.report.tables import not_run
 
     reason = "PyBullet cannot hold this body: " + "a long explanation, " * 20 + "use X instead"
     df = pd.DataFrame(

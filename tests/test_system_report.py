@@ -105,12 +105,12 @@ def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monke
     assert _unnamed_lines(fig) == []
     # planted: one configuration's name lost, or hidden from the legend (matplotlib leaves
     # out a label starting with "_"): each is caught
-    import reports.report.summary as summary
+    import reports.report.labels as labels
 
-    real_label = summary.config_label
+    real_label = labels.config_label
     for planted in ("", "_hidden"):
         monkeypatch.setattr(
-            summary, "config_label", lambda row, planted=planted, **kw: planted
+            labels, "config_label", lambda row, planted=planted, **kw: planted
             if row["engine"] == "mujoco" else real_label(row, **kw),
         )  # fmt: skip
         plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
@@ -137,7 +137,7 @@ def _no_close(real_plt):
 
 
 def test_system_rows_show_their_closure_settings_and_rank_by_cost(built, df):
-    from reports.report.summary import closure_settings, work_precision
+    from reports.report.tables import closure_settings, work_precision
 
     bar = df[df["scenario"] == "four_bar"]
     by = {(r["engine"], r["integrator"]): r for r in bar.to_dict("records")}

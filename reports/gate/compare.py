@@ -43,13 +43,14 @@ from pathlib import Path
 
 from reports.gate.check import NothingComparable, md_escape
 from reports.metrics.body import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
-from reports.report.summary import fmt, fmt_level, fmt_step, records
+from reports.store.format import fmt, fmt_level, fmt_step
 from reports.store.results import (
     IDENTITY_COLUMNS,
     METRIC_COLUMNS,
     config_key,
     identity_differences,
     read_results,
+    records,
 )
 from scenarios.schema import InputError
 

@@ -2,7 +2,8 @@
 
 ``report.md`` and ``report.html`` are pure functions of the folder (the results store,
 ``provenance.json``, the per-run series files and, if present, the ensemble store); what they
-say comes from reports.report.summary, the figures from reports.report.plots. In order:
+say comes from reports.report.tables (grouped by reports.report.groups, named by
+reports.report.labels), the figures from reports.report.plots. In order:
 
 1. a line of provenance and counts, and a table of contents;
 2. the **scorecard**: scenario x integrator family, each cell the verdicts at the scenario's
@@ -20,8 +21,8 @@ say comes from reports.report.summary, the figures from reports.report.plots. In
 
 Every table is preceded by a one-line title, so that two reports diff cleanly; Markdown
 tables escape what GitHub-flavoured Markdown would otherwise read as cell borders. The
-scorecard is also written to ``summary.json`` (reports.report.summary) and, when the environment
-variable ``GITHUB_STEP_SUMMARY`` names a file, appended to it.
+scorecard is also written to ``summary.json`` (reports.report.summary_json) and, when the
+environment variable ``GITHUB_STEP_SUMMARY`` names a file, appended to it.
 """
 
 from __future__ import annotations
@@ -34,40 +35,36 @@ import os
 import re
 from pathlib import Path
 
-from reports.report.plots import figure_meta
-from reports.report.summary import (
-    ACCURACY_LEVELS,
-    ENERGY_MOMENTUM_NOTE,
+from reports.report.groups import group_rows, sweep_groups
+from reports.report.labels import (
     METRIC_SHORT,
     NOT_RUN,
-    at_scenario_dt,
-    closure_settings,
     config_label,
-    energy_momentum_rows,
     engine_key,
     failed_metrics,
-    failures,
     family_key,
-    fmt,
     fmt_attitude,
-    fmt_int,
-    fmt_level,
     fmt_order,
-    fmt_step,
-    group_rows,
-    md_cell,
+)
+from reports.report.plots import figure_meta
+from reports.report.summary_json import write_summary
+from reports.report.tables import (
+    ACCURACY_LEVELS,
+    ENERGY_MOMENTUM_NOTE,
+    at_scenario_dt,
+    closure_settings,
+    energy_momentum_rows,
+    failures,
     not_run,
-    records,
     scenario_info,
     scenarios_of,
     scorecard,
     settings_table,
-    sweep_groups,
     work_precision,
-    write_summary,
 )
+from reports.store.format import fmt, fmt_int, fmt_level, fmt_step, md_cell
 from reports.store.provenance import read_provenance
-from reports.store.results import STATUSES
+from reports.store.results import STATUSES, records
 
 #: column titles of the metrics, with units (no character GitHub's tables would split on)
 METRIC_TITLES = {

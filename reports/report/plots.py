@@ -24,7 +24,7 @@ and the scorecard as one picture (:func:`scorecard_figure`, ``scorecard.png`` an
 
 Styles: a colour and a marker per configuration (:data:`PALETTE`, :data:`MARKERS`), a line
 style per integrator family (:data:`FAMILY_STYLE`). Configurations whose results coincide
-(reports.report.summary's groups) are one line labelled with all of them. Every figure is as wide
+(reports.report.groups) are one line labelled with all of them. Every figure is as wide
 as its legend needs (:func:`_fit`: the legend sits beside the axes and is never cut). A
 curve that leaves the plot (a diverged run, an error beyond :data:`CAPS`) is cut where it
 leaves and marked there; a diverged run's end is marked with its time; every configuration
@@ -42,23 +42,18 @@ from pathlib import Path
 import numpy as np
 
 from reports.metrics.body import SATURATION
-from reports.report.summary import (
+from reports.report.groups import group_rows, sweep_groups
+from reports.report.labels import (
     ENGINE_ORDER,
     FAMILY_ORDER,
     NOT_RUN,
-    at_scenario_dt,
     config_label,
     engine_key,
     family_key,
-    fmt,
-    fmt_step,
-    group_rows,
-    records,
-    scenario_dt,
-    sweep_groups,
-    truthy,
 )
-from reports.store.results import error_series_path, slug
+from reports.report.tables import at_scenario_dt, scenario_dt
+from reports.store.format import fmt, fmt_step, truthy
+from reports.store.results import error_series_path, records, slug
 
 #: colours of the configurations, given out in engine and integrator order so that every
 #: configuration of a results folder has its own (tab10, then darker tones of tab20b/c); a
@@ -1254,17 +1249,28 @@ def is_system(df, cache, scenario: str) -> bool:
 CACHE_FILE = ".made-from.json"
 
 
+def _hash_code(h) -> None:
+    """Add to the hash ``h`` the code that decides what a figure shows: this module and the
+    report's labels, groups and tables, and the number formatting."""
+    import reports.report.groups
+    import reports.report.labels
+    import reports.report.tables
+    import reports.store.format
+
+    h.update(Path(__file__).read_bytes())
+    for mod in (reports.report.labels, reports.report.groups, reports.report.tables):
+        h.update(Path(mod.__file__).read_bytes())
+    h.update(Path(reports.store.format.__file__).read_bytes())
+
+
 def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:
     """A hash of everything a scenario's figures depend on: the code drawing them, the
     scenario's rows, their styles and the series files (size and modification time)."""
     import hashlib
     import json
 
-    import reports.report.summary as summary_mod
-
     h = hashlib.sha256()
-    h.update(Path(__file__).read_bytes())
-    h.update(Path(summary_mod.__file__).read_bytes())
+    _hash_code(h)
     sub = df[df["scenario"] == scenario].sort_values("run_id")
     h.update(sub.to_json(orient="values", double_precision=15).encode())
     for r in records(sub[["engine", "integrator", "family", "trajectory"]]):
@@ -1402,13 +1408,8 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
     """The scorecard figure's content: scenarios (columns), configurations (rows: (engine,
     integrator, label)) and {(row, scenario): (outcome, lines of text)}; each scenario at its
     own dt (an error-controlled integrator at its tightest target accuracy)."""
-    from reports.report.summary import (
-        METRIC_SHORT,
-        failed_metrics,
-        fmt_attitude,
-        outcome,
-        scenarios_of,
-    )
+    from reports.report.labels import METRIC_SHORT, failed_metrics, fmt_attitude, outcome
+    from reports.report.tables import scenarios_of
 
     scens = scenarios_of(df)
     cells, labels = {}, {}
@@ -1519,12 +1520,9 @@ def scorecard_figure_cached(df, root: str | Path) -> list[Path]:
     the code drawing it changed (a hash kept in ``plots/.scorecard-made-from``)."""
     import hashlib
 
-    import reports.report.summary as summary_mod
-
     root = Path(root)
     h = hashlib.sha256()
-    h.update(Path(__file__).read_bytes())
-    h.update(Path(summary_mod.__file__).read_bytes())
+    _hash_code(h)
     h.update(df.sort_values("run_id").to_json(orient="values", double_precision=15).encode())
     key = h.hexdigest()
     mark = root / "plots" / ".scorecard-made-from"

@@ -10,7 +10,7 @@ each on a log axis (round-off, 1e-16, and a joint open by a millimetre on one fi
 value of exactly 0 (a joint a reduced-coordinate engine holds by construction) is drawn at
 the axis floor :data:`FLOOR`. A configuration that closes a loop with settings of its own
 (MuJoCo's ``solref``, Pinocchio's Baumgarte gains, DART's ERP, PyBullet's ``erp``:
-:func:`reports.report.summary.closure_settings`) carries the stiffness among them in its
+:func:`reports.report.tables.closure_settings`) carries the stiffness among them in its
 legend entry.
 """
 
@@ -47,7 +47,9 @@ def system_plot(
     beside the axes (default: matplotlib's, inside the first axes)."""
     import textwrap
 
-    from reports.report.summary import closure_settings, config_label, group_rows
+    from reports.report.groups import group_rows
+    from reports.report.labels import config_label
+    from reports.report.tables import closure_settings
     from reports.store.results import slug
 
     runs = []

@@ -592,6 +592,14 @@ def frame(rows: list[dict]):
     return df
 
 
+def records(df) -> list[dict]:
+    """The rows of a results table as dicts (column by column: DataFrame.to_dict walks the
+    rows one by one, a hundred times slower on a table of a few hundred runs)."""
+    cols = list(df.columns)
+    columns = [df[c].tolist() for c in cols]
+    return [dict(zip(cols, vals, strict=True)) for vals in zip(*columns, strict=True)]
+
+
 def current(df):
     """The current view of the stored rows, sorted by :data:`CONFIG_KEY`, with the
     convergence orders of the dt sweeps filled in (reports.metrics.body).

@@ -1,0 +1,108 @@
+"""How the report names and orders what it shows: integrator families and engines in table
+order, a configuration's label, a run's outcome in one word, the metrics' short names in
+verdict texts, the attitude error and fitted order as table cells.
+"""
+
+from __future__ import annotations
+
+import math
+
+from reports.store.format import fmt, fmt_level, fmt_step, num, truthy
+
+#: integrator families in the order tables and the scorecard show them (others follow, sorted)
+FAMILY_ORDER = (
+    "structure-preserving director",
+    "4th-order Lie-group",
+    "implicit gyroscopic",
+    "semi-implicit Euler",
+    "exact",
+)
+
+#: engines in the order tables list them (others follow, sorted); plots colour them likewise
+ENGINE_ORDER = ("director", "mujoco", "pinocchio", "dart", "pybullet", "exact")
+
+#: statuses that are not a result of the configuration (nothing ran, or could not)
+NOT_RUN = ("unsupported", "unavailable")
+
+#: short names of the metrics in verdict texts
+METRIC_SHORT = {
+    "attitude_error_max": "attitude",
+    "omega_error_max": "W",
+    "position_error_max": "position",
+    "flip_interval_error": "flip interval",
+    "nutation_period_error": "nutation period",
+    "energy_drift_max": "energy",
+    "energy_drift_rot_max": "rotational energy",
+    "energy_drift_trans_max": "translational energy",
+    "momentum_drift_max": "momentum",
+    "orthonormality_max": "orthonormality",
+    "constraint_velocity_max": "velocity constraint",
+}
+
+
+def family_key(fam: str) -> tuple:
+    return (FAMILY_ORDER.index(fam), "") if fam in FAMILY_ORDER else (len(FAMILY_ORDER), fam)
+
+
+def engine_key(eng: str) -> tuple:
+    return (ENGINE_ORDER.index(eng), "") if eng in ENGINE_ORDER else (len(ENGINE_ORDER), eng)
+
+
+def families_of(df) -> list[str]:
+    return sorted({f for f in df["family"] if f}, key=family_key)
+
+
+def config_label(row, with_step: bool = False) -> str:
+    """``mujoco RK4``; a configuration whose time loop is the suite's own code around the
+    engine's dynamics reads ``pinocchio + suite RKMK4`` (its wall time includes our Python).
+    ``with_step``: the step (``dt 2e-3``) or, for an error-controlled integrator, its target
+    accuracy (``tol 1e-8``)."""
+    sep = " + suite " if truthy(row.get("suite_integrated")) else " "
+    text = f"{row['engine']}{sep}{row['integrator']}"
+    acc = num(row.get("target_accuracy"))
+    if not math.isnan(acc):
+        text += f" tol {fmt_level(acc)}"
+    elif with_step:
+        text += f" dt {fmt_step(row['dt'])} s"
+    return text
+
+
+def outcome(row) -> str:
+    """One word for a row: pass, fail, diverged, error, reference-inaccurate, unsupported or
+    unavailable (the verdict of an ok run, else the status)."""
+    status = row.get("status", "")
+    if status == "ok":
+        return row.get("verdict") or "ok"
+    return status or "error"
+
+
+def failed_metrics(detail: str) -> list[str]:
+    """The metric names of a verdict detail (``"attitude_error_max 3.14 > 0.1; ..."``)."""
+    return [part.strip().split(" ")[0] for part in str(detail).split(";") if part.strip()]
+
+
+def is_failure(row) -> bool:
+    return row["verdict"] == "fail" or row["status"] in (
+        "diverged",
+        "error",
+        "reference-inaccurate",
+    )
+
+
+def fmt_attitude(row) -> str:
+    """The attitude error, or ``< acc`` (the reference's accuracy) when it is below what the
+    reference can measure."""
+    v = num(row.get("attitude_error_max"))
+    acc = num(row.get("reference_accuracy"))
+    if not math.isnan(v) and not math.isnan(acc) and v < acc:
+        return f"< {fmt(acc)}"
+    return fmt(v)
+
+
+def fmt_order(row) -> str:
+    """The fitted convergence order with the number of points of the fit, ``-`` if none."""
+    o = num(row.get("convergence_order"))
+    if math.isnan(o):
+        return "-"
+    n = num(row.get("convergence_points"))
+    return fmt(o) if math.isnan(n) else f"{fmt(o)} ({int(n)} pts)"
