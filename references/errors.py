@@ -27,7 +27,7 @@ class Diverged(EngineError):
     scenario's energy scale, an engine limit reached (a velocity clamp), or a step the
     integrator could not take. ``t_diverged`` is when it was seen (s); ``output`` holds the
     run up to the last state checked before that (a
-    :class:`~references.engines.base.RunOutput`), or None."""
+    :class:`~references.engines.context.RunOutput`), or None."""
 
     status = "diverged"
 
@@ -43,4 +43,20 @@ class StepFailure(ArithmeticError):
     turns it into :class:`Diverged` at the time of that step. The raiser says which step:
     ``time`` (s, the absolute time the failing step starts from) or ``steps_taken`` (the steps
     the failing call completed before it); with neither, only the block is known. ``states``
-    (optional): the states of the checkpoints the call completed before the failure."""
+    (optional): the states of the checkpoints the call completed before the failure (a
+    :class:`~references.conventions.BodyState` of stacked arrays). A stepper that catches the
+    failure of a call it made may fill in what the raiser could not know (the RKMK4 steppers
+    set ``steps_taken`` and ``states`` on a stage's failure)."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        time: float | None = None,
+        steps_taken: int | None = None,
+        states=None,
+    ):
+        super().__init__(message)
+        self.time = time
+        self.steps_taken = steps_taken
+        self.states = states

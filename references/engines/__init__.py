@@ -54,6 +54,13 @@ def engine_names() -> list[str]:
     return list(_registry())
 
 
+def reference_engine_names() -> list[str]:
+    """The registered engines whose rows are the reference the others are measured against
+    (:attr:`EngineBase.is_reference`: the exact reference), read from their adapter classes
+    (importing an adapter never imports its engine)."""
+    return [name for name in engine_names() if get_engine(name).is_reference]
+
+
 class UnknownEngine(EngineUnavailable, KeyError):
     """No adapter is registered under this name here (e.g. rows of a plug-in that is not
     installed on this machine): an :class:`EngineUnavailable`, and a ``KeyError``."""
@@ -131,6 +138,7 @@ __all__ = [
     "engine_names",
     "get_engine",
     "import_engine",
+    "reference_engine_names",
     "register_family",
     "slug",
     "step_plan",

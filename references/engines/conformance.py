@@ -249,7 +249,7 @@ def check_mistakes(cls) -> list[Check]:
     """Every planted mistake makes a short run refuse (EngineError with status error)."""
     kinds = ("free", "pivoted")
     plants = {n: (_planted, m, kinds) for n, m in {**STATE_MISTAKES, **MODEL_MISTAKES}.items()}
-    for n, (plant, where) in getattr(cls, "plantable", {}).items():
+    for n, (plant, where) in cls.plantable.items():
         plants[n] = (_engine_mistake, plant, where)
     integ = cls.integrators[0].name
     out = []

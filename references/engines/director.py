@@ -10,25 +10,31 @@ from __future__ import annotations
 import numpy as np
 
 from references import conventions as cv
-from references.engines.context import ModelReadback
+from references.engines.context import ModelReadback, RunOutput
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine
+from references.engines.stepping import check_batch_members
 from references.errors import EngineError, EngineUnavailable, StepFailure, Unsupported
 
-#: dynamics (torque) evaluations per step of each scheme: one per RATTLE sub-step (Yoshida's
-#: composition has 3, Kahan and Li's 9)
-_EVALS = {"rattle": 1.0, "rattle4": 3.0, "rattle6": 9.0, "energy_momentum": 1.0}
+#: what a composition of RATTLE steps (a scheme stepped by RATTLE's kernel method) promises beyond
+#: its family: it conserves the angular momentum to round-off step by step (docs/numerics.md
+#: section 3); 1e-10 of the momentum scale is round-off over ~1e5 steps with margin. The
+#: energy-momentum scheme conserves momentum in director form, but its director velocities
+#: leave the tangent space at O(h^2), which the suite's momentum (from W) sees, so it promises
+#: nothing more here.
+RATTLE_PROMISES = {"momentum_drift_max": 1e-10}
 
-#: what each scheme promises beyond its family: RATTLE and its compositions conserve the
-#: angular momentum to round-off (docs/numerics.md section 3); 1e-10 of the momentum scale is
-#: round-off over ~1e5 steps with margin. The energy-momentum scheme conserves momentum in
-#: director form, but its director velocities leave the tangent space at O(h^2), which the
-#: suite's momentum (from W) sees, so it promises nothing more here.
-_PROMISES = {
-    "rattle": {"momentum_drift_max": 1e-10},
-    "rattle4": {"momentum_drift_max": 1e-10},
-    "rattle6": {"momentum_drift_max": 1e-10},
-}
+
+def _evals_per_step(scheme) -> float:
+    """Dynamics (torque) evaluations per step of a director_model scheme, from its declaration:
+    one per RATTLE sub-step, a step being ``len(coefficients)`` of them (Yoshida's composition
+    3, Kahan and Li's 9); the energy-momentum step (one coefficient) evaluates the torque once."""
+    return float(len(scheme.coefficients))
+
+
+def _promises(dm, scheme) -> dict:
+    """The verdict bounds a scheme promises beyond its family (:data:`RATTLE_PROMISES`)."""
+    return dict(RATTLE_PROMISES) if scheme.method == dm.schemes.Rattle.method else {}
 
 
 def _dm():
@@ -47,8 +53,8 @@ def _integrators() -> tuple[Integrator, ...]:
             family="structure-preserving director",
             order=int(scheme.order),
             description=(scheme.__doc__ or "").strip().splitlines()[0],
-            evals_per_step=_EVALS.get(name),
-            tolerances=_PROMISES.get(name, {}),
+            evals_per_step=_evals_per_step(scheme),
+            tolerances=_promises(dm, scheme),
             # two halvings below a scenario's smallest swept step for the compositions of
             # order 4 and 6: milliseconds of stepping, and rattle6 then reaches 1e-10 rad on
             # the library's fast tops (cone_top, heavy_top, simo_wong_top)
@@ -62,6 +68,7 @@ class DirectorEngine(Engine):
     """The director formulation integrated by director_model's compiled schemes."""
 
     name = "director"
+    batched = True
     warm_up = "the director kernels (numba)"
     description = "director_model: RATTLE, energy-momentum and compositions in director form"
     integrators = _integrators()
@@ -167,15 +174,64 @@ class DirectorEngine(Engine):
         try:
             tr = h.stepper.advance(every * count, save_every=every)
         except h.dm.StepSizeError as exc:
-            err = StepFailure(str(exc))
-            err.time = float(exc.time)
-            raise err from exc
+            raise StepFailure(str(exc), time=float(exc.time)) from exc
         ctx.clock.elapsed += float(tr.wall_time_s)
         A = np.einsum("nki,nkj->nij", tr.rotation, tr.director_velocity)
         res = np.linalg.norm(A + np.swapaxes(A, 1, 2), axis=(1, 2))
         steps = start + every * np.arange(1, len(tr.t) + 1)
         ctx.residuals.update(zip(steps.tolist(), res.tolist(), strict=True))
         return cv.BodyState(tr.position, tr.velocity, tr.rotation, tr.omega_body)
+
+    # -- batches -----------------------------------------------------------------------
+    def run_batch(self, members, integrator, dt, t_end, save_every) -> list:
+        """All members in one call of director_model's batched path (``simulate_batch``, in
+        parallel over bodies, each member bit for bit its own single run), times the batch's
+        divided by the number of members. A member that cannot be stepped stops the whole
+        call (director_model names the first), so that refusal is the batch's
+        (:class:`EngineError`); a body director_model refuses is :class:`Unsupported`."""
+        from references.trajectory import Trajectory
+
+        dm = _dm()
+        integ = self.integrator(integrator)
+        check_batch_members(self.name, members)
+        base = members[0]
+        kwargs = {}
+        if base.pivot is None:
+            kwargs = dict(
+                position=np.stack([m.position for m in members]),
+                velocity=np.stack([m.velocity for m in members]),
+            )
+        try:
+            out = dm.simulate_batch(
+                base.mass,
+                base.inertia,
+                rotation=np.stack([m.rotation for m in members]),
+                omega_body=np.stack([m.omega_body for m in members]),
+                gravity=base.gravity,
+                pivot=base.pivot,
+                scheme=integ.name,
+                dt=dt,
+                t_end=t_end,
+                save_every=save_every,
+                **kwargs,
+            )
+        except dm.InvalidBodyError as exc:
+            raise Unsupported(f"director_model refuses the body: {exc}") from exc
+        except dm.StepSizeError as exc:
+            raise EngineError(str(exc)) from exc
+        wall = float(out.wall_time_s) / len(members)
+        return [
+            RunOutput(
+                Trajectory.from_states(
+                    m, out.t, out.position[k], out.velocity[k], out.rotation[k], out.omega_body[k]
+                ),
+                int(out.nstep),
+                wall,
+                wall,
+                integ.evals_per_step or 0.0,
+            )
+            for k, m in enumerate(members)
+        ]
 
 
 class _Handle:

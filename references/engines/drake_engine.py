@@ -854,9 +854,7 @@ class DrakeEngine(Engine):
                 f"{90 - math.degrees(math.acos(CHART_SWITCH_COS)):.1f} degrees in pitch; "
                 f"{msg}"
             )
-        failure = StepFailure(msg)
-        failure.time = t
-        return failure
+        return StepFailure(msg, time=t)
 
     def _switch_chart(self, ctx) -> None:
         """Carry a pivoted run over to a new chart (:func:`centred_chart`) at the end of the

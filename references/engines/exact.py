@@ -16,6 +16,7 @@ class ExactEngine(EngineBase):
     """The scenario's reference: closed form where one exists, else a tight DOP853 solution."""
 
     name = "exact"
+    is_reference = True
     description = "closed-form solutions (Jacobi elliptic, Lagrange top) or DOP853 at rtol 1e-13"
     integrators = (
         Integrator(

@@ -1,28 +1,10 @@
 """The engine interface: what the runner needs of anything that produces trajectories
 (:class:`EngineBase`) and what an engine adapter implements (:class:`Engine`).
 
-An adapter (a subclass of :class:`Engine`) provides only what differs between engines:
-
-==========================  ===============================================================
-``build(ctx)``              the engine's model of ``ctx.model`` (a :class:`BodyModel`), with
-                            the engine's distorting defaults switched off; stored in
-                            ``ctx.handle``
-``read_model(ctx)``         what the built model holds, read back from the engine
-                            (:class:`ModelReadback`); the base compares it with the scenario
-``settings(ctx)``           the settings changed from the engine's defaults (recorded)
-``set_state(ctx, state)``   write a :class:`~references.conventions.BodyState` (the suite's
-                            convention) into the engine, converting in
-                            :mod:`references.conventions`
-``read_state(ctx)``         the engine's current state as a ``BodyState``
-``native_quantities(ctx)``  the engine's OWN energy, angular momentum, rotation (and COM
-                            velocity where it has one), computed by the engine's code from its
-                            own state; they check that the engine holds the state we meant
-``advance(ctx, k)``         k steps with the engine's own integrator (``stepping="native"``)
-``forward_dynamics``        accelerations of a state, for the suite's RKMK4
-(ctx, state)                (``stepping="rkmk4"``, :mod:`references.engines.liegroup`)
-``guard(ctx, state)``       optional: a reason if the engine hit one of its own limits
-``close(ctx)``              optional: release the engine's resources
-==========================  ===============================================================
+Every hook is declared here, abstract or with a documented default; an adapter overrides what
+differs for its engine. docs/engines.md ("The interface's hooks") lists each with its signature,
+its default and the adapters that override it (a test compares that table with this module's
+members, so neither can drift).
 
 :meth:`Engine.run` owns everything else, identically for every engine (the run loop of
 :mod:`references.engines.stepping`): the step plan, the read-back of the model, the
@@ -38,7 +20,7 @@ result row with that status and the message, so messages say what happened and w
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -46,9 +28,10 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback, RunContext, RunOutput
 from references.engines.integrators import Integrator, slug
+from references.engines.liegroup import unpack_state
 from references.engines.recording import Recorder
 from references.engines.stepping import run_loop
-from references.errors import EngineUnavailable, Unsupported
+from references.errors import EngineError, EngineUnavailable, Unsupported
 
 
 class EngineBase(ABC):
@@ -66,6 +49,13 @@ class EngineBase(ABC):
     #: what the first run in a process compiles before it steps ("" if nothing), shown by the
     #: progress display while it lasts (per integrator when ``bundle_runs``)
     warm_up: ClassVar[str] = ""
+    #: this engine's rows are the reference the others are measured against (the scenario's
+    #: exact or high-accuracy solution), not a configuration under test: tables and figures
+    #: show it as the floor of the measurement and comparisons between engines leave it out
+    is_reference: ClassVar[bool] = False
+    #: :meth:`run_batch` steps its members together in one call (an ensemble of one
+    #: configuration is then one task), rather than the default's loop over :meth:`run`
+    batched: ClassVar[bool] = False
 
     @classmethod
     @abstractmethod
@@ -119,9 +109,43 @@ class EngineBase(ABC):
     ) -> RunOutput:
         """Run ``scenario`` with ``integrator`` at step ``dt`` (see :meth:`Engine.run`)."""
 
+    def run_batch(
+        self,
+        members: Sequence,
+        integrator: str,
+        dt: float,
+        t_end: float,
+        save_every: int,
+    ) -> list[RunOutput | EngineError]:
+        """Run ``members`` (scenarios that differ only in their initial state) with one
+        configuration, each from t = 0 to ``t_end`` at step ``dt``, saving every
+        ``save_every`` steps.
+
+        Returns one entry per member, in order: its :class:`RunOutput`, or the
+        :class:`EngineError` that stopped it (a :class:`Diverged` carries the output up to
+        its last good state), so that one failed member never loses the others. Raises
+        :class:`EngineError` when the whole batch is refused before any member runs (an
+        unknown integrator, a model the engine refuses). The default runs the members one
+        after another through :meth:`run`; an engine that steps many bodies in one call
+        (``batched``) overrides it."""
+        self.integrator(integrator)  # an unknown integrator refuses the whole batch
+        out: list[RunOutput | EngineError] = []
+        for member in members:
+            try:
+                out.append(self.run(member, integrator, dt, t_end, save_every))
+            except EngineError as exc:
+                out.append(exc)
+        return out
+
 
 class Engine(EngineBase):
     """Interface of an engine adapter (see the module docstring for what to implement)."""
+
+    #: mistakes specific to this engine that the conformance kit plants to show that the run
+    #: refuses them (:func:`references.engines.conformance.check_mistakes`): name ->
+    #: (plant(ctx), applied right after :meth:`build`; the kinds of body it applies to,
+    #: "free" and/or "pivoted"), e.g. a default that distorts the experiment left on
+    plantable: ClassVar[Mapping[str, tuple[Callable[[RunContext], None], tuple[str, ...]]]] = {}
 
     # -- what adapters implement -----------------------------------------------------------
     @abstractmethod
@@ -190,6 +214,19 @@ class Engine(EngineBase):
         forward dynamics (``stepping="rkmk4"``); for a ball joint the second entry is
         ignored."""
         raise NotImplementedError(f"{self.name}: no forward-dynamics call")
+
+    def forward_dynamics_packed(self, ctx: RunContext, z: np.ndarray, acc: np.ndarray) -> None:
+        """:meth:`forward_dynamics` as the compiled RKMK4 calls it at every stage
+        (:class:`~references.engines.liegroup.CompiledRKMK4Stepper`): ``z`` the flat stage
+        state (13,) = (unit quaternion w, x, y, z; x_G (3,) world; W (3,) body axes; v_G (3,)
+        world), ``acc`` (6,) filled in place with (dW/dt, dv_G/dt), zeros for dv_G/dt of a
+        pivoted body. The default builds a ``BodyState`` from ``z`` and calls
+        :meth:`forward_dynamics`; an adapter overrides it to hand ``z`` to its engine
+        directly, without a ``BodyState`` per stage (Pinocchio, DART)."""
+        pivoted = ctx.model.pivoted
+        dW, a = self.forward_dynamics(ctx, unpack_state(ctx.model, z))
+        acc[0:3] = dW
+        acc[3:6] = 0.0 if pivoted else a
 
     def guard(self, ctx: RunContext, state: cv.BodyState) -> str | None:
         """A reason if the engine reached one of its own limits (e.g. a velocity clamp): the

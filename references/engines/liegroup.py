@@ -36,7 +36,7 @@ class StageRotationTooLarge(StepFailure):
     """A Runge-Kutta stage asked for a rotation of half a turn or more: beyond it exp is not
     one-to-one and dexp^{-1} becomes singular at a full turn, so the step size is far outside
     anything meaningful (the explicit method is unstable long before). Adapters turn this into
-    a :class:`~references.engines.base.StepFailure`."""
+    a :class:`~references.errors.StepFailure`."""
 
 
 def check_stage_rotation(a2: float) -> None:
@@ -185,13 +185,26 @@ class RKMK4Stepper:
 RKMK4_WARM_UP = "the RKMK4 stages (numba)"
 
 
+def unpack_state(model, y: np.ndarray) -> BodyState:
+    """The ``BodyState`` of the compiled stepper's flat state ``y`` (13,): unit quaternion
+    (w, x, y, z), x_G, W (body axes), v_G; for a pivoted ``model`` (a
+    :class:`~references.engines.context.BodyModel`) x_G and v_G follow from R and W."""
+    from references.conventions import quat_wxyz_to_matrix
+
+    R = quat_wxyz_to_matrix(y[0:4])
+    W = y[7:10].copy()
+    if model.pivoted:
+        return model.state_from_rotation(R, W)
+    return BodyState(y[4:7].copy(), y[10:13].copy(), R, W)
+
+
 class CompiledRKMK4Stepper:
     """The same RKMK4 with the state in one flat array (rotation as a unit quaternion) and the
     stage arithmetic compiled (:mod:`references.engines._rkmk4`): per step four calls of the
     engine and five small compiled calls, so that the cost is the engine's, not the suite's
-    Python. Adapters may provide ``forward_dynamics_packed(ctx, z, acc)`` (z the flat stage
-    state, acc the 6 accelerations to fill) to skip building a BodyState per stage; otherwise
-    their ``forward_dynamics`` is called. The run loop uses this stepper; RKMK4Stepper is the
+    Python. It calls the adapter's ``forward_dynamics_packed(ctx, z, acc)`` (z the flat stage
+    state, acc the 6 accelerations to fill), whose default builds a BodyState per stage for
+    ``forward_dynamics``. The run loop uses this stepper; RKMK4Stepper is the
     readable reference it is tested against."""
 
     def __init__(self, engine, ctx):
@@ -204,8 +217,7 @@ class CompiledRKMK4Stepper:
         self.z = np.zeros(13)
         self.K = np.zeros((4, 12))
         self.acc = np.zeros(6)
-        fast = getattr(engine, "forward_dynamics_packed", None)
-        self.fd = fast if fast is not None else self._fd_generic
+        self.fd = engine.forward_dynamics_packed
 
     def start(self, state: BodyState) -> None:
         from references.conventions import matrix_to_quat_wxyz
@@ -217,20 +229,8 @@ class CompiledRKMK4Stepper:
             self.y[4:7] = state.position
             self.y[10:13] = state.velocity
 
-    def _fd_generic(self, ctx, z, acc) -> None:
-        st = self._as_state(z)
-        dW, a = self.engine.forward_dynamics(ctx, st)
-        acc[0:3] = dW
-        acc[3:6] = 0.0 if self.pivoted else a
-
     def _as_state(self, y) -> BodyState:
-        from references.conventions import quat_wxyz_to_matrix
-
-        R = quat_wxyz_to_matrix(y[0:4])
-        W = y[7:10].copy()
-        if self.pivoted:
-            return self.ctx.model.state_from_rotation(R, W)
-        return BodyState(y[4:7].copy(), y[10:13].copy(), R, W)
+        return unpack_state(self.ctx.model, y)
 
     def run(self, steps: list[int]) -> BodyState:
         stage, finish = self.k.stage, self.k.finish
@@ -254,10 +254,8 @@ class CompiledRKMK4Stepper:
     def _failure(self, what: str, taken: int, done_rows) -> StageRotationTooLarge:
         """The failure of the step after ``taken`` completed steps of this call, with the
         states of the checkpoints completed before it."""
-        exc = StageRotationTooLarge(what)
-        exc.steps_taken = taken
-        exc.states = self._as_block(done_rows) if len(done_rows) else None
-        return exc
+        states = self._as_block(done_rows) if len(done_rows) else None
+        return StageRotationTooLarge(what, steps_taken=taken, states=states)
 
     def _as_block(self, rows) -> BodyState:
         from references.conventions import pivot_block, quats_wxyz_to_matrices

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -88,6 +88,24 @@ def run_loop(
     if progress is not None:
         progress(1.0)
     return out
+
+
+def check_batch_members(engine: str, members: Sequence) -> None:
+    """Raise :class:`EngineError` naming the field unless the scenarios ``members`` of a
+    batched run (:meth:`EngineBase.run_batch <references.engines.interface.EngineBase.run_batch>`)
+    are one body: the same mass, inertia, gravity and pivot (only initial states may differ)."""
+    if not members:
+        raise EngineError(f"{engine}: a batched run needs at least one member")
+    first = members[0]
+    for k, member in enumerate(members[1:], start=1):
+        for field in ("mass", "inertia", "gravity", "pivot"):
+            a, b = getattr(member, field), getattr(first, field)
+            if (a is None) != (b is None) or (a is not None and not np.array_equal(a, b)):
+                raise EngineError(
+                    f"{engine}: batch member {k} ({member.name!r}) differs from member 0 in "
+                    f"{field} ({a!r} against {b!r}); the members of a batch may differ only in "
+                    "their initial state"
+                )
 
 
 def initial_state(scenario) -> cv.BodyState:
@@ -240,7 +258,7 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
             wall += time.perf_counter() - t0
             ctx.cpu_time += time.process_time() - c0
             t_div, span = _failed_step(exc, done, block[-1], dt)
-            kept = getattr(exc, "states", None)  # the checkpoints completed before it
+            kept = exc.states  # the checkpoints completed before it
             if kept is not None and len(kept[0]):
                 _record_checked(engine, ctx, rec, block, kept, done, wall, energy0)
                 done = block[len(kept[0]) - 1]
@@ -270,13 +288,12 @@ def _record_checked(engine, ctx, rec, block, states, done, wall, energy0) -> Non
         raise _diverged(engine, ctx, rec, before, wall, block[good] * dt, f"{found[1]} {span}")
 
 
-def _failed_step(exc, done: int, last: int, dt: float) -> tuple[float, str]:
+def _failed_step(exc: StepFailure, done: int, last: int, dt: float) -> tuple[float, str]:
     """(t_diverged, what failed) of a :class:`StepFailure` raised while stepping from step
     ``done`` to ``last``: the time the failing step starts from, as the raiser gives it
     (``time``, or ``steps_taken`` in this call); without either, only the block is known and
     its end is the latest the failure can be."""
-    t_fail = getattr(exc, "time", None)
-    taken = getattr(exc, "steps_taken", None)
+    t_fail, taken = exc.time, exc.steps_taken
     if t_fail is None and taken is not None:
         t_fail = (done + int(taken)) * dt
     if t_fail is not None:
