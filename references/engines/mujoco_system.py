@@ -8,12 +8,10 @@ world, columns = principal axes), ``velocity`` (COM, world), ``omega_body`` (bod
 body's principal frame relative to its COM; a world point for the ground), ``axis_a, axis_b``
 (same frames), ``name``), the fields of ``director_model.system.Body`` and ``Joint``.
 
-Spanning tree. The loop closures are the scenario's ``loop_joints`` (names) when it has them
-(``scenarios.SystemScenario``), and the other joints must then form a tree; else the same rule
-as ``scenarios.system.spanning_tree``: joints to the ground first (in the order listed, each
-attaching its ``body_a``), then outwards breadth-first; a body joined to nothing on the way
-becomes a floating root with a ``free`` joint; a joint that would attach a body a second time
-closes a loop.
+Spanning tree: the plan of every reduced-coordinate builder
+(:func:`references.engines.pinocchio_system.plan`, :func:`plan`): the scenario's loop closures
+(``loop_joints``, else the rule of ``scenarios.system.spanning_tree``), the other joints a
+tree grown from the ground, a body joined to nothing a floating root with a ``free`` joint.
 
 Frames. Every MuJoCo body frame IS the body's principal frame at its centre of mass: each body
 has an explicit ``<inertial pos="0 0 0" quat="1 0 0 0" mass diaginertia>`` (no inertia is
@@ -72,12 +70,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from references import conventions as cv
+from references.engines import pinocchio_system as ps
 from references.engines.native import import_engine
 from references.engines.pinocchio_system import saves as _saves
 from references.engines.pinocchio_system import unit as _unit
@@ -114,15 +112,6 @@ READBACK_TOL = 1e-12
 #: systems; the margin covers deeper chains, and every frame mistake is O(1))
 INITIAL_TOL = 1e-11
 
-_KINDS = {
-    "spherical": "ball",
-    "fixed_point": "ball",
-    "revolute": "hinge",
-    "prismatic": "slide",
-    "universal": "universal",
-    "cylindrical": "cylindrical",
-}
-
 _SETTINGS = ("solref", "solimp")
 
 
@@ -145,219 +134,49 @@ def _num(a) -> str:
 
 # -- the plan: spanning tree, reference configuration, loops -------------------------------------
 
+#: every joint kind MuJoCo builds in a tree
+TREE_KINDS = ("spherical", "fixed_point", "revolute", "prismatic", "universal", "cylindrical")
 
-@dataclass
-class _TreeJoint:
-    """The joint that attaches body ``child`` (index) to ``parent`` (index, -1 = ground)."""
-
-    label: str
-    kind: str  # scenario kind, or "free"
-    mj: str  # MuJoCo joint type
-    child: int
-    parent: int
-    X: np.ndarray = field(default_factory=lambda: np.zeros(3))  # parent anchor (or world)
-    Y: np.ndarray = field(default_factory=lambda: np.zeros(3))  # child anchor
-    axis_c: np.ndarray | None = None  # child frame, unit
-    axis_p: np.ndarray | None = None  # parent frame (world for the ground), unit
-    R_ref: np.ndarray = field(default_factory=lambda: np.eye(3))
-    #: MuJoCo joints of the body, in order: (type, axis in the child frame or None)
-    parts: list = field(default_factory=list)
+#: the MuJoCo joint type (or pair of types) of each plan kind
+_MJ = {"free": "free", "spherical": "ball", "revolute": "hinge", "prismatic": "slide",
+       "universal": "universal", "cylindrical": "cylindrical"}  # fmt: skip
 
 
-@dataclass
-class _Loop:
-    """A loop-closing joint between bodies a and b (b = -1: the ground), as connects:
-    (point in a's frame, point in b's frame or world) pairs."""
-
-    label: str
-    kind: str
-    a: int
-    b: int
-    pairs: list
+def plan(scenario) -> ps.Plan:
+    """The spanning tree, reference configuration and loop closures of ``scenario``: the plan
+    of every reduced-coordinate builder (:func:`references.engines.pinocchio_system.plan`)
+    with every kind of :data:`TREE_KINDS` in the tree. Raises ``ValueError`` for malformed
+    joints, :class:`Unsupported` for a closure this builder cannot express."""
+    return ps.plan(scenario, "mujoco", TREE_KINDS)
 
 
-@dataclass
-class _Plan:
-    names: list
-    bodies: list
-    order: list  # body indices, parents first
-    tree: dict  # child index -> _TreeJoint
-    loops: list
-    gravity: np.ndarray
-    length: float
-    rate: float
+def mj_type(tj: ps.TreeJoint) -> str:
+    """MuJoCo's name of the tree joint's type (module docstring's table)."""
+    return _MJ[tj.kind]
 
 
-def _label(j, k: int) -> str:
-    name = getattr(j, "name", None) or f"joint{k}"
-    return f"joint {name!r} ({j.kind} {j.body_a!r}-{j.body_b!r})"
-
-
-def plan(scenario) -> _Plan:
-    """The spanning tree, reference configuration and loop closures of ``scenario`` (module
-    docstring). Raises ``ValueError`` for malformed joints, :class:`Unsupported` for a joint
-    this builder cannot express."""
-    bodies = list(scenario.bodies)
-    names = [b.name for b in bodies]
-    if len(set(names)) != len(names):
-        raise ValueError(f"system {scenario.name!r}: body names repeat: {names}")
-    idx = {n: i for i, n in enumerate(names)}
-    joints = list(scenario.joints)
-    adj = {i: [] for i in range(len(bodies))}
-    ground = []
-    for k, j in enumerate(joints):
-        what = _label(j, k)
-        if j.body_a not in idx:
-            raise ValueError(f"{what}: body_a {j.body_a!r} is not a body of {names}")
-        if j.body_b is not None and j.body_b not in idx:
-            raise ValueError(f"{what}: body_b {j.body_b!r} is not a body (None is the ground)")
-        if j.body_b == j.body_a:
-            raise ValueError(f"{what}: joins body {j.body_a!r} to itself")
-        if j.kind not in _KINDS:
-            raise ValueError(f"{what}: kind {j.kind!r} unknown")
-        if j.body_b is None:
-            ground.append((k, j))
-        else:
-            adj[idx[j.body_a]].append((k, j))
-            adj[idx[j.body_b]].append((k, j))
-    parent_of: dict[int, tuple] = {}
-    order: list[int] = []
-    closing: list[tuple] = []
-    used: set[int] = set()
-    # the scenarios layer's choice of loop closures when the scenario carries it
-    given = getattr(scenario, "loop_joints", None)
-    if given is not None:
-        for k, j in enumerate(joints):
-            if getattr(j, "name", None) in given:
-                closing.append((k, j))
-                used.add(k)
-
-    def attach(child, parent, k, j):
-        parent_of[child] = (parent, k, j)
-        order.append(child)
-        used.add(k)
-
-    def close(k, j):
-        if given is not None:
-            raise ValueError(
-                f"{_label(j, k)} closes a loop of the tree left by the scenario's loop "
-                f"closures {list(given)}; the scenario's spanning tree is inconsistent"
-            )
-        closing.append((k, j))
-        used.add(k)
-
-    def grow(queue):  # breadth first, as scenarios.system.spanning_tree
-        while queue:
-            p = queue.pop(0)
-            for k, j in adj[p]:
-                if k in used:
-                    continue
-                other = idx[j.body_b] if idx[j.body_a] == p else idx[j.body_a]
-                if other in parent_of:
-                    close(k, j)
-                    continue
-                attach(other, p, k, j)
-                queue.append(other)
-
-    for k, j in ground:
-        if k in used:
-            continue
-        a = idx[j.body_a]
-        if a in parent_of:
-            close(k, j)
-        else:
-            attach(a, -1, k, j)
-    grow(list(order))
-    for i in range(len(bodies)):
-        if i not in parent_of:
-            attach(i, -1, None, None)
-            grow([i])
-
-    R = [np.asarray(b.rotation, dtype=float) for b in bodies]
-    anchors = [np.zeros(3)]
-    for k, j in enumerate(joints):
-        anchors += [_vec(j.anchor_a, f"{_label(j, k)}: anchor_a")]
-        if j.body_b is not None:
-            anchors += [_vec(j.anchor_b, f"{_label(j, k)}: anchor_b")]
-    length = max(float(np.max(np.linalg.norm(anchors, axis=1))), 1e-3)
-    rate = max(
-        1.0,
-        max(float(np.max(np.abs(b.omega_body))) for b in bodies) * length,
-        max(float(np.max(np.abs(b.velocity))) for b in bodies),
-    )
-    tree = {}
-    for c in order:
-        p, k, j = parent_of[c]
-        if j is None:
-            tree[c] = _TreeJoint(f"free root {names[c]!r}", "free", "free", c, -1, R_ref=R[c])
-            tree[c].parts = [("free", None)]
-            continue
-        what = _label(j, k)
-        mj = _KINDS[j.kind]
-        child_is_a = idx[j.body_a] == c
-        Y, X = (j.anchor_a, j.anchor_b) if child_is_a else (j.anchor_b, j.anchor_a)
-        tj = _TreeJoint(what, j.kind, mj, c, p, _vec(X, what), _vec(Y, what))
-        if mj == "ball":
-            tj.parts = [("ball", None)]
-        else:
-            ax, axp = (j.axis_a, j.axis_b) if child_is_a else (j.axis_b, j.axis_a)
-            if ax is None or axp is None:
-                raise ValueError(f"{what}: a {j.kind} joint needs axis_a and axis_b")
-            tj.axis_c = _unit(ax, f"{what}: the child's axis")
-            tj.axis_p = _unit(axp, f"{what}: the parent's axis")
-            Rp = np.eye(3) if p < 0 else R[p]
-            tj.R_ref = Rp.T @ R[c]
-            tj.parts = {
-                "hinge": [("hinge", tj.axis_c)],
-                "slide": [("slide", tj.axis_c)],
-                # about the parent-fixed axis, then about the child-fixed one
-                "universal": [("hinge", tj.R_ref.T @ tj.axis_p), ("hinge", tj.axis_c)],
-                "cylindrical": [("hinge", tj.axis_c), ("slide", tj.axis_c)],
-            }[mj]
-        tree[c] = tj
-    loops = []
-    for k, j in closing:
-        what = _label(j, k)
-        a = idx[j.body_a]
-        b = -1 if j.body_b is None else idx[j.body_b]
-        Xa, Xb = _vec(j.anchor_a, what), _vec(j.anchor_b, what)
-        if j.kind in ("spherical", "fixed_point"):
-            loops.append(_Loop(what, j.kind, a, b, [(Xa, Xb)]))
-        elif j.kind == "revolute":
-            if j.axis_a is None or j.axis_b is None:
-                raise ValueError(f"{what}: a revolute joint needs axis_a and axis_b")
-            na, nb = _unit(j.axis_a, what), _unit(j.axis_b, what)
-            Rb = np.eye(3) if b < 0 else R[b]
-            if float((R[a] @ na) @ (Rb @ nb)) < 0:
-                nb = -nb  # antiparallel axes describe the same hinge
-            pairs = [(Xa, Xb), (Xa + length * na, Xb + length * nb)]
-            loops.append(_Loop(what, j.kind, a, b, pairs))
-        else:
-            raise Unsupported(
-                f"mujoco: {what} closes a loop; MuJoCo's connect and weld express a spherical "
-                f"or welded closure, a {j.kind} closure is not built by this adapter"
-            )
-    return _Plan(names, bodies, order, tree, loops, _vec(scenario.gravity, "gravity"), length, rate)
+def parts(tj: ps.TreeJoint) -> list:
+    """The MuJoCo joints of the body ``tj`` attaches, in order: (type, axis in the child's
+    frame or None); a universal joint is a hinge about the parent-fixed axis then one about
+    the child-fixed axis, a cylindrical one a hinge and a slide on the axis."""
+    return {
+        "free": [("free", None)],
+        "spherical": [("ball", None)],
+        "revolute": [("hinge", tj.axis_c)],
+        "prismatic": [("slide", tj.axis_c)],
+        "universal": [("hinge", None if tj.axis_p is None else tj.R_ref.T @ tj.axis_p),
+                      ("hinge", tj.axis_c)],
+        "cylindrical": [("hinge", tj.axis_c), ("slide", tj.axis_c)],
+    }[tj.kind]  # fmt: skip
 
 
 # -- consistency of the initial world states -----------------------------------------------------
 
 
-def _world(pl: _Plan, i: int):
-    """(x, R, v, w_world) of body i, or the ground's for i = -1."""
-    if i < 0:
-        return np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3)
-    b = pl.bodies[i]
-    R = np.asarray(b.rotation, dtype=float)
-    return (
-        np.asarray(b.position, float),
-        R,
-        np.asarray(b.velocity, float),
-        R @ np.asarray(b.omega_body, float),
-    )
+_world = ps.world
 
 
-def check_consistent(scenario, pl: _Plan | None = None) -> None:
+def check_consistent(scenario, pl: ps.Plan | None = None) -> None:
     """Raise :class:`InconsistentSystem` naming the joint and the residual if the initial
     world states violate a joint (tree joints and loop closures alike): the anchors' gap (m)
     and slip (m/s), a revolute's or prismatic's axis misalignment (rad) and relative rotation
@@ -366,8 +185,8 @@ def check_consistent(scenario, pl: _Plan | None = None) -> None:
     tol_x = STATE_TOL * pl.length
     tol_v = STATE_TOL * pl.rate
     idx = {n: i for i, n in enumerate(pl.names)}
-    for k, j in enumerate(scenario.joints):
-        what = _label(j, k)
+    for j in pl.joints:
+        what = ps.label(j)
         a = idx[j.body_a]
         b = -1 if j.body_b is None else idx[j.body_b]
         xa, Ra, va, wa = _world(pl, a)
@@ -434,7 +253,7 @@ def check_consistent(scenario, pl: _Plan | None = None) -> None:
 # -- MJCF --------------------------------------------------------------------------------------
 
 
-def model_xml(scenario, pl: _Plan, integrator: str, dt: float, solref, solimp) -> str:
+def model_xml(scenario, pl: ps.Plan, integrator: str, dt: float, solref, solimp) -> str:
     """The MJCF of a plan (public so that tests can inspect, and plant mistakes in, what is
     built)."""
     children: dict[int, list[int]] = {}
@@ -456,7 +275,7 @@ def model_xml(scenario, pl: _Plan, integrator: str, dt: float, solref, solimp) -
         tj = pl.tree[c]
         b = pl.bodies[c]
         pad = "  " * depth
-        if tj.mj == "free":
+        if tj.kind == "free":
             pos, quat = np.asarray(b.position, float), cv.matrix_to_quat_wxyz(tj.R_ref)
             joint = f'<freejoint name="j{c}"/>'
         else:
@@ -466,7 +285,7 @@ def model_xml(scenario, pl: _Plan, integrator: str, dt: float, solref, solimp) -
                 f'<joint name="j{c}_{i}" type="{typ}" pos="{_num(tj.Y)}"'
                 + ("" if ax is None else f' axis="{_num(ax)}"')
                 + ' limited="false" damping="0" armature="0" frictionloss="0" stiffness="0"/>'
-                for i, (typ, ax) in enumerate(tj.parts)
+                for i, (typ, ax) in enumerate(parts(tj))
             )
         inner = "\n".join(
             [
@@ -513,7 +332,7 @@ def _quat_close(got, want) -> float:
     return min(_close(got, want), _close(got, -want))
 
 
-def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solimp) -> dict:
+def read_back(mujoco, m, scenario, pl: ps.Plan, integrator: str, dt, solref, solimp) -> dict:
     """Compare the compiled model with the scenario (module docstring); raise
     :class:`EngineError` naming the body, joint or setting on a mismatch. Returns the
     read-back values recorded in the settings."""
@@ -528,7 +347,7 @@ def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solim
             )
 
     L = pl.length
-    njnt = sum(len(tj.parts) for tj in pl.tree.values())
+    njnt = sum(len(parts(tj)) for tj in pl.tree.values())
     if m.nbody != len(pl.bodies) + 1 or m.njnt != njnt:
         raise EngineError(
             f"mujoco: the model has {m.nbody - 1} bodies and {m.njnt} joints; the scenario "
@@ -557,11 +376,11 @@ def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solim
         want(f"{nm}: body_ipos (COM in the body frame)", m.body_ipos[i], np.zeros(3), L)
         want(f"{nm}: body_iquat (principal axes)", m.body_iquat[i], [1, 0, 0, 0], quat=True)
         want(f"{nm}: body_gravcomp", m.body_gravcomp[i], 0.0)
-        if m.body_jntnum[i] != len(tj.parts):
-            bad.append(f"{nm}: {m.body_jntnum[i]} joints, the tree needs {len(tj.parts)}")
+        if m.body_jntnum[i] != len(parts(tj)):
+            bad.append(f"{nm}: {m.body_jntnum[i]} joints, the tree needs {len(parts(tj))}")
             continue
-        jn = f"{tj.label} (MuJoCo {tj.mj} of {b.name!r})"
-        for part, (typ, ax) in enumerate(tj.parts):
+        jn = f"{tj.label} (MuJoCo {mj_type(tj)} of {b.name!r})"
+        for part, (typ, ax) in enumerate(parts(tj)):
             jid = m.body_jntadr[i] + part
             if m.jnt_type[jid] != jtypes[typ]:
                 bad.append(f"{jn}: jnt_type {int(m.jnt_type[jid])}, needs {int(jtypes[typ])}")
@@ -572,7 +391,7 @@ def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solim
                 want(f"{jn}: jnt_axis (the child's axis, child frame)", m.jnt_axis[jid], ax)
             if m.jnt_limited[jid]:
                 bad.append(f"{jn}: jnt_limited is on; a joint of the scenario has no limits")
-        if tj.mj == "free":
+        if tj.kind == "free":
             want(f"{nm}: body_pos (root at the initial COM)", m.body_pos[i], b.position, L)
             want(f"{nm}: body_quat (root)", m.body_quat[i], cv.matrix_to_quat_wxyz(b.rotation),
                  quat=True)  # fmt: skip
@@ -640,7 +459,7 @@ def read_back(mujoco, m, scenario, pl: _Plan, integrator: str, dt, solref, solim
 # -- state ---------------------------------------------------------------------------------
 
 
-def initial_qpos_qvel(m, pl: _Plan, bid: dict) -> tuple[np.ndarray, np.ndarray]:
+def initial_qpos_qvel(m, pl: ps.Plan, bid: dict) -> tuple[np.ndarray, np.ndarray]:
     """qpos, qvel of the scenario's initial world states (module docstring's table);
     ``bid``: MuJoCo's body id of each body (scenario order)."""
     qpos = np.zeros(m.nq)
@@ -650,7 +469,7 @@ def initial_qpos_qvel(m, pl: _Plan, bid: dict) -> tuple[np.ndarray, np.ndarray]:
         x, R, v, w = _world(pl, c)
         xp, Rp, vp, wp = _world(pl, tj.parent)
         w_rel = R.T @ (w - wp)  # child axes
-        for part, (typ, ax) in enumerate(tj.parts):
+        for part, (typ, ax) in enumerate(parts(tj)):
             jid = m.body_jntadr[bid[c]] + part
             qa, va = m.jnt_qposadr[jid], m.jnt_dofadr[jid]
             if typ == "free":
@@ -690,7 +509,7 @@ def read_states(mujoco, m, d, bid: dict, out=None):
     return x, R, v, W
 
 
-def check_initial(mujoco, m, d, scenario, pl: _Plan, bid: dict) -> None:
+def check_initial(mujoco, m, d, scenario, pl: ps.Plan, bid: dict) -> None:
     """MuJoCo's own kinematics of the initial qpos/qvel against the scenario: every body's
     x, R, v, W, and every tree joint's anchor (xanchor) and axis (xaxis) against both the
     parent's and the child's side (:data:`INITIAL_TOL` relative to the length and rate
@@ -710,20 +529,20 @@ def check_initial(mujoco, m, d, scenario, pl: _Plan, bid: dict) -> None:
                 bad.append(f"body {b.name!r}: {what} {err:.3g} relative")
     for c in pl.order:
         tj = pl.tree[c]
-        if tj.mj == "free":
+        if tj.kind == "free":
             continue
         xc, Rc, _, _ = _world(pl, c)
         xp, Rp, _, _ = _world(pl, tj.parent)
         # MuJoCo's xanchor of every joint of a body is taken before any slide's translation:
         # the child's anchor moved back by the slide's qpos along the axis
         d0 = 0.0
-        for part, (typ, _) in enumerate(tj.parts):
+        for part, (typ, _) in enumerate(parts(tj)):
             if typ == "slide":
                 d0 = float(d.qpos[m.jnt_qposadr[m.body_jntadr[bid[c]] + part]])
         shift = d0 * (Rc @ tj.axis_c) if d0 else np.zeros(3)
         sides = [("child", xc + Rc @ tj.Y - shift)]
         sides.append(("parent", xp + Rp @ tj.X))
-        for part, (_, ax) in enumerate(tj.parts):
+        for part, (_, ax) in enumerate(parts(tj)):
             jid = m.body_jntadr[bid[c]] + part
             for side, p in sides:
                 err = _close(d.xanchor[jid], p, pl.length)
@@ -798,7 +617,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         "timestep": float(dt),
         "gravity": pl.gravity.tolist(),
         "tree": {
-            pl.names[c]: f"{pl.tree[c].mj} to "
+            pl.names[c]: f"{mj_type(pl.tree[c])} to "
             + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
             for c in pl.order
         },  # fmt: skip

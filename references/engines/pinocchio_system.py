@@ -93,7 +93,8 @@ def _import():
     return import_engine("pinocchio", "Pinocchio", "pin")
 
 
-# -- the plan: spanning tree and frames (engine-neutral; DART's builder uses it too) ------------
+# -- the plan: spanning tree and frames (engine-neutral: every builder of systems but the
+# director's uses it) ----------------------------------------------------------------------------
 
 
 @dataclass
@@ -102,12 +103,14 @@ class TreeJoint:
 
     label: str
     name: str  # the scenario joint's name ("" for a free root)
-    kind: str  # "spherical", "revolute", "prismatic" or "free"
+    kind: str  # "spherical" (fixed_point too), "revolute", "prismatic", "universal",
+    # "cylindrical" or "free"
     child: int
     parent: int
     X: np.ndarray = field(default_factory=lambda: np.zeros(3))  # parent anchor (world: ground)
     Y: np.ndarray = field(default_factory=lambda: np.zeros(3))  # child anchor (child frame)
     axis_c: np.ndarray | None = None  # hinge or slide axis, child frame, unit
+    axis_p: np.ndarray | None = None  # the same joint's axis, parent frame (world: ground), unit
     R_ref: np.ndarray = field(default_factory=lambda: np.eye(3))  # child in parent at q = 0
 
 
@@ -167,8 +170,12 @@ def _named(joints) -> list:
 
 def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
     """The spanning tree, reference orientations and loop closures of ``scenario`` (module
-    docstring). ``ValueError`` for malformed joints, :class:`Unsupported` (naming ``engine``)
-    for a kind outside ``tree_kinds`` in the tree, or a closure other than spherical/revolute."""
+    docstring): the scenario's loop closures (``scenario.loop_joints``, else
+    ``scenarios.system.spanning_tree``), bodies added depth first from the ground, a body
+    joined to nothing a floating root. A joint with an axis has R_ref = R_p^T R_c at t = 0 and
+    its axis on both sides (``axis_c``, ``axis_p``). ``ValueError`` for malformed joints,
+    :class:`Unsupported` (naming ``engine``) for a kind outside ``tree_kinds`` in the tree, or
+    a closure other than spherical/revolute."""
     bodies = list(scenario.bodies)
     names = [b.name for b in bodies]
     if len(set(names)) != len(names):
@@ -255,13 +262,14 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
             )
         child_is_a = idx[j.body_a] == c
         Y, X = (j.anchor_a, j.anchor_b) if child_is_a else (j.anchor_b, j.anchor_a)
-        kind = j.kind if j.kind in ("revolute", "prismatic") else "spherical"
+        kind = "spherical" if j.kind == "fixed_point" else j.kind
         tj = TreeJoint(what, j.name, kind, c, p, vec(X, what), vec(Y, what))
-        if kind in ("revolute", "prismatic"):
-            ax = j.axis_a if child_is_a else j.axis_b
-            if ax is None:
+        if kind != "spherical":
+            ax, axp = (j.axis_a, j.axis_b) if child_is_a else (j.axis_b, j.axis_a)
+            if ax is None or axp is None:
                 raise ValueError(f"{what}: a {kind} joint needs axis_a and axis_b")
             tj.axis_c = unit(ax, f"{what}: the child's axis")
+            tj.axis_p = unit(axp, f"{what}: the parent's axis")
             tj.R_ref = (np.eye(3) if p < 0 else R[p]).T @ R[c]
         tree[c] = tj
     loops = []

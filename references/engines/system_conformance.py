@@ -242,7 +242,6 @@ def _plant_mjcf(mistake):
             tj = pl.tree[c]
             if mistake == MISTAKES[0]:
                 tj.axis_c = tj.axis_p
-                tj.parts = [("hinge", tj.axis_p)]
             elif mistake == MISTAKES[1]:
                 # the child's anchor measured from a link frame at the joint (URDF's body
                 # origin) instead of from its COM, where MuJoCo's body frame is
