@@ -1,6 +1,6 @@
 """Drake's error-controlled integrators: achieved attitude error against the target accuracy.
 
-For every error-controlled integrator of the Drake adapter (references/engines/drake_engine.py)
+For every error-controlled integrator of the Drake adapter (references/engines/drake/)
 and every target accuracy of the sweep, one run of a library scenario through the adapter
 (``DrakeEngine.run``), with ``--checkpoints`` evenly spaced checkpoints (the integrator's steps
 end at each one, so few checkpoints let it choose its own steps). Printed per run: target,

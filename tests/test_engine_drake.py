@@ -1,4 +1,4 @@
-"""The Drake adapter (references.engines.drake_engine).
+"""The Drake adapter (references.engines.drake).
 
 Checked against references that do not share its code: Drake's own kinematics for every
 layout conversion (and pydrake.math.RollPitchYaw for the angles) and across chart switches,
@@ -189,7 +189,7 @@ def test_chart_keeps_the_library_pivoted_bodies_far_from_its_singularity(drake, 
     over the exact motion the chart's |cos pitch| stays >= 0.45, above CHART_SWITCH_COS, so
     the exact motions of the library's pivoted bodies never switch charts (the tightest is
     heavy_top with the COM axis as roll axis: |cos pitch| = sin(tilt) >= sin(0.512) = 0.47)."""
-    from references.engines.drake_engine import CHART_SWITCH_COS, lagrange_tilt_band, rpy_chart
+    from references.engines.drake import CHART_SWITCH_COS, lagrange_tilt_band, rpy_chart
 
     sc = scenarios.load(name)
     mdl = BodyModel.of(sc, sc.dt)
@@ -212,7 +212,7 @@ def test_chart_keeps_the_library_pivoted_bodies_far_from_its_singularity(drake, 
 def test_chart_is_not_guessed_for_other_bodies(drake):
     """No first integrals give the tilt band of an asymmetric body or an off-axis pivot: the
     chart at t = 0 is then the perpendicular one, and chart switching takes it from there."""
-    from references.engines.drake_engine import lagrange_tilt_band, rpy_chart
+    from references.engines.drake import lagrange_tilt_band, rpy_chart
 
     sc = kit.pivoted_scenario()
     mdl = BodyModel.of(sc, sc.dt)
@@ -253,7 +253,7 @@ def test_a_steady_rotation_switches_chart_once(drake):
     roll and never switches again. RK5 integrates the linear angles exactly, so the attitude
     stays on Rx(w t) to round-off (bound: 1000 steps x eps x w t = 7e-13, rounded up to
     1e-12)."""
-    from references.engines.drake_engine import CHART_SWITCH_COS
+    from references.engines.drake import CHART_SWITCH_COS
     from references.engines.stepping import initial_state
 
     w, dt = 3.0, 1e-3
@@ -326,7 +326,7 @@ def test_an_asymmetric_top_runs_through_chart_switches(drake, wobbly):
     sc, ref = wobbly
     out = drake().run(sc, "runge_kutta5", sc.dt)
     assert out.nstep == 3000 and out.settings["RPY chart switches"] >= 1
-    from references.engines.drake_engine import CHART_SWITCH_COS
+    from references.engines.drake import CHART_SWITCH_COS
 
     assert 0.3 < out.settings["RPY chart smallest |cos pitch|"] < CHART_SWITCH_COS
     err = _angle(out.trajectory.rotation, ref.rotation).max()
@@ -350,7 +350,7 @@ def test_the_state_is_continuous_across_a_switch(drake, wobbly, monkeypatch, nam
     read-back), and the new chart's angles are all 0. Tolerance 1e-14 relative (45 eps): the
     roll and yaw angles grow to tens of radians between switches, and the sine and cosine of
     an angle x carry an error of about |x| eps (measured: up to 11 eps in R, 26 eps in W)."""
-    from references.engines.drake_engine import DrakeEngine
+    from references.engines.drake import DrakeEngine
 
     pairs = []
     switch = DrakeEngine._switch_chart
@@ -398,7 +398,7 @@ def _counts(h):
 def _counted_run(monkeypatch, sc, name, **kw):
     """A run and the counts of each of its Simulators (read just before a switch replaces it,
     and at the end)."""
-    from references.engines.drake_engine import DrakeEngine
+    from references.engines.drake import DrakeEngine
 
     counts = []
     switch, close = DrakeEngine._switch_chart, DrakeEngine.close
@@ -443,7 +443,7 @@ def test_error_controlled_bookkeeping_across_switches(drake, wobbly, monkeypatch
     (the new integrator's first step: the last one taken before the switch). At 1e-10 the
     run is cut off by the evaluation budget, which only the sum over the integrators
     exceeds."""
-    from references.engines.drake_engine import EVAL_BUDGET, DrakeEngine
+    from references.engines.drake import EVAL_BUDGET, DrakeEngine
     from references.engines.stepping import check_readback
 
     sc, _ = wobbly
@@ -679,7 +679,7 @@ def test_an_integrator_over_its_budget_is_cut_off(drake):
     (by less than one step's worth: an implicit step makes at most a few tens), and says so."""
     import re
 
-    from references.engines.drake_engine import EVAL_BUDGET
+    from references.engines.drake import EVAL_BUDGET
 
     sc = scenarios.load("heavy_top")
     with pytest.raises(Unsupported) as info:

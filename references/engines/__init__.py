@@ -30,7 +30,7 @@ BUILTIN = {
     "pinocchio": "references.engines.pinocchio_engine:PinocchioEngine",
     "dart": "references.engines.dart_engine:DartEngine",
     "pybullet": "references.engines.pybullet_engine:PybulletEngine",
-    "drake": "references.engines.drake_engine:DrakeEngine",
+    "drake": "references.engines.drake:DrakeEngine",
     "mjx": "references.engines.mjx_engine:MjxEngine",
 }
 
