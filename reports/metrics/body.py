@@ -47,26 +47,15 @@ import math
 import numpy as np
 
 from references.trajectory import angular_momentum, energy, energy_parts
-
-#: Metrics where a larger value is better; every other metric is an error (lower is better).
-HIGHER_IS_BETTER = frozenset({"convergence_order"})
-
-#: round-off floors: values below these are round-off, compared as equal (gate, compare, report)
-FLOORS = {
-    "energy_drift_max": 1e-11,
-    "energy_drift_rot_max": 1e-11,
-    "energy_drift_trans_max": 1e-11,
-    "momentum_drift_max": 1e-11,
-    "orthonormality_max": 1e-11,
-    "constraint_velocity_max": 1e-11,
-    "attitude_error_max": 1e-10,
-    "omega_error_max": 1e-10,
-    "position_error_max": 1e-10,
-    "flip_interval_error": 1e-9,
-    "nutation_period_error": 1e-9,
-}
-#: A fitted convergence order may fall by this much before it counts as a regression.
-ORDER_SLACK = 0.3
+from reports.metrics.catalog import (  # the tables: re-exported for the modules reading them here
+    FLOORS,  # noqa: F401
+    HIGHER_IS_BETTER,  # noqa: F401
+    OBSERVABLE,
+    ORDER_SLACK,  # noqa: F401
+    check_attached,
+    computed,
+    measures,
+)
 
 #: attitude errors at or above this (rad) are saturated, not in the asymptotic range of a
 #: convergence fit (an error of order 1 rad says the phase is lost, not how fast it is)
@@ -84,17 +73,15 @@ def _initial(scenario):
     return E0, L0
 
 
+@measures("energy_drift_max")
 def energy_drift(scenario, traj) -> np.ndarray:
     """|E(t) - E0| / E_c with E_c = :attr:`Scenario.energy_scale`, shape (n,)."""
     E0, _ = _initial(scenario)
     return np.abs(traj.energy - E0) / scenario.energy_scale
 
 
-#: the metric of each separately conserved part of a free body's energy
-#: (:func:`references.trajectory.energy_parts`)
-ENERGY_PART_METRICS = {"rot": "energy_drift_rot_max", "trans": "energy_drift_trans_max"}
-
-
+@measures("energy_drift_rot_max", part="rot")
+@measures("energy_drift_trans_max", part="trans")
 def energy_part_drift(scenario, traj, part: str) -> np.ndarray | None:
     """|E_part(t) - E_part(0)| over the part's own scale (:attr:`Scenario.energy_scales`),
     shape (n,), for ``part`` "rot" or "trans" of a free body: uniform gravity exerts no torque
@@ -125,6 +112,7 @@ def conserved_momentum(scenario) -> str:
     return "Lg" if scenario.top_axis is None else "Lg+spin"
 
 
+@measures("momentum_drift_max")
 def momentum_drift(scenario, traj) -> np.ndarray:
     """Drift of the conserved angular-momentum components over L_c =
     :attr:`Scenario.momentum_scale`, shape (n,): |L - L0| for "L"; for "Lg+spin" the larger of
@@ -145,12 +133,14 @@ def momentum_drift(scenario, traj) -> np.ndarray:
     return drift / scale
 
 
+@measures("orthonormality_max")
 def orthonormality(traj) -> np.ndarray:
     """||R^T R - 1|| (Frobenius) at each saved time, shape (n,)."""
     RtR = np.einsum("nki,nkj->nij", traj.rotation, traj.rotation)
     return np.linalg.norm(RtR - np.eye(3), axis=(1, 2))
 
 
+@measures("constraint_velocity_max")
 def constraint_velocity(scenario, traj) -> np.ndarray:
     """The velocity-constraint residual ||D^T D' + D'^T D|| over the rate scale, shape (n,)."""
     return np.asarray(traj.constraint_velocity) / scenario.rate_scale
@@ -190,6 +180,7 @@ def nearest_rotation(R) -> np.ndarray:
     return out
 
 
+@measures("attitude_error_max")
 def attitude_error(traj, ref) -> np.ndarray:
     """Geodesic angle between the rotations nearest to R and to R_ref
     (:func:`nearest_rotation`), rad, shape (n,). An R that is not orthonormal is measured by
@@ -203,11 +194,13 @@ def attitude_error(traj, ref) -> np.ndarray:
     return 2.0 * np.arcsin(np.clip(d, 0.0, 1.0))
 
 
+@measures("omega_error_max")
 def omega_error(traj, ref) -> np.ndarray:
     """|W - W_ref| in body axes, rad/s, shape (n,)."""
     return np.linalg.norm(traj.omega_body - ref.omega_body, axis=1)
 
 
+@measures("position_error_max")
 def position_error(traj, ref) -> np.ndarray:
     """|x_G - x_G,ref|, m, shape (n,)."""
     return np.linalg.norm(traj.position - ref.position, axis=1)
@@ -231,45 +224,65 @@ def _check_same_times(traj, ref):
         )
 
 
+@measures("flip_interval_error")
+def flip_interval_error(traj, expected) -> float:
+    """|flip interval - exact| / exact, NaN without an exact flip interval."""
+    if "flip_interval" not in expected:
+        return math.nan
+    from reports.metrics.observables import flip_interval
+
+    exp = expected["flip_interval"]
+    return abs(flip_interval(traj) - exp) / exp
+
+
+@measures("nutation_period_error")
+def nutation_period_error(scenario, traj, expected) -> float:
+    """|nutation period - exact| / exact of a top (tilt from the scenario's vertical), NaN
+    without an exact nutation period or a top axis."""
+    if "nutation_period" not in expected or scenario.top_axis is None:
+        return math.nan
+    from reports.metrics.observables import nutation_period
+
+    exp = expected["nutation_period"]
+    return abs(nutation_period(traj, scenario.top_axis, scenario.vertical) - exp) / exp
+
+
 def compute_metrics(scenario, traj, ref=None, expected=None) -> dict[str, float]:
-    """All per-run metrics of one trajectory (see the module docstring).
+    """All per-run metrics of one trajectory: every single-body metric of the catalog
+    (:mod:`reports.metrics.catalog`; the module docstring), a pointwise one as its largest
+    value over the samples (inf if one is not finite), NaN where it does not apply.
 
     ``ref`` is the reference trajectory at the same times (None: error metrics are NaN);
     ``expected`` maps observable names ("flip_interval", "nutation_period") to exact values,
     as given by :func:`references.exact.expected_observables`.
     """
-    m = {
-        "energy_drift_max": _max(energy_drift(scenario, traj)),
-        "momentum_drift_max": _max(momentum_drift(scenario, traj)),
-        "orthonormality_max": _max(orthonormality(traj)),
-        "constraint_velocity_max": _max(constraint_velocity(scenario, traj)),
-        "attitude_error_max": math.nan,
-        "omega_error_max": math.nan,
-        "position_error_max": math.nan,
-        "flip_interval_error": math.nan,
-        "nutation_period_error": math.nan,
-    }
-    for part, name in ENERGY_PART_METRICS.items():
-        d = energy_part_drift(scenario, traj, part)
-        m[name] = math.nan if d is None else _max(d)
     if ref is not None:
         _check_same_times(traj, ref)
-        m["attitude_error_max"] = _max(attitude_error(traj, ref))
-        m["omega_error_max"] = _max(omega_error(traj, ref))
-        m["position_error_max"] = _max(position_error(traj, ref))
     expected = expected or {}
-    if "flip_interval" in expected:
-        from reports.metrics.observables import flip_interval
-
-        got = flip_interval(traj)
-        m["flip_interval_error"] = abs(got - expected["flip_interval"]) / expected["flip_interval"]
-    if "nutation_period" in expected and scenario.top_axis is not None:
-        from reports.metrics.observables import nutation_period
-
-        got = nutation_period(traj, scenario.top_axis, scenario.vertical)
-        exp = expected["nutation_period"]
-        m["nutation_period_error"] = abs(got - exp) / exp
+    m = {}
+    for metric, fn in computed("body"):
+        if metric.kind == OBSERVABLE:
+            m[metric.name] = fn(scenario, traj, ref, expected)
+        elif metric.reference and ref is None:
+            m[metric.name] = math.nan
+        else:
+            v = fn(scenario, traj, ref)
+            m[metric.name] = math.nan if v is None else _max(v)
     return m
+
+
+def series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
+    """The per-sample series of one run written beside its trajectory, so that figures are
+    pure functions of files: {series name: values (n,)} of every catalog metric that
+    declares a ``series`` and applies here (those against the reference only with one)."""
+    out = {}
+    for metric, fn in computed("body"):
+        if metric.series is None or (metric.reference and ref is None):
+            continue
+        v = fn(scenario, traj, ref)
+        if v is not None:
+            out[metric.series] = v
+    return out
 
 
 def roundoff_floor(scenario, nstep: int) -> float:
@@ -348,3 +361,6 @@ def add_convergence_orders(df):
         df.loc[grp.index, "convergence_order"] = slope
         df.loc[grp.index, "convergence_points"] = n
     return df
+
+
+check_attached("body")

@@ -2,9 +2,10 @@
 
 :class:`StreamingRecorder` is the recorder of a run (``references.engines.base.Recorder``) that
 sees the state after every step. It buffers ``segment`` steps, evaluates the reference at
-their times, folds the suite's pointwise metrics (energy and momentum drift, orthonormality,
-the velocity-constraint residual, attitude, rate and position error) into running maxima, and
-keeps only the states at the saved step indices. The run itself is one continuous run of the
+their times, folds every pointwise single-body metric of the catalog
+(:data:`reports.metrics.catalog.STREAMED`: energy and momentum drift, orthonormality, the
+velocity-constraint residual, attitude, rate and position error, ...) into running maxima,
+and keeps only the states at the saved step indices. The run itself is one continuous run of the
 engine: nothing is restarted, so a streamed run follows exactly the same discrete trajectory
 as a run that saves every step.
 
@@ -20,20 +21,14 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.base import Recorder
-from reports.metrics import body as M
+from reports.metrics import body  # noqa: F401  (attaches the single-body functions)
+from reports.metrics.catalog import POINTWISE, computed
 
-#: pointwise metrics folded over every step: name -> (needs the reference, function)
-POINTWISE = {
-    "energy_drift_max": (False, lambda sc, tr, ref: M.energy_drift(sc, tr)),
-    "energy_drift_rot_max": (False, lambda sc, tr, ref: M.energy_part_drift(sc, tr, "rot")),
-    "energy_drift_trans_max": (False, lambda sc, tr, ref: M.energy_part_drift(sc, tr, "trans")),
-    "momentum_drift_max": (False, lambda sc, tr, ref: M.momentum_drift(sc, tr)),
-    "orthonormality_max": (False, lambda sc, tr, ref: M.orthonormality(tr)),
-    "constraint_velocity_max": (False, lambda sc, tr, ref: M.constraint_velocity(sc, tr)),
-    "attitude_error_max": (True, lambda sc, tr, ref: M.attitude_error(tr, ref)),
-    "omega_error_max": (True, lambda sc, tr, ref: M.omega_error(tr, ref)),
-    "position_error_max": (True, lambda sc, tr, ref: M.position_error(tr, ref)),
-}
+
+def streamed() -> list:
+    """(metric, function) of the metrics folded over every step: the catalog's pointwise
+    single-body metrics."""
+    return [(m, fn) for m, fn in computed("body") if m.kind == POINTWISE]
 
 
 class StreamingRecorder(Recorder):
@@ -53,11 +48,10 @@ class StreamingRecorder(Recorder):
             raise ValueError(f"segment = {segment}: must be a whole number of steps >= 1")
         self.scenario, self.dt, self.segment = scenario, float(dt), int(segment)
         self.reference = reference
-        # a metric that does not apply (no reference; an energy part of a pivoted body) is NaN
-        parts = M.ENERGY_PART_METRICS.values() if scenario.pivot is not None else ()
+        # a metric that does not apply is NaN: without a reference the errors against it,
+        # and one whose function says so (None, e.g. an energy part of a pivoted body)
         self.maxima = {
-            k: (math.nan if (needs_ref and reference is None) or k in parts else 0.0)
-            for k, (needs_ref, _) in POINTWISE.items()
+            m.name: (math.nan if m.reference and reference is None else 0.0) for m, _ in streamed()
         }
         self.reference_accuracy = 0.0 if reference is not None else math.nan
         self._buf_steps: list[np.ndarray] = []
@@ -89,14 +83,15 @@ class StreamingRecorder(Recorder):
         if self.reference is not None:
             ref = self.reference(t)
             self.reference_accuracy = max(self.reference_accuracy, float(ref.accuracy))
-        for name, (needs_ref, fn) in POINTWISE.items():
-            if needs_ref and ref is None:
+        for metric, fn in streamed():
+            if metric.reference and ref is None:
                 continue
             v = fn(self.scenario, tr, ref)
             if v is None:  # does not apply to this scenario
+                self.maxima[metric.name] = math.nan
                 continue
             worst = math.inf if not np.all(np.isfinite(v)) else float(np.max(v))
-            self.maxima[name] = max(self.maxima[name], worst)
+            self.maxima[metric.name] = max(self.maxima[metric.name], worst)
         self._buf_steps.clear()
         self._buf.clear()
         self._buf_cv.clear()

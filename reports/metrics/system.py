@@ -41,10 +41,10 @@ import numpy as np
 
 from references.trajectory import system_energy, system_momenta
 from reports.metrics.body import _max, attitude_error, nearest_rotation
+from reports.metrics.catalog import SYSTEM_METRICS, check_attached, computed, measures
 from scenarios.system import joint_residuals
 
-#: the metrics only systems have (declared as result columns in scenarios.model)
-SYSTEM_METRICS = ("joint_gap_max", "joint_angle_gap_max", "branch_error")
+__all__ = ["SYSTEM_METRICS", "compute_system_metrics", "error_series"]
 
 
 def _initial(scenario):
@@ -58,6 +58,7 @@ def _initial(scenario):
     )  # fmt: skip
 
 
+@measures("energy_drift_max", on="system")
 def energy_drift(scenario, traj) -> np.ndarray:
     """|E(t) - E0| / E_c, (n,)."""
     E0 = float(system_energy(scenario, _initial(scenario))[0])
@@ -70,6 +71,7 @@ def energy(scenario, traj) -> np.ndarray:
     return system_energy(scenario, traj) - E0
 
 
+@measures("momentum_drift_max", on="system")
 def momentum_drift(scenario, traj) -> np.ndarray | None:
     """The drift of the conserved momenta over their scales, (n,), or None (module
     docstring)."""
@@ -107,6 +109,21 @@ def joint_gaps(scenario, traj) -> dict[str, dict[str, np.ndarray]]:
     }
 
 
+@measures("joint_gap_max", on="system")
+def joint_gap(scenario, traj) -> np.ndarray | None:
+    """The largest anchor gap over the joints, loop closures included (m), (n,), or None
+    without joints."""
+    gaps = joint_gaps(scenario, traj)
+    return np.max([g["gap"] for g in gaps.values()], axis=0) if gaps else None
+
+
+@measures("joint_angle_gap_max", on="system")
+def joint_angle_gap(scenario, traj) -> np.ndarray | None:
+    """The largest axes gap over the joints (rad), (n,), or None without joints."""
+    gaps = joint_gaps(scenario, traj)
+    return np.max([g["angle"] for g in gaps.values()], axis=0) if gaps else None
+
+
 def loop_gap(scenario, traj) -> np.ndarray | None:
     """The largest gap of the loop closures over time (m), (n,), or None for a tree: the
     figure's series of how far a loop drifts open."""
@@ -116,6 +133,7 @@ def loop_gap(scenario, traj) -> np.ndarray | None:
     return np.max([gaps[n]["gap"] for n in scenario.loop_joints], axis=0)
 
 
+@measures("orthonormality_max", on="system")
 def orthonormality(traj) -> np.ndarray:
     """max over bodies of ||R^T R - 1||_F, (n,)."""
     R = traj.rotation
@@ -133,19 +151,23 @@ def _per_body_attitude(traj, ref) -> np.ndarray:
     return attitude_error(_Flat(traj.rotation), _Flat(ref.rotation)).reshape(n, nb)
 
 
+@measures("attitude_error_max", on="system")
 def attitude_errors(traj, ref) -> np.ndarray:
     """Largest attitude error over the bodies (rad), (n,)."""
     return np.max(_per_body_attitude(traj, ref), axis=1)
 
 
+@measures("position_error_max", on="system")
 def position_errors(traj, ref) -> np.ndarray:
     return np.max(np.linalg.norm(traj.position - ref.position, axis=2), axis=1)
 
 
+@measures("omega_error_max", on="system")
 def omega_errors(traj, ref) -> np.ndarray:
     return np.max(np.linalg.norm(traj.omega_body - ref.omega_body, axis=2), axis=1)
 
 
+@measures("branch_error", on="system")
 def branch_error(scenario, traj) -> np.ndarray | None:
     """The four-bar's branch check (module docstring), rad, (n,), or None."""
     if "parallelogram" not in scenario.tags or "coupler" not in scenario.body_names:
@@ -164,31 +186,24 @@ def _inside(traj, ref):
 
 
 def compute_system_metrics(scenario, traj, ref=None) -> dict[str, float]:
-    """Every metric of one system run (module docstring). ``ref``: the
+    """Every metric of one system run: each system metric of the catalog
+    (:mod:`reports.metrics.catalog`; the module docstring) as its largest value over the
+    samples, those against the reference over the samples up to its trusted horizon, NaN
+    where it does not apply. ``ref``: the
     :class:`references.engines.exact_system.SystemReference` at the same times, or None
     (error metrics NaN)."""
-    md = momentum_drift(scenario, traj)
-    gaps = joint_gaps(scenario, traj)
-    br = branch_error(scenario, traj)
-    m = {
-        "energy_drift_max": _max(energy_drift(scenario, traj)),
-        "momentum_drift_max": math.nan if md is None else _max(md),
-        "orthonormality_max": _max(orthonormality(traj)),
-        "joint_gap_max": _max([g["gap"] for g in gaps.values()]) if gaps else math.nan,
-        "joint_angle_gap_max": _max([g["angle"] for g in gaps.values()]) if gaps else math.nan,
-        "branch_error": math.nan if br is None else _max(br),
-        "attitude_error_max": math.nan,
-        "omega_error_max": math.nan,
-        "position_error_max": math.nan,
-    }
     if ref is not None:
         rt = ref.trajectory
         if len(rt) != len(traj) or not np.allclose(rt.t, traj.t, rtol=0, atol=1e-9):
             raise ValueError("the system reference is sampled at other times than the run")
         a, b = _inside(traj, ref)
-        m["attitude_error_max"] = _max(attitude_errors(a, b))
-        m["omega_error_max"] = _max(omega_errors(a, b))
-        m["position_error_max"] = _max(position_errors(a, b))
+    m = {}
+    for metric, fn in computed("system"):
+        if metric.reference:
+            m[metric.name] = math.nan if ref is None else _max(fn(scenario, a, b))
+        else:
+            v = fn(scenario, traj)
+            m[metric.name] = math.nan if v is None else _max(v)
     return m
 
 
@@ -214,3 +229,6 @@ def error_series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
         err = attitude_errors(traj, ref.trajectory)
         cols["attitude_error"] = np.where(traj.t <= ref.horizon * (1 + 1e-12), err, np.nan)
     return cols
+
+
+check_attached("system")

@@ -8,11 +8,11 @@ not accurate enough to judge by).
 
 Tolerances come from, in increasing precedence:
 
-1. :data:`DEFAULT_TOLERANCES`, shared by every integrator family: a configuration that gets
-   the motion right to 0.1 rad of attitude, 1 % of the energy scales (the total, and a free
-   body's rotational and translational energy each against its own) and of the momentum
-   scale, 1 % on the
-   flip interval and nutation period, and keeps R orthonormal to 1e-9;
+1. :data:`DEFAULT_TOLERANCES` (each metric's ``tolerance`` in the metric catalog), shared by
+   every integrator family: a configuration that gets the motion right to 0.1 rad of
+   attitude, 1 % of the energy scales (the total, and a free body's rotational and
+   translational energy each against its own) and of the momentum scale, 1 % on the flip
+   interval and nutation period, and keeps R orthonormal to 1e-9;
 2. the family's own (:class:`references.engines.Family` ``tolerances``: a family that
    promises more is held to it, e.g. the director schemes keep R orthonormal to round-off),
    then the integrator's own (:class:`references.engines.Integrator` ``tolerances``, e.g.
@@ -29,28 +29,12 @@ from __future__ import annotations
 
 import math
 
-#: Default verdict bounds, every family (metric -> largest value that passes). The metrics
-#: and their scales are in reports.metrics.body; the values are this suite's choice of "right":
-#: the attitude to 0.1 rad (a flip at the right time, a top on the right side), energy and
-#: momentum to 1 % of the scenario's scales, phase observables to 1 %, and R orthonormal to
-#: 1e-9 (every engine that renormalises keeps ~1e-15).
-DEFAULT_TOLERANCES = {
-    "attitude_error_max": 0.1,
-    "energy_drift_max": 1e-2,
-    "energy_drift_rot_max": 1e-2,
-    "energy_drift_trans_max": 1e-2,
-    "momentum_drift_max": 1e-2,
-    "orthonormality_max": 1e-9,
-    "flip_interval_error": 1e-2,
-    "nutation_period_error": 1e-2,
-    # systems of bodies (reports.metrics.system): a joint open by 1 mm or its axes 1 mrad
-    # apart on the library's links of 0.5 to 1.4 m is the finer precision class (1e-3) of
-    # the IFToMM benchmarks (Gonzalez et al. 2006) on a link's size, and 1e11 times the
-    # round-off the director schemes keep; the branch check as the attitude (0.1 rad)
-    "joint_gap_max": 1e-3,
-    "joint_angle_gap_max": 1e-3,
-    "branch_error": 0.1,
-}
+from reports.metrics import catalog
+
+#: Default verdict bounds, every family (metric -> largest value that passes), from the metric
+#: catalog (:data:`reports.metrics.catalog.DEFAULT_TOLERANCES`; scenarios.metric_catalog says
+#: where each bound comes from)
+DEFAULT_TOLERANCES = catalog.DEFAULT_TOLERANCES
 
 #: the reference must be this many times more accurate than the attitude tolerance
 REFERENCE_MARGIN = 10.0

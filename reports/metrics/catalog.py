@@ -1,0 +1,186 @@
+"""The metric catalog: each metric declared once, its computation attached, every table derived.
+
+The declarations (:data:`METRICS`: name, unit, scale, round-off floor, title, short name,
+default tolerance, better direction, single bodies and/or systems, kind) are plain data in
+:mod:`scenarios.metric_catalog`, the lowest layer of the suite, because scenario validation
+checks the names of a ``[tolerances]`` table and ``scenarios`` may not import ``reports``
+(``tests/test_layers.py``). This module attaches to each name how it is computed and derives
+every table the later stages use:
+
+- :func:`measures`, a decorator on the function that computes a metric, in
+  :mod:`reports.metrics.body` (``on="body"``) or :mod:`reports.metrics.system`
+  (``on="system"``). A :data:`POINTWISE` function returns the per-sample values, shape (n,),
+  or None where the metric does not apply to the scenario (NaN in the results); an
+  :data:`OBSERVABLE` function returns one number. It names the arguments it takes among
+  ``scenario``, ``traj``, ``ref`` and ``expected`` (the exact observables), and is called
+  with those; ``measures`` may fix further keyword arguments. Each of those modules calls
+  :func:`check_attached` at its end, so a declared metric without its function, or a
+  function of an undeclared one, fails on import.
+- :func:`computed`: (metric, function) pairs for ``compute_metrics``,
+  ``compute_system_metrics``, the streamed maxima and the per-sample series;
+- the tables: :data:`METRIC_COLUMNS` (store), :data:`FLOORS`, :data:`HIGHER_IS_BETTER`,
+  :data:`ORDER_SLACK` (gate, compare, report), :data:`DEFAULT_TOLERANCES` (verdicts),
+  :data:`METRIC_TITLES`, :data:`METRIC_SHORT` (report), :data:`ERROR_PANELS` (errors figure),
+  :data:`SYSTEM_METRICS`, :data:`STREAMED`.
+
+Adding a metric: its :class:`Metric` entry in :mod:`scenarios.metric_catalog`, its function
+with ``@measures(name)`` and its test (docs/extending.md).
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+
+from scenarios.metric_catalog import (
+    METRICS,
+    OBSERVABLE,
+    POINTWISE,
+    SWEEP,
+    Metric,
+    shown_order,
+)
+
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "ERROR_PANELS",
+    "FLOORS",
+    "HIGHER_IS_BETTER",
+    "METRICS",
+    "METRIC_COLUMNS",
+    "METRIC_SHORT",
+    "METRIC_TITLES",
+    "OBSERVABLE",
+    "ORDER_SLACK",
+    "POINTWISE",
+    "STREAMED",
+    "SWEEP",
+    "SYSTEM_METRICS",
+    "Metric",
+    "by_name",
+    "check_attached",
+    "computed",
+    "measures",
+]
+
+#: the arguments a metric function may take, by name
+ARGUMENTS = ("scenario", "traj", "ref", "expected")
+#: what a metric applies to
+TARGETS = ("body", "system")
+
+_BY_NAME = {m.name: m for m in METRICS}
+#: (name, target) -> the function, called with keyword arguments among :data:`ARGUMENTS`
+_FUNCTIONS: dict[tuple[str, str], Callable] = {}
+
+
+def by_name(name: str) -> Metric:
+    """The catalog entry of ``name`` (KeyError naming the known metrics otherwise)."""
+    try:
+        return _BY_NAME[name]
+    except KeyError:
+        raise KeyError(
+            f"{name!r} is not a metric of the catalog; known: {', '.join(_BY_NAME)}"
+        ) from None
+
+
+def measures(name: str, on: str = "body", **fixed) -> Callable:
+    """Decorator attaching the function to the catalog as how metric ``name`` is computed on
+    ``on`` ("body" or "system"); ``fixed`` keyword arguments are passed on every call. The
+    function is returned unchanged (it stays callable as before)."""
+
+    def attach(fn: Callable) -> Callable:
+        where = f"{fn.__module__}.{fn.__qualname__}"
+        m = _BY_NAME.get(name)
+        if m is None:
+            raise ValueError(f"{where}: {name!r} is not declared in scenarios.metric_catalog")
+        if on not in TARGETS or not getattr(m, on):
+            raise ValueError(f"{where}: {name!r} is not declared as applying to on={on!r}")
+        if m.kind not in (POINTWISE, OBSERVABLE):
+            raise ValueError(f"{where}: {name!r} is a {m.kind} metric, computed over runs")
+        params = set(inspect.signature(fn).parameters) - set(fixed)
+        extra = params - set(ARGUMENTS)
+        if extra:
+            raise ValueError(
+                f"{where}: parameters {sorted(extra)} are none of {ARGUMENTS} and not fixed"
+            )
+        takes = tuple(a for a in ARGUMENTS if a in params)
+        if (name, on) in _FUNCTIONS:
+            raise ValueError(f"{where}: {name!r} on {on} already has a function")
+
+        def call(scenario, traj, ref=None, expected=None):
+            given = {"scenario": scenario, "traj": traj, "ref": ref, "expected": expected}
+            return fn(**{a: given[a] for a in takes}, **fixed)
+
+        call.__name__ = call.__qualname__ = f"{name}[{on}]"
+        _FUNCTIONS[(name, on)] = call
+        return fn
+
+    return attach
+
+
+def computed(on: str) -> list[tuple[Metric, Callable]]:
+    """(metric, function) of every pointwise and observable metric applying to ``on``, in
+    catalog order; the function is called ``fn(scenario, traj, ref, expected)``."""
+    return [
+        (m, _FUNCTIONS[(m.name, on)])
+        for m in METRICS
+        if getattr(m, on) and m.kind in (POINTWISE, OBSERVABLE)
+    ]
+
+
+def check_attached(on: str) -> None:
+    """Raise if a metric applying to ``on`` has no function (called once every function of
+    ``on`` is defined)."""
+    missing = [
+        m.name
+        for m in METRICS
+        if getattr(m, on) and m.kind in (POINTWISE, OBSERVABLE) and (m.name, on) not in _FUNCTIONS
+    ]
+    if missing:
+        raise ImportError(
+            f"metrics declared for on={on!r} in scenarios.metric_catalog without a function "
+            f"(@measures(name, on={on!r})): {', '.join(missing)}"
+        )
+
+
+# -- tables derived from the catalog ----------------------------------------------------------
+
+#: the store's metric columns, in catalog order
+METRIC_COLUMNS = tuple(m.name for m in METRICS)
+
+#: round-off floors: values below these are round-off, compared as equal (gate, compare, report)
+FLOORS = {m.name: m.floor for m in METRICS if m.floor is not None}
+
+#: metrics where a larger value is better; every other metric is an error (lower is better)
+HIGHER_IS_BETTER = frozenset(m.name for m in METRICS if m.higher_is_better)
+
+#: a fitted convergence order may fall by this much before it counts as a regression
+ORDER_SLACK = _BY_NAME["convergence_order"].slack
+
+#: default verdict bounds, every family (metric -> largest value that passes), the errors
+#: against the reference trajectory first (a verdict's detail lists the failed metrics in
+#: this order), then catalog order
+DEFAULT_TOLERANCES = {
+    m.name: m.tolerance
+    for m in sorted(METRICS, key=lambda m: not m.reference)
+    if m.tolerance is not None
+}
+
+#: column titles of the metrics in the report, with units, in the order shown
+METRIC_TITLES = {m.name: m.title for m in shown_order() if m.title is not None}
+
+#: short names of the metrics in verdict texts (a metric without one is shown by its name)
+METRIC_SHORT = {m.name: m.short for m in shown_order() if m.short is not None}
+
+#: the panels of the errors-over-time figure: (series column, y label, scale column, unit)
+ERROR_PANELS = tuple(
+    (m.series, m.panel, m.scale_column, m.scale_unit)
+    for m in shown_order()
+    if m.panel is not None and m.series is not None
+)
+
+#: the metrics only systems have
+SYSTEM_METRICS = tuple(m.name for m in METRICS if m.system and not m.body)
+
+#: the metrics a single body's streaming recorder folds over every step
+STREAMED = tuple(m.name for m in METRICS if m.body and m.kind == POINTWISE)

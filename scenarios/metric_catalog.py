@@ -1,0 +1,181 @@
+"""The declarations of the metric catalog: every metric the suite measures, once, as plain data.
+
+One :class:`Metric` per metric says what it is (name, unit, what it is measured against, its
+round-off floor), how it is shown (title, short name, figure panel), how it is judged (default
+tolerance, which direction is better) and where it applies (single bodies, systems, which
+computation). Every table the suite needs is derived from :data:`METRICS`: the result store's
+columns, the gate's floors and slack, the report's titles and short names, the verdicts'
+default tolerances, the errors figure's panels, the streamed metrics and the names a
+scenario's ``[tolerances]`` table accepts (:data:`scenarios.model.TOLERANCE_METRICS`).
+
+Why here, in the scenario layer, as data without functions: a scenario file bounds metrics by
+name, so scenario validation must know the names, and the layer rule (``tests/test_layers.py``)
+forbids ``scenarios`` importing ``reports``. The declarations therefore sit in the lowest
+layer of the suite and import nothing; how each metric is computed is attached to its name in
+``reports.metrics`` (the ``measures`` decorator of :mod:`reports.metrics.catalog`, on the
+function in :mod:`reports.metrics.body` or :mod:`reports.metrics.system`), which checks on
+import that every metric declared here has its function and that no function names a metric
+not declared here. Adding a metric is one entry below, its function (with its ``measures``
+line) and its test.
+
+The order of :data:`METRICS` is the order of the store's metric columns. The report shows the
+metrics compared with an exact solution first (a reference trajectory, or an exact
+observable), then the others, each group in this order (:func:`shown_order`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: computed at every saved sample and reduced to its largest value over the run; streamed
+#: over long runs as a running maximum over every step (``reports.metrics.streaming``)
+POINTWISE = "pointwise"
+#: one number per run from the run and an exact value of an observable (e.g. a flip interval)
+OBSERVABLE = "observable"
+#: one number per configuration from the runs of a dt sweep (``add_convergence_orders``)
+SWEEP = "sweep"
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric of a run (a column of the results store and of ``results.csv``).
+
+    - ``name``: the column and the key of a ``[tolerances]`` table;
+    - ``unit``: of the value ("1" for a ratio to ``scale``, "rad", "rad/s", "m");
+    - ``scale``: what the value is measured against, the size of what it measures in the
+      scenario, never a quantity that may vanish (text for the docs);
+    - ``floor``: round-off floor, in the metric's unit: values below it are round-off and
+      compare as equal (gate, compare, report); None: none declared (compared as they are);
+    - ``title``: the column title of the report's scenario tables, with the unit; None: not
+      a column there;
+    - ``short``: the name in verdict texts ("fail (attitude, energy)"); None: the name;
+    - ``tolerance``: the default verdict bound for every family (largest value that passes);
+      None: reported, not judged unless a family, an integrator or a scenario bounds it;
+    - ``higher_is_better``: a larger value is better (an order); otherwise it is an error;
+    - ``slack``: for a higher-is-better metric, by how much it may fall before it is worse;
+    - ``body``, ``system``: whether it applies to a single body, to a system of bodies;
+    - ``kind``: :data:`POINTWISE`, :data:`OBSERVABLE` or :data:`SWEEP`;
+    - ``reference``: needs the reference trajectory (NaN without one);
+    - ``series``: the name of its per-sample series, written beside a single body's
+      trajectory (the figures read it); None: not written;
+    - ``panel``: the y label of its panel in the errors-over-time figure; None: no panel;
+    - ``scale_column``, ``scale_unit``: the store column holding the run's scale and its
+      unit, shown under the panel's label.
+    """
+
+    name: str
+    unit: str
+    scale: str
+    floor: float | None = None
+    title: str | None = None
+    short: str | None = None
+    tolerance: float | None = None
+    higher_is_better: bool = False
+    slack: float | None = None
+    body: bool = True
+    system: bool = False
+    kind: str = POINTWISE
+    reference: bool = False
+    series: str | None = None
+    panel: str | None = None
+    scale_column: str | None = None
+    scale_unit: str = ""
+
+
+# Default tolerances are this suite's choice of "right": the attitude to 0.1 rad (a flip at the
+# right time, a top on the right side), energy and momentum to 1 % of the scenario's scales,
+# phase observables to 1 %, and R orthonormal to 1e-9 (every engine that renormalises keeps
+# ~1e-15). Below its round-off floor a value is round-off: 3e-16 against 9e-15 is no change.
+METRICS: tuple[Metric, ...] = (
+    Metric(
+        "energy_drift_max", "1",
+        "E_c, the energy in play over the horizon (Scenario.energy_scale, "
+        "SystemScenario.energy_scale), never E0",
+        floor=1e-11, title="energy drift [E_c]", short="energy", tolerance=1e-2, system=True,
+        series="energy_drift", panel="|E − E₀| / E_c [1]", scale_column="energy_scale",
+        scale_unit="J",
+    ),
+    Metric(
+        "energy_drift_rot_max", "1",
+        "a free body's rotational energy 1/2 W.IW (Scenario.rotational_energy_scale)",
+        floor=1e-11, short="rotational energy", tolerance=1e-2,
+    ),
+    Metric(
+        "energy_drift_trans_max", "1",
+        "a free body's largest translational kinetic energy over the horizon "
+        "(Scenario.translational_energy_scale)",
+        floor=1e-11, short="translational energy", tolerance=1e-2,
+    ),
+    Metric(
+        "momentum_drift_max", "1",
+        "L_c = sqrt(2 E_rot I_max) (Scenario.momentum_scale); a floating system's linear "
+        "momentum also over p_c",
+        floor=1e-11, title="momentum drift [L_c]", short="momentum", tolerance=1e-2,
+        system=True, series="momentum_drift", panel="|ΔL| / L_c [1]",
+        scale_column="momentum_scale", scale_unit="kg m²/s",
+    ),
+    Metric(
+        "orthonormality_max", "1", "none: ||R^T R - 1||_F is relative to the identity",
+        floor=1e-11, title="‖RᵀR − 1‖", short="orthonormality", tolerance=1e-9, system=True,
+        series="orthonormality",
+    ),
+    Metric(
+        "constraint_velocity_max", "1", "w_c, the rate scale (Scenario.rate_scale)",
+        floor=1e-11, title="velocity constraint [w_c]", short="velocity constraint",
+    ),
+    Metric(
+        "attitude_error_max", "rad", "none: an angle", floor=1e-10,
+        title="attitude error [rad]", short="attitude", tolerance=0.1, system=True,
+        reference=True, series="attitude_error", panel="attitude error [rad]",
+    ),
+    Metric(
+        "omega_error_max", "rad/s", "none: |W - W_ref| in rad/s", floor=1e-10,
+        title="W error [rad/s]", short="W", system=True, reference=True, series="omega_error",
+    ),
+    Metric(
+        "position_error_max", "m", "none: |x_G - x_G,ref| in m", floor=1e-10,
+        title="x_G error [m]", short="position", system=True, reference=True,
+    ),
+    Metric(
+        "flip_interval_error", "1", "the exact flip interval", floor=1e-9,
+        title="flip interval error [rel.]", short="flip interval", tolerance=1e-2,
+        kind=OBSERVABLE,
+    ),
+    Metric(
+        "nutation_period_error", "1", "the exact nutation period", floor=1e-9,
+        title="nutation period error [rel.]", short="nutation period", tolerance=1e-2,
+        kind=OBSERVABLE,
+    ),
+    # systems of bodies: a joint open by 1 mm or its axes 1 mrad apart on the library's links
+    # of 0.5 to 1.4 m is the finer precision class (1e-3) of the IFToMM benchmarks (Gonzalez
+    # et al. 2006) on a link's size, and 1e11 times the round-off the director schemes keep;
+    # the branch check as the attitude (0.1 rad)
+    Metric(
+        "joint_gap_max", "m", "none: a distance in m", title="joint gap [m]", tolerance=1e-3,
+        body=False, system=True,
+    ),
+    Metric(
+        "joint_angle_gap_max", "rad", "none: an angle", title="joint axes gap [rad]",
+        tolerance=1e-3, body=False, system=True,
+    ),
+    Metric(
+        "branch_error", "rad", "none: an angle", title="branch error [rad]", tolerance=0.1,
+        body=False, system=True,
+    ),
+    Metric(
+        "convergence_order", "1", "none: a slope of log(error) against log(dt)",
+        higher_is_better=True, slack=0.3, system=True, kind=SWEEP,
+    ),
+)  # fmt: skip
+
+
+def shown_order(metrics: tuple[Metric, ...] = METRICS) -> list[Metric]:
+    """The metrics in the order the report shows them: those compared with an exact solution
+    (a reference trajectory or an exact observable) first, then the others; each group in
+    catalog order."""
+    exact = [m for m in metrics if m.reference or m.kind == OBSERVABLE]
+    return exact + [m for m in metrics if m not in exact]
+
+
+#: the names a scenario's ``[tolerances]`` table may bound: every error (lower is better)
+BOUNDED = tuple(m.name for m in METRICS if not m.higher_is_better)
