@@ -6,9 +6,10 @@ reproducible): ``W_k = s_k u_k`` with ``u_k`` uniform on S^2 and ``s_k`` chosen 
 ``1/2 W_k . I W_k`` equals the scenario's rotational kinetic energy. Such members cross every
 regime of the free body: rotations about the major and minor axes and near-separatrix tumbling.
 
-director_model runs all members in one call of its batched path, MJX all members of a
-configuration in one vmapped, compiled call; every other engine runs each member through its
-adapter (distributable like any sweep). Metrics, statuses and verdicts are
+An engine that steps many bodies together (``batched``: director_model in one call of its
+batched path, MJX in one vmapped, compiled call) runs all members of a configuration through its
+``run_batch``; every other engine runs each member through its adapter (distributable like any
+sweep). Metrics, statuses and verdicts are
 the suite's, member by member, against each member's own reference. Output: the ensemble
 store ``ensemble.sqlite`` in the output folder (the same transactional store as the results,
 reports.store.results), exported as ``ensemble.csv``, one row per member and configuration.
@@ -83,68 +84,20 @@ def check_ensemble(scenario, n: int, dt: float, t_end: float, jobs: int | None =
         )
 
 
-def _director_batch(mems, specs) -> list[dict]:
-    """All members of one director scheme in one call of director_model's batched path; the
-    rows are built like every other run's (reports.run.runner)."""
-    import director_model as dm
-    from references.engines import RunOutput, get_engine
-    from references.trajectory import Trajectory
-    from reports.run.runner import _judge, _measure
-
-    base, spec0 = mems[0], specs[0]
-    integ = get_engine("director").integrator(spec0.integrator)
-    kwargs = {}
-    if base.pivot is None:
-        kwargs = dict(
-            position=np.stack([m.position for m in mems]),
-            velocity=np.stack([m.velocity for m in mems]),
-        )
-    rows = [_start_row(sp, integ) for sp in specs]
-    try:
-        out = dm.simulate_batch(
-            base.mass,
-            base.inertia,
-            rotation=np.stack([m.rotation for m in mems]),
-            omega_body=np.stack([m.omega_body for m in mems]),
-            gravity=base.gravity,
-            pivot=base.pivot,
-            scheme=spec0.integrator,
-            dt=spec0.dt,
-            t_end=spec0.horizon,
-            save_every=spec0.saving,
-            **kwargs,
-        )
-    except dm.StepSizeError as exc:
-        # The batch stops at its first member that cannot be stepped: record the message
-        # for every member rather than guess which ones would have succeeded.
-        for row in rows:
-            row.update(status="error", message=f"the batched run stopped: {exc}")
-        return rows
-    nbody = len(mems)
-    wall = float(out.wall_time_s) / nbody
-    for k, (m, sp, row) in enumerate(zip(mems, specs, rows, strict=True)):
-        traj = Trajectory.from_states(
-            m, out.t, out.position[k], out.velocity[k], out.rotation[k], out.omega_body[k]
-        )
-        output = RunOutput(traj, int(out.nstep), wall, wall, integ.evals_per_step or 0.0)
-        _measure(row, sp, m, output, None, None, "parquet")
-        _judge(row, m, integ, None)
-    return rows
-
-
-def _mjx_batch(mems, specs) -> list[dict]:
-    """All members of one MJX configuration in one vmapped, compiled call
-    (references.engines.mjx_engine.run_batch); the rows are built like every other run's
-    (reports.run.runner), a diverged member's from its output up to the divergence."""
-    from references.engines import Diverged, EngineError, Unsupported, get_engine
-    from references.engines.mjx_engine import run_batch
+def _batch(cls, specs) -> list[dict]:
+    """All members of one configuration in one call of the engine's ``run_batch`` (an engine
+    that steps many bodies together, ``batched``: director_model's batched path, MJX's
+    vmapped, compiled call); the rows are built like every other run's (reports.run.runner),
+    a diverged member's from its output up to the divergence."""
+    from references.engines import Diverged, EngineError, Unsupported
     from reports.run.runner import _judge, _measure
 
     spec0 = specs[0]
-    integ = get_engine("mjx").integrator(spec0.integrator)
+    integ = cls.integrator(spec0.integrator)
     rows = [_start_row(sp, integ) for sp in specs]
+    mems = [sp.scenario for sp in specs]
     try:
-        results = run_batch(mems, spec0.integrator, spec0.dt, spec0.horizon, spec0.saving)
+        results = cls().run_batch(mems, spec0.integrator, spec0.dt, spec0.horizon, spec0.saving)
     except EngineError as exc:
         # the model, an initial state or the configuration was refused for the whole batch
         why = str(exc) if isinstance(exc, Unsupported) else f"the batched run stopped: {exc}"
@@ -153,7 +106,11 @@ def _mjx_batch(mems, specs) -> list[dict]:
         return rows
     for m, sp, row, res in zip(mems, specs, rows, results, strict=True):
         diverged = res if isinstance(res, Diverged) else None
-        _measure(row, sp, m, res.output if diverged else res, None, None, "parquet")
+        output = res.output if diverged else res
+        if isinstance(res, EngineError) and output is None:
+            row.update(status=res.status, message=str(res))
+            continue
+        _measure(row, sp, m, output, None, None, "parquet")
         _judge(row, m, integ, diverged)
     return rows
 
@@ -197,9 +154,9 @@ def run_ensemble(
         done = store.done_ids()
         specs = []
         for name in engines or engine_names():
-            if name == "exact":
-                continue
             cls = get_engine(name)
+            if cls.is_reference:
+                continue
             why = cls.availability()
             version = cls.version() if why is None else "unavailable"
             for integ in cls.integrators:
@@ -209,11 +166,8 @@ def run_ensemble(
                     RunSpec(m, name, integ.name, dt, t_end, engine_version=version) for m in mems
                 ]
                 group = [sp for sp in group if sp.run_id not in done]
-                if name == "director" and why is None and group:
-                    for row in _director_batch([sp.scenario for sp in group], group):
-                        store.put(row)
-                elif name == "mjx" and why is None and group:
-                    for row in _mjx_batch([sp.scenario for sp in group], group):
+                if cls.batched and why is None and group:
+                    for row in _batch(cls, group):
                         store.put(row)
                 else:
                     specs += group
