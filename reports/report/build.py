@@ -35,6 +35,7 @@ import os
 import re
 from pathlib import Path
 
+from reports.metrics import catalog
 from reports.report.groups import group_rows, sweep_groups
 from reports.report.labels import (
     METRIC_SHORT,
@@ -66,22 +67,9 @@ from reports.store.format import fmt, fmt_int, fmt_level, fmt_step, md_cell
 from reports.store.provenance import read_provenance
 from reports.store.results import STATUSES, records
 
-#: column titles of the metrics, with units (no character GitHub's tables would split on)
-METRIC_TITLES = {
-    "attitude_error_max": "attitude error [rad]",
-    "omega_error_max": "W error [rad/s]",
-    "position_error_max": "x_G error [m]",
-    "flip_interval_error": "flip interval error [rel.]",
-    "nutation_period_error": "nutation period error [rel.]",
-    "energy_drift_max": "energy drift [E_c]",
-    "momentum_drift_max": "momentum drift [L_c]",
-    "orthonormality_max": "‖RᵀR − 1‖",
-    "constraint_velocity_max": "velocity constraint [w_c]",
-    # systems of bodies (reports.metrics.system)
-    "joint_gap_max": "joint gap [m]",
-    "joint_angle_gap_max": "joint axes gap [rad]",
-    "branch_error": "branch error [rad]",
-}
+#: column titles of the metrics, with units (no character GitHub's tables would split on), in
+#: the order shown: the metric catalog's (:data:`reports.metrics.catalog.METRIC_TITLES`)
+METRIC_TITLES = catalog.METRIC_TITLES
 
 #: a mark per outcome in the HTML scorecard, beside its colour (the words are in the legend)
 MARK = {
@@ -633,9 +621,10 @@ def failures_section(doc: Doc, df) -> None:
 
 
 def _readable_detail(text: str) -> str:
-    for m, short in METRIC_SHORT.items():
-        text = text.replace(m, short)
-    return text
+    """A verdict detail with the metrics' short names (whole names only: a metric whose name
+    ends with another's, e.g. ``x_momentum_drift_max``, keeps its own)."""
+    names = "|".join(re.escape(m) for m in METRIC_SHORT)
+    return re.sub(rf"\b({names})\b", lambda k: METRIC_SHORT[k.group(1)], text)
 
 
 def _agree(g) -> str:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+from reports.metrics.catalog import METRIC_SHORT  # noqa: F401  (short names in verdict texts)
 from reports.store.format import fmt, fmt_level, fmt_step, num, truthy
 
 #: integrator families in the order tables and the scorecard show them (others follow, sorted)
@@ -23,21 +24,6 @@ ENGINE_ORDER = ("director", "mujoco", "pinocchio", "dart", "pybullet", "exact")
 
 #: statuses that are not a result of the configuration (nothing ran, or could not)
 NOT_RUN = ("unsupported", "unavailable")
-
-#: short names of the metrics in verdict texts
-METRIC_SHORT = {
-    "attitude_error_max": "attitude",
-    "omega_error_max": "W",
-    "position_error_max": "position",
-    "flip_interval_error": "flip interval",
-    "nutation_period_error": "nutation period",
-    "energy_drift_max": "energy",
-    "energy_drift_rot_max": "rotational energy",
-    "energy_drift_trans_max": "translational energy",
-    "momentum_drift_max": "momentum",
-    "orthonormality_max": "orthonormality",
-    "constraint_velocity_max": "velocity constraint",
-}
 
 
 def family_key(fam: str) -> tuple:

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reports.metrics import catalog
 from reports.metrics.body import SATURATION
 from reports.report.groups import group_rows, sweep_groups
 from reports.report.labels import (
@@ -491,12 +492,9 @@ def _plot_rows(df, scenario):
 
 # -- time plots ---------------------------------------------------------------------------------
 
-#: the panels of the errors-over-time figure: (series column, y label, scale column, unit)
-ERROR_PANELS = (
-    ("attitude_error", "attitude error [rad]", None, ""),
-    ("energy_drift", "|E − E₀| / E_c [1]", "energy_scale", "J"),
-    ("momentum_drift", "|ΔL| / L_c [1]", "momentum_scale", "kg m²/s"),
-)
+#: the panels of the errors-over-time figure: (series column, y label, scale column, unit), the
+#: metric catalog's (:data:`reports.metrics.catalog.ERROR_PANELS`)
+ERROR_PANELS = catalog.ERROR_PANELS
 
 
 def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
@@ -546,7 +544,7 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
     axes[0].set_title(f"{scenario}: errors against time, running max (dt = {fmt_step(h)} s)")
     _legend(axes[0])
-    words = {"attitude_error": "attitude", "energy_drift": "energy", "momentum_drift": "momentum"}
+    words = {m.series: m.short for m in catalog.METRICS if m.panel}
     notes = ""
     if off:
         notes = "Beyond the top of a panel (cut there, ▲): " + "; ".join(

@@ -62,18 +62,11 @@ def expected_for(scenario) -> dict:
 
 
 def error_series(scenario, traj, ref) -> dict[str, np.ndarray]:
-    """Per-sample drifts and errors of one run, so that plots are pure functions of files."""
-    from reports.metrics import body as metrics
+    """Per-sample drifts and errors of one run, so that plots are pure functions of files:
+    the series the metric catalog declares (:func:`reports.metrics.body.series`)."""
+    from reports.metrics.body import series
 
-    cols = {
-        "energy_drift": metrics.energy_drift(scenario, traj),
-        "momentum_drift": metrics.momentum_drift(scenario, traj),
-        "orthonormality": metrics.orthonormality(traj),
-    }
-    if ref is not None:
-        cols["attitude_error"] = metrics.attitude_error(traj, ref)
-        cols["omega_error"] = metrics.omega_error(traj, ref)
-    return cols
+    return series(scenario, traj, ref)
 
 
 def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) -> None:

@@ -40,7 +40,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from scenarios.model import TOLERANCE_METRICS
+from reports.metrics.catalog import METRIC_COLUMNS
 
 STORE_NAME = "results.sqlite"
 #: version of the store's layout, checked on open
@@ -51,9 +51,8 @@ APPLICATION_ID = 0x44425231
 #: the tables of a results store
 STORE_TABLES = frozenset({"runs", "meta"})
 
-#: metric columns, see reports.metrics.body: every metric a scenario's ``[tolerances]`` may bound
-#: ("lower is better"), and the measured convergence order
-METRIC_COLUMNS = (*TOLERANCE_METRICS, "convergence_order")
+#: metric columns (:data:`reports.metrics.catalog.METRIC_COLUMNS`): every metric of the catalog,
+#: in its order, among the columns below
 
 RESULT_COLUMNS = (
     "run_id",
