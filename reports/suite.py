@@ -81,10 +81,9 @@ def check_engines(engines) -> list[str]:
 def check_integrators(integrators, engines: list[str]) -> list[str] | None:
     """The display names of the integrators asked for, each offered by at least one of
     ``engines``. A name is given as displayed ("semi-implicit Euler", quoted in a shell) or
-    as its slug (``semi-implicit-euler``, :func:`references.engines.base.slug`), in any case;
+    as its slug (``semi-implicit-euler``, :func:`references.engines.slug`), in any case;
     it selects every integrator of these engines with that slug."""
-    from references.engines import get_engine
-    from references.engines.base import slug
+    from references.engines import get_engine, slug
 
     if integrators is None:
         return None

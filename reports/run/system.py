@@ -44,7 +44,7 @@ def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> N
 def _measure(row, spec, sc, output, out, fmt):
     """Timings, settings, metrics and the trajectory file of a run's output; returns the
     reference used (None: none)."""
-    from references.engines import Unsupported
+    from references.engines import Unsupported, get_engine
     from references.engines.exact_system import reference
     from reports.metrics.system import compute_system_metrics, error_series
 
@@ -67,7 +67,7 @@ def _measure(row, spec, sc, output, out, fmt):
         roundoff_floor=roundoff_floor(sc, output.nstep),
     )
     ref = None
-    if spec.engine == "exact":
+    if get_engine(spec.engine).is_reference:
         row["reference_kind"] = output.settings.get("reference kind", "")
         row["reference_accuracy"] = float(output.settings.get("accuracy", math.nan))
     elif len(traj):
