@@ -10,7 +10,8 @@ import pytest
 
 import scenarios
 from reports.cli import main
-from reports.gate.compare import classify, classify_cost, compare_folders, cost_range
+from reports.gate.compare import compare_folders
+from reports.gate.rule import classify, classify_cost, cost_range
 from reports.run.runner import plan, run_suite
 from reports.store.results import RunSpec, Store, read_results
 
@@ -38,7 +39,7 @@ def folders(tmp_path_factory):
 def test_a_metric_worse_beyond_the_factor_is_a_regression(folders):
     a, b = folders
     cmp = compare_folders(a, b)
-    assert len(cmp.both) == 2 and cmp.only_a == [] and len(cmp.only_b) == 1
+    assert len(cmp.compared) == 2 and cmp.only_a == [] and len(cmp.only_b) == 1
     (reg,) = cmp.regressions
     assert reg.key[1:3] == ("mujoco", "Euler") and reg.column == "attitude_error_max"
     assert reg.ratio == pytest.approx(10.0, rel=1e-12)
@@ -97,7 +98,7 @@ def test_another_engine_version_is_a_mismatch_unless_allowed(folders, tmp_path, 
             st.put(r)
     assert set(read_results(c)["engine_version"]) == {"9.9.9"}
     cmp = compare_folders(a, c)
-    assert len(cmp.both) == 2 and not cmp.ok
+    assert len(cmp.compared) == 2 and not cmp.ok
     assert {ch.change for ch in cmp.changes} == {"mismatch"}
     assert all(f"engine_version {old} vs 9.9.9" in ch.b for ch in cmp.changes)
     assert main(["compare", str(a), str(c)]) == 1
@@ -209,7 +210,7 @@ def test_a_cost_change_counts_only_when_every_dt_of_its_sweep_moved():
     """A burst of load on the machine slows single runs; the engine's own slowdown moves every
     step size (on an identical rerun beside a second suite, 2 of 1164 cost comparisons were
     called worse, each at one dt of a three-step sweep)."""
-    from reports.gate.compare import Change, _corroborate_costs
+    from reports.gate.rule import Change, corroborate_costs
 
     def sweep(words, integ="RK4"):
         return [
@@ -218,12 +219,12 @@ def test_a_cost_change_counts_only_when_every_dt_of_its_sweep_moved():
         ]
 
     burst = sweep(["same", "worse", "not significant"])
-    _corroborate_costs(burst)
+    corroborate_costs(burst)
     assert [c.change for c in burst] == ["same", "not significant", "not significant"]
     slower = sweep(["worse", "worse", "worse"])
-    _corroborate_costs(slower)
+    corroborate_costs(slower)
     assert [c.change for c in slower] == ["worse"] * 3
     single = sweep(["better"], integ="Euler")
     metric = [Change(("s", "mujoco", "RK4", 1e-3, None), "attitude_error_max", 1, 9, 9, "worse")]
-    _corroborate_costs(single + metric + sweep(["same", "same", "same"]))
+    corroborate_costs(single + metric + sweep(["same", "same", "same"]))
     assert single[0].change == "better" and metric[0].change == "worse"

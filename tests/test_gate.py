@@ -62,7 +62,7 @@ def test_identical_run_passes(tmp_path, baseline):
         [row(), row(engine="pybullet", integrator="multibody", energy_drift_max=0.3)],
     )
     cmp = gate.compare(cur, baseline)
-    assert cmp.ok and len(cmp.checked) == 2
+    assert cmp.ok and len(cmp.compared) == 2
     assert main(["check", str(cur), "--baseline", str(baseline)]) == 0
 
 
@@ -76,8 +76,8 @@ def test_metric_regression_beyond_factor_fails(tmp_path, baseline, capsys):
         ],
     )
     cmp = gate.compare(cur, baseline, factor=2.0)
-    assert [(f.key[1], f.metric) for f in cmp.findings] == [("mujoco", "energy_drift_max")]
-    assert cmp.findings[0].ratio == pytest.approx(3.0)
+    assert [(f.key[1], f.column) for f in cmp.regressions] == [("mujoco", "energy_drift_max")]
+    assert cmp.regressions[0].ratio == pytest.approx(3.0)
     assert main(["check", str(cur), "--baseline", str(baseline)]) == 1
     out = capsys.readouterr().out
     assert "energy_drift_max" in out and "dzhanibekov" in out and "3" in out
@@ -115,7 +115,7 @@ def test_order_drop_status_and_verdict_change(tmp_path):
             row(engine="pybullet", integrator="multibody", status="diverged", message="blew up"),
         ],
     )
-    what = {(f.key[1], f.what, f.metric) for f in gate.compare(cur, bl).findings}
+    what = {(f.key[1], f.what, f.column) for f in gate.compare(cur, bl).regressions}
     assert ("mujoco", "metric", "convergence_order") in what
     assert ("pybullet", "status", "status") in what
     cur = write(
@@ -125,14 +125,17 @@ def test_order_drop_status_and_verdict_change(tmp_path):
             row(engine="pybullet", integrator="multibody"),
         ],
     )
-    what = {(f.key[1], f.what) for f in gate.compare(cur, bl).findings}
+    what = {(f.key[1], f.what) for f in gate.compare(cur, bl).regressions}
     assert what == {("mujoco", "verdict")}
 
 
 def test_missing_and_new_runs(tmp_path, baseline):
     cur = write(tmp_path / "cur", [row(), row(engine="dart", integrator="semi-implicit Euler")])
     cmp = gate.compare(cur, baseline)
-    assert {(f.key[1], f.what) for f in cmp.findings} == {("pybullet", "missing"), ("dart", "new")}
+    assert {(f.key[1], f.what) for f in cmp.regressions} == {
+        ("pybullet", "missing"),
+        ("dart", "new"),
+    }
     assert gate.compare(cur, baseline, only_present=True).ok
 
 
@@ -251,8 +254,8 @@ def test_a_run_of_another_identity_is_a_mismatch_never_a_pass(
         ],
     )
     cmp = gate.compare(cur, baseline)
-    assert {f.what for f in cmp.findings} == {"mismatch"} and len(cmp.findings) == 2
-    assert words in cmp.findings[0].current
+    assert {f.what for f in cmp.regressions} == {"mismatch"} and len(cmp.regressions) == 2
+    assert words in cmp.regressions[0].b
     assert main(["check", str(cur), "--baseline", str(baseline)]) == 1
     out = capsys.readouterr().out
     assert "identity mismatch" in out and words in out
@@ -271,10 +274,11 @@ def test_history_rows_are_missing_runs_with_the_reason(tmp_path, baseline):
         [row(), row(engine="pybullet", integrator="multibody", energy_drift_max=0.3), edited],
     )
     cmp = gate.compare(cur, baseline)
-    what = {(f.key[1], f.what) for f in cmp.findings}
+    what = {(f.key[1], f.what) for f in cmp.regressions}
     assert what == {("mujoco", "mismatch"), ("pybullet", "missing")}
-    (missing,) = [f for f in cmp.findings if f.what == "missing"]
-    assert "history" in missing.message and "newest runs have another identity" in missing.message
+    (missing,) = [f for f in cmp.regressions if f.what == "missing"]
+    text = gate.message(missing)
+    assert "history" in text and "newest runs have another identity" in text
 
 
 def test_nothing_comparable_exits_1(tmp_path, baseline, capsys):

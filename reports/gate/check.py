@@ -4,7 +4,8 @@ A baseline is a JSON file with one entry per run holding its configuration (scen
 integrator, dt, target accuracy), its identity (:data:`reports.store.results.IDENTITY_COLUMNS`:
 scenario content hash, horizon, save_every, segmenting, engine and suite versions), its
 status, verdict and reason, and its metrics. :func:`compare` matches the runs of a results
-folder to the baseline on the configuration and reports:
+folder to the baseline on the configuration and reports, by the comparison rule of
+:mod:`reports.gate.rule` (the one ``compare`` applies to two folders):
 
 - a run whose identity differs (``t_end 30 vs 10``, a changed scenario file): a mismatch, never
   a pass, since the two runs did not do the same thing;
@@ -28,10 +29,12 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.metrics.body import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
+from reports.gate.format import md_escape, md_table, text_table
+from reports.gate.rule import Change, Comparison, NothingComparable, classify, status_change
+from reports.metrics.body import ORDER_SLACK
+from reports.store.atomic import write_text
 from reports.store.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
 from scenarios.model import RELATIVE_EQUILIBRIA
 from scenarios.schema import InputError
@@ -43,22 +46,8 @@ _ENTRY_KEYS = ("scenario", "engine", "integrator", "dt", "status", *IDENTITY_COL
 #: a baseline file larger than this is refused before it is read (the default suite's is
 #: about 0.5 MB)
 MAX_BASELINE_BYTES = 64 * 2**20
-#: statuses in order of how bad they are for a run that ran in the baseline
-STATUS_RANK = {
-    "ok": 0,
-    "reference-inaccurate": 1,
-    "diverged": 2,
-    "error": 3,
-    "unsupported": 4,
-    "unavailable": 4,
-}
 #: a failure reason is cut to this many characters in baselines and reports
 REASON_CHARS = 400
-
-
-class NothingComparable(RuntimeError):
-    """The two sides share no run (an empty folder, disjoint runs): nothing was compared,
-    which is never a pass."""
 
 
 def _reason(r) -> str:
@@ -170,81 +159,6 @@ def row_key(r) -> tuple:
     return config_key(r["scenario"], r["engine"], r["integrator"], r["dt"], r["target_accuracy"])
 
 
-@dataclass
-class Finding:
-    key: tuple
-    what: str  # "metric", "status", "verdict", "mismatch", "missing", "new"
-    metric: str = ""
-    baseline: object = None
-    current: object = None
-
-    @property
-    def ratio(self) -> float:
-        try:
-            return float(self.current) / float(self.baseline)
-        except (TypeError, ValueError, ZeroDivisionError):
-            return math.nan
-
-    @property
-    def message(self) -> str:
-        if self.what == "mismatch":
-            return f"not the baseline's run: {self.current}"
-        if self.what == "missing":
-            if self.current:  # the store holds the run as history (see results.current)
-                return (
-                    f"missing run (in the baseline with status {self.baseline}); the store "
-                    f"holds it as {self.current}"
-                )
-            return f"missing run (in the baseline with status {self.baseline})"
-        if self.what == "new":
-            return (
-                f"new run, not in the baseline (status {self.current}); write the baseline "
-                "again if it belongs to the suite"
-            )
-        if self.what == "metric":
-            ratio = "" if math.isnan(self.ratio) else f" ({self.ratio:.3g}x)"
-            return f"{self.metric}: baseline {_fmt(self.baseline)}, now {_fmt(self.current)}{ratio}"
-        return (
-            f"{self.metric or self.what}: baseline {_fmt(self.baseline)}, now {_fmt(self.current)}"
-        )
-
-
-@dataclass
-class Comparison:
-    factor: float
-    findings: list[Finding] = field(default_factory=list)
-    checked: list[tuple] = field(default_factory=list)
-    #: runs failing as in the baseline: key -> (current reason, baseline reason)
-    known: dict = field(default_factory=dict)
-    results_dir: str = ""
-    baseline_path: str = ""
-    baseline_provenance: dict = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        return not self.findings
-
-    def for_key(self, key) -> list[Finding]:
-        return [f for f in self.findings if f.key == key]
-
-    @property
-    def regressed(self) -> list[tuple]:
-        """The runs with at least one finding, in order of first finding."""
-        return list(dict.fromkeys(f.key for f in self.findings))
-
-
-def _worse(metric, base, cur, factor, timing_factor) -> bool:
-    if base is None or (isinstance(base, float) and math.isnan(base)):
-        return False  # nothing to compare against
-    if cur is None or math.isnan(cur):
-        return True  # a metric that existed is gone
-    if metric in HIGHER_IS_BETTER:
-        return cur < base - ORDER_SLACK
-    if metric in TIMING_METRICS:
-        return timing_factor is not None and cur > timing_factor * base
-    return cur > factor * max(base, FLOORS.get(metric, 0.0))
-
-
 def compare(
     results_dir,
     baseline_path,
@@ -281,13 +195,13 @@ def compare(
             f"{baseline_path} ({len(expected)} runs): nothing was compared (another suite, "
             "or another baseline?)"
         )
-    cmp = Comparison(factor, results_dir=str(results_dir), baseline_path=str(baseline_path))
-    cmp.baseline_provenance = base.get("provenance") or {}
+    cmp = Comparison(str(baseline_path), str(results_dir), factor)
+    cmp.provenance_a = base.get("provenance") or {}
     for key, b in expected.items():
         r = current.get(key)
         if r is None and only_present:
             continue
-        cmp.checked.append(key)
+        cmp.compared.append(key)
         if r is None:
             old = history.get(key)
             why = None
@@ -298,44 +212,63 @@ def compare(
                     if diff
                     else "history only: its scenario's newest runs have another identity"
                 )
-            cmp.findings.append(Finding(key, "missing", baseline=b["status"], current=why))
+            cmp.changes.append(Change(key, "", b["status"], why, change="missing", gates=True))
             continue
         found = _run_findings(key, b, r, factor, timing_factor)
-        cmp.findings += found
+        cmp.changes += found
         if not found and failing(r):
             cmp.known[key] = (_reason(r), b.get("reason", ""))
     for key in current:
         if key not in expected and not only_present:
-            cmp.findings.append(Finding(key, "new", current=current[key]["status"]))
+            cmp.changes.append(
+                Change(key, "", None, current[key]["status"], change="new", gates=True)
+            )
     return cmp
 
 
-def _run_findings(key, b, r, factor, timing_factor) -> list[Finding]:
+def _run_findings(key, b, r, factor, timing_factor) -> list[Change]:
+    """The regressions of run ``r`` against its baseline entry ``b`` (:mod:`reports.gate.rule`:
+    a status ranked worse, a verdict from pass to fail or failing one more check, a metric
+    worse beyond ``factor`` above its floor; timing only with ``timing_factor``)."""
+
+    def regression(column, base, now, ratio=math.nan, change="worse"):
+        return Change(key, column, base, now, ratio, change, gates=True)
+
     diff = identity_differences(b, r)
     if diff:
-        return [Finding(key, "mismatch", "identity", "baseline", "; ".join(diff))]
+        return [regression("identity", "baseline", "; ".join(diff), change="mismatch")]
     bs, rs = b["status"], r["status"]
-    if STATUS_RANK.get(rs, 5) > STATUS_RANK.get(bs, 5):
-        return [Finding(key, "status", "status", bs, f"{rs}: {r['message']}")]
+    if status_change(bs, rs) == "worse":
+        return [regression("status", bs, f"{rs}: {r['message']}")]
     out = []
     if rs != "ok" or bs != "ok":
         if failing(r) and not failing(b):
-            out.append(Finding(key, "verdict", "verdict", "pass", _reason(r)))
+            out.append(regression("verdict", "pass", _reason(r)))
         return out
     if b.get("verdict") == "pass" and r["verdict"] == "fail":
-        out.append(Finding(key, "verdict", "verdict", "pass", _reason(r)))
+        out.append(regression("verdict", "pass", _reason(r)))
     elif b.get("verdict") == "fail" and r["verdict"] == "fail":
         new = failed_checks(r) - set(b.get("failed_checks") or [])
         if new:
             out.append(
-                Finding(key, "verdict", "failed checks", b.get("reason", ""),
-                        f"now also fails {', '.join(sorted(new))}: {_reason(r)}")
+                regression("failed checks", b.get("reason", ""),
+                           f"now also fails {', '.join(sorted(new))}: {_reason(r)}")
             )  # fmt: skip
     for m in (*METRIC_COLUMNS, *TIMING_METRICS):
         cur = float(r[m])
-        if _worse(m, b.get(m), cur, factor, timing_factor):
-            out.append(Finding(key, "metric", m, b.get(m), cur))
+        f = factor if m not in TIMING_METRICS else timing_factor or math.inf
+        got = classify(m, b.get(m), cur, f)
+        if got is not None and got[1] == "worse":
+            out.append(regression(m, b.get(m), cur, _ratio(b.get(m), cur)))
     return out
+
+
+def _ratio(base, now) -> float:
+    """now / base as the message gives it (raw values, not above the floors)."""
+    try:
+        return float(now) / float(base)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return math.nan
 
 
 def _fmt(v) -> str:
@@ -344,6 +277,25 @@ def _fmt(v) -> str:
     if isinstance(v, float):
         return f"{v:.3e}"
     return str(v)
+
+
+def message(c: Change) -> str:
+    """A regression as one line of text."""
+    if c.what == "mismatch":
+        return f"not the baseline's run: {c.b}"
+    if c.what == "missing":
+        if c.b:  # the store holds the run as history (see results.current)
+            return f"missing run (in the baseline with status {c.a}); the store holds it as {c.b}"
+        return f"missing run (in the baseline with status {c.a})"
+    if c.what == "new":
+        return (
+            f"new run, not in the baseline (status {c.b}); write the baseline "
+            "again if it belongs to the suite"
+        )
+    if c.what == "metric":
+        ratio = "" if math.isnan(c.ratio) else f" ({c.ratio:.3g}x)"
+        return f"{c.column}: baseline {_fmt(c.a)}, now {_fmt(c.b)}{ratio}"
+    return f"{c.column or c.what}: baseline {_fmt(c.a)}, now {_fmt(c.b)}"
 
 
 def run_name(key) -> str:
@@ -364,7 +316,7 @@ _PROBLEM = {
 def format_comparison(cmp: Comparison) -> str:
     """A readable plain-text summary and table of the findings and the known failures."""
     head_line = (
-        f"{len(cmp.checked)} runs checked against the baseline (factor {cmp.factor:g}): "
+        f"{len(cmp.compared)} runs checked against the baseline (factor {cmp.factor:g}): "
         f"{len(cmp.regressed)} regressed, {len(cmp.known)} known failure(s) failing as in the "
         "baseline (expected, not regressions)"
     )
@@ -372,21 +324,21 @@ def format_comparison(cmp: Comparison) -> str:
         return f"OK: {head_line}."
     head = ["scenario", "engine", "integrator", "dt", "problem", "baseline", "current", "ratio"]
     rows = []
-    for f in cmp.findings:
-        sc, eng, integ, dt, acc = f.key
-        problem = _PROBLEM[f.what] or f.metric
-        ratio = f"{f.ratio:.3g}" if f.what == "metric" and not math.isnan(f.ratio) else ""
+    for c in cmp.regressions:
+        sc, eng, integ, dt, acc = c.key
         integ = integ if acc is None else f"{integ} (accuracy {acc:g})"
-        rows.append([sc, eng, integ, f"{dt:g}", problem, _fmt(f.baseline), _fmt(f.current), ratio])
-    widths = [max(len(str(x)) for x in col) for col in zip(head, *rows, strict=False)]
-    line = "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True))
-    out = [
-        f"FAIL: {len(cmp.findings)} finding(s) in {len(cmp.regressed)} run(s); {head_line}:",
-        line,
-        "-" * len(line),
-    ]
-    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
-    return "\n".join(out)
+        rows.append([sc, eng, integ, f"{dt:g}", _problem(c), _fmt(c.a), _fmt(c.b), _ratio_text(c)])
+    n = len(cmp.regressions)
+    out = [f"FAIL: {n} finding(s) in {len(cmp.regressed)} run(s); {head_line}:"]
+    return "\n".join(out + text_table(head, rows))
+
+
+def _problem(c: Change) -> str:
+    return _PROBLEM[c.what] or c.column
+
+
+def _ratio_text(c: Change) -> str:
+    return f"{c.ratio:.3g}" if c.what == "metric" and not math.isnan(c.ratio) else ""
 
 
 def junit_notes(cmp: Comparison) -> tuple[dict, list]:
@@ -396,7 +348,7 @@ def junit_notes(cmp: Comparison) -> tuple[dict, list]:
     notes = {key: ("known", reason) for key, (reason, _) in cmp.known.items()}
     missing = []
     for key in cmp.regressed:
-        msg = "; ".join(f.message for f in cmp.for_key(key))
+        msg = "; ".join(message(c) for c in cmp.for_key(key))
         if any(f.what == "missing" for f in cmp.for_key(key)):
             missing.append((key, msg))
         else:
@@ -422,7 +374,7 @@ def annotations(cmp: Comparison) -> list[str]:
     return [
         annotation(
             f"director-bench regression: {run_name(key)}",
-            "; ".join(f.message for f in cmp.for_key(key)),
+            "; ".join(message(c) for c in cmp.for_key(key)),
         )
         for key in cmp.regressed
     ]
@@ -443,31 +395,31 @@ def as_json(cmp: Comparison, problems: list[str]) -> dict:
     """The comparison as a JSON-ready dict (NaN written as null)."""
     return {
         "ok": cmp.ok and not problems,
-        "results": cmp.results_dir,
-        "baseline": cmp.baseline_path,
-        "baseline_git_commit": cmp.baseline_provenance.get("git_commit"),
+        "results": cmp.b,
+        "baseline": cmp.a,
+        "baseline_git_commit": cmp.provenance_a.get("git_commit"),
         "factor": cmp.factor,
         "counts": {
-            "checked": len(cmp.checked),
+            "checked": len(cmp.compared),
             "regressed": len(cmp.regressed),
             "known_failures": len(cmp.known),
-            "passed": len(cmp.checked)
-            - len(set(cmp.regressed) & set(cmp.checked))
+            "passed": len(cmp.compared)
+            - len(set(cmp.regressed) & set(cmp.compared))
             - len(cmp.known),
-            "findings": len(cmp.findings),
+            "findings": len(cmp.regressions),
             "invariant_problems": len(problems),
         },
         "findings": [
             {
-                "run": _run_dict(f.key),
-                "what": f.what,
-                "metric": f.metric,
-                "baseline": _num(f.baseline),
-                "current": _num(f.current),
-                "ratio": _num(f.ratio) if f.what == "metric" else None,
-                "message": f.message,
+                "run": _run_dict(c.key),
+                "what": c.what,
+                "metric": c.column,
+                "baseline": _num(c.a),
+                "current": _num(c.b),
+                "ratio": _num(c.ratio) if c.what == "metric" else None,
+                "message": message(c),
             }
-            for f in cmp.findings
+            for c in cmp.regressions
         ],
         "known_failures": [
             {"run": _run_dict(k), "reason": reason, "baseline_reason": was}
@@ -475,12 +427,6 @@ def as_json(cmp: Comparison, problems: list[str]) -> dict:
         ],
         "invariant_problems": list(problems),
     }
-
-
-def md_escape(text) -> str:
-    """Text safe inside a Markdown table cell (pipes, HTML, line breaks)."""
-    s = str(text).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
-    return s.replace("|", "\\|").replace("\n", " ").replace("`", "'")
 
 
 def as_markdown(cmp: Comparison, problems: list[str]) -> str:
@@ -492,24 +438,24 @@ def as_markdown(cmp: Comparison, problems: list[str]) -> str:
     out = [
         f"## director-bench check: {verdict}",
         "",
-        f"Results `{md_escape(cmp.results_dir)}` against the baseline "
-        f"`{md_escape(cmp.baseline_path)}` ({md_escape(commit)}), factor {cmp.factor:g}.",
+        f"Results `{md_escape(cmp.b)}` against the baseline "
+        f"`{md_escape(cmp.a)}` ({md_escape(commit)}), factor {cmp.factor:g}.",
         "",
-        "| runs checked | passed | known failures (as in the baseline) | regressed | "
-        "invariant problems |",
-        "|---:|---:|---:|---:|---:|",
-        f"| {c['checked']} | {c['passed']} | {c['known_failures']} | {c['regressed']} | "
-        f"{c['invariant_problems']} |",
-    ]
-    if cmp.findings:
-        out += ["", "### Regressions", "", "| run | problem | baseline | now | ratio |"]
-        out.append("|---|---|---|---|---:|")
-        for f in cmp.findings:
-            ratio = f"{f.ratio:.3g}" if f.what == "metric" and not math.isnan(f.ratio) else ""
-            out.append(
-                f"| {md_escape(run_name(f.key))} | {md_escape(_PROBLEM[f.what] or f.metric)} | "
-                f"{md_escape(_fmt(f.baseline))} | {md_escape(_fmt(f.current))} | {ratio} |"
-            )
+        *md_table(
+            ["runs checked", "passed", "known failures (as in the baseline)", "regressed",
+             "invariant problems"],
+            [[c["checked"], c["passed"], c["known_failures"], c["regressed"],
+              c["invariant_problems"]]],
+            "rrrrr",
+        ),
+    ]  # fmt: skip
+    if cmp.regressions:
+        rows = [
+            [run_name(c.key), _problem(c), _fmt(c.a), _fmt(c.b), _ratio_text(c)]
+            for c in cmp.regressions
+        ]
+        out += ["", "### Regressions", ""]
+        out += md_table(["run", "problem", "baseline", "now", "ratio"], rows, "llllr")
     if problems:
         out += ["", "### Invariants that do not hold", ""]
         out += [f"- {md_escape(p)}" for p in problems]
@@ -519,10 +465,8 @@ def as_markdown(cmp: Comparison, problems: list[str]) -> str:
             f"<details><summary>{len(cmp.known)} known failure(s), failing as in the "
             "baseline</summary>",
             "",
-            "| run | reason |",
-            "|---|---|",
         ]
-        out += [f"| {md_escape(run_name(k))} | {md_escape(r)} |" for k, (r, _) in cmp.known.items()]
+        out += md_table(["run", "reason"], [[run_name(k), r] for k, (r, _) in cmp.known.items()])
         out += ["", "</details>"]
     return "\n".join(out) + "\n"
 
@@ -531,8 +475,8 @@ def write_outputs(cmp: Comparison, problems: list[str], markdown: Path, json_pat
     """Write check.md and check.json, and append the Markdown to ``$GITHUB_STEP_SUMMARY``
     when that variable is set (GitHub Actions' job summary)."""
     md = as_markdown(cmp, problems)
-    _atomic_write(Path(markdown), md)
-    _atomic_write(Path(json_path), json.dumps(as_json(cmp, problems), indent=1) + "\n")
+    write_text(markdown, md)
+    write_text(json_path, json.dumps(as_json(cmp, problems), indent=1) + "\n")
     summary = os.environ.get("GITHUB_STEP_SUMMARY")
     if summary:
         with open(summary, "a") as fh:
@@ -601,17 +545,7 @@ def check(
     return 0 if cmp.ok and not problems else 1
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
 # -- invariants of a suite: statements the results must make true ------------------------------
-
-#: a fitted convergence order may differ from the declared one by this much, where at least
-#: two points are in the asymptotic range
-ORDER_TOLERANCE = 0.3
 
 
 def invariants(df, junit_path: str | Path | None = None) -> list[str]:
@@ -620,9 +554,10 @@ def invariants(df, junit_path: str | Path | None = None) -> list[str]:
     - no run whose energy error exceeds 100 % of its scale (the divergence limit) is ``ok``;
     - a diverged run fails its verdict; an ``ok`` run has one; error, unsupported,
       unavailable and reference-inaccurate runs have none;
-    - a fixed-step integrator's fitted order is within :data:`ORDER_TOLERANCE` of its
-      declared order wherever at least two points are in the asymptotic range (on a relative
-      equilibrium, :data:`scenarios.model.RELATIVE_EQUILIBRIA`, it may exceed it);
+    - a fixed-step integrator's fitted order is within
+      :data:`reports.metrics.body.ORDER_SLACK` of its declared order wherever at least two
+      points are in the asymptotic range (on a relative equilibrium,
+      :data:`scenarios.model.RELATIVE_EQUILIBRIA`, it may exceed it);
     - ``junit.xml`` (if given, as ``run`` wrote it) counts the same failures, errors and skips
       as the results.
     """
@@ -647,7 +582,7 @@ def invariants(df, junit_path: str | Path | None = None) -> list[str]:
         steady = "reference_kind" in g and g["reference_kind"].iloc[0] in RELATIVE_EQUILIBRIA
         if steady and fitted > declared:
             continue  # above the generic order on a steady motion: not a mislabelled scheme
-        if not abs(fitted - declared) <= ORDER_TOLERANCE:
+        if not abs(fitted - declared) <= ORDER_SLACK:
             out.append(
                 f"{sc} {eng} {integ}: fitted order {fitted:.3f} from "
                 f"{int(g['convergence_points'].iloc[0])} points, declared {declared:g}"

@@ -8,23 +8,17 @@ save_every, segmenting, engine and suite versions) is a ``mismatch`` naming each
 versions (or two suite versions) on purpose, name the field that may differ: ``--vary
 engine_version`` (docs/results.md has the recipe).
 
-For each run in both, every metric and the cost get a ratio B/A and a word, as airspeed
-velocity's ``asv compare`` does: ``worse`` when B is more than ``factor`` times A, ``better``
-when less than A / ``factor``, ``same`` otherwise. An error metric is compared above its
-round-off floor (:data:`reports.metrics.body.FLOORS`: ``max(value, floor)`` on both sides), so that
-3e-16 against 9e-15 is ``same``, not a regression; the fitted convergence order is compared
-by difference (:data:`reports.metrics.body.ORDER_SLACK`). A status that got worse (ok to diverged or
-error) or a verdict that went from pass to fail is ``worse`` whatever the numbers.
-
-A cost (ns per step inside the engine and wall) is a range measured with the run
-(reports.run.runner): from the fastest timed repeat scaled by the process's CPU time over the
-wall time of its stepping (on a busy machine the process ran only that part of the wall
-time) up to the slowest repeat. After asv's rule, a cost change is significant only when the
-ratio of the fastest times exceeds the factor AND the ranges are that far apart (B's low end
-over A's high end beyond the factor, for a slowdown); otherwise it is ``not significant``:
-the noise measured with the runs could account for it. A change must also hold at every dt
-of the configuration's sweep (:func:`_corroborate_costs`): the engine's own slowdown moves
-every step size, a burst of load on the machine single runs.
+For each run in both, every metric and the cost get a ratio B/A and a word by the comparison
+rule of :mod:`reports.gate.rule`, the one ``check`` applies against a baseline: ``worse``
+when B is more than ``factor`` times A above the metric's round-off floor, ``better`` when
+less than A / ``factor``, ``same`` otherwise; the fitted convergence order by difference; a
+status that got worse (ok to diverged or error) or a verdict that went from pass to fail is
+``worse`` whatever the numbers (``unsupported`` and ``unavailable`` are the environment, not
+a result). A cost (ns per step inside the engine and wall) is a range measured with the run
+(reports.run.runner); a cost change is significant only beyond the factor AND the measured
+spread, and only when every dt of the configuration's sweep moved the same way
+(:func:`reports.gate.rule.classify_cost`, :func:`reports.gate.rule.corroborate_costs`);
+otherwise it is ``not significant``.
 
 Exit code of the command: 1 when some run got worse in a metric, its status or its verdict,
 when a pair of runs is a mismatch, or when nothing is comparable (an empty folder, no run in
@@ -38,12 +32,22 @@ file; this compares two folders, e.g. two engine versions (docs/results.md has t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.gate.check import NothingComparable, md_escape
-from reports.metrics.body import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
-from reports.store.format import fmt, fmt_level, fmt_step
+from reports.gate.format import md_escape, md_table, text_table
+from reports.gate.rule import (
+    COST_COLUMNS,
+    RAN,
+    Change,
+    Comparison,
+    NothingComparable,
+    classify,
+    classify_cost,
+    corroborate_costs,
+    cost_range,
+    status_change,
+)
+from reports.store.format import fmt, fmt_level, fmt_step, num
 from reports.store.results import (
     IDENTITY_COLUMNS,
     METRIC_COLUMNS,
@@ -53,129 +57,6 @@ from reports.store.results import (
     records,
 )
 from scenarios.schema import InputError
-
-#: cost columns compared (ns per step: inside the engine's calls, and wall), each with the
-#: column of the slowest repeat's time that bounds its range
-COST_COLUMNS = ("engine_ns_per_step", "ns_per_step")
-COST_MAX = {"engine_ns_per_step": "engine_time_max_s", "ns_per_step": "wall_time_max_s"}
-
-#: statuses in order of how bad they are for a run that should have run
-STATUS_RANK = {"ok": 0, "reference-inaccurate": 1, "diverged": 2, "error": 3}
-
-
-@dataclass
-class Change:
-    key: tuple
-    column: str  # a metric, a cost column, "status", "verdict" or "identity"
-    a: object
-    b: object
-    ratio: float
-    change: str  # "better", "worse", "same", "not significant" or "mismatch"
-    gates: bool = False  # a "worse" (or a mismatch) that makes the command exit 1
-
-    @property
-    def worse(self) -> bool:
-        return self.change in ("worse", "mismatch")
-
-
-@dataclass
-class Comparison:
-    a: Path
-    b: Path
-    factor: float
-    cost_factor: float | None
-    vary: tuple = ()
-    both: list = field(default_factory=list)
-    only_a: list = field(default_factory=list)  # (key, status)
-    only_b: list = field(default_factory=list)
-    changes: list = field(default_factory=list)
-
-    @property
-    def regressions(self) -> list[Change]:
-        return [c for c in self.changes if c.worse and c.gates]
-
-    @property
-    def ok(self) -> bool:
-        return not self.regressions
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def classify(column: str, a: float, b: float, factor: float) -> tuple[float, str] | None:
-    """(ratio B/A, better/worse/same) of one metric or cost, or None when neither side has a
-    value. A value on one side only: ``worse`` if B lost it, ``same`` if B gained it."""
-    a, b = _num(a), _num(b)
-    if math.isnan(a) and math.isnan(b):
-        return None
-    if math.isnan(b):
-        return math.nan, "worse"
-    if math.isnan(a):
-        return math.nan, "same"
-    if column in HIGHER_IS_BETTER:
-        ratio = b / a if a else math.nan
-        if b < a - ORDER_SLACK:
-            return ratio, "worse"
-        return ratio, ("better" if b > a + ORDER_SLACK else "same")
-    floor = FLOORS.get(column, 0.0)
-    ea, eb = max(a, floor), max(b, floor)
-    if ea == eb:
-        return 1.0, "same"
-    if ea == 0:
-        return math.inf, "worse"
-    ratio = eb / ea
-    if ratio > factor:
-        return ratio, "worse"
-    return ratio, ("better" if ratio < 1.0 / factor else "same")
-
-
-def classify_cost(a, b, factor: float) -> tuple[float, str] | None:
-    """(ratio of the fastest times B/A, word) of a cost measured on each side as
-    (fastest, low, high) (:func:`cost_range`; low and high NaN: the spread was not
-    measured). After asv's rule (a change beyond the factor whose ranges do not overlap),
-    taken at the ranges' nearest ends: ``worse`` only when the ratio of the fastest times
-    exceeds ``factor`` AND so does B's low end over A's high end (``better``: B's high end
-    below A's low end over the factor); ``not significant`` when the fastest times differ
-    beyond the factor but the ranges allow less, or a side's spread was not measured (a
-    change cannot be told from noise that was not measured); ``same`` within the factor."""
-    (a_fast, a_lo, a_hi), (b_fast, b_lo, b_hi) = (tuple(_num(v) for v in side) for side in (a, b))
-    if math.isnan(a_fast) and math.isnan(b_fast):
-        return None
-    if math.isnan(a_fast) or math.isnan(b_fast) or a_fast <= 0:
-        return math.nan, "same"
-    ratio = b_fast / a_fast
-    if not 1.0 / factor <= ratio <= factor and any(math.isnan(v) for v in (a_lo, a_hi, b_lo, b_hi)):
-        return ratio, "not significant"
-    if ratio > factor:
-        return ratio, ("worse" if b_lo > factor * a_hi else "not significant")
-    if ratio < 1.0 / factor:
-        return ratio, ("better" if factor * b_hi < a_lo else "not significant")
-    return ratio, "same"
-
-
-def cost_range(row, column: str) -> tuple[float, float, float]:
-    """The cost of a run in ``column`` (ns per step): (fastest repeat, the range's low end,
-    its high end). The high end is the slowest repeat; the low end is the fastest repeat
-    scaled by the process's CPU time over its wall time during the stepping (``cpu_time_s``
-    / ``wall_time_s``, at most 1): on a busy machine the process waited for a CPU part of
-    the wall time, so the engine's own cost may be that much lower than the clock says.
-    Without a CPU time and with a single timing (a row written before they were measured,
-    a run path that does not measure them) the spread is unknown: low and high are NaN."""
-    fastest = _num(row.get(column))
-    n = _num(row.get("nstep"))
-    wall, cpu = _num(row.get("wall_time_s")), _num(row.get("cpu_time_s"))
-    repeats = _num(row.get("timing_repeats"))
-    if math.isnan(cpu) and not repeats >= 2:
-        return fastest, math.nan, math.nan
-    hi = 1e9 * _num(row.get(COST_MAX[column])) / n if n and n > 0 else math.nan
-    hi = fastest if math.isnan(hi) else max(hi, fastest)
-    share = cpu / wall if wall > 0 else math.nan
-    lo = fastest * share if 0.0 <= share < 1.0 else fastest
-    return fastest, lo, hi
 
 
 def _by_key(df) -> dict:
@@ -218,7 +99,7 @@ def compare_folders(
     cmp.only_a = [(k, ra[k]["status"]) for k in sorted(ra, key=_sort_key) if k not in rb]
     cmp.only_b = [(k, rb[k]["status"]) for k in sorted(rb, key=_sort_key) if k not in ra]
     for key in sorted(set(ra) & set(rb), key=_sort_key):
-        cmp.both.append(key)
+        cmp.compared.append(key)
         x, y = ra[key], rb[key]
         diff = identity_differences(x, y, vary)
         if diff:
@@ -227,29 +108,8 @@ def compare_folders(
             )
             continue
         cmp.changes += _run_changes(key, x, y, factor, cost_factor)
-    _corroborate_costs(cmp.changes)
+    corroborate_costs(cmp.changes)
     return cmp
-
-
-def _corroborate_costs(changes: list) -> None:
-    """Keep a cost change only where every step size of its sweep moved the same way.
-
-    A change of the engine moves the cost per step at every dt of a configuration's sweep
-    (scenario, engine, integrator); a burst of load on the machine hits single runs, and a
-    run's measured spread cannot show load that came and went between two of its repeats.
-    So a ``worse`` (``better``) cost at one dt stays so only when that cost column is
-    ``worse`` (``better``) at every dt of the sweep the two folders share; otherwise it is
-    ``not significant``. A configuration run at one dt only is judged on that run."""
-    groups: dict = {}
-    for c in changes:
-        if c.column in COST_COLUMNS:
-            groups.setdefault((c.key[:3], c.column), []).append(c)
-    for group in groups.values():
-        words = {c.change for c in group}
-        if len(words) > 1:
-            for c in group:
-                if c.change in ("worse", "better"):
-                    c.change = "not significant"
 
 
 def _sort_key(key):
@@ -261,12 +121,10 @@ def _run_changes(key, x, y, factor, cost_factor) -> list[Change]:
     out = []
     sx, sy = x["status"], y["status"]
     if sx != sy:
-        rx, ry = STATUS_RANK.get(sx), STATUS_RANK.get(sy)
-        if rx is None or ry is None:  # unsupported / unavailable: the environment, not a result
+        if sx not in RAN or sy not in RAN:  # unsupported / unavailable: the environment
             out.append(Change(key, "status", sx, sy, math.nan, "same"))
         else:
-            change = "worse" if ry > rx else "better"
-            out.append(Change(key, "status", sx, sy, math.nan, change, gates=True))
+            out.append(Change(key, "status", sx, sy, math.nan, status_change(sx, sy), True))
         return out
     if sx != "ok":
         return out
@@ -276,12 +134,12 @@ def _run_changes(key, x, y, factor, cost_factor) -> list[Change]:
     for m in METRIC_COLUMNS:
         got = classify(m, x[m], y[m], factor)
         if got is not None:
-            out.append(Change(key, m, _num(x[m]), _num(y[m]), got[0], got[1], gates=True))
+            out.append(Change(key, m, num(x[m]), num(y[m]), got[0], got[1], gates=True))
     for c in COST_COLUMNS:
         got = classify_cost(cost_range(x, c), cost_range(y, c), cost_factor or factor)
         if got is not None:
             gates = cost_factor is not None
-            out.append(Change(key, c, _num(x[c]), _num(y[c]), got[0], got[1], gates=gates))
+            out.append(Change(key, c, num(x[c]), num(y[c]), got[0], got[1], gates=gates))
     return out
 
 
@@ -300,11 +158,11 @@ def _counts(cmp: Comparison) -> dict:
     mismatch = {c.key for c in cmp.changes if c.change == "mismatch"}
     better = {c.key for c in cmp.changes if c.change == "better"} - worse
     return {
-        "in_both": len(cmp.both),
+        "in_both": len(cmp.compared),
         "worse": len(worse - mismatch),
         "mismatch": len(mismatch),
         "better": len(better),
-        "same": len(cmp.both) - len(worse) - len(better),
+        "same": len(cmp.compared) - len(worse) - len(better),
         "cost_not_significant": sum(1 for c in cmp.changes if c.change == "not significant"),
         "only_a": len(cmp.only_a),
         "only_b": len(cmp.only_b),
@@ -353,6 +211,11 @@ def _summary_line(cmp: Comparison) -> str:
     )
 
 
+def _change_row(c: Change) -> list[str]:
+    ratio = "" if math.isnan(c.ratio) else fmt(c.ratio)
+    return [_word(c), _run_name(c.key), c.column, _value(c.a), _value(c.b), ratio]
+
+
 def format_comparison(cmp: Comparison, show_all: bool = False) -> str:
     """The comparison as text: a summary line, then every change that is not ``same``
     (every change with ``show_all``), mismatches and worse first, then the runs in one
@@ -361,11 +224,8 @@ def format_comparison(cmp: Comparison, show_all: bool = False) -> str:
     shown = _shown(cmp, show_all)
     if shown:
         head = ["change", "run", "what", "A", "B", "B/A"]
-        rows = []
-        for c in shown:
-            ratio = "" if math.isnan(c.ratio) else fmt(c.ratio)
-            rows.append([_word(c), _run_name(c.key), c.column, _value(c.a), _value(c.b), ratio])
-        lines += ["", *_text_table(head, rows)]
+        rows = [_change_row(c) for c in shown]
+        lines += ["", *text_table(head, rows)]
     for title, items in (("Only in A", cmp.only_a), ("Only in B", cmp.only_b)):
         if items:
             lines += ["", f"{title} ({len(items)}):"]
@@ -429,11 +289,8 @@ def as_markdown(cmp: Comparison) -> str:
     ]
     shown = _shown(cmp, False)
     if shown:
-        out += ["", "| change | run | what | A | B | B/A |", "|---|---|---|---|---|---:|"]
-        for c in shown:
-            ratio = "" if math.isnan(c.ratio) else fmt(c.ratio)
-            cells = (_word(c), _run_name(c.key), c.column, _value(c.a), _value(c.b), ratio)
-            out.append("| " + " | ".join(md_escape(x) for x in cells) + " |")
+        rows = [_change_row(c) for c in shown]
+        out += ["", *md_table(["change", "run", "what", "A", "B", "B/A"], rows, "lllllr")]
     for title, items in (("Only in A", cmp.only_a), ("Only in B", cmp.only_b)):
         if items:
             out += ["", f"{title} ({len(items)}):", ""]
@@ -460,6 +317,8 @@ def run_compare(
     import os
     import sys
 
+    from reports.store.atomic import write_text
+
     try:
         cmp = compare_folders(a, b, factor=factor, cost_factor=cost_factor, vary=vary)
     except NothingComparable as exc:
@@ -471,9 +330,7 @@ def run_compare(
     js_path = Path(json_path) if json_path else Path(b) / "compare.json"
     try:
         for path, text in ((md_path, md), (js_path, json.dumps(as_json(cmp), indent=1) + "\n")):
-            tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-            tmp.write_text(text)
-            tmp.replace(path)
+            write_text(path, text)
         print(f"written: {md_path}, {js_path}")
     except OSError as exc:
         print(
@@ -486,11 +343,3 @@ def run_compare(
         with open(summary, "a") as fh:
             fh.write(md)
     return 0 if cmp.ok else 1
-
-
-def _text_table(head, rows) -> list[str]:
-    widths = [max(len(str(x)) for x in col) for col in zip(head, *rows, strict=True)]
-    line = "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True))
-    out = [line, "-" * len(line)]
-    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
-    return out

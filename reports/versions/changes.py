@@ -6,9 +6,9 @@ accuracy) and each pair of consecutive versions of that engine, a :class:`Change
 for:
 
 - ``metric``: an error metric that moved by more than ``factor`` above its round-off floor, or
-  a fitted order that moved by more than the gate's slack (:func:`reports.gate.compare.classify`,
-  the floors and slack of :mod:`reports.gate.check`): ``worse`` or ``better``;
-- ``status`` (ok, diverged, error ... ranked as in :data:`reports.gate.compare.STATUS_RANK`) and
+  a fitted order that moved by more than the gate's slack (:func:`reports.gate.rule.classify`,
+  the comparison rule of ``check`` and ``compare``): ``worse`` or ``better``;
+- ``status`` (ok, diverged, error ... ranked as in :data:`reports.gate.rule.STATUS_RANK`) and
   ``verdict`` (pass <-> fail);
 - ``behaviour``: the class of the signed energy error over time changed between decisive
   classes (:func:`energy_behaviour`: conserved, gaining, losing);
@@ -18,7 +18,8 @@ for:
   sweep moved by more than ``factor`` AND by more than the product of the spreads measured
   across that sweep in both versions (per-step cost does not depend on dt for a fixed-step
   method, so the sweep's spread is the measurement's noise), AND the cost moved beyond the
-  factor, the same way, at every dt of the sweep (the machine's load changes between the
+  factor, the same way, at every dt of the sweep (:func:`reports.gate.rule.at_every_dt`, the
+  rule ``compare`` applies to its cost changes; the machine's load changes between the
   times two versions run, which no spread within one version shows; a real change of the
   engine moves every step size); without a sweep no cost change is claimed.
 
@@ -36,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.gate.compare import STATUS_RANK, classify
+from reports.gate.rule import at_every_dt, classify, ratio_change, status_change
 from reports.metrics.body import FLOORS, HIGHER_IS_BETTER
 from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from scenarios.schema import InputError
@@ -288,9 +289,7 @@ def _config_changes(tab, key, va, vb, a, b) -> list[Change]:
         return [mk("integrator", "status", sa, f"{sb}: {b['message']}", None, "vanished")]
     out = []
     if sa != sb:
-        ra, rb = STATUS_RANK.get(sa, 9), STATUS_RANK.get(sb, 9)
-        word = "worse" if rb > ra else "better" if rb < ra else "changed"
-        out.append(mk("status", "status", sa, sb, None, word))
+        out.append(mk("status", "status", sa, sb, None, status_change(sa, sb)))
     if sa == sb == "ok" and a["verdict"] != b["verdict"]:
         word = "worse" if b["verdict"] == "fail" else "better"
         detail_b = f"fail ({b['verdict_detail']})" if b["verdict"] == "fail" else b["verdict"]
@@ -372,9 +371,8 @@ def _cost_changes(tab, engine, va, vb) -> list[Change]:
         ratio = mb / ma
         noise = max(tab.factor, sa * sb)
         paired = _paired_cost_ratios(tab, engine, sc, integ, va, vb)
-        consistent = bool(paired) and (
-            min(paired) > tab.factor if ratio > 1 else max(paired) < 1.0 / tab.factor
-        )
+        word = "worse" if ratio > 1 else "better"
+        consistent = at_every_dt(ratio_change(p, tab.factor) for p in paired) == word
         if (ratio > noise or ratio < 1.0 / noise) and consistent:
             out.append(
                 Change(
@@ -390,7 +388,7 @@ def _cost_changes(tab, engine, va, vb) -> list[Change]:
                     ma,
                     mb,
                     ratio,
-                    "worse" if ratio > 1 else "better",
+                    word,
                 )
             )
     return out
@@ -535,7 +533,7 @@ CHANGE_HEAD = ["versions", "configuration", "what", "before", "after", "ratio", 
 
 
 def format_check(res: CheckResult) -> str:
-    from reports.gate.compare import _text_table
+    from reports.gate.format import text_table
 
     s = res.summary
     lines = [
@@ -551,7 +549,7 @@ def format_check(res: CheckResult) -> str:
         ),
     )
     if shown:
-        lines += ["", *_text_table(CHANGE_HEAD, change_rows(shown))]
+        lines += ["", *text_table(CHANGE_HEAD, change_rows(shown))]
     if s.not_compared:
         lines += ["", f"Not compared ({len(s.not_compared)}): one side unavailable"]
         lines += [f"  {n}: {why}" for n, why in s.not_compared[:20]]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 
 def cmd_versions(args) -> int:
-    from reports.gate.compare import _text_table
+    from reports.gate.format import text_table
     from reports.versions import run_versions
     from reports.versions.changes import SUMMARY_HEAD, format_check, summary_rows
     from scenarios.schema import InputError
@@ -44,7 +44,7 @@ def cmd_versions(args) -> int:
             f"{p.identical} identical, {p.within} within the factor, {p.changed} changed{na}"
         )
     if s.table.changes and not s.check:
-        print("\n".join(_text_table(SUMMARY_HEAD, summary_rows(s.table.changes))))
+        print("\n".join(text_table(SUMMARY_HEAD, summary_rows(s.table.changes))))
     for k, path in s.paths.items():
         print(f"{k + ':':<10} {path}")
     code = 0
