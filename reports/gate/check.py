@@ -34,6 +34,7 @@ from pathlib import Path
 from reports.gate.format import md_escape, md_table, text_table
 from reports.gate.rule import Change, Comparison, NothingComparable, classify, status_change
 from reports.metrics.body import ORDER_SLACK
+from reports.report.junit import SKIPPED, case_name
 from reports.store.atomic import write_text
 from reports.store.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
 from scenarios.model import RELATIVE_EQUILIBRIA
@@ -299,8 +300,9 @@ def message(c: Change) -> str:
 
 
 def run_name(key) -> str:
+    """``dzhanibekov mujoco/RK4/dt=0.001``: the scenario and the run's JUnit case name."""
     sc, eng, integ, dt, acc = key
-    return f"{sc} {eng}/{integ}/dt={dt:g}" + ("" if acc is None else f"/accuracy={acc:g}")
+    return f"{sc} {case_name(eng, integ, dt, acc)}"
 
 
 _PROBLEM = {
@@ -598,8 +600,6 @@ def _name(r) -> str:
 
 def _junit_agrees(df, path: Path) -> list[str]:
     import xml.etree.ElementTree as ET
-
-    from reports.report.junit import SKIPPED
 
     try:
         suite = ET.parse(path).getroot()

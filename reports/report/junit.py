@@ -27,14 +27,22 @@ import math
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
+from reports.store.atomic import write_text
+
 SKIPPED = frozenset({"unsupported", "unavailable", "reference-inaccurate"})
 
 
-def _name(r) -> str:
-    name = f"{r['engine']}/{r['integrator']}/dt={float(r['dt']):g}"
-    if not math.isnan(float(r["target_accuracy"])):
-        name += f"/accuracy={float(r['target_accuracy']):g}"
+def case_name(engine: str, integrator: str, dt: float, accuracy=None) -> str:
+    """A run's test-case name, ``mujoco/RK4/dt=0.001`` (``/accuracy=1e-08`` for an
+    error-controlled integrator; ``accuracy`` None or NaN: none); the gate names runs so too."""
+    name = f"{engine}/{integrator}/dt={float(dt):g}"
+    if accuracy is not None and not math.isnan(float(accuracy)):
+        name += f"/accuracy={float(accuracy):g}"
     return name
+
+
+def _name(r) -> str:
+    return case_name(r["engine"], r["integrator"], r["dt"], r["target_accuracy"])
 
 
 def _head(scenario, name: str, wall: float) -> str:
@@ -95,9 +103,9 @@ def write(
         counts[kind] += 1
         cases.append(xml)
     for (sc, eng, integ, dt, acc), msg in missing or []:
-        name = f"{eng}/{integ}/dt={dt:g}" + ("" if acc is None else f"/accuracy={acc:g}")
         counts["failure"] += 1
-        cases.append(_head(sc, name, 0.0) + _body("failure", msg) + "</testcase>")
+        head = _head(sc, case_name(eng, integ, dt, acc), 0.0)
+        cases.append(head + _body("failure", msg) + "</testcase>")
     total = float(df["wall_time_s"].fillna(0.0).sum()) if len(df) else 0.0
     attr = "" if baseline is None else f" baseline={quoteattr(str(baseline))}"
     doc = [
@@ -107,8 +115,4 @@ def write(
         *cases,
         "</testsuite>",
     ]
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text("\n".join(doc) + "\n")
-    tmp.replace(path)
-    return path
+    return write_text(path, "\n".join(doc) + "\n")
