@@ -212,3 +212,22 @@ def test_director_schemes_declare_their_cost_and_promises():
     for n in ("rattle", "rattle4", "rattle6"):
         assert dict(integs[n].tolerances) == {"momentum_drift_max": 1e-10}
     assert dict(integs["energy_momentum"].tolerances) == {}
+
+
+def test_an_integrator_s_family_on_a_ball_is_declared_and_true():
+    """MuJoCo declares that implicitfast runs its Euler step on a ball joint: the run records
+    that family for a pivoted body (and its own for a free one), and the declaration holds,
+    the trajectories are bit for bit Euler's on the heavy top."""
+    from references.engines import Integrator
+
+    engine = engine_or_skip("mujoco")
+    top = scenarios.load("heavy_top").replace(t_end=0.2)
+    fast = engine.run(top, "implicitfast", top.dt)
+    euler = engine.run(top, "Euler", top.dt)
+    assert fast.family == "semi-implicit Euler"
+    assert fast.settings["family of the algorithm run"] == "semi-implicit Euler"
+    assert np.array_equal(fast.trajectory.rotation, euler.trajectory.rotation)
+    free = scenarios.load("dzhanibekov").replace(t_end=0.2)
+    assert engine.run(free, "implicitfast", free.dt).family == "implicit gyroscopic"
+    with pytest.raises(ValueError, match="unknown family 'leapfrog'"):
+        Integrator("x", "semi-implicit Euler", 1, "x", family_on_a_ball="leapfrog")

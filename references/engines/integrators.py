@@ -100,6 +100,10 @@ class Integrator:
     sweep in a suite (not with explicit steps or without the sweep): for an integrator cheap
     enough to follow its error down to the round-off floor (the director model's high-order
     compositions), whose work-precision curve would otherwise stop above it.
+    ``family_on_a_ball``: the family of the algorithm the engine actually runs on a pivoted
+    body (a ball joint), where it differs from ``family`` (MuJoCo's implicitfast drops the
+    gyroscopic derivative on a ball joint, which leaves its Euler step); the run records it
+    (``RunContext.family``) and its verdicts follow it.
     """
 
     name: str
@@ -114,13 +118,15 @@ class Integrator:
     adaptive: bool = False
     default: bool = True
     sweep_halvings: int = 0
+    family_on_a_ball: str | None = None
 
     def __post_init__(self):
-        if self.family not in FAMILIES:
-            raise ValueError(
-                f"integrator {self.name!r}: unknown family {self.family!r}; register it with "
-                "references.engines.register_family"
-            )
+        for fam in (self.family, self.family_on_a_ball):
+            if fam is not None and fam not in FAMILIES:
+                raise ValueError(
+                    f"integrator {self.name!r}: unknown family {fam!r}; register it with "
+                    "references.engines.register_family"
+                )
         if self.stepping not in ("native", "rkmk4"):
             raise ValueError(f"integrator {self.name!r}: stepping must be 'native' or 'rkmk4'")
 

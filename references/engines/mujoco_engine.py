@@ -33,10 +33,6 @@ _INTEGRATOR_ENUM = {
 }
 
 
-#: integrators that run MuJoCo's Euler algorithm on a ball joint
-_EULER_ON_A_BALL = ("implicitfast", "discrete")
-
-
 def _import():
     mujoco = import_engine("mujoco", "MuJoCo", "mujoco")
     if mujoco.get_mju_user_warning() is None:
@@ -85,6 +81,9 @@ class MujocoEngine(Engine):
             "the gyroscopic derivative is included (same as implicit); for a BALL joint it is "
             "dropped, so on a pivoted body this is the same algorithm as Euler "
             "(docs/engines.md).",
+            # on a ball joint MuJoCo drops the gyroscopic derivative, which leaves its Euler
+            # step (measured: bit-identical trajectories on heavy_top)
+            family_on_a_ball="semi-implicit Euler",
         ),
         Integrator(
             "discrete",
@@ -94,6 +93,7 @@ class MujocoEngine(Engine):
             "update in one metric). Measured like implicitfast: gyroscopic derivative kept "
             "for a free body, dropped for a ball joint (docs/engines.md). Only in MuJoCo "
             "versions whose mjtIntegrator has mjINT_DISCRETE.",
+            family_on_a_ball="semi-implicit Euler",  # as implicitfast's
         ),
         Integrator(
             "RK4",
@@ -177,10 +177,6 @@ class MujocoEngine(Engine):
                 raise Unsupported(f"MuJoCo rejects the scenario's inertia: {exc}") from exc
             raise EngineError(f"MuJoCo could not compile the scenario's model: {exc}") from exc
         ctx.handle = (mujoco, m, mujoco.MjData(m))
-        if ctx.model.pivoted and ctx.integrator.name in _EULER_ON_A_BALL:
-            # on a ball joint MuJoCo drops the gyroscopic derivative from these two, which
-            # leaves its Euler step (measured: bit-identical trajectories on heavy_top)
-            ctx.family = "semi-implicit Euler"
 
     def read_model(self, ctx) -> ModelReadback:
         mujoco, m, _ = ctx.handle

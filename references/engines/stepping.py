@@ -68,6 +68,8 @@ def run_loop(
     nstep, saves = step_plan(dt, t_end, save_every)
     ctx = RunContext(scenario, BodyModel.of(scenario, dt), integ, float(dt), float(t_end))
     ctx.accuracy = None if accuracy is None else float(accuracy)
+    if ctx.model.pivoted and integ.family_on_a_ball is not None:
+        ctx.family = integ.family_on_a_ball
     ctx.stderr = NativeStderr()
     rec = recorder if recorder is not None else Recorder(saves)
     rec.residuals = ctx.residuals
