@@ -62,7 +62,7 @@ def initial_qpos_qvel(n: int):
 
 def mjx_rate(integrator: str, precision: str, n: int, nstep: int, repeat: int):
     """(best seconds per body-step, compile seconds) of the vmapped compiled stepping."""
-    from references.engines.base import BodyModel, RunContext
+    from references.engines.context import BodyModel, RunContext
     from references.engines.mjx_engine import CHECKPOINTS, MjxEngine, _block_fn, _compiled
 
     eng = MjxEngine()
@@ -97,7 +97,7 @@ def rollout_rate(integrator: str, n: int, nstep: int, repeat: int, nthread: int)
     import mujoco
     from mujoco import rollout
 
-    from references.engines.base import BodyModel
+    from references.engines.context import BodyModel
     from references.engines.mujoco_engine import MujocoEngine
 
     m = mujoco.MjModel.from_xml_string(

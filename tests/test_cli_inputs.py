@@ -186,7 +186,7 @@ def test_list_json_is_valid_json():
 
 
 def test_the_slug_rule_on_names_written_out_by_hand():
-    from references.engines.base import slug
+    from references.engines.integrators import slug
 
     # expected values written from the rule in its docstring, not computed by it
     assert slug("semi-implicit Euler") == "semi-implicit-euler"

@@ -12,9 +12,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import scenarios
-from references.engines.base import step_plan
 from references.trajectory import Trajectory
 from scenarios import ScenarioError
+from scenarios.schema import step_plan
 
 LIBRARY = [
     "cone_top",

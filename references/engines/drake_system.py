@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from references.engines import pinocchio_system as ps
-from references.engines.base import import_engine
+from references.engines.native import import_engine
 from references.errors import Diverged, EngineError, Unsupported
 
 #: fixed-step continuous schemes (Drake's names) and the discrete plant

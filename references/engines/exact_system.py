@@ -237,7 +237,7 @@ def _numerical(scenario, t, start) -> SystemReference:
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
                     **settings) -> dict:  # fmt: skip
     """The reference at the saved steps, as the ``exact`` engine's system run."""
-    from references.engines.base import step_plan
+    from scenarios.schema import step_plan
 
     if integrator != "reference":
         raise EngineError(f"exact: no integrator {integrator!r} (it has 'reference')")

@@ -20,7 +20,7 @@ setting. The read-back checks the width of the model's and the state's floats (8
 a float32 run labelled float64 cannot pass.
 
 The initial state of a float32 run. The suite checks the state an engine holds before its
-first step against the scenario to 1e-12 (:func:`references.engines.base.check_initial`),
+first step against the scenario to 1e-12 (:func:`references.engines.stepping.check_initial`),
 which a float32 state cannot meet (its rounding alone is ~6e-8 relative). The float32
 configurations therefore hand the scenario's state over in float64: before the first step the
 state read back, and the engine's own quantities (C MuJoCo's, as in the C adapter, on the
@@ -74,26 +74,14 @@ import time
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import (
-    CHUNK,
-    DIVERGENCE_ENERGY,
-    BodyModel,
-    Diverged,
-    Engine,
-    EngineError,
-    EngineUnavailable,
-    Family,
-    Integrator,
-    ModelReadback,
-    RunContext,
-    RunOutput,
-    Unsupported,
-    check_readback,
-    import_engine,
-    register_family,
-    step_plan,
-)
+from references.engines.context import BodyModel, ModelReadback, RunContext, RunOutput
+from references.engines.integrators import Family, Integrator, register_family
+from references.engines.interface import Engine
 from references.engines.mujoco_engine import MujocoEngine
+from references.engines.native import import_engine
+from references.engines.stepping import CHUNK, DIVERGENCE_ENERGY, check_readback
+from references.errors import Diverged, EngineError, EngineUnavailable, Unsupported
+from scenarios.schema import step_plan
 
 #: the name of every MJX model (see the module docstring: names are part of the compile key)
 MODEL_NAME = "director-bench"
@@ -953,6 +941,6 @@ def _batch_output(ctx, mem, qp, qv, points, saves, nstep, settings, wall, engine
 
 
 def _initial(scenario) -> cv.BodyState:
-    from references.engines.base import initial_state
+    from references.engines.stepping import initial_state
 
     return initial_state(scenario)

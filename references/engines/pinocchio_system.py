@@ -68,7 +68,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import import_engine
+from references.engines.native import import_engine
 from references.errors import Diverged, EngineError, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")

@@ -563,7 +563,7 @@ def invariants(df, junit_path: str | Path | None = None) -> list[str]:
     - ``junit.xml`` (if given, as ``run`` wrote it) counts the same failures, errors and skips
       as the results.
     """
-    from references.engines.base import DIVERGENCE_ENERGY
+    from references.engines.stepping import DIVERGENCE_ENERGY
 
     out = []
     ok = df[df["status"] == "ok"]

@@ -1,6 +1,6 @@
 """Long horizons with streaming metrics: every step measured, memory bounded by the segment.
 
-:class:`StreamingRecorder` is the recorder of a run (``references.engines.base.Recorder``) that
+:class:`StreamingRecorder` is the recorder of a run (``references.engines.recording.Recorder``) that
 sees the state after every step. It buffers ``segment`` steps, evaluates the reference at
 their times, folds every pointwise single-body metric of the catalog
 (:data:`reports.metrics.catalog.STREAMED`: energy and momentum drift, orthonormality, the
@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from references import conventions as cv
-from references.engines.base import Recorder
+from references.engines.recording import Recorder
 from reports.metrics import body  # noqa: F401  (attaches the single-body functions)
 from reports.metrics.catalog import POINTWISE, computed
 
@@ -74,7 +74,7 @@ class StreamingRecorder(Recorder):
         """Fold the buffered steps into the maxima."""
         if not self._nbuf:
             return
-        from references.engines.base import block_trajectory
+        from references.engines.recording import block_trajectory
 
         t = np.concatenate(self._buf_steps) * self.dt
         block = cv.BodyState(*(np.concatenate(p) for p in zip(*self._buf, strict=True)))
