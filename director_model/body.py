@@ -149,11 +149,17 @@ class Body:
 
     @property
     def symmetric_axis(self) -> int | None:
-        """Index of the axis of symmetry (the moment differing from two equal ones), else
-        None. Exact equality, as stated in scenario files."""
-        I = self.inertia
-        for k in range(3):
-            i, j = [a for a in range(3) if a != k]
-            if I[i] == I[j] and I[k] != I[i]:
-                return k
-        return None
+        """Index of the axis of symmetry (:func:`symmetric_axis` of the principal moments)."""
+        return symmetric_axis(self.inertia)
+
+
+def symmetric_axis(inertia) -> int | None:
+    """Index of the body axis of symmetry of principal moments ``inertia`` (3,): the moment
+    that differs from two equal ones; None for an asymmetric or spherical body. Equality is
+    exact: scenario files state symmetric bodies with equal numbers."""
+    I = inertia
+    for k in range(3):
+        i, j = [a for a in range(3) if a != k]
+        if I[i] == I[j] and I[k] != I[i]:
+            return k
+    return None

@@ -127,15 +127,11 @@ class Scenario:
 
     @property
     def symmetric_axis(self) -> int | None:
-        """Index of the body axis of symmetry (the moment that differs from two equal ones),
-        or None for an asymmetric or spherical body. Equality is exact: scenario files state
-        symmetric bodies with equal numbers."""
-        I = self.inertia
-        for k in range(3):
-            i, j = [a for a in range(3) if a != k]
-            if I[i] == I[j] and I[k] != I[i]:
-                return k
-        return None
+        """Index of the body axis of symmetry, or None
+        (:func:`director_model.body.symmetric_axis`)."""
+        from director_model.body import symmetric_axis
+
+        return symmetric_axis(self.inertia)
 
     @property
     def top_axis(self) -> int | None:
