@@ -63,6 +63,7 @@ from reports.report.tables import (
     settings_table,
     work_precision,
 )
+from reports.store.atomic import write_text
 from reports.store.format import fmt, fmt_int, fmt_level, fmt_step, md_cell
 from reports.store.provenance import read_provenance
 from reports.store.results import STATUSES, records
@@ -1046,6 +1047,4 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
 
 
 def _write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
+    write_text(path, text, encoding="utf-8")

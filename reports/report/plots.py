@@ -53,6 +53,7 @@ from reports.report.labels import (
     family_key,
 )
 from reports.report.tables import at_scenario_dt, scenario_dt
+from reports.store.atomic import write_text
 from reports.store.format import fmt, fmt_step, truthy
 from reports.store.results import error_series_path, records, slug
 
@@ -1361,9 +1362,7 @@ def all_plots(
         made[scenario] = [out / n for n in names]
         made_from[scenario]["files"] = names
     bar.close()
-    tmp = out / f"{CACHE_FILE}.tmp"
-    tmp.write_text(json.dumps(made_from, indent=1))
-    tmp.replace(out / CACHE_FILE)
+    write_text(out / CACHE_FILE, json.dumps(made_from, indent=1))
     return made
 
 

@@ -12,6 +12,8 @@ import platform
 import subprocess
 from pathlib import Path
 
+from reports.store.atomic import write_text
+
 
 def git_commit() -> str:
     """The suite's git commit (with '+dirty' if the tree has changes), or 'unknown'."""
@@ -79,11 +81,9 @@ def provenance(engines=None) -> dict:
 
 def write_provenance(out: Path, engines=None) -> Path:
     """Write ``provenance.json`` into ``out`` (atomically: a temporary file renamed)."""
-    path = Path(out) / "provenance.json"
-    tmp = path.with_name(f".provenance.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(provenance(engines), indent=2) + "\n")
-    tmp.replace(path)
-    return path
+    return write_text(
+        Path(out) / "provenance.json", json.dumps(provenance(engines), indent=2) + "\n"
+    )
 
 
 def read_provenance(root: Path) -> dict:

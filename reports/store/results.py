@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from reports.metrics.catalog import METRIC_COLUMNS
+from reports.store.atomic import replacing
 
 STORE_NAME = "results.sqlite"
 #: version of the store's layout, checked on open
@@ -664,18 +665,15 @@ def export(folder: str | Path, df=None) -> list[Path]:
         df = read_results(folder)
     paths = []
     csv_path = folder / "results.csv"
-    tmp = csv_path.with_name(f".{csv_path.name}.{os.getpid()}.tmp")
-    with tmp.open("w", newline="") as fh:
+    with replacing(csv_path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(RESULT_COLUMNS)
         for rec in df[list(RESULT_COLUMNS)].itertuples(index=False):
             w.writerow(_csv_value(v) for v in rec)
-    tmp.replace(csv_path)
     paths.append(csv_path)
     pq = folder / "results.parquet"
-    tmp = pq.with_name(f".{pq.name}.{os.getpid()}.tmp")
-    df[list(RESULT_COLUMNS)].to_parquet(tmp, index=False)
-    tmp.replace(pq)
+    with replacing(pq) as tmp:
+        df[list(RESULT_COLUMNS)].to_parquet(tmp, index=False)
     paths.append(pq)
     return paths
 
@@ -706,6 +704,5 @@ def write_parquet_table(table, path: Path, metadata: dict) -> None:
         meta = dict(table.schema.metadata or {})
         meta.update({k.encode(): json.dumps(v).encode() for k, v in metadata.items()})
         table = table.replace_schema_metadata(meta)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    tmp.replace(path)
+    with replacing(path) as tmp:
+        pq.write_table(table, tmp)
