@@ -26,6 +26,7 @@ import numpy as np
 
 from reports.metrics import verdicts
 from reports.metrics.body import compute_metrics, roundoff_floor
+from reports.store.atomic import replacing
 from reports.store.results import (
     RunSpec,
     Store,
@@ -73,17 +74,14 @@ def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) ->
     """Write a run's trajectory, atomically: Parquet with the per-sample error series as
     extra columns and units, frames and the run's identity in the schema metadata; or CSV
     with the series in a Parquet file beside it."""
-    import os
-
     import pyarrow as pa
 
     from references.trajectory import COLUMNS, UNITS
 
     path.parent.mkdir(parents=True, exist_ok=True)
     if fmt != "parquet":
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        traj.write(tmp, "csv")
-        tmp.replace(path)
+        with replacing(path) as tmp:
+            traj.write(tmp, "csv")
         series = {"t": traj.t, "wx": traj.omega_body[:, 0], "wy": traj.omega_body[:, 1],
                   "wz": traj.omega_body[:, 2], **series}  # fmt: skip
         write_parquet_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), {})
