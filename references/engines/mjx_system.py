@@ -67,7 +67,7 @@ def _base_name(integrator: str) -> str:
     name, _, precision = integrator.partition(" (")
     if precision.rstrip(")") == "float32":
         raise Unsupported(
-            "mjx: systems run in float64 only (a float32 tree would be checked against a "
+            "mjx: systems run in float64 only (a float32 model would be checked against a "
             "float64 state it cannot hold)"
         )
     return name
