@@ -27,9 +27,9 @@ from references.engines import drake_system as ds  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
 from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from references.exact.multibody import solve, tree_from_world  # noqa: E402
 from tests.test_pinocchio_system import (  # noqa: E402
     assert_order,
+    errors_vs_reference,
     four_bar_gap,
     four_bar_theta_error,
     momentum,
@@ -37,16 +37,6 @@ from tests.test_pinocchio_system import (  # noqa: E402
 )
 
 EULER, RK5, SAP = "semi_explicit_euler", "runge_kutta5", "discrete SAP"
-
-
-def errors_vs_reference(sc, integrator, dt, t_end=1.0):
-    n = int(round(t_end / dt))
-    out = ds.simulate_system(sc, integrator, dt, n, n // 10)
-    tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
-    ref = solve(tree, q0, u0, out["t"], estimate=False)
-    order = [ref.names.index(b.name) for b in sc.bodies]
-    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
-            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -68,8 +58,8 @@ def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(
         sc = scenario(system, *rod_chain(3, True, seed=1))
     else:
         sc = scenario(system, *hinge_chain())
-    ex1, eR1 = errors_vs_reference(sc, integrator, dt)
-    ex2, eR2 = errors_vs_reference(sc, integrator, dt / 2)
+    ex1, eR1 = errors_vs_reference(ds, sc, integrator, dt)
+    ex2, eR2 = errors_vs_reference(ds, sc, integrator, dt / 2)
     assert_order(ex1, ex2, p)
     assert_order(eR1, eR2, p)
     assert ex2 < bound
@@ -151,8 +141,8 @@ def test_a_double_spherical_pendulum_runs_through_chart_switches_at_order_5():
     1.25 ms gave ratios 39 to 49, above 2^5 = 32 but within the 1.6 factor of assert_order);
     the reference (rtol 1e-13) is good to about 1e-12 here (1.25 to 0.625 ms: ratio 16)."""
     sc = double_spherical_pendulum()
-    ex1, eR1 = errors_vs_reference(sc, RK5, 3e-3, t_end=0.9)
-    ex2, eR2 = errors_vs_reference(sc, RK5, 1.5e-3, t_end=0.9)
+    ex1, eR1 = errors_vs_reference(ds, sc, RK5, 3e-3, t_end=0.9)
+    ex2, eR2 = errors_vs_reference(ds, sc, RK5, 1.5e-3, t_end=0.9)
     assert_order(ex1, ex2, 5)
     assert_order(eR1, eR2, 5)
     assert ex2 < 1e-10 and eR2 < 1e-10

@@ -25,9 +25,9 @@ from director_model.system.examples import parallelogram_four_bar, rod_chain  # 
 from references.engines import pybullet_system as bs  # noqa: E402
 from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
-from references.exact.multibody import solve, tree_from_world  # noqa: E402
 from tests.test_pinocchio_system import (  # noqa: E402
     assert_order,
+    errors_vs_reference,
     four_bar_gap,
     four_bar_theta_error,
     momentum,
@@ -35,16 +35,6 @@ from tests.test_pinocchio_system import (  # noqa: E402
 )
 
 MB = "multibody"
-
-
-def errors_vs_reference(sc, dt, t_end=1.0):
-    n = int(round(t_end / dt))
-    out = bs.simulate_system(sc, MB, dt, n, n // 10)
-    tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
-    ref = solve(tree, q0, u0, out["t"], estimate=False)
-    order = [ref.names.index(b.name) for b in sc.bodies]
-    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
-            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -58,8 +48,8 @@ def test_chains_agree_with_the_reduced_reference_at_first_order(system):
         sc = scenario(system, *rod_chain(3, True, seed=1))
     else:
         sc = scenario(system, *hinge_chain())
-    ex1, eR1 = errors_vs_reference(sc, 1e-3)
-    ex2, eR2 = errors_vs_reference(sc, 5e-4)
+    ex1, eR1 = errors_vs_reference(bs, sc, MB, 1e-3)
+    ex2, eR2 = errors_vs_reference(bs, sc, MB, 5e-4)
     assert_order(ex1, ex2, 1)
     assert_order(eR1, eR2, 1)
     assert ex2 < 1e-2
