@@ -115,6 +115,13 @@ METRICS: tuple[Metric, ...] = (
         scale_column="momentum_scale", scale_unit="kg m²/s",
     ),
     Metric(
+        "linear_momentum_drift_max", "1",
+        "p_c = sqrt(2 m E_tr,c), the momentum of a free body's largest translational kinetic "
+        "energy over the horizon (Scenario.translational_energy_scale)",
+        floor=1e-11, title="linear momentum drift [p_c]", short="linear momentum",
+        tolerance=1e-2,
+    ),
+    Metric(
         "orthonormality_max", "1", "none: ||R^T R - 1||_F is relative to the identity",
         floor=1e-11, title="‖RᵀR − 1‖", short="orthonormality", tolerance=1e-9, system=True,
         series="orthonormality",

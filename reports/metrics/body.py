@@ -133,6 +133,21 @@ def momentum_drift(scenario, traj) -> np.ndarray:
     return drift / scale
 
 
+@measures("linear_momentum_drift_max")
+def linear_momentum_drift(scenario, traj) -> np.ndarray | None:
+    """A free body's |m (v_G - v_G0 - g t)| / p_c, shape (n,): uniform gravity is the only
+    force on it, so m v_G - m g t is conserved. p_c = sqrt(2 m E_tr,c), the momentum of the
+    largest translational kinetic energy over the horizon
+    (:attr:`Scenario.translational_energy_scale`, never 0). Sees what the translational
+    energy cannot: a velocity turned without changing its length (e.g. reported in body
+    axes). None for a pivoted body, whose pivot pushes it."""
+    if scenario.pivot is not None:
+        return None
+    dv = traj.velocity - scenario.velocity - np.outer(traj.t, scenario.gravity)
+    p_c = math.sqrt(2.0 * scenario.mass * scenario.translational_energy_scale)
+    return scenario.mass * np.linalg.norm(dv, axis=1) / p_c
+
+
 @measures("orthonormality_max")
 def orthonormality(traj) -> np.ndarray:
     """||R^T R - 1|| (Frobenius) at each saved time, shape (n,)."""
