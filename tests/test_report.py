@@ -472,3 +472,40 @@ def test_scorecard_picture_is_written_as_png_and_svg_with_text(folder):
     assert (folder / "scorecard.png").stat().st_size > 10_000
     for word in ("cone_top", "free_tumbling", "director rattle4", "pinocchio + suite RKMK4"):
         assert word in svg, word
+
+
+def test_energy_momentum_note_only_where_the_scheme_ran(df):
+    """The scorecard's paragraph on the energy-momentum scheme is printed when the scheme ran
+    and not when every one of its runs is unsupported (it then explains nothing shown)."""
+    from reports.report.build import Doc, scorecard_section
+    from reports.report.tables import scorecard
+
+    def note(rows) -> bool:
+        doc = Doc()
+        scorecard_section(doc, rows, scorecard(rows))
+        return any("**energy_momentum:**" in line for line in doc.md)
+
+    em = (df["integrator"] == "energy_momentum") & (df["engine"] == "director")
+    assert (df.loc[em, "status"] == "ok").any() and note(df)
+    none_ran = df.copy()
+    none_ran.loc[em, "status"] = "unsupported"
+    none_ran.loc[em, "verdict"] = ""
+    assert not note(none_ran)
+
+
+def test_building_a_report_asks_no_engine_and_no_reference(folder):
+    """The report is a function of the results folder: building it imports nothing of the
+    engine adapters (references.engines) or the exact references (references.exact), so a
+    folder of engines not installed here is reported all the same."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from reports.report.build import build_report\n"
+        f"build_report({str(folder)!r})\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('references.engines', "
+        "'references.exact'))))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]", out.stdout

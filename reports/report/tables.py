@@ -269,4 +269,7 @@ def _value_key(text: str):
 
 
 def energy_momentum_rows(df):
-    return df[(df["integrator"] == ENERGY_MOMENTUM) & (df["engine"] == "director")]
+    """The runs of the director's energy-momentum scheme that ran (not unsupported or
+    unavailable): what the report says of the scheme is said only where these exist."""
+    em = (df["integrator"] == ENERGY_MOMENTUM) & (df["engine"] == "director")
+    return df[em & ~df["status"].isin(NOT_RUN)]
