@@ -70,8 +70,8 @@ def test_mjx_closes_the_four_bar_with_mujocos_connects():
     planar pendulum to 0.02 rad and 1e-3 rad (measured 3.1e-3 and 2.4e-4; C MuJoCo 4.9e-3 and
     2.4e-4): the linkage stays on its branch (the crossed branch is off by O(1)).
     MJX and C MuJoCo differ by up to 1.4e-3 m with the default solref: MJX's reference
-    acceleration of a connect differs from C MuJoCo 4.0's (module docstring of mjx_system),
-    and the difference grows at the singular passages; with the stiffer solref 1.8e-6 m."""
+    acceleration of a connect lacks C MuJoCo's Jdot v term (test below), and the difference
+    grows at the singular passages; with the stiffer solref 1.8e-6 m."""
     bodies, joints, I_eff, k = parallelogram_four_bar()
     sc = scenario("fb", bodies, joints)
     t = np.linspace(0.0, 1.0, 101)
@@ -118,3 +118,42 @@ def test_mjx_float64_tree_euler_equals_c_mujoco_and_rk4_converges():
     e = {dt: max_err(o, sol.x[:, perm], sol.R[:, perm]) for dt, o in out.items()}
     assert 1.5 <= np.log2(e[2e-3] / e[1e-3]) <= 2.5, e
     assert e[1e-3] > 1e-8, e
+
+
+@pytest.mark.slow
+def test_mjx_connect_reference_acceleration_lacks_c_mujocos_jdot_v():
+    """On the four-bar after 20 Euler steps the connect rows of MJX and C MuJoCo share their
+    position error, Jacobian and impedance, and their reference accelerations differ by
+    exactly the velocity-product term Jdot v that C MuJoCo subtracts for connect rows
+    (mj_referenceConstraint -> mj_Jdotv): C's aref = MJX's aref - Jdot v, with Jdot v computed
+    here by central differences of C's efc_J along qvel (step 1e-6: truncation ~1e-12, the
+    rows' round-off ~1e-10 over 2e-6; bound 1e-8 of aref's size ~1). Documents where MJX's
+    loops part from C MuJoCo's; fails when MJX adds the term."""
+    from references.engines.mjx_engine import _import
+
+    _, jax, mjx = _import()
+    bodies, joints, _, _ = parallelogram_four_bar()
+    mujoco, m, d, _, _, _ = ms.build(scenario("fb", bodies, joints), "Euler", 1e-3)
+    mujoco.mj_step(m, d, 20)
+    mujoco.mj_forward(m, d)
+    with jax.enable_x64(True):
+        dx = jax.jit(mjx.forward)(mjx.put_model(m, impl="jax"), mjx.put_data(m, d, impl="jax"))
+    im = dx._impl
+    n = d.nefc
+    np.testing.assert_allclose(np.asarray(im.efc_pos)[:n], d.efc_pos, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(im.efc_J)[:n], d.efc_J.reshape(n, m.nv), atol=1e-14)
+    np.testing.assert_allclose(np.asarray(im.efc_D)[:n], d.efc_D, rtol=1e-12)
+
+    def jac(q):
+        dd = mujoco.MjData(m)
+        dd.qpos[:], dd.qvel[:] = q, d.qvel
+        mujoco.mj_forward(m, dd)
+        return dd.efc_J.reshape(dd.nefc, m.nv).copy()
+
+    qp, qm = d.qpos.copy(), d.qpos.copy()
+    mujoco.mj_integratePos(m, qp, d.qvel, 1e-6)
+    mujoco.mj_integratePos(m, qm, d.qvel, -1e-6)
+    jdotv = (jac(qp) - jac(qm)) @ d.qvel / 2e-6
+    aref_mjx = np.asarray(im.efc_aref)[:n]
+    assert np.abs(jdotv).max() > 1e-4  # the term is not negligible here (measured 8.4e-3)
+    np.testing.assert_allclose(d.efc_aref, aref_mjx - jdotv, rtol=0, atol=1e-8)

@@ -32,11 +32,14 @@ tolerance. Before stepping, the builder reads back from the MJX model every conn
 sites, solref and solimp, the solver settings and the disable flags, and compares them with
 the compiled C model. Measured on the four-bar (mujoco-mjx 3.17.0, mujoco 4.0.0): MJX's
 constraint rows (position error, Jacobian, D, K, B, impedance) equal C MuJoCo's, but MJX's
-reference acceleration is MuJoCo's documented aref = -B J v - K imp r (recomputed by hand
-from C MuJoCo's own efc_KBIP, efc_vel and efc_pos: equal to 1e-8) while C MuJoCo 4.0's
-differs from it (by 1.9 % after 20 steps), so on a closed loop MJX's Euler is not C MuJoCo's
-Euler step for step as it is on a tree: 1.4e-3 m apart after the singular passages with
-the default solref, 1.8e-6 m with solref (0.002, 1) (docs/engines.md, MJX).
+reference acceleration is aref = -B J v - K imp r while C MuJoCo's also subtracts the
+connect's velocity-product term Jdot v (``mj_referenceConstraint`` calls ``mj_Jdotv`` for
+connect and weld rows; C's aref equals MJX's minus Jdot v, Jdot v taken by central
+differences of efc_J along qvel, to 1e-8): MJX's loop closure lacks that term, so on a closed
+loop MJX's Euler is not C MuJoCo's Euler step for step as it is on a tree: 1.4e-3 m apart
+after the singular passages with the default solref, 1.8e-6 m with solref (0.002, 1), and
+its loop gaps are larger where Jdot v matters (Bricard: 1.7e-3 m against C's 5.6e-4 m)
+(docs/engines.md, MJX).
 """
 
 from __future__ import annotations
