@@ -509,3 +509,21 @@ def test_building_a_report_asks_no_engine_and_no_reference(folder):
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]", out.stdout
+
+
+def test_scorecard_figure_is_as_wide_as_its_content(df, tmp_path):
+    """One scenario makes a narrow scorecard picture (its title and legend wrap to the label
+    column and one column of cells, 2.5 + 1.3 in), not one as wide as a one-line title
+    (8.8 in before); more scenarios make it wider."""
+    from PIL import Image
+
+    from reports.report.plots import DPI, scorecard_figure
+
+    widths = {}
+    for n, names in ((1, ["free_tumbling"]), (2, ["free_tumbling", "cone_top"])):
+        (tmp_path / str(n)).mkdir()
+        png, _ = scorecard_figure(df[df["scenario"].isin(names)], tmp_path / str(n))
+        widths[n] = Image.open(png).size[0] / DPI
+    # 1.5 in for configuration labels longer than the label column (they are never cut)
+    assert widths[1] < 2.5 + 1.3 + 1.5, widths
+    assert widths[2] > widths[1] + 1.0, widths

@@ -1435,6 +1435,14 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
     return scens, [(e, i, labels[(e, i)]) for e, i in order], cells
 
 
+#: the scorecard figure's title (wrapped to the figure's width)
+SCORECARD_TITLE = (
+    "director-bench scorecard, each scenario at its own dt: verdict, max attitude error [rad] "
+    "(< x: below the reference's accuracy x), time inside the engine per step, and the "
+    "metrics that failed"
+)
+
+
 def scorecard_figure(df, out: Path) -> list[Path]:
     """The scorecard as one picture for a README or a pull request, ``scorecard.png`` and
     ``scorecard.svg`` in ``out``: a row per configuration, a column per scenario at its own
@@ -1450,11 +1458,18 @@ def scorecard_figure(df, out: Path) -> list[Path]:
     scens, configs, cells = scorecard_cells(df)
     plt = _plt()
     cw, ch, lw = 1.3, 0.55, 2.5  # cell width and height, label column, inches
-    width, height = lw + cw * len(scens) + 0.2, ch * len(configs) + 2.1
+    # sized by its content: the title and the legend wrap to the width of the labels and
+    # cells (one scenario makes a narrow figure, not one as wide as a one-line title)
+    content = lw + cw * len(scens)
+    title = textwrap.wrap(SCORECARD_TITLE, max(48, int(content * 13)))  # ~13 chars/inch at 9 pt
+    ncols = max(2, min(6, int(content // 1.45)))  # legend entries are up to ~1.4 in wide
+    bottom = 0.53 + 0.22 * -(-6 // ncols)
+    top = 1.01 + 0.17 * len(title)
+    width, height = content + 0.2, ch * len(configs) + bottom + top
     with matplotlib.rc_context({"svg.fonttype": "none"}):
         fig = plt.figure(figsize=(width, height), dpi=DPI)
         ax = fig.add_axes(
-            [lw / width, 0.75 / height, cw * len(scens) / width, ch * len(configs) / height]
+            [lw / width, bottom / height, cw * len(scens) / width, ch * len(configs) / height]
         )
         ax.set_xlim(0, len(scens))
         ax.set_ylim(len(configs), 0)
@@ -1491,19 +1506,10 @@ def scorecard_figure(df, out: Path) -> list[Path]:
         ]
         handles.append(Patch(fc=OUTCOME_COLOURS["unsupported"], ec="0.6", label="not run"))
         fig.legend(
-            handles=handles, loc="lower left", bbox_to_anchor=(0.01, 0.0), ncols=6,
+            handles=handles, loc="lower left", bbox_to_anchor=(0.01, 0.0), ncols=ncols,
             frameon=False, fontsize=8, handlelength=1.4,
         )  # fmt: skip
-        fig.text(
-            0.01,
-            1 - 0.08 / height,
-            "director-bench scorecard, each scenario at its own dt: verdict, max attitude "
-            "error [rad] (< x: below the reference's accuracy x),\ntime inside the engine per "
-            "step, and the metrics that failed",
-            ha="left",
-            va="top",
-            fontsize=9,
-        )
+        fig.text(0.01, 1 - 0.08 / height, "\n".join(title), ha="left", va="top", fontsize=9)
         paths = [out / "scorecard.png", out / "scorecard.svg"]
         box = fig.get_tightbbox().padded(0.1)  # inches; measured once for both files
         _write_png(fig, paths[0], bbox_inches=box)
