@@ -97,6 +97,8 @@ def measures(name: str, on: str = "body", **fixed) -> Callable:
             raise ValueError(f"{where}: {name!r} is not declared as applying to on={on!r}")
         if m.kind not in (POINTWISE, OBSERVABLE):
             raise ValueError(f"{where}: {name!r} is a {m.kind} metric, computed over runs")
+        if m.kind == OBSERVABLE and on != "body":
+            raise ValueError(f"{where}: {name!r}: exact observables are measured on one body")
         params = set(inspect.signature(fn).parameters) - set(fixed)
         extra = params - set(ARGUMENTS)
         if extra:
