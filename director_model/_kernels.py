@@ -1365,22 +1365,24 @@ def store_state(method, P, S, g, t, X, V, Dout, Dpout):
 
 
 @njit(cache=True)
-def _run_rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, comp, n0):
-    """The RATTLE-family loop of :func:`run_one` from saved state index k, compiled four
-    times: for a free body (no torque, diagonal Ibar: those branches and the torque terms
-    folded away) or a pivoted one, with compensated or plain sums (the plain variant, for
-    round-off studies, then costs nothing on the default path). The same numbers as one
-    general loop."""
-    free = P[31] == 0.0
-    if free and comp:
+def _run_rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0):
+    """The RATTLE-family loop of :func:`run_one` from saved state index k, with compensated
+    sums, compiled twice: for a free body (no torque, diagonal Ibar: those branches and the
+    torque terms folded away) or a pivoted one. The same numbers as one general loop."""
+    if P[31] == 0.0:
         return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
                             True, True)  # fmt: skip
-    if free:
+    return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                        False, True)  # fmt: skip
+
+
+@njit(cache=True)
+def _run_rattle_plain(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0):
+    """:func:`_run_rattle` with plain sums (round-off studies): a kernel of its own, so that
+    the compensated path, the only one of the suite's runs, compiles without it."""
+    if P[31] == 0.0:
         return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
                             True, False)  # fmt: skip
-    if comp:
-        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
-                            False, True)  # fmt: skip
     return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
                         False, False)  # fmt: skip
 
@@ -1461,7 +1463,7 @@ def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
 
 
 @njit(cache=True)
-def run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, comp, n0):
+def run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
     """Advance one body by ``nstep`` steps of size ``h`` from the state ``S`` (length NS,
     updated in place), reached after ``n0`` earlier steps (the absolute time of step n of
     this call is (n0 + n) h), and store the states at the step indices ``saves``
@@ -1469,12 +1471,26 @@ def run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, ini
     V (nsave, 3) and Dout, Dpout (nsave, 3, 3). ``coef`` are the composition coefficients
     of the RATTLE family (one RATTLE step of size coef[k] h each). ``init``: S holds a new
     state (x, v, D, D'; compensations zero) whose RATTLE momentum and torque are to be
-    computed; False continues from a state this function left. ``comp``: compensated sums
-    (False only for round-off studies).
+    computed; False continues from a state this function left. Sums into the state are
+    compensated (:func:`run_one_plain`: plain sums, for round-off studies).
 
     Returns a status code. On failure info[0] = number of steps completed, info[1] = |W| and
     info[2] = |Ibar^{-1} tau| at the failing state, and S is the state after info[0] steps.
     """
+    return _run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0,
+                    _run_rattle)  # fmt: skip
+
+
+@njit(cache=True)
+def run_one_plain(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
+    """:func:`run_one` with plain sums in the RATTLE family (energy-momentum is the same)."""
+    return _run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0,
+                    _run_rattle_plain)  # fmt: skip
+
+
+@njit(inline="always")
+def _run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0, rattle):
+    """The body of :func:`run_one` with the RATTLE-family loop ``rattle``."""
     if init and method == RATTLE_FAMILY:
         _rattle_init(P, g, S)
     k = 0
@@ -1483,7 +1499,7 @@ def run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, ini
         _store(method, P, S, g, n0 * h, 0, X, V, Dout, Dpout)
         k = 1
     if method == RATTLE_FAMILY:
-        return _run_rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, comp, n0)
+        return rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0)
     A = np.empty((15, 16))
     M = np.empty((10, 3, 3))
     for n in range(1, nstep + 1):
@@ -1527,7 +1543,7 @@ def _run_body_range(
         for i in range(lo, hi):
             S = S0[i].copy()
             status[i] = run_one(method, coef, P[i], g, S, h, nstep, saves, X[i], V[i],
-                                Dout[i], Dpout[i], info[i], True, True, 0)  # fmt: skip
+                                Dout[i], Dpout[i], info[i], True, 0)  # fmt: skip
 
 
 @njit(cache=True, parallel=True)

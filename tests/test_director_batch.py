@@ -192,7 +192,7 @@ def test_vector_block_equals_scalar_loop_bit_for_bit(scheme, parallel):
         d, dp = np.full((ns, 3, 3), np.nan), np.full((ns, 3, 3), np.nan)
         inf1 = np.zeros(3)
         st = K.run_one(K.RATTLE_FAMILY, coef, P[i], g, S0[i].copy(), h, nstep, saves, x, v, d,
-                       dp, inf1, True, True, 0)  # fmt: skip
+                       dp, inf1, True, 0)  # fmt: skip
         assert st == status[i] and np.array_equal(inf1, info[i]), (i, kinds[i])
         for a, b in ((x, X), (v, V), (d, D), (dp, Dp)):
             assert np.array_equal(a, b[i], equal_nan=True), (i, kinds[i])
