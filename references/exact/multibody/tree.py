@@ -181,7 +181,9 @@ class Tree:
                 raise ValueError(f"joint of body {n!r}: offset has determinant -1 (a reflection)")
             self.offset[i] = off
         self.nq, self.nu = nq, nu
-        self.gravity = _vec3(gravity, "gravity")
+        # a writable copy: a scenario's frozen gravity would be a second compiled signature
+        # of the numba dynamics (readonly arrays are a type of their own), ~20 s to compile
+        self.gravity = _vec3(gravity, "gravity").copy()
         self.length = max(
             float(np.max(np.linalg.norm(np.concatenate([self.X, self.Y]), axis=1))), 1e-3
         )
