@@ -5,34 +5,12 @@ Every function takes trajectories in the suite's schema (:class:`references.Traj
 are measured against the scenario's own initial state (computed the suite's way), not against
 the engine's first saved sample, so an engine that builds the initial state wrongly shows it.
 Each has a physical scale, the scenario's (:class:`scenarios.model.Scenario`), never a
-quantity that may vanish (an initial energy of 0, an initial momentum of 0):
+quantity that may vanish (an initial energy of 0, an initial momentum of 0).
 
-===========================  ==========================================================  =====
-``energy_drift_max``         max_t |E(t) - E0| / E_c, E_c the energy in play over the     1
-                             horizon (:attr:`Scenario.energy_scale`)
-``energy_drift_rot_max``     free body: max_t |E_rot(t) - E_rot(0)| / E_rot,c, the        1
-                             rotational energy 1/2 W.IW against its own value
-                             (:attr:`Scenario.rotational_energy_scale`); NaN if pivoted
-``energy_drift_trans_max``   free body: max_t |E_tr(t) - E_tr(0)| / E_tr,c, E_tr =        1
-                             1/2 m |v_G|^2 - m g.x_G against the largest translational
-                             kinetic energy over the horizon
-                             (:attr:`Scenario.translational_energy_scale`); NaN if pivoted
-``momentum_drift_max``       max_t drift of the conserved angular-momentum components     1
-                             (:func:`conserved_momentum`) / L_c, L_c = sqrt(2 E_rot I_max)
-                             (:attr:`Scenario.momentum_scale`)
-``orthonormality_max``       max_t ||R^T R - 1||_F                                        1
-``constraint_velocity_max``  max_t ||D^T D' + D'^T D||_F / w_c, the velocity-constraint   1
-                             residual over the rate scale w_c (:attr:`Scenario.rate_scale`)
-``attitude_error_max``       max_t geodesic angle between R_ref and the rotation nearest  rad
-                             to R (its polar factor, :func:`nearest_rotation`)
-``omega_error_max``          max_t |W - W_ref|                                            rad/s
-``position_error_max``       max_t |x_G - x_G,ref|                                        m
-``flip_interval_error``      |flip interval - exact| / exact (free bodies that flip)      1
-``nutation_period_error``    |nutation period - exact| / exact (Lagrange tops), the tilt   1
-                             measured from the scenario's vertical -g/|g|
-``convergence_order``        slope of log(attitude error) against log(dt) over the        1
-                             asymptotic range of a dt sweep (:func:`convergence_order`)
-===========================  ==========================================================  =====
+Each metric is declared in the metric catalog (:mod:`scenarios.metric_catalog`: unit, scale,
+round-off floor, default tolerance, title) and computed by the function here that names it in
+``@measures``, whose docstring gives its formula; :func:`compute_metrics` computes them all
+(docs/results.md tables them).
 
 The energy-momentum scheme of the director model conserves its own energy, written with the
 director velocities D', to round-off; its D' leaves the tangent space at O(h^2) (the velocity
