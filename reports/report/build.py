@@ -523,7 +523,8 @@ def work_precision_section(doc: Doc, df) -> None:
         "bodies the attitude error is the largest over its bodies." + _finer_sweep_note(df)
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
-    doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp")
+    # seven columns of configurations and times do not fit 800 px: cards on a narrow screen
+    doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp stack")
 
 
 def _finer_sweep_note(df) -> str:
