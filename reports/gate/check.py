@@ -33,7 +33,7 @@ from pathlib import Path
 
 from reports.gate.format import md_escape, md_table, text_table
 from reports.gate.rule import Change, Comparison, NothingComparable, classify, status_change
-from reports.metrics.body import ORDER_SLACK
+from reports.metrics.catalog import ORDER_SLACK
 from reports.report.junit import SKIPPED, case_name
 from reports.store.atomic import write_text
 from reports.store.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
@@ -523,7 +523,7 @@ def check(
     else:
         print(
             "OK: the results' invariants hold (no blown-up run ok, verdicts match statuses, "
-            "fitted orders within 0.3 of declared, junit.xml agrees)."
+            f"fitted orders within {ORDER_SLACK:g} of declared, junit.xml agrees)."
         )
     for line in annotations(cmp):
         print(line)

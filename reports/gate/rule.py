@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from reports.metrics.body import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
 from reports.store.format import num
 
 #: statuses in order of how bad they are for a run that should have run; a status not listed

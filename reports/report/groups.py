@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from reports.metrics.body import FLOORS, HIGHER_IS_BETTER
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
 from reports.report.labels import config_label, engine_key, family_key, outcome
 from reports.store.format import num
 from reports.store.results import METRIC_COLUMNS, records

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from reports.gate.rule import at_every_dt, classify, ratio_change, status_change
-from reports.metrics.body import FLOORS, HIGHER_IS_BETTER
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
 from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from scenarios.schema import InputError
 

@@ -29,7 +29,7 @@ import math
 from pathlib import Path
 
 from reports.gate.rule import classify
-from reports.metrics.body import FLOORS, HIGHER_IS_BETTER
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
 from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from reports.versions.changes import COST_COLUMN, _name, load_table
 from scenarios.schema import InputError

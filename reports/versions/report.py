@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from reports.metrics.body import HIGHER_IS_BETTER
+from reports.metrics.catalog import HIGHER_IS_BETTER, ORDER_SLACK
 from reports.versions.changes import (
     CHANGE_HEAD,
     SUMMARY_HEAD,
@@ -107,8 +107,8 @@ def write_report(tab: VersionTable, out: Path, environments=None, figures: bool 
         "",
         f"Folder `{out}`. A change is flagged between consecutive versions when an error "
         f"metric moved by more than a factor {tab.factor:g} above its round-off floor "
-        "(the CI gate's floors), a fitted order by more than 0.3, the status or the verdict "
-        "changed, the signed energy error changed class (conserved, gaining, losing), an "
+        f"(the CI gate's floors), a fitted order by more than {ORDER_SLACK:g}, the status or the "
+        "verdict changed, the signed energy error changed class (conserved, gaining, losing), an "
         "integrator appeared or vanished, or the cost per step moved beyond both the factor "
         "and its measured spread over the dt sweep.",
         "",
