@@ -229,6 +229,14 @@ def _timed_again(cls, sc, integrator: str, spec: RunSpec, output, call_s: float)
     return fast, tuple(times)
 
 
+def _is_reference(engine: str) -> bool:
+    """Whether ``engine``'s rows are the reference the others are measured against (its
+    adapter's ``is_reference``: the exact reference), not a configuration under test."""
+    from references.engines import get_engine
+
+    return get_engine(engine).is_reference
+
+
 def _recorder(spec: RunSpec, sc):
     if not spec.segment:
         return None
@@ -236,7 +244,7 @@ def _recorder(spec: RunSpec, sc):
     from reports.metrics.streaming import StreamingRecorder
 
     _, saves = step_plan(spec.dt, spec.horizon, spec.saving)
-    ref = None if spec.engine == "exact" else functools.partial(reference_for, sc)
+    ref = None if _is_reference(spec.engine) else functools.partial(reference_for, sc)
     return StreamingRecorder(saves, sc, spec.dt, spec.segment, ref)
 
 
@@ -264,7 +272,7 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
         steps_taken=output.stats.get("steps taken", math.nan),
         steps_rejected=output.stats.get("steps rejected", math.nan),
     )
-    if spec.engine == "exact":
+    if _is_reference(spec.engine):
         ref = None
         row["reference_kind"] = output.settings.get("reference kind", "")
         row["reference_accuracy"] = float(output.settings.get("accuracy", math.nan))
@@ -393,7 +401,7 @@ def plan(
             else:
                 names = [i.name for i in offered if full or i.default]
             cls = get_engine(name)
-            steps_e = [sc.dt if not dts else steps[-1]] if name == "exact" else steps
+            steps_e = [sc.dt if not dts else steps[-1]] if cls.is_reference else steps
             for integ in names:
                 common = (t_end, save_every, segment, versions[name])
                 if cls.integrator(integ).adaptive:
@@ -510,14 +518,18 @@ def run_suite(
         else:
             fn = functools.partial(execute_bundle, out=out, fmt=fmt)
         try:
-            for rows in mapper(fn, bundles(todo)):
+            units = bundles(todo)
+            gated = getattr(mapper, "gated", False)  # reports.run.parallel.process_pool
+            rows_of = mapper(fn, units, keys=unit_warm_ups) if gated else mapper(fn, units)
+            spec_of = {s.run_id: s for s in todo}
+            for rows in rows_of:
                 for row in rows:
                     store.put(row)
                     n_run += 1
                     if bar is not None:
                         label = f"{row['scenario']}/{row['engine']}/{row['integrator']}"
-                        warm = warm_up(row["engine"], row["integrator"])
-                        bar.update(1, key=warm and warm[0], label=label)
+                        spec = spec_of.get(row["run_id"])
+                        bar.update(1, key=tuple(warm_ups(spec)) if spec else None, label=label)
         finally:
             if bar is not None:
                 bar.close()
@@ -531,10 +543,12 @@ def execute_bundle(specs, out: Path | None = None, fmt: str = "parquet") -> list
 
 
 @functools.cache
-def warm_up(engine: str, integrator: str) -> tuple[str, str] | None:
+def warm_up(engine: str, integrator: str, system: bool = False) -> tuple[str, str] | None:
     """(key, what it compiles) of the warm-up that the first run of this configuration in a
     process goes through, or None: the engine's own (``EngineBase.warm_up``; one per
-    integrator when the engine bundles its runs) or the suite's compiled RKMK4."""
+    integrator when the engine bundles its runs; for a system of bodies the engine's
+    ``system_warm_up`` when it declares one, under a key of its own) or the suite's compiled
+    RKMK4."""
     from references.engines import EngineError, get_engine
     from references.engines.liegroup import RKMK4_WARM_UP
 
@@ -543,12 +557,37 @@ def warm_up(engine: str, integrator: str) -> tuple[str, str] | None:
         if cls.warm_up:
             if cls.bundle_runs:
                 return f"{engine}/{integrator}", f"{cls.warm_up} for {engine} {integrator}"
+            if system:
+                what = getattr(cls, "system_warm_up", "")
+                return (f"{engine}/system", what) if what else None
             return engine, cls.warm_up
         if cls.integrator(integrator).stepping == "rkmk4":
             return "rkmk4", RKMK4_WARM_UP
     except EngineError:
         pass  # an engine that does not load runs nothing to warm up: its rows say why
     return None
+
+
+#: the warm-up of every run of a system of bodies: its reference (and the invariants of
+#: every engine's states) is the reduced-coordinate multibody code compiled by numba
+#: (references.exact.multibody)
+SYSTEM_REFERENCE_WARM_UP = ("multibody", "the multibody reference (numba)")
+
+
+def warm_ups(spec: RunSpec) -> dict[str, str]:
+    """{key: what it compiles} of every warm-up the first run of ``spec`` in a process goes
+    through (:func:`warm_up`, and for a system of bodies its reference's)."""
+    system = bool(getattr(spec.scenario, "is_system", False))
+    out = dict([w]) if (w := warm_up(spec.engine, spec.integrator, system)) else {}
+    if system:
+        out.setdefault(*SYSTEM_REFERENCE_WARM_UP)
+    return out
+
+
+def unit_warm_ups(unit: list[RunSpec]) -> set[str]:
+    """The warm-up keys of a unit of work (a bundle of specs), for the process pool's gate
+    (reports.run.parallel.process_pool)."""
+    return {k for s in unit for k in warm_ups(s)}
 
 
 def _bundled(engine: str) -> bool:
@@ -566,7 +605,7 @@ def bundles(specs) -> list[list[RunSpec]]:
     engine whose runs share a warm-up (``bundle_runs``, e.g. MJX's compilation) go together,
     one bundle per integrator, so that each compiles once, in one worker.
 
-    Order: first the bundles that start a warm-up (:func:`warm_up`), a bundled engine's and
+    Order: first the bundles that start a warm-up (:func:`warm_ups`), a bundled engine's and
     another alternately, so that the workers compile different things at once and a second
     run of a warm-up key starts only after its first has been handed out (compilers write
     their caches: the later runs load them instead of compiling again); then the longest
@@ -584,12 +623,12 @@ def bundles(specs) -> list[list[RunSpec]]:
     out.sort(key=len, reverse=True)
     firsts: dict[str, list[RunSpec]] = {}  # warm-up key -> the first bundle going through it
     for b in out:
-        warm = warm_up(b[0].engine, b[0].integrator)
-        if warm is not None:
-            firsts.setdefault(warm[0], b)
-    lead = [id(b) for b in firsts.values()]
-    bundled = [b for b in firsts.values() if (b[0].engine, b[0].integrator) in grouped]
-    single = [b for b in firsts.values() if (b[0].engine, b[0].integrator) not in grouped]
+        for key in sorted(unit_warm_ups(b)):
+            firsts.setdefault(key, b)
+    leaders = list({id(b): b for b in firsts.values()}.values())  # a bundle once
+    lead = [id(b) for b in leaders]
+    bundled = [b for b in leaders if (b[0].engine, b[0].integrator) in grouped]
+    single = [b for b in leaders if (b[0].engine, b[0].integrator) not in grouped]
     pairs = itertools.zip_longest(bundled, single)
     return [b for pair in pairs for b in pair if b is not None] + [
         b for b in out if id(b) not in lead
@@ -613,9 +652,9 @@ def _bar(todo: list[RunSpec]):
 
     warming, bundled = {}, {}
     for s in todo:
-        warm = warm_up(s.engine, s.integrator)
-        if warm is not None:
-            (bundled if _bundled(s.engine) else warming)[warm[0]] = warm[1]
+        for key, what in warm_ups(s).items():
+            bundle_key = _bundled(s.engine) and key.startswith(f"{s.engine}/")
+            (bundled if bundle_key else warming)[key] = what
     return Progress(len(todo), warming=warming, bundled=list(bundled.values()))
 
 
