@@ -98,3 +98,46 @@ def test_warm_ups_of_bundled_runs_are_named_at_the_start_and_do_not_hold_the_est
     assert "at the start of their bundles: MJX's step (JAX) for mjx Euler (float64)" in first
     bar.update(1, key="director")
     assert bar.t_warm is not None
+
+
+def test_a_system_of_bodies_names_its_kernels_and_its_reference():
+    import scenarios
+    from reports.run.runner import _bar, bundles, plan, unit_warm_ups, warm_ups
+
+    specs = plan([scenarios.load("four_bar"), scenarios.load("dzhanibekov")], ["director"])
+    system = next(s for s in specs if s.scenario.name == "four_bar")
+    body = next(s for s in specs if s.scenario.name == "dzhanibekov")
+    assert warm_ups(system) == {
+        "director/system": "the system kernels (numba)",
+        "multibody": "the multibody reference (numba)",
+    }
+    assert warm_ups(body) == {"director": "the director kernels (numba)"}
+    bar = _bar(specs)
+    assert set(bar.warming) == {"director", "director/system", "multibody"}
+    bar.update(1, key=("director/system", "multibody"))  # one run ends two warm-ups
+    assert set(bar.warming) == {"director"} and bar.t_warm is None
+    bar.update(1, key=("director",))
+    assert bar.t_warm is not None
+    order = bundles(specs)
+    leads = [unit_warm_ups(b) for b in order[:2]]
+    assert {"director"} in leads and {"director/system", "multibody"} in leads
+    assert sorted(map(id, (s for b in order for s in b))) == sorted(map(id, specs))
+
+
+def test_the_pool_hands_out_no_unit_whose_compilation_is_under_way():
+    from reports.run.parallel import _Gate
+
+    keys = {"a1": {"a"}, "a2": {"a"}, "b1": {"b"}, "ab": {"a", "b"}, "x": set(), "y": set()}
+    gate = _Gate(list(keys), keys.get)
+    first, second, third = gate.next(), gate.next(), gate.next()
+    # a1 compiles a, b1 compiles b; a2 and ab must wait; x needs nothing
+    assert [first[0], second[0], third[0]] == ["a1", "b1", "x"]
+    assert first[1] == {"a"} and second[1] == {"b"} and third[1] == set()
+    assert gate.next()[0] == "y"
+    assert gate.next() == (None, set())  # everything left waits for a or b
+    gate.compiled(first[1])
+    unit, compiling = gate.next()
+    assert unit == "a2" and compiling == set()  # a is compiled: its cache is loaded
+    assert gate.next() == (None, set())  # ab still waits for b
+    gate.compiled(second[1])
+    assert gate.next() == ("ab", set()) and not gate.pending

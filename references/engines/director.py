@@ -70,6 +70,9 @@ class DirectorEngine(Engine):
     name = "director"
     batched = True
     warm_up = "the director kernels (numba)"
+    #: a system of bodies runs director_model.system's kernels, compiled apart from the
+    #: single body's (reports.run.runner.warm_up)
+    system_warm_up = "the system kernels (numba)"
     description = "director_model: RATTLE, energy-momentum and compositions in director form"
     integrators = _integrators()
 

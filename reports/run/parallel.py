@@ -103,12 +103,22 @@ def _die_with_parent(parent: int, logs: str | None) -> None:
 
 
 def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
-    """A mapper over a local pool of ``jobs`` processes (default: the number of cores)."""
+    """A mapper over a local pool of ``jobs`` processes (default: the number of cores).
+
+    ``mapper(fn, units, keys)``: ``keys(unit)``, optional, names the compilations (numba
+    kernels, JAX functions) the unit goes through the first time in a process. A unit is
+    handed to a worker only when no unit in flight is compiling one of its keys not compiled
+    yet: the first unit of a key compiles it (and writes the compiler's on-disk cache), the
+    others wait for it and then load the cache, while the other workers take units that
+    need nothing being compiled. Without this, two workers would compile the same kernels at
+    once (numba has no lock between processes), each paying the whole compilation. Units
+    are handed out in the order given, skipping those that must wait; at most
+    :data:`IN_FLIGHT` per worker are queued at a time."""
     jobs = jobs or os.cpu_count() or 1
 
-    def mapper(fn, specs):
+    def mapper(fn, specs, keys: Callable | None = None):
         import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
         specs = list(specs)
@@ -124,25 +134,67 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
             initializer=_die_with_parent,
             initargs=(os.getpid(), str(logs) if logs else None),
         )
-        futures = [pool.submit(fn, s) for s in specs]
+        gate = _Gate(specs, keys)
+        running: dict = {}  # future -> the keys it compiles
         try:
-            for n_done, fut in enumerate(as_completed(futures)):
-                try:
-                    result = fut.result()
-                except BrokenProcessPool:
-                    raise ClusterLost(
-                        f"a local worker process died (killed, or out of memory): "
-                        f"{len(specs) - n_done} of {len(specs)} units of work did not finish; "
-                        "finished runs are kept in the results store: rerun the same command "
-                        "to run the rest (--jobs 1 runs them in this process)"
-                    ) from None
-                yield result
+            n_done = 0
+            while gate.pending or running:
+                while len(running) < IN_FLIGHT * jobs:
+                    unit, compiles = gate.next()
+                    if unit is None:
+                        break
+                    running[pool.submit(fn, unit)] = compiles
+                finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    gate.compiled(running.pop(fut))
+                    try:
+                        result = fut.result()
+                    except BrokenProcessPool:
+                        raise ClusterLost(
+                            f"a local worker process died (killed, or out of memory): "
+                            f"{len(specs) - n_done} of {len(specs)} units of work did not "
+                            "finish; finished runs are kept in the results store: rerun the "
+                            "same command to run the rest (--jobs 1 runs them in this process)"
+                        ) from None
+                    n_done += 1
+                    yield result
         finally:
-            for fut in futures:
+            for fut in running:
                 fut.cancel()
             pool.shutdown(wait=True, cancel_futures=True)
 
+    mapper.gated = True
     return mapper
+
+
+#: units of work queued per local worker: one running and one waiting, so that a worker
+#: never waits for the parent to hand out its next unit
+IN_FLIGHT = 2
+
+
+class _Gate:
+    """Which unit to hand out next (see :func:`process_pool`): ``next()`` gives the first
+    pending unit none of whose keys is being compiled by a unit in flight, with the keys it
+    will compile (None when every pending unit must wait); ``compiled(keys)`` marks them
+    done when that unit finishes."""
+
+    def __init__(self, units: list, keys: Callable | None):
+        self.pending = [(u, frozenset(keys(u) if keys else ())) for u in units]
+        self.done: set[str] = set()
+        self.compiling: set[str] = set()
+
+    def next(self) -> tuple:
+        for i, (unit, keys) in enumerate(self.pending):
+            todo = keys - self.done
+            if not todo & self.compiling:
+                del self.pending[i]
+                self.compiling |= todo
+                return unit, todo
+        return None, set()
+
+    def compiled(self, keys: set) -> None:
+        self.compiling -= keys
+        self.done |= keys
 
 
 def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None = None) -> Callable:

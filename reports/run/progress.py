@@ -86,13 +86,15 @@ class Progress:
 
     # -- the interface the runner uses ---------------------------------------------------------
 
-    def update(self, n: int = 1, key: str | None = None, label: str = "") -> None:
-        """``n`` more units finished; ``key``: their warm-up key (its compilation is over);
-        ``label``: what finished (shown in a terminal)."""
+    def update(self, n: int = 1, key: str | Sequence[str] | None = None, label: str = "") -> None:
+        """``n`` more units finished; ``key``: their warm-up key or keys (those compilations
+        are over); ``label``: what finished (shown in a terminal)."""
         if not self.total:
             return
         self.n += n
-        if key is not None and self.warming.pop(key, None) is not None and not self.warming:
+        keys = (key,) if isinstance(key, str) else tuple(key or ())
+        ended = [k for k in keys if self.warming.pop(k, None) is not None]
+        if ended and not self.warming:
             self.t_warm, self.n_warm = time.monotonic(), self.n
         if label:
             self.postfix = label
