@@ -29,7 +29,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback
 from references.engines.drake.charts import CHART_SWITCH_COS, centred_chart, rpy_chart
-from references.engines.drake.integrators import INTEGRATORS
+from references.engines.drake.integrators import CONVEX_SCHEME, INTEGRATORS
 from references.engines.drake.plant import (
     Handle,
     build_plant,
@@ -126,7 +126,7 @@ class DrakeEngine(Engine):
         # first try.
         self._assemble(ctx, h, R_WF, R_BM, min(ctx.scenario.dt, h.horizon))
         ctx.handle = h
-        if scheme == "cenic":
+        if scheme == CONVEX_SCHEME:
             ctx.nevals = math.nan  # CENIC counts no derivative evaluations (it has none)
 
     def _assemble(self, ctx, h: Handle, R_WF, R_BM, first_step: float) -> None:
@@ -184,12 +184,12 @@ class DrakeEngine(Engine):
             "joint damping": 0.0,
             "joint limits": "none (infinite, read back)",
             "geometry": "none (no collision geometry)"
-            + ("; an empty SceneGraph for CENIC" if h.scheme == "cenic" else ""),
+            + ("; an empty SceneGraph for CENIC" if h.scheme == CONVEX_SCHEME else ""),
         }
         if not mdl.pivoted:
             out["quaternion"] = (
                 "kept at unit norm by CENIC's position update"
-                if h.scheme == "cenic"
+                if h.scheme == CONVEX_SCHEME
                 else "never renormalised by Drake; its norm's drift shows in R (R^T R = |q|^4 1)"
             )
         if mdl.pivoted:
@@ -329,7 +329,7 @@ class DrakeEngine(Engine):
                     f"of {ctx.dt!r} s (up to t = {target!r}, over {len(h.charts)} chart(s)); "
                     "the time bookkeeping of the adapter is wrong"
                 )
-            if ctx.integrator.evals_per_step is None and h.scheme != "cenic":
+            if ctx.integrator.evals_per_step is None and h.scheme != CONVEX_SCHEME:
                 self._add_evals(ctx)
 
     def _failure(self, ctx, exc) -> StepFailure:
@@ -400,7 +400,7 @@ class DrakeEngine(Engine):
     def _add_evals(self, ctx) -> int:
         h = ctx.handle
         evals = h.replaced.evals + int(h.integrator.get_num_derivative_evaluations())
-        if h.scheme != "cenic":
+        if h.scheme != CONVEX_SCHEME:
             ctx.nevals += evals - h.evals_seen
         h.evals_seen = evals
         return evals
@@ -417,7 +417,7 @@ class DrakeEngine(Engine):
                 "steps rejected": float(by_error + by_failure),
                 "steps rejected by error control": float(by_error),
                 "steps rejected by failed substeps": float(by_failure),
-                "dynamics evaluations": float(evals) if h.scheme != "cenic" else math.nan,
+                "dynamics evaluations": float(evals) if h.scheme != CONVEX_SCHEME else math.nan,
                 "largest step": _extreme(max, old.largest, integ.get_largest_step_size_taken()),
                 "smallest adapted step": _extreme(
                     min, old.smallest, integ.get_smallest_adapted_step_size_taken()
@@ -446,7 +446,7 @@ def _monitor(h: Handle, pivoted: bool):
 
     plant, old = h.plant, h.replaced
     budget = h.budget
-    cenic = h.scheme == "cenic"
+    cenic = h.scheme == CONVEX_SCHEME
     what = "steps (CENIC counts no evaluations)" if cenic else "dynamics evaluations"
     if pivoted:
         # a read-only view of the plant's state [roll, pitch, yaw, w_F] (BasicVector.get_value:

@@ -98,6 +98,12 @@ def _controlled(scheme, family, order, description):
     )
 
 
+#: Drake's convex integrator (CENIC), unlike every other scheme here: it needs a Diagram with a
+#: SceneGraph (it refuses a bare plant: "must be given a Diagram"), it counts no derivative
+#: evaluations (its runs report none, and an error-controlled run's budget counts its steps),
+#: and its position update keeps a quaternion at unit norm
+CONVEX_SCHEME = "cenic"
+
 _QUAT = "the quaternion is advanced additively and never renormalised"
 
 INTEGRATORS = (
@@ -177,7 +183,7 @@ INTEGRATORS = (
         f"Drake's RadauIntegrator with 2 stages (Radau IIA, order 3); {_QUAT}.",
     ),
     _fixed(
-        "cenic",
+        CONVEX_SCHEME,
         CONVEX.name,
         1,
         "Drake's CenicIntegrator (convex implicit step) at a fixed step; it needs a Diagram "
@@ -244,7 +250,7 @@ INTEGRATORS = (
         f"target accuracy; {_QUAT}.",
     ),
     _controlled(
-        "cenic",
+        CONVEX_SCHEME,
         CONVEX.name,
         1,
         "Drake's CenicIntegrator with error control at the target accuracy (Diagram with an "

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from references.engines.drake.integrators import CONVEX_SCHEME
 from references.engines.native import import_engine
 
 
@@ -100,7 +101,7 @@ def build_plant(ctx, h: Handle, R_WF, R_BM):
 
     mdl = ctx.model
     builder = None
-    if h.scheme == "cenic":
+    if h.scheme == CONVEX_SCHEME:
         # CENIC refuses a bare plant ("must be given a Diagram"): plant + empty SceneGraph
         builder = DiagramBuilder()
         plant, _ = AddMultibodyPlantSceneGraph(builder, 0.0)
