@@ -59,6 +59,8 @@ class Metric:
     - ``series``: the name of its per-sample series, written beside a single body's
       trajectory (the figures read it); None: not written;
     - ``panel``: the y label of its panel in the errors-over-time figure; None: no panel;
+    - ``panel_top``: the top of that panel's log axis, beyond which a run has blown up (a
+      curve is cut there and marked);
     - ``scale_column``, ``scale_unit``: the store column holding the run's scale and its
       unit, shown under the panel's label.
     """
@@ -78,6 +80,7 @@ class Metric:
     reference: bool = False
     series: str | None = None
     panel: str | None = None
+    panel_top: float | None = None
     scale_column: str | None = None
     scale_unit: str = ""
 
@@ -92,8 +95,8 @@ METRICS: tuple[Metric, ...] = (
         "E_c, the energy in play over the horizon (Scenario.energy_scale, "
         "SystemScenario.energy_scale), never E0",
         floor=1e-11, title="energy drift [E_c]", short="energy", tolerance=1e-2, system=True,
-        series="energy_drift", panel="|E − E₀| / E_c [1]", scale_column="energy_scale",
-        scale_unit="J",
+        series="energy_drift", panel="|E − E₀| / E_c [1]", panel_top=10.0,
+        scale_column="energy_scale", scale_unit="J",
     ),
     Metric(
         "energy_drift_rot_max", "1",
@@ -111,7 +114,7 @@ METRICS: tuple[Metric, ...] = (
         "L_c = sqrt(2 E_rot I_max) (Scenario.momentum_scale); a floating system's linear "
         "momentum also over p_c",
         floor=1e-11, title="momentum drift [L_c]", short="momentum", tolerance=1e-2,
-        system=True, series="momentum_drift", panel="|ΔL| / L_c [1]",
+        system=True, series="momentum_drift", panel="|ΔL| / L_c [1]", panel_top=10.0,
         scale_column="momentum_scale", scale_unit="kg m²/s",
     ),
     Metric(
@@ -133,7 +136,7 @@ METRICS: tuple[Metric, ...] = (
     Metric(
         "attitude_error_max", "rad", "none: an angle", floor=1e-10,
         title="attitude error [rad]", short="attitude", tolerance=0.1, system=True,
-        reference=True, series="attitude_error", panel="attitude error [rad]",
+        reference=True, series="attitude_error", panel="attitude error [rad]", panel_top=4.0,
     ),
     Metric(
         "omega_error_max", "rad/s", "none: |W - W_ref| in rad/s", floor=1e-10,

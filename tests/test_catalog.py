@@ -26,7 +26,7 @@ def test_names_are_unique_and_every_metric_is_well_formed():
         # a higher-is-better metric has a slack instead of a floor and no upper bound
         assert (m.slack is not None) == m.higher_is_better, m.name
         assert not (m.higher_is_better and (m.tolerance is not None or m.floor is not None))
-        assert m.panel is None or m.series is not None, m.name
+        assert m.panel is None or (m.series is not None and m.panel_top), m.name
         assert m.scale, m.name
 
 
@@ -74,6 +74,7 @@ def test_the_consumers_read_the_catalog():
     assert labels.METRIC_SHORT is C.METRIC_SHORT
     assert build.METRIC_TITLES is C.METRIC_TITLES
     assert plots.ERROR_PANELS is C.ERROR_PANELS
+    assert plots.CAPS == {"energy_drift": 10.0, "momentum_drift": 10.0, "attitude_error": 4.0}
     assert [m.name for m, _ in streaming.streamed()] == list(C.STREAMED)
     assert system.SYSTEM_METRICS is C.SYSTEM_METRICS
 

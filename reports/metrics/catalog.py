@@ -20,8 +20,8 @@ every table the later stages use:
   ``compute_system_metrics``, the streamed maxima and the per-sample series;
 - the tables: :data:`METRIC_COLUMNS` (store), :data:`FLOORS`, :data:`HIGHER_IS_BETTER`,
   :data:`ORDER_SLACK` (gate, compare, report), :data:`DEFAULT_TOLERANCES` (verdicts),
-  :data:`METRIC_TITLES`, :data:`METRIC_SHORT` (report), :data:`ERROR_PANELS` (errors figure),
-  :data:`SYSTEM_METRICS`, :data:`STREAMED`.
+  :data:`METRIC_TITLES`, :data:`METRIC_SHORT` (report), :data:`ERROR_PANELS` and
+  :data:`PANEL_TOPS` (errors figure), :data:`SYSTEM_METRICS`, :data:`STREAMED`.
 
 Adding a metric: its :class:`Metric` entry in :mod:`scenarios.metric_catalog`, its function
 with ``@measures(name)`` and its test (docs/extending.md).
@@ -52,6 +52,7 @@ __all__ = [
     "METRIC_TITLES",
     "OBSERVABLE",
     "ORDER_SLACK",
+    "PANEL_TOPS",
     "POINTWISE",
     "STREAMED",
     "SWEEP",
@@ -180,6 +181,10 @@ ERROR_PANELS = tuple(
     for m in shown_order()
     if m.panel is not None and m.series is not None
 )
+
+#: the top of each panel's log axis, by series column: beyond it a run has blown up (the runner
+#: declares divergence at an energy error of 1 scale; attitude errors end at pi)
+PANEL_TOPS = {m.series: m.panel_top for m in METRICS if m.panel is not None}
 
 #: the metrics only systems have
 SYSTEM_METRICS = tuple(m.name for m in METRICS if m.system and not m.body)

@@ -106,9 +106,9 @@ EXTRA_STYLES = (
 #: markers, given out with the colours (a second cue where two colours look alike)
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 
-#: the top of the log axes, per series column: beyond it a run has blown up (the runner
-#: declares divergence at an energy error of 1 scale; attitude errors end at pi)
-CAPS = {"energy_drift": 10.0, "momentum_drift": 10.0, "attitude_error": 4.0}
+#: the top of the log axes, per series column: beyond it a run has blown up (the metric
+#: catalog's panel tops, :data:`reports.metrics.catalog.PANEL_TOPS`)
+CAPS = catalog.PANEL_TOPS
 
 #: log axes stop at this floor (exact zeros are drawn there)
 FLOOR = 1e-17
