@@ -39,6 +39,7 @@ import numpy as np
 
 from reports.gate.rule import at_every_dt, classify, ratio_change, status_change
 from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
+from reports.store.format import num
 from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from scenarios.schema import InputError
 
@@ -233,13 +234,6 @@ def load_table(folder, factor: float = 2.0, behaviour: bool = True) -> VersionTa
     return tab
 
 
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
-
-
 def compare_versions(tab: VersionTable, engine: str, va: str, vb: str):
     """(PairSummary, changes) from version ``va`` to ``vb`` of ``engine`` (any two versions:
     consecutive ones for the table, the two of an upgrade for the gate)."""
@@ -270,7 +264,7 @@ def compare_versions(tab: VersionTable, engine: str, va: str, vb: str):
 
 def _identical(a: dict, b: dict) -> bool:
     for col in METRIC_COLUMNS:
-        x, y = _num(a.get(col)), _num(b.get(col))
+        x, y = num(a.get(col)), num(b.get(col))
         if not (x == y or (math.isnan(x) and math.isnan(y))):
             return False
     return a["status"] == b["status"] and a["verdict"] == b["verdict"]
@@ -297,7 +291,7 @@ def _config_changes(tab, key, va, vb, a, b) -> list[Change]:
         out.append(mk("verdict", "verdict", detail_a, detail_b, None, word))
     if sa == sb == "ok":
         for col in METRIC_COLUMNS:
-            na, nb = math.isnan(_num(a.get(col))), math.isnan(_num(b.get(col)))
+            na, nb = math.isnan(num(a.get(col))), math.isnan(num(b.get(col)))
             if col in HIGHER_IS_BETTER and (na or nb):
                 # no fitted order on one side: its errors left the asymptotic range (e.g. fell
                 # to the round-off floor), which the error metrics themselves show
@@ -306,7 +300,7 @@ def _config_changes(tab, key, va, vb, a, b) -> list[Change]:
             if got is None or got[1] == "same":
                 continue
             ratio, word = got
-            out.append(mk("metric", col, _num(a.get(col)), _num(b.get(col)), _finite(ratio), word))
+            out.append(mk("metric", col, num(a.get(col)), num(b.get(col)), _finite(ratio), word))
     ba, bb = tab.behaviour.get((key, va)), tab.behaviour.get((key, vb))
     if ba and bb and ba["class"] != bb["class"]:
         ca, cb = ba["class"], bb["class"]
@@ -325,7 +319,7 @@ def _cost_stats(tab, engine, integ_key, version):
     (scenario, engine, integrator, accuracy) in one version; spread None with one point."""
     sc, integ, acc = integ_key
     vals = [
-        _num(r.get(COST_COLUMN))
+        num(r.get(COST_COLUMN))
         for (k, v), r in tab.rows.items()
         if v == version
         and k[0] == sc
@@ -350,7 +344,7 @@ def _paired_cost_ratios(tab, engine, sc, integ, va, vb) -> list[float]:
         a, b = tab.row(k, va), tab.row(k, vb)
         if a is None or b is None:
             continue
-        x, y = _num(a.get(COST_COLUMN)), _num(b.get(COST_COLUMN))
+        x, y = num(a.get(COST_COLUMN)), num(b.get(COST_COLUMN))
         if x > 0 and y > 0 and math.isfinite(x) and math.isfinite(y):
             out.append(y / x)
     return out
@@ -606,7 +600,7 @@ def to_json(tab: VersionTable, environments: list | None = None) -> dict:
 
 
 def _json_num(v):
-    x = _num(v)
+    x = num(v)
     if math.isnan(x):
         return None
     return "inf" if math.isinf(x) else x
