@@ -31,7 +31,7 @@ import math
 import os
 from pathlib import Path
 
-from reports.gate.format import md_escape, md_table, text_table
+from reports.gate.format import json_number, md_escape, md_table, text_table
 from reports.gate.rule import Change, Comparison, NothingComparable, classify, status_change
 from reports.metrics.catalog import ORDER_SLACK
 from reports.report.junit import SKIPPED, case_name
@@ -382,12 +382,6 @@ def annotations(cmp: Comparison) -> list[str]:
     ]
 
 
-def _num(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def _run_dict(key) -> dict:
     sc, eng, integ, dt, acc = key
     return {"scenario": sc, "engine": eng, "integrator": integ, "dt": dt, "target_accuracy": acc}
@@ -416,9 +410,9 @@ def as_json(cmp: Comparison, problems: list[str]) -> dict:
                 "run": _run_dict(c.key),
                 "what": c.what,
                 "metric": c.column,
-                "baseline": _num(c.a),
-                "current": _num(c.b),
-                "ratio": _num(c.ratio) if c.what == "metric" else None,
+                "baseline": json_number(c.a),
+                "current": json_number(c.b),
+                "ratio": json_number(c.ratio) if c.what == "metric" else None,
                 "message": message(c),
             }
             for c in cmp.regressions

@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from reports.gate.format import md_escape, md_table, text_table
+from reports.gate.format import json_number, md_escape, md_table, text_table
 from reports.gate.rule import (
     COST_COLUMNS,
     RAN,
@@ -234,12 +234,6 @@ def format_comparison(cmp: Comparison, show_all: bool = False) -> str:
     return "\n".join(lines)
 
 
-def _json_num(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def as_json(cmp: Comparison) -> dict:
     """The comparison as a JSON-ready dict (every change that is not ``same``)."""
 
@@ -267,9 +261,9 @@ def as_json(cmp: Comparison) -> dict:
                 "what": c.column,
                 "change": c.change,
                 "gates": c.gates,
-                "a": _json_num(c.a),
-                "b": _json_num(c.b),
-                "ratio": _json_num(c.ratio),
+                "a": json_number(c.a),
+                "b": json_number(c.b),
+                "ratio": json_number(c.ratio),
             }
             for c in _shown(cmp, False)
         ],

@@ -5,6 +5,15 @@ terminal, Markdown for a job summary or a pull-request comment. Numbers are form
 
 from __future__ import annotations
 
+import math
+
+
+def json_number(v):
+    """A value for the gate's JSON outputs: a NaN or infinite float as null, else as it is."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
 
 def md_escape(text) -> str:
     """Text safe inside a Markdown table cell (pipes, HTML, line breaks)."""
