@@ -11,10 +11,10 @@ interruption loses only the runs in flight, and a rerun skips what is done.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import dataclasses
 import functools
-import itertools
 import json
 import math
 import time
@@ -70,10 +70,13 @@ def error_series(scenario, traj, ref) -> dict[str, np.ndarray]:
     return series(scenario, traj, ref)
 
 
-def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) -> None:
+def write_run_files(
+    traj, series: dict, path: Path, fmt: str, identity: dict, body: dict | None = None
+) -> None:
     """Write a run's trajectory, atomically: Parquet with the per-sample error series as
-    extra columns and units, frames and the run's identity in the schema metadata; or CSV
-    with the series in a Parquet file beside it."""
+    extra columns and units, frames, the run's identity and the scenario's ``body``
+    (:func:`body_of`, what the report's scenario picture draws) in the schema metadata; or
+    CSV with the series, and the body in its metadata, in a Parquet file beside it."""
     import pyarrow as pa
 
     from references.trajectory import COLUMNS, UNITS
@@ -84,7 +87,8 @@ def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) ->
             traj.write(tmp, "csv")
         series = {"t": traj.t, "wx": traj.omega_body[:, 0], "wy": traj.omega_body[:, 1],
                   "wz": traj.omega_body[:, 2], **series}  # fmt: skip
-        write_parquet_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), {})
+        meta = {"director_bench.body": body} if body else {}
+        write_parquet_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), meta)
         return
     n = len(traj)
     data = np.column_stack(
@@ -104,7 +108,23 @@ def write_run_files(traj, series: dict, path: Path, fmt: str, identity: dict) ->
         },
         "director_bench.run": identity,
     }
+    if body:
+        meta["director_bench.body"] = body
     write_parquet_table(table, path, meta)
+
+
+def body_of(sc) -> dict:
+    """A single body's scenario as the results folder keeps it beside its trajectories (the
+    report draws the body from it, never from the scenario library): name, mass [kg],
+    principal moments [kg m^2], pivot in body axes [m] (None: a free body) and initial
+    angular velocity W in body axes [rad/s]."""
+    return {
+        "name": sc.name,
+        "mass": float(sc.mass),
+        "inertia": [float(v) for v in sc.inertia],
+        "pivot": None if sc.pivot is None else [float(v) for v in sc.pivot],
+        "omega_body": [float(v) for v in sc.omega_body],
+    }
 
 
 # -- one run -----------------------------------------------------------------------------------
@@ -302,7 +322,8 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
         keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
         identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
         try:
-            write_run_files(traj, error_series(sc, traj, ref), Path(out) / rel, fmt, identity)
+            series = error_series(sc, traj, ref)
+            write_run_files(traj, series, Path(out) / rel, fmt, identity, body_of(sc))
         except OSError as exc:
             raise StoreUnwritable(
                 f"{Path(out) / rel}: cannot write the run's trajectory ({exc.strerror or exc}; "
@@ -605,11 +626,12 @@ def bundles(specs) -> list[list[RunSpec]]:
     engine whose runs share a warm-up (``bundle_runs``, e.g. MJX's compilation) go together,
     one bundle per integrator, so that each compiles once, in one worker.
 
-    Order: first the bundles that start a warm-up (:func:`warm_ups`), a bundled engine's and
-    another alternately, so that the workers compile different things at once and a second
-    run of a warm-up key starts only after its first has been handed out (compilers write
-    their caches: the later runs load them instead of compiling again); then the longest
-    bundles, so that the single runs fill the other workers meanwhile."""
+    Order: first the bundles that start a warm-up (:func:`warm_ups`), those whose
+    compilation holds back the most runs first (a system of bodies' reference and kernels,
+    then the director's, the RKMK4 stages, MJX's bundles), so that the longest chains of
+    compilation start at once (the process pool hands out no second run of a key before its
+    first has finished, reports.run.parallel); then the longest bundles, so that the single
+    runs fill the other workers meanwhile."""
     out, grouped = [], {}
     for s in specs:
         if _bundled(s.engine):
@@ -626,13 +648,10 @@ def bundles(specs) -> list[list[RunSpec]]:
         for key in sorted(unit_warm_ups(b)):
             firsts.setdefault(key, b)
     leaders = list({id(b): b for b in firsts.values()}.values())  # a bundle once
-    lead = [id(b) for b in leaders]
-    bundled = [b for b in leaders if (b[0].engine, b[0].integrator) in grouped]
-    single = [b for b in leaders if (b[0].engine, b[0].integrator) not in grouped]
-    pairs = itertools.zip_longest(bundled, single)
-    return [b for pair in pairs for b in pair if b is not None] + [
-        b for b in out if id(b) not in lead
-    ]
+    held = collections.Counter(k for b in out for s in b for k in warm_ups(s))
+    leaders.sort(key=lambda b: -max(held[k] for k in unit_warm_ups(b)))
+    lead = {id(b) for b in leaders}
+    return leaders + [b for b in out if id(b) not in lead]
 
 
 def _export_quietly(out: Path):
