@@ -1,7 +1,6 @@
-"""The engine interface's names under the module path they had before the interface was split
-by job, for the importers not yet moved to the new modules (``reports/``, the MJX adapter).
-New code imports from :mod:`references.engines` (the package exports all of these) or from the
-module that defines a name:
+"""Re-exports of the engine interface's names for an importer that still uses this path
+(tests/test_engine_mjx.py); new code imports from :mod:`references.engines` or from the module
+that defines a name:
 
 - :mod:`references.engines.integrators`: ``Family``, ``FAMILIES``, ``register_family``,
   ``Integrator``, ``slug``
@@ -31,7 +30,6 @@ from references.engines.stepping import (
     CHUNK,
     DIVERGENCE_ENERGY,
     READBACK_RTOL,
-    _first_divergence,  # noqa: F401 - tests/test_energy_scales.py checks the loop with it
     check_initial,
     check_readback,
     initial_state,
