@@ -527,3 +527,24 @@ def test_scorecard_figure_is_as_wide_as_its_content(df, tmp_path):
     # 1.5 in for configuration labels longer than the label column (they are never cut)
     assert widths[1] < 2.5 + 1.3 + 1.5, widths
     assert widths[2] > widths[1] + 1.0, widths
+
+
+def test_scenario_picture_draws_the_body_stored_in_the_folder(folder, df, tmp_path, monkeypatch):
+    """The scenario picture takes the body from the folder (stored beside the exact run's
+    trajectory), not from the scenario library: with the library out of reach it is drawn
+    all the same, and the stored body is the scenario file's."""
+    import numpy as np
+
+    import reports.report.plots as plots
+
+    sc = scenarios.load("cone_top")
+    monkeypatch.setattr(plots, "library_scenario", lambda row: None)
+    cache = plots.SeriesCache(folder)
+    exact = df[(df["scenario"] == "cone_top") & (df["engine"] == "exact")]
+    row = exact.to_dict("records")[0]
+    body = cache.body(row)
+    assert body.name == sc.name and body.mass == sc.mass
+    assert np.array_equal(body.inertia, sc.inertia) and np.array_equal(body.pivot, sc.pivot)
+    assert np.array_equal(body.omega_body, sc.omega_body)
+    path = plots.scenario_plot_from_results(df, cache, tmp_path, "cone_top")
+    assert path is not None and path.exists()

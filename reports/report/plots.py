@@ -35,6 +35,7 @@ the pointer.
 
 from __future__ import annotations
 
+import json
 import math
 import textwrap
 from pathlib import Path
@@ -415,6 +416,7 @@ class SeriesCache:
     def __init__(self, root: Path):
         self.root = Path(root)
         self._data: dict[str, dict | None] = {}
+        self._bodies: dict[str, dict] = {}
 
     def get(self, row) -> dict | None:
         rel = row.get("trajectory") or ""
@@ -429,7 +431,29 @@ class SeriesCache:
             else:
                 t = pq.read_table(p)
                 self._data[rel] = {c: t.column(c).to_numpy() for c in t.column_names}
+                body = (t.schema.metadata or {}).get(b"director_bench.body")
+                if body is not None:
+                    self._bodies[rel] = json.loads(body)
         return self._data[rel]
+
+    def body(self, row):
+        """The scenario's body stored beside the run's series (reports.run.runner.body_of):
+        an object with ``name``, ``mass``, ``inertia``, ``pivot`` (None: free) and
+        ``omega_body``, or None (a folder written before the body was stored)."""
+        if self.get(row) is None:
+            return None
+        b = self._bodies.get(row.get("trajectory") or "")
+        if b is None:
+            return None
+        from types import SimpleNamespace
+
+        def vec(v):
+            return None if v is None else np.asarray(v, dtype=float)
+
+        return SimpleNamespace(
+            name=str(b["name"]), mass=float(b["mass"]), inertia=vec(b["inertia"]),
+            pivot=vec(b["pivot"]), omega_body=vec(b["omega_body"]),
+        )  # fmt: skip
 
 
 def _running_max(y: np.ndarray) -> np.ndarray:
@@ -1132,15 +1156,16 @@ def library_scenario(row):
 
 
 def scenario_plot_from_results(df, cache: SeriesCache, out: Path, scenario: str):
-    """The scenario picture of a results folder: the body from the library's scenario file
-    (when the runs used that very file) and the motion of the exact reference's run."""
+    """The scenario picture of a results folder: the body stored beside the exact
+    reference's run (:meth:`SeriesCache.body`; in a folder written before it was stored, the
+    library's scenario file when the runs used that very file) and that run's motion."""
     rows = df[(df["scenario"] == scenario) & (df["engine"] == "exact")]
     rows = rows[rows["status"].isin(("ok", "reference-inaccurate"))]
     if rows.empty:
         return None
     row = rows.sort_values("dt").iloc[0]
-    sc = library_scenario(row)
     s = cache.get(row)
+    sc = cache.body(row) or library_scenario(row)
     if sc is None or s is None or "R00" not in s:
         return None
     R = np.stack([s[f"R{i}{j}"] for i in range(3) for j in range(3)], axis=1).reshape(-1, 3, 3)
