@@ -1490,34 +1490,44 @@ def scorecard_figure(df, out: Path) -> list[Path]:
     ncols = max(2, min(6, int(content // 1.45)))  # legend entries are up to ~1.4 in wide
     bottom = 0.53 + 0.22 * -(-6 // ncols)
     top = 1.01 + 0.17 * len(title)
-    width, height = content + 0.2, ch * len(configs) + bottom + top
+    texts = {}
+    for key, (out_, text) in cells.items():  # the failing metrics, on more lines if need be
+        texts[key] = (out_, [*text[:2], *textwrap.wrap(text[2], 22)] if len(text) > 2 else text)
+    # a row as tall as its longest cell needs (in units of ch): the first line, then 0.21 per
+    # line of 6.6 pt, and a margin; at least one unit
+    heights, ys = [], [0.0]
+    for eng, integ, _ in configs:
+        n = max((len(texts.get(((eng, integ), sc), ("", ["-"]))[1]) for sc in scens), default=1)
+        heights.append(max(1.0, 0.38 + 0.21 * (n - 1)))
+        ys.append(ys[-1] + heights[-1])
+    rows = ys[-1]
+    width, height = content + 0.2, ch * rows + bottom + top
     with matplotlib.rc_context({"svg.fonttype": "none"}):
         fig = plt.figure(figsize=(width, height), dpi=DPI)
         ax = fig.add_axes(
-            [lw / width, bottom / height, cw * len(scens) / width, ch * len(configs) / height]
+            [lw / width, bottom / height, cw * len(scens) / width, ch * rows / height]
         )
         ax.set_xlim(0, len(scens))
-        ax.set_ylim(len(configs), 0)
+        ax.set_ylim(rows, 0)
         ax.axis("off")
         prev = None
         for i, (eng, integ, label) in enumerate(configs):
+            y, h = ys[i], heights[i]
             if prev is not None and eng != prev:
-                ax.axhline(i, color="0.35", lw=1.0)
+                ax.axhline(y, color="0.35", lw=1.0)
             prev = eng
-            ax.text(-0.06, i + 0.5, label, ha="right", va="center", fontsize=8.5)
+            ax.text(-0.06, y + h / 2, label, ha="right", va="center", fontsize=8.5)
             for j, sc in enumerate(scens):
-                out_, text = cells.get(((eng, integ), sc), ("", ["-"]))
+                out_, text = texts.get(((eng, integ), sc), ("", ["-"]))
                 face = OUTCOME_COLOURS.get(out_, "white")
-                ax.add_patch(Rectangle((j, i), 1, 1, fc=face, ec="white", lw=1.5))
-                if len(text) > 2:  # the failing metrics, on two lines if need be
-                    text = [*text[:2], *textwrap.wrap(text[2], 22)]
+                ax.add_patch(Rectangle((j, y), 1, h, fc=face, ec="white", lw=1.5))
                 # two texts per cell (drawing text is most of the figure's time): the
                 # verdict and error, then the cost and failing metrics in smaller type
-                lift = 0.1 * (len(text) - 1)
-                ax.text(j + 0.5, i + 0.5 - lift, text[0], ha="center", va="center", fontsize=8)
+                mid = y + h / 2 - 0.1 * (len(text) - 1)
+                ax.text(j + 0.5, mid, text[0], ha="center", va="center", fontsize=8)
                 if len(text) > 1:
                     ax.text(
-                        j + 0.5, i + 0.5 - lift + 0.13, "\n".join(text[1:]), ha="center",
+                        j + 0.5, mid + 0.13, "\n".join(text[1:]), ha="center",
                         va="top", fontsize=6.6, color="0.3", linespacing=1.05,
                     )  # fmt: skip
         for j, sc in enumerate(scens):
