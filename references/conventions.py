@@ -46,6 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from references.errors import EngineError
+from scenarios.schema import rotation_from_vector
 
 
 class BodyState(NamedTuple):
@@ -159,29 +160,10 @@ def matrix_to_quat_xyzw(R) -> np.ndarray:
 
 
 # -- rotation vectors (exponential coordinates) --------------------------------------------
-def rotvec_to_matrix(theta) -> np.ndarray:
-    """R = exp(hat(theta)) by Rodrigues' formula, with Taylor series for small angles.
-
-    Written as R = 1 + s K + c (theta theta^T - a^2 1) with K = hat(theta), a = |theta|,
-    s = sin(a)/a, c = (1 - cos a)/a^2, in scalar arithmetic (it runs in integrator stages).
-    """
-    x, y, z = (float(t) for t in np.ravel(theta))
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-8:
-        # Series to the last term that matters in double precision at a < 1e-4.
-        s = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
-        c = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
-    else:
-        a = math.sqrt(a2)
-        s = math.sin(a) / a
-        c = (1.0 - math.cos(a)) / a2
-    return np.array(
-        [
-            [1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
-            [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
-            [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)],
-        ]
-    )
+#: R = exp(hat(theta)) for a rotation vector theta (3,): Rodrigues' formula with Taylor
+#: series for small angles, defined once in the lowest layer that needs it (the scenario files'
+#: rotation vectors); :func:`rotvecs_to_matrices` is its array form
+rotvec_to_matrix = rotation_from_vector
 
 
 def matrix_to_rotvec(R) -> np.ndarray:

@@ -88,20 +88,32 @@ class ScenarioError(InputError):
 
 
 def rotation_from_vector(r) -> np.ndarray:
-    """R = exp(hat(r)) (Rodrigues), r = angle * unit axis, rad. Exact to round-off for any
-    angle, including 0 (series for small angles)."""
-    r = np.asarray(r, dtype=float)
-    th2 = float(r @ r)
-    th = math.sqrt(th2)
-    if th < 1e-4:
-        # Taylor series of sin(th)/th and (1 - cos th)/th^2; truncation below 1e-18.
-        a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
-        b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
+    """R = exp(hat(r)) by Rodrigues' formula, r = angle * unit axis (3,), rad: (3, 3). Exact to
+    round-off for any angle, including 0 (Taylor series below 1e-4 rad). The suite's one
+    definition: scenario files' rotation vectors here, and, as
+    ``references.conventions.rotvec_to_matrix``, the integrators' stages and the engines'
+    exponential coordinates.
+
+    Written as R = 1 + s K + c (r r^T - a^2 1) with K = hat(r), a = |r|, s = sin(a)/a,
+    c = (1 - cos a)/a^2, in scalar arithmetic (it runs in integrator stages).
+    """
+    x, y, z = (float(t) for t in np.ravel(r))
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-8:
+        # Series to the last term that matters in double precision at a < 1e-4.
+        s = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
+        c = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
     else:
-        a = math.sin(th) / th
-        b = 2.0 * math.sin(0.5 * th) ** 2 / th2  # (1 - cos th)/th^2 without cancellation
-    K = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-    return np.eye(3) + a * K + b * (K @ K)
+        a = math.sqrt(a2)
+        s = math.sin(a) / a
+        c = 2.0 * math.sin(0.5 * a) ** 2 / a2  # (1 - cos a)/a^2 without cancellation
+    return np.array(
+        [
+            [1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
+            [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
+            [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)],
+        ]
+    )
 
 
 def rotation_from_quaternion(q) -> np.ndarray:
