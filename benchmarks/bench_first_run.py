@@ -1,0 +1,118 @@
+"""Time the README's first run: the default suite and its report, from a fresh clone (cold:
+no compiled code cached anywhere) and again with the caches warm.
+
+Each round clones the repository afresh (``git clone``: no ``__pycache__``, so no numba cache
+either), points JAX's persistent compilation cache at a new empty folder (the user's own
+cache, ``~/.cache/director-bench/jax``, is left alone), and runs the README's command
+``director-bench run --out results`` inside the clone as ``python -m reports.cli run --out
+results``, so that the clone's code is the code run (checked: the script asks the clone which
+``reports`` it imports). Then the same command again in the same clone into a new output
+folder: the compiled code is cached now (numba's files beside the clone's sources, JAX's in
+its folder), the results and figures are not. Installation is not timed.
+
+Printed per run: wall time, CPU time (user + sys of the whole process tree: the command, its
+worker processes and the report's drawing processes, from the operating system's accounting
+of waited-for children) and the 1-minute load average before and after (the machine may be
+shared: CPU time is the figure least disturbed by others' work); then the median of each.
+
+Usage: python benchmarks/bench_first_run.py [--rounds 3] [--repo PATH] [--keep DIR]
+(about 4 to 8 minutes per round on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+COMMAND = [sys.executable, "-m", "reports.cli", "run", "--out"]
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def timed(cmd: list[str], cwd: Path, env: dict, log: Path) -> tuple[float, float, float, float]:
+    """(wall s, CPU s of the process tree, load before, load after) of ``cmd``."""
+    load0 = os.getloadavg()[0]
+    cpu0, t0 = _children_cpu(), time.perf_counter()
+    with log.open("w") as fh:
+        proc = subprocess.run(cmd, cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+    if proc.returncode not in (0, 1):  # 1: some runs failed their verdict (the suite has some)
+        sys.exit(f"{' '.join(cmd)} exited with {proc.returncode}; see {log}")
+    return wall, cpu, load0, os.getloadavg()[0]
+
+
+def fresh_clone(repo: Path, where: Path) -> Path:
+    clone = where / "clone"
+    subprocess.run(["git", "clone", "--quiet", str(repo), str(clone)], check=True)
+    caches = [p for p in clone.rglob("*") if p.suffix in (".nbi", ".nbc")]
+    if caches:
+        sys.exit(f"{clone}: a fresh clone holds numba cache files ({caches[0]})")
+    return clone
+
+
+def check_imports(clone: Path, env: dict) -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", "import reports, director_model; print(reports.__file__)"],
+        cwd=clone, env=env, capture_output=True, text=True, check=True,
+    ).stdout.strip()  # fmt: skip
+    if not Path(out).resolve().is_relative_to(clone.resolve()):
+        sys.exit(f"the clone imports reports from {out}, not from {clone}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=3, help="cold + warm pairs (default 3)")
+    ap.add_argument("--repo", type=Path, default=REPO, help="repository to clone")
+    ap.add_argument("--keep", type=Path, help="keep the clones and logs under this folder")
+    args = ap.parse_args(argv)
+    base = Path(tempfile.mkdtemp(prefix="first-run-", dir=args.keep))
+    rows = []
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(args.repo), "rev-parse", "--short", "HEAD"],
+            capture_output=True, text=True, check=True,
+        ).stdout.strip()  # fmt: skip
+        print(f"repository {args.repo} at {commit}; {os.cpu_count()} cores; logs in {base}")
+        print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
+              f"{'load after':>11}")  # fmt: skip
+        for k in range(1, args.rounds + 1):
+            where = base / f"round{k}"
+            where.mkdir()
+            env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"))
+            env.pop("NUMBA_CACHE_DIR", None)  # numba's cache beside the clone's sources
+            env.pop("NUMBA_DISABLE_JIT", None)
+            clone = fresh_clone(args.repo, where)
+            check_imports(clone, env)
+            for kind in ("cold", "warm"):
+                out = where / f"results-{kind}"
+                row = timed([*COMMAND, str(out)], clone, env, where / f"{kind}.log")
+                rows.append((kind, *row))
+                print(f"{k:>5} {kind:>6} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
+                      f"{row[3]:11.2f}", flush=True)  # fmt: skip
+        for kind in ("cold", "warm"):
+            sel = [r for r in rows if r[0] == kind]
+            wall = statistics.median(r[1] for r in sel)
+            cpu = statistics.median(r[2] for r in sel)
+            loads = [x for r in sel for x in r[3:]]
+            print(f"median {kind}: wall {wall:.1f} s, CPU {cpu:.1f} s over {len(sel)} runs "
+                  f"(load average {min(loads):.2f} to {max(loads):.2f})")  # fmt: skip
+    finally:
+        if args.keep is None:
+            shutil.rmtree(base, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
