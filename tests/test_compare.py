@@ -228,3 +228,39 @@ def test_a_cost_change_counts_only_when_every_dt_of_its_sweep_moved():
     metric = [Change(("s", "mujoco", "RK4", 1e-3, None), "attitude_error_max", 1, 9, 9, "worse")]
     corroborate_costs(single + metric + sweep(["same", "same", "same"]))
     assert single[0].change == "better" and metric[0].change == "worse"
+
+
+def test_a_failing_run_failing_one_more_check_is_worse_in_check_and_compare():
+    # one rule for both commands (reports.gate.rule.verdict_change): a run already failing
+    # on attitude that now also fails on energy got worse, whether the other side is a
+    # baseline entry (failed checks kept as a list) or a row of a second folder
+    from reports.gate.rule import verdict_change
+
+    before = {"verdict": "fail", "verdict_detail": "attitude_error_max 0.5 > 0.1"}
+    after = {
+        "verdict": "fail",
+        "verdict_detail": "attitude_error_max 0.5 > 0.1; energy_drift_max 0.2 > 0.01",
+        "status": "ok",
+    }
+    before["status"] = "ok"
+    assert verdict_change(before, after) == ("failed checks", "worse", "energy_drift_max")
+    entry = {"verdict": "fail", "failed_checks": ["attitude_error_max"]}
+    assert verdict_change(entry, after) == ("failed checks", "worse", "energy_drift_max")
+    assert verdict_change(after, before) == ("", "same", "")  # one check fewer: not a regression
+    assert verdict_change({"verdict": "pass"}, after)[:2] == ("verdict", "worse")
+    assert verdict_change(after, {"verdict": "pass"})[:2] == ("verdict", "better")
+
+
+def test_compare_flags_a_run_that_fails_one_more_check(folders, tmp_path):
+    a0, _ = folders
+    details = {"a": "attitude_error_max 0.5 > 0.1", "b": "attitude_error_max 0.5 > 0.1; "
+               "nutation_period_error 1 > 0.01"}  # fmt: skip
+    for side, detail in details.items():
+        shutil.copytree(a0, tmp_path / side)
+        with Store(tmp_path / side) as st:
+            euler = {r["integrator"]: r for r in st.rows()}["Euler"]
+            st.put({**euler, "verdict": "fail", "verdict_detail": detail})
+    cmp = compare_folders(tmp_path / "a", tmp_path / "b")
+    (reg,) = cmp.regressions
+    assert reg.column == "failed checks" and "nutation_period_error" in reg.b
+    assert compare_folders(tmp_path / "b", tmp_path / "a").ok  # one check fewer

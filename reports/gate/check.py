@@ -32,7 +32,16 @@ import os
 from pathlib import Path
 
 from reports.gate.format import json_number, md_escape, md_table, text_table
-from reports.gate.rule import Change, Comparison, NothingComparable, classify, status_change
+from reports.gate.rule import (
+    Change,
+    Comparison,
+    NothingComparable,
+    classify,
+    failed_checks,
+    failing,
+    status_change,
+    verdict_change,
+)
 from reports.metrics.catalog import ORDER_SLACK
 from reports.report.junit import SKIPPED, case_name
 from reports.store.atomic import write_text
@@ -60,20 +69,6 @@ def _reason(r) -> str:
     else:
         text = f"{status}: {r.get('message', '') or detail}"
     return text if len(text) <= REASON_CHARS else text[: REASON_CHARS - 3] + "..."
-
-
-def failing(r) -> bool:
-    """True when a row is a failing test case (a failed verdict or a fault of the suite)."""
-    return r.get("verdict") == "fail" or r.get("status") == "error"
-
-
-def failed_checks(r) -> set[str]:
-    """The checks a row fails: the metric names of its verdict detail (``"attitude_error_max
-    0.5 > 0.1; ..."``), or its status when it did not run to the end."""
-    if r.get("status") != "ok":
-        return {str(r.get("status"))} if failing(r) else set()
-    detail = str(r.get("verdict_detail", "") or "")
-    return {part.split()[0] for part in detail.split("; ") if part.strip()}
 
 
 def write_baseline(results_dir: str | Path, path: str | Path) -> Path:
@@ -246,15 +241,11 @@ def _run_findings(key, b, r, factor, timing_factor) -> list[Change]:
         if failing(r) and not failing(b):
             out.append(regression("verdict", "pass", _reason(r)))
         return out
-    if b.get("verdict") == "pass" and r["verdict"] == "fail":
+    column, change, new = verdict_change(b, r)
+    if change == "worse" and column == "verdict":
         out.append(regression("verdict", "pass", _reason(r)))
-    elif b.get("verdict") == "fail" and r["verdict"] == "fail":
-        new = failed_checks(r) - set(b.get("failed_checks") or [])
-        if new:
-            out.append(
-                regression("failed checks", b.get("reason", ""),
-                           f"now also fails {', '.join(sorted(new))}: {_reason(r)}")
-            )  # fmt: skip
+    elif change == "worse":
+        out.append(regression(column, b.get("reason", ""), f"also fails {new}: {_reason(r)}"))
     for m in (*METRIC_COLUMNS, *TIMING_METRICS):
         cur = float(r[m])
         f = factor if m not in TIMING_METRICS else timing_factor or math.inf

@@ -12,7 +12,8 @@ For each run in both, every metric and the cost get a ratio B/A and a word by th
 rule of :mod:`reports.gate.rule`, the one ``check`` applies against a baseline: ``worse``
 when B is more than ``factor`` times A above the metric's round-off floor, ``better`` when
 less than A / ``factor``, ``same`` otherwise; the fitted convergence order by difference; a
-status that got worse (ok to diverged or error) or a verdict that went from pass to fail is
+status that got worse (ok to diverged or error), a verdict that went from pass to fail or a
+failing run that fails one more check (:func:`reports.gate.rule.verdict_change`) is
 ``worse`` whatever the numbers (``unsupported`` and ``unavailable`` are the environment, not
 a result). A cost (ns per step inside the engine and wall) is a range measured with the run
 (reports.run.runner); a cost change is significant only beyond the factor AND the measured
@@ -46,6 +47,7 @@ from reports.gate.rule import (
     corroborate_costs,
     cost_range,
     status_change,
+    verdict_change,
 )
 from reports.store.format import fmt, fmt_level, fmt_step, num
 from reports.store.results import (
@@ -128,9 +130,11 @@ def _run_changes(key, x, y, factor, cost_factor) -> list[Change]:
         return out
     if sx != "ok":
         return out
-    if x["verdict"] != y["verdict"] and {x["verdict"], y["verdict"]} == {"pass", "fail"}:
-        change = "worse" if y["verdict"] == "fail" else "better"
+    column, change, new = verdict_change(x, y)
+    if column == "verdict":
         out.append(Change(key, "verdict", x["verdict"], y["verdict"], math.nan, change, True))
+    elif column:
+        out.append(Change(key, column, "", f"also fails {new}", math.nan, change, True))
     for m in METRIC_COLUMNS:
         got = classify(m, x[m], y[m], factor)
         if got is not None:

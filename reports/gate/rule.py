@@ -247,3 +247,35 @@ def corroborate_costs(changes: list[Change]) -> None:
             for c in group:
                 if c.change in ("worse", "better"):
                     c.change = "not significant"
+
+
+def failing(r) -> bool:
+    """True when a row is a failing test case (a failed verdict or a fault of the suite)."""
+    return r.get("verdict") == "fail" or r.get("status") == "error"
+
+
+def failed_checks(r) -> set[str]:
+    """The checks a row fails: the metric names of its verdict detail (``"attitude_error_max
+    0.5 > 0.1; ..."``), or its status when it did not run to the end."""
+    if r.get("status") != "ok":
+        return {str(r.get("status"))} if failing(r) else set()
+    detail = str(r.get("verdict_detail", "") or "")
+    return {part.split()[0] for part in detail.split("; ") if part.strip()}
+
+
+def verdict_change(a, b) -> tuple[str, str, str]:
+    """How run ``b``'s verdict compares with run ``a``'s when both ran to the end: ``("verdict",
+    "worse" | "better", "")`` when it went from pass to fail or back; ``("failed checks",
+    "worse", names)`` when a failing run fails checks it did not fail before (``a`` may be a
+    baseline entry, which keeps its failed checks as a list); ``("", "same", "")`` otherwise.
+    The one rule for ``check`` and ``compare``."""
+    va, vb = a.get("verdict"), b.get("verdict")
+    if {va, vb} == {"pass", "fail"}:
+        return "verdict", ("worse" if vb == "fail" else "better"), ""
+    if va == vb == "fail":
+        before = a.get("failed_checks")
+        before = set(before) if isinstance(before, (list, tuple, set)) else failed_checks(a)
+        new = failed_checks(b) - before
+        if new:
+            return "failed checks", "worse", ", ".join(sorted(new))
+    return "", "same", ""
