@@ -361,6 +361,20 @@ too when quoted ("semi-implicit Euler").
 """
 
 
+def _add_overrides(s) -> None:
+    """The options that override the scenario files' steps, horizon and target accuracies
+    (``run`` and ``versions``, which runs the suite as ``run`` does)."""
+    s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")
+    s.add_argument("--t-end", type=_positive, help="horizon in s (overrides files)")
+    s.add_argument("--no-sweep", action="store_true", help="only each scenario's default dt")
+    s.add_argument(
+        "--accuracy",
+        type=_accuracy_list,
+        metavar="A,B",
+        help="target accuracies of error-controlled integrators (overrides files)",
+    )
+
+
 def _add_run(sub) -> None:
     s = sub.add_parser(
         "run",
@@ -390,15 +404,7 @@ def _add_run(sub) -> None:
         metavar="X,Y",
         help="comma-separated integrator names, as `list` shows them (e.g. rk4,rattle4)",
     )
-    s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")
-    s.add_argument("--t-end", type=_positive, help="horizon in s (overrides files)")
-    s.add_argument("--no-sweep", action="store_true", help="only each scenario's default dt")
-    s.add_argument(
-        "--accuracy",
-        type=_accuracy_list,
-        metavar="A,B",
-        help="target accuracies of error-controlled integrators (overrides files)",
-    )
+    _add_overrides(s)
     s.add_argument("--save-every", type=_whole, help="keep every N-th state (overrides files)")
     s.add_argument(
         "--segment",
@@ -524,8 +530,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_compare(sub)
     from reports.versions.cli import add_subcommands  # versions, history
 
-    types = dict(csv=_csv_list, floats=_float_list, accuracies=_accuracy_list)
-    types.update(positive=_positive, whole=_whole, factor=_factor)
+    types = dict(csv=_csv_list, whole=_whole, factor=_factor, overrides=_add_overrides)
     add_subcommands(sub, types)
     return p
 

@@ -69,11 +69,12 @@ def cmd_history(args) -> int:
 
 def add_subcommands(sub, types: dict) -> None:
     """Add ``versions`` and ``history`` to ``sub`` (argparse subparsers). ``types``: the
-    command line's argument checkers (``csv``, ``floats``, ``accuracies``, ``positive``,
-    ``whole``, ``factor``), passed in by ``reports.cli`` so that both subcommands check their
+    command line's argument checkers (``csv``, ``whole``, ``factor``) and ``overrides``, which
+    adds run's options over the scenario files (``--dt``, ``--t-end``, ``--no-sweep``,
+    ``--accuracy``), passed in by ``reports.cli`` so that both subcommands check their
     arguments as ``run`` does."""
-    _csv_list, _float_list, _accuracy_list = types["csv"], types["floats"], types["accuracies"]
-    _positive, _whole, _factor = types["positive"], types["whole"], types["factor"]
+    _csv_list, _whole, _factor = types["csv"], types["whole"], types["factor"]
+    _add_overrides = types["overrides"]
 
     s = sub.add_parser(
         "versions",
@@ -104,15 +105,7 @@ def add_subcommands(sub, types: dict) -> None:
         action="store_true",
         help="only the default suite's integrators (default: every integrator, as run --full)",
     )
-    s.add_argument("--dt", type=_float_list, help="comma-separated step sizes (overrides files)")
-    s.add_argument("--t-end", type=_positive, help="horizon in s (overrides files)")
-    s.add_argument("--no-sweep", action="store_true", help="only each scenario's default dt")
-    s.add_argument(
-        "--accuracy",
-        type=_accuracy_list,
-        metavar="A,B",
-        help="target accuracies of error-controlled integrators (overrides files)",
-    )
+    _add_overrides(s)
     s.add_argument("--out", default="results-versions", help="output folder")
     s.add_argument("--jobs", type=_whole, default=1, help="worker processes per environment")
     s.add_argument(
