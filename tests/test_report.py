@@ -548,3 +548,23 @@ def test_scenario_picture_draws_the_body_stored_in_the_folder(folder, df, tmp_pa
     assert np.array_equal(body.omega_body, sc.omega_body)
     path = plots.scenario_plot_from_results(df, cache, tmp_path, "cone_top")
     assert path is not None and path.exists()
+
+
+def test_the_reference_rows_are_told_by_the_recorded_flag_not_the_engine_name():
+    import pandas as pd
+
+    from reports.store.results import is_reference_record, reference_rows
+
+    df = pd.DataFrame(
+        {
+            "engine": ["exact", "mujoco", "my_reference"],
+            "family": ["exact", "RK4", "exact-ish"],
+            "reference": [1.0, 0.0, 1.0],
+        }
+    )
+    assert reference_rows(df).tolist() == [True, False, True]
+    assert [is_reference_record(r) for r in df.to_dict("records")] == [True, False, True]
+    # a folder written before the flag was recorded: the reference family of that time
+    old = df.assign(reference=float("nan"))
+    assert reference_rows(old).tolist() == [True, False, False]
+    assert [is_reference_record(r) for r in old.to_dict("records")] == [True, False, False]

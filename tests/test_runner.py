@@ -35,6 +35,12 @@ def test_rows_files_and_report(tmp_path, dzh):
     # director rattle and mujoco Euler at 3 dt each, exact once
     assert n == 7 and len(df) == 7
     assert set(df["status"]) == {"ok"}
+    # the engine's is_reference flag, recorded for the report to tell the reference by
+    assert dict(zip(df["engine"], df["reference"], strict=True)) == {
+        "director": 0.0,
+        "exact": 1.0,
+        "mujoco": 0.0,
+    }
     for _, r in df.iterrows():
         assert (tmp_path / r["trajectory"]).exists()
         assert r["scenario_hash"] == dzh.scenario_hash and r["engine_version"]

@@ -66,7 +66,7 @@ from reports.report.tables import (
 from reports.store.atomic import write_text
 from reports.store.format import fmt, fmt_int, fmt_level, fmt_step, md_cell
 from reports.store.provenance import read_provenance
-from reports.store.results import STATUSES, records
+from reports.store.results import STATUSES, records, reference_rows
 
 #: column titles of the metrics, with units (no character GitHub's tables would split on), in
 #: the order shown: the metric catalog's (:data:`reports.metrics.catalog.METRIC_TITLES`)
@@ -454,7 +454,7 @@ def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
     png = [p for p in paths if p.suffix == ".png" and p.exists()]
     if not png:
         return
-    runs = df[df["engine"] != "exact"]
+    runs = df[~reference_rows(df)]
     card_alt = (
         f"Scorecard: {runs.groupby(['engine', 'integrator']).ngroups} configurations (rows) "
         f"on {runs['scenario'].nunique()} scenarios (columns), each cell coloured by its "
@@ -501,7 +501,7 @@ def work_precision_section(doc: Doc, df) -> None:
         sub = df[df["scenario"] == scenario]
         wp = work_precision(sub, levels)
         engines = sorted(
-            set(sub.loc[(sub["status"] == "ok") & (sub["engine"] != "exact"), "engine"]),
+            set(sub.loc[(sub["status"] == "ok") & ~reference_rows(sub), "engine"]),
             key=engine_key,
         )
         for k, eng in enumerate(engines):

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
 from reports.report.labels import config_label, engine_key, family_key, outcome
 from reports.store.format import num
-from reports.store.results import METRIC_COLUMNS, records
+from reports.store.results import METRIC_COLUMNS, is_reference_record, records, reference_rows
 
 #: rows whose every metric agrees to this relative difference are one group: their figures
 #: printed to three significant digits would differ by at most one unit in the last digit
@@ -114,7 +114,7 @@ def group_rows(df, rtol: float = COLLAPSE_RTOL) -> list[Group]:
             f = g.first
             if f["family"] != rec["family"] or not _same_accuracy(f, rec):
                 continue
-            if f["engine"] == "exact" or rec["engine"] == "exact":
+            if is_reference_record(f) or is_reference_record(rec):
                 continue
             d = row_difference(f, rec)
             if d <= rtol:
@@ -160,7 +160,7 @@ def sweep_groups(sub, rtol: float = COLLAPSE_RTOL) -> list[SweepGroup]:
     """The fixed-step configurations of one scenario, grouped within each family when their
     status, verdict, attitude error and divergence time agree at every dt (the error to
     ``rtol``, or both below its round-off floor); in family and engine order."""
-    fixed = sub[sub["target_accuracy"].isna() & (sub["engine"] != "exact")]
+    fixed = sub[sub["target_accuracy"].isna() & ~reference_rows(sub)]
     configs = {}
     for r in records(fixed):
         configs.setdefault((r["engine"], r["integrator"]), {})[float(r["dt"])] = r

@@ -56,7 +56,7 @@ from reports.report.labels import (
 from reports.report.tables import at_scenario_dt, scenario_dt
 from reports.store.atomic import write_text
 from reports.store.format import fmt, fmt_step, truthy
-from reports.store.results import error_series_path, records, slug
+from reports.store.results import error_series_path, records, reference_rows, slug
 
 #: colours of the configurations, given out in engine and integrator order so that every
 #: configuration of a results folder has its own (tab10, then darker tones of tab20b/c); a
@@ -167,7 +167,11 @@ class Styles:
         extra_s = iter(EXTRA_STYLES * 4)
         self.style = {f: FAMILY_STYLE.get(f) or next(extra_s) for f in fams}
         pairs = sorted(
-            {(e, i) for e, i in zip(df["engine"], df["integrator"], strict=True) if e != "exact"},
+            set(
+                zip(
+                    *(df.loc[~reference_rows(df), c] for c in ("engine", "integrator")), strict=True
+                )
+            ),
             key=lambda p: (engine_key(p[0]), p[1]),
         )
         self.colour = {p: PALETTE[k % len(PALETTE)] for k, p in enumerate(pairs)}
@@ -532,13 +536,13 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     if rows.empty:
         return None
     groups = []
-    for g in group_rows(rows[rows["engine"] != "exact"]):
+    for g in group_rows(rows[~reference_rows(rows)]):
         s = cache.get(g.first)
         if s is not None:
             groups.append((g, s))
     if not groups:
         return None
-    exact = rows[rows["engine"] == "exact"]
+    exact = rows[reference_rows(rows)]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
     # a panel only for a quantity measured here (the momentum of a pivoted body under
     # gravity is not conserved: no series)
@@ -698,14 +702,14 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
     oscillation is shown over its last periods, ending where the last drawn run diverged when
     every drawn run diverged before the end."""
     rows, h = _plot_rows(df, scenario)
-    exact = rows[rows["engine"] == "exact"]
+    exact = rows[reference_rows(rows)]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
     if ref is None:
         return None
     t_ref = ref["t"]
     w_ref = np.column_stack([ref["wx"], ref["wy"], ref["wz"]])
     wmax = float(np.max(np.abs(w_ref))) or 1.0
-    groups = group_rows(rows[rows["engine"] != "exact"])
+    groups = group_rows(rows[~reference_rows(rows)])
     shown, hidden = [], []
     for g in groups:
         err = g.value("omega_error_max")
@@ -819,7 +823,7 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
     the declared order; a run that diverged or failed is a cross at the top, and named under
     the figure with the configurations that have no point at all; saturation (no fit above
     it) and the reference's accuracy shown."""
-    sub = df[(df["scenario"] == scenario) & (df["engine"] != "exact")]
+    sub = df[(df["scenario"] == scenario) & ~reference_rows(df)]
     sub = sub[~sub["status"].isin(NOT_RUN)]
     groups = [g for g in sweep_groups(sub) if len(g.dts) >= 2]
     if not groups:
@@ -929,7 +933,7 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     configuration in dt order; error-controlled runs in target-accuracy order, open markers.
     Configurations never within WP_RELEVANT rad, or with no finished run, are named under the
     figure, not drawn."""
-    every = df[(df["scenario"] == scenario) & (df["engine"] != "exact")]
+    every = df[(df["scenario"] == scenario) & ~reference_rows(df)]
     every = every[~every["status"].isin(NOT_RUN)]
     sub = every[(every["status"] == "ok")]
     sub = sub[np.isfinite(sub["attitude_error_max"])]
@@ -1159,7 +1163,7 @@ def scenario_plot_from_results(df, cache: SeriesCache, out: Path, scenario: str)
     """The scenario picture of a results folder: the body stored beside the exact
     reference's run (:meth:`SeriesCache.body`; in a folder written before it was stored, the
     library's scenario file when the runs used that very file) and that run's motion."""
-    rows = df[(df["scenario"] == scenario) & (df["engine"] == "exact")]
+    rows = df[(df["scenario"] == scenario) & reference_rows(df)]
     rows = rows[rows["status"].isin(("ok", "reference-inaccurate"))]
     if rows.empty:
         return None
@@ -1437,7 +1441,7 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
     cells, labels = {}, {}
     for sc in scens:
         rows = at_scenario_dt(df[df["scenario"] == sc])
-        for r in records(rows[rows["engine"] != "exact"]):
+        for r in records(rows[~reference_rows(rows)]):
             key = (r["engine"], r["integrator"])
             labels.setdefault(key, config_label(r))
             out = outcome(r)
@@ -1477,7 +1481,7 @@ def scorecard_figure(df, out: Path) -> list[Path]:
     import matplotlib
     from matplotlib.patches import Patch, Rectangle
 
-    df = df[df["engine"] != "exact"]
+    df = df[~reference_rows(df)]
     if df.empty:
         return []
     scens, configs, cells = scorecard_cells(df)

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from reports.store.results import is_reference_record
+
 #: the smallest value shown on the log axes (exact zeros are drawn here)
 FLOOR = 1e-17
 
@@ -79,7 +81,7 @@ def system_plot(
                 continue
             y = np.maximum(np.abs(np.asarray(s[key], dtype=float)), FLOOR)
             st = styles.of(row) if styles is not None else {"color": colours[k % len(colours)]}
-            if row["engine"] == "exact":
+            if is_reference_record(row):
                 st = {"color": "0.55", "linestyle": "-", "lw": 2.4, "alpha": 0.6}
             st.pop("marker", None)
             (line,) = ax.plot(s["t"], y, lw=st.pop("lw", 1.3), label=name, **st)

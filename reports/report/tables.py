@@ -14,7 +14,7 @@ import numpy as np
 from reports.report.groups import group_rows
 from reports.report.labels import NOT_RUN, config_label, engine_key, is_failure
 from reports.store.format import num, truthy
-from reports.store.results import default_dt, records
+from reports.store.results import default_dt, records, reference_rows
 
 #: max attitude error levels of the work-precision answers, rad
 ACCURACY_LEVELS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
@@ -59,7 +59,7 @@ def scenarios_of(df) -> list[str]:
 def scenario_info(sub) -> dict:
     """dt, horizon and reference of one scenario's rows."""
     h = scenario_dt(sub)
-    exact = sub[sub["engine"] == "exact"]
+    exact = sub[reference_rows(sub)]
     ref = exact.iloc[0] if len(exact) else None
     return {
         "dt": h,
@@ -77,7 +77,7 @@ def scorecard(df) -> list[dict]:
     for scenario in scenarios_of(df):
         sub = df[df["scenario"] == scenario]
         rows = at_scenario_dt(sub)
-        rows = rows[(rows["engine"] != "exact") & ~rows["status"].isin(NOT_RUN)]
+        rows = rows[~reference_rows(rows) & ~rows["status"].isin(NOT_RUN)]
         cells = {}
         for g in group_rows(rows):
             cells.setdefault(g.first["family"], []).append(g)
@@ -98,7 +98,7 @@ def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
     cheapest first, with the cost ratio to the cheapest (by engine time; wall times given as
     figures). An error below the reference's accuracy does not reach a level below that
     accuracy: it is not a measurement."""
-    ok = sub[(sub["status"] == "ok") & (sub["engine"] != "exact")]
+    ok = sub[(sub["status"] == "ok") & ~reference_rows(sub)]
     out = []
     for level in levels:
         best = {}

@@ -172,6 +172,7 @@ def _prepare(row: dict, spec: RunSpec):
         row["engine_version"] = cls.version()
     integ = cls.integrator(spec.integrator)
     row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
+    row["reference"] = float(cls.is_reference)
     sc = spec.scenario
     if spec.t_end is not None and spec.horizon != sc.t_end:
         sc = sc.replace(t_end=spec.horizon)

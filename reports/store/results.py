@@ -65,6 +65,7 @@ RESULT_COLUMNS = (
     "family",
     "order",
     "suite_integrated",
+    "reference",
     "dt",
     "target_accuracy",
     "t_end",
@@ -678,11 +679,34 @@ def export(folder: str | Path, df=None) -> list[Path]:
     return paths
 
 
+def reference_rows(df):
+    """Boolean Series: the rows of a reference engine (the exact or numerical reference every
+    configuration is measured against, not a configuration under test), as the runner recorded
+    it from the engine's ``is_reference`` flag in the ``reference`` column. A folder written
+    before that column existed has it empty throughout; its reference rows are those of the
+    family ``exact``, the family of the suite's one reference engine then."""
+    flag = df["reference"].astype(float) if "reference" in df else None
+    if flag is None or flag.isna().all():
+        return df["family"] == "exact" if "family" in df else df["engine"] == "exact"
+    return flag == 1.0
+
+
+def is_reference_record(row) -> bool:
+    """:func:`reference_rows` for one row (a dict)."""
+    try:
+        flag = float(row.get("reference", math.nan))
+    except (TypeError, ValueError):
+        flag = math.nan
+    if math.isnan(flag):
+        return row.get("family", row.get("engine")) == "exact"
+    return flag == 1.0
+
+
 def default_dt(rows) -> float:
     """The step shown in per-dt tables and time plots: the scenario's own ``dt``, the step of
     the exact reference's run; without such a row, the dt with the most runs, ties broken by
     the smaller step."""
-    exact = rows[rows["engine"] == "exact"]
+    exact = rows[reference_rows(rows)]
     if len(exact):
         return float(exact["dt"].iloc[0])
     counts = rows.groupby("dt").size()
