@@ -57,7 +57,7 @@ from references import conventions as cv
 from references.engines import pinocchio_system as ps
 from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
-from references.errors import Diverged, EngineError, Unsupported
+from references.errors import Diverged, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -196,9 +196,7 @@ class _Model:
     # -- read-out ----------------------------------------------------------------------------
     def states(self):
         """(x, R, v, W) per body (scenario order) from DART's kinematics."""
-        nb = len(self.pl.bodies)
-        x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
-        v, W = np.empty((nb, 3)), np.empty((nb, 3))
+        x, R, v, W = ps.state_arrays(len(self.pl.bodies))
         for c, body in self.body.items():
             Rc = body.getWorldTransform().rotation()
             R[c] = Rc
@@ -315,14 +313,8 @@ class _Model:
 def read_back(dm: _Model, scenario, dt: float) -> None:
     """Compare DART's model with the scenario (module docstring)."""
     pl, world, skel = dm.pl, dm.world, dm.skel
-    bad = []
-
-    def want(what, got, exp, tol=ps.CHECK_TOL):
-        got, exp = np.asarray(got, float), np.asarray(exp, float)
-        scale = max(1.0, float(np.max(np.abs(exp))) if exp.size else 1.0)
-        if got.shape != exp.shape or not np.all(np.abs(got - exp) <= tol * scale):
-            bad.append(f"{what}: {np.round(got, 12).tolist()}, expected "
-                       f"{np.round(exp, 12).tolist()}")  # fmt: skip
+    bad = ps.Mismatches()
+    want = bad.want
 
     kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint"}
     want("number of bodies", skel.getNumBodyNodes(), len(pl.bodies))
@@ -359,11 +351,7 @@ def read_back(dm: _Model, scenario, dt: float) -> None:
         bad.append("deactivation (sleeping) enabled")
     if not skel.isMobile():
         bad.append("skeleton not mobile")
-    if bad:
-        raise EngineError(
-            f"dart: system {scenario.name!r}: the model differs from the scenario: "
-            + "; ".join(bad)
-        )
+    bad.raise_any("dart", scenario)
 
 
 def _constraint_record(dm: _Model) -> dict:
@@ -415,11 +403,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         else "the suite's RKMK4 around Skeleton.computeForwardDynamics (World.step not used)",
         "dt": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": {
-            pl.names[c]: f"{pl.tree[c].kind} to "
-            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
-            for c in pl.order
-        },  # fmt: skip
+        "tree": ps.tree_record(pl),
         "frames": "each body frame at its joint point, parallel to its principal frame "
         "(local COM -Y)",
         "deactivation (sleeping)": False,
@@ -460,8 +444,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     steps = ps.saves(nstep, save_every)
     dm, rec = build(scenario, integrator, dt, **settings)
     nb, n = len(dm.pl.bodies), len(steps)
-    x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
-    R = np.empty((n, nb, 3, 3))
+    x, R, v, W = ps.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = dm.states()
     rk = integrator == "RKMK4"
     if rk:

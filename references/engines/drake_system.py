@@ -221,9 +221,7 @@ class _Model:
                 joint.set_angular_rate(ctx, float(tj.axis_c @ (R.T @ (w - wp))))
 
     def states(self):
-        nb = len(self.pl.bodies)
-        x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
-        v, W = np.empty((nb, 3)), np.empty((nb, 3))
+        x, R, v, W = ps.state_arrays(len(self.pl.bodies))
         for c, body in self.body.items():
             X = body.EvalPoseInWorld(self.context)
             V = body.EvalSpatialVelocityInWorld(self.context)
@@ -257,14 +255,8 @@ class _Model:
 def read_back(dm: _Model, scenario) -> None:
     """Compare Drake's model with the scenario (module docstring)."""
     pl, plant, ctx = dm.pl, dm.plant, dm.context
-    bad = []
-
-    def want(what, got, exp, tol=ps.CHECK_TOL):
-        got, exp = np.asarray(got, float), np.asarray(exp, float)
-        scale = max(1.0, float(np.max(np.abs(exp))) if exp.size else 1.0)
-        if got.shape != exp.shape or not np.all(np.abs(got - exp) <= tol * scale):
-            bad.append(f"{what}: {np.round(got, 12).tolist()}, expected "
-                       f"{np.round(exp, 12).tolist()}")  # fmt: skip
+    bad = ps.Mismatches()
+    want = bad.want
 
     types = {"spherical": "ball_rpy", "revolute": "revolute", "prismatic": "prismatic",
              "free": "quaternion_floating"}  # fmt: skip
@@ -318,11 +310,7 @@ def read_back(dm: _Model, scenario) -> None:
     want("number of collision geometries", plant.num_collision_geometries(), 0)
     want("number of constraints", plant.num_constraints(),
          sum(len(lp.pairs) for lp in dm.loops))  # fmt: skip
-    if bad:
-        raise EngineError(
-            f"drake: system {scenario.name!r}: the model differs from the scenario: "
-            + "; ".join(bad)
-        )
+    bad.raise_any("drake", scenario)
 
 
 def at_state(pl: ps.Plan, x, R, v, W) -> ps.Plan:
@@ -383,11 +371,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         else "continuous; Simulator with the fixed-step integrator at dt",
         "dt": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": {
-            pl.names[c]: f"{pl.tree[c].kind} to "
-            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
-            for c in pl.order
-        },  # fmt: skip
+        "tree": ps.tree_record(pl),
         "frames": "body frames principal at the COM; joint frames F (parent, rotation R_p^T R_c "
         "at t = 0 and at every chart switch) and M (child) at the anchors: every joint "
         "coordinate 0 at t = 0 and after every switch",
@@ -503,8 +487,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     dm, rec = build(scenario, integrator, dt, **settings)
     st = _stepper(dm, integrator, dt, 0.0, 0)
     nb, n = len(dm.pl.bodies), len(steps)
-    x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
-    R = np.empty((n, nb, 3, 3))
+    x, R, v, W = ps.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = dm.states()
     switches: list = []
     t = 0.0

@@ -336,7 +336,7 @@ def read_back(mujoco, m, scenario, pl: ps.Plan, integrator: str, dt, solref, sol
     """Compare the compiled model with the scenario (module docstring); raise
     :class:`EngineError` naming the body, joint or setting on a mismatch. Returns the
     read-back values recorded in the settings."""
-    bad = []
+    bad = ps.Mismatches()
 
     def want(what, got, expect, scale=1.0, quat=False):
         err = _quat_close(got, expect) if quat else _close(got, expect, scale)
@@ -448,11 +448,7 @@ def read_back(mujoco, m, scenario, pl: ps.Plan, integrator: str, dt, solref, sol
         bit = getattr(E, flag, None)
         if bit is not None and ena & int(bit):
             bad.append(f"enable flag {flag} must be clear (sleeping / overridden solref)")
-    if bad:
-        raise EngineError(
-            f"mujoco: system {scenario.name!r}: the compiled model differs from the scenario: "
-            + "; ".join(bad)
-        )
+    bad.raise_any("mujoco", scenario, "compiled model")
     return bid
 
 
@@ -496,9 +492,7 @@ def read_states(mujoco, m, d, bid: dict, out=None):
     mujoco.mj_kinematics(m, d)
     mujoco.mj_comPos(m, d)
     mujoco.mj_comVel(m, d)
-    nb = len(bid)
-    x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
-    v, W = np.empty((nb, 3)), np.empty((nb, 3))
+    x, R, v, W = ps.state_arrays(len(bid))
     res = np.zeros(6)
     for c, i in bid.items():
         x[c] = d.xipos[i]
@@ -616,11 +610,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         "integrator": integrator,
         "timestep": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": {
-            pl.names[c]: f"{mj_type(pl.tree[c])} to "
-            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
-            for c in pl.order
-        },  # fmt: skip
+        "tree": ps.tree_record(pl, mj_type),
         "frames": "each body frame is its principal frame at its COM (explicit inertial, "
         "pos 0, identity quat); no geoms, inertia never inferred",
         "damping, armature, frictionloss, stiffness": "0 (set and read back)",
@@ -679,8 +669,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     mujoco, m, d, pl, bid, rec = build(scenario, integrator, dt, **settings)
     nb = len(pl.bodies)
     n = len(saves)
-    x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
-    R = np.empty((n, nb, 3, 3))
+    x, R, v, W = ps.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = read_states(mujoco, m, d, bid)
     engine = 0.0
     warns = [int(getattr(mujoco.mjtWarning, w)) for w in

@@ -383,6 +383,34 @@ def check_states(engine: str, pl: Plan, x, R, v, W, joint_points, joint_axes) ->
         )
 
 
+class Mismatches(list):
+    """The messages of a builder's read-back: each difference between the engine's model and
+    the scenario (a list; :meth:`want` compares values, anything else is appended)."""
+
+    def want(self, what: str, got, exp, tol: float = CHECK_TOL) -> None:
+        """Record ``what`` when ``got`` (read from the engine) and ``exp`` (the scenario's
+        value) differ in shape or by more than ``tol`` relative to max(1, max |exp|)."""
+        got, exp = np.asarray(got, float), np.asarray(exp, float)
+        scale = max(1.0, float(np.max(np.abs(exp))) if exp.size else 1.0)
+        if got.shape != exp.shape or not np.all(np.abs(got - exp) <= tol * scale):
+            self.append(f"{what}: {np.round(got, 12).tolist()}, expected "
+                        f"{np.round(exp, 12).tolist()}")  # fmt: skip
+
+    def raise_any(self, engine: str, scenario, model: str = "model") -> None:
+        """Raise :class:`EngineError` listing every mismatch, if there is one."""
+        if self:
+            raise EngineError(
+                f"{engine}: system {scenario.name!r}: the {model} differs from the scenario: "
+                + "; ".join(self)
+            )
+
+
+def state_arrays(*lead: int) -> tuple:
+    """Empty (x, R, v, W) of shapes (*lead, 3), (*lead, 3, 3), (*lead, 3), (*lead, 3): one
+    state per body (``lead`` = (nb,)) or a run's saved states (``lead`` = (n, nb))."""
+    return np.empty((*lead, 3)), np.empty((*lead, 3, 3)), np.empty((*lead, 3)), np.empty((*lead, 3))
+
+
 def saves(nstep: int, save_every: int) -> np.ndarray:
     """Saved step indices 0, s, 2s, ..., nstep (always the last)."""
     if not (isinstance(nstep, (int, np.integer)) and nstep >= 0):
@@ -405,6 +433,16 @@ def output(steps, dt, x, R, v, W, engine_time, rec) -> dict:
         "engine_time_s": float(engine_time),
         "evals_per_step": 4.0 if rec.get("integrator") == "RKMK4" else 1.0,
         "settings": rec,
+    }
+
+
+def tree_record(pl: Plan, kind=lambda tj: tj.kind) -> dict:
+    """The settings record's ``tree``: each body's name -> "<kind> to ground" or "<kind> to
+    'parent'", in the plan's order (``kind``: the name the engine gives a tree joint)."""
+    return {
+        pl.names[c]: f"{kind(pl.tree[c])} to "
+        + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
+        for c in pl.order
     }
 
 
@@ -521,9 +559,7 @@ class _Model:
         """(x, R, v, W) per body (scenario order) from Pinocchio's forward kinematics."""
         pin = self.pin
         pin.forwardKinematics(self.model, self.data, q, v)
-        nb = len(self.pl.bodies)
-        x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
-        vv, W = np.empty((nb, 3)), np.empty((nb, 3))
+        x, R, vv, W = state_arrays(len(self.pl.bodies))
         for c, jid in self.jid.items():
             M, tw = self.data.oMi[jid], self.data.v[jid]
             Rc, off = M.rotation, self.frames[c].body_offset
@@ -588,16 +624,8 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
     """Compare Pinocchio's model with the scenario (masses, inertias about the COM in principal
     axes, joint kinds, parents, distorting defaults, gravity, constraint gains and points)."""
     pin, pl, model = pm.pin, pm.pl, pm.model
-    bad = []
-
-    def want(what, got, exp, tol=CHECK_TOL):
-        got, exp = np.asarray(got, float), np.asarray(exp, float)
-        if got.shape != exp.shape or not np.all(
-            np.abs(got - exp) <= tol * max(1.0, np.max(np.abs(exp)))
-        ):
-            bad.append(
-                f"{what}: {np.round(got, 12).tolist()}, expected {np.round(exp, 12).tolist()}"
-            )
+    bad = Mismatches()
+    want = bad.want
 
     kinds = {"free": "JointModelFreeFlyer", "spherical": "JointModelSpherical",
              "revolute": "JointModelRevoluteUnaligned",
@@ -630,11 +658,7 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
         want(f"{cm.name}: Baumgarte Kp, Kd", [np.ravel(p.Kp)[0], np.ravel(p.Kd)[0]], list(gains))
         if cm.type != pin.ContactType.CONTACT_3D:
             bad.append(f"{cm.name}: type {cm.type}, needs CONTACT_3D")
-    if bad:
-        raise EngineError(
-            f"pinocchio: system {scenario.name!r}: the model differs from the scenario: "
-            + "; ".join(bad)
-        )
+    bad.raise_any("pinocchio", scenario)
 
 
 def _joint_world(pm: _Model):
@@ -729,11 +753,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         ),
         "dt": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": {
-            pl.names[c]: f"{pl.tree[c].kind} to "
-            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
-            for c in pl.order
-        },  # fmt: skip
+        "tree": tree_record(pl),
         "frames": "each joint frame parallel to its body's principal frame, at its anchor",
         "damping, armature, friction": "0 (defaults, read back)",
         "forward dynamics": "constraintDynamics" if pm.constraints else "aba",
@@ -772,8 +792,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     pm, q, v, rec = build(scenario, integrator, dt, **settings)
     step = pm.step_rkmk4 if integrator == "RKMK4" else pm.step_euler
     nb, n = len(pm.pl.bodies), len(steps)
-    x, vv, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
-    R = np.empty((n, nb, 3, 3))
+    x, R, vv, W = state_arrays(n, nb)
     x[0], R[0], vv[0], W[0] = pm.states(q, v)
     pm.clock = 0.0
     done = 0

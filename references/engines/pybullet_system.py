@@ -225,9 +225,7 @@ class _Model:
         """(x, R, v, W) per body (scenario order), and per multibody link the world link-frame
         point and orientation (joint frames), from PyBullet's kinematics."""
         p, cid = self.p, self.cid
-        nb = len(self.pl.bodies)
-        x, R = np.empty((nb, 3)), np.empty((nb, 3, 3))
-        v, W = np.empty((nb, 3)), np.empty((nb, 3))
+        x, R, v, W = ps.state_arrays(len(self.pl.bodies))
         frames = {}
         for c, (mb, k) in self.where.items():
             if k < 0:
@@ -299,14 +297,8 @@ class _Model:
 def read_back(bm: _Model, scenario, dt: float) -> None:
     """Compare PyBullet's model with the scenario (module docstring)."""
     p, cid, pl = bm.p, bm.cid, bm.pl
-    bad = []
-
-    def want(what, got, exp, tol=ps.CHECK_TOL):
-        got, exp = np.asarray(got, float), np.asarray(exp, float)
-        scale = max(1.0, float(np.max(np.abs(exp))) if exp.size else 1.0)
-        if got.shape != exp.shape or not np.all(np.abs(got - exp) <= tol * scale):
-            bad.append(f"{what}: {np.round(got, 12).tolist()}, expected "
-                       f"{np.round(exp, 12).tolist()}")  # fmt: skip
+    bad = ps.Mismatches()
+    want = bad.want
 
     kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE}
     inv = {v: c for c, v in bm.where.items()}
@@ -344,11 +336,7 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
     want("gravity", [params[f"gravityAcceleration{a}"] for a in "XYZ"], pl.gravity)
     want("time step", params["fixedTimeStep"], dt)
     want("number of substeps", params["numSubSteps"], 0)
-    if bad:
-        raise EngineError(
-            f"pybullet: system {scenario.name!r}: the model differs from the scenario: "
-            + "; ".join(bad)
-        )
+    bad.raise_any("pybullet", scenario)
 
 
 def probe(bm: _Model, dt: float) -> list:
@@ -449,11 +437,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         "dt": float(dt),
         "numSubSteps": 0,
         "gravity": pl.gravity.tolist(),
-        "tree": {
-            pl.names[c]: f"{pl.tree[c].kind} to "
-            + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
-            for c in pl.order
-        },  # fmt: skip
+        "tree": ps.tree_record(pl),
         "frames": "link frame at the joint point, parallel to the principal frame; inertial "
         "frame explicit (-Y, identity)",
         "joint motors": "off (spherical: POSITION_CONTROL force 0; revolute: VELOCITY_CONTROL "
@@ -499,8 +483,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     p, cid = bm.p, bm.cid
     try:
         nb, n = len(bm.pl.bodies), len(steps)
-        x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
-        R = np.empty((n, nb, 3, 3))
+        x, R, v, W = ps.state_arrays(n, nb)
         x[0], R[0], v[0], W[0], _ = bm.states()
         done = 0
         for k in range(1, n):
