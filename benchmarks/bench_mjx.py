@@ -5,7 +5,7 @@ with its direction drawn at random per body (the ensemble's rule, reports.run.en
 same kinetic energy), dt = 1e-3 s. Both engines get the same MJCF (the adapters',
 references.engines.mujoco_engine.MujocoEngine.model_xml) and the same initial states.
 
-- MJX: the mjx adapter's compiled stepping (references.engines.mjx_engine), vmapped over the
+- MJX: the mjx adapter's compiled stepping (references.engines.mjx), vmapped over the
   bodies, one call for ``--nstep`` steps with only the last state returned; compiled ahead of
   time before timing (the compile time is printed apart).
 - C MuJoCo: ``mujoco.rollout.rollout`` over the same bodies for the same steps, with 1 and with
@@ -63,7 +63,8 @@ def initial_qpos_qvel(n: int):
 def mjx_rate(integrator: str, precision: str, n: int, nstep: int, repeat: int):
     """(best seconds per body-step, compile seconds) of the vmapped compiled stepping."""
     from references.engines.context import BodyModel, RunContext
-    from references.engines.mjx_engine import CHECKPOINTS, MjxEngine, _block_fn, _compiled
+    from references.engines.mjx import CHECKPOINTS, MjxEngine
+    from references.engines.mjx.compile import _block_fn, _compiled
 
     eng = MjxEngine()
     sc = scenario()
@@ -131,7 +132,7 @@ def main(argv=None):
     ap.add_argument("--precision", default="float64", choices=("float64", "float32"))
     args = ap.parse_args(argv)
     n, nstep = (100, 200) if args.quick else (args.n, args.nstep)
-    from references.engines.mjx_engine import MjxEngine
+    from references.engines.mjx import MjxEngine
 
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores")
     print(f"mjx {MjxEngine.version()}")

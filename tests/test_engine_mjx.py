@@ -1,4 +1,4 @@
-"""The MJX adapter (references.engines.mjx_engine).
+"""The MJX adapter (references.engines.mjx).
 
 Checked against references that do not share its code: C MuJoCo running the same algorithms
 (``Euler`` through ``mj_step``; MJX's RK4 redone step by step with C MuJoCo's ``mj_forward``
@@ -43,7 +43,7 @@ def _free(**kw):
 
 
 def _angle(Ra, Rb) -> np.ndarray:
-    """Rotation angle between stacks of rotations (the attitude error of reports.metrics)."""
+    """Rotation angle between stacks of rotations (the attitude error of reports.metrics.body)."""
     d = np.linalg.norm(np.asarray(Ra) - np.asarray(Rb), axis=(-2, -1)) / (2 * math.sqrt(2))
     return 2 * np.arcsin(np.minimum(d, 1.0))
 
@@ -106,11 +106,12 @@ def test_registered_and_named(mjx):
 
 def test_missing_mjx_names_the_pip_command(monkeypatch):
     """An MJX that does not import makes the engine unavailable with the install command."""
-    from references.engines import mjx_engine
+    from references.engines.mjx import MjxEngine
+    from references.engines.mjx import compile as mjx_compile
 
-    monkeypatch.setattr(mjx_engine, "_MODULES", None)
+    monkeypatch.setattr(mjx_compile, "_MODULES", None)
     monkeypatch.setitem(sys.modules, "mujoco.mjx", None)  # import raises ImportError
-    why = mjx_engine.MjxEngine.availability()
+    why = MjxEngine.availability()
     assert why is not None and "pip install mujoco-mjx" in why
 
 
@@ -167,7 +168,7 @@ def test_float32_rounds_the_handed_state_by_a_few_unit_roundoffs(mjx):
     float32 quantities it differs by a few u32 (u32 = 2^-24 = 6e-8; each number is rounded
     once, then MJX's quantities add a dozen roundings), far inside the adapter's check
     (64 u32) and far outside float64 (1e-12 would fail)."""
-    from references.engines.mjx_engine import FLOAT32_INITIAL_RTOL
+    from references.engines.mjx import FLOAT32_INITIAL_RTOL
 
     assert FLOAT32_INITIAL_RTOL == 64 * U32
     for sc in (_free(), scenarios.load("dzhanibekov"), scenarios.load("gazebo_boxes_complex")):
@@ -195,7 +196,7 @@ def test_what_the_kit_says_of_the_rounded_float32_state(mjx):
     initial check by a few u32: the hand-over in float64 is what lets float32 runs through;
     the adapter's own check of the rounding (64 u32) is the tolerance a per-integrator
     initial-state tolerance of the base class would take."""
-    from references.engines.mjx_engine import FLOAT32_INITIAL_RTOL
+    from references.engines.mjx import FLOAT32_INITIAL_RTOL
 
     class Rounded(mjx):
         def set_state(self, ctx, state):
@@ -344,7 +345,7 @@ def test_float32_rk4_energy_drift_is_the_precision_limit(mjx):
     """The free body I = (1, 2, 3), W0 = (0.01, 2, 0.01), 20 s: RK4's truncation error in the
     energy is below float64 round-off at h = 1e-3, so the energy drift is round-off: ~1e-14 in
     float64, in float32 u32 per step accumulated (measured 1e-6..1e-5)."""
-    from reports.metrics import energy_drift
+    from reports.metrics.body import energy_drift
 
     sc = kit.free_scenario(
         inertia=[1.0, 2.0, 3.0], omega_body=[0.01, 2.0, 0.01], gravity=[0, 0, 0], t_end=20.0
@@ -361,12 +362,11 @@ def test_float32_rk4_energy_drift_is_the_precision_limit(mjx):
 def test_ensemble_batch_equals_member_runs(mjx):
     """run_batch: every member in one vmapped call gives each member's single run (the same
     compiled step under vmap; measured equal to ~1e-15) and the rows of the ensemble."""
-    from references.engines.mjx_engine import run_batch
-    from reports.ensemble import members
+    from reports.run.ensemble import members
 
     sc = scenarios.load("dzhanibekov").replace(t_end=0.5)
     mems = members(sc, 4, seed=1)
-    batch = run_batch(mems, "Euler (float64)", sc.dt, sc.t_end, 50)
+    batch = mjx().run_batch(mems, "Euler (float64)", sc.dt, sc.t_end, 50)
     for mem, out in zip(mems, batch, strict=True):
         one = mjx().run(mem, "Euler (float64)", sc.dt, save_every=50).trajectory
         gap = _gap(one, out.trajectory)

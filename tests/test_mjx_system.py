@@ -38,7 +38,7 @@ def test_mjx_refuses_the_integrators_it_lacks_and_float32():
 def test_mjx_read_back_catches_a_model_that_differs_from_the_c_model():
     """The MJX model of the four-bar holds the C model's connects, solref, solimp and solver
     settings; each planted difference is named."""
-    from references.engines.mjx_engine import _import
+    from references.engines.mjx.compile import _import
 
     _, jax, mjx = _import()
     bodies, joints, _, _ = parallelogram_four_bar()
@@ -129,7 +129,7 @@ def test_mjx_connect_reference_acceleration_lacks_c_mujocos_jdot_v():
     here by central differences of C's efc_J along qvel (step 1e-6: truncation ~1e-12, the
     rows' round-off ~1e-10 over 2e-6; bound 1e-8 of aref's size ~1). Documents where MJX's
     loops part from C MuJoCo's; fails when MJX adds the term."""
-    from references.engines.mjx_engine import _import
+    from references.engines.mjx.compile import _import
 
     _, jax, mjx = _import()
     bodies, joints, _, _ = parallelogram_four_bar()

@@ -31,7 +31,7 @@ BUILTIN = {
     "dart": "references.engines.dart_engine:DartEngine",
     "pybullet": "references.engines.pybullet_engine:PybulletEngine",
     "drake": "references.engines.drake:DrakeEngine",
-    "mjx": "references.engines.mjx_engine:MjxEngine",
+    "mjx": "references.engines.mjx:MjxEngine",
 }
 
 

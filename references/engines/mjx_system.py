@@ -6,11 +6,11 @@ the spanning tree, the initial states checked against every joint, the compiled 
 compared with the scenario, MuJoCo's kinematics of the initial state compared with the
 scenario's world states), then put on the JAX device with ``mjx.put_model(impl="jax")`` and
 ``mjx.put_data`` inside ``jax.enable_x64(True)`` (a thread-local setting, as in
-:mod:`references.engines.mjx_engine`). Before the first step the builder checks that MJX holds
+:mod:`references.engines.mjx`). Before the first step the builder checks that MJX holds
 the state handed over bit for bit, in 8-byte floats: a float32 run cannot pass as float64.
 
 Stepping: ``lax.fori_loop`` of ``mjx.step`` between two saves, jitted once per run (JAX's
-persistent compilation cache, set up by :mod:`references.engines.mjx_engine`, serves later
+persistent compilation cache, set up by :mod:`references.engines.mjx`, serves later
 processes); ``engine_time_s`` is the time inside those calls until their results are ready;
 the compile time is recorded in the settings. The saved states are read from MJX's qpos/qvel
 through the C builder's read-out (MuJoCo's kinematics on a C ``MjData``), so the conversion is
@@ -78,7 +78,7 @@ def _base_name(integrator: str) -> str:
 
 def _step_fn():
     """``(model, data, k) -> data`` after k steps, jitted (one function per process)."""
-    from references.engines.mjx_engine import _import
+    from references.engines.mjx.compile import _import
 
     _, jax, mjx = _import()
     if "fn" not in _STEP:
@@ -167,7 +167,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                 out,
             )
         x[k], R[k], v[k], W[k] = ms.read_states(mujoco, m, d, bid)
-    from references.engines.mjx_engine import _versions
+    from references.engines.mjx.compile import _versions
 
     rec = {
         **rec,
