@@ -4,16 +4,15 @@ Expected values come from formulations that share nothing with DART: the reduced
 reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
 parallelogram four-bar (scipy DOP853 on one ODE) and the conservation of momentum. Tolerances
 come from the integrators' orders (halving dt divides the error by about 2^p, accepted within a
-factor 1.6, as in tests/test_pinocchio_system.py, whose stand-in systems are reused).
+factor 1.6; the stand-in systems and checks shared with the other builders' tests:
+tests/system_builders.py).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 pytest.importorskip("dartpy")
@@ -22,32 +21,26 @@ from director_model.system.examples import parallelogram_four_bar, rod_chain  # 
 from references.engines import dart_system as ds  # noqa: E402
 from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from tests.test_pinocchio_system import (  # noqa: E402
-    EULER,
-    RK,
+from tests.system_builders import (  # noqa: E402
+    CHAINS,
+    assert_chain_order,
+    assert_momentum_order,
     assert_order,
-    errors_vs_reference,
+    assert_saved_steps,
+    assert_universal_unsupported,
     four_bar_gap,
     four_bar_theta_error,
-    momentum,
     two_ball_hinge_errors,
 )
 
+EULER, RK = "semi-implicit Euler", "RKMK4"
 
-@pytest.mark.parametrize(
-    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
-)
+
+@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
 def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system, integrator,
                                                                           dt, p):  # fmt: skip
-    if system == "spherical3":
-        sc = scenario(system, *rod_chain(3, True, seed=1))
-    else:
-        sc = scenario(system, *hinge_chain())
-    ex1, eR1 = errors_vs_reference(ds, sc, integrator, dt)
-    ex2, eR2 = errors_vs_reference(ds, sc, integrator, dt / 2)
-    assert_order(ex1, ex2, p)
-    assert_order(eR1, eR2, p)
+    ex2 = assert_chain_order(ds, system, integrator, dt, p)
     # measured (DART 6.20): World.step at 5e-4: 6e-4 m (spherical), 6e-3 m (hinge);
     # RKMK4 at 5e-3: 1.2e-8 m, 1.3e-7 m
     assert ex2 < (1e-2 if integrator == EULER else 1e-6)
@@ -55,14 +48,7 @@ def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system
 
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
 def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
-    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
-    drifts = []
-    for h in (dt, dt / 2):
-        out = ds.simulate_system(sc, integrator, h, int(round(1.0 / h)), 10)
-        P, L = momentum(sc, out)
-        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
-    assert_order(drifts[0][0], drifts[1][0], p)
-    assert_order(drifts[0][1], drifts[1][1], p)
+    assert_momentum_order(ds, integrator, dt, p)
 
 
 def test_four_bar_closed_by_dart_joint_constraints():
@@ -127,18 +113,13 @@ def test_planted_default_is_caught(monkeypatch):
 
 
 def test_unsupported_and_bad_arguments():
-    b, j = rod_chain(2, True, seed=0)
-    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
-    with pytest.raises(Unsupported, match="joint1.*universal"):
-        ds.simulate_system(scenario("u", b, bad), RK, 1e-3, 1, 1)
-    sc = scenario("s", b, j)
+    assert_universal_unsupported(ds, RK)
+    sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(ValueError, match="unknown settings"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, baumgarte=(1, 1))
     with pytest.raises(ValueError, match="erp"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, erp=2.0)
-    out = ds.simulate_system(sc, EULER, 1e-3, 5, 2)
-    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
-    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
+    assert_saved_steps(ds, sc, EULER)
 
 
 def test_library_four_bar_runs_through_the_suite():

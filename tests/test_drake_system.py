@@ -4,44 +4,42 @@ Expected values come from formulations that share nothing with Drake: the reduce
 reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
 parallelogram four-bar (scipy DOP853 on one ODE). Tolerances are orders: halving dt divides the
 error by about 2^p (p = 1 for semi_explicit_euler and discrete SAP, 5 for runge_kutta5),
-accepted within a factor 1.6, as in tests/test_pinocchio_system.py, whose stand-in systems are
-reused.
+accepted within a factor 1.6; the stand-in systems and checks shared with the other builders'
+tests: tests/system_builders.py.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib.util
-
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("pydrake") is None or importlib.util.find_spec("pinocchio") is None,
-    reason="drake (and pin, for the shared stand-ins) not installed",
-)
+pytest.importorskip("pydrake")
 
 from director_model.system import Body, Joint  # noqa: E402
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
 from references.engines import drake_system as ds  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
-from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
+from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from tests.test_pinocchio_system import (  # noqa: E402
+from tests.system_builders import (  # noqa: E402
+    CHAINS,
+    assert_chain_order,
+    assert_momentum_order,
     assert_order,
+    assert_saved_steps,
+    assert_universal_unsupported,
     errors_vs_reference,
     four_bar_gap,
     four_bar_theta_error,
-    momentum,
+    plant_prismatic_mistake,
     slide_errors,
+    slider_errors_vs_rattle6,
 )
 
 EULER, RK5, SAP = "semi_explicit_euler", "runge_kutta5", "discrete SAP"
 
 
-@pytest.mark.parametrize(
-    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
-)
+@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
 @pytest.mark.parametrize(
     "integrator, dt, p, bound",
     [(EULER, 1e-3, 1, 1e-2), (SAP, 5e-4, 1, 1e-2), (RK5, 1e-2, 5, 1e-8)],
@@ -54,15 +52,7 @@ def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(
     2.8e-3 m (hinge). SAP equals semi_explicit_euler on the hinge chain at dt <= 0.5 ms but not
     above (1.36e-2 m at 1 ms against Euler's 1.13e-2; attitude ratio 3.5 from 1 to 0.5 ms), so
     its order is checked from 0.5 ms."""
-    if system == "spherical3":
-        sc = scenario(system, *rod_chain(3, True, seed=1))
-    else:
-        sc = scenario(system, *hinge_chain())
-    ex1, eR1 = errors_vs_reference(ds, sc, integrator, dt)
-    ex2, eR2 = errors_vs_reference(ds, sc, integrator, dt / 2)
-    assert_order(ex1, ex2, p)
-    assert_order(eR1, eR2, p)
-    assert ex2 < bound
+    assert assert_chain_order(ds, system, integrator, dt, p) < bound
 
 
 def test_four_bar_closed_by_ball_constraints_on_the_discrete_plant():
@@ -214,16 +204,7 @@ def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_5():
     against RATTLE6 (dt 1 ms, its own error 9e-16): the observed order within the factor 1.6
     of 2^5 (measured 5.5: 2.0e-11, 4.5e-13 m; the finer error nears RATTLE6's round-off, hence
     the upper slack) and below 1e-11 at 5 ms."""
-    from director_model.system import simulate_system
-
-    bodies, joints = kit.slider()
-    sc = scenario("slider", bodies, joints)
-    tr = simulate_system(bodies, joints, gravity=kit.G, scheme="rattle6", dt=1e-3, t_end=1.0,
-                         save_every=100)  # fmt: skip
-    e = []
-    for h in (1e-2, 5e-3):
-        out = ds.simulate_system(sc, RK5, h, round(1 / h), round(0.1 / h))
-        e.append(max(np.abs(out["x"] - tr.position).max(), np.abs(out["R"] - tr.rotation).max()))
+    e, out = slider_errors_vs_rattle6(ds, RK5, (1e-2, 5e-3))
     assert 2**5 / 1.6 < e[0] / e[1] < 2**5 * 1.6 * 1.6, e
     assert e[1] < 1e-11
     assert out["settings"]["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
@@ -235,46 +216,22 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
     initial translation left at 0: Drake's kinematics of the initial state differ from the
     scenario and the body is named."""
     bodies, joints = kit.slider()
-    if mistake == "axis in the parent's frame":
-        orig = ds.engine_frames
-
-        def planted(pl, c):
-            f = orig(pl, c)
-            if pl.names[c] != "collar":
-                return f
-            return dataclasses.replace(f, axis=ds.ps.unit(joints[1].axis_a, ""))
-
-        monkeypatch.setattr(ds, "engine_frames", planted)
-    else:
-        orig_state = ds.ps.slide_state
-        monkeypatch.setattr(ds.ps, "slide_state", lambda pl, tj: (0.0, orig_state(pl, tj)[1]))
+    plant_prismatic_mistake(monkeypatch, ds, mistake, joints)
     with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
         ds.simulate_system(scenario("slider", bodies, joints), RK5, 1e-3, 1, 1)
 
 
 def test_unsupported_and_bad_arguments():
-    b, j = rod_chain(2, True, seed=0)
-    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
-    with pytest.raises(Unsupported, match="joint1.*universal"):
-        ds.simulate_system(scenario("u", b, bad), RK5, 1e-3, 1, 1)
-    sc = scenario("s", b, j)
+    assert_universal_unsupported(ds, RK5)
+    sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="error-controlled"):
         ds.simulate_system(sc, "runge_kutta5 (error-controlled)", 1e-3, 1, 1)
     with pytest.raises(ValueError, match="unknown settings"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, erp=0.2)
-    out = ds.simulate_system(sc, EULER, 1e-3, 5, 2)
-    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
-    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
+    assert_saved_steps(ds, sc, EULER)
 
 
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (SAP, 1e-3, 1)])
 def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
     """A floating 5-body chain (QuaternionFloatingJoint root) in zero gravity."""
-    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
-    drifts = []
-    for h in (dt, dt / 2):
-        out = ds.simulate_system(sc, integrator, h, int(round(1.0 / h)), 10)
-        P, L = momentum(sc, out)
-        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
-    assert_order(drifts[0][0], drifts[1][0], p)
-    assert_order(drifts[0][1], drifts[1][1], p)
+    assert_momentum_order(ds, integrator, dt, p)

@@ -6,81 +6,48 @@ below every error judged here), the planar pendulum of the parallelogram four-ba
 on one ODE) and the conservation of momentum. Tolerances come from the integrators' orders:
 halving dt must divide the error by about 2^p (p = 1 for semi-implicit Euler, 4 for RKMK4),
 accepted within a factor 1.6 of that (the error constants of a short run move a little with
-dt). The scenarios are stand-ins with exactly the contract's fields (name, gravity, bodies,
-joints), built from director_model.system's Body and Joint.
+dt). The stand-in systems and the solutions they are measured against are shared with the
+other builders' tests: tests/system_builders.py.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib.util
-
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
-from director_model.system import Body, Joint
-from director_model.system.examples import parallelogram_four_bar, rod_chain
-from references.conventions import rotvec_to_matrix
-from references.engines import pinocchio_system as ps
-from references.engines import system_conformance as kit
-from references.engines.system_conformance import hinge_chain, scenario
-from references.errors import EngineError, Unsupported
-from references.exact.multibody import solve, tree_from_world
+pytest.importorskip("pinocchio")
 
-# a skip mark, not importorskip: tests/test_dart_system.py imports the stand-ins from here
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("pinocchio") is None, reason="pinocchio (pin) is not installed"
+from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
+from references.engines import pinocchio_system as ps  # noqa: E402
+from references.engines import system_conformance as kit  # noqa: E402
+from references.engines.system_conformance import scenario  # noqa: E402
+from references.errors import EngineError  # noqa: E402
+from tests.system_builders import (  # noqa: E402
+    CHAINS,
+    assert_chain_order,
+    assert_momentum_order,
+    assert_order,
+    assert_saved_steps,
+    assert_universal_unsupported,
+    four_bar_gap,
+    four_bar_theta_error,
+    plant_prismatic_mistake,
+    slide_errors,
+    slider_errors_vs_rattle6,
+    two_ball_hinge_errors,
 )
 
-G = np.array([0.0, 0.0, -9.81])
 EULER, RK = "semi-implicit Euler", "RKMK4"
 
 
-def errors_vs_reference(mod, sc, integrator, dt, t_end=1.0):
-    """Largest COM position (m) and attitude (|R - R_ref|, max entry) errors over a run of the
-    builder module ``mod`` against the reduced-coordinate reference."""
-    n = int(round(t_end / dt))
-    out = mod.simulate_system(sc, integrator, dt, n, n // 10)
-    tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
-    ref = solve(tree, q0, u0, out["t"], estimate=False)
-    order = [ref.names.index(b.name) for b in sc.bodies]
-    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
-            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
-
-
-def assert_order(e_coarse, e_fine, p):
-    ratio = e_coarse / e_fine
-    assert 2**p / 1.6 < ratio < 2**p * 1.6, (e_coarse, e_fine, ratio)
-
-
-@pytest.mark.parametrize(
-    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
-)
+@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
 def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system, integrator,
                                                                           dt, p):  # fmt: skip
-    if system == "spherical3":
-        sc = scenario(system, *rod_chain(3, True, seed=1))
-    else:
-        sc = scenario(system, *hinge_chain())
-    ex1, eR1 = errors_vs_reference(ps, sc, integrator, dt)
-    ex2, eR2 = errors_vs_reference(ps, sc, integrator, dt / 2)
-    assert_order(ex1, ex2, p)
-    assert_order(eR1, eR2, p)
+    ex2 = assert_chain_order(ps, system, integrator, dt, p)
     # measured (Pinocchio 4.1): Euler at 5e-4: 6e-4 m (spherical), 6e-3 m (hinge);
     # RKMK4 at 5e-3: 1e-8 m, 1.3e-7 m: the errors are small, not merely converging
     assert ex2 < (1e-2 if integrator == EULER else 1e-6)
-
-
-def momentum(sc, out):
-    m = np.array([b.mass for b in sc.bodies])
-    P = np.einsum("b,nbi->ni", m, out["v"])
-    L = np.zeros_like(P)
-    for k, b in enumerate(sc.bodies):
-        L += np.cross(out["x"][:, k], m[k] * out["v"][:, k])
-        L += np.einsum("nij,j,nj->ni", out["R"][:, k], np.asarray(b.inertia), out["W"][:, k])
-    return P, L
 
 
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
@@ -88,38 +55,10 @@ def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator
     """Zero gravity, no joint to the ground: linear and angular momentum are invariants of the
     exact motion; a reduced-coordinate integrator keeps them up to its truncation error, which
     must shrink at its order (RKMK4 at dt = 5e-3: 3e-7 of |P0| = 4.9 kg m/s)."""
-    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
-    drifts = []
-    for h in (dt, dt / 2):
-        out = ps.simulate_system(sc, integrator, h, int(round(1.0 / h)), 10)
-        P, L = momentum(sc, out)
-        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
-    assert_order(drifts[0][0], drifts[1][0], p)
-    assert_order(drifts[0][1], drifts[1][1], p)
+    (dP, dL), P, L = assert_momentum_order(ps, integrator, dt, p)
     if integrator == RK:
-        assert drifts[1][0] < 1e-6 * np.abs(P[0]).max() + 1e-12
-        assert drifts[1][1] < 1e-4 * np.abs(L[0]).max()
-
-
-def four_bar_gap(sc, out):
-    """(point gap m, axis misalignment rad) of the closing joint B1 over time."""
-    j = sc.joints[3]
-    names = [b.name for b in sc.bodies]
-    a, b = names.index(j.body_a), names.index(j.body_b)
-    pa = out["x"][:, a] + np.einsum("nij,j->ni", out["R"][:, a], j.anchor_a)
-    pb = out["x"][:, b] + np.einsum("nij,j->ni", out["R"][:, b], j.anchor_b)
-    ua = np.einsum("nij,j->ni", out["R"][:, a], j.axis_a)
-    ub = np.einsum("nij,j->ni", out["R"][:, b], j.axis_b)
-    return np.linalg.norm(pa - pb, axis=1), np.linalg.norm(np.cross(ua, ub), axis=1)
-
-
-def four_bar_theta_error(out, I_eff, k):
-    R = out["R"][:, 0]
-    th = np.arctan2(R[:, 0, 2], R[:, 2, 2])
-    rhs = lambda t, y: [y[1], -9.81 * k / I_eff * np.sin(y[0])]  # noqa: E731
-    sol = solve_ivp(rhs, (0, out["t"][-1]), [0.0, 7.0], t_eval=out["t"], rtol=1e-12,
-                    atol=1e-12, method="DOP853")  # fmt: skip
-    return float(np.max(np.abs(np.angle(np.exp(1j * (th - sol.y[0]))))))
+        assert dP < 1e-6 * np.abs(P[0]).max() + 1e-12
+        assert dL < 1e-4 * np.abs(L[0]).max()
 
 
 def test_four_bar_closed_by_constraint_dynamics_with_baumgarte():
@@ -150,36 +89,6 @@ def test_four_bar_closed_by_constraint_dynamics_with_baumgarte():
     assert four_bar_gap(sc, eul)[0].max() < 1e-12
     # semi-implicit Euler's positions are those of Stoermer-Verlet: second order in theta
     assert four_bar_theta_error(eul, I_eff, k) < 1e-4
-
-
-def two_ball_hinge():
-    """A plate (COM 0.3 m below the line through its two anchors, tilted 0.4 rad, swinging at
-    3 rad/s) hung from the ground by two spherical joints 0.4 m apart on the x axis: the second
-    closes a loop through the ground (six equations for the hinge's five). Returns (the loop
-    system, the same plate on one revolute joint along x for the reduced reference, the two
-    anchors in the plate's frame with their world points)."""
-    R0 = rotvec_to_matrix([0.4, 0.0, 0.0])
-    x0 = R0 @ np.array([0.0, 0.0, -0.3])
-    w = np.array([3.0, 0.0, 0.0])
-    b = [Body("plate", 1.0, (0.02, 0.03, 0.04), x0, R0, np.cross(w, x0), R0.T @ w)]
-    ends = [(X, R0 @ X + x0) for X in (np.array([-0.2, 0, 0.3]), np.array([0.2, 0, 0.3]))]
-    balls = [Joint("spherical", "plate", None, X, P, name=n)
-             for (X, P), n in zip(ends, ("left", "right"), strict=True)]  # fmt: skip
-    hinge = [Joint("revolute", "plate", None, (0, 0, 0.3), (0, 0, 0), (1, 0, 0), (1, 0, 0))]
-    return scenario("two_ball_hinge", b, balls), scenario("hinge", b, hinge), ends
-
-
-def two_ball_hinge_errors(mod, integrator, dt, t_end=2.0):
-    """(largest anchor gap m, COM error m against the reduced reference of the hinge)."""
-    sc, hinge, ends = two_ball_hinge()
-    n = int(round(t_end / dt))
-    out = mod.simulate_system(sc, integrator, dt, n, n // 20)
-    tree, q0, u0 = tree_from_world(hinge.bodies, hinge.joints, G)
-    ref = solve(tree, q0, u0, out["t"], estimate=False)
-    gap = max(float(np.max(np.linalg.norm(
-        out["x"][:, 0] + np.einsum("nij,j->ni", out["R"][:, 0], X) - P, axis=1)))
-        for X, P in ends)  # fmt: skip
-    return gap, float(np.max(np.abs(out["x"] - ref.x)))
 
 
 def test_a_loop_through_the_ground_is_the_hinge_it_makes():
@@ -221,19 +130,6 @@ def test_a_breadth_first_joint_order_is_caught(monkeypatch):
 # -- prismatic joints ------------------------------------------------------------------------
 
 
-def slide_errors(mod, sc, integrator, h, nstep):
-    """(run, largest COM error against the inclined slide's closed form, the same after
-    removing semi-implicit Euler's known error (g . n) n h t / 2)."""
-    _, _, exact = kit.inclined_slide()
-    out = mod.simulate_system(sc, integrator, h, nstep, 10)
-    x, R = exact(out["t"])
-    n = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
-    err = out["x"][:, 0] - x
-    euler = np.outer(out["t"], (kit.G @ n) * n) * h / 2
-    assert np.abs(out["R"][:, 0] - R).max() < 1e-14 and np.abs(out["W"]).max() < 1e-14
-    return out, float(np.abs(err).max()), float(np.abs(err - euler).max())
-
-
 def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form():
     """A body on a 45-degree prismatic rail to the ground (kit.inclined_slide): the COM
     moves with the constant acceleration (g . n) n. RKMK4 integrates a constant acceleration
@@ -256,16 +152,7 @@ def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_4():
     RATTLE6 (dt 1 ms; its own error measured by halving dt: 9e-16) at dt 2 and 1 ms:
     order 4 within the factor 1.6 of :func:`assert_order` (measured 4.0: 1.5e-11, 9.6e-13),
     and small (below 1e-11 at 1 ms)."""
-    from director_model.system import simulate_system
-
-    bodies, joints = kit.slider()
-    sc = scenario("slider", bodies, joints)
-    tr = simulate_system(bodies, joints, gravity=kit.G, scheme="rattle6", dt=1e-3, t_end=1.0,
-                         save_every=100)  # fmt: skip
-    e = []
-    for h in (2e-3, 1e-3):
-        out = ps.simulate_system(sc, RK, h, round(1 / h), round(0.1 / h))
-        e.append(max(np.abs(out["x"] - tr.position).max(), np.abs(out["R"] - tr.rotation).max()))
+    e, out = slider_errors_vs_rattle6(ps, RK, (2e-3, 1e-3))
     assert_order(e[0], e[1], 4)
     assert e[1] < 1e-11
     assert out["settings"]["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
@@ -277,28 +164,13 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
     initial slide coordinate left at 0 (the collar starts 0.3 m from the rod's anchor along
     the axis): the kinematics of the initial state differ from the scenario, the body named."""
     bodies, joints = kit.slider()
-    if mistake == "axis in the parent's frame":
-        orig = ps.engine_frames
-
-        def planted(pl, c):
-            f = orig(pl, c)
-            if pl.names[c] != "collar":
-                return f
-            return dataclasses.replace(f, axis=ps.unit(joints[1].axis_a, ""))
-
-        monkeypatch.setattr(ps, "engine_frames", planted)
-    else:
-        orig_state = ps.slide_state
-        monkeypatch.setattr(ps, "slide_state", lambda pl, tj: (0.0, orig_state(pl, tj)[1]))
+    plant_prismatic_mistake(monkeypatch, ps, mistake, joints)
     with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
         ps.simulate_system(scenario("slider", bodies, joints), RK, 1e-3, 1, 1)
 
 
 def test_unsupported_joints_and_closures_name_the_joint():
-    b, j = rod_chain(2, True, seed=0)
-    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
-    with pytest.raises(Unsupported, match="joint1.*universal"):
-        ps.simulate_system(scenario("u", b, bad), RK, 1e-3, 1, 1)
+    assert_universal_unsupported(ps, RK)
 
 
 def test_bad_arguments_are_named():
@@ -307,9 +179,7 @@ def test_bad_arguments_are_named():
         ps.simulate_system(sc, "RK4", 1e-3, 1, 1)
     with pytest.raises(ValueError, match="unknown settings"):
         ps.simulate_system(sc, RK, 1e-3, 1, 1, solref=(0.02, 1))
-    out = ps.simulate_system(sc, EULER, 1e-3, 5, 2)
-    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
-    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
+    assert_saved_steps(ps, sc, EULER)
 
 
 @pytest.mark.parametrize("integrator", [EULER, RK])

@@ -4,67 +4,48 @@ Expected values come from formulations that share nothing with PyBullet: the red
 reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
 parallelogram four-bar (scipy DOP853 on one ODE) and the conservation of momentum. Bullet's
 multibody stepper is first order, so the tolerances are orders (halving dt divides the error by
-about 2, accepted within a factor 1.6, as in tests/test_pinocchio_system.py, whose stand-in
-systems are reused).
+about 2, accepted within a factor 1.6; the stand-in systems and checks shared with the other
+builders' tests: tests/system_builders.py).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib.util
-
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("pybullet") is None or importlib.util.find_spec("pinocchio") is None,
-    reason="pybullet (and pin, for the shared stand-ins) not installed",
-)
+pytest.importorskip("pybullet")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
 from references.engines import pybullet_system as bs  # noqa: E402
-from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
+from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
-from tests.test_pinocchio_system import (  # noqa: E402
+from tests.system_builders import (  # noqa: E402
+    CHAINS,
+    assert_chain_order,
+    assert_momentum_order,
     assert_order,
-    errors_vs_reference,
+    assert_saved_steps,
+    assert_universal_unsupported,
+    chain,
     four_bar_gap,
     four_bar_theta_error,
-    momentum,
     two_ball_hinge_errors,
 )
 
 MB = "multibody"
 
 
-@pytest.mark.parametrize(
-    "system", ["spherical3", "hinge4"], ids=["3-body spherical chain", "4-link revolute chain"]
-)
+@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
 def test_chains_agree_with_the_reduced_reference_at_first_order(system):
     """Measured (pybullet 3.2.7, dt 1 and 0.5 ms over 1 s): 1.21e-3 / 6.08e-4 m (spherical),
     1.13e-2 / 5.62e-3 m (hinge): order 1, the same errors as Pinocchio's and DART's
     semi-implicit Euler on these systems."""
-    if system == "spherical3":
-        sc = scenario(system, *rod_chain(3, True, seed=1))
-    else:
-        sc = scenario(system, *hinge_chain())
-    ex1, eR1 = errors_vs_reference(bs, sc, MB, 1e-3)
-    ex2, eR2 = errors_vs_reference(bs, sc, MB, 5e-4)
-    assert_order(ex1, ex2, 1)
-    assert_order(eR1, eR2, 1)
-    assert ex2 < 1e-2
+    assert assert_chain_order(bs, system, MB, 1e-3, 1) < 1e-2
 
 
 def test_a_floating_chain_keeps_its_momentum_to_first_order():
     """A floating 5-body chain (the base of its own multibody) in zero gravity."""
-    sc = scenario("float5", *rod_chain(5, False, seed=2), gravity=(0, 0, 0))
-    drifts = []
-    for h in (1e-3, 5e-4):
-        out = bs.simulate_system(sc, MB, h, int(round(1.0 / h)), 10)
-        P, L = momentum(sc, out)
-        drifts.append((np.max(np.abs(P - P[0])), np.max(np.abs(L - L[0]))))
-    assert_order(drifts[0][0], drifts[1][0], 1)
-    assert_order(drifts[0][1], drifts[1][1], 1)
+    assert_momentum_order(bs, MB, 1e-3, 1)
 
 
 def test_four_bar_closed_by_point_to_point_constraints():
@@ -124,15 +105,10 @@ def test_a_loop_through_the_ground_is_the_hinge_it_makes():
 # The planted joint mistakes of every builder: tests/test_system_conformance.py.
 
 
-@pytest.mark.parametrize(
-    "system", ["spherical3", "hinge4"], ids=["spherical joints", "revolute joints"]
-)
+@pytest.mark.parametrize("system", CHAINS, ids=["spherical joints", "revolute joints"])
 def test_default_motors_left_on_are_caught(monkeypatch, system):
     """PyBullet's default joint motors (never switched off) show in the probe step."""
-    if system == "spherical3":
-        sc = scenario(system, *rod_chain(3, True, seed=1))
-    else:
-        sc = scenario(system, *hinge_chain())
+    sc = chain(system)
     monkeypatch.setattr(bs._Model, "motors_off", lambda self, *a: None)
     with pytest.raises(EngineError, match="joint motor, damping or the velocity clamp"):
         bs.simulate_system(sc, MB, 1e-3, 1, 1)
@@ -160,17 +136,12 @@ def test_planted_defaults_are_caught(monkeypatch, default):
 
 
 def test_unsupported_and_bad_arguments():
-    b, j = rod_chain(2, True, seed=0)
-    bad = [j[0], dataclasses.replace(j[1], kind="universal", axis_a=(1, 0, 0), axis_b=(0, 1, 0))]
-    with pytest.raises(Unsupported, match="joint1.*universal"):
-        bs.simulate_system(scenario("u", b, bad), MB, 1e-3, 1, 1)
-    sc = scenario("s", b, j)
+    assert_universal_unsupported(bs, MB)
+    sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="maximal coordinates"):
         bs.simulate_system(sc, "maximal coordinates", 1e-3, 1, 1)
     with pytest.raises(ValueError, match="unknown settings"):
         bs.simulate_system(sc, MB, 1e-3, 1, 1, baumgarte=(1, 1))
     with pytest.raises(ValueError, match="erp"):
         bs.simulate_system(sc, MB, 1e-3, 1, 1, erp=2.0)
-    out = bs.simulate_system(sc, MB, 1e-3, 5, 2)
-    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
-    assert out["x"].shape == (4, 2, 3) and out["engine_time_s"] > 0
+    assert_saved_steps(bs, sc, MB)
