@@ -43,14 +43,65 @@ RELATIVE_EQUILIBRIA = ("steady_precession", "spinning_chain", "conical_pendulum"
 TOLERANCE_METRICS = BOUNDED
 
 
-def _frozen(a) -> np.ndarray:
+def frozen(a) -> np.ndarray:
+    """``a`` as a read-only float array (a copy)."""
     arr = np.array(a, dtype=float)
     arr.setflags(write=False)
     return arr
 
 
+class RunFields:
+    """What a scenario of one body (:class:`Scenario`) and of a system
+    (:class:`scenarios.system.SystemScenario`) share: the run settings (``t_end``, ``dt``,
+    ``dt_sweep``, ``save_every``, ``accuracies``), ``tags`` and ``tolerances`` held as plain
+    values, their part of the identity, the hash of that identity and copies with fields
+    changed. A subclass provides :meth:`to_dict`."""
+
+    def _normalise_run(self) -> None:
+        """The run settings, tags and tolerances as floats, tuples and plain dicts, so that code
+        building a scenario by hand gets the same object a file would give."""
+        object.__setattr__(self, "dt_sweep", tuple(float(h) for h in self.dt_sweep))
+        object.__setattr__(self, "accuracies", tuple(float(a) for a in self.accuracies))
+        object.__setattr__(self, "tags", tuple(self.tags))
+        object.__setattr__(self, "t_end", float(self.t_end))
+        object.__setattr__(self, "dt", float(self.dt))
+        object.__setattr__(
+            self,
+            "tolerances",
+            {str(f): {str(k): float(v) for k, v in b.items()} for f, b in self.tolerances.items()},
+        )
+
+    def _run_dict(self) -> dict:
+        """The ``run`` part of :meth:`to_dict`."""
+        return {
+            "t_end": self.t_end,
+            "dt": self.dt,
+            "dt_sweep": list(self.dt_sweep),
+            "save_every": self.save_every,
+            "accuracies": list(self.accuracies),
+        }
+
+    @property
+    def scenario_hash(self) -> str:
+        """First 12 hex digits of the SHA-256 of the content that determines a result: every
+        field of :meth:`to_dict` but the description (for one body: name, body, initial state,
+        environment, run settings, reference kind, tolerances; a system adds its joints, the
+        reference's parameters and the engine settings). Text fields other than the name do
+        not count."""
+        d = self.to_dict()
+        d.pop("description")
+        blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:12]
+
+    def replace(self, **changes):
+        """A copy with some fields changed (e.g. ``t_end`` from the command line)."""
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
+
+
 @dataclass(frozen=True, eq=False)
-class Scenario:
+class Scenario(RunFields):
     """One validated scenario. Build it with :func:`scenarios.load` or directly in code.
 
     Array fields are read-only float arrays: ``inertia`` (3,), ``rotation`` (3, 3),
@@ -66,9 +117,9 @@ class Scenario:
     omega_body: np.ndarray
     t_end: float
     dt: float
-    position: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
-    velocity: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
-    gravity: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
+    position: np.ndarray = field(default_factory=lambda: frozen(np.zeros(3)))
+    velocity: np.ndarray = field(default_factory=lambda: frozen(np.zeros(3)))
+    gravity: np.ndarray = field(default_factory=lambda: frozen(np.zeros(3)))
     pivot: np.ndarray | None = None
     dt_sweep: tuple[float, ...] = ()
     save_every: int = 1
@@ -85,27 +136,18 @@ class Scenario:
         # Normalise containers so that code building a Scenario by hand gets the same object a
         # file would give; physical validation lives in scenarios.schema.
         for name in ("inertia", "rotation", "omega_body", "position", "velocity", "gravity"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
+            object.__setattr__(self, name, frozen(getattr(self, name)))
         if self.pivot is not None:
-            object.__setattr__(self, "pivot", _frozen(self.pivot))
+            object.__setattr__(self, "pivot", frozen(self.pivot))
             # With a pivot the centre of mass is not free: it follows from the rotation.
             R = self.rotation
             W = self.omega_body
             x = -R @ self.pivot
             v = -R @ np.cross(W, self.pivot)
-            object.__setattr__(self, "position", _frozen(x))
-            object.__setattr__(self, "velocity", _frozen(v))
-        object.__setattr__(self, "dt_sweep", tuple(float(h) for h in self.dt_sweep))
-        object.__setattr__(self, "accuracies", tuple(float(a) for a in self.accuracies))
-        object.__setattr__(self, "tags", tuple(self.tags))
+            object.__setattr__(self, "position", frozen(x))
+            object.__setattr__(self, "velocity", frozen(v))
         object.__setattr__(self, "mass", float(self.mass))
-        object.__setattr__(self, "t_end", float(self.t_end))
-        object.__setattr__(self, "dt", float(self.dt))
-        object.__setattr__(
-            self,
-            "tolerances",
-            {str(f): {str(k): float(v) for k, v in b.items()} for f, b in self.tolerances.items()},
-        )
+        self._normalise_run()
 
     # -- derived facts used by references and metrics --------------------------------------
     @property
@@ -123,7 +165,7 @@ class Scenario:
         gn = float(np.linalg.norm(self.gravity))
         if gn == 0.0:
             return None
-        return _frozen(-self.gravity / gn)
+        return frozen(-self.gravity / gn)
 
     @property
     def symmetric_axis(self) -> int | None:
@@ -251,13 +293,7 @@ class Scenario:
                 "omega_body": self.omega_body.tolist(),
             },
             "environment": {"gravity": self.gravity.tolist()},
-            "run": {
-                "t_end": self.t_end,
-                "dt": self.dt,
-                "dt_sweep": list(self.dt_sweep),
-                "save_every": self.save_every,
-                "accuracies": list(self.accuracies),
-            },
+            "run": self._run_dict(),
             "reference": self.reference,
             "tolerances": self.tolerances,
         }
@@ -267,19 +303,3 @@ class Scenario:
         else:
             d["environment"]["pivot"] = self.pivot.tolist()
         return d
-
-    @property
-    def scenario_hash(self) -> str:
-        """First 12 hex digits of the SHA-256 of the content that determines a result (name,
-        body, initial state, environment, run settings, reference kind, tolerances). Text
-        fields other than the name do not count."""
-        d = self.to_dict()
-        d.pop("description")
-        blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
-        return hashlib.sha256(blob).hexdigest()[:12]
-
-    def replace(self, **changes) -> Scenario:
-        """A copy with some fields changed (e.g. ``t_end`` from the command line)."""
-        import dataclasses
-
-        return dataclasses.replace(self, **changes)

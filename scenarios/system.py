@@ -43,13 +43,13 @@ body) and the loop closures (every joint the tree does not need) are computed on
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from scenarios.model import RunFields, frozen
 
 #: joint kinds (the same names and meanings as ``director_model.system.Joint``)
 JOINT_KINDS = ("spherical", "fixed_point", "revolute", "universal", "cylindrical", "prismatic")
@@ -77,12 +77,6 @@ SYSTEM_REFERENCE_KINDS = (
 JOINT_TOL = 1e-10
 
 
-def _frozen(a) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
-
-
 @dataclass(frozen=True, eq=False)
 class SystemBody:
     """One body of a system, with exactly the fields of ``director_model.system.Body``."""
@@ -97,7 +91,7 @@ class SystemBody:
 
     def __post_init__(self):
         for k in ("inertia", "position", "rotation", "velocity", "omega_body"):
-            object.__setattr__(self, k, _frozen(getattr(self, k)))
+            object.__setattr__(self, k, frozen(getattr(self, k)))
         object.__setattr__(self, "mass", float(self.mass))
 
 
@@ -119,7 +113,7 @@ class SystemJoint:
         for k in ("anchor_a", "anchor_b", "axis_a", "axis_b"):
             v = getattr(self, k)
             if v is not None:
-                object.__setattr__(self, k, _frozen(v))
+                object.__setattr__(self, k, frozen(v))
 
 
 def spanning_tree(bodies, joints) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -181,7 +175,7 @@ def system_inertia(bodies, about) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class SystemScenario:
+class SystemScenario(RunFields):
     """A validated system scenario (build it with :func:`scenarios.load`).
 
     ``bodies`` and ``joints`` are tuples of :class:`SystemBody` and :class:`SystemJoint`;
@@ -197,7 +191,7 @@ class SystemScenario:
     joints: tuple
     t_end: float
     dt: float
-    gravity: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(3)))
+    gravity: np.ndarray = field(default_factory=lambda: frozen(np.zeros(3)))
     dt_sweep: tuple[float, ...] = ()
     save_every: int = 1
     accuracies: tuple[float, ...] = ()
@@ -219,18 +213,9 @@ class SystemScenario:
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
         object.__setattr__(self, "joints", tuple(self.joints))
-        object.__setattr__(self, "gravity", _frozen(self.gravity))
-        object.__setattr__(self, "dt_sweep", tuple(float(h) for h in self.dt_sweep))
-        object.__setattr__(self, "accuracies", tuple(float(a) for a in self.accuracies))
-        object.__setattr__(self, "tags", tuple(self.tags))
-        object.__setattr__(self, "t_end", float(self.t_end))
-        object.__setattr__(self, "dt", float(self.dt))
+        object.__setattr__(self, "gravity", frozen(self.gravity))
         object.__setattr__(self, "reference_params", dict(self.reference_params))
-        object.__setattr__(
-            self,
-            "tolerances",
-            {str(f): {str(k): float(v) for k, v in b.items()} for f, b in self.tolerances.items()},
-        )
+        self._normalise_run()
         tree, loops = spanning_tree(self.bodies, self.joints)
         object.__setattr__(self, "tree_joints", tree)
         object.__setattr__(self, "loop_joints", loops)
@@ -378,37 +363,16 @@ class SystemScenario:
             "bodies": bodies,
             "joints": joints,
             "environment": {"gravity": v(self.gravity)},
-            "run": {
-                "t_end": self.t_end,
-                "dt": self.dt,
-                "dt_sweep": list(self.dt_sweep),
-                "save_every": self.save_every,
-                "accuracies": list(self.accuracies),
-            },
+            "run": self._run_dict(),
             "reference": self.reference,
             "reference_params": dict(self.reference_params),
             "tolerances": self.tolerances,
             "engine_settings": self.engine_settings,
         }
 
-    @property
-    def scenario_hash(self) -> str:
-        """As :attr:`scenarios.model.Scenario.scenario_hash`: the content that determines a
-        result (everything but the description)."""
-        d = self.to_dict()
-        d.pop("description")
-        blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
-        return hashlib.sha256(blob).hexdigest()[:12]
-
     def magnitude_problems(self, t_end: float | None = None) -> list[tuple]:
         """See :func:`magnitude_problems`."""
         return magnitude_problems(self, t_end)
-
-    def replace(self, **changes) -> SystemScenario:
-        """A copy with some fields changed (e.g. ``t_end`` from the command line)."""
-        import dataclasses
-
-        return dataclasses.replace(self, **changes)
 
 
 # -- validation ---------------------------------------------------------------------------------
