@@ -30,11 +30,12 @@ from references.conventions import rotvec_to_matrix
 from references.engines import pinocchio_system as ps
 from references.engines import system_conformance as kit
 from references.engines.system_conformance import hinge_chain, scenario
-from references.errors import Unsupported
+from references.errors import EngineError, Unsupported
 from references.exact.multibody import solve, tree_from_world
 
-#: the stand-in chains of the builders' order tests, by the name pytest shows
+#: the stand-in chains of the builders' order tests (:func:`chain`), and the names pytest shows
 CHAINS = ("spherical3", "hinge4")
+CHAIN_IDS = ("3-body spherical chain", "4-link revolute chain")
 
 
 def assert_order(e_coarse, e_fine, p):
@@ -182,11 +183,13 @@ def slider_errors_vs_rattle6(mod, integrator, dts):
     return e, out
 
 
-def plant_prismatic_mistake(monkeypatch, mod, mistake: str, joints) -> None:
-    """Plant on the slider's collar (joints = kit.slider()'s) either the slide axis handed to
-    the engine in the rod's frame instead of the collar's (``mod.engine_frames`` returns frames
-    with an ``axis``) or the initial slide coordinate left at 0 (the collar starts 0.3 m from
-    the rod's anchor along the axis)."""
+def assert_prismatic_mistake_caught(monkeypatch, mod, mistake: str, integrator) -> None:
+    """Plant on kit.slider's collar either the slide axis handed to the engine in the rod's
+    frame instead of the collar's (``mistake`` "axis in the parent's frame"; ``mod.engine_frames``
+    returns frames with an ``axis``) or the initial slide coordinate left at 0 (the collar
+    starts 0.3 m from the rod's anchor along the axis): the builder's check of the engine's
+    kinematics of the initial state refuses the run, naming the collar."""
+    bodies, joints = kit.slider()
     if mistake == "axis in the parent's frame":
         orig = mod.engine_frames
 
@@ -200,6 +203,8 @@ def plant_prismatic_mistake(monkeypatch, mod, mistake: str, joints) -> None:
     else:
         orig_state = ps.slide_state
         monkeypatch.setattr(ps, "slide_state", lambda pl, tj: (0.0, orig_state(pl, tj)[1]))
+    with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
+        mod.simulate_system(scenario("slider", bodies, joints), integrator, 1e-3, 1, 1)
 
 
 def assert_universal_unsupported(mod, integrator) -> None:

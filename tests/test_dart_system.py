@@ -21,26 +21,16 @@ from director_model.system.examples import parallelogram_four_bar, rod_chain  # 
 from references.engines import dart_system as ds  # noqa: E402
 from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from tests.system_builders import (  # noqa: E402
-    CHAINS,
-    assert_chain_order,
-    assert_momentum_order,
-    assert_order,
-    assert_saved_steps,
-    assert_universal_unsupported,
-    four_bar_gap,
-    four_bar_theta_error,
-    two_ball_hinge_errors,
-)
+from tests import system_builders as sb  # noqa: E402
 
 EULER, RK = "semi-implicit Euler", "RKMK4"
 
 
-@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
+@pytest.mark.parametrize("system", sb.CHAINS, ids=sb.CHAIN_IDS)
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
 def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system, integrator,
                                                                           dt, p):  # fmt: skip
-    ex2 = assert_chain_order(ds, system, integrator, dt, p)
+    ex2 = sb.assert_chain_order(ds, system, integrator, dt, p)
     # measured (DART 6.20): World.step at 5e-4: 6e-4 m (spherical), 6e-3 m (hinge);
     # RKMK4 at 5e-3: 1.2e-8 m, 1.3e-7 m
     assert ex2 < (1e-2 if integrator == EULER else 1e-6)
@@ -48,7 +38,7 @@ def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system
 
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
 def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
-    assert_momentum_order(ds, integrator, dt, p)
+    sb.assert_momentum_order(ds, integrator, dt, p)
 
 
 def test_four_bar_closed_by_dart_joint_constraints():
@@ -61,14 +51,14 @@ def test_four_bar_closed_by_dart_joint_constraints():
     bodies, joints, I_eff, k = parallelogram_four_bar()
     sc = scenario("four_bar", bodies, joints)
     out = ds.simulate_system(sc, EULER, 1e-3, 2000, 50)
-    gap, axis = four_bar_gap(sc, out)
+    gap, axis = sb.four_bar_gap(sc, out)
     assert gap.max() < 1e-7 and axis.max() < 1e-12
-    assert four_bar_theta_error(out, I_eff, k) < 1e-4
+    assert sb.four_bar_theta_error(out, I_eff, k) < 1e-4
     s = out["settings"]
     assert s["constraint solver"]["error reduction parameter (ERP)"] == ds.DEFAULT_ERP
     assert "RevoluteJointConstraint" in s["loop closures"][0]
     ball = ds.simulate_system(sc, EULER, 1e-3, 2000, 50, revolute_closure="ball")
-    assert four_bar_gap(sc, ball)[0].max() < 1e-10
+    assert sb.four_bar_gap(sc, ball)[0].max() < 1e-10
     assert "BallJointConstraint at the anchor" in ball["settings"]["loop closures"][0]
     with pytest.raises(Diverged, match="non-finite"):
         ds.simulate_system(sc, EULER, 1e-3, 2000, 50, erp=0.1)
@@ -79,9 +69,9 @@ def test_four_bar_closed_by_dart_joint_constraints():
 def test_a_loop_through_the_ground_is_the_hinge_it_makes():
     """World.step with a BallJointConstraint to the world follows the reduced reference of the
     hinge at order 1 (measured 3.9e-4 and 2.0e-4 m at dt 1 and 0.5 ms), anchors within 1.3e-12 m."""
-    g1, e1 = two_ball_hinge_errors(ds, EULER, 1e-3)
-    g2, e2 = two_ball_hinge_errors(ds, EULER, 5e-4)
-    assert_order(e1, e2, 1)
+    g1, e1 = sb.two_ball_hinge_errors(ds, EULER, 1e-3)
+    g2, e2 = sb.two_ball_hinge_errors(ds, EULER, 5e-4)
+    sb.assert_order(e1, e2, 1)
     assert max(g1, g2) < 1e-10 and e2 < 1e-3
 
 
@@ -113,13 +103,13 @@ def test_planted_default_is_caught(monkeypatch):
 
 
 def test_unsupported_and_bad_arguments():
-    assert_universal_unsupported(ds, RK)
+    sb.assert_universal_unsupported(ds, RK)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(ValueError, match="unknown settings"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, baumgarte=(1, 1))
     with pytest.raises(ValueError, match="erp"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, erp=2.0)
-    assert_saved_steps(ds, sc, EULER)
+    sb.assert_saved_steps(ds, sc, EULER)
 
 
 def test_library_four_bar_runs_through_the_suite():

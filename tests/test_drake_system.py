@@ -21,25 +21,12 @@ from references.engines import drake_system as ds  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from tests.system_builders import (  # noqa: E402
-    CHAINS,
-    assert_chain_order,
-    assert_momentum_order,
-    assert_order,
-    assert_saved_steps,
-    assert_universal_unsupported,
-    errors_vs_reference,
-    four_bar_gap,
-    four_bar_theta_error,
-    plant_prismatic_mistake,
-    slide_errors,
-    slider_errors_vs_rattle6,
-)
+from tests import system_builders as sb  # noqa: E402
 
 EULER, RK5, SAP = "semi_explicit_euler", "runge_kutta5", "discrete SAP"
 
 
-@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
+@pytest.mark.parametrize("system", sb.CHAINS, ids=sb.CHAIN_IDS)
 @pytest.mark.parametrize(
     "integrator, dt, p, bound",
     [(EULER, 1e-3, 1, 1e-2), (SAP, 5e-4, 1, 1e-2), (RK5, 1e-2, 5, 1e-8)],
@@ -52,7 +39,7 @@ def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(
     2.8e-3 m (hinge). SAP equals semi_explicit_euler on the hinge chain at dt <= 0.5 ms but not
     above (1.36e-2 m at 1 ms against Euler's 1.13e-2; attitude ratio 3.5 from 1 to 0.5 ms), so
     its order is checked from 0.5 ms."""
-    assert assert_chain_order(ds, system, integrator, dt, p) < bound
+    assert sb.assert_chain_order(ds, system, integrator, dt, p) < bound
 
 
 def test_four_bar_closed_by_ball_constraints_on_the_discrete_plant():
@@ -63,10 +50,12 @@ def test_four_bar_closed_by_ball_constraints_on_the_discrete_plant():
     sc = scenario("four_bar", bodies, joints)
     out = ds.simulate_system(sc, SAP, 1e-3, 2000, 50)
     half = ds.simulate_system(sc, SAP, 5e-4, 4000, 100)
-    gap, axis = four_bar_gap(sc, out)
+    gap, axis = sb.four_bar_gap(sc, out)
     assert gap.max() < 1e-7 and axis.max() < 1e-12
-    assert four_bar_gap(sc, half)[0].max() < gap.max() / 2
-    assert_order(four_bar_theta_error(out, I_eff, k), four_bar_theta_error(half, I_eff, k), 1)
+    assert sb.four_bar_gap(sc, half)[0].max() < gap.max() / 2
+    sb.assert_order(
+        sb.four_bar_theta_error(out, I_eff, k), sb.four_bar_theta_error(half, I_eff, k), 1
+    )
     assert "two AddBallConstraint" in out["settings"]["loop closures"][0]
 
 
@@ -128,13 +117,13 @@ def double_spherical_pendulum():
 def test_a_double_spherical_pendulum_runs_through_chart_switches_at_order_5():
     """runge_kutta5 against the reduced reference over 0.9 s. Measured (drake 1.51): 7.8e-10 m
     at 3 ms, 1.8e-11 m at 1.5 ms (ratio 43, attitude 39; over 1 s every halving from 10 ms to
-    1.25 ms gave ratios 39 to 49, above 2^5 = 32 but within the 1.6 factor of assert_order);
+    1.25 ms gave ratios 39 to 49, above 2^5 = 32 but within the 1.6 factor of sb.assert_order);
     the reference (rtol 1e-13) is good to about 1e-12 here (1.25 to 0.625 ms: ratio 16)."""
     sc = double_spherical_pendulum()
-    ex1, eR1 = errors_vs_reference(ds, sc, RK5, 3e-3, t_end=0.9)
-    ex2, eR2 = errors_vs_reference(ds, sc, RK5, 1.5e-3, t_end=0.9)
-    assert_order(ex1, ex2, 5)
-    assert_order(eR1, eR2, 5)
+    ex1, eR1 = sb.errors_vs_reference(ds, sc, RK5, 3e-3, t_end=0.9)
+    ex2, eR2 = sb.errors_vs_reference(ds, sc, RK5, 1.5e-3, t_end=0.9)
+    sb.assert_order(ex1, ex2, 5)
+    sb.assert_order(eR1, eR2, 5)
     assert ex2 < 1e-10 and eR2 < 1e-10
     out = ds.simulate_system(sc, RK5, 3e-3, 300, 300)
     joints = [lab.split("'")[1] for lab in out["settings"]["RPY chart switch joints"]]
@@ -191,7 +180,7 @@ def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form(integrator
     q += h v) are off the closed form by exactly a h t / 2 (0.0245 m at t = 1 s, h = 0.01 s),
     reproduced to round-off (measured 2.6e-15 and 1.0e-15 m). Bound: 1e-13 m."""
     b, j, _ = kit.inclined_slide()
-    out, e, e_known = slide_errors(ds, scenario("incline", b, j), integrator, 1e-2, 100)
+    out, e, e_known = sb.slide_errors(ds, scenario("incline", b, j), integrator, 1e-2, 100)
     assert out["settings"]["tree"] == {"s": "prismatic to ground"}
     if integrator in (EULER, SAP):
         assert e > 0.02 and e_known < 1e-13
@@ -204,7 +193,7 @@ def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_5():
     against RATTLE6 (dt 1 ms, its own error 9e-16): the observed order within the factor 1.6
     of 2^5 (measured 5.5: 2.0e-11, 4.5e-13 m; the finer error nears RATTLE6's round-off, hence
     the upper slack) and below 1e-11 at 5 ms."""
-    e, out = slider_errors_vs_rattle6(ds, RK5, (1e-2, 5e-3))
+    e, out = sb.slider_errors_vs_rattle6(ds, RK5, (1e-2, 5e-3))
     assert 2**5 / 1.6 < e[0] / e[1] < 2**5 * 1.6 * 1.6, e
     assert e[1] < 1e-11
     assert out["settings"]["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
@@ -215,23 +204,20 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
     """The slide axis handed to Drake in the rod's frame instead of the collar's, or the
     initial translation left at 0: Drake's kinematics of the initial state differ from the
     scenario and the body is named."""
-    bodies, joints = kit.slider()
-    plant_prismatic_mistake(monkeypatch, ds, mistake, joints)
-    with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
-        ds.simulate_system(scenario("slider", bodies, joints), RK5, 1e-3, 1, 1)
+    sb.assert_prismatic_mistake_caught(monkeypatch, ds, mistake, RK5)
 
 
 def test_unsupported_and_bad_arguments():
-    assert_universal_unsupported(ds, RK5)
+    sb.assert_universal_unsupported(ds, RK5)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="error-controlled"):
         ds.simulate_system(sc, "runge_kutta5 (error-controlled)", 1e-3, 1, 1)
     with pytest.raises(ValueError, match="unknown settings"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, erp=0.2)
-    assert_saved_steps(ds, sc, EULER)
+    sb.assert_saved_steps(ds, sc, EULER)
 
 
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (SAP, 1e-3, 1)])
 def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
     """A floating 5-body chain (QuaternionFloatingJoint root) in zero gravity."""
-    assert_momentum_order(ds, integrator, dt, p)
+    sb.assert_momentum_order(ds, integrator, dt, p)

@@ -22,29 +22,16 @@ from references.engines import pinocchio_system as ps  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError  # noqa: E402
-from tests.system_builders import (  # noqa: E402
-    CHAINS,
-    assert_chain_order,
-    assert_momentum_order,
-    assert_order,
-    assert_saved_steps,
-    assert_universal_unsupported,
-    four_bar_gap,
-    four_bar_theta_error,
-    plant_prismatic_mistake,
-    slide_errors,
-    slider_errors_vs_rattle6,
-    two_ball_hinge_errors,
-)
+from tests import system_builders as sb  # noqa: E402
 
 EULER, RK = "semi-implicit Euler", "RKMK4"
 
 
-@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
+@pytest.mark.parametrize("system", sb.CHAINS, ids=sb.CHAIN_IDS)
 @pytest.mark.parametrize("integrator, dt, p", [(EULER, 1e-3, 1), (RK, 1e-2, 4)])
 def test_chains_agree_with_the_reduced_reference_at_the_integrators_order(system, integrator,
                                                                           dt, p):  # fmt: skip
-    ex2 = assert_chain_order(ps, system, integrator, dt, p)
+    ex2 = sb.assert_chain_order(ps, system, integrator, dt, p)
     # measured (Pinocchio 4.1): Euler at 5e-4: 6e-4 m (spherical), 6e-3 m (hinge);
     # RKMK4 at 5e-3: 1e-8 m, 1.3e-7 m: the errors are small, not merely converging
     assert ex2 < (1e-2 if integrator == EULER else 1e-6)
@@ -55,7 +42,7 @@ def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator
     """Zero gravity, no joint to the ground: linear and angular momentum are invariants of the
     exact motion; a reduced-coordinate integrator keeps them up to its truncation error, which
     must shrink at its order (RKMK4 at dt = 5e-3: 3e-7 of |P0| = 4.9 kg m/s)."""
-    (dP, dL), P, L = assert_momentum_order(ps, integrator, dt, p)
+    (dP, dL), P, L = sb.assert_momentum_order(ps, integrator, dt, p)
     if integrator == RK:
         assert dP < 1e-6 * np.abs(P[0]).max() + 1e-12
         assert dL < 1e-4 * np.abs(L[0]).max()
@@ -72,31 +59,31 @@ def test_four_bar_closed_by_constraint_dynamics_with_baumgarte():
     bodies, joints, I_eff, k = parallelogram_four_bar()
     sc = scenario("four_bar", bodies, joints)
     out = ps.simulate_system(sc, RK, 1e-3, 2000, 50)
-    gap, axis = four_bar_gap(sc, out)
+    gap, axis = sb.four_bar_gap(sc, out)
     assert gap.max() < 1e-12 and axis.max() < 1e-12
-    e1 = four_bar_theta_error(out, I_eff, k)
+    e1 = sb.four_bar_theta_error(out, I_eff, k)
     assert e1 < 1e-9
-    e2 = four_bar_theta_error(ps.simulate_system(sc, RK, 2e-3, 1000, 25), I_eff, k)
-    assert_order(e2, e1, 4)
+    e2 = sb.four_bar_theta_error(ps.simulate_system(sc, RK, 2e-3, 1000, 25), I_eff, k)
+    sb.assert_order(e2, e1, 4)
     s = out["settings"]
     assert s["Baumgarte (Kp, Kd)"] == pytest.approx([4900.0, 140.0], rel=1e-12)
     assert s["forward dynamics"] == "constraintDynamics"
     assert "two CONTACT_3D" in s["loop closures"][0]
     off = ps.simulate_system(sc, RK, 1e-3, 2000, 50, baumgarte=(0.0, 0.0))
-    assert four_bar_gap(sc, off)[0].max() > 1e-6
-    assert four_bar_theta_error(off, I_eff, k) > 1.0
+    assert sb.four_bar_gap(sc, off)[0].max() > 1e-6
+    assert sb.four_bar_theta_error(off, I_eff, k) > 1.0
     eul = ps.simulate_system(sc, EULER, 1e-3, 2000, 50)
-    assert four_bar_gap(sc, eul)[0].max() < 1e-12
+    assert sb.four_bar_gap(sc, eul)[0].max() < 1e-12
     # semi-implicit Euler's positions are those of Stoermer-Verlet: second order in theta
-    assert four_bar_theta_error(eul, I_eff, k) < 1e-4
+    assert sb.four_bar_theta_error(eul, I_eff, k) < 1e-4
 
 
 def test_a_loop_through_the_ground_is_the_hinge_it_makes():
     """RKMK4 with the closure's CONTACT_3D follows the reduced reference of the hinge at order
     4 (measured 9.3e-12 and 6.0e-13 m at dt 1 and 0.5 ms) with the anchors held to round-off."""
-    g1, e1 = two_ball_hinge_errors(ps, RK, 1e-3)
-    g2, e2 = two_ball_hinge_errors(ps, RK, 5e-4)
-    assert_order(e1, e2, 4)
+    g1, e1 = sb.two_ball_hinge_errors(ps, RK, 1e-3)
+    g2, e2 = sb.two_ball_hinge_errors(ps, RK, 5e-4)
+    sb.assert_order(e1, e2, 4)
     assert max(g1, g2) < 1e-12 and e2 < 1e-10
 
 
@@ -139,10 +126,10 @@ def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form():
     attitude stays R0 and the body does not turn. Bounds: 1e-13 m, a hundred ulps of 1 m."""
     b, j, _ = kit.inclined_slide()
     sc = scenario("incline", b, j)
-    out, e_rk, _ = slide_errors(ps, sc, RK, 1e-2, 100)
+    out, e_rk, _ = sb.slide_errors(ps, sc, RK, 1e-2, 100)
     assert e_rk < 1e-13
     assert out["settings"]["tree"] == {"s": "prismatic to ground"}
-    _, e_eu, e_eu_known = slide_errors(ps, sc, EULER, 1e-2, 100)
+    _, e_eu, e_eu_known = sb.slide_errors(ps, sc, EULER, 1e-2, 100)
     assert e_eu > 0.02 and e_eu_known < 1e-13
 
 
@@ -150,10 +137,10 @@ def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_4():
     """The rod hinged to the ground with a collar sliding along it (kit.slider: the collar's
     principal axes permuted against the rod's): RKMK4 against director_model.system's
     RATTLE6 (dt 1 ms; its own error measured by halving dt: 9e-16) at dt 2 and 1 ms:
-    order 4 within the factor 1.6 of :func:`assert_order` (measured 4.0: 1.5e-11, 9.6e-13),
+    order 4 within the factor 1.6 of :func:`sb.assert_order` (measured 4.0: 1.5e-11, 9.6e-13),
     and small (below 1e-11 at 1 ms)."""
-    e, out = slider_errors_vs_rattle6(ps, RK, (2e-3, 1e-3))
-    assert_order(e[0], e[1], 4)
+    e, out = sb.slider_errors_vs_rattle6(ps, RK, (2e-3, 1e-3))
+    sb.assert_order(e[0], e[1], 4)
     assert e[1] < 1e-11
     assert out["settings"]["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
 
@@ -163,14 +150,11 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
     """The slide axis handed to Pinocchio in the rod's frame instead of the collar's, or the
     initial slide coordinate left at 0 (the collar starts 0.3 m from the rod's anchor along
     the axis): the kinematics of the initial state differ from the scenario, the body named."""
-    bodies, joints = kit.slider()
-    plant_prismatic_mistake(monkeypatch, ps, mistake, joints)
-    with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
-        ps.simulate_system(scenario("slider", bodies, joints), RK, 1e-3, 1, 1)
+    sb.assert_prismatic_mistake_caught(monkeypatch, ps, mistake, RK)
 
 
 def test_unsupported_joints_and_closures_name_the_joint():
-    assert_universal_unsupported(ps, RK)
+    sb.assert_universal_unsupported(ps, RK)
 
 
 def test_bad_arguments_are_named():
@@ -179,7 +163,7 @@ def test_bad_arguments_are_named():
         ps.simulate_system(sc, "RK4", 1e-3, 1, 1)
     with pytest.raises(ValueError, match="unknown settings"):
         ps.simulate_system(sc, RK, 1e-3, 1, 1, solref=(0.02, 1))
-    assert_saved_steps(ps, sc, EULER)
+    sb.assert_saved_steps(ps, sc, EULER)
 
 
 @pytest.mark.parametrize("integrator", [EULER, RK])

@@ -19,33 +19,22 @@ from director_model.system.examples import parallelogram_four_bar, rod_chain  # 
 from references.engines import pybullet_system as bs  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
-from tests.system_builders import (  # noqa: E402
-    CHAINS,
-    assert_chain_order,
-    assert_momentum_order,
-    assert_order,
-    assert_saved_steps,
-    assert_universal_unsupported,
-    chain,
-    four_bar_gap,
-    four_bar_theta_error,
-    two_ball_hinge_errors,
-)
+from tests import system_builders as sb  # noqa: E402
 
 MB = "multibody"
 
 
-@pytest.mark.parametrize("system", CHAINS, ids=["3-body spherical chain", "4-link revolute chain"])
+@pytest.mark.parametrize("system", sb.CHAINS, ids=sb.CHAIN_IDS)
 def test_chains_agree_with_the_reduced_reference_at_first_order(system):
     """Measured (pybullet 3.2.7, dt 1 and 0.5 ms over 1 s): 1.21e-3 / 6.08e-4 m (spherical),
     1.13e-2 / 5.62e-3 m (hinge): order 1, the same errors as Pinocchio's and DART's
     semi-implicit Euler on these systems."""
-    assert assert_chain_order(bs, system, MB, 1e-3, 1) < 1e-2
+    assert sb.assert_chain_order(bs, system, MB, 1e-3, 1) < 1e-2
 
 
 def test_a_floating_chain_keeps_its_momentum_to_first_order():
-    """A floating 5-body chain (the base of its own multibody) in zero gravity."""
-    assert_momentum_order(bs, MB, 1e-3, 1)
+    """A floating 5-body sb.chain (the base of its own multibody) in zero gravity."""
+    sb.assert_momentum_order(bs, MB, 1e-3, 1)
 
 
 def test_four_bar_closed_by_point_to_point_constraints():
@@ -57,20 +46,20 @@ def test_four_bar_closed_by_point_to_point_constraints():
     bodies, joints, I_eff, k = parallelogram_four_bar()
     sc = scenario("four_bar", bodies, joints)
     out = bs.simulate_system(sc, MB, 1e-3, 2000, 50)
-    gap, axis = four_bar_gap(sc, out)
+    gap, axis = sb.four_bar_gap(sc, out)
     assert gap.max() < 3e-6 and axis.max() < 1e-12
-    assert four_bar_theta_error(out, I_eff, k) < 1e-4
+    assert sb.four_bar_theta_error(out, I_eff, k) < 1e-4
     half = bs.simulate_system(sc, MB, 5e-4, 4000, 100)
-    assert four_bar_gap(sc, half)[0].max() < gap.max() / 2
+    assert sb.four_bar_gap(sc, half)[0].max() < gap.max() / 2
     s = out["settings"]
     assert "two JOINT_POINT2POINT" in s["loop closures"][0]
     assert [c["erp"] for c in s["constraints"]] == [bs.DEFAULT_ERP] * 2
     assert [c["maxAppliedForce (N)"] for c in s["constraints"]] == [bs.DEFAULT_MAX_FORCE] * 2
     stiff = bs.simulate_system(sc, MB, 1e-3, 2000, 50, erp=0.9)
-    assert four_bar_gap(sc, stiff)[0].max() < gap.max() / 2
+    assert sb.four_bar_gap(sc, stiff)[0].max() < gap.max() / 2
     off = bs.simulate_system(sc, MB, 1e-3, 2000, 50, erp=0.0)
-    assert four_bar_gap(sc, off)[0].max() > 1e-3
-    assert four_bar_theta_error(off, I_eff, k) > 1.0
+    assert sb.four_bar_gap(sc, off)[0].max() > 1e-3
+    assert sb.four_bar_theta_error(off, I_eff, k) > 1.0
 
 
 def test_default_erp_is_bullet_s(monkeypatch):
@@ -96,19 +85,19 @@ def test_default_erp_is_bullet_s(monkeypatch):
 def test_a_loop_through_the_ground_is_the_hinge_it_makes():
     """A plate on two ground point-to-point constraints follows the reduced reference of the
     hinge at order 1; the anchors stay within 1e-4 m."""
-    g1, e1 = two_ball_hinge_errors(bs, MB, 1e-3)
-    g2, e2 = two_ball_hinge_errors(bs, MB, 5e-4)
-    assert_order(e1, e2, 1)
+    g1, e1 = sb.two_ball_hinge_errors(bs, MB, 1e-3)
+    g2, e2 = sb.two_ball_hinge_errors(bs, MB, 5e-4)
+    sb.assert_order(e1, e2, 1)
     assert max(g1, g2) < 1e-4 and e2 < 1e-2
 
 
 # The planted joint mistakes of every builder: tests/test_system_conformance.py.
 
 
-@pytest.mark.parametrize("system", CHAINS, ids=["spherical joints", "revolute joints"])
+@pytest.mark.parametrize("system", sb.CHAINS, ids=["spherical joints", "revolute joints"])
 def test_default_motors_left_on_are_caught(monkeypatch, system):
     """PyBullet's default joint motors (never switched off) show in the probe step."""
-    sc = chain(system)
+    sc = sb.chain(system)
     monkeypatch.setattr(bs._Model, "motors_off", lambda self, *a: None)
     with pytest.raises(EngineError, match="joint motor, damping or the velocity clamp"):
         bs.simulate_system(sc, MB, 1e-3, 1, 1)
@@ -136,7 +125,7 @@ def test_planted_defaults_are_caught(monkeypatch, default):
 
 
 def test_unsupported_and_bad_arguments():
-    assert_universal_unsupported(bs, MB)
+    sb.assert_universal_unsupported(bs, MB)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="maximal coordinates"):
         bs.simulate_system(sc, "maximal coordinates", 1e-3, 1, 1)
@@ -144,4 +133,4 @@ def test_unsupported_and_bad_arguments():
         bs.simulate_system(sc, MB, 1e-3, 1, 1, baumgarte=(1, 1))
     with pytest.raises(ValueError, match="erp"):
         bs.simulate_system(sc, MB, 1e-3, 1, 1, erp=2.0)
-    assert_saved_steps(bs, sc, MB)
+    sb.assert_saved_steps(bs, sc, MB)
