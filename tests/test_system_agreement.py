@@ -36,6 +36,7 @@ from references.exact.multibody.exact import (
     SpinningChain,
     straight_chain,
 )
+from tests.test_multibody_exact import FOURBAR
 
 system = pytest.importorskip(
     "director_model.system", reason="director_model.system (the director multibody API) absent"
@@ -236,19 +237,8 @@ def four_bar():
     joints to the ground, the coupler on revolute joints to both: 20 constraint rows for 17
     degrees of freedom removed, a redundant loop), started to rotate through the singular
     configurations (all links collinear when the crank is horizontal)."""
-    fb = ParallelogramFourBar(
-        L=0.4,
-        D=0.7,
-        crank=(1.0, (0.001, 0.013, 0.0135)),
-        rocker=(0.6, (0.0008, 0.009, 0.0095)),
-        coupler=(1.5, (0.002, 0.06, 0.061)),
-        LA=0.2,
-        LB=0.25,
-        coupler_com=0.35,
-        g=9.81,
-        theta0=-0.3,
-        thetadot0=-12.0,
-    )
+    # the rotating four-bar of tests/test_multibody_exact.py, whose closed form is checked there
+    fb = ParallelogramFourBar(theta0=-0.3, thetadot0=-12.0, **FOURBAR)
     x0, R0, v0, W0 = fb.initial
     e3 = (0.0, 0.0, 1.0)
     bodies = [
