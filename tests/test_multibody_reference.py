@@ -441,31 +441,14 @@ def _world_description(tree, sol, i=0, flip=()):
             continue
         p = tree.parent[b]
         parent = None if p < 0 else tree.names[p]
-        axes = (tuple(tree.axis[b]), tuple(tree.offset[b] @ tree.axis[b]))
+        # (body, anchor, axis) of the child's side and of the parent's; flipped: parent first
+        sides = [(n, tree.Y[b], tuple(tree.axis[b])),
+                 (parent, tree.X[b], tuple(tree.offset[b] @ tree.axis[b]))]  # fmt: skip
         if b in flip and parent is not None:
-            joints.append(
-                NS(
-                    kind=tree.kinds[b],
-                    body_a=parent,
-                    body_b=n,
-                    anchor_a=tree.X[b],
-                    anchor_b=tree.Y[b],
-                    axis_a=axes[1],
-                    axis_b=axes[0],
-                )
-            )
-        else:
-            joints.append(
-                NS(
-                    kind=tree.kinds[b],
-                    body_a=n,
-                    body_b=parent,
-                    anchor_a=tree.Y[b],
-                    anchor_b=tree.X[b],
-                    axis_a=axes[0],
-                    axis_b=axes[1],
-                )
-            )
+            sides.reverse()
+        (body_a, anchor_a, axis_a), (body_b, anchor_b, axis_b) = sides
+        joints.append(NS(kind=tree.kinds[b], body_a=body_a, body_b=body_b, anchor_a=anchor_a,
+                         anchor_b=anchor_b, axis_a=axis_a, axis_b=axis_b))  # fmt: skip
     return bodies, joints
 
 
