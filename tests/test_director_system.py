@@ -7,7 +7,6 @@ closed-form input rules; no value is copied from the code under test.
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 import director_model as dm
 from director_model.system import (
@@ -19,30 +18,9 @@ from director_model.system import (
     project_velocities,
     simulate_system,
 )
+from director_model.system.examples import rod_chain
 
 EPS = np.finfo(float).eps
-
-
-def chain(n, hang, *, L=1.0, m=1.0, tilt=0.3, seed=0, inertia=None, spin=True):
-    """n rods of length L joined end to end by spherical joints (the first hanging from the
-    world origin if ``hang``), random tilts and random velocities projected on the joints."""
-    rng = np.random.default_rng(seed)
-    I = inertia or (m * L**2 / 12 + 0.01, m * L**2 / 12 + 0.01, 0.02)
-    bodies, joints = [], []
-    top = np.zeros(3)
-    for i in range(n):
-        R = Rotation.from_rotvec(rng.normal(size=3) * tilt).as_matrix()
-        a = R @ np.array([0, 0, L / 2])
-        x = top - a
-        v = rng.normal(size=3) if spin else np.zeros(3)
-        W = rng.normal(size=3) if spin else np.zeros(3)
-        bodies.append(Body(f"b{i}", m, I, position=x, rotation=R, velocity=v, omega_body=W))
-        if i == 0 and hang:
-            joints.append(Joint("spherical", "b0", None, (0, 0, L / 2), (0, 0, 0)))
-        elif i > 0:
-            joints.append(Joint("spherical", f"b{i - 1}", f"b{i}", (0, 0, -L / 2), (0, 0, L / 2)))
-        top = x - a
-    return project_velocities(bodies, joints), joints
 
 
 def heavy_top_both_ways(scheme):
@@ -76,7 +54,7 @@ def test_one_body_with_a_fixed_point_is_the_single_body_pivoted_run(scheme):
 
 @pytest.mark.parametrize("hang", [True, False])
 def test_chain_keeps_constraints_and_momentum_maps(hang):
-    bodies, joints = chain(5, hang)
+    bodies, joints = rod_chain(5, hang)
     g = (0.0, 0.0, -9.81) if hang else (0.0, 0.0, 0.0)
     tr = simulate_system(bodies, joints, gravity=g, dt=1e-3, t_end=2.0, save_every=100)
     # RATTLE keeps every joint row to the Newton tolerance (16 eps x length scale ~ 1e-14)
@@ -96,7 +74,7 @@ def test_chain_keeps_constraints_and_momentum_maps(hang):
 def test_lamina_chain_integrates_and_conserves():
     # I = (0.05, 0.08, 0.13): J_3 = (0.05 + 0.08 - 0.13)/2 = 0, a flat body; the director
     # mass matrix is singular, the scheme never inverts it
-    bodies, joints = chain(3, False, inertia=(0.05, 0.08, 0.13))
+    bodies, joints = rod_chain(3, False, inertia=(0.05, 0.08, 0.13))
     assert any(b.J[2] == 0.0 for b in bodies)
     tr = simulate_system(bodies, joints, dt=1e-3, t_end=1.0, save_every=100, scheme="rattle4")
     assert np.all(np.isfinite(tr.rotation))
@@ -106,7 +84,7 @@ def test_lamina_chain_integrates_and_conserves():
 
 @pytest.mark.parametrize("scheme", ["rattle", "rattle6"])
 def test_stepper_chunks_equal_one_run_bit_for_bit(scheme):
-    bodies, joints = chain(4, True, seed=3)
+    bodies, joints = rod_chain(4, True, seed=3)
     kw = dict(gravity=(0.0, 0.0, -9.81), scheme=scheme, dt=2e-3)
     one = SystemStepper(bodies, joints, **kw).advance(50, save_every=5, include_start=True)
     st = SystemStepper(bodies, joints, **kw)
@@ -120,7 +98,7 @@ def test_stepper_chunks_equal_one_run_bit_for_bit(scheme):
 
 
 def test_gap_velocity_and_name_errors():
-    bodies, joints = chain(2, True, spin=False)
+    bodies, joints = rod_chain(2, True, spin=False)
     moved = [bodies[0], Body("b1", 1.0, bodies[1].inertia, bodies[1].position + [0, 0.002, 0],
                              bodies[1].rotation)]  # fmt: skip
     with pytest.raises(InvalidJointError, match=r"joint 'joint1'.*gap .* = 0.002 m"):
@@ -171,7 +149,7 @@ def test_misaligned_revolute_axes_are_refused():
 
 def test_step_beyond_solvability_raises_with_time_and_step():
     # a free spinning body in a chain: h |W| >= 1 has no solution of the rotation equation
-    bodies, joints = chain(2, False, spin=False)
+    bodies, joints = rod_chain(2, False, spin=False)
     b1 = bodies[1]
     spin = [bodies[0], Body("b1", 1.0, b1.inertia, b1.position, b1.rotation,
                             omega_body=b1.rotation.T @ (b1.rotation @ [0, 0, 400.0]))]  # fmt: skip
@@ -200,8 +178,6 @@ def test_million_steps_conservation():
     # benchmarks/system_conservation.py measured on this chain: joints within the Newton
     # tolerance (16 eps x the largest coordinate), p drift 4.4e-16, L drift 1.4e-13 .. 3.0e-13
     # (at |x| = 418 m), energy error 4.7e-7 J in the first tenth, 4.8e-7 .. 5.9e-7 in the last
-    from director_model.system.examples import rod_chain
-
     b, j = rod_chain(5, False, seed=11)
     tr = SystemStepper(b, j, dt=1e-3).advance(1_000_000, save_every=1000, include_start=True)
     xmax = np.abs(tr.position).max(axis=(1, 2))
@@ -219,7 +195,7 @@ def test_block_solver_equals_banded_to_round_off():
     # the same equations solved by block-tridiagonal elimination (3x3 blocks, the default
     # for ball-joint chains) and by the generic banded LU: equal to round-off amplified by
     # 200 steps of a tumbling hanging chain (measured 6.7e-16 .. 1.5e-14 over 3000 steps)
-    bodies, joints = chain(5, True, seed=2)
+    bodies, joints = rod_chain(5, True, seed=2)
     runs = {}
     for solver in ("block", "banded"):
         st = SystemStepper(bodies, joints, gravity=(0, 0, -9.81), dt=1e-3, solver=solver)
