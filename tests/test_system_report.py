@@ -14,6 +14,7 @@ import pytest
 import scenarios
 from reports.run.runner import plan, run_suite
 from reports.store.results import read_results
+from tests.test_report import _capture_figures
 
 #: 0.1 s of the four-bar at its own dt (2 ms): 50 steps per run, a second or so in all
 ENGINES = ("director", "exact", "mujoco", "pinocchio")
@@ -90,18 +91,10 @@ def _unnamed_lines(fig) -> list[str]:
 def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monkeypatch):
     import reports.report.plots as plots
 
-    kept = []
-    real = plots._write_png
-
-    def keep(fig, path, **kw):
-        real(fig, path, **kw)
-        kept.append(fig)
-
-    monkeypatch.setattr(plots, "_write_png", keep)
-    monkeypatch.setattr(plots, "_plt", _no_close(plots._plt))
+    kept = _capture_figures(monkeypatch)  # (path, figure) of each saved figure
     styles, cache = plots.Styles(df), plots.SeriesCache(built)
     plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
-    (fig,) = kept
+    ((_, fig),) = kept
     assert _unnamed_lines(fig) == []
     # planted: one configuration's name lost, or hidden from the legend (matplotlib leaves
     # out a label starting with "_"): each is caught
@@ -115,25 +108,8 @@ def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monke
         )  # fmt: skip
         plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
         # the one MuJoCo line of each panel
-        assert len(_unnamed_lines(kept[-1])) == len(kept[-1].axes), planted
-
-
-def _no_close(real_plt):
-    """pyplot whose close() keeps the figures (to inspect them after they are saved)."""
-
-    def wrapped():
-        plt = real_plt()
-
-        class NoClose:
-            def __getattr__(self, name):
-                return getattr(plt, name)
-
-            def close(self, *a, **k):
-                return None
-
-        return NoClose()
-
-    return wrapped
+        fig = kept[-1][1]
+        assert len(_unnamed_lines(fig)) == len(fig.axes), planted
 
 
 def test_system_rows_show_their_closure_settings_and_rank_by_cost(built, df):
