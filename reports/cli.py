@@ -32,39 +32,45 @@ def _csv_list(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
-def _float_list(text: str) -> list[float]:
+def _number_list(text: str, option: str, example: str, ok, rule: str) -> list[float]:
+    """The comma-separated numbers of ``option``'s value ``text``, each passing ``ok``; else
+    an argparse error naming the option, the value and the ``rule``."""
     try:
         vals = [float(t) for t in _csv_list(text)]
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"--dt {text!r}: expected comma-separated numbers, e.g. 1e-3,5e-4"
+            f"{option} {text!r}: expected comma-separated numbers, e.g. {example}"
         ) from None
-    if not vals or any(not (v > 0 and math.isfinite(v)) for v in vals):
-        raise argparse.ArgumentTypeError(f"--dt {text!r}: every step must be > 0")
+    if not vals or any(not ok(v) for v in vals):
+        raise argparse.ArgumentTypeError(f"{option} {text!r}: {rule}")
     return vals
+
+
+def _float_list(text: str) -> list[float]:
+    return _number_list(
+        text, "--dt", "1e-3,5e-4", lambda v: v > 0 and math.isfinite(v), "every step must be > 0"
+    )
 
 
 def _accuracy_list(text: str) -> list[float]:
-    try:
-        vals = [float(t) for t in _csv_list(text)]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--accuracy {text!r}: expected comma-separated numbers, e.g. 1e-6,1e-9"
-        ) from None
-    if not vals or any(not 0 < v < 1 for v in vals):
-        raise argparse.ArgumentTypeError(f"--accuracy {text!r}: every accuracy must be in (0, 1)")
-    return vals
+    return _number_list(
+        text, "--accuracy", "1e-6,1e-9", lambda v: 0 < v < 1, "every accuracy must be in (0, 1)"
+    )
 
 
 #: the largest count an option takes (steps, states, members are indexed by 64-bit integers)
 MAX_COUNT = 10**18
 
 
-def _whole(text: str) -> int:
+def _integer(text: str) -> int:
     try:
-        v = int(text)
+        return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a whole number") from None
+
+
+def _whole(text: str) -> int:
+    v = _integer(text)
     if v < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be >= 1")
     if v > MAX_COUNT:
@@ -75,10 +81,7 @@ def _whole(text: str) -> int:
 
 
 def _seed(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a whole number") from None
+    v = _integer(text)
     if not 0 <= v < 2**64:
         raise argparse.ArgumentTypeError(f"{text[:40]!r} must be in 0 .. 2^64 - 1")
     return v
