@@ -207,6 +207,35 @@ def test_a_system_without_reference_is_judged_on_its_invariants_and_joints(tmp_p
     assert row["status"] in ("unsupported", "unavailable")
 
 
+def test_the_system_figure_titles_only_the_panels_it_draws(tmp_path):
+    """The four-bar conserves no momentum: its figure has no momentum panel, and its title
+    must not announce one; a floating chain has all three."""
+    import pandas as pd
+
+    from reports.report.plots import SeriesCache, _plt
+    from reports.report.system_plots import system_plot
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
+
+    titles = {}
+
+    def save(fig, path, alt):
+        titles[path.name] = [ax.get_title() for ax in fig.axes if ax.get_title()]
+        return path
+
+    for name, dt in (("four_bar", 2e-3), ("spinning_chain", 1e-3)):
+        sc = scenarios.load(name).replace(t_end=10 * dt)
+        row = execute(RunSpec(sc, "director", "rattle", dt), tmp_path)
+        assert row["status"] == "ok", row["message"]
+        system_plot(pd.DataFrame([row]), dt, SeriesCache(tmp_path), tmp_path, name, _plt(), save)
+    assert titles["four-bar__system.png"] == [
+        f"four_bar: joints and energy over time at dt = {2e-3:g} s"
+    ]
+    assert titles["spinning-chain__system.png"] == [
+        f"spinning_chain: joints, energy and momentum over time at dt = {1e-3:g} s"
+    ]
+
+
 def test_system_fields_are_the_director_models():
     """The scenario's bodies and joints carry exactly the fields of director_model.system's
     Body and Joint (the contract with the engine builders)."""

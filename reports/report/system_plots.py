@@ -26,11 +26,11 @@ from reports.store.results import is_reference_record
 #: the smallest value shown on the log axes (exact zeros are drawn here)
 FLOOR = 1e-17
 
-#: the panels: (series column, fallback column, y label)
+#: the panels: (series column, fallback column, y label, what the title calls it)
 PANELS = (
-    ("loop_gap", "joint_gap", "gap [m]"),
-    ("energy_drift", None, "|E − E₀| / E_c [1]"),
-    ("momentum_drift", None, "momentum drift / scale [1]"),
+    ("loop_gap", "joint_gap", "gap [m]", "joints"),
+    ("energy_drift", None, "|E − E₀| / E_c [1]", "energy"),
+    ("momentum_drift", None, "momentum drift / scale [1]", "momentum"),
 )
 
 
@@ -74,7 +74,7 @@ def system_plot(
         axes = list(np.atleast_1d(axes))
     colours = plt.get_cmap("tab10").colors
     loops = any("loop_gap" in s for *_, s in runs)
-    for ax, (col, alt_col, label) in zip(axes, panels, strict=True):
+    for ax, (col, alt_col, label, _) in zip(axes, panels, strict=True):
         for k, (row, name, s) in enumerate(runs):
             key = col if col in s else alt_col if alt_col and alt_col in s else None
             if key is None:
@@ -94,7 +94,9 @@ def system_plot(
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(0, max(float(s["t"][-1]) for *_, s in runs))
     dt = "" if math.isnan(h) else f" at dt = {h:g} s"
-    axes[0].set_title(f"{scenario}: joints, energy and momentum over time{dt}", fontsize=10)
+    drawn = [p[3] for p in panels]
+    drawn = ", ".join(drawn[:-1]) + " and " + drawn[-1] if len(drawn) > 1 else drawn[0]
+    axes[0].set_title(f"{scenario}: {drawn} over time{dt}", fontsize=10)
     if legend is not None:
         legend(axes[0])
     else:
