@@ -49,6 +49,10 @@ class EngineBase(ABC):
     #: what the first run in a process compiles before it steps ("" if nothing), shown by the
     #: progress display while it lasts (per integrator when ``bundle_runs``)
     warm_up: ClassVar[str] = ""
+    #: what the first run of a system of bodies in a process compiles ("" if nothing), when
+    #: it is not the single body's ``warm_up``; a runner never compiles one warm-up in two
+    #: workers at once (reports.run.parallel)
+    system_warm_up: ClassVar[str] = ""
     #: this engine's rows are the reference the others are measured against (the scenario's
     #: exact or high-accuracy solution), not a configuration under test: tables and figures
     #: show it as the floor of the measurement and comparisons between engines leave it out

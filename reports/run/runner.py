@@ -580,7 +580,7 @@ def warm_up(engine: str, integrator: str, system: bool = False) -> tuple[str, st
             if cls.bundle_runs:
                 return f"{engine}/{integrator}", f"{cls.warm_up} for {engine} {integrator}"
             if system:
-                what = getattr(cls, "system_warm_up", "")
+                what = cls.system_warm_up
                 return (f"{engine}/system", what) if what else None
             return engine, cls.warm_up
         if cls.integrator(integrator).stepping == "rkmk4":
