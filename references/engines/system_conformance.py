@@ -184,9 +184,10 @@ def _tree_joint(pl, c):
     return tj, j, j.body_a == pl.names[c]
 
 
-def _plant_engine_frames(mistake):
-    """The mistake in Pinocchio's, DART's and PyBullet's ``EngineFrames`` of a non-root joint:
-    placement (R, p = X - Y_p) in the parent's joint frame, axis, body offset -Y."""
+def _plant_frames(mistake, from_origin, swapped):
+    """The mistake in a builder's frames of the planted joint (``engine_frames(pl, c)``, a
+    dataclass with an ``axis``): the axis in the parent's frame, or the fields
+    ``from_origin(pl, tj)`` or ``swapped(pl, tj)`` give (a dict of changed fields)."""
 
     def change(orig):
         def planted(pl, c):
@@ -194,41 +195,38 @@ def _plant_engine_frames(mistake):
             if pl.names[c] != PLANTED_BODY:
                 return f
             tj, j, child_is_a = _tree_joint(pl, c)
-            Yp = pl.tree[tj.parent].Y
             if mistake == MISTAKES[0]:
                 return dataclasses.replace(f, axis=_unit(j.axis_b if child_is_a else j.axis_a))
-            if mistake == MISTAKES[1]:
-                # the parent's anchor X (from its COM) taken as if from its body origin (the
-                # parent's joint frame, at Y_p): not moved by -Y_p
-                return dataclasses.replace(f, p=tj.X)
-            return dataclasses.replace(f, p=tj.Y - Yp, body_offset=-tj.X)
+            fields = from_origin if mistake == MISTAKES[1] else swapped
+            return dataclasses.replace(f, **fields(pl, tj))
 
         return planted
 
     return "engine_frames", change
+
+
+def _plant_engine_frames(mistake):
+    """The mistake in Pinocchio's, DART's and PyBullet's ``EngineFrames`` of a non-root joint:
+    placement (R, p = X - Y_p) in the parent's joint frame, axis, body offset -Y."""
+    return _plant_frames(
+        mistake,
+        # the parent's anchor X (from its COM) taken as if from its body origin (the parent's
+        # joint frame, at Y_p): not moved by -Y_p
+        lambda pl, tj: {"p": tj.X},
+        lambda pl, tj: {"p": tj.Y - pl.tree[tj.parent].Y, "body_offset": -tj.X},
+    )
 
 
 def _plant_drake_frames(mistake):
     """The mistake in Drake's ``DrakeFrames``: F on the parent at p_F = X, M on the child at
     p_M = Y, axis."""
-
-    def change(orig):
-        def planted(pl, c):
-            f = orig(pl, c)
-            if pl.names[c] != PLANTED_BODY:
-                return f
-            tj, j, child_is_a = _tree_joint(pl, c)
-            if mistake == MISTAKES[0]:
-                return dataclasses.replace(f, axis=_unit(j.axis_b if child_is_a else j.axis_a))
-            if mistake == MISTAKES[1]:
-                # the parent's anchor measured from its joint point (the body origin of the
-                # other builders) instead of its COM
-                return dataclasses.replace(f, p_F=tj.X - pl.tree[tj.parent].Y)
-            return dataclasses.replace(f, p_F=tj.Y, p_M=tj.X)
-
-        return planted
-
-    return "engine_frames", change
+    return _plant_frames(
+        mistake,
+        # the parent's anchor measured from its joint point (the body origin of the other
+        # builders) instead of its COM
+        lambda pl, tj: {"p_F": tj.X - pl.tree[tj.parent].Y},
+        lambda pl, tj: {"p_F": tj.Y, "p_M": tj.X},
+    )
 
 
 def _plant_mjcf(mistake):
