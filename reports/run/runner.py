@@ -608,7 +608,11 @@ def warm_ups(spec: RunSpec) -> dict[str, str]:
 
 def unit_warm_ups(unit: list[RunSpec]) -> set[str]:
     """The warm-up keys of a unit of work (a bundle of specs), for the process pool's gate
-    (reports.run.parallel.process_pool)."""
+    (reports.run.parallel.process_pool). A bundle of several runs counts only its engine's
+    own warm-ups: it would hold a shared one (a system of bodies' reference) for the whole
+    bundle; its systems run last (:func:`bundles`), when that one is cached."""
+    if len(unit) > 1:
+        return {k for s in unit if (w := warm_up(s.engine, s.integrator)) for k in (w[0],)}
     return {k for s in unit for k in warm_ups(s)}
 
 
@@ -627,7 +631,8 @@ def bundles(specs) -> list[list[RunSpec]]:
     engine whose runs share a warm-up (``bundle_runs``, e.g. MJX's compilation) go together,
     one bundle per integrator, so that each compiles once, in one worker.
 
-    Order: first the bundles that start a warm-up (:func:`warm_ups`), those whose
+    Within a bundle, single bodies first, then systems of bodies. Order: first the bundles
+    that start a warm-up (:func:`unit_warm_ups`), those whose
     compilation holds back the most runs first (a system of bodies' reference and kernels,
     then the director's, the RKMK4 stages, MJX's bundles), so that the longest chains of
     compilation start at once (the process pool hands out no second run of a key before its
@@ -643,6 +648,8 @@ def bundles(specs) -> list[list[RunSpec]]:
             grouped[key].append(s)
         else:
             out.append([s])
+    for b in grouped.values():  # a bundle's systems of bodies last (see unit_warm_ups)
+        b.sort(key=lambda s: bool(getattr(s.scenario, "is_system", False)))
     out.sort(key=len, reverse=True)
     firsts: dict[str, list[RunSpec]] = {}  # warm-up key -> the first bundle going through it
     for b in out:
