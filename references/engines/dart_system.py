@@ -370,10 +370,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record) of ``scenario``: planned, built, read back, the initial state
     set and checked against DART's kinematics, the loops closed."""
     ps.check_run_args(integrator, dt, INTEGRATORS)
-    unknown = sorted(set(settings) - set(_SETTINGS))
-    if unknown:
-        raise ValueError(f"dart simulate_system: unknown settings {unknown}; known: "
-                         f"{list(_SETTINGS)}")  # fmt: skip
+    ps.check_settings("dart", settings, _SETTINGS)
     erp = settings.get("erp")
     if erp is not None and not (isinstance(erp, (int, float)) and 0 <= erp <= 1):
         raise ValueError(f"erp {erp!r}: DART's error reduction parameter, a number in [0, 1]")

@@ -350,9 +350,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "drake: cenic needs a Diagram with a SceneGraph, which this builder does not build"
         )
     ps.check_run_args(integrator, dt, INTEGRATORS)
-    unknown = sorted(set(settings) - set(_SETTINGS))
-    if unknown:
-        raise ValueError(f"drake simulate_system: unknown settings {unknown}; known: none")
+    ps.check_settings("drake", settings, _SETTINGS)
     _import()
     pl = ps.plan(scenario, "drake", ps.SLIDING_KINDS)
     if pl.loops and not loops_supported(integrator):

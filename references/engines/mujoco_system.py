@@ -563,9 +563,7 @@ def check_initial(mujoco, m, d, scenario, pl: ps.Plan, bid: dict) -> None:
 
 
 def _settings(kw: dict) -> tuple[tuple, tuple]:
-    unknown = sorted(set(kw) - set(_SETTINGS))
-    if unknown:
-        raise ValueError(f"mujoco simulate_system: unknown settings {unknown}; known: {_SETTINGS}")
+    ps.check_settings("mujoco", kw, _SETTINGS)
     solref = tuple(float(s) for s in kw.get("solref", DEFAULT_SOLREF))
     solimp = tuple(float(s) for s in kw.get("solimp", DEFAULT_SOLIMP))
     if len(solref) != 2 or not all(math.isfinite(s) for s in solref) or solref[0] <= 0:

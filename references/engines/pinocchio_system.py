@@ -446,6 +446,15 @@ def tree_record(pl: Plan, kind=lambda tj: tj.kind) -> dict:
     }
 
 
+def check_settings(engine: str, settings, known) -> None:
+    """Refuse a setting the builder of ``engine`` does not know: ValueError naming the unknown
+    ones and the ``known`` ones."""
+    unknown = sorted(set(settings) - set(known))
+    if unknown:
+        raise ValueError(f"{engine} simulate_system: unknown settings {unknown}; known: "
+                         f"{list(known) or 'none'}")  # fmt: skip
+
+
 def check_run_args(integrator: str, dt, integrators=INTEGRATORS) -> None:
     if integrator not in integrators:
         raise ValueError(f"integrator {integrator!r} unknown; known: {list(integrators)}")
@@ -701,10 +710,7 @@ def frequency_scale(pl: Plan) -> float:
 
 
 def _settings(kw: dict, pl: Plan):
-    unknown = sorted(set(kw) - set(_SETTINGS))
-    if unknown:
-        raise ValueError(f"pinocchio simulate_system: unknown settings {unknown}; known: "
-                         f"{list(_SETTINGS)}")  # fmt: skip
+    check_settings("pinocchio", kw, _SETTINGS)
     fs = frequency_scale(pl)
     omega = float(kw.get("baumgarte_omega", BAUMGARTE_FACTOR * fs))
     if not (math.isfinite(omega) and omega >= 0):

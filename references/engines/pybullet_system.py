@@ -399,10 +399,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record): planned, built, read back, probed, the initial state set and
     checked against PyBullet's kinematics, the loops closed and read back."""
     ps.check_run_args(integrator, dt, INTEGRATORS)
-    unknown = sorted(set(settings) - set(_SETTINGS))
-    if unknown:
-        raise ValueError(f"pybullet simulate_system: unknown settings {unknown}; known: "
-                         f"{list(_SETTINGS)}")  # fmt: skip
+    ps.check_settings("pybullet", settings, _SETTINGS)
     erp = float(settings.get("erp", DEFAULT_ERP))
     if not 0 <= erp <= 1:
         raise ValueError(f"erp {erp!r}: Bullet's error reduction parameter, a number in [0, 1]")
