@@ -143,3 +143,21 @@ def test_the_pool_hands_out_no_unit_whose_compilation_is_under_way():
     assert gate.next() == (None, set())  # ab still waits for b
     gate.compiled(second[1])
     assert gate.next() == ("ab", set()) and not gate.pending
+
+
+def test_a_bundle_holds_only_its_engines_warm_up_and_runs_its_systems_last():
+    import scenarios
+    from reports.run.runner import bundles, plan, unit_warm_ups
+
+    scs = [scenarios.load("four_bar"), scenarios.load("dzhanibekov")]
+    specs = plan(scs, ["mjx", "mujoco"])
+    order = bundles(specs)
+    mjx = [b for b in order if len(b) > 1]
+    assert mjx and all(b[0].engine == "mjx" for b in mjx)
+    for b in mjx:
+        kinds = [bool(getattr(s.scenario, "is_system", False)) for s in b]
+        assert kinds == sorted(kinds) and kinds[-1] and not kinds[0]  # bodies, then systems
+        assert unit_warm_ups(b) == {f"mjx/{b[0].integrator}"}  # not the systems' reference
+    # the reference's leader is a single run, which holds it only while it runs
+    lead = next(b for b in order if "multibody" in unit_warm_ups(b))
+    assert len(lead) == 1 and lead[0].scenario.name == "four_bar"
