@@ -22,7 +22,8 @@ import scenarios
 from references import conventions as cv
 from references.engines import FAMILIES, EngineError, Unsupported, engine_names, get_engine
 from references.engines import conformance as kit
-from references.engines.base import BodyModel, RunContext, initial_state
+from references.engines.context import BodyModel, RunContext
+from references.engines.stepping import initial_state
 
 EPS = np.finfo(float).eps
 U32 = 2.0**-24
