@@ -164,6 +164,35 @@ def test_every_bad_input_exits_with_a_message(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_tolerance_for_a_family_of_an_engine_not_selected_is_valid(tmp_path):
+    """Drake registers its families when its adapter is imported: a file bounding one of them
+    is valid however the run selects its engines (here only the exact reference), and a
+    family nobody registers is still refused. A fresh process, so that no other test has
+    imported Drake's adapter already."""
+    drake_family = user_file(
+        tmp_path,
+        "drake_family.toml",
+        FREE.read_text()
+        + '\n[tolerances."explicit Runge-Kutta on coordinates"]\nattitude_error_max = 1e-3\n',
+    )
+    code = (
+        "import sys, scenarios\n"
+        "from reports.run.runner import plan, InputError\n"
+        "sc = scenarios.load(sys.argv[1])\n"
+        "assert len(plan([sc], engines=['exact'], sweep=False)) == 1\n"
+        "try:\n"
+        "    plan([sc.replace(tolerances={'RK9000': {'attitude_error_max': 1.0}})], ['exact'])\n"
+        "except InputError as exc:\n"
+        "    assert 'RK9000' in str(exc) and 'explicit Runge-Kutta on coordinates' in str(exc)\n"
+        "else:\n"
+        "    raise AssertionError('an unknown family was accepted')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, drake_family], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
 def test_a_closed_pipe_exits_quietly():
     proc = subprocess.run(
         f"{sys.executable} -m reports.cli list --json | head -c 10",
