@@ -78,6 +78,33 @@ def check_engines(engines) -> list[str]:
     return list(dict.fromkeys(by_lower[e.lower()] for e in engines))
 
 
+def check_engine_settings(scs) -> None:
+    """A system file's ``[engine_settings]``: each table names a registered engine and each
+    setting one its system builder takes (where the builder declares them), or InputError
+    naming the file, the field, the value and the rule, before any run: a misspelt engine
+    would otherwise be ignored, a misspelt setting fail every run of that engine."""
+    from references.engines import engine_names
+    from references.engines.system import builder_settings
+
+    known_engines = engine_names()
+    for sc in scs:
+        for engine, values in (getattr(sc, "engine_settings", None) or {}).items():
+            if engine not in known_engines:
+                raise InputError(
+                    f"invalid scenario file {sc.path}: engine_settings.{engine} = {values!r}: "
+                    f"not a registered engine{_did_you_mean(engine, known_engines)}; known: "
+                    f"{', '.join(known_engines)}"
+                )
+            known = builder_settings(engine)
+            for name, value in values.items():
+                if known is not None and name not in known:
+                    raise InputError(
+                        f"invalid scenario file {sc.path}: engine_settings.{engine}.{name} = "
+                        f"{value!r}: not a setting of {engine}'s system builder"
+                        f"{_did_you_mean(name, known)}; known: {', '.join(known) or 'none'}"
+                    )
+
+
 def check_integrators(integrators, engines: list[str]) -> list[str] | None:
     """The display names of the integrators asked for, each offered by at least one of
     ``engines``. A name is given as displayed ("semi-implicit Euler", quoted in a shell) or
@@ -183,6 +210,7 @@ def run(
     except OSError as exc:  # a name the file system cannot hold (over 255 bytes)
         raise InputError(f"--out {out}: {exc.strerror or exc}") from None
     scs = resolve_scenarios(names, all_scenarios)
+    check_engine_settings(scs)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}

@@ -40,6 +40,14 @@ def cases(tmp_path):
     unknown_family = user_file(
         tmp_path, "fam.toml", FREE.read_text() + '\n[tolerances."RK9000"]\nattitude_error_max = 1\n'
     )
+    four_bar = (Path(scenarios.library_path()) / "systems" / "four_bar.toml").read_text()
+    settings_engine = user_file(
+        tmp_path, "set_engine.toml", four_bar + "\n[engine_settings.mujocoo]\nsolref = [0.004, 1]\n"
+    )
+    settings_name = user_file(
+        tmp_path, "set_name.toml", four_bar + "\n[engine_settings.mujoco]\nsolreff = [0.004, 1]\n"
+    )
+    exact = ["--engines", "exact", "--out", out]
     list_json = user_file(tmp_path, "list.json", "[1, 2, 3]")
     digits = "1" + "0" * 5000  # an integer beyond Python's 4300-digit conversion limit
     big_dt = user_file(tmp_path, "big_dt.json", '{"format": 3, "runs": [{"dt": ' + digits + "}]}")
@@ -70,6 +78,8 @@ def cases(tmp_path):
         (["run", "no_such_scenario", "--out", out], 2, ["no_such_scenario", "dzhanibekov"]),
         (["run", str(FREE), twin, "--out", out], 2, ["free_tumbling", "twin.toml", "are named"]),
         (["run", unknown_family, "--out", out], 2, ["RK9000", "families"]),
+        (["run", settings_engine, *exact], 2, ["set_engine.toml", "mujocoo = {", "'mujoco'?"]),
+        (["run", settings_name, *exact], 2, ["set_name.toml", "solreff = [0.004", "builder"]),
         (["report", str(tmp_path / "nowhere")], 2, ["nowhere", "no results store"]),
         (["report", str(empty_dir)], 2, ["empty", "no results store"]),
         (["check", str(empty_dir), "--baseline", list_json], 2, ["list.json", "baseline"]),

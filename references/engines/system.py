@@ -70,6 +70,18 @@ def builder(engine: str):
         ) from None
 
 
+def builder_settings(engine: str) -> tuple[str, ...] | None:
+    """The names of the settings ``engine``'s system builder takes (the ``_SETTINGS`` its
+    ``simulate_system`` checks the file's ``[engine_settings.<engine>]`` against), or None
+    when the engine has no builder or its builder declares none."""
+    try:
+        mod = builder(engine)
+    except Unsupported:
+        return None
+    known = getattr(mod, "_SETTINGS", None)
+    return None if known is None else tuple(known)
+
+
 def run_system(
     engine: str,
     scenario,
