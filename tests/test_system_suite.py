@@ -217,10 +217,11 @@ def test_the_system_figure_titles_only_the_panels_it_draws(tmp_path):
     from reports.run.runner import execute
     from reports.store.results import RunSpec
 
-    titles = {}
+    titles, alts = {}, {}
 
     def save(fig, path, alt):
         titles[path.name] = [ax.get_title() for ax in fig.axes if ax.get_title()]
+        alts[path.name] = alt
         return path
 
     for name, dt in (("four_bar", 2e-3), ("spinning_chain", 1e-3)):
@@ -234,6 +235,12 @@ def test_the_system_figure_titles_only_the_panels_it_draws(tmp_path):
     assert titles["spinning-chain__system.png"] == [
         f"spinning_chain: joints, energy and momentum over time at dt = {1e-3:g} s"
     ]
+    # the alt text says the same, in words, and counts the configurations drawn
+    assert alts["four-bar__system.png"] == (
+        f"four_bar: per engine and integrator at dt = {2e-3:g} s, the largest loop closure gap "
+        "in m and the energy drift over time, log axes, 1 line(s) of configurations"
+    )
+    assert "gap in m, the energy drift and the momentum drift" in alts["spinning-chain__system.png"]
 
 
 def test_system_fields_are_the_director_models():

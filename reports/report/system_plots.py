@@ -94,20 +94,27 @@ def system_plot(
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(0, max(float(s["t"][-1]) for *_, s in runs))
     dt = "" if math.isnan(h) else f" at dt = {h:g} s"
-    drawn = [p[3] for p in panels]
-    drawn = ", ".join(drawn[:-1]) + " and " + drawn[-1] if len(drawn) > 1 else drawn[0]
-    axes[0].set_title(f"{scenario}: {drawn} over time{dt}", fontsize=10)
+    axes[0].set_title(f"{scenario}: {_and([p[3] for p in panels])} over time{dt}", fontsize=10)
     if legend is not None:
         legend(axes[0])
     else:
         axes[0].legend(fontsize=7, ncol=2, loc="best")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    said = {
+        "joints": f"the largest {'loop closure' if loops else 'joint'} gap in m",
+        "energy": "the energy drift",
+        "momentum": "the momentum drift",
+    }
+    n_ref = sum(1 for row, *_ in runs if is_reference_record(row))
     alt = (
-        f"{scenario}: per engine and integrator{dt}, the "
-        + ("loop closure's gap" if loops else "largest joint gap")
-        + " in m, the energy drift"
-        + (" and the momentum drift" if any("momentum_drift" in s for *_, s in runs) else "")
-        + f" over time, log axes, {len(runs)} line(s) of configurations"
+        f"{scenario}: per engine and integrator{dt}, {_and([said[p[3]] for p in panels])} "
+        f"over time, log axes, {len(runs) - n_ref} line(s) of configurations"
+        + (" and the reference" if n_ref else "")
     )
     return save(fig, out / f"{slug(scenario)}__system.png", alt=alt)
+
+
+def _and(words: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return ", ".join(words[:-1]) + " and " + words[-1] if len(words) > 1 else words[0]
