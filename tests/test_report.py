@@ -465,6 +465,27 @@ def test_every_configuration_has_a_colour_of_its_own(df):
     assert len(configs) >= 6 and len(set(colours)) == len(configs)
 
 
+def test_configurations_whose_colours_look_alike_have_different_markers():
+    """The palette's second ten colours repeat the hues of the first ten (#2ca02c and #31a354
+    are both green): configuration k and k + 10 must not also share a marker, or a figure
+    whose runs show as markers only (a one-step work-precision point) cannot tell them apart.
+    No two of 40 configurations share both colour and marker."""
+    import pandas as pd
+
+    import reports.report.plots as plots
+
+    df = pd.DataFrame(
+        {"engine": [f"e{k:02d}" for k in range(40)], "integrator": "x", "family": "f"}
+    )
+    styles = plots.Styles(df)
+    looks = [
+        (s["color"], s["marker"])
+        for s in (styles.of(r, always_marker=True) for r in df.to_dict("records"))
+    ]
+    assert len(set(looks)) == 40
+    assert all(looks[k][1] != looks[k + 10][1] for k in range(30))
+
+
 def test_scorecard_picture_is_written_as_png_and_svg_with_text(folder):
     """The scorecard picture for a README: a PNG and an SVG whose words are text (found by
     search, small), naming every scenario and configuration."""

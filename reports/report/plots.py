@@ -104,7 +104,9 @@ EXTRA_STYLES = (
     (0, (2, 1)),
 )
 
-#: markers, given out with the colours (a second cue where two colours look alike)
+#: markers, given out with the colours (a second cue where two colours look alike: the second
+#: half of :data:`PALETTE` repeats the hues of the first, so the markers shift by one each time
+#: the colours wrap past ten, :meth:`Styles.__init__`)
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 
 #: the top of the log axes, per series column: beyond it a run has blown up (the metric
@@ -175,7 +177,8 @@ class Styles:
             key=lambda p: (engine_key(p[0]), p[1]),
         )
         self.colour = {p: PALETTE[k % len(PALETTE)] for k, p in enumerate(pairs)}
-        self.marker = {p: MARKERS[k % len(MARKERS)] for k, p in enumerate(pairs)}
+        n = len(MARKERS)
+        self.marker = {p: MARKERS[(k + k // n) % n] for k, p in enumerate(pairs)}
 
     def of(self, row, always_marker: bool = False, engines=None) -> dict:
         """Style of a configuration's line (a group of coinciding configurations drawn as one
