@@ -243,6 +243,36 @@ def test_the_system_figure_titles_only_the_panels_it_draws(tmp_path):
     assert "gap in m, the energy drift and the momentum drift" in alts["spinning-chain__system.png"]
 
 
+def test_a_numerical_reference_is_not_called_exact(tmp_path):
+    """The reference of a tree without a closed form is integrated (DOP853 to its error
+    estimate): tables and legends call it the numerical reference; a closed form stays the
+    exact reference."""
+    import pandas as pd
+
+    from reports.report.labels import config_label
+    from reports.report.plots import SeriesCache, _plt
+    from reports.report.system_plots import system_plot
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
+
+    legends = {}
+
+    def save(fig, path, alt):
+        legends[path.name] = [t.get_text() for lg in fig.legends for t in lg.get_texts()] + [
+            t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()
+        ]
+        return path
+
+    sc = scenarios.load("double_pendulum_3d").replace(t_end=0.01, save_every=1)
+    ref = execute(RunSpec(sc, "exact", "reference", 1e-3), tmp_path)
+    assert ref["status"] == "ok" and ref["reference_kind"] == "numerical", ref["message"]
+    assert config_label(ref) == "numerical reference"
+    assert config_label({**ref, "reference_kind": "spinning_chain"}) == "exact reference"
+    assert config_label({**ref, "engine": "mujoco", "integrator": "RK4"}) == "mujoco RK4"
+    system_plot(pd.DataFrame([ref]), 1e-3, SeriesCache(tmp_path), tmp_path, sc.name, _plt(), save)
+    assert "numerical reference" in legends["double-pendulum-3d__system.png"]
+
+
 def test_system_fields_are_the_director_models():
     """The scenario's bodies and joints carry exactly the fields of director_model.system's
     Body and Joint (the contract with the engine builders)."""

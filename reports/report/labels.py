@@ -38,11 +38,22 @@ def families_of(df) -> list[str]:
     return sorted({f for f in df["family"] if f}, key=family_key)
 
 
+def reference_label(row) -> str:
+    """What a reference run is: ``exact reference`` for a closed form, ``numerical reference``
+    for one integrated to its error estimate (``reference_kind`` ``numerical``: DOP853), so
+    that no table or legend calls an integration exact."""
+    kind = row.get("reference_kind")
+    return "numerical reference" if kind == "numerical" else "exact reference"
+
+
 def config_label(row, with_step: bool = False) -> str:
     """``mujoco RK4``; a configuration whose time loop is the suite's own code around the
-    engine's dynamics reads ``pinocchio + suite RKMK4`` (its wall time includes our Python).
+    engine's dynamics reads ``pinocchio + suite RKMK4`` (its wall time includes our Python);
+    the suite's reference run reads as :func:`reference_label` says.
     ``with_step``: the step (``dt 2e-3``) or, for an error-controlled integrator, its target
     accuracy (``tol 1e-8``)."""
+    if (row.get("engine"), row.get("integrator")) == ("exact", "reference"):
+        return reference_label(row)
     sep = " + suite " if truthy(row.get("suite_integrated")) else " "
     text = f"{row['engine']}{sep}{row['integrator']}"
     acc = num(row.get("target_accuracy"))

@@ -52,6 +52,7 @@ from reports.report.labels import (
     config_label,
     engine_key,
     family_key,
+    reference_label,
 )
 from reports.report.tables import at_scenario_dt, scenario_dt
 from reports.store.atomic import write_text
@@ -596,6 +597,12 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     return _save(fig, out / f"{slug(scenario)}__errors.png", alt=alt, notes=notes)
 
 
+def _reference_name(rows) -> str:
+    """:func:`reference_label` of the reference run among ``rows``."""
+    exact = rows[reference_rows(rows)]
+    return reference_label(exact.iloc[0]) if len(exact) else "exact reference"
+
+
 def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> list:
     """One panel of the errors figure; returns (label, t) of the lines cut at its top."""
     lines = []
@@ -644,7 +651,7 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> lis
             np.where(y > 0, np.maximum(y, bottom), np.nan),
             color="0.55",
             lw=1.0,
-            label="exact reference\n(its round-off)" if column == "energy_drift" else None,
+            label=f"{_reference_name(rows)}\n(its round-off)" if column == "energy_drift" else None,
         )
     if column == "attitude_error":
         acc = float(np.nanmax(rows["reference_accuracy"]))
@@ -709,6 +716,7 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
     ref = cache.get(exact.iloc[0]) if len(exact) else None
     if ref is None:
         return None
+    ref_name = reference_label(exact.iloc[0])
     t_ref = ref["t"]
     w_ref = np.column_stack([ref["wx"], ref["wy"], ref["wz"]])
     wmax = float(np.max(np.abs(w_ref))) or 1.0
@@ -744,7 +752,7 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
                 lo, hi = min(lo, float(y.min())), max(hi, float(y.max()))
         pad = 0.15 * max(hi - lo, 0.05 * wmax)
         lims.append((lo - pad, hi + pad))
-        ax.plot(*_thin(t_ref[sel], w), color="0.6", lw=4.0, label="exact reference", zorder=1)
+        ax.plot(*_thin(t_ref[sel], w), color="0.6", lw=4.0, label=ref_name, zorder=1)
     notes, noted = 0, set()
     before, outside = [], {}
     for g in shown:
@@ -793,7 +801,7 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
         )
     drawn = [g.label for g in shown if cache.get(g.first)["t"][-1] >= t0]
     alt = (
-        f"{scenario}: body angular velocity W1, W2, W3 against the exact reference"
+        f"{scenario}: body angular velocity W1, W2, W3 against the {ref_name}"
         + (f", drawn for {name_list(drawn)}" if drawn else ", no configuration drawn")
         + f"; {len(hidden)} configuration group(s) within {RATES_VISIBLE:.0%} not drawn."
     )
