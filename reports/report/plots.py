@@ -533,7 +533,7 @@ ERROR_PANELS = catalog.ERROR_PANELS
 def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
     """Running maxima of the attitude, energy and momentum errors against time at the
     scenario's dt (three log panels sharing t), one line per group of coinciding
-    configurations; the exact reference's own drift (its round-off) in grey; the band below
+    configurations; the reference's own drift (a closed form's round-off) in grey; the band below
     the reference's accuracy shaded; curves beyond :data:`CAPS` cut and marked, and named
     under the figure."""
     rows, h = _plot_rows(df, scenario)
@@ -597,10 +597,12 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     return _save(fig, out / f"{slug(scenario)}__errors.png", alt=alt, notes=notes)
 
 
-def _reference_name(rows) -> str:
-    """:func:`reference_label` of the reference run among ``rows``."""
+def _reference_drift_label(rows) -> str:
+    """The legend of the reference's own drift: a closed form's is its round-off, a numerical
+    reference's its integration error as well."""
     exact = rows[reference_rows(rows)]
-    return reference_label(exact.iloc[0]) if len(exact) else "exact reference"
+    name = reference_label(exact.iloc[0]) if len(exact) else "exact reference"
+    return f"{name}\n({'its round-off' if name == 'exact reference' else 'its own drift'})"
 
 
 def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> list:
@@ -651,7 +653,7 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> lis
             np.where(y > 0, np.maximum(y, bottom), np.nan),
             color="0.55",
             lw=1.0,
-            label=f"{_reference_name(rows)}\n(its round-off)" if column == "energy_drift" else None,
+            label=_reference_drift_label(rows) if column == "energy_drift" else None,
         )
     if column == "attitude_error":
         acc = float(np.nanmax(rows["reference_accuracy"]))
