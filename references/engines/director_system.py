@@ -10,6 +10,8 @@ from references.errors import Diverged, EngineError, Unsupported
 
 #: the director schemes that integrate systems
 SCHEMES = ("rattle", "rattle4", "rattle6")
+#: the [engine_settings.director] names taken (director_model.system.simulate's ``solver``)
+_SETTINGS = ("solver",)
 
 
 def model(scenario):

@@ -40,6 +40,8 @@ INITIAL_TOL = 1e-12
 #: this fraction of the system's size in position
 HORIZON_ATTITUDE = 1e-2
 HORIZON_POSITION = 1e-2
+#: the [engine_settings.exact] names taken: none (the reference has no knobs)
+_SETTINGS = ()
 
 
 @dataclass
