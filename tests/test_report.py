@@ -121,6 +121,35 @@ def test_settings_show_every_value_that_ran(folder, df):
     assert rows and all("0.001" in r and "0.002" in r for r in rows)
 
 
+def test_settings_print_a_negative_zero_as_zero():
+    """An engine records a centre of mass at [-0.0, -0.0, 0.1] (a negated zero coordinate):
+    the report shows 0 there, keeps every other number as recorded, and the stored value is
+    left as it is."""
+    import pandas as pd
+
+    from reports.report.tables import _setting, settings_table
+
+    stored = json.dumps(
+        {
+            "local COM": [-0.0, -0.0, 0.1],
+            "inertial frame": "diaginertia at [-0.0, -0, 0.075], tilt -0.05, -1.0e-0, x-0",
+            "timestep": -0.0,
+        }
+    )
+    df = pd.DataFrame(
+        [{"engine": "mjx", "integrator": "Euler", "scenario": "heavy_top", "settings": stored}]
+    )
+    shown = {e["setting"]: e["values"] for e in settings_table(df)}
+    assert shown == {
+        "local COM": ["[0.0, 0.0, 0.1]"],
+        "inertial frame": ["diaginertia at [0.0, 0, 0.075], tilt -0.05, -1.0e-0, x-0"],
+        "timestep": ["0.0"],
+    }
+    assert (_setting(-0.0), _setting(-0.5), _setting("(-0.0, 1)")) == ("0", "-0.5", "(0.0, 1)")
+    assert json.loads(df["settings"][0])["local COM"][0] == 0.0  # still stored as recorded
+    assert str(json.loads(df["settings"][0])["local COM"][0]) == "-0.0"
+
+
 def _cells(line: str) -> int:
     """Cells of a Markdown table row: pipes not escaped with a backslash, minus the borders."""
     return len(re.findall(r"(?<!\\)\|", line)) - 1

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 
@@ -189,7 +190,7 @@ def settings_table(df) -> list[dict]:
         if not isinstance(s, dict):
             continue
         for k, v in s.items():
-            text = v if isinstance(v, str) else json.dumps(v)
+            text = unsigned_zeros(v if isinstance(v, str) else json.dumps(v))
             key = (r["engine"], r["integrator"], k)
             per.setdefault(key, {}).setdefault(r["scenario"], set()).add(text)
     out = []
@@ -253,12 +254,26 @@ def closure_settings(row, short: bool = False) -> str:
     if parts:
         return ", ".join(parts)
     first = str(s["loop closures"][0])
-    return first.split(": ", 1)[-1]
+    return unsigned_zeros(first.split(": ", 1)[-1])
 
 
 def _setting(v) -> str:
-    """A setting's value as it was given (``0.02``, ``1e-09``), not rounded like a metric."""
-    return f"{v:g}" if isinstance(v, float | int) and not isinstance(v, bool) else str(v)
+    """A setting's value as it was given (``0.02``, ``1e-09``), not rounded like a metric;
+    a negative zero as 0."""
+    text = f"{v:g}" if isinstance(v, float | int) and not isinstance(v, bool) else str(v)
+    return unsigned_zeros(text)
+
+
+#: a number in a text that is a negative zero (``-0``, ``-0.0``, ``-0e+00``): a minus sign not
+#: inside a word or number, a zero mantissa, and no digit, letter or point after it
+_NEGATIVE_ZERO = re.compile(r"(?<![\w.])-(0(?:\.0*)?(?:[eE][+-]?\d+)?)(?![\w.])")
+
+
+def unsigned_zeros(text: str) -> str:
+    """``text`` with every negative zero written without its sign (an engine that negates a
+    zero coordinate records ``[-0.0, -0.0, 0.1]``; the report shows ``[0.0, 0.0, 0.1]``).
+    For display only: the stored value is not changed."""
+    return _NEGATIVE_ZERO.sub(r"\1", text)
 
 
 def _value_key(text: str):
