@@ -416,6 +416,44 @@ def _narrow(real):
     return new
 
 
+def _overlapping_texts(fig) -> list:
+    """The pairs of visible texts drawn on a figure's axes (annotations, ax.text) whose boxes
+    overlap, by matplotlib's own extents."""
+    r = fig.canvas.get_renderer()
+    boxes = [
+        (t.get_text(), t.get_window_extent(r))
+        for ax in fig.axes
+        for t in ax.texts
+        if t.get_visible() and t.get_text()
+    ]
+    return [
+        (a, b) for i, (a, ba) in enumerate(boxes) for b, bb in boxes[i + 1 :] if ba.overlaps(bb)
+    ]
+
+
+def test_each_diverged_configuration_is_told_apart_on_the_errors_figure(tmp_path, monkeypatch):
+    """heavy_top at dt = 1e-3 s, where MuJoCo's Euler diverges at 2.58 s and Drake's
+    semi-explicit Euler at 1.64 s (the default suite's numbers): the figure's texts do not
+    overlap, and each configuration's legend entry carries its own divergence time."""
+    import reports.report.plots as plots
+
+    sc = scenarios.load("heavy_top").replace(dt_sweep=(1e-3,))
+    specs = plan([sc], ("exact", "mujoco", "drake"), ("reference", "Euler", "semi_explicit_euler"))
+    run_suite(specs, tmp_path, progress=False)
+    df = read_results(tmp_path)
+    diverged = df[df["status"] == "diverged"]
+    assert len(diverged) == 2 and diverged["t_diverged"].nunique() == 2
+    kept = _capture_figures(monkeypatch)
+    plots.errors_plot(df, plots.SeriesCache(tmp_path), tmp_path, "heavy_top", plots.Styles(df))
+    ((path, fig),) = kept
+    assert _overlapping_texts(fig) == []
+    assert _outside(fig, path) == []
+    legend = [" ".join(t.get_text().split()) for t in fig.axes[0].get_legend().get_texts()]
+    for r in diverged.to_dict("records"):
+        (entry,) = [lab for lab in legend if lab.startswith(f"{r['engine']} {r['integrator']}")]
+        assert f"diverged at {fmt(r['t_diverged'])} s" in entry, (entry, r["t_diverged"])
+
+
 def test_figures_name_what_they_leave_out(folder, df, tmp_path):
     """A configuration not drawn (never within 0.1 rad, no run finished) or cut off at a
     panel's top is named under the figure, not counted."""

@@ -27,7 +27,9 @@ style per integrator family (:data:`FAMILY_STYLE`). Configurations whose results
 (reports.report.groups) are one line labelled with all of them. Every figure is as wide
 as its legend needs (:func:`_fit`: the legend sits beside the axes and is never cut). A
 curve that leaves the plot (a diverged run, an error beyond :data:`CAPS`) is cut where it
-leaves and marked there; a diverged run's end is marked with its time; every configuration
+leaves and marked there; a diverged run's end is marked with a cross, and its legend entry
+says when it diverged (``... (diverged at 1.64 s)``: several crosses close together are told
+apart by their lines and entries, not by texts that could overlap); every configuration
 cut, left out or not drawn is named under the figure. Beside each PNG a ``.json`` file holds
 its alt text and its lines as polylines, which the HTML report uses to name the line under
 the pointer.
@@ -492,25 +494,19 @@ def _flat(label) -> str:
     return " ".join(str(label).split()) if label else ""
 
 
-def _status_note(ax, x, y, text, k: int) -> None:
-    """A cross where a diverged run ends, and its text (the k-th such note) beside it, on
-    the side of the axes with more room."""
+def _diverged_mark(ax, x, y) -> None:
+    """A cross where a diverged run ends (its time is in its legend entry,
+    :func:`_line_label`)."""
     ax.plot(x, y, marker="x", ms=9, mew=2.2, color="#b00020", clip_on=False, zorder=6)
-    if text:
-        lo, hi = ax.get_xlim()
-        right = (x - lo) < 0.5 * (hi - lo)
-        ax.annotate(
-            text,
-            (x, y),
-            xytext=(9 if right else -9, -4 - 11 * k),
-            textcoords="offset points",
-            ha="left" if right else "right",
-            va="top",
-            fontsize=8.5,
-            color="#b00020",
-            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
-            zorder=7,
-        )
+
+
+def _line_label(g) -> str:
+    """A time plot's legend entry for a group of configurations: :func:`plot_label`, and for
+    a diverged group when it diverged, on a line of its own."""
+    label = plot_label(g.rows)
+    if g.outcome == "diverged":
+        label += f"\n(diverged at {fmt(g.value('t_diverged'))} s)"
+    return label
 
 
 def _plot_rows(df, scenario):
@@ -564,7 +560,7 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     for ax, (column, ylabel, scale_col, unit) in zip(axes, panels, strict=True):
         if system and column == "attitude_error":
             ylabel = "attitude error [rad]\n(largest over bodies)"
-        left = _error_panel(ax, rows, groups, ref, column, styles, show_notes=ax is axes[0])
+        left = _error_panel(ax, rows, groups, ref, column, styles)
         for name, t_left in left:
             off.setdefault(name, []).append((column, t_left))
         if scale_col and rows[scale_col].notna().any():
@@ -605,7 +601,7 @@ def _reference_drift_label(rows) -> str:
     return f"{name}\n({'its round-off' if name == 'exact reference' else 'its own drift'})"
 
 
-def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> list:
+def _error_panel(ax, rows, groups, ref, column, styles) -> list:
     """One panel of the errors figure; returns (label, t) of the lines cut at its top."""
     lines = []
     for g, s in groups:
@@ -622,8 +618,6 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> lis
         ry = ref_line[1][np.isfinite(ref_line[1]) & (ref_line[1] > 0)]
         if ry.size:
             bottom = min(bottom, max(FLOOR, float(ry.min()) / 3.0))
-    notes = 0
-    noted = set()
     left_top = []
     for t, y, g in lines:
         st = styles.of(g.first, engines=g.engines)
@@ -632,20 +626,16 @@ def _error_panel(ax, rows, groups, ref, column, styles, show_notes: bool) -> lis
             "color": st["color"],
             "linestyle": st["linestyle"],
             "lw": 1.7,
-            "label": plot_label(g.rows),
+            "label": _line_label(g),
         }
         if np.isfinite(y).sum() > 1:  # markevery needs a drawn line
             mk = styles.of(g.first, always_marker=True)["marker"]
             kw.update(marker=mk, markevery=(0.04 + 0.025 * len(ax.lines), 0.2), ms=5)
         _, left = _clip_at(ax, t, y, top, **kw)
         if left is not None:
-            left_top.append((_flat(kw["label"]), left[0]))
+            left_top.append((_flat(plot_label(g.rows)), left[0]))
         if g.outcome == "diverged" and np.isfinite(y).any():
-            x, yy = left if left is not None else (t[-1], min(np.nanmax(y), top))
-            text = f"diverged at {fmt(g.value('t_diverged'))} s"
-            _status_note(ax, x, yy, "" if text in noted or not show_notes else text, notes)
-            noted.add(text)
-            notes += 1
+            _diverged_mark(ax, *(left if left is not None else (t[-1], min(np.nanmax(y), top))))
     if ref_line is not None:
         t, y = ref_line
         ax.plot(
@@ -755,15 +745,14 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
         pad = 0.15 * max(hi - lo, 0.05 * wmax)
         lims.append((lo - pad, hi + pad))
         ax.plot(*_thin(t_ref[sel], w), color="0.6", lw=4.0, label=ref_name, zorder=1)
-    notes, noted = 0, set()
     before, outside = [], {}
     for g in shown:
         s = cache.get(g.first)
         st = styles.of(g.first, always_marker=True)
         t = s["t"]
-        label = plot_label(g.rows)
+        label = _line_label(g)
         if t[-1] < t0:
-            before.append(f"{_flat(label)} (diverged at {fmt(g.value('t_diverged'))} s)")
+            before.append(_flat(label))
             continue
         m = (t >= t0) & (t <= t1)
         for k, (ax, col) in enumerate(zip(axes, ("wx", "wy", "wz"), strict=True)):
@@ -771,12 +760,11 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
                 ax, *_thin(t[m], s[col][m]), lims[k], st, label if k == 0 else None, _flat(label)
             )
             if left is not None:
-                outside.setdefault(_flat(label), []).append(f"W{'₁₂₃'[k]} at t = {fmt(left)} s")
+                outside.setdefault(_flat(plot_label(g.rows)), []).append(
+                    f"W{'₁₂₃'[k]} at t = {fmt(left)} s"
+                )
         if g.outcome == "diverged" and t0 <= t[-1] <= t1:
-            text = f"diverged at {fmt(g.value('t_diverged'))} s"
-            _status_note(axes[0], t[-1], lims[0][1], "" if text in noted else text, notes)
-            noted.add(text)
-            notes += 1
+            _diverged_mark(axes[0], t[-1], lims[0][1])
     for k, ax in enumerate(axes):
         ax.set_ylim(*lims[k])
         ax.set_ylabel(f"W{'₁₂₃'[k]} [rad/s]")
