@@ -113,7 +113,7 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
     need nothing being compiled. Without this, two workers would compile the same kernels at
     once (numba has no lock between processes), each paying the whole compilation. Units
     are handed out in the order given, skipping those that must wait; at most
-    :data:`IN_FLIGHT_EXTRA` more than the workers are in flight at a time."""
+    :data:`IN_FLIGHT_PER_WORKER` per worker are in flight at a time."""
     jobs = jobs or os.cpu_count() or 1
 
     def mapper(fn, specs, keys: Callable | None = None):
@@ -139,7 +139,7 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
         try:
             n_done = 0
             while gate.pending or running:
-                while len(running) < jobs + IN_FLIGHT_EXTRA:
+                while len(running) < IN_FLIGHT_PER_WORKER * jobs:
                     unit, compiles = gate.next()
                     if unit is None:
                         break
@@ -167,10 +167,10 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
     return mapper
 
 
-#: units of work in flight beyond one per local worker: one waiting, so that a worker never
-#: waits for the parent to hand out its next unit, and no more, so that units start in about
-#: the order given
-IN_FLIGHT_EXTRA = 1
+#: units of work in flight per local worker (running or queued): enough that a worker never
+#: waits for the parent (which stores every row as it comes) to hand out its next unit; the
+#: queue is first in, first out, so units still start in the order given
+IN_FLIGHT_PER_WORKER = 4
 
 
 class _Gate:
