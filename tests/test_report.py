@@ -5,6 +5,7 @@ the CI job summary and the README block; on a small real suite with failures in 
 import json
 import math
 import re
+import shutil
 
 import pytest
 
@@ -483,6 +484,64 @@ def test_report_html_shows_key_figures_with_hover_and_alt_text(folder):
     assert page.count("data-lines=") >= 6
     md = (folder / "report.md").read_text()
     assert "![cone_top: running maximum of the attitude error" in md
+
+
+#: added to a copy of report.html: opens every collapsed section and writes into the page, for
+#: each table wider than its container, its section, class and widths (--dump-dom prints it)
+TABLE_WIDTHS = """<script>
+window.addEventListener('load', function () {
+  document.querySelectorAll('details').forEach(function (d) { d.open = true; });
+  var wide = [];
+  document.querySelectorAll('table').forEach(function (t) {
+    var box = t.parentElement.clientWidth, sec = t.closest('section');
+    if (t.scrollWidth > box + 1)
+      wide.push((sec ? sec.id : '') + ' ' + t.className + ': ' + t.scrollWidth + ' in ' + box);
+  });
+  var pre = document.createElement('pre');
+  pre.id = 'table-widths';
+  pre.textContent = JSON.stringify({width: document.documentElement.clientWidth, wide: wide,
+    tables: document.querySelectorAll('table').length});
+  document.body.appendChild(pre);
+});
+</script>"""
+
+
+@pytest.mark.skipif(
+    shutil.which("chromium") is None, reason="Debian's chromium is not installed: not rendered"
+)
+def test_every_table_fits_its_container_at_1400_and_800_px(folder, tmp_path):
+    """In headless Chromium at 1400 px (a laptop) and 800 px (cards), with every section
+    open: no table is wider than its container, so nothing scrolls sideways (free_tumbling's
+    table of every metric was 1326 px in 1320)."""
+    import html as htmlmod
+    import subprocess
+
+    probe = tmp_path / "probe.html"
+    page = (folder / "report.html").read_text()
+    probe.write_text(page.replace("</body>", TABLE_WIDTHS + "</body>"))
+    for width in (1400, 800):
+        dom = subprocess.run(
+            [
+                shutil.which("chromium"),
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--no-first-run",
+                "--hide-scrollbars",
+                f"--user-data-dir={tmp_path / 'profile'}",
+                f"--window-size={width},1600",
+                "--dump-dom",
+                probe.as_uri(),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        ).stdout
+        found = re.search(r'<pre id="table-widths">(.*?)</pre>', dom, flags=re.S)
+        assert found, f"no result in the DOM at {width} px: {dom[-500:]}"
+        check = json.loads(htmlmod.unescape(found.group(1)))
+        assert check["width"] == width and check["tables"] >= 5, check
+        assert check["wide"] == [], check
 
 
 def test_scenario_box_has_the_scenario_s_moments():

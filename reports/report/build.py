@@ -150,6 +150,13 @@ def num(v, text=None) -> Cell:
     return Cell(fmt(v) if text is None else text, num=True)
 
 
+def order_cell(text: str) -> Cell:
+    """A fitted order with its points (``2.00 (3 pts)``): a number that may wrap before its
+    count, so that it does not widen a table of many columns."""
+    parts = text.split(" ", 1)
+    return Cell(text, html_=" ".join(f"<span>{html.escape(t)}</span>" for t in parts), cls="nums")
+
+
 class Doc:
     """Markdown and HTML written side by side."""
 
@@ -679,7 +686,7 @@ def scenario_table(doc: Doc, scenario: str, rows, info) -> None:
             cells.append("; ".join(v or "-" for v in vals) if any(vals) else "-")
         for m in mcols:
             cells.append(num(None, fmt_attitude(fr)) if m == "attitude_error_max" else num(fr[m]))
-        cells.append(num(None, fmt_order(fr)))
+        cells.append(order_cell(fmt_order(fr)))
         cells.append(num(None, fmt_int(fr["order"])))
         cells.append(nums(g.cost("engine_ns_per_step")))
         cells.append(nums(g.cost("ns_per_step")))
@@ -717,7 +724,7 @@ def sweep_table(doc: Doc, scenario: str, sub) -> None:
                 cells.append(Cell(f"diverged {fmt(at.value('t_diverged'))} s", cls="v-diverged"))
             else:
                 cells.append(Cell(out, cls=f"v-{out}"))
-        cells.append(num(None, fmt_order(g.first)))
+        cells.append(order_cell(fmt_order(g.first)))
         cells.append(num(None, fmt_int(g.first["order"])))
         body.append(cells)
     doc.table(f"{scenario}: max attitude error [rad] over the dt sweep", header, body)
@@ -879,6 +886,7 @@ th{background:#f3f3f3;text-align:left;vertical-align:bottom}
 td,th{border:1px solid #d0d7de;padding:3px 7px;vertical-align:top}
 td.num{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}
 table.settings td{overflow-wrap:anywhere}
+table.details{font-size:12.5px} table.details td,table.details th{padding:3px 5px}
 table.scorecard{font-size:12.5px;width:100%;table-layout:fixed}
 table.scorecard th:first-child{width:9.5em}
 table.scorecard td{overflow-wrap:break-word} a.entry .fig.wrap{white-space:normal}
