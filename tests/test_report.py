@@ -204,8 +204,9 @@ def test_figures_are_reused_when_nothing_changed(folder):
     from reports.report.build import build_report
 
     pngs = sorted((folder / "plots").glob("*.png"))
-    # the scenario picture, errors, rates, convergence, work-precision for two scenarios
-    assert len(pngs) == 10
+    # the scenario picture, errors, rates, convergence, work-precision for two scenarios, but
+    # no rates figure for free_tumbling (every configuration within 1 %: a sentence instead)
+    assert len(pngs) == 9
     pngs += [folder / "scorecard.png", folder / "scorecard.svg"]
     before = {p: p.stat().st_mtime_ns for p in pngs}
     build_report(folder)
@@ -468,6 +469,39 @@ def test_figures_name_what_they_leave_out(folder, df, tmp_path):
     assert "not drawn" in meta["alt"] and "mujoco Euler" in meta["alt"]
 
 
+def test_a_rates_figure_of_the_reference_alone_is_a_sentence_instead(folder, df, tmp_path):
+    """free_tumbling here: every configuration's W error stays within 1 % of max |W| of the
+    reference (checked on the stored metric and the reference's own series), so no rates
+    figure is drawn and the report says why in one sentence; cone_top, where mujoco Euler
+    diverges, keeps its figure and no such sentence."""
+    import html as htmlmod
+
+    import numpy as np
+
+    import reports.report.plots as plots
+    from reports.store.results import reference_rows
+
+    cache = plots.SeriesCache(folder)
+    free = df[df["scenario"] == "free_tumbling"]
+    ref = cache.get(free[reference_rows(free)].iloc[0])
+    wmax = float(np.max(np.abs(np.column_stack([ref["wx"], ref["wy"], ref["wz"]]))))
+    runs = free[~reference_rows(free)]
+    assert len(runs) >= 3 and (runs["omega_error_max"] <= 0.01 * wmax).all()
+    styles = plots.Styles(df)
+    assert plots.rates_plot(df, cache, tmp_path, "free_tumbling", styles) is None
+    assert plots.rates_plot(df, cache, tmp_path, "cone_top", styles) is not None
+    assert not (folder / "plots" / "free-tumbling__rates.png").exists()
+    note = plots.rates_left_out(df, cache, "free_tumbling")
+    assert (
+        note.startswith("No rates figure: the W error of all ") and f"({fmt(wmax)} rad/s)" in note
+    )
+    assert plots.rates_left_out(df, cache, "cone_top") == ""
+    md = (folder / "report.md").read_text()
+    free_md = md.split("### free_tumbling")[1]
+    assert note in free_md and note not in md.split("### free_tumbling")[0]
+    assert htmlmod.escape(note) in (folder / "report.html").read_text()
+
+
 def test_report_html_shows_key_figures_with_hover_and_alt_text(folder):
     """Without a click: the scorecard picture and, per scenario, its picture, errors and
     work-precision figures (outside any <details>); every embedded image has an alt text that
@@ -479,7 +513,8 @@ def test_report_html_shows_key_figures_with_hover_and_alt_text(folder):
     for kind in ("scorecard", "scenario", "errors", "work_precision"):
         assert f"class='fig k-{kind}'" in visible, kind
     alts = [htmlmod.unescape(a) for a in re.findall(r"<img alt='([^']*)'", page)]
-    assert len(alts) == page.count("<img ") >= 11
+    # the scorecard and 9 figures (free_tumbling's rates figure is a sentence instead)
+    assert len(alts) == page.count("<img ") >= 10
     assert all(len(a) > 40 and "__" not in a and not a.endswith(".png") for a in alts), alts
     assert page.count("data-lines=") >= 6
     md = (folder / "report.md").read_text()

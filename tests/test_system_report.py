@@ -50,7 +50,8 @@ def test_a_system_gets_its_own_figure_in_view_and_no_error(built, capfd):
     assert "four-bar__system.png" in names
     # a single body's figures are not drawn for a system, nor the system figure for one body
     assert not {"four-bar__rates.png", "four-bar__scenario.png"} & names
-    assert "free-tumbling__rates.png" in names and "free-tumbling__system.png" not in names
+    # (free_tumbling's rates figure is left out: every configuration is within 1 % of W)
+    assert "free-tumbling__scenario.png" in names and "free-tumbling__system.png" not in names
     html = (built / "report.html").read_text()
     section = html[html.index("id='four_bar'") :]
     section = section[: section.index("</section>")]

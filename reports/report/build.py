@@ -47,7 +47,7 @@ from reports.report.labels import (
     fmt_attitude,
     fmt_order,
 )
-from reports.report.plots import figure_meta
+from reports.report.plots import SeriesCache, figure_meta, rates_left_out
 from reports.report.summary_json import write_summary
 from reports.report.tables import (
     ACCURACY_LEVELS,
@@ -775,6 +775,7 @@ def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
     """Per scenario: its facts and key figures in view (:data:`KEY_FIGURES`), then, collapsed
     in HTML, its tables and the other figures."""
     doc.heading(2, "Details")
+    cache = SeriesCache(root)
     for scenario in scenarios_of(df):
         sub = df[df["scenario"] == scenario]
         info = scenario_info(sub)
@@ -824,6 +825,10 @@ def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
         scenario_table(doc, scenario, rows, info)
         sweep_table(doc, scenario, sub)
         wp_table(doc, scenario, sub)
+        if not any(_kind(p) == "rates" for p in figs):  # said instead of an empty figure
+            note = rates_left_out(df, cache, scenario)
+            if note:
+                doc.para(note)
         doc.images(rest, root)
         doc.close_details(md=False)
         doc.raw_html("</section>")

@@ -696,25 +696,19 @@ def _clipped_line(ax, tt, y, lim, st, label, gid):
     return left
 
 
-def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
-    """Body rates W_1, W_2, W_3 against the reference (thick grey), one panel each. Only the
-    configurations whose W error exceeds RATES_VISIBLE of max |W| are drawn (the others are
-    named under the figure); y ranges are the reference's widened to the drawn runs up to
-    RATES_REACH max |W| (a blown-up run is cut where it leaves them, and named). A fast
-    oscillation is shown over its last periods, ending where the last drawn run diverged when
-    every drawn run diverged before the end."""
+def _rates_selection(df, cache: SeriesCache, scenario: str):
+    """What the rates figure of a scenario would draw: None without a reference series, else
+    (rows, dt, reference name, reference series, max |W| of the reference, the groups drawn
+    (diverged, or W error above RATES_VISIBLE max |W|), the labels of those within it)."""
     rows, h = _plot_rows(df, scenario)
     exact = rows[reference_rows(rows)]
     ref = cache.get(exact.iloc[0]) if len(exact) else None
     if ref is None:
         return None
-    ref_name = reference_label(exact.iloc[0])
-    t_ref = ref["t"]
     w_ref = np.column_stack([ref["wx"], ref["wy"], ref["wz"]])
     wmax = float(np.max(np.abs(w_ref))) or 1.0
-    groups = group_rows(rows[~reference_rows(rows)])
     shown, hidden = [], []
-    for g in groups:
+    for g in group_rows(rows[~reference_rows(rows)]):
         err = g.value("omega_error_max")
         if cache.get(g.first) is None:
             continue
@@ -722,6 +716,42 @@ def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles)
             shown.append(g)
         else:
             hidden.append(g.label)
+    return rows, h, reference_label(exact.iloc[0]), ref, wmax, shown, hidden
+
+
+def rates_left_out(df, cache: SeriesCache, scenario: str) -> str:
+    """The sentence the report gives in place of a single body's rates figure that is not
+    drawn because every configuration stays within RATES_VISIBLE of max |W| of the reference
+    (the figure would be the reference alone); '' when the figure is drawn or there is no
+    reference to draw it against."""
+    if is_system(df, cache, scenario):
+        return ""
+    sel = _rates_selection(df, cache, scenario)
+    if sel is None or sel[5] or not sel[6]:
+        return ""
+    _, _, ref_name, _, wmax, _, hidden = sel
+    who = f"all {len(hidden)} configuration groups" if len(hidden) > 1 else "its one configuration"
+    return (
+        f"No rates figure: the W error of {who} stays within {RATES_VISIBLE:.0%} of the "
+        f"{ref_name}'s max |W| ({fmt(wmax)} rad/s) throughout, so the figure would show the "
+        f"{ref_name} alone; the W errors are in the table above."
+    )
+
+
+def rates_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles):
+    """Body rates W_1, W_2, W_3 against the reference (thick grey), one panel each. Only the
+    configurations whose W error exceeds RATES_VISIBLE of max |W| are drawn (the others are
+    named under the figure); y ranges are the reference's widened to the drawn runs up to
+    RATES_REACH max |W| (a blown-up run is cut where it leaves them, and named). A fast
+    oscillation is shown over its last periods, ending where the last drawn run diverged when
+    every drawn run diverged before the end. None when no configuration would be drawn (the
+    report says so instead, :func:`rates_left_out`)."""
+    sel = _rates_selection(df, cache, scenario)
+    if sel is None or not sel[5]:
+        return None
+    rows, h, ref_name, ref, wmax, shown, hidden = sel
+    t_ref = ref["t"]
+    w_ref = np.column_stack([ref["wx"], ref["wy"], ref["wz"]])
     ends = [float(cache.get(g.first)["t"][-1]) for g in shown]
     t_stop = None
     if shown and max(ends) < t_ref[-1] - 1e-12:
