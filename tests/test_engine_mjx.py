@@ -98,6 +98,31 @@ def test_registered_and_named(mjx):
     ]
     for i in mjx.integrators:
         assert i.family in FAMILIES and len(i.description) > 20
+
+
+def test_switching_the_64_bit_mode_keeps_both_precisions_traceable(mjx):
+    """JAX's staging caches ignore the 64-bit mode for an inner ``jit`` of a numpy float64
+    constant (MJX's RK4 tableau goes through ``jnp.tril``): traced in float64 then in float32,
+    the float32 function is lowered with a float64 operand and refused. ``x64_mode`` drops
+    those caches when the mode changes; both functions then compute in their own precision,
+    and the one compiled before the switch still runs. The expected sums are exact (sums of
+    0.5 and 1)."""
+    from references.engines.mjx.compile import _import, x64_mode
+
+    _, jax, _ = _import()
+    A = np.array([[0.5, 0.0, 0.0], [0.5, 0.5, 0.0], [1.0, 0.5, 1.0]])
+
+    def f(x):
+        return jax.numpy.tril(A).sum(axis=0) * x
+
+    out = {}
+    for x64, arg in ((True, np.float64(2.0)), (False, np.float32(2.0)), (True, np.float64(1.0))):
+        with x64_mode(x64):
+            comp = jax.jit(f).lower(arg).compile()
+            out[x64, float(arg)] = np.asarray(comp(arg))
+    assert out[False, 2.0].dtype == np.float32 and out[True, 2.0].dtype == np.float64
+    for key, got in out.items():
+        np.testing.assert_array_equal(got, key[1] * np.array([2.0, 1.0, 1.0]))
     rk4 = mjx.integrator("RK4 (float64)")
     assert rk4.order == 2 and "order 2 in the attitude" in FAMILIES[rk4.family].description
     # the version names the C MuJoCo and JAX it runs with (part of a run's identity)

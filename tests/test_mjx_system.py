@@ -30,7 +30,7 @@ def test_mjx_refuses_the_integrators_it_lacks_and_float32():
             mjx_system.simulate_system(scenario("c", bodies, joints), name, 1e-3, 10, 10)
     with pytest.raises(Unsupported, match="float64 only"):
         mjx_system.simulate_system(scenario("c", bodies, joints), "Euler (float32)", 1e-3, 1, 1)
-    with pytest.raises(ValueError, match="unknown settings"):
+    with pytest.raises(ValueError, match=r"mjx simulate_system: unknown settings \['erp'\]"):
         mjx_system.simulate_system(scenario("c", bodies, joints), "Euler", 1e-3, 1, 1, erp=0.2)
 
 
@@ -154,3 +154,28 @@ def test_mjx_slide_universal_and_cylindrical_joints_equal_c_mujoco():
         assert out["settings"]["tree"] == c["settings"]["tree"]
         for key in ("x", "R", "v", "W"):
             assert np.abs(out[key] - c[key]).max() < 1e-12, (name, key)
+
+
+@pytest.mark.slow
+def test_a_system_in_float64_leaves_a_single_body_in_float32_runnable():
+    """One process steps a system of bodies with MJX's RK4 in float64, then a single body with
+    MJX's RK4 in float32 (the order of a suite run). JAX keeps traces of MJX's RK4 (whose
+    tableau is a numpy float64 constant) in caches not keyed by the 64-bit mode, so without
+    the adapter's precision switch the float32 step was lowered with the float64 tableau and
+    refused ("Cannot lower jaxpr ... tensor<3x3xf32> ... tensor<3x3xf64>"). The float32 run
+    must complete and hold float32 numbers (its RK4 agrees with MJX's float64 RK4 to float32
+    round-off: 1e-4 rad over 100 steps, about 100 * 64 u32 ~ 4e-4 with the margin of the
+    adapter's FLOAT32_INITIAL_RTOL per step, measured below 1e-5)."""
+    from references.engines import conformance as kit
+    from references.engines import get_engine
+
+    bodies, joints = rod_chain(2, hang=True)
+    out = mjx_system.simulate_system(scenario("chain", bodies, joints), "RK4", 1e-3, 20, 10)
+    assert "float64" in out["settings"]["precision"]
+    sc = kit.free_scenario(t_end=0.1)
+    f32 = get_engine("mjx")().run(sc, "RK4 (float32)", sc.dt, save_every=50)
+    assert "float32" in str(f32.settings), f32.settings
+    f64 = get_engine("mjx")().run(sc, "RK4 (float64)", sc.dt, save_every=50)
+    R32, R64 = f32.trajectory.rotation, f64.trajectory.rotation
+    gap = np.linalg.norm(R32 - R64, axis=(-2, -1)).max()
+    assert 0 < gap < 1e-4, gap

@@ -5,16 +5,18 @@ The model is built, checked and read back exactly as for C MuJoCo (:func:`mujoco
 the spanning tree, the initial states checked against every joint, the compiled ``MjModel``
 compared with the scenario, MuJoCo's kinematics of the initial state compared with the
 scenario's world states), then put on the JAX device with ``mjx.put_model(impl="jax")`` and
-``mjx.put_data`` inside ``jax.enable_x64(True)`` (a thread-local setting, as in
-:mod:`references.engines.mjx`). Before the first step the builder checks that MJX holds
-the state handed over bit for bit, in 8-byte floats: a float32 run cannot pass as float64.
+``mjx.put_data`` inside :func:`references.engines.mjx.compile.x64_mode` (``jax.enable_x64``, a
+thread-local setting, as for every JAX call of :mod:`references.engines.mjx`). Before the
+first step the builder checks that MJX holds the state handed over bit for bit, in 8-byte
+floats: a float32 run cannot pass as float64.
 
-Stepping: ``lax.fori_loop`` of ``mjx.step`` between two saves, jitted once per run (JAX's
-persistent compilation cache, set up by :mod:`references.engines.mjx`, serves later
-processes); ``engine_time_s`` is the time inside those calls until their results are ready;
-the compile time is recorded in the settings. The saved states are read from MJX's qpos/qvel
-through the C builder's read-out (MuJoCo's kinematics on a C ``MjData``), so the conversion is
-the C builder's, shared.
+Stepping: ``lax.fori_loop`` of ``mjx.step`` between two saves, compiled ahead of time through
+the single-body adapter's cache (:func:`references.engines.mjx.compile._compiled`, keyed by
+the 64-bit mode and the model's structure: once per model and integrator in a process; JAX's
+persistent compilation cache serves later processes); ``engine_time_s`` is the time inside
+those calls until their results are ready; the compile time is recorded in the settings. The saved
+states are read from MJX's qpos/qvel through the C builder's read-out (MuJoCo's kinematics on
+a C ``MjData``), so the conversion is the C builder's, shared.
 
 Integrators (MJX's JAX backend; docs/engines.md, section MJX): ``Euler`` (MuJoCo's
 semi-implicit Euler), ``RK4`` (MJX's: four stages in the velocities, the positions advanced
@@ -49,6 +51,7 @@ import time
 import numpy as np
 
 from references.engines import mujoco_system as ms
+from references.engines.pinocchio_system import check_settings
 from references.errors import Diverged, EngineError, Unsupported
 
 #: the integrators MJX's JAX backend steps, and what each is
@@ -61,7 +64,10 @@ INTEGRATORS = {
 
 _NOT_IN_MJX = ("implicit", "discrete")
 
-_STEP = {}
+#: the settings ``simulate_system`` takes (``[engine_settings.mjx]``): the C builder's, since
+#: the loop-closing connects are its (read by :func:`references.engines.system.builder_settings`
+#: to refuse a misspelt one before any run)
+_SETTINGS = ms._SETTINGS
 
 
 def _base_name(integrator: str) -> str:
@@ -77,15 +83,16 @@ def _base_name(integrator: str) -> str:
 
 
 def _step_fn():
-    """``(model, data, k) -> data`` after k steps, jitted (one function per process)."""
+    """(jax, mjx, ``(model, data, k) -> data`` after k steps), to be compiled by
+    :func:`references.engines.mjx.compile._compiled`."""
     from references.engines.mjx.compile import _import
 
     _, jax, mjx = _import()
-    if "fn" not in _STEP:
-        _STEP["fn"] = jax.jit(
-            lambda m, d, k: jax.lax.fori_loop(0, k, lambda _, dd: mjx.step(m, dd), d)
-        )
-    return jax, mjx, _STEP["fn"]
+
+    def step(m, d, k):
+        return jax.lax.fori_loop(0, k, lambda _, dd: mjx.step(m, dd), d)
+
+    return jax, mjx, step
 
 
 def read_back(m, mx, scenario) -> None:
@@ -118,6 +125,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     and ``solimp`` of the loop-closing connects) and result as
     :func:`references.engines.mujoco_system.simulate_system`. Raises :class:`Unsupported` for
     a joint or loop the C builder does not build, or an integrator MJX does not implement."""
+    check_settings("mjx", settings, _SETTINGS)
     integrator = _base_name(integrator)
     if integrator in _NOT_IN_MJX:
         raise Unsupported(
@@ -127,8 +135,10 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         raise ValueError(f"integrator {integrator!r} unknown; known: {list(INTEGRATORS)}")
     saves = ms._saves(nstep, save_every)
     mujoco, m, d, pl, bid, rec = ms.build(scenario, integrator, dt, **settings)
+    from references.engines.mjx.compile import _compiled, x64_mode
+
     jax, mjx, step = _step_fn()
-    with jax.enable_x64(True):
+    with x64_mode(True):
         mx = mjx.put_model(m, impl="jax")
         dx = mjx.put_data(m, d, impl="jax")
     read_back(m, mx, scenario)
@@ -138,10 +148,9 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         raise EngineError(f"mjx: the model and state MJX holds are not float64 (widths {widths})")
     if not (np.array_equal(qpos, d.qpos) and np.array_equal(qvel, d.qvel)):
         raise EngineError("mjx: the state MJX holds differs from the state handed over")
-    t0 = time.perf_counter()
-    with jax.enable_x64(True):
-        compiled = step.lower(mx, dx, np.int32(1)).compile()
-    compile_s = time.perf_counter() - t0
+    compiled, compile_s, _ = _compiled(f"system-step-{integrator}", step, (mx, dx),
+                                       (np.int32(1),), True)  # fmt: skip
+    mxl = compiled.leaves(0, mx)
     nb = len(pl.bodies)
     n = len(saves)
     x, v, W = np.empty((n, nb, 3)), np.empty((n, nb, 3)), np.empty((n, nb, 3))
@@ -151,8 +160,8 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     done = 0
     for k in range(1, n):
         t0 = time.perf_counter()
-        with jax.enable_x64(True):
-            dx = compiled(mx, dx, np.int32(saves[k] - done))
+        with x64_mode(True):
+            dx = compiled(mxl, compiled.leaves(1, dx), np.int32(saves[k] - done))
             jax.block_until_ready(dx.qvel)
         engine += time.perf_counter() - t0
         done = int(saves[k])

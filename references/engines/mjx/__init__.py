@@ -15,8 +15,10 @@ Bits: double (64-bit) precision"). Every integrator is offered twice, as named c
 the device, compiling, stepping, the engine's own quantities) runs inside
 ``jax.enable_x64(True)`` or ``jax.enable_x64(False)``, a thread-local setting that overrides
 the process's ``jax_enable_x64`` for that call only. JAX compiles a function separately for
-each setting, so the two precisions coexist in one process whatever the user's global
-setting. The read-back checks the width of the model's and the state's floats (8 or 4 bytes):
+each setting, but some of its in-memory staging caches ignore it, so a switch of the mode
+between runs first drops them (:func:`.compile.x64_mode`); the two precisions then coexist in
+one process, after systems of bodies too, whatever the user's global setting.
+The read-back checks the width of the model's and the state's floats (8 or 4 bytes):
 a float32 run labelled float64 cannot pass.
 
 The initial state of a float32 run. The suite checks the state an engine holds before its

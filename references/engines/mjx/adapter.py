@@ -26,6 +26,7 @@ from references.engines.mjx.compile import (
     _native_fn,
     _states,
     _versions,
+    x64_mode,
 )
 from references.engines.mujoco_engine import MujocoEngine
 from references.errors import EngineError, Unsupported
@@ -146,7 +147,7 @@ class _Handle:
         self.rounding: dict[str, float] = {}
 
     def x64_mode(self):
-        return self.jax.enable_x64(self.x64)
+        return x64_mode(self.x64)
 
     @property
     def dx(self):
@@ -255,7 +256,7 @@ class MjxEngine(Engine):
                 raise Unsupported(f"MuJoCo rejects the scenario's inertia: {exc}") from exc
             raise EngineError(f"MuJoCo could not compile the scenario's model: {exc}") from exc
         d = mujoco.MjData(m)
-        with jax.enable_x64(x64):
+        with x64_mode(x64):
             try:
                 mx = mjx.put_model(m, impl="jax")
             except NotImplementedError as exc:
@@ -478,7 +479,7 @@ def _probe(mj_name: str, pivoted: bool) -> str:
     m = mujoco.MjModel.from_xml_string(MujocoEngine.model_xml(bm, mj_name))
     v = _versions()["mujoco-mjx"]
     try:
-        with jax.enable_x64(True):
+        with x64_mode(True):
             mx = mjx.put_model(m, impl="jax")
             dx = mjx.put_data(m, mujoco.MjData(m), impl="jax")
             jax.eval_shape(mjx.step, mx, dx)

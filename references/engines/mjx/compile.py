@@ -98,6 +98,27 @@ def _import():
     return _MODULES
 
 
+#: the 64-bit mode of the process's last JAX work for MJX (None before any)
+_LAST_X64: list[bool | None] = [None]
+
+
+def x64_mode(x64: bool):
+    """``jax.enable_x64(x64)`` for every JAX call of MJX's adapter and system builder, after
+    dropping JAX's in-memory caches (``jax.clear_caches``) when the process last worked in the
+    other mode. JAX's staging caches are not all keyed by the 64-bit mode: an inner ``jit``
+    traced with a numpy float64 constant keeps that constant's float64 type (jax 0.10.2,
+    measured: ``jnp.tril`` of MJX's RK4 tableau, traced in float64 then in float32, is lowered
+    with a float64 operand for a float32 function and refused, "Cannot lower jaxpr ...
+    tensor<3x3xf32> ... tensor<3x3xf64>"). Functions compiled ahead of time (:data:`_COMPILED`)
+    and JAX's persistent cache are kept. A run works in one mode from its model's upload to its
+    last call, so the caches are dropped at most once per run, before its stopwatch starts."""
+    _, jax, _ = _import()
+    if _LAST_X64[0] is not None and _LAST_X64[0] != x64:
+        jax.clear_caches()
+    _LAST_X64[0] = x64
+    return jax.enable_x64(x64)
+
+
 def _versions() -> dict[str, str]:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -163,7 +184,7 @@ def _compiled(kind: str, fn, trees: tuple, extra: tuple, x64: bool):
         ts = [jax.tree_util.tree_unflatten(d, lv) for d, lv in zip(defs, trees, strict=True)]
         return fn(*ts, *args[len(defs) :])
 
-    with jax.enable_x64(x64):
+    with x64_mode(x64):
         t0 = time.perf_counter()
         comp = jax.jit(on_leaves).lower(*(lv for lv, _ in flat), *extra).compile()
         seconds = time.perf_counter() - t0
