@@ -53,6 +53,9 @@ def cases(tmp_path):
     settings_exact = user_file(
         tmp_path, "set_exact.toml", four_bar + "\n[engine_settings.exact]\nsteps = 10\n"
     )
+    settings_mjx = user_file(
+        tmp_path, "set_mjx.toml", four_bar + "\n[engine_settings.mjx]\nsolrf = [0.004, 1]\n"
+    )
     exact = ["--engines", "exact", "--out", out]
     list_json = user_file(tmp_path, "list.json", "[1, 2, 3]")
     digits = "1" + "0" * 5000  # an integer beyond Python's 4300-digit conversion limit
@@ -88,6 +91,7 @@ def cases(tmp_path):
         (["run", settings_name, *exact], 2, ["set_name.toml", "solreff = [0.004", "builder"]),
         (["run", settings_director, *exact], 2, ["set_dir.toml", "solvr = 'auto'", "'solver'?"]),
         (["run", settings_exact, *exact], 2, ["set_exact.toml", "steps = 10", "known: none"]),
+        (["run", settings_mjx, *exact], 2, ["set_mjx.toml", "mjx.solrf", "'solref'?"]),
         (["report", str(tmp_path / "nowhere")], 2, ["nowhere", "no results store"]),
         (["report", str(empty_dir)], 2, ["empty", "no results store"]),
         (["check", str(empty_dir), "--baseline", list_json], 2, ["list.json", "baseline"]),
