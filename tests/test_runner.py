@@ -116,6 +116,42 @@ def test_engines_running_the_same_algorithm_get_the_same_status():
     assert all(r["energy_drift_max"] <= 1.0 for r in rows)
 
 
+def test_a_long_native_error_keeps_its_first_line_and_points_to_the_whole_text(
+    tmp_path, monkeypatch
+):
+    """A run that fails with a compiler's dump (thousands of characters over many lines, as
+    JAX's "Cannot lower jaxpr" for MJX) is an 'error' row whose message is the first line,
+    where it was raised and the file holding the whole text and the traceback; without an
+    output folder the row keeps the whole text; a short message stays whole."""
+    from references.engines.mujoco_engine import MujocoEngine
+
+    dump = "Cannot lower jaxpr with verifier errors:\n" + "\tat loc(jit(step)/tril)\n" * 150
+
+    def fails(*args, **kwargs):
+        raise ValueError(dump)
+
+    monkeypatch.setattr(MujocoEngine, "run", fails)
+    spec = RunSpec(scenarios.load("free_tumbling").replace(t_end=0.01), "mujoco", "Euler", 1e-3)
+    row = execute(spec, tmp_path)
+    assert row["status"] == "error"
+    msg = row["message"]
+    first = "ValueError: Cannot lower jaxpr with verifier errors: (at test_runner.py:"
+    assert msg.startswith(first), msg
+    assert len(msg) < 300 and "\n" not in msg, msg
+    rel = re.search(r"the whole message: (\S+)\]$", msg).group(1)
+    assert rel.startswith("logs/errors/free-tumbling/mujoco__")
+    text = (tmp_path / rel).read_text()
+    assert dump in text and "Traceback" in text
+    whole = execute(spec)["message"]
+    assert whole.startswith(f"ValueError: {dump} (at test_runner.py:"), whole[-80:]
+
+    def short(*args, **kwargs):
+        raise ValueError("bad")
+
+    monkeypatch.setattr(MujocoEngine, "run", short)
+    assert re.fullmatch(r"ValueError: bad \(at test_runner.py:\d+\)", execute(spec)["message"])
+
+
 def test_a_reference_too_coarse_for_the_tolerance_says_so():
     """A [tolerances] bound on the attitude error below 10x the reference's accuracy cannot be
     judged: the run is reference-inaccurate, with the figure, and gets no verdict."""

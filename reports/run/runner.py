@@ -151,15 +151,44 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
             _run_body(spec, row, cls, integ, sc, out, fmt, progress)
     except EngineError as exc:
         row["status"] = exc.status
-        row["message"] = str(exc)
+        row["message"] = failure_message(str(exc), "", exc, spec, out)
     except StoreUnwritable:
         raise  # the output folder cannot take the results: the work stops, nothing is lost
     except Exception as exc:  # noqa: BLE001 - a run's failure is a row, never a crash
         row["status"] = "error"
         tb = traceback.extract_tb(exc.__traceback__)[-1]
-        row["message"] = f"{type(exc).__name__}: {exc} (at {Path(tb.filename).name}:{tb.lineno})"
+        where = f" (at {Path(tb.filename).name}:{tb.lineno})"
+        row["message"] = failure_message(f"{type(exc).__name__}: {exc}", where, exc, spec, out)
     row["finished_at"] = finish_time()
     return row
+
+
+#: longest failure message a result row holds whole (characters; the suite's own messages
+#: stay below 400, measured on the default suite: at most 323)
+MESSAGE_MAX = 600
+
+
+def failure_message(text: str, where: str, exc: BaseException, spec: RunSpec, out) -> str:
+    """The message of a failed run's row: ``text + where`` when ``text`` has at most
+    :data:`MESSAGE_MAX` characters. A longer one (a compiler's dump runs to thousands of
+    characters) keeps its first line, cut to that length, and ``where``, and names the file of
+    the output folder (``logs/errors/<scenario>/<run>.error.txt``) that holds the whole text
+    and the traceback; without an output folder, or when that file cannot be written, the
+    row keeps the whole text."""
+    if len(text) <= MESSAGE_MAX:
+        return text + where
+    if out is not None:
+        rel = Path("logs", "errors", *trajectory_path(spec, "error.txt").parts[1:])
+        full = "".join(traceback.format_exception(exc))
+        try:
+            (Path(out) / rel).parent.mkdir(parents=True, exist_ok=True)
+            (Path(out) / rel).write_text(f"{text}{where}\n\n{full}", encoding="utf-8")
+        except OSError:
+            return text + where
+        first = text.strip().splitlines()[0]
+        cut = first if len(first) <= MESSAGE_MAX else first[: MESSAGE_MAX - 3] + "..."
+        return f"{cut}{where} [{len(text)} characters; the whole message: {rel.as_posix()}]"
+    return text + where
 
 
 def _prepare(row: dict, spec: RunSpec):
