@@ -14,9 +14,10 @@ Stepping: ``lax.fori_loop`` of ``mjx.step`` between two saves, compiled ahead of
 the single-body adapter's cache (:func:`references.engines.mjx.compile._compiled`, keyed by
 the 64-bit mode and the model's structure: once per model and integrator in a process; JAX's
 persistent compilation cache serves later processes); ``engine_time_s`` is the time inside
-those calls until their results are ready; the compile time is recorded in the settings. The saved
-states are read from MJX's qpos/qvel through the C builder's read-out (MuJoCo's kinematics on
-a C ``MjData``), so the conversion is the C builder's, shared.
+those calls until their results are ready; the compile time, and whether this run compiled,
+are recorded in the settings. The saved states are read from MJX's qpos/qvel through the C
+builder's read-out (MuJoCo's kinematics on a C ``MjData``), so the conversion is the C
+builder's, shared.
 
 Integrators (MJX's JAX backend; docs/engines.md, section MJX): ``Euler`` (MuJoCo's
 semi-implicit Euler), ``RK4`` (MJX's: four stages in the velocities, the positions advanced
@@ -148,7 +149,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         raise EngineError(f"mjx: the model and state MJX holds are not float64 (widths {widths})")
     if not (np.array_equal(qpos, d.qpos) and np.array_equal(qvel, d.qvel)):
         raise EngineError("mjx: the state MJX holds differs from the state handed over")
-    compiled, compile_s, _ = _compiled(f"system-step-{integrator}", step, (mx, dx),
+    compiled, compile_s, now = _compiled(f"system-step-{integrator}", step, (mx, dx),
                                        (np.int32(1),), True)  # fmt: skip
     mxl = compiled.leaves(0, mx)
     nb = len(pl.bodies)
@@ -184,5 +185,6 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         "integrator": f"{integrator}: {INTEGRATORS[integrator]}",
         "precision": "float64 (jax.enable_x64 for every call; widths read back)",
         "compile time s": round(compile_s, 3),
+        "compiled for this run": now,  # else the compile time is the first run's in the process
     }
     return ms._output(saves, dt, x, R, v, W, engine, rec)
