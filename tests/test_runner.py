@@ -57,9 +57,11 @@ def test_rows_files_and_report(tmp_path, dzh):
     assert md.index("## Scorecard") < md.index("## Details")
     assert "**dzhanibekov at dt = 0.001 s**" in md and "rattle" in md.split("## Details")[0]
     html = rep["html"].read_text()
-    # six figures (the scorecard, the scenario, errors, rates, convergence, work-precision),
-    # embedded
-    assert html.count("data:image/png;base64,") == 6 and "src='plots/" not in html
+    # five figures (the scorecard, the scenario, errors, convergence, work-precision),
+    # embedded; over this short horizon every configuration's W error stays within 1 % of
+    # the reference's max |W|, so the rates figure is a sentence instead
+    assert html.count("data:image/png;base64,") == 5 and "src='plots/" not in html
+    assert "No rates figure" in md
     assert (tmp_path / "summary.json").exists()
 
 
