@@ -406,11 +406,13 @@ def kit_checks(mjx):
 
 
 @pytest.mark.slow
-def test_the_kit_fails_only_the_order_of_the_unsupported_integrators(kit_checks):
+def test_the_kit_passes_and_skips_the_order_of_the_integrators_mjx_refuses(kit_checks):
+    # MJX's JAX backend has no implicit or discrete integrator: the adapter refuses them with
+    # its reason (Unsupported), so the kit measures no order for them instead of failing it
     failed = {c.name: c.message for c in kit_checks if not c.ok}
-    assert set(failed) == {"declared order of 'implicit'", "declared order of 'discrete'"}
-    assert all("NotImplementedError" in m for m in failed.values())
+    assert failed == {}
     names = {c.name for c in kit_checks}
+    assert not {"declared order of 'implicit'", "declared order of 'discrete'"} & names
     for mistake in (*kit.STATE_MISTAKES, *kit.MODEL_MISTAKES, "joint damping left on"):
         assert f"catches {mistake} (free)" in names and f"catches {mistake} (pivoted)" in names
 
