@@ -164,8 +164,11 @@ def _scheme(name) -> type[Scheme]:
 
 
 def _vec(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a new writable float array of ``shape``, every entry finite. Always a copy:
+    numba compiles a read-only array (a scenario's frozen gravity) as another type, a second
+    compilation of every kernel it reaches."""
     try:
-        a = np.asarray(value, dtype=float)
+        a = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise InvalidStateError(f"{name} = {value!r}: expected real numbers ({exc})") from None
     if a.shape != shape:

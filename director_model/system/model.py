@@ -67,8 +67,11 @@ class InvalidMechanismError(ValueError):
 
 
 def _vec3(what: str, value, err=InvalidStateError) -> np.ndarray:
+    """``value`` as a new writable float 3-vector (always a copy: numba compiles a read-only
+    array, such as a scenario's frozen one, as another type, a second compilation of every
+    kernel it reaches)."""
     try:
-        a = np.asarray(value, dtype=float)
+        a = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise err(f"{what} = {value!r}: expected 3 real numbers ({exc})") from None
     if a.shape != (3,):

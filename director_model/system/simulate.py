@@ -198,7 +198,7 @@ class SystemStepper:
         if not (dt > 0 and math.isfinite(dt)):
             raise InvalidRunError(f"dt = {dt!r}: the time step must be positive and finite")
         try:
-            g = np.asarray(gravity, dtype=float)
+            g = np.array(gravity, dtype=float)  # a writable copy: see _vec3 in model.py
         except (TypeError, ValueError):
             raise InvalidStateError(f"gravity = {gravity!r}: expected 3 real numbers") from None
         if g.shape != (3,) or not np.all(np.isfinite(g)):
