@@ -78,6 +78,7 @@ def test_rattle6_meets_the_target_from_dt_5e_3(reference):
         assert attitude_error("rattle6", k, True, reference) <= TARGET, k
 
 
+@pytest.mark.slow  # the only test of the plain-sum kernel: its compilation alone is 12 s
 @pytest.mark.parametrize("k", [80, 160, 320])
 def test_plain_sums_have_a_rising_floor(k, reference):
     # same runs with plain sums: the rounding of O(1) quantities at every step adds up and
