@@ -15,7 +15,6 @@ import collections
 import contextlib
 import dataclasses
 import functools
-import json
 import math
 import time
 import traceback
@@ -34,6 +33,7 @@ from reports.store.results import (
     blank_row,
     export,
     finish_time,
+    output_columns,
     read_results,
     trajectory_path,
     write_parquet_table,
@@ -304,20 +304,8 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
     if output is None:
         return
     traj = output.trajectory
-    n = max(output.nstep, 1)
     row.update(
-        nstep=output.nstep,
-        wall_time_s=output.wall_time_s,
-        engine_time_s=output.engine_time_s,
-        glue_time_s=output.glue_time_s,
-        ns_per_step=1e9 * output.wall_time_s / n,
-        engine_ns_per_step=1e9 * output.engine_time_s / n,
-        cpu_time_s=output.cpu_time_s,
-        wall_time_max_s=max((t[0] for t in timings), default=output.wall_time_s),
-        engine_time_max_s=max((t[1] for t in timings), default=output.engine_time_s),
-        timing_repeats=max(len(timings), 1),
-        evals_per_step=output.evals_per_step,
-        settings=json.dumps(output.settings, sort_keys=True, default=str),
+        output_columns(output, timings),
         roundoff_floor=roundoff_floor(sc, output.nstep),
         steps_taken=output.stats.get("steps taken", math.nan),
         steps_rejected=output.stats.get("steps rejected", math.nan),

@@ -11,13 +11,17 @@ trajectory file (Parquet, per-body columns and the error series).
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 from reports.metrics import verdicts
 from reports.metrics.body import roundoff_floor
-from reports.store.results import StoreUnwritable, trajectory_path, write_parquet_table
+from reports.store.results import (
+    StoreUnwritable,
+    output_columns,
+    trajectory_path,
+    write_parquet_table,
+)
 
 
 def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:
@@ -51,19 +55,9 @@ def _measure(row, spec, sc, output, out, fmt):
     if output is None:
         return None
     traj = output.trajectory
-    n = max(output.nstep, 1)
     row.update(
-        nstep=output.nstep,
-        wall_time_s=output.wall_time_s,
-        engine_time_s=output.engine_time_s,
-        glue_time_s=output.glue_time_s,
-        ns_per_step=1e9 * output.wall_time_s / n,
-        engine_ns_per_step=1e9 * output.engine_time_s / n,
-        wall_time_max_s=output.wall_time_s,
-        engine_time_max_s=output.engine_time_s,
-        timing_repeats=1,  # timed once, with no CPU time: its cost spread is not measured
-        evals_per_step=output.evals_per_step,
-        settings=json.dumps(output.settings, sort_keys=True, default=str),
+        # timed once, with no CPU time: its cost spread is not measured
+        output_columns(output, cpu_time=False),
         roundoff_floor=roundoff_floor(sc, output.nstep),
     )
     ref = None

@@ -324,6 +324,31 @@ def blank_row(spec: RunSpec) -> dict:
     return row
 
 
+def output_columns(output, timings=(), cpu_time: bool = True) -> dict:
+    """The columns a run's output fills (a ``RunOutput`` of references.engines): its steps,
+    its timings (the fastest of the ``timings`` repeats, each (wall, engine, CPU) s, with the
+    slowest kept beside it; without repeats the output's own, timed once), the evaluations
+    per step and the settings. ``cpu_time=False``: the output measured no CPU time (a system
+    of bodies, whose builder's call includes the model's construction), left empty."""
+    n = max(output.nstep, 1)
+    cols = dict(
+        nstep=output.nstep,
+        wall_time_s=output.wall_time_s,
+        engine_time_s=output.engine_time_s,
+        glue_time_s=output.glue_time_s,
+        ns_per_step=1e9 * output.wall_time_s / n,
+        engine_ns_per_step=1e9 * output.engine_time_s / n,
+        wall_time_max_s=max((t[0] for t in timings), default=output.wall_time_s),
+        engine_time_max_s=max((t[1] for t in timings), default=output.engine_time_s),
+        timing_repeats=max(len(timings), 1),
+        evals_per_step=output.evals_per_step,
+        settings=json.dumps(output.settings, sort_keys=True, default=str),
+    )
+    if cpu_time:
+        cols["cpu_time_s"] = output.cpu_time_s
+    return cols
+
+
 def finish_time() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
