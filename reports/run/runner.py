@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from reports.metrics import verdicts
-from reports.metrics.body import compute_metrics, roundoff_floor
+from reports.metrics.body import metrics_and_series, roundoff_floor
 from reports.store.atomic import replacing
 from reports.store.results import (
     RunSpec,
@@ -60,14 +60,6 @@ def expected_for(scenario) -> dict:
     from references.exact import expected_observables
 
     return dict(expected_observables(scenario))
-
-
-def error_series(scenario, traj, ref) -> dict[str, np.ndarray]:
-    """Per-sample drifts and errors of one run, so that plots are pure functions of files:
-    the series the metric catalog declares (:func:`reports.metrics.body.series`)."""
-    from reports.metrics.body import series
-
-    return series(scenario, traj, ref)
 
 
 def write_run_files(
@@ -327,8 +319,10 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
             row["message"] = str(exc)
     else:
         ref = None
+    series = None
     if len(traj):
-        row.update(compute_metrics(sc, traj, ref, expected_for(sc)))
+        metrics, series = metrics_and_series(sc, traj, ref, expected_for(sc))
+        row.update(metrics)
     if spec.accuracy is not None:
         row["accuracy_ratio"] = row["attitude_error_max"] / spec.accuracy
     if recorder is not None:
@@ -340,7 +334,6 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
         keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
         identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
         try:
-            series = error_series(sc, traj, ref)
             write_run_files(traj, series, Path(out) / rel, fmt, identity, body_of(sc))
         except OSError as exc:
             raise StoreUnwritable(
