@@ -754,4 +754,6 @@ def write_parquet_table(table, path: Path, metadata: dict) -> None:
         meta.update({k.encode(): json.dumps(v).encode() for k, v in metadata.items()})
         table = table.replace_schema_metadata(meta)
     with replacing(path) as tmp:
-        pq.write_table(table, tmp)
+        # no dictionary encoding: trajectories are floats that hardly repeat, so the writer's
+        # attempt at a dictionary only costs time (4x the write measured) and bytes
+        pq.write_table(table, tmp, use_dictionary=False)
