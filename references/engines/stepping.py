@@ -187,19 +187,20 @@ def _stepper(engine: Any, ctx: RunContext):
 def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
     """The checkpoints (steps at which the state is read) in blocks that end at multiples of
     CHUNK: every step, or the saves and at least every CHUNK steps. Generated lazily (a long
-    horizon has many)."""
-    block: list[int] = []
+    horizon has many), a block at a time from arrays (a Python loop over the points costs a
+    microsecond each)."""
     if every_step:
-        points = range(1, nstep + 1)
-    else:
-        points = sorted(set(int(s) for s in saves if s > 0) | set(range(CHUNK, nstep, CHUNK)))
-    for p in points:
-        block.append(p)
-        if p % CHUNK == 0 or p == nstep:
-            yield block
-            block = []
-    if block:
-        yield block
+        for start in range(1, nstep + 1, CHUNK):
+            yield list(range(start, min(start + CHUNK, nstep + 1)))
+        return
+    saves = np.asarray(saves)
+    points = np.union1d(saves[saves > 0].astype(np.int64), np.arange(CHUNK, nstep, CHUNK))
+    ends = np.flatnonzero((points % CHUNK == 0) | (points == nstep)) + 1
+    start = 0
+    for end in (*ends.tolist(), len(points)):
+        if end > start:
+            yield points[start:end].tolist()
+        start = end
 
 
 #: the separately conserved parts of the energy, as divergence messages name them
