@@ -19,6 +19,7 @@ result row with that status and the message, so messages say what happened and w
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from typing import ClassVar
@@ -231,6 +232,14 @@ class Engine(EngineBase):
         dW, a = self.forward_dynamics(ctx, unpack_state(ctx.model, z))
         acc[0:3] = dW
         acc[3:6] = 0.0 if pivoted else a
+
+    def packed_dynamics(self, ctx: RunContext) -> Callable[[np.ndarray, np.ndarray], None]:
+        """The function ``fd(z, acc)`` the compiled RKMK4 calls at every stage of the run
+        ``ctx``: :meth:`forward_dynamics_packed` with ``ctx`` bound. An adapter may return
+        one with its engine's calls and buffers bound once per run instead, so that a stage
+        costs no attribute look-ups (Pinocchio, DART); it must time only the engine's calls
+        on ``ctx.clock``, as :meth:`forward_dynamics_packed` does."""
+        return functools.partial(self.forward_dynamics_packed, ctx)
 
     def guard(self, ctx: RunContext, state: cv.BodyState) -> str | None:
         """A reason if the engine reached one of its own limits (e.g. a velocity clamp): the
