@@ -158,16 +158,19 @@ class PinocchioEngine(Engine):
         """Semi-implicit Euler: v += h aba(q, v); q = integrate(q, h v); the quaternion (the
         last 4 entries of q for both joints) renormalised."""
         h = ctx.handle
-        pin, model, data, tau, dt, clock = h.pin, h.model, h.data, h.tau, ctx.dt, ctx.clock
+        model, data, tau, dt, clock = h.model, h.data, h.tau, ctx.dt, ctx.clock
+        aba, integrate, sqrt, now = h.pin.aba, h.pin.integrate, np.sqrt, time.perf_counter
         q, v = h.q, h.v
         for _ in range(k):
-            with clock:
-                a = pin.aba(model, data, q, v, tau)
+            t0 = now()  # the stopwatch around the two Pinocchio calls only
+            a = aba(model, data, q, v, tau)
+            clock.elapsed += now() - t0
             v = v + dt * a
-            with clock:
-                q = pin.integrate(model, q, dt * v)
+            t0 = now()
+            q = integrate(model, q, dt * v)
+            clock.elapsed += now() - t0
             quat = q[-4:]
-            q[-4:] = quat / np.sqrt(quat @ quat)
+            q[-4:] = quat / sqrt(quat @ quat)
         h.q, h.v = q, v
 
     def forward_dynamics(self, ctx, state):

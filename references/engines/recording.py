@@ -20,7 +20,8 @@ class Recorder:
     every_step = False
 
     def __init__(self, saves: np.ndarray):
-        self.saves = np.asarray(saves, dtype=np.int64)
+        #: sorted and unique, so that a block's saved steps are found by bisection
+        self.saves = np.unique(np.asarray(saves, dtype=np.int64))
         self.steps: list[np.ndarray] = []
         self.blocks: list[cv.BodyState] = []
         self.cv: list[np.ndarray] = []
@@ -35,7 +36,9 @@ class Recorder:
     def record_block(self, steps, block: cv.BodyState) -> None:
         steps = np.asarray(steps, dtype=np.int64)
         res = self._residuals(steps)
-        keep = np.isin(steps, self.saves)
+        # np.isin would sort or hash all the saves at every block
+        i = np.minimum(np.searchsorted(self.saves, steps), len(self.saves) - 1)
+        keep = self.saves[i] == steps if len(self.saves) else np.zeros(len(steps), bool)
         if keep.all():
             self.steps.append(steps)
             self.blocks.append(block)
