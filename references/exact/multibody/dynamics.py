@@ -36,9 +36,100 @@ and q' = q (0, W)/2; a spherical joint's q' = q (0, w_rel)/2; a revolute's theta
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 FREE, SPHERICAL, REVOLUTE = 0, 1, 2
+
+# The matrix products and the linear solve call BLAS (dgemm, dgemv, ddot) and LAPACK (dgesv)
+# through numba's own entry points (numba_xxgemm, numba_xxgemv, numba_xxdot, numba_xgesv of
+# numba's helper library, the routines numba's ``@`` and np.linalg.solve call), with the
+# arguments numba passes them for C-contiguous float64 operands: the results are those of
+# ``@`` and np.linalg.solve, while the compiled code holds none of numba's generic wrappers
+# around them (checks of shapes and layouts, copies, and their exceptions for every operand
+# type), which took most of this module's compile time.
+_f8p = types.CPointer(types.float64)
+_GEMM = types.ExternalFunction(
+    "numba_xxgemm",
+    types.intc(types.char, types.char, types.char, types.intp, types.intp, types.intp,
+               _f8p, _f8p, types.intp, _f8p, types.intp, _f8p, _f8p, types.intp),
+)  # fmt: skip
+_GEMV = types.ExternalFunction(
+    "numba_xxgemv",
+    types.intc(types.char, types.char, types.intp, types.intp, _f8p, _f8p, types.intp,
+               _f8p, _f8p, _f8p),
+)  # fmt: skip
+_DOT = types.ExternalFunction(
+    "numba_xxdot", types.intc(types.char, types.char, types.intp, _f8p, _f8p, _f8p)
+)
+_GESV = types.ExternalFunction(
+    "numba_xgesv",
+    types.intc(types.char, types.intp, types.intp, _f8p, types.intp,
+               types.CPointer(types.int32), _f8p, types.intp),
+)  # fmt: skip
+_D, _N, _T = ord("d"), ord("n"), ord("t")
+#: alpha = 1 and beta = 0 of the BLAS calls (out = A B)
+_ONE = np.ones(1)
+_ZERO = np.zeros(1)
+
+
+@njit(cache=True)
+def _blas_check(r):
+    if r != 0:
+        raise RuntimeError("multibody reference: a BLAS call returned an error")
+
+
+@njit(cache=True)
+def _mm(A, B, out):
+    """out = A @ B for C-contiguous square (n, n) float64 matrices (dgemm)."""
+    n = A.shape[0]
+    _blas_check(_GEMM(_D, _N, _N, n, n, n, _ONE.ctypes, B.ctypes, n, A.ctypes, n,
+                      _ZERO.ctypes, out.ctypes, n))  # fmt: skip
+
+
+@njit(cache=True)
+def _mm_t(A, B, out):
+    """out = A @ B.T for C-contiguous square (n, n) float64 matrices (dgemm)."""
+    n = A.shape[0]
+    _blas_check(_GEMM(_D, _T, _N, n, n, n, _ONE.ctypes, B.ctypes, n, A.ctypes, n,
+                      _ZERO.ctypes, out.ctypes, n))  # fmt: skip
+
+
+@njit(cache=True)
+def _mv(A, x, out):
+    """out = A @ x for a C-contiguous (n, n) float64 matrix (dgemv)."""
+    n = A.shape[0]
+    _blas_check(_GEMV(_D, _T, n, n, _ONE.ctypes, A.ctypes, n, x.ctypes, _ZERO.ctypes,
+                      out.ctypes))  # fmt: skip
+
+
+@njit(cache=True)
+def _dot(a, b, out):
+    """a @ b of two contiguous float64 vectors of one length (ddot); ``out`` (1,) is a
+    scratch cell."""
+    _blas_check(_DOT(_D, 0, len(a), a.ctypes, b.ctypes, out.ctypes))
+    return out[0]
+
+
+@njit(cache=True)
+def _solve(M, rhs):
+    """M^-1 rhs by LU with partial pivoting (LAPACK dgesv, as np.linalg.solve) for a
+    symmetric M (nu, nu): its rows are its columns, so its C layout is the Fortran one."""
+    n = len(rhs)
+    for i in range(n):
+        if not np.isfinite(rhs[i]):
+            raise FloatingPointError("multibody reference: non-finite bias forces")
+        for j in range(n):
+            if not np.isfinite(M[i, j]):
+                raise FloatingPointError("multibody reference: non-finite mass matrix")
+    a = M.copy()
+    x = rhs.copy()
+    ipiv = np.empty(n, dtype=np.int32)
+    r = _GESV(_D, n, 1, a.ctypes, n, ipiv.ctypes, x.ctypes, n)
+    if r < 0:
+        raise RuntimeError("multibody reference: dgesv refused its arguments")
+    if r > 0:
+        raise FloatingPointError("multibody reference: the mass matrix is singular")
+    return x
 
 
 @njit(cache=True)
@@ -73,28 +164,31 @@ def _axis_R(n, th, R):
 
 
 @njit(cache=True)
-def _cross(a, b):
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+def _cross(a0, a1, a2, b0, b1, b2, out, o):
+    """out[o:o+3] = a x b."""
+    out[o] = a1 * b2 - a2 * b1
+    out[o + 1] = a2 * b0 - a0 * b2
+    out[o + 2] = a0 * b1 - a1 * b0
 
 
 @njit(cache=True)
-def _mcross(v, m):
-    """Spatial motion cross product v x m (6,)."""
-    out = np.empty(6)
-    out[:3] = _cross(v[:3], m[:3])
-    out[3:] = _cross(v[:3], m[3:]) + _cross(v[3:], m[:3])
-    return out
+def _mcross(v, m, out, t):
+    """out = v x m, the spatial motion cross product (6,); ``t`` (3,) is scratch."""
+    _cross(v[0], v[1], v[2], m[0], m[1], m[2], out, 0)
+    _cross(v[0], v[1], v[2], m[3], m[4], m[5], out, 3)
+    _cross(v[3], v[4], v[5], m[0], m[1], m[2], t, 0)
+    for i in range(3):
+        out[3 + i] += t[i]
 
 
 @njit(cache=True)
-def _fcross(v, f):
-    """Spatial force cross product v x* f (6,)."""
-    out = np.empty(6)
-    out[:3] = _cross(v[:3], f[:3]) + _cross(v[3:], f[3:])
-    out[3:] = _cross(v[:3], f[3:])
-    return out
+def _fcross(v, f, out, t):
+    """out = v x* f, the spatial force cross product (6,); ``t`` (3,) is scratch."""
+    _cross(v[0], v[1], v[2], f[0], f[1], f[2], out, 0)
+    _cross(v[3], v[4], v[5], f[3], f[4], f[5], t, 0)
+    for i in range(3):
+        out[i] += t[i]
+    _cross(v[0], v[1], v[2], f[3], f[4], f[5], out, 3)
 
 
 @njit(cache=True)
@@ -104,76 +198,105 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
     nb = len(kind)
     Rrel = np.empty((3, 3))
     Rax = np.empty((3, 3))
+    pj = np.empty(3)
+    w3 = np.empty(3)
+    a = np.empty(3)
+    vj = np.empty(6)
+    vr = np.empty(6)
+    t = np.empty(3)
     for b in range(nb):
         qo, uo = qofs[b], uofs[b]
         k = kind[b]
         p = parent[b]
         if k == FREE:
-            x[b] = q[qo : qo + 3]
+            for i in range(3):
+                x[b, i] = q[qo + i]
             _quat_R(q[qo + 3], q[qo + 4], q[qo + 5], q[qo + 6], R[b])
-            vj = np.zeros(6)
-            vr = np.zeros(6)
+            vj[:] = 0.0
+            vr[:] = 0.0
             for i in range(3):
                 S[uo + i, :] = 0.0
                 S[uo + i, 3 + i] = 1.0
-                a = R[b, :, i].copy()
-                S[uo + 3 + i, :3] = a
-                S[uo + 3 + i, 3:] = _cross(x[b], a)
-                vj += S[uo + i] * u[uo + i]
-                vr += S[uo + 3 + i] * u[uo + 3 + i]
-            vj += vr
-            v[b] = vj
-            c[b] = _mcross(vj, vr)
+                r = uo + 3 + i
+                for j in range(3):
+                    S[r, j] = R[b, j, i]
+                _cross(x[b, 0], x[b, 1], x[b, 2], R[b, 0, i], R[b, 1, i], R[b, 2, i], S[r], 3)
+                for j in range(6):
+                    vj[j] += S[uo + i, j] * u[uo + i]
+                    vr[j] += S[r, j] * u[r]
+            for j in range(6):
+                vj[j] += vr[j]
+                v[b, j] = vj[j]
+            _mcross(vj, vr, c[b], t)
             continue
-        if p < 0:
-            pj = X[b].copy()
-            if k == SPHERICAL:
-                _quat_R(q[qo], q[qo + 1], q[qo + 2], q[qo + 3], R[b])
-            else:
-                _axis_R(axis[b], q[qo], Rax)
-                R[b] = offset[b] @ Rax
-            vp = np.zeros(6)
+        if k == SPHERICAL:
+            _quat_R(q[qo], q[qo + 1], q[qo + 2], q[qo + 3], Rrel)
         else:
-            pj = x[p] + R[p] @ X[b]
-            if k == SPHERICAL:
-                _quat_R(q[qo], q[qo + 1], q[qo + 2], q[qo + 3], Rrel)
-            else:
-                _axis_R(axis[b], q[qo], Rax)
-                Rrel[:, :] = offset[b] @ Rax
-            R[b] = R[p] @ Rrel
-            vp = v[p]
-        x[b] = pj - R[b] @ Y[b]
-        vj = np.zeros(6)
+            _axis_R(axis[b], q[qo], Rax)
+            _mm(offset[b], Rax, Rrel)
+        if p < 0:
+            for i in range(3):
+                pj[i] = X[b, i]
+            R[b] = Rrel
+        else:
+            _mv(R[p], X[b], w3)
+            for i in range(3):
+                pj[i] = x[p, i] + w3[i]
+            _mm(R[p], Rrel, R[b])
+        _mv(R[b], Y[b], w3)
+        for i in range(3):
+            x[b, i] = pj[i] - w3[i]
+        vj[:] = 0.0
         if k == SPHERICAL:
             for i in range(3):
-                a = R[b, :, i].copy()
-                S[uo + i, :3] = a
-                S[uo + i, 3:] = _cross(pj, a)
-                vj += S[uo + i] * u[uo + i]
+                r = uo + i
+                for j in range(3):
+                    S[r, j] = R[b, j, i]
+                _cross(pj[0], pj[1], pj[2], R[b, 0, i], R[b, 1, i], R[b, 2, i], S[r], 3)
+                for j in range(6):
+                    vj[j] += S[r, j] * u[r]
         else:
-            a = R[b] @ axis[b]
-            S[uo, :3] = a
-            S[uo, 3:] = _cross(pj, a)
-            vj += S[uo] * u[uo]
-        v[b] = vp + vj
-        c[b] = _mcross(v[b], vj)
+            _mv(R[b], axis[b], a)
+            for j in range(3):
+                S[uo, j] = a[j]
+            _cross(pj[0], pj[1], pj[2], a[0], a[1], a[2], S[uo], 3)
+            for j in range(6):
+                vj[j] += S[uo, j] * u[uo]
+        for j in range(6):
+            v[b, j] = (0.0 if p < 0 else v[p, j]) + vj[j]
+        _mcross(v[b], vj, c[b], t)
 
 
 @njit(cache=True)
-def _inertia(m, J, R, xg):
-    """Spatial inertia (6,6) about the origin, world axes."""
-    IG = R @ np.diag(J) @ R.T
-    I = np.zeros((6, 6))
+def _inertia(m, J, R, xg, I, D, RD, IG):
+    """I (6,6) = the spatial inertia about the origin, world axes; D, RD, IG (3,3) are
+    scratch (IG = R diag(J) R^T)."""
+    D[:, :] = 0.0
+    for i in range(3):
+        D[i, i] = J[i]
+    _mm(R, D, RD)
+    _mm_t(RD, R, IG)
+    I[:, :] = 0.0
     cc = xg[0] * xg[0] + xg[1] * xg[1] + xg[2] * xg[2]
     for i in range(3):
         for j in range(3):
             I[i, j] = IG[i, j] - m * xg[i] * xg[j]
         I[i, i] += m * cc
         I[3 + i, 3 + i] = m
-    H = np.array([[0.0, -xg[2], xg[1]], [xg[2], 0.0, -xg[0]], [-xg[1], xg[0], 0.0]]) * m
-    I[:3, 3:] = H
-    I[3:, :3] = -H
-    return I
+    # m hat(c) in the upper right block, -m hat(c) in the lower left
+    for i in range(3):
+        I[i, 3 + i] = 0.0 * m
+        I[3 + i, i] = -(0.0 * m)
+    I[0, 4] = -xg[2] * m
+    I[0, 5] = xg[1] * m
+    I[1, 3] = xg[2] * m
+    I[1, 5] = -xg[0] * m
+    I[2, 3] = -xg[1] * m
+    I[2, 4] = xg[0] * m
+    for i in range(3):
+        for j in range(3):
+            if i != j:
+                I[3 + i, j] = -I[i, 3 + j]
 
 
 @njit(cache=True)
@@ -197,38 +320,56 @@ def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
     c = np.zeros((nb, 6))
     _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, c)
     Ib = np.zeros((nb, 6, 6))
+    D = np.empty((3, 3))
+    RD = np.empty((3, 3))
+    IG = np.empty((3, 3))
     for b in range(nb):
-        Ib[b] = _inertia(mass[b], J[b], R[b], x[b])
+        _inertia(mass[b], J[b], R[b], x[b], Ib[b], D, RD, IG)
     # recursive Newton-Euler (u' = 0), gravity as an upward acceleration of the ground
-    a0 = np.zeros(6)
-    a0[3:] = -g
     a = np.zeros((nb, 6))
     f = np.zeros((nb, 6))
+    w6 = np.empty(6)
+    h6 = np.empty(6)
+    t = np.empty(3)
+    cell = np.empty(1)
     for b in range(nb):
         p = parent[b]
-        a[b] = (a0 if p < 0 else a[p]) + c[b]
-        f[b] = Ib[b] @ a[b] + _fcross(v[b], Ib[b] @ v[b])
+        for j in range(6):
+            if p >= 0:
+                a[b, j] = a[p, j] + c[b, j]
+            elif j < 3:
+                a[b, j] = 0.0 + c[b, j]
+            else:
+                a[b, j] = -g[j - 3] + c[b, j]
+        _mv(Ib[b], a[b], f[b])
+        _mv(Ib[b], v[b], w6)
+        _fcross(v[b], w6, h6, t)
+        for j in range(6):
+            f[b, j] += h6[j]
     C = np.zeros(nu)
     Ic = Ib.copy()
     for b in range(nb - 1, -1, -1):
         uo = uofs[b]
         for i in range(_nu_of(kind, b)):
-            C[uo + i] = S[uo + i] @ f[b]
+            C[uo + i] = _dot(S[uo + i], f[b], cell)
         p = parent[b]
         if p >= 0:
-            f[p] += f[b]
-            Ic[p] += Ic[b]
+            for j in range(6):
+                f[p, j] += f[b, j]
+                for k in range(6):
+                    Ic[p, j, k] += Ic[b, j, k]
     # composite-rigid-body algorithm
     M = np.zeros((nu, nu))
+    F = np.empty(6)
     for b in range(nb):
         uo = uofs[b]
         for i in range(uo, uo + _nu_of(kind, b)):
-            F = Ic[b] @ S[i]
+            _mv(Ic[b], S[i], F)
             a_ = b
             while a_ >= 0:
                 ua = uofs[a_]
                 for j in range(ua, ua + _nu_of(kind, a_)):
-                    Mij = S[j] @ F
+                    Mij = _dot(S[j], F, cell)
                     M[i, j] = Mij
                     M[j, i] = Mij
                 a_ = parent[a_]
@@ -243,7 +384,8 @@ def _qdot(q, u, kind, qofs, uofs, out):
             out[qo] = u[uo]
             continue
         if kind[b] == FREE:
-            out[qo : qo + 3] = u[uo : uo + 3]
+            for i in range(3):
+                out[qo + i] = u[uo + i]
             qo += 3
             uo += 3
         q0, q1, q2, q3 = q[qo], q[qo + 1], q[qo + 2], q[qo + 3]
@@ -261,7 +403,7 @@ def _rhs(y, nq, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
     M, C, _, _, _, _ = _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g)
     out = np.empty(len(y))
     _qdot(q, u, kind, qofs, uofs, out)
-    out[nq:] = np.linalg.solve(M, -C)
+    out[nq:] = _solve(M, -C)
     return out
 
 
