@@ -212,10 +212,12 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
             for i in range(3):
                 x[b, i] = q[qo + i]
             _quat_R(q[qo + 3], q[qo + 4], q[qo + 5], q[qo + 6], R[b])
-            vj[:] = 0.0
-            vr[:] = 0.0
+            for j in range(6):
+                vj[j] = 0.0
+                vr[j] = 0.0
             for i in range(3):
-                S[uo + i, :] = 0.0
+                for j in range(6):
+                    S[uo + i, j] = 0.0
                 S[uo + i, 3 + i] = 1.0
                 r = uo + 3 + i
                 for j in range(3):
@@ -237,7 +239,9 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
         if p < 0:
             for i in range(3):
                 pj[i] = X[b, i]
-            R[b] = Rrel
+            for i in range(3):
+                for j in range(3):
+                    R[b, i, j] = Rrel[i, j]
         else:
             _mv(R[p], X[b], w3)
             for i in range(3):
@@ -246,7 +250,8 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
         _mv(R[b], Y[b], w3)
         for i in range(3):
             x[b, i] = pj[i] - w3[i]
-        vj[:] = 0.0
+        for j in range(6):
+            vj[j] = 0.0
         if k == SPHERICAL:
             for i in range(3):
                 r = uo + i
@@ -271,12 +276,14 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
 def _inertia(m, J, R, xg, I, D, RD, IG):
     """I (6,6) = the spatial inertia about the origin, world axes; D, RD, IG (3,3) are
     scratch (IG = R diag(J) R^T)."""
-    D[:, :] = 0.0
     for i in range(3):
-        D[i, i] = J[i]
+        for j in range(3):
+            D[i, j] = J[i] if i == j else 0.0
     _mm(R, D, RD)
     _mm_t(RD, R, IG)
-    I[:, :] = 0.0
+    for i in range(6):
+        for j in range(6):
+            I[i, j] = 0.0
     cc = xg[0] * xg[0] + xg[1] * xg[1] + xg[2] * xg[2]
     for i in range(3):
         for j in range(3):
@@ -403,7 +410,11 @@ def _rhs(y, nq, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
     M, C, _, _, _, _ = _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g)
     out = np.empty(len(y))
     _qdot(q, u, kind, qofs, uofs, out)
-    out[nq:] = _solve(M, -C)
+    for i in range(len(C)):
+        C[i] = -C[i]
+    ud = _solve(M, C)
+    for i in range(len(ud)):
+        out[nq + i] = ud[i]
     return out
 
 
