@@ -340,16 +340,26 @@ def _save(fig, path: Path, alt: str = "", notes: str = "") -> Path:
 
 
 def _write_png(fig, path: Path, **kw) -> None:
-    """Save the figure as a PNG of at most 256 colours (a third of the size of a full-colour
-    one, the same to the eye for line art)."""
+    """Save the figure at DPI as a PNG of at most 256 colours (a third of the size of a
+    full-colour one, the same to the eye for line art). Without ``kw`` (savefig's keywords,
+    e.g. ``bbox_inches``) the canvas is drawn once and its pixels quantized directly: the
+    same pixels ``savefig`` would write, without encoding and decoding a full-colour PNG
+    in between."""
     import io
 
     from PIL import Image
 
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, **kw)
-    buf.seek(0)
-    with Image.open(buf) as im:
+    if kw:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=DPI, **kw)
+        buf.seek(0)
+        im = Image.open(buf)
+    else:
+        fig.set_dpi(DPI)  # what savefig(dpi=DPI) draws at
+        fig.canvas.draw()
+        im = Image.frombuffer("RGBA", fig.canvas.get_width_height(physical=True),
+                              fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)  # fmt: skip
+    with im:
         im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(
             path, format="PNG"
         )
