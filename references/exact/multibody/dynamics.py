@@ -70,66 +70,17 @@ _D, _N, _T = ord("d"), ord("n"), ord("t")
 #: alpha = 1 and beta = 0 of the BLAS calls (out = A B)
 _ONE = np.ones(1)
 _ZERO = np.zeros(1)
-
-
-@njit(cache=True)
-def _blas_check(r):
-    if r != 0:
-        raise RuntimeError("multibody reference: a BLAS call returned an error")
-
-
-@njit(cache=True)
-def _mm(A, B, out):
-    """out = A @ B for C-contiguous square (n, n) float64 matrices (dgemm)."""
-    n = A.shape[0]
-    _blas_check(_GEMM(_D, _N, _N, n, n, n, _ONE.ctypes, B.ctypes, n, A.ctypes, n,
-                      _ZERO.ctypes, out.ctypes, n))  # fmt: skip
-
-
-@njit(cache=True)
-def _mm_t(A, B, out):
-    """out = A @ B.T for C-contiguous square (n, n) float64 matrices (dgemm)."""
-    n = A.shape[0]
-    _blas_check(_GEMM(_D, _T, _N, n, n, n, _ONE.ctypes, B.ctypes, n, A.ctypes, n,
-                      _ZERO.ctypes, out.ctypes, n))  # fmt: skip
-
-
-@njit(cache=True)
-def _mv(A, x, out):
-    """out = A @ x for a C-contiguous (n, n) float64 matrix (dgemv)."""
-    n = A.shape[0]
-    _blas_check(_GEMV(_D, _T, n, n, _ONE.ctypes, A.ctypes, n, x.ctypes, _ZERO.ctypes,
-                      out.ctypes))  # fmt: skip
-
-
-@njit(cache=True)
-def _dot(a, b, out):
-    """a @ b of two contiguous float64 vectors of one length (ddot); ``out`` (1,) is a
-    scratch cell."""
-    _blas_check(_DOT(_D, 0, len(a), a.ctypes, b.ctypes, out.ctypes))
-    return out[0]
-
-
-@njit(cache=True)
-def _solve(M, rhs):
-    """M^-1 rhs by LU with partial pivoting (LAPACK dgesv, as np.linalg.solve) for a
-    symmetric M (nu, nu): its rows are its columns, so its C layout is the Fortran one."""
-    n = len(rhs)
-    for i in range(n):
-        if not np.isfinite(rhs[i]):
-            raise FloatingPointError("multibody reference: non-finite bias forces")
-        for j in range(n):
-            if not np.isfinite(M[i, j]):
-                raise FloatingPointError("multibody reference: non-finite mass matrix")
-    a = M.copy()
-    x = rhs.copy()
-    ipiv = np.empty(n, dtype=np.int32)
-    r = _GESV(_D, n, 1, a.ctypes, n, ipiv.ctypes, x.ctypes, n)
-    if r < 0:
-        raise RuntimeError("multibody reference: dgesv refused its arguments")
-    if r > 0:
-        raise FloatingPointError("multibody reference: the mass matrix is singular")
-    return x
+# Calls, for C-contiguous float64 operands (n, n) and (n,), with the arguments of numba's ``@``:
+#   out = A @ B    _GEMM(_D, _N, _N, n, n, n, _ONE.ctypes, B.ctypes, n, A.ctypes, n,
+#                        _ZERO.ctypes, out.ctypes, n)
+#   out = A @ B.T  the same with _T in place of the first _N
+#   out = A @ x    _GEMV(_D, _T, n, n, _ONE.ctypes, A.ctypes, n, x.ctypes, _ZERO.ctypes,
+#                        out.ctypes)
+#   cell[0] = a @ b  _DOT(_D, 0, n, a.ctypes, b.ctypes, cell.ctypes)
+# Each returns 0 on success; the codes are or-ed together and checked once.
+#
+# Few compiled functions, each holding what it alone calls: every function numba compiles
+# costs ~0.1-0.2 s of its own (its pipeline, wrappers, a module optimised again by each caller).
 
 
 @njit(cache=True)
@@ -148,53 +99,24 @@ def _quat_R(q0, q1, q2, q3, R):
 
 
 @njit(cache=True)
-def _axis_R(n, th, R):
-    """Rot(n, th) for a unit n (Rodrigues)."""
-    c, s = np.cos(th), np.sin(th)
-    c1 = 1.0 - c
-    R[0, 0] = c + c1 * n[0] * n[0]
-    R[0, 1] = c1 * n[0] * n[1] - s * n[2]
-    R[0, 2] = c1 * n[0] * n[2] + s * n[1]
-    R[1, 0] = c1 * n[1] * n[0] + s * n[2]
-    R[1, 1] = c + c1 * n[1] * n[1]
-    R[1, 2] = c1 * n[1] * n[2] - s * n[0]
-    R[2, 0] = c1 * n[2] * n[0] - s * n[1]
-    R[2, 1] = c1 * n[2] * n[1] + s * n[0]
-    R[2, 2] = c + c1 * n[2] * n[2]
+def _cross(a0, a1, a2, b0, b1, b2):
+    """a x b as a tuple."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
 @njit(cache=True)
-def _cross(a0, a1, a2, b0, b1, b2, out, o):
-    """out[o:o+3] = a x b."""
-    out[o] = a1 * b2 - a2 * b1
-    out[o + 1] = a2 * b0 - a0 * b2
-    out[o + 2] = a0 * b1 - a1 * b0
-
-
-@njit(cache=True)
-def _mcross(v, m, out, t):
-    """out = v x m, the spatial motion cross product (6,); ``t`` (3,) is scratch."""
-    _cross(v[0], v[1], v[2], m[0], m[1], m[2], out, 0)
-    _cross(v[0], v[1], v[2], m[3], m[4], m[5], out, 3)
-    _cross(v[3], v[4], v[5], m[0], m[1], m[2], t, 0)
-    for i in range(3):
-        out[3 + i] += t[i]
-
-
-@njit(cache=True)
-def _fcross(v, f, out, t):
-    """out = v x* f, the spatial force cross product (6,); ``t`` (3,) is scratch."""
-    _cross(v[0], v[1], v[2], f[0], f[1], f[2], out, 0)
-    _cross(v[3], v[4], v[5], f[3], f[4], f[5], t, 0)
-    for i in range(3):
-        out[i] += t[i]
-    _cross(v[0], v[1], v[2], f[3], f[4], f[5], out, 3)
+def _mcross(v, m, out):
+    """out = v x m, the spatial motion cross product (6,)."""
+    out[0], out[1], out[2] = _cross(v[0], v[1], v[2], m[0], m[1], m[2])
+    s0, s1, s2 = _cross(v[0], v[1], v[2], m[3], m[4], m[5])
+    t0, t1, t2 = _cross(v[3], v[4], v[5], m[0], m[1], m[2])
+    out[3], out[4], out[5] = s0 + t0, s1 + t1, s2 + t2
 
 
 @njit(cache=True)
 def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, c):
     """Fill R (nb,3,3), x (nb,3), S (nu,6) (the motion subspace columns as rows), v (nb,6)
-    and c (nb,6) (velocity-product terms)."""
+    and c (nb,6) (velocity-product terms). Returns the or of the BLAS return codes."""
     nb = len(kind)
     Rrel = np.empty((3, 3))
     Rax = np.empty((3, 3))
@@ -203,7 +125,7 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
     a = np.empty(3)
     vj = np.empty(6)
     vr = np.empty(6)
-    t = np.empty(3)
+    err = 0
     for b in range(nb):
         qo, uo = qofs[b], uofs[b]
         k = kind[b]
@@ -222,32 +144,49 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
                 r = uo + 3 + i
                 for j in range(3):
                     S[r, j] = R[b, j, i]
-                _cross(x[b, 0], x[b, 1], x[b, 2], R[b, 0, i], R[b, 1, i], R[b, 2, i], S[r], 3)
+                S[r, 3], S[r, 4], S[r, 5] = _cross(x[b, 0], x[b, 1], x[b, 2],
+                                                   R[b, 0, i], R[b, 1, i], R[b, 2, i])  # fmt: skip
                 for j in range(6):
                     vj[j] += S[uo + i, j] * u[uo + i]
                     vr[j] += S[r, j] * u[r]
             for j in range(6):
                 vj[j] += vr[j]
                 v[b, j] = vj[j]
-            _mcross(vj, vr, c[b], t)
+            _mcross(vj, vr, c[b])
             continue
         if k == SPHERICAL:
             _quat_R(q[qo], q[qo + 1], q[qo + 2], q[qo + 3], Rrel)
         else:
-            _axis_R(axis[b], q[qo], Rax)
-            _mm(offset[b], Rax, Rrel)
+            # Rrel = offset Rot(n, th), Rot(n, th) for the unit axis n by Rodrigues' formula
+            n = axis[b]
+            th = q[qo]
+            cs, sn = np.cos(th), np.sin(th)
+            c1 = 1.0 - cs
+            Rax[0, 0] = cs + c1 * n[0] * n[0]
+            Rax[0, 1] = c1 * n[0] * n[1] - sn * n[2]
+            Rax[0, 2] = c1 * n[0] * n[2] + sn * n[1]
+            Rax[1, 0] = c1 * n[1] * n[0] + sn * n[2]
+            Rax[1, 1] = cs + c1 * n[1] * n[1]
+            Rax[1, 2] = c1 * n[1] * n[2] - sn * n[0]
+            Rax[2, 0] = c1 * n[2] * n[0] - sn * n[1]
+            Rax[2, 1] = c1 * n[2] * n[1] + sn * n[0]
+            Rax[2, 2] = cs + c1 * n[2] * n[2]
+            err |= _GEMM(_D, _N, _N, 3, 3, 3, _ONE.ctypes, Rax.ctypes, 3, offset[b].ctypes, 3,
+                         _ZERO.ctypes, Rrel.ctypes, 3)  # fmt: skip
         if p < 0:
             for i in range(3):
                 pj[i] = X[b, i]
-            for i in range(3):
                 for j in range(3):
                     R[b, i, j] = Rrel[i, j]
         else:
-            _mv(R[p], X[b], w3)
+            err |= _GEMV(_D, _T, 3, 3, _ONE.ctypes, R[p].ctypes, 3, X[b].ctypes, _ZERO.ctypes,
+                         w3.ctypes)  # fmt: skip
             for i in range(3):
                 pj[i] = x[p, i] + w3[i]
-            _mm(R[p], Rrel, R[b])
-        _mv(R[b], Y[b], w3)
+            err |= _GEMM(_D, _N, _N, 3, 3, 3, _ONE.ctypes, Rrel.ctypes, 3, R[p].ctypes, 3,
+                         _ZERO.ctypes, R[b].ctypes, 3)  # fmt: skip
+        err |= _GEMV(_D, _T, 3, 3, _ONE.ctypes, R[b].ctypes, 3, Y[b].ctypes, _ZERO.ctypes,
+                     w3.ctypes)  # fmt: skip
         for i in range(3):
             x[b, i] = pj[i] - w3[i]
         for j in range(6):
@@ -257,62 +196,22 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
                 r = uo + i
                 for j in range(3):
                     S[r, j] = R[b, j, i]
-                _cross(pj[0], pj[1], pj[2], R[b, 0, i], R[b, 1, i], R[b, 2, i], S[r], 3)
+                S[r, 3], S[r, 4], S[r, 5] = _cross(pj[0], pj[1], pj[2],
+                                                   R[b, 0, i], R[b, 1, i], R[b, 2, i])  # fmt: skip
                 for j in range(6):
                     vj[j] += S[r, j] * u[r]
         else:
-            _mv(R[b], axis[b], a)
+            err |= _GEMV(_D, _T, 3, 3, _ONE.ctypes, R[b].ctypes, 3, axis[b].ctypes,
+                         _ZERO.ctypes, a.ctypes)  # fmt: skip
             for j in range(3):
                 S[uo, j] = a[j]
-            _cross(pj[0], pj[1], pj[2], a[0], a[1], a[2], S[uo], 3)
+            S[uo, 3], S[uo, 4], S[uo, 5] = _cross(pj[0], pj[1], pj[2], a[0], a[1], a[2])
             for j in range(6):
                 vj[j] += S[uo, j] * u[uo]
         for j in range(6):
             v[b, j] = (0.0 if p < 0 else v[p, j]) + vj[j]
-        _mcross(v[b], vj, c[b], t)
-
-
-@njit(cache=True)
-def _inertia(m, J, R, xg, I, D, RD, IG):
-    """I (6,6) = the spatial inertia about the origin, world axes; D, RD, IG (3,3) are
-    scratch (IG = R diag(J) R^T)."""
-    for i in range(3):
-        for j in range(3):
-            D[i, j] = J[i] if i == j else 0.0
-    _mm(R, D, RD)
-    _mm_t(RD, R, IG)
-    for i in range(6):
-        for j in range(6):
-            I[i, j] = 0.0
-    cc = xg[0] * xg[0] + xg[1] * xg[1] + xg[2] * xg[2]
-    for i in range(3):
-        for j in range(3):
-            I[i, j] = IG[i, j] - m * xg[i] * xg[j]
-        I[i, i] += m * cc
-        I[3 + i, 3 + i] = m
-    # m hat(c) in the upper right block, -m hat(c) in the lower left
-    for i in range(3):
-        I[i, 3 + i] = 0.0 * m
-        I[3 + i, i] = -(0.0 * m)
-    I[0, 4] = -xg[2] * m
-    I[0, 5] = xg[1] * m
-    I[1, 3] = xg[2] * m
-    I[1, 5] = -xg[0] * m
-    I[2, 3] = -xg[1] * m
-    I[2, 4] = xg[0] * m
-    for i in range(3):
-        for j in range(3):
-            if i != j:
-                I[3 + i, j] = -I[i, 3 + j]
-
-
-@njit(cache=True)
-def _nu_of(kind, b):
-    if kind[b] == FREE:
-        return 6
-    if kind[b] == SPHERICAL:
-        return 3
-    return 1
+        _mcross(v[b], vj, c[b])
+    return err
 
 
 @njit(cache=True)
@@ -320,24 +219,60 @@ def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
     """(M (nu,nu), C (nu,), R, x, v, Ib) at the state (q, u): M u' + C = 0."""
     nb = len(kind)
     nu = len(u)
-    R = np.zeros((nb, 3, 3))
-    x = np.zeros((nb, 3))
-    S = np.zeros((nu, 6))
-    v = np.zeros((nb, 6))
-    c = np.zeros((nb, 6))
-    _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, c)
-    Ib = np.zeros((nb, 6, 6))
+    # every element of these is written by _kinematics
+    R = np.empty((nb, 3, 3))
+    x = np.empty((nb, 3))
+    S = np.empty((nu, 6))
+    v = np.empty((nb, 6))
+    c = np.empty((nb, 6))
+    err = _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, c)
+    # spatial inertias about the origin, world axes: IG = R diag(J) R^T in the upper left
+    # block (less m (c c^T - |c|^2 1)), m hat(c) upper right, -m hat(c) lower left, m 1
+    Ib = np.empty((nb, 6, 6))
     D = np.empty((3, 3))
     RD = np.empty((3, 3))
     IG = np.empty((3, 3))
     for b in range(nb):
-        _inertia(mass[b], J[b], R[b], x[b], Ib[b], D, RD, IG)
-    # recursive Newton-Euler (u' = 0), gravity as an upward acceleration of the ground
-    a = np.zeros((nb, 6))
-    f = np.zeros((nb, 6))
-    w6 = np.empty(6)
-    h6 = np.empty(6)
-    t = np.empty(3)
+        m = mass[b]
+        xg = x[b]
+        I = Ib[b]
+        for i in range(3):
+            for j in range(3):
+                D[i, j] = J[b, i] if i == j else 0.0
+        err |= _GEMM(_D, _N, _N, 3, 3, 3, _ONE.ctypes, D.ctypes, 3, R[b].ctypes, 3,
+                     _ZERO.ctypes, RD.ctypes, 3)  # fmt: skip
+        err |= _GEMM(_D, _T, _N, 3, 3, 3, _ONE.ctypes, R[b].ctypes, 3, RD.ctypes, 3,
+                     _ZERO.ctypes, IG.ctypes, 3)  # fmt: skip
+        for i in range(6):
+            for j in range(6):
+                I[i, j] = 0.0
+        cc = xg[0] * xg[0] + xg[1] * xg[1] + xg[2] * xg[2]
+        for i in range(3):
+            for j in range(3):
+                I[i, j] = IG[i, j] - m * xg[i] * xg[j]
+            I[i, i] += m * cc
+            I[3 + i, 3 + i] = m
+        for i in range(3):
+            I[i, 3 + i] = 0.0 * m
+            I[3 + i, i] = -(0.0 * m)
+        I[0, 4] = -xg[2] * m
+        I[0, 5] = xg[1] * m
+        I[1, 3] = xg[2] * m
+        I[1, 5] = -xg[0] * m
+        I[2, 3] = -xg[1] * m
+        I[2, 4] = xg[0] * m
+        for i in range(3):
+            for j in range(3):
+                if i != j:
+                    I[3 + i, j] = -I[i, 3 + j]
+    nus = np.empty(nb, dtype=np.int64)  # joint rates of each body
+    for b in range(nb):
+        nus[b] = 6 if kind[b] == FREE else (3 if kind[b] == SPHERICAL else 1)
+    # recursive Newton-Euler (u' = 0), gravity as an upward acceleration of the ground:
+    # f_b = I_b a_b + v_b x* (I_b v_b)
+    a = np.empty((nb, 6))
+    f = np.empty((nb, 6))
+    h = np.empty(6)
     cell = np.empty(1)
     for b in range(nb):
         p = parent[b]
@@ -348,17 +283,31 @@ def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
                 a[b, j] = 0.0 + c[b, j]
             else:
                 a[b, j] = -g[j - 3] + c[b, j]
-        _mv(Ib[b], a[b], f[b])
-        _mv(Ib[b], v[b], w6)
-        _fcross(v[b], w6, h6, t)
+        err |= _GEMV(_D, _T, 6, 6, _ONE.ctypes, Ib[b].ctypes, 6, a[b].ctypes, _ZERO.ctypes,
+                     f[b].ctypes)  # fmt: skip
+        err |= _GEMV(_D, _T, 6, 6, _ONE.ctypes, Ib[b].ctypes, 6, v[b].ctypes, _ZERO.ctypes,
+                     h.ctypes)  # fmt: skip
+        vb = v[b]
+        s0, s1, s2 = _cross(vb[0], vb[1], vb[2], h[0], h[1], h[2])
+        t0, t1, t2 = _cross(vb[3], vb[4], vb[5], h[3], h[4], h[5])
+        r0, r1, r2 = _cross(vb[0], vb[1], vb[2], h[3], h[4], h[5])
+        f[b, 0] += s0 + t0
+        f[b, 1] += s1 + t1
+        f[b, 2] += s2 + t2
+        f[b, 3] += r0
+        f[b, 4] += r1
+        f[b, 5] += r2
+    C = np.empty(nu)
+    Ic = np.empty((nb, 6, 6))
+    for b in range(nb):
         for j in range(6):
-            f[b, j] += h6[j]
-    C = np.zeros(nu)
-    Ic = Ib.copy()
+            for k in range(6):
+                Ic[b, j, k] = Ib[b, j, k]
     for b in range(nb - 1, -1, -1):
         uo = uofs[b]
-        for i in range(_nu_of(kind, b)):
-            C[uo + i] = _dot(S[uo + i], f[b], cell)
+        for i in range(nus[b]):
+            err |= _DOT(_D, 0, 6, S[uo + i].ctypes, f[b].ctypes, cell.ctypes)
+            C[uo + i] = cell[0]
         p = parent[b]
         if p >= 0:
             for j in range(6):
@@ -366,25 +315,36 @@ def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
                 for k in range(6):
                     Ic[p, j, k] += Ic[b, j, k]
     # composite-rigid-body algorithm
-    M = np.zeros((nu, nu))
+    M = np.empty((nu, nu))
+    for i in range(nu):
+        for j in range(nu):
+            M[i, j] = 0.0
     F = np.empty(6)
     for b in range(nb):
         uo = uofs[b]
-        for i in range(uo, uo + _nu_of(kind, b)):
-            _mv(Ic[b], S[i], F)
+        for i in range(uo, uo + nus[b]):
+            err |= _GEMV(_D, _T, 6, 6, _ONE.ctypes, Ic[b].ctypes, 6, S[i].ctypes,
+                         _ZERO.ctypes, F.ctypes)  # fmt: skip
             a_ = b
             while a_ >= 0:
                 ua = uofs[a_]
-                for j in range(ua, ua + _nu_of(kind, a_)):
-                    Mij = _dot(S[j], F, cell)
-                    M[i, j] = Mij
-                    M[j, i] = Mij
+                for j in range(ua, ua + nus[a_]):
+                    err |= _DOT(_D, 0, 6, S[j].ctypes, F.ctypes, cell.ctypes)
+                    M[i, j] = cell[0]
+                    M[j, i] = cell[0]
                 a_ = parent[a_]
+    if err != 0:
+        raise RuntimeError("multibody reference: a BLAS call returned an error")
     return M, C, R, x, v, Ib
 
 
 @njit(cache=True)
-def _qdot(q, u, kind, qofs, uofs, out):
+def _rhs(y, nq, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
+    q = y[:nq]
+    u = y[nq:]
+    M, C, _, _, _, _ = _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g)
+    out = np.empty(len(y))
+    # joint kinematics q'
     for b in range(len(kind)):
         qo, uo = qofs[b], uofs[b]
         if kind[b] == REVOLUTE:
@@ -401,20 +361,25 @@ def _qdot(q, u, kind, qofs, uofs, out):
         out[qo + 1] = 0.5 * (q0 * w1 + q2 * w3 - q3 * w2)
         out[qo + 2] = 0.5 * (q0 * w2 + q3 * w1 - q1 * w3)
         out[qo + 3] = 0.5 * (q0 * w3 + q1 * w2 - q2 * w1)
-
-
-@njit(cache=True)
-def _rhs(y, nq, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
-    q = y[:nq]
-    u = y[nq:]
-    M, C, _, _, _, _ = _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g)
-    out = np.empty(len(y))
-    _qdot(q, u, kind, qofs, uofs, out)
-    for i in range(len(C)):
+    # u' = M^-1 (-C) by LU with partial pivoting (LAPACK dgesv, as np.linalg.solve); M is
+    # symmetric, so its C layout is its Fortran one; M and C are this call's own, and dgesv
+    # overwrites them (the factors, the solution)
+    n = len(C)
+    for i in range(n):
         C[i] = -C[i]
-    ud = _solve(M, C)
-    for i in range(len(ud)):
-        out[nq + i] = ud[i]
+        if not np.isfinite(C[i]):
+            raise FloatingPointError("multibody reference: non-finite bias forces")
+        for j in range(n):
+            if not np.isfinite(M[i, j]):
+                raise FloatingPointError("multibody reference: non-finite mass matrix")
+    ipiv = np.empty(n, dtype=np.int32)
+    r = _GESV(_D, n, 1, M.ctypes, n, ipiv.ctypes, C.ctypes, n)
+    if r < 0:
+        raise RuntimeError("multibody reference: dgesv refused its arguments")
+    if r > 0:
+        raise FloatingPointError("multibody reference: the mass matrix is singular")
+    for i in range(n):
+        out[nq + i] = C[i]
     return out
 
 
