@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, types
+from numba.np import linalg as _numba_linalg
 
 FREE, SPHERICAL, REVOLUTE = 0, 1, 2
 
@@ -48,6 +49,11 @@ FREE, SPHERICAL, REVOLUTE = 0, 1, 2
 # around them (checks of shapes and layouts, copies, and their exceptions for every operand
 # type), which took most of this module's compile time.
 _f8p = types.CPointer(types.float64)
+if np.dtype(getattr(_numba_linalg, "F_INT_nptype", np.int32)) != np.int32:
+    raise ImportError(
+        "references.exact.multibody.dynamics: numba's LAPACK takes 64-bit pivot indices "
+        "here (ILP64); the dgesv call below passes 32-bit ones"
+    )
 _GEMM = types.ExternalFunction(
     "numba_xxgemm",
     types.intc(types.char, types.char, types.char, types.intp, types.intp, types.intp,
