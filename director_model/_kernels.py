@@ -38,7 +38,7 @@ Data layout (float64 arrays, so one compiled signature serves every body):
     (RATTLE and the energy-momentum midpoint rule both give x += h v + h^2/2 g, v += h g,
     and a composition of exact flows is exact), so S[0:6] keeps x_G, v_G of the start and
     the saved states get x_G(t) = x_G + v_G t + g t^2/2, v_G(t) = v_G + g t at the absolute
-    time t (:func:`_store`), with no round-off accumulating over steps.
+    time t (:func:`_store_com`), with no round-off accumulating over steps.
 
 The batched RATTLE loop keeps a block of up to BLOCK bodies in one flat array, row-major with
 BLOCK lanes per row (the rows of S, then those of P, then work rows; see ``ROW_P``), so that
@@ -605,11 +605,11 @@ def _rattle_init(P, g, S):
 #                   Pi_{n+1} = Q^T pi + h/2 tau_{n+1}, computed as
 #                   Pi_n + (h/2 (tau_n + tau_{n+1}) - 4 c/(q h)) (Q^T pi = pi - 4 c/(q h), see
 #                   _dmv_solve). Both sums are compensated (_kahan) unless comp is False.
-#                   (The centre of mass is not stepped: see _store.)
+#                   (The centre of mass is not stepped: see _store_com.)
 #
 # The RATTLE state as tuples: p, pl (4: attitude quaternion and its compensation), Pi, Pl
 # (momentum, compensation), T (torque), G (gravity in the axes of D_0) (3 each).
-# The single-body loop (_run_rattle), the array step (_rattle_substep) and the block step of
+# The single-body loop (_rattle_loop), the array step (_rattle_substep) and the block step of
 # the batched loop (_rattle_block_substep) all use these, so they compute the same numbers.
 @njit(inline="always")
 def _rattle_solve(diag, I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, hh, Pi, T):
@@ -805,7 +805,7 @@ def _em_step(P, g, S, h, A, M):
     Work arrays (no allocation per step): ``A`` (15, 16) for the Newton matrix, ``M``
     (10, 3, 3) for D0, V0, D1, mu, Jbar, F, R1, D0 + D1, D1 - D0 - h V0, R2. Not
     compensated: Newton solves for D1 itself, to a tolerance of 16 ulps, so there is no
-    small increment to carry. (The centre of mass is not stepped: see _store.)
+    small increment to carry. (The centre of mass is not stepped: see _store_com.)
     """
     # M[0] = D0, M[1] = V0, M[2] = D1, M[3] = mu, M[4] = Jbar, M[5] = F
     m = P[0]
@@ -1224,7 +1224,7 @@ def _run_rattle_block(
         S[:] = S0[i]
         _rattle_init(P[i], g, S)
         if store0:
-            _store(RATTLE_FAMILY, P[i], S, g, 0.0, 0, X[i], V[i], Dout[i], Dpout[i])
+            _store_rattle(P[i], S, g, 0.0, np.int64(0), X[i], V[i], Dout[i], Dpout[i])
         _lane_put(B, l, S)
         for j in range(NP):
             B[(ROW_P + j) * BLOCK + l] = P[i, j]
@@ -1252,8 +1252,8 @@ def _run_rattle_block(
                     attempted[l] = (n - 1) * ncoef + c + 1
                     status[i] = st
                     info[i, 0] = n - 1
-                    info[i, 1] = _omega_norm(RATTLE_FAMILY, P[i], S)
-                    info[i, 2] = _alpha_norm(RATTLE_FAMILY, P[i], S)
+                    info[i, 1] = _omega_norm_rattle(P[i], S)
+                    info[i, 2] = _alpha_norm_rattle(P[i], S)
                     B[ROW_LIVE * BLOCK + l] = 0.0
         if n % RESCALE_EVERY == 0:
             _rattle_block_rescale(B, nl)
@@ -1262,7 +1262,7 @@ def _run_rattle_block(
                 if B[ROW_LIVE * BLOCK + l] != 0.0:
                     i = i0 + l
                     _lane_get(B, l, S)
-                    _store(RATTLE_FAMILY, P[i], S, g, n * h, k, X[i], V[i], Dout[i], Dpout[i])
+                    _store_rattle(P[i], S, g, n * h, k, X[i], V[i], Dout[i], Dpout[i])
             k += 1
     for l in range(nl):
         vec[i0 + l] = attempted[l] - scalar[l]
@@ -1272,32 +1272,43 @@ def _run_rattle_block(
 # Time loops
 # --------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _store(method, P, S, g, t, k, X, V, Dout, Dpout):
-    """Saved state k at the absolute time t: x_G, v_G, D and D'. RATTLE family: D = D_0 R(p)
-    and D' = D hat(W), W = Ibar^{-1} Pi; energy-momentum: D, D' from S. A free centre of
-    mass from its start state S[0:6] in closed form, x_G + v_G t + (t^2/2) g and
-    v_G + g t; with a pivot x_G = -D c, v_G = -D' c."""
-    if method == RATTLE_FAMILY:
-        D = _directors(S)
-        W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
-        W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
-        W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
-        for r in range(3):
-            a0 = D[3 * r]
-            a1 = D[3 * r + 1]
-            a2 = D[3 * r + 2]
-            Dout[k, r, 0] = a0
-            Dout[k, r, 1] = a1
-            Dout[k, r, 2] = a2
-            # row r of D hat(W); hat(W) columns: (0, W2, -W1), (-W2, 0, W0), (W1, -W0, 0)
-            Dpout[k, r, 0] = a1 * W2 - a2 * W1
-            Dpout[k, r, 1] = a2 * W0 - a0 * W2
-            Dpout[k, r, 2] = a0 * W1 - a1 * W0
-    else:
-        for r in range(3):
-            for j in range(3):
-                Dout[k, r, j] = S[6 + 3 * r + j]
-                Dpout[k, r, j] = S[15 + 3 * r + j]
+def _store_rattle(P, S, g, t, k, X, V, Dout, Dpout):
+    """Saved state k at the absolute time t of a RATTLE-family state: D = D_0 R(p) and
+    D' = D hat(W), W = Ibar^{-1} Pi; x_G, v_G as :func:`_store_com` gives them."""
+    D = _directors(S)
+    W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
+    W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
+    W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
+    for r in range(3):
+        a0 = D[3 * r]
+        a1 = D[3 * r + 1]
+        a2 = D[3 * r + 2]
+        Dout[k, r, 0] = a0
+        Dout[k, r, 1] = a1
+        Dout[k, r, 2] = a2
+        # row r of D hat(W); hat(W) columns: (0, W2, -W1), (-W2, 0, W0), (W1, -W0, 0)
+        Dpout[k, r, 0] = a1 * W2 - a2 * W1
+        Dpout[k, r, 1] = a2 * W0 - a0 * W2
+        Dpout[k, r, 2] = a0 * W1 - a1 * W0
+    _store_com(P, S, g, t, k, X, V, Dout, Dpout)
+
+
+@njit(cache=True)
+def _store_em(P, S, g, t, k, X, V, Dout, Dpout):
+    """Saved state k at the absolute time t of an energy-momentum state: D, D' from S;
+    x_G, v_G as :func:`_store_com` gives them."""
+    for r in range(3):
+        for j in range(3):
+            Dout[k, r, j] = S[6 + 3 * r + j]
+            Dpout[k, r, j] = S[15 + 3 * r + j]
+    _store_com(P, S, g, t, k, X, V, Dout, Dpout)
+
+
+@njit(cache=True)
+def _store_com(P, S, g, t, k, X, V, Dout, Dpout):
+    """x_G, v_G of saved state k (D, D' already in Dout[k], Dpout[k]): a free centre of mass
+    from its start state S[0:6] in closed form, x_G + v_G t + (t^2/2) g and v_G + g t at the
+    absolute time t; with a pivot x_G = -D c, v_G = -D' c."""
     tt = 0.5 * t * t
     for r in range(3):
         if P[31] != 0.0:
@@ -1321,34 +1332,37 @@ def _norm3(a, b, c):
 
 
 @njit(cache=True)
-def _omega_norm(method, P, S):
-    if method == RATTLE_FAMILY:
-        W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
-        W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
-        W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
-        return _norm3(W0, W1, W2)
-    # |W| = |vee(skew(D^T D'))|
-    w = np.zeros(3)
-    for r in range(3):
-        w[0] += 0.5 * (S[6 + 3 * r + 2] * S[15 + 3 * r + 1] - S[6 + 3 * r + 1] * S[15 + 3 * r + 2])
-        w[1] += 0.5 * (S[6 + 3 * r + 0] * S[15 + 3 * r + 2] - S[6 + 3 * r + 2] * S[15 + 3 * r + 0])
-        w[2] += 0.5 * (S[6 + 3 * r + 1] * S[15 + 3 * r + 0] - S[6 + 3 * r + 0] * S[15 + 3 * r + 1])
-    return _norm3(w[0], w[1], w[2])
+def _omega_norm_rattle(P, S):
+    """|W| = |Ibar^{-1} Pi| of a RATTLE-family state."""
+    W0 = P[19] * S[24] + P[20] * S[25] + P[21] * S[26]
+    W1 = P[22] * S[24] + P[23] * S[25] + P[24] * S[26]
+    W2 = P[25] * S[24] + P[26] * S[25] + P[27] * S[26]
+    return _norm3(W0, W1, W2)
 
 
 @njit(cache=True)
-def _alpha_norm(method, P, S):
-    """|Ibar^{-1} tau|, the angular acceleration of gravity at the state (RATTLE family;
-    0 for energy-momentum, whose limit estimate ignores it)."""
-    if method != RATTLE_FAMILY:
-        return 0.0
+def _omega_norm_em(S):
+    """|W| = |vee(skew(D^T D'))| of an energy-momentum state."""
+    w0 = 0.0
+    w1 = 0.0
+    w2 = 0.0
+    for r in range(3):
+        w0 += 0.5 * (S[6 + 3 * r + 2] * S[15 + 3 * r + 1] - S[6 + 3 * r + 1] * S[15 + 3 * r + 2])
+        w1 += 0.5 * (S[6 + 3 * r + 0] * S[15 + 3 * r + 2] - S[6 + 3 * r + 2] * S[15 + 3 * r + 0])
+        w2 += 0.5 * (S[6 + 3 * r + 1] * S[15 + 3 * r + 0] - S[6 + 3 * r + 0] * S[15 + 3 * r + 1])
+    return _norm3(w0, w1, w2)
+
+
+@njit(cache=True)
+def _alpha_norm_rattle(P, S):
+    """|Ibar^{-1} tau|, the angular acceleration of gravity at a RATTLE-family state (the
+    energy-momentum limit estimate ignores it: 0 there)."""
     a0 = P[19] * S[27] + P[20] * S[28] + P[21] * S[29]
     a1 = P[22] * S[27] + P[23] * S[28] + P[24] * S[29]
     a2 = P[25] * S[27] + P[26] * S[28] + P[27] * S[29]
     return _norm3(a0, a1, a2)
 
 
-@njit(cache=True)
 def init_state(method, P, g, S):
     """Complete a new state S (x, v, D, D' set, everything else zero) for
     ``run_one(..., init=False)``: the RATTLE momentum Pi and torque (nothing to do for
@@ -1357,42 +1371,33 @@ def init_state(method, P, g, S):
         _rattle_init(P, g, S)
 
 
-@njit(cache=True)
 def store_state(method, P, S, g, t, X, V, Dout, Dpout):
     """The state S at the absolute time t as x_G, v_G (1, 3) and D, D' (1, 3, 3) in X, V,
     Dout, Dpout."""
-    _store(method, P, S, g, t, 0, X, V, Dout, Dpout)
+    store = _store_rattle if method == RATTLE_FAMILY else _store_em
+    store(P, S, g, float(t), 0, X, V, Dout, Dpout)
 
 
-@njit(cache=True)
-def _run_rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0):
-    """The RATTLE-family loop of :func:`run_one` from saved state index k, with compensated
-    sums, compiled twice: for a free body (no torque, diagonal Ibar: those branches and the
-    torque terms folded away) or a pivoted one. The same numbers as one general loop."""
-    if P[31] == 0.0:
-        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
-                            True, True)  # fmt: skip
-    return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
-                        False, True)  # fmt: skip
+# The solve and the commit of the single-body loop: the same Python functions compiled as
+# functions of their own (everything they call inlined into them by numba), once per
+# signature, and marked for LLVM to inline (``forceinline``: LLVM's alwaysinline) into the
+# loop variants, so the machine code is that of numba-level inlining. Inlining them into
+# each loop variant with inline="always" instead repeats numba's work per call site, and
+# that work grows with the square of the inlined code's size (numba copies the callee's IR
+# block by block, each block with its whole variable scope): it was most of the compile time.
+# (Under NUMBA_DISABLE_JIT the decorators return the Python functions, without ``py_func``.)
+_rattle_solve_c = njit(forceinline=True)(getattr(_rattle_solve, "py_func", _rattle_solve))
+_rattle_commit_c = njit(forceinline=True)(getattr(_rattle_commit, "py_func", _rattle_commit))
 
 
-@njit(cache=True)
-def _run_rattle_plain(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0):
-    """:func:`_run_rattle` with plain sums (round-off studies): a kernel of its own, so that
-    the compensated path, the only one of the suite's runs, compiles without it."""
-    if P[31] == 0.0:
-        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
-                            True, False)  # fmt: skip
-    return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
-                        False, False)  # fmt: skip
-
-
-@njit(inline="always")
+@njit
 def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0, free, comp):
-    """The loop of :func:`_run_rattle`: the state in local variables (registers) between
+    """The loop of :func:`run_rattle`: the state in local variables (registers) between
     steps, written to S at the saved steps, at the end and (for a composition) at the start
-    of each step. ``free`` and ``comp`` are constants: True for a free body, whose Ibar is
-    diagonal and whose torque is zero; compensated sums."""
+    of each step. ``free`` and ``comp`` are literal constants (a version compiled for each
+    pair; numba prunes the branches on them): True for a free body, whose Ibar is diagonal
+    and whose torque is zero; compensated sums. A function of its own, not inlined: each
+    version is compiled once, where numba-level inlining would copy its IR per call site."""
     hs, hhs, rhs = _substep_sizes(coef, h)
     ncoef = coef.shape[0]
     nsave = saves.shape[0]
@@ -1420,14 +1425,14 @@ def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
         st = OK
         for c in range(ncoef):
             hh = hhs[c]
-            ok, b0, b1, b2, w0, w1, w2, c0, c1, c2, q = _rattle_solve(
+            ok, b0, b1, b2, w0, w1, w2, c0, c1, c2, q = _rattle_solve_c(
                 diag, I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, hh, Pi, T
             )
             if not ok:
                 st, w0, w1, w2, c0, c1, c2, q = _solve_loop(P, b0, b1, b2)
                 if st != OK:
                     break
-            finite, pn, pln, Pin, Pln, Tn = _rattle_commit(
+            finite, pn, pln, Pin, Pln, Tn = _rattle_commit_c(
                 comp, piv, m, pc, hh, rhs[c], (w0, w1, w2), (c0, c1, c2), q, p, pl, Pi, Pl, T,
                 G, False, False,
             )  # fmt: skip
@@ -1456,13 +1461,76 @@ def _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
             p, pl = _quat_rescale(p, pl)
         if k < nsave and saves[k] == n:
             _put_state(S, p, pl, Pi, Pl, T)
-            _store(RATTLE_FAMILY, P, S, g, (n0 + n) * h, k, X, V, Dout, Dpout)
+            _store_rattle(P, S, g, (n0 + n) * h, k, X, V, Dout, Dpout)
             k += 1
     _put_state(S, p, pl, Pi, Pl, T)
     return OK
 
 
+@njit(inline="always")
+def _run_rattle(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0, comp):
+    """The body of :func:`run_rattle` (``comp`` True) and :func:`run_rattle_plain`: the
+    start (momentum and torque of a new state, the saved start state), then the loop
+    :func:`_rattle_loop` for a free body (no torque, diagonal Ibar: those branches and the
+    torque terms folded away) or a pivoted one. The same numbers as one general loop."""
+    if init:
+        _rattle_init(P, g, S)
+    k = _save_start(saves)
+    if k > 0:
+        _store_rattle(P, S, g, n0 * h, np.int64(0), X, V, Dout, Dpout)
+    if P[31] == 0.0:
+        return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                            True, comp)  # fmt: skip
+    return _rattle_loop(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0,
+                        False, comp)  # fmt: skip
+
+
+@njit(inline="always")
+def _save_start(saves):
+    """1 if the first saved step is 0 (the start state is stored), else 0: the index of the
+    next saved state."""
+    return 1 if saves.shape[0] > 0 and saves[0] == 0 else 0
+
+
+# The entry points of one body, a kernel per family and per summation, so that a run
+# compiles (or loads from numba's cache) only the code it uses. The same arguments for all;
+# see :func:`run_one`.
 @njit(cache=True)
+def run_rattle(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
+    """:func:`run_one` for the RATTLE family, with compensated sums."""
+    return _run_rattle(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0, True)
+
+
+@njit(cache=True)
+def run_rattle_plain(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
+    """:func:`run_rattle` with plain sums (round-off studies): a kernel of its own, so that
+    the compensated path, the only one of the suite's runs, compiles without it."""
+    return _run_rattle(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0, False)
+
+
+@njit(cache=True)
+def run_em(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
+    """:func:`run_one` for the energy-momentum scheme (``coef`` and ``init`` unused: the
+    scheme has one stage and its state needs no completion)."""
+    k = _save_start(saves)
+    if k > 0:
+        _store_em(P, S, g, n0 * h, np.int64(0), X, V, Dout, Dpout)
+    nsave = saves.shape[0]
+    A = np.empty((15, 16))
+    M = np.empty((10, 3, 3))
+    for n in range(1, nstep + 1):
+        st = _em_step(P, g, S, h, A, M)
+        if st != OK:
+            info[0] = n - 1
+            info[1] = _omega_norm_em(S)
+            info[2] = 0.0
+            return st
+        if k < nsave and saves[k] == n:
+            _store_em(P, S, g, (n0 + n) * h, k, X, V, Dout, Dpout)
+            k += 1
+    return OK
+
+
 def run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
     """Advance one body by ``nstep`` steps of size ``h`` from the state ``S`` (length NS,
     updated in place), reached after ``n0`` earlier steps (the absolute time of step n of
@@ -1476,43 +1544,27 @@ def run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, ini
 
     Returns a status code. On failure info[0] = number of steps completed, info[1] = |W| and
     info[2] = |Ibar^{-1} tau| at the failing state, and S is the state after info[0] steps.
+
+    A Python function that calls the compiled kernel of the method (:func:`kernel`).
     """
-    return _run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0,
-                    _run_rattle)  # fmt: skip
+    return kernel(method)(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0)
 
 
-@njit(cache=True)
 def run_one_plain(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0):
     """:func:`run_one` with plain sums in the RATTLE family (energy-momentum is the same)."""
-    return _run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0,
-                    _run_rattle_plain)  # fmt: skip
+    fn = kernel(method, compensated=False)
+    return fn(coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0)
 
 
-@njit(inline="always")
-def _run_one(method, coef, P, g, S, h, nstep, saves, X, V, Dout, Dpout, info, init, n0, rattle):
-    """The body of :func:`run_one` with the RATTLE-family loop ``rattle``."""
-    if init and method == RATTLE_FAMILY:
-        _rattle_init(P, g, S)
-    k = 0
-    nsave = saves.shape[0]
-    if nsave > 0 and saves[0] == 0:
-        _store(method, P, S, g, n0 * h, 0, X, V, Dout, Dpout)
-        k = 1
+def kernel(method, compensated=True):
+    """The compiled single-body kernel of ``method`` (RATTLE_FAMILY or ENERGY_MOMENTUM):
+    :func:`run_rattle`, :func:`run_rattle_plain` or :func:`run_em`, all with the arguments
+    of :func:`run_one` less the method."""
     if method == RATTLE_FAMILY:
-        return rattle(coef, P, g, S, h, nstep, saves, k, X, V, Dout, Dpout, info, n0)
-    A = np.empty((15, 16))
-    M = np.empty((10, 3, 3))
-    for n in range(1, nstep + 1):
-        st = _em_step(P, g, S, h, A, M)
-        if st != OK:
-            info[0] = n - 1
-            info[1] = _omega_norm(method, P, S)
-            info[2] = _alpha_norm(method, P, S)
-            return st
-        if k < nsave and saves[k] == n:
-            _store(method, P, S, g, (n0 + n) * h, k, X, V, Dout, Dpout)
-            k += 1
-    return OK
+        return run_rattle if compensated else run_rattle_plain
+    if method == ENERGY_MOMENTUM:
+        return run_em
+    raise ValueError(f"method = {method!r}: expected RATTLE_FAMILY (0) or ENERGY_MOMENTUM (1)")
 
 
 def block_count(n: int, nthread: int) -> int:
@@ -1542,8 +1594,12 @@ def _run_body_range(
         # every lane): the scalar loop body by body
         for i in range(lo, hi):
             S = S0[i].copy()
-            status[i] = run_one(method, coef, P[i], g, S, h, nstep, saves, X[i], V[i],
-                                Dout[i], Dpout[i], info[i], True, 0)  # fmt: skip
+            if method == RATTLE_FAMILY:
+                status[i] = run_rattle(coef, P[i], g, S, h, nstep, saves, X[i], V[i], Dout[i],
+                                       Dpout[i], info[i], True, 0)  # fmt: skip
+            else:
+                status[i] = run_em(coef, P[i], g, S, h, nstep, saves, X[i], V[i], Dout[i],
+                                   Dpout[i], info[i], True, 0)  # fmt: skip
 
 
 @njit(cache=True, parallel=True)

@@ -241,36 +241,39 @@ def _step_error(scheme: type[Scheme], status: int, info, dt: float, body=None, s
     return StepSizeError(msg, time=t, step=done + 1, dt=dt, h_max=h_max, body=body)
 
 
-_COMPILED: set[str] = set()
+_COMPILED: set[tuple] = set()
 
 
-def _ensure_compiled(kind: str) -> None:
+def _ensure_compiled(kind: str, method: int | None = None) -> None:
     """Compile (or load from the on-disk cache) a kernel with a harmless 1-step run of a unit
-    sphere at rest, so that the timed call measures stepping only. ``kind``: "single"
-    (``run_one``), "plain" (``run_one_plain``), "parallel" or "serial" (the batch loops)."""
-    if kind in _COMPILED:
+    sphere at rest, so that the timed call measures stepping only. ``kind``: "single" (the
+    kernel of ``method`` with compensated sums, ``K.kernel(method)``), "plain" (plain sums),
+    "parallel" or "serial" (the batch loops, both methods; ``method`` unused). A single-body
+    run compiles only its own method's kernel."""
+    key = (kind, method if kind in ("single", "plain") else None)
+    if key in _COMPILED:
         return
     P = _params(Body.make(1.0, (1.0, 1.0, 1.0)))
     S = _state(np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3))
     saves = np.array([0, 1], dtype=np.int64)
     g = np.zeros(3)
-    for method in (K.RATTLE_FAMILY, K.ENERGY_MOMENTUM):
-        coef = np.ones(1)
-        if kind in ("single", "plain"):
-            fn = K.run_one if kind == "single" else K.run_one_plain
+    coef = np.ones(1)
+    if kind in ("single", "plain"):
+        fn = K.kernel(method, compensated=kind == "single")
+        fn(
+            coef, P, g, S.copy(), 0.1, 1, saves, np.empty((2, 3)), np.empty((2, 3)),
+            np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(3), True, 0,
+        )  # fmt: skip
+        K.init_state(method, P, g, S.copy())
+    else:
+        fn = K.run_batch_parallel if kind == "parallel" else K.run_batch_serial
+        for m in (K.RATTLE_FAMILY, K.ENERGY_MOMENTUM):
             fn(
-                method, coef, P, g, S.copy(), 0.1, 1, saves, np.empty((2, 3)), np.empty((2, 3)),
-                np.empty((2, 3, 3)), np.empty((2, 3, 3)), np.zeros(3), True, 0,
-            )  # fmt: skip
-            K.init_state(method, P, g, S.copy())
-        else:
-            fn = K.run_batch_parallel if kind == "parallel" else K.run_batch_serial
-            fn(
-                method, coef, P[None], g, S[None], 0.1, 1, saves, np.empty((1, 2, 3)),
+                m, coef, P[None], g, S[None], 0.1, 1, saves, np.empty((1, 2, 3)),
                 np.empty((1, 2, 3)), np.empty((1, 2, 3, 3)), np.empty((1, 2, 3, 3)),
                 np.zeros(1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1, dtype=np.int64), 1,
             )  # fmt: skip
-    _COMPILED.add(kind)
+    _COMPILED.add(key)
 
 
 def _finish(cls, scheme, t, X, V, D, Dp, mass, Jbar, pivoted, g, nstep, wall, cpu, dt):
@@ -383,7 +386,8 @@ class Stepper:
         self.scheme = sch.name
         self.compensated = bool(compensated)
         self.nstep_done = 0
-        _ensure_compiled("single" if self.compensated else "plain")
+        self._kernel = K.kernel(sch.method, compensated=self.compensated)
+        _ensure_compiled("single" if self.compensated else "plain", sch.method)
         K.init_state(sch.method, self._P, g, self._S)
 
     @property
@@ -429,8 +433,8 @@ class Stepper:
         step0 = self.nstep_done
         c0 = time.thread_time()
         t0 = time.perf_counter()
-        status = (K.run_one if self.compensated else K.run_one_plain)(
-            sch.method, self._coef, self._P, self._g, self._S, self.dt, nstep, saves, X, V, D,
+        status = self._kernel(
+            self._coef, self._P, self._g, self._S, self.dt, nstep, saves, X, V, D,
             Dp, info, False, step0,
         )  # fmt: skip
         wall = time.perf_counter() - t0
