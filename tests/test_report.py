@@ -750,3 +750,42 @@ def test_the_reference_rows_are_told_by_the_recorded_flag_not_the_engine_name():
     old = df.assign(reference=float("nan"))
     assert reference_rows(old).tolist() == [True, False, False]
     assert [is_reference_record(r) for r in old.to_dict("records")] == [True, False, False]
+
+
+def test_the_text_caching_backend_draws_the_pixels_agg_draws(tmp_path):
+    """reports.report.agg_text caches string layouts and glyph bitmaps across figures: a figure
+    of texts at fractional positions, sizes, weights, a rotated label, mathtext, non-ASCII
+    (superscripts, marks) must come out pixel for pixel as matplotlib's own Agg draws it,
+    the first time (caches filling) and the second (caches hit)."""
+    import matplotlib
+    import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from reports.report import agg_text
+
+    def draw(canvas_class):
+        fig = Figure(figsize=(4.3, 2.7), dpi=100)
+        canvas = canvas_class(fig)
+        ax = fig.add_axes([0.17, 0.2, 0.5, 0.6])
+        ax.plot([1e-9, 1.0], [3e-12, 2.0], label="director rattle, mujoco RK4\n(diverged at 1.64 s)")
+        ax.set_yscale("log")
+        ax.set_ylabel("attitude error [rad]")
+        ax.set_title("cone_top: errors 10⁻⁵ ✓ ✗ ↯", fontsize=10.5)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+        for k in range(7):
+            fig.text(0.013 + 0.0371 * k, 0.0137 * k + 0.003, f"t = {k}.37 s", fontsize=7 + 0.7 * k,
+                     weight="bold" if k % 2 else "normal")  # fmt: skip
+        fig.text(0.5, 0.9, r"$\omega_3 = 10^{-5}$ dt")
+        canvas.draw()
+        return np.asarray(canvas.buffer_rgba()).copy()
+
+    assert agg_text.SUPPORTED, f"matplotlib {matplotlib.__version__}: plain Agg is drawn"
+    agg_text._GLYPHS.clear(), agg_text._LAYOUTS.clear(), agg_text._METRICS.clear()
+    want = draw(FigureCanvasAgg)
+    first = draw(agg_text.FigureCanvasCachedText)
+    assert agg_text._GLYPHS and agg_text._LAYOUTS and agg_text._METRICS  # it did cache
+    second = draw(agg_text.FigureCanvasCachedText)
+    assert want.shape == first.shape == second.shape
+    assert (want != first).any(axis=-1).sum() == 0
+    assert (want != second).any(axis=-1).sum() == 0

@@ -142,7 +142,8 @@ PAD = 0.08
 def _plt():
     import matplotlib
 
-    matplotlib.use("Agg")
+    # Agg with text laid out and glyphs rendered once per process: the same pixels
+    matplotlib.use("module://reports.report.agg_text")
     import matplotlib.pyplot as plt
 
     plt.rcParams.update(
