@@ -126,12 +126,17 @@ def finish(y, K, acc, h, pivoted, z):
 # -- packing for the engines --------------------------------------------------------------------
 
 
+#: the ``sign`` argument of :func:`rotate`
+FORWARD = 1.0
+INVERSE = -1.0
+
+
 @njit(cache=True)
-def rotate(q, v, out, inverse):
-    """out = R(q) v (or R(q)^T v with ``inverse``) for a unit quaternion q (w, x, y, z)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    if inverse:
-        x, y, z = -x, -y, -z
+def rotate(q, v, out, sign):
+    """out = R(q) v (``sign`` FORWARD, 1.0) or R(q)^T v (INVERSE, -1.0: the vector part of q
+    negated, exactly) for a unit quaternion q (w, x, y, z). The sign is a float, not a bool:
+    numba would compile a version for each of the literals True and False."""
+    w, x, y, z = q[0], sign * q[1], sign * q[2], sign * q[3]
     # v + 2 w (u x v) + 2 u x (u x v), u = (x, y, z)
     c0 = y * v[2] - z * v[1]
     c1 = z * v[0] - x * v[2]
@@ -162,7 +167,7 @@ def pack_pinocchio(z, pivoted, qp, vp):
         return
     qp[0], qp[1], qp[2] = z[4], z[5], z[6]
     qp[3], qp[4], qp[5], qp[6] = z[1], z[2], z[3], z[0]
-    rotate(z[0:4], z[10:13], vp[0:3], True)
+    rotate(z[0:4], z[10:13], vp[0:3], INVERSE)
     vp[3], vp[4], vp[5] = z[7], z[8], z[9]
 
 
@@ -175,13 +180,13 @@ def unpack_pinocchio(z, pivoted, a, acc):
         acc[3] = acc[4] = acc[5] = 0.0
         return
     vl = np.empty(3)
-    rotate(z[0:4], z[10:13], vl, True)
+    rotate(z[0:4], z[10:13], vl, INVERSE)
     W0, W1, W2 = z[7], z[8], z[9]
     t = np.empty(3)
     t[0] = a[0] + W1 * vl[2] - W2 * vl[1]
     t[1] = a[1] + W2 * vl[0] - W0 * vl[2]
     t[2] = a[2] + W0 * vl[1] - W1 * vl[0]
-    rotate(z[0:4], t, acc[3:6], False)
+    rotate(z[0:4], t, acc[3:6], FORWARD)
     acc[0], acc[1], acc[2] = a[3], a[4], a[5]
 
 
@@ -195,7 +200,7 @@ def pack_dart(z, pivoted, pos, vel):
         return
     rotvec(z[0:4], pos[0:3])
     pos[3], pos[4], pos[5] = z[4], z[5], z[6]
-    rotate(z[0:4], z[7:10], vel[0:3], False)
+    rotate(z[0:4], z[7:10], vel[0:3], FORWARD)
     vel[3], vel[4], vel[5] = z[10], z[11], z[12]
 
 
@@ -207,7 +212,7 @@ def unpack_dart(z, pivoted, a, acc):
         acc[0], acc[1], acc[2] = a[0], a[1], a[2]
         acc[3] = acc[4] = acc[5] = 0.0
         return
-    rotate(z[0:4], a[0:3], acc[0:3], True)
+    rotate(z[0:4], a[0:3], acc[0:3], INVERSE)
     acc[3], acc[4], acc[5] = a[3], a[4], a[5]
 
 
