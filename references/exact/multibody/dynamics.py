@@ -120,15 +120,23 @@ def _mcross(v, m, out):
 
 
 @njit(cache=True)
-def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, c):
-    """Fill R (nb,3,3), x (nb,3), S (nu,6) (the motion subspace columns as rows), v (nb,6)
-    and c (nb,6) (velocity-product terms). Returns the or of the BLAS return codes."""
+def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
+    """(M (nu,nu), C (nu,), R, x, v, Ib) at the state (q, u): M u' + C = 0."""
     nb = len(kind)
+    nu = len(u)
+    # every element of these is written by the kinematics below
+    R = np.empty((nb, 3, 3))
+    x = np.empty((nb, 3))
+    S = np.empty((nu, 6))
+    v = np.empty((nb, 6))
+    c = np.empty((nb, 6))
+    # kinematics: R, x, S (the motion subspace columns as rows), v, and the velocity-product
+    # terms c
     Rrel = np.empty((3, 3))
     Rax = np.empty((3, 3))
     pj = np.empty(3)
     w3 = np.empty(3)
-    a = np.empty(3)
+    ax = np.empty(3)
     vj = np.empty(6)
     vr = np.empty(6)
     err = 0
@@ -208,30 +216,15 @@ def _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, 
                     vj[j] += S[r, j] * u[r]
         else:
             err |= _GEMV(_D, _T, 3, 3, _ONE.ctypes, R[b].ctypes, 3, axis[b].ctypes,
-                         _ZERO.ctypes, a.ctypes)  # fmt: skip
+                         _ZERO.ctypes, ax.ctypes)  # fmt: skip
             for j in range(3):
-                S[uo, j] = a[j]
-            S[uo, 3], S[uo, 4], S[uo, 5] = _cross(pj[0], pj[1], pj[2], a[0], a[1], a[2])
+                S[uo, j] = ax[j]
+            S[uo, 3], S[uo, 4], S[uo, 5] = _cross(pj[0], pj[1], pj[2], ax[0], ax[1], ax[2])
             for j in range(6):
                 vj[j] += S[uo, j] * u[uo]
         for j in range(6):
             v[b, j] = (0.0 if p < 0 else v[p, j]) + vj[j]
         _mcross(v[b], vj, c[b])
-    return err
-
-
-@njit(cache=True)
-def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
-    """(M (nu,nu), C (nu,), R, x, v, Ib) at the state (q, u): M u' + C = 0."""
-    nb = len(kind)
-    nu = len(u)
-    # every element of these is written by _kinematics
-    R = np.empty((nb, 3, 3))
-    x = np.empty((nb, 3))
-    S = np.empty((nu, 6))
-    v = np.empty((nb, 6))
-    c = np.empty((nb, 6))
-    err = _kinematics(q, u, kind, parent, qofs, uofs, X, Y, axis, offset, R, x, S, v, c)
     # spatial inertias about the origin, world axes: IG = R diag(J) R^T in the upper left
     # block (less m (c c^T - |c|^2 1)), m hat(c) upper right, -m hat(c) lower left, m 1
     Ib = np.empty((nb, 6, 6))
