@@ -420,3 +420,59 @@ def test_the_kit_passes_and_skips_the_order_of_the_integrators_mjx_refuses(kit_c
 @pytest.mark.slow
 def test_assert_conforms(mjx, kit_checks):
     kit.assert_conforms(mjx)
+
+
+# -- the traced computations kept on disk (compile._lowered) ----------------------------------
+
+
+def _traced_twice(mjx, tmp_path, monkeypatch, kind="test-affine"):
+    """compile._lowered on a small function, with the store in tmp_path: (the compiled
+    function, how often the function was traced, the store's files)."""
+    from references.engines.mjx import compile as C
+
+    monkeypatch.setattr(C, "_exported_store", lambda: tmp_path)
+    _, jax, _ = C._import()
+    traced = []
+
+    def fn(a, b):
+        traced.append(1)
+        return {"y": 3.0 * a + b[0]}
+
+    args = (np.arange(4.0), [np.float64(0.5)])
+    avals = tuple((np.shape(a), str(np.asarray(a).dtype)) for a in (args[0], args[1][0]))
+    defs = (jax.tree_util.tree_structure(args),)
+    with C.x64_mode(True):
+        comp = C._lowered(kind, fn, defs, avals, args, True).compile()
+        out = np.asarray(comp(*args)["y"])
+    return out, len(traced), sorted(tmp_path.glob("*.exported"))
+
+
+def test_an_exported_computation_is_loaded_instead_of_traced(mjx, tmp_path, monkeypatch):
+    out, n, files = _traced_twice(mjx, tmp_path, monkeypatch)
+    assert n == 1 and len(files) == 1
+    np.testing.assert_array_equal(out, 3.0 * np.arange(4.0) + 0.5)
+    out2, n2, files2 = _traced_twice(mjx, tmp_path, monkeypatch)
+    assert n2 == 0 and files2 == files  # loaded: not traced again
+    np.testing.assert_array_equal(out2, out)
+    # another kind is another key: traced and kept beside
+    _, n3, files3 = _traced_twice(mjx, tmp_path, monkeypatch, kind="test-other")
+    assert n3 == 1 and len(files3) == 2
+
+
+def test_a_corrupt_or_foreign_exported_file_is_ignored_and_rewritten(mjx, tmp_path, monkeypatch):
+    from references.engines.mjx import compile as C
+
+    _, _, (path,) = _traced_twice(mjx, tmp_path, monkeypatch)
+    good = path.read_bytes()
+    n = len(C._EXPORT_FORMAT)
+    flipped = bytearray(good)
+    flipped[-10] ^= 0xFF  # a payload byte: its checksum no longer matches
+    other_key = bytearray(good)
+    other_key[n] ^= 0xFF  # the file holds another key than its name's
+    for bad in (bytes(flipped), bytes(other_key), good[: len(good) // 2], b"junk"):
+        path.write_bytes(bad)
+        out, traced, files = _traced_twice(mjx, tmp_path, monkeypatch)
+        assert traced == 1 and files == [path]
+        np.testing.assert_array_equal(out, 3.0 * np.arange(4.0) + 0.5)
+        assert path.read_bytes()[: n + 32] == good[: n + 32]  # rewritten whole
+        assert not list(tmp_path.glob("*.tmp"))
