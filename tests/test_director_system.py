@@ -207,3 +207,42 @@ def test_block_solver_equals_banded_to_round_off():
         b = Body("b", 1.0, (1.0, 2.0, 2.5), position=(0, 0, -1))
         j = [Joint("revolute", "b", None, (0, 0, 1), (0, 0, 0), (1, 0, 0), (1, 0, 0))]
         SystemStepper([b], j, dt=1e-3, solver="block")
+
+
+def test_kernels_one_signature_each():
+    """Each numba function of the system kernels is compiled for one signature whatever the
+    solver (a constant flag or index, a non-contiguous view or another integer width would
+    add a specialisation, and with it compile time). A kernel loaded from numba's cache
+    compiles no helper at all, which also passes."""
+    from director_model.system import _kernels as K
+
+    bodies, joints = rod_chain(3, hang=True, seed=1)
+    for solver in ("block", "banded", "minnorm"):
+        simulate_system(bodies, joints, gravity=(0, 0, -9.81), dt=1e-3, t_end=3e-3,
+                        solver=solver)  # fmt: skip
+    counts = {name: len(f.overloads) for name, f in vars(K).items() if hasattr(f, "overloads")}
+    assert counts["run_system"] == 1
+    assert all(n <= 1 for n in counts.values()), counts
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 9])
+def test_svd_factor_against_numpy(n):
+    """The kernels' SVD (dgesdd called directly, A overwritten): the singular values of
+    numpy's SVD, orthogonal U and Vt, U diag(s) Vt = A, the rank count; -1 for a non-finite
+    A."""
+    from director_model.system import _kernels as K
+
+    rng = np.random.default_rng(n)
+    A = rng.standard_normal((n, n))
+    if n > 2:
+        A[-1] = A[0] + A[1]  # rank n - 1
+    U, s, Vt = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
+    rank = K._svd_factor(A.copy(), 1e-12, U, s, Vt)
+    s_ref = np.linalg.svd(A, compute_uv=False)
+    np.testing.assert_allclose(s, s_ref, rtol=1e-13, atol=1e-14 * s_ref[0])
+    np.testing.assert_allclose(U @ U.T, np.eye(n), atol=1e-14 * n)
+    np.testing.assert_allclose(Vt @ Vt.T, np.eye(n), atol=1e-14 * n)
+    np.testing.assert_allclose((U * s) @ Vt, A, atol=1e-14 * n * s_ref[0])
+    assert rank == (n - 1 if n > 2 else n)
+    A[0, 0] = np.nan
+    assert K._svd_factor(A, 1e-12, U, s, Vt) == -1

@@ -40,9 +40,23 @@ the last velocity multipliers and the position multipliers of each sub-step of t
 steps (force units; layout in :func:`run_system`): the start values of the next position
 multipliers, so a stepper restarted from (S, mu) continues bit for bit.
 
-The step is written out inside :func:`run_system` and the array kernels are inlined: a call
-with some thirty array arguments per sub-step cost about 0.4 us (1 body: 540 ns per step with
-the call, 130 ns without).
+The step is written out inside :func:`run_system`: a call with some thirty array arguments
+per sub-step cost about 0.4 us (1 body: 540 ns per step with the call, 130 ns without).
+Compile time (a cold numba cache) decides how the helpers are joined to it:
+
+- the helpers of every sub-step and Newton iteration (rows, forces, DMV, block solver, the
+  3x3 tuple algebra, storing a state) are ``njit(forceinline=True)``: each is typed and
+  compiled once and LLVM inlines it into run_system (numba's ``inline="always"`` inlines
+  at the IR level and types every call site again: about three times the compile time of
+  run_system, with the same per-step cost);
+- the dense and banded assembly, the banded factorisations and solves and the SVD are plain
+  calls (their cost grows with the number of rows; a call is a few tens of ns);
+- no argument of a helper is a compile-time constant (a literal flag or index would compile
+  one specialisation per value), and the SVD calls LAPACK's dgesdd through numba's wrapper
+  directly, as np.linalg.svd does, without the checks and copies that make np.linalg.svd
+  compile for several seconds.
+
+tests/test_director_system.py checks that every kernel compiles a single signature.
 """
 
 from __future__ import annotations
@@ -50,7 +64,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.np.linalg import _LAPACK, ensure_lapack
+
+ensure_lapack()
+#: LAPACK's dgesdd through numba's wrapper (numba_ez_gesdd: workspace query, then the call),
+#: the routine and arguments of numba's np.linalg.svd; calling it directly compiles in about
+#: a tenth of the time of np.linalg.svd and its checks
+_GESDD = _LAPACK().numba_ez_gesdd(types.float64)
+_KIND_D = ord("d")
+_JOBZ_A = ord("A")
 
 NS = 26
 EPS = 2.220446049250313e-16
@@ -69,6 +92,7 @@ FAIL_NEWTON = 1  # the joint multipliers did not converge
 FAIL_DMV = 2  # a body's rotation equation has no admissible solution (step too large)
 FAIL_SINGULAR = 3  # singular multiplier matrix (banded solver)
 FAIL_NONFINITE = 4
+FAIL_SVD = 5  # the SVD of the multiplier matrix failed (minnorm solver)
 
 STATUS_TEXT = {
     FAIL_NEWTON: "the Newton iteration for the joint multipliers did not converge",
@@ -77,6 +101,8 @@ STATUS_TEXT = {
     FAIL_SINGULAR: "the multiplier matrix is singular (a singular configuration of the joints; "
     "solver='minnorm' handles it)",
     FAIL_NONFINITE: "a non-finite state",
+    FAIL_SVD: "the singular value decomposition of the multiplier matrix failed (non-finite "
+    "entries, or LAPACK's dgesdd did not converge)",
 }
 
 #: diagnostics slots
@@ -88,14 +114,14 @@ D_MAXIT = 4  # largest iteration count of one substep
 NDIAG = 5
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _kahan(hi, lo, d):
     y = d + lo
     t = hi + y
     return t, y - (t - hi)
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _qmat(p0, p1, p2, p3):
     """R(p/|p|) of a quaternion (scalar first, any norm > 0), a row-major 9-tuple."""
     a = p0 * p0
@@ -117,7 +143,7 @@ def _qmat(p0, p1, p2, p3):
     )  # fmt: skip
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _mm(A, B):
     """A B for row-major 3x3 9-tuples."""
     return (
@@ -133,7 +159,7 @@ def _mm(A, B):
     )
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _mmt(A, B):
     """A B^T for row-major 3x3 9-tuples."""
     return (
@@ -149,7 +175,7 @@ def _mmt(A, B):
     )
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _inv3(A):
     """(det A, A^{-1}) for a row-major 9-tuple (the inverse is garbage if det = 0)."""
     c00 = A[4] * A[8] - A[5] * A[7]
@@ -164,7 +190,7 @@ def _inv3(A):
     )  # fmt: skip
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _dmv_jac(I0, I1, I2, w0, w1, w2, p0, p1, p2, h):
     """dF/dw of F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi: 2 (diag(I) + hat(w) diag(I) -
     hat(I w)) - 2 h pi w^T, a row-major 9-tuple."""
@@ -185,7 +211,7 @@ def _dmv_jac(I0, I1, I2, w0, w1, w2, p0, p1, p2, h):
     )
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _dmv(I0, I1, I2, p0, p1, p2, h):
     """Solve the DMV equation F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi = 0 for the Gibbs
     vector w: start w = h/2 I^{-1} pi, one fixed-point correction, then chord Newton with the
@@ -235,7 +261,7 @@ def _dmv(I0, I1, I2, p0, p1, p2, h):
     return ok, w0, w1, w2, Ai
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _rows(rint, rvec, X, D, gv, Jc):
     """Row values gv (nrow,) and Jacobians Jc (nrow, 12) at positions X (nb, 3) and
     directors D (nb, 9); body index -1 is the ground (x = 0, D = 1)."""
@@ -319,7 +345,7 @@ def _rows(rint, rvec, X, D, gv, Jc):
             Jc[r, 11] = rb0 * u1 - rb1 * u0
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _forces(rint, Jc, lam, F, T):
     """Joint forces -G^T lam per body: F (nb, 3) force, T (nb, 3) world torque."""
     F[:] = 0.0
@@ -337,7 +363,7 @@ def _forces(rint, Jc, lam, F, T):
                 T[b, c] -= Jc[r, 9 + c] * lr
 
 
-@njit(inline="always")
+@njit
 def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
     """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
     (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]; with ``upper`` only the
@@ -371,7 +397,7 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
                     A[r, s] += v
 
 
-@njit(inline="always")
+@njit
 def _band_lu(A, bw):
     """In-place LU without pivoting of the banded A (n, 2 bw + 1). Returns False on a pivot
     below 1e-13 times the largest diagonal entry (a singular configuration)."""
@@ -394,7 +420,7 @@ def _band_lu(A, bw):
     return True
 
 
-@njit(inline="always")
+@njit
 def _band_solve(A, bw, b, x):
     """Solve with the factors of :func:`_band_lu`: x = A^{-1} b."""
     n = A.shape[0]
@@ -410,7 +436,7 @@ def _band_solve(A, bw, b, x):
         x[i] = s / A[i, bw]
 
 
-@njit(inline="always")
+@njit
 def _band_ldl(A, bw):
     """In-place L D L^T of the symmetric banded A, upper band stored (A[k, bw + j - k],
     j >= k): D on the diagonal, L[i, k] in A[k, bw + i - k]. Returns False on a pivot
@@ -435,7 +461,7 @@ def _band_ldl(A, bw):
     return True
 
 
-@njit(inline="always")
+@njit
 def _band_ldl_solve(A, bw, b, x):
     """Solve with the factors of :func:`_band_ldl`: x = A^{-1} b."""
     n = A.shape[0]
@@ -454,13 +480,32 @@ def _band_ldl_solve(A, bw, b, x):
         x[i] = t
 
 
-@njit(cache=True)
+@njit(forceinline=True)
+def _transpose(A):
+    """A = A^T in place (square A)."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            A[i, j], A[j, i] = A[j, i], A[i, j]
+
+
+@njit
 def _svd_factor(A, rank_tol, U, s, Vt):
-    """SVD of the dense A into U, s, Vt (copies); returns rank = #(s > rank_tol s_0)."""
-    U1, s1, Vt1 = np.linalg.svd(A)
-    U[:, :] = U1
-    s[:] = s1
-    Vt[:, :] = Vt1
+    """SVD A = U diag(s) Vt of the square C-ordered A (overwritten) by LAPACK's dgesdd with
+    jobz = 'A', through numba's own wrapper of it (the call np.linalg.svd makes, with the
+    same arguments, so the same numbers); returns rank = #(s > rank_tol s_0), or -1 if A is
+    not finite or dgesdd failed. The transposes pass the C arrays as column-major ones."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(n):
+            if not abs(A[i, j]) < math.inf:
+                return -1
+    _transpose(A)
+    r = _GESDD(_KIND_D, _JOBZ_A, n, n, A.ctypes, n, s.ctypes, U.ctypes, n, Vt.ctypes, n)
+    if r != 0:
+        return -1
+    _transpose(U)
+    _transpose(Vt)
     rank = 0
     if s.shape[0] > 0 and s[0] > 0.0:
         for k in range(s.shape[0]):
@@ -469,7 +514,7 @@ def _svd_factor(A, rank_tol, U, s, Vt):
     return rank
 
 
-@njit(inline="always")
+@njit
 def _svd_solve(U, s, Vt, rank, b, x):
     """Minimum-norm x = V S^+ U^T b over the first ``rank`` singular values."""
     n = x.shape[0]
@@ -483,18 +528,18 @@ def _svd_solve(U, s, Vt, rank, b, x):
             x[j] += c * Vt[k, j]
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _row9(A, i):
     return (A[i, 0], A[i, 1], A[i, 2], A[i, 3], A[i, 4], A[i, 5], A[i, 6], A[i, 7], A[i, 8])
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _put9(A, i, T):
     for c in range(9):
         A[i, c] = T[c]
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _tmul(D, t0, t1, t2):
     """D^T t for a row-major 9-tuple D."""
     return (
@@ -504,7 +549,7 @@ def _tmul(D, t0, t1, t2):
     )
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _mul(D, t0, t1, t2):
     """D t for a row-major 9-tuple D."""
     return (
@@ -514,15 +559,14 @@ def _mul(D, t0, t1, t2):
     )
 
 
-@njit(inline="always")
-def _fail(info, n, h, status):
-    """Record a failure at sub-step h of step n (info[0] = steps completed) and return it."""
+@njit(forceinline=True)
+def _fail(info, n, h):
+    """Record a failure at sub-step h of step n: info[0] = steps completed, info[1] = h."""
     info[0] = n - 1
     info[1] = h
-    return status
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _store(B, D0, S, X, V, D, W, k):
     for i in range(S.shape[0]):
         for c in range(3):
@@ -534,7 +578,7 @@ def _store(B, D0, S, X, V, D, W, k):
             D[k, i, c // 3, c % 3] = R[c]
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _blk(J, r, o):
     """The 3x3 block J[r:r + 3, o:o + 3] as a row-major 9-tuple."""
     return (
@@ -544,7 +588,7 @@ def _blk(J, r, o):
     )  # fmt: skip
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
     """Block-tridiagonal assembly for joints of three point rows listed along a chain (joint
     k has the rows 3k .. 3k + 2; joints sharing a body are adjacent): the blocks
@@ -587,7 +631,7 @@ def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
                     Lo[m, 8] += d
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _blk_lu(Dg, Up, Lo):
     """In-place block LU of the block-tridiagonal matrix: Dg[k] becomes the inverse of the
     k-th pivot block, Lo[k] the multiplier block L_{k+1,k}. False on a singular pivot."""
@@ -610,7 +654,7 @@ def _blk_lu(Dg, Up, Lo):
     return True
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _blk_solve(Dg, Up, Lo, b, x):
     """Solve with the factors of :func:`_blk_lu`: x = A^{-1} b."""
     K = Dg.shape[0]
@@ -654,7 +698,8 @@ def run_system(
     Dnew = np.empty((nb, 9))
     VH = np.empty((nb, 3))
     PI = np.empty((nb, 3))
-    WG = np.empty((nb, 6))
+    WG = np.empty((nb, 3))
+    XN = np.empty((nb, 3))
     F = np.zeros((nb, 3))
     T = np.zeros((nb, 3))
     Mx = np.empty(nb)
@@ -676,11 +721,16 @@ def run_system(
     Dg = np.zeros((nK, 9))
     Up = np.zeros((nK, 9))
     Lo = np.zeros((nK, 9))
+    # the flags of _assemble as run-time values (constant arguments would compile one
+    # _assemble for each combination): banded storage, and the upper band only (velocity stage)
+    band = not minnorm
+    upper = band
+    full = minnorm and band  # False
     ns = coef.shape[0]
     nhist = int(mu[nr * (1 + 2 * ns)])
     ks = 0
     if saves.shape[0] > 0 and saves[0] == 0:
-        _store(B, D0, S, X, V, D, W, 0)
+        _store(B, D0, S, X, V, D, W, saves[0])
         ks = 1
     for n in range(1, nstep + 1):
         for j in range(coef.shape[0]):
@@ -719,7 +769,7 @@ def run_system(
                     Di = _row9(Dn, i)
                     for c in range(3):
                         VH[i, c] = S[i, 6 + c] + hh * (g[c] + F[i, c] / m)
-                        WG[i, 3 + c] = S[i, c] + h * VH[i, c]  # x_{n+1}
+                        XN[i, c] = S[i, c] + h * VH[i, c]  # x_{n+1}
                     t0, t1, t2 = _tmul(Di, T[i, 0], T[i, 1], T[i, 2])
                     p0 = S[i, 20] + hh * t0
                     p1 = S[i, 21] + hh * t1
@@ -729,7 +779,8 @@ def run_system(
                     PI[i, 2] = p2
                     ok, w0, w1, w2, Ai = _dmv(B[i, 1], B[i, 2], B[i, 3], p0, p1, p2, h)
                     if not ok:
-                        return _fail(info, n, h, FAIL_DMV)
+                        _fail(info, n, h)
+                        return FAIL_DMV
                     WG[i, 0] = w0
                     WG[i, 1] = w1
                     WG[i, 2] = w2
@@ -752,28 +803,35 @@ def run_system(
                         Mx[i] = 0.5 / m
                 if nrow == 0:
                     break
-                _rows(rint, rvec, WG[:, 3:6], Dnew, gv, Jnew)
+                _rows(rint, rvec, XN, Dnew, gv, Jnew)
                 err = 0.0
                 for r in range(nrow):
                     err = max(err, abs(gv[r]))
                 if not err < math.inf:
-                    return _fail(info, n, h, FAIL_NONFINITE)
+                    _fail(info, n, h)
+                    return FAIL_NONFINITE
                 if err <= tol:
                     break
                 if it >= MAXIT:
-                    return _fail(info, n, h, FAIL_NEWTON)
+                    _fail(info, n, h)
+                    return FAIL_NEWTON
                 if fresh:
                     if minnorm:
-                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, False, bw, False)
+                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, band, bw, full)
                         rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                        if rank < 0:
+                            _fail(info, n, h)
+                            return FAIL_SVD
                     elif blk:
                         _blk_assemble(jptr, jidx, jside, Jnew, Jold, Mx, Mth, Dg, Up, Lo)
                         if not _blk_lu(Dg, Up, Lo):
-                            return _fail(info, n, h, FAIL_SINGULAR)
+                            _fail(info, n, h)
+                            return FAIL_SINGULAR
                     else:
-                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, True, bw, False)
+                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, band, bw, full)
                         if not _band_lu(Ab, bw):
-                            return _fail(info, n, h, FAIL_SINGULAR)
+                            _fail(info, n, h)
+                            return FAIL_SINGULAR
                 if minnorm:
                     _svd_solve(U, sv, Vt, rank, gv, dl)
                 elif blk:
@@ -819,8 +877,11 @@ def run_system(
                           Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
                     _put9(Mth, i, _mmt(DI, Dj))
                 if minnorm:
-                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, False, bw, False)
+                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, band, bw, full)
                     rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                    if rank < 0:
+                        _fail(info, n, h)
+                        return FAIL_SVD
                     _svd_solve(U, sv, Vt, rank, r0, dl)
                     nrank = 0
                     for k in range(sv.shape[0]):
@@ -836,12 +897,14 @@ def run_system(
                 elif blk:
                     _blk_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Dg, Up, Lo)
                     if not _blk_lu(Dg, Up, Lo):
-                        return _fail(info, n, h, FAIL_SINGULAR)
+                        _fail(info, n, h)
+                        return FAIL_SINGULAR
                     _blk_solve(Dg, Up, Lo, r0, dl)
                 else:
-                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, True, bw, True)
+                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, band, bw, upper)
                     if not _band_ldl(Ab, bw):
-                        return _fail(info, n, h, FAIL_SINGULAR)
+                        _fail(info, n, h)
+                        return FAIL_SINGULAR
                     _band_ldl_solve(Ab, bw, r0, dl)
 
             if nrow > 0:
@@ -891,7 +954,8 @@ def run_system(
                         S[i, c] *= QUAT_SHRINK
                 for c in range(NS):
                     if not abs(S[i, c]) < math.inf:
-                        return _fail(info, n, h, FAIL_NONFINITE)
+                        _fail(info, n, h)
+                        return FAIL_NONFINITE
 
         nhist = min(nhist + 1, 2)
         mu[nr * (1 + 2 * ns)] = nhist
