@@ -54,7 +54,8 @@ Compile time (a cold numba cache) decides how the helpers are joined to it:
 - no argument of a helper is a compile-time constant (a literal flag or index would compile
   one specialisation per value), and the SVD calls LAPACK's dgesdd through numba's wrapper
   directly, as np.linalg.svd does, without the checks and copies that make np.linalg.svd
-  compile for several seconds.
+  compile for several seconds; arrays are cleared by loops (a slice assignment ``A[:] = 0``
+  lowers numba's general broadcasting store at each use).
 
 tests/test_director_system.py checks that every kernel compiles a single signature.
 """
@@ -112,6 +113,14 @@ D_SMIN = 2  # smallest sigma_{rank_nominal} / sigma_1 of that matrix (minnorm so
 D_TSMIN = 3  # step index where it occurred
 D_MAXIT = 4  # largest iteration count of one substep
 NDIAG = 5
+
+
+@njit(forceinline=True)
+def _zero2(A):
+    """A = 0 for a 2-d array."""
+    for i in range(A.shape[0]):
+        for j in range(A.shape[1]):
+            A[i, j] = 0.0
 
 
 @njit(forceinline=True)
@@ -348,8 +357,8 @@ def _rows(rint, rvec, X, D, gv, Jc):
 @njit(forceinline=True)
 def _forces(rint, Jc, lam, F, T):
     """Joint forces -G^T lam per body: F (nb, 3) force, T (nb, 3) world torque."""
-    F[:] = 0.0
-    T[:] = 0.0
+    _zero2(F)
+    _zero2(T)
     for r in range(rint.shape[0]):
         a = rint[r, 1]
         b = rint[r, 2]
@@ -368,7 +377,7 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
     """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
     (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]; with ``upper`` only the
     entries s >= r (a symmetric A, JL = JR and Mth symmetric)."""
-    A[:] = 0.0
+    _zero2(A)
     nb = ptr.shape[0] - 1
     for i in range(nb):
         mx = Mx[i]
@@ -518,7 +527,8 @@ def _svd_factor(A, rank_tol, U, s, Vt):
 def _svd_solve(U, s, Vt, rank, b, x):
     """Minimum-norm x = V S^+ U^T b over the first ``rank`` singular values."""
     n = x.shape[0]
-    x[:] = 0.0
+    for j in range(n):
+        x[j] = 0.0
     for k in range(rank):
         c = 0.0
         for i in range(n):
@@ -595,9 +605,9 @@ def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
     sum_i (sigma sigma' Mx_i 1 + C_k Mth_i C_l^T), C the rotation part of a joint's rows on
     body i and sigma = +-1 its translation part (+-identity). Dg[k] = block (k, k),
     Up[k] = (k, k + 1), Lo[k] = (k + 1, k), each a row-major 9-vector."""
-    Dg[:] = 0.0
-    Up[:] = 0.0
-    Lo[:] = 0.0
+    _zero2(Dg)
+    _zero2(Up)
+    _zero2(Lo)
     for i in range(jptr.shape[0] - 1):
         M = _row9(Mth, i)
         mx = Mx[i]
@@ -910,8 +920,8 @@ def run_system(
             if nrow > 0:
                 _forces(rint, Jnew, dl, Fn, Tn)
             else:
-                Fn[:] = 0.0
-                Tn[:] = 0.0
+                _zero2(Fn)
+                _zero2(Tn)
             for r in range(nrow):
                 mu[r] = 2.0 * dl[r] / h
                 mu[ho2 + r] = mu[ho1 + r]
