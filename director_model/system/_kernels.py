@@ -44,13 +44,13 @@ The step is written out inside :func:`run_system`: a call with some thirty array
 per sub-step cost about 0.4 us (1 body: 540 ns per step with the call, 130 ns without).
 Compile time (a cold numba cache) decides how the helpers are joined to it:
 
-- the helpers of every sub-step and Newton iteration (rows, forces, DMV, block solver, the
-  3x3 tuple algebra, storing a state) are ``njit(forceinline=True)``: each is typed and
-  compiled once and LLVM inlines it into run_system (numba's ``inline="always"`` inlines
-  at the IR level and types every call site again: about three times the compile time of
-  run_system, with the same per-step cost);
-- the dense and banded assembly, the banded factorisations and solves and the SVD are plain
-  calls (their cost grows with the number of rows; a call is a few tens of ns);
+- the helpers of every sub-step and Newton iteration (rows, forces, DMV, assembly, block
+  and banded solvers, the 3x3 tuple algebra, storing a state) are
+  ``njit(forceinline=True)``: each is typed and compiled once and LLVM inlines it into
+  run_system (numba's ``inline="always"`` inlines at the IR level and types every call site
+  again: about three times the compile time of run_system, with the same per-step cost);
+- the SVD and the minimum-norm solve are plain calls (the SVD's cost dwarfs a call's few
+  tens of ns);
 - no argument of a helper is a compile-time constant (a literal flag or index would compile
   one specialisation per value), and the SVD calls LAPACK's dgesdd through numba's wrapper
   directly, as np.linalg.svd does, without the checks and copies that make np.linalg.svd
@@ -372,7 +372,7 @@ def _forces(rint, Jc, lam, F, T):
                 T[b, c] -= Jc[r, 9 + c] * lr
 
 
-@njit
+@njit(forceinline=True)
 def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
     """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
     (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]; with ``upper`` only the
@@ -406,7 +406,7 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
                     A[r, s] += v
 
 
-@njit
+@njit(forceinline=True)
 def _band_lu(A, bw):
     """In-place LU without pivoting of the banded A (n, 2 bw + 1). Returns False on a pivot
     below 1e-13 times the largest diagonal entry (a singular configuration)."""
@@ -429,7 +429,7 @@ def _band_lu(A, bw):
     return True
 
 
-@njit
+@njit(forceinline=True)
 def _band_solve(A, bw, b, x):
     """Solve with the factors of :func:`_band_lu`: x = A^{-1} b."""
     n = A.shape[0]
@@ -445,7 +445,7 @@ def _band_solve(A, bw, b, x):
         x[i] = s / A[i, bw]
 
 
-@njit
+@njit(forceinline=True)
 def _band_ldl(A, bw):
     """In-place L D L^T of the symmetric banded A, upper band stored (A[k, bw + j - k],
     j >= k): D on the diagonal, L[i, k] in A[k, bw + i - k]. Returns False on a pivot
@@ -470,7 +470,7 @@ def _band_ldl(A, bw):
     return True
 
 
-@njit
+@njit(forceinline=True)
 def _band_ldl_solve(A, bw, b, x):
     """Solve with the factors of :func:`_band_ldl`: x = A^{-1} b."""
     n = A.shape[0]
