@@ -11,13 +11,13 @@ first step the builder checks that MJX holds the state handed over bit for bit, 
 floats: a float32 run cannot pass as float64.
 
 Stepping: ``lax.fori_loop`` of ``mjx.step`` between two saves, compiled ahead of time through
-the single-body adapter's cache (:func:`references.engines.mjx.compile._compiled`, keyed by
-the 64-bit mode and the model's structure: once per model and integrator in a process; later
-processes load the exported computation and JAX's persistent cache, see that module); ``engine_time_s`` is the time inside
-those calls until their results are ready; the compile time, and whether this run compiled,
-are recorded in the settings. The saved states are read from MJX's qpos/qvel through the C
-builder's read-out (MuJoCo's kinematics on a C ``MjData``), so the conversion is the C
-builder's, shared.
+the single-body adapter's cache (:func:`references.engines.mjx.compile._compiled`, keyed by the
+64-bit mode and the model's structure: once per model and integrator in a process; later
+processes load the exported computation and JAX's persistent cache, see that module);
+``engine_time_s`` is the time inside those calls until their results are ready; the compile
+time, and whether this run compiled, are recorded in the settings. The saved states are read
+from MJX's qpos/qvel through the C builder's read-out (MuJoCo's kinematics on a C ``MjData``),
+so the conversion is the C builder's, shared.
 
 Integrators (MJX's JAX backend; docs/engines.md, section MJX): ``Euler`` (MuJoCo's
 semi-implicit Euler), ``RK4`` (MJX's: four stages in the velocities, the positions advanced
