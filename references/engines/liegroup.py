@@ -186,8 +186,8 @@ def direct(fn):
     tenth of a stage of the RKMK4. Only for arguments of that signature made by the suite:
     float64 arrays it allocated (C-contiguous, as the signature says; the compiled entry
     does not check contiguity) and Python scalars. ``fn`` itself when it has another number
-    of signatures."""
-    signatures = fn.signatures
+    of signatures, or when it is not compiled (``NUMBA_DISABLE_JIT=1``)."""
+    signatures = getattr(fn, "signatures", ())
     if len(signatures) != 1:
         return fn
     return fn.overloads[signatures[0]].entry_point
