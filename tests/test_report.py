@@ -768,7 +768,9 @@ def test_the_text_caching_backend_draws_the_pixels_agg_draws(tmp_path):
         fig = Figure(figsize=(4.3, 2.7), dpi=100)
         canvas = canvas_class(fig)
         ax = fig.add_axes([0.17, 0.2, 0.5, 0.6])
-        ax.plot([1e-9, 1.0], [3e-12, 2.0], label="director rattle, mujoco RK4\n(diverged at 1.64 s)")
+        ax.plot(
+            [1e-9, 1.0], [3e-12, 2.0], label="director rattle, mujoco RK4\n(diverged at 1.64 s)"
+        )
         ax.set_yscale("log")
         ax.set_ylabel("attitude error [rad]")
         ax.set_title("cone_top: errors 10⁻⁵ ✓ ✗ ↯", fontsize=10.5)
