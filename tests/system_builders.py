@@ -222,3 +222,29 @@ def assert_saved_steps(mod, sc, integrator) -> None:
     out = mod.simulate_system(sc, integrator, 1e-3, 5, 2)
     assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
     assert out["x"].shape == (4, len(sc.bodies), 3) and out["engine_time_s"] > 0
+
+
+def joint_rates(tree, q, u):
+    """q' of a reduced-coordinate tree (references.exact.multibody) for the velocities u: the
+    joints' kinematic equations written out in NumPy (revolute theta' = u, free x' = v, and
+    quaternion rates q (0, w) / 2 as a Hamilton product), independent of the compiled ones."""
+    dq = np.zeros(tree.nq)
+    for b in range(tree.nb):
+        qo, uo = tree.qofs[b], tree.uofs[b]
+        if tree.kinds[b] == "revolute":
+            dq[qo] = u[uo]
+            continue
+        if tree.kinds[b] == "free":
+            dq[qo : qo + 3] = u[uo : uo + 3]
+            qo, uo = qo + 3, uo + 3
+        w, x, y, z = q[qo : qo + 4]
+        a, bb, c = u[uo : uo + 3]
+        dq[qo : qo + 4] = 0.5 * np.array(
+            [
+                -x * a - y * bb - z * c,
+                w * a + y * c - z * bb,
+                w * bb + z * a - x * c,
+                w * c + x * bb - y * a,
+            ]
+        )
+    return dq

@@ -31,6 +31,7 @@ from references.exact.multibody import (
     mass_matrix_and_bias,
     solve,
 )
+from tests import system_builders as sb
 
 G = (0.0, 0.0, -9.81)
 
@@ -268,30 +269,6 @@ def branched_tree():
     return Tree(bodies, joints, G)
 
 
-def _qdot(tree, q, u):
-    """q' for the velocities u (the joints' kinematic equations, written out here)."""
-    dq = np.zeros(tree.nq)
-    for b in range(tree.nb):
-        qo, uo = tree.qofs[b], tree.uofs[b]
-        if tree.kinds[b] == "revolute":
-            dq[qo] = u[uo]
-            continue
-        if tree.kinds[b] == "free":
-            dq[qo : qo + 3] = u[uo : uo + 3]
-            qo, uo = qo + 3, uo + 3
-        w, x, y, z = q[qo : qo + 4]
-        a, bb, c = u[uo : uo + 3]
-        dq[qo : qo + 4] = 0.5 * np.array(
-            [
-                -x * a - y * bb - z * c,
-                w * a + y * c - z * bb,
-                w * bb + z * a - x * c,
-                w * c + x * bb - y * a,
-            ]
-        )
-    return dq
-
-
 def test_mass_matrix_is_spd_and_equals_the_sum_over_bodies():
     tree = branched_tree()
     rng = np.random.default_rng(11)
@@ -307,7 +284,7 @@ def test_mass_matrix_is_spd_and_equals_the_sum_over_bodies():
         for b in range(tree.nb):
             Jb = np.zeros((6, tree.nu))
             for k in range(tree.nu):
-                dq = _qdot(tree, q, np.eye(tree.nu)[k])
+                dq = sb.joint_rates(tree, q, np.eye(tree.nu)[k])
                 xp, Rp, *_ = body_states(tree, q + h * dq, np.zeros(tree.nu))
                 xm, Rm, *_ = body_states(tree, q - h * dq, np.zeros(tree.nu))
                 x0, R0, *_ = body_states(tree, q, np.zeros(tree.nu))
