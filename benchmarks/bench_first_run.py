@@ -12,8 +12,13 @@ its folder), the results and figures are not. Installation is not timed.
 
 Printed per run: wall time, CPU time (user + sys of the whole process tree: the command, its
 worker processes and the report's drawing processes, from the operating system's accounting
-of waited-for children) and the 1-minute load average before and after (the machine may be
-shared: CPU time is the figure least disturbed by others' work); then the median of each.
+of waited-for children), the 1-minute load average before and after, and the *yardstick*: the
+CPU time of a fixed pure-Python loop (:data:`YARDSTICK`) run in a fresh process just before and
+just after the command, averaged. On a virtual machine whose host is shared, the speed of a
+core changes from minute to minute (here the same loop has taken from 1.0x to 1.9x its fastest
+time within ten minutes) and the guest's CPU accounting inflates with it, so neither wall nor
+CPU time compares across days; the yardstick says how fast the machine was while the command
+ran. Then the median of each.
 
 Usage: python benchmarks/bench_first_run.py [--rounds 3] [--repo PATH] [--keep DIR]
 (about 4 to 8 minutes per round on 2 cores).
@@ -41,16 +46,34 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def timed(cmd: list[str], cwd: Path, env: dict, log: Path) -> tuple[float, float, float, float]:
-    """(wall s, CPU s of the process tree, load before, load after) of ``cmd``."""
+def timed(cmd: list[str], cwd: Path, env: dict, log: Path) -> tuple[float, ...]:
+    """(wall s, CPU s of the process tree, load before, load after, yardstick s) of ``cmd``
+    (the yardstick's own processes are not counted in its CPU time)."""
     load0 = os.getloadavg()[0]
+    stick0 = yardstick()
     cpu0, t0 = _children_cpu(), time.perf_counter()
     with log.open("w") as fh:
         proc = subprocess.run(cmd, cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
     wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+    stick = (stick0 + yardstick()) / 2
     if proc.returncode not in (0, 1):  # 1: some runs failed their verdict (the suite has some)
         sys.exit(f"{' '.join(cmd)} exited with {proc.returncode}; see {log}")
-    return wall, cpu, load0, os.getloadavg()[0]
+    return wall, cpu, load0, os.getloadavg()[0], stick
+
+
+#: the yardstick's work: a fixed pure-Python loop (0.7 s of CPU on a quiet core of the 2-core
+#: machine the README quotes, 1.1 to 1.4 s at busy moments)
+YARDSTICK = "s = 0\nfor i in range(5_000_000):\n    s += i * i\n"
+
+
+def yardstick() -> float:
+    """CPU seconds of :data:`YARDSTICK` in a fresh interpreter (start-up excluded)."""
+    code = (
+        "import time\nt = time.process_time()\n" + YARDSTICK
+        + "print(time.process_time() - t)"
+    )  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(out.stdout)
 
 
 def fresh_clone(repo: Path, where: Path) -> Path:
@@ -86,7 +109,7 @@ def main(argv=None) -> int:
         ).stdout.strip()  # fmt: skip
         print(f"repository {args.repo} at {commit}; {os.cpu_count()} cores; logs in {base}")
         print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
-              f"{'load after':>11}")  # fmt: skip
+              f"{'load after':>11} {'yardstick s':>12}")  # fmt: skip
         for k in range(1, args.rounds + 1):
             where = base / f"round{k}"
             where.mkdir()
@@ -100,14 +123,16 @@ def main(argv=None) -> int:
                 row = timed([*COMMAND, str(out)], clone, env, where / f"{kind}.log")
                 rows.append((kind, *row))
                 print(f"{k:>5} {kind:>6} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
-                      f"{row[3]:11.2f}", flush=True)  # fmt: skip
+                      f"{row[3]:11.2f} {row[4]:12.2f}", flush=True)  # fmt: skip
         for kind in ("cold", "warm"):
             sel = [r for r in rows if r[0] == kind]
             wall = statistics.median(r[1] for r in sel)
             cpu = statistics.median(r[2] for r in sel)
-            loads = [x for r in sel for x in r[3:]]
+            loads = [x for r in sel for x in r[3:5]]
+            sticks = [r[5] for r in sel]
             print(f"median {kind}: wall {wall:.1f} s, CPU {cpu:.1f} s over {len(sel)} runs "
-                  f"(load average {min(loads):.2f} to {max(loads):.2f})")  # fmt: skip
+                  f"(load average {min(loads):.2f} to {max(loads):.2f}, yardstick "
+                  f"{min(sticks):.2f} to {max(sticks):.2f} s)")  # fmt: skip
     finally:
         if args.keep is None:
             shutil.rmtree(base, ignore_errors=True)
