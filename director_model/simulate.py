@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import NamedTuple
 
 import numba
@@ -55,6 +56,10 @@ class Trajectory:
     ``constraint_velocity``  (n,)       max|D^T D' + D'^T D|
     =======================  =========  =====================================================
 
+    The fields from ``omega_body`` to ``constraint_velocity`` are derived from the saved
+    states, each computed when it is first read (and kept): change no saved array before
+    reading them.
+
     Scalars: ``nstep`` (steps taken), ``wall_time_s`` (wall time of the compiled stepping
     alone; compilation and the invariants excluded), ``cpu_time_s`` (CPU time of the
     calling thread over the same stepping: unlike the wall time it leaves out the time
@@ -70,17 +75,50 @@ class Trajectory:
     velocity: np.ndarray
     rotation: np.ndarray
     director_velocity: np.ndarray
-    omega_body: np.ndarray
-    energy: np.ndarray
-    angular_momentum: np.ndarray
-    linear_momentum: np.ndarray
-    constraint_position: np.ndarray
-    constraint_velocity: np.ndarray
     nstep: int
     wall_time_s: float
     cpu_time_s: float
     dt: float
     scheme: str
+    #: the body (mass, director mass matrix Jbar, pivoted) and the gravity the derived
+    #: quantities below are computed with
+    _mass: np.ndarray | float = field(repr=False)
+    _Jbar: np.ndarray = field(repr=False)
+    _pivoted: bool = field(repr=False)
+    _gravity: np.ndarray = field(repr=False)
+
+    # The quantities derived from the saved states are computed on first access (and kept):
+    # a caller that reads only the states (the suite's adapter reads a chunk's states and
+    # its own residuals) does not pay for the others.
+    @cached_property
+    def omega_body(self) -> np.ndarray:
+        return omega_body_from_directors(self.rotation, self.director_velocity)
+
+    @cached_property
+    def energy(self) -> np.ndarray:
+        return inv.energy(
+            self._mass, self._Jbar, self._pivoted, self._gravity, self.position, self.velocity,
+            self.director_velocity,
+        )  # fmt: skip
+
+    @cached_property
+    def angular_momentum(self) -> np.ndarray:
+        return inv.angular_momentum(
+            self._mass, self._Jbar, self._pivoted, self.position, self.velocity, self.rotation,
+            self.director_velocity,
+        )  # fmt: skip
+
+    @cached_property
+    def linear_momentum(self) -> np.ndarray:
+        return inv.linear_momentum(self._mass, self.velocity)
+
+    @cached_property
+    def constraint_position(self) -> np.ndarray:
+        return inv.constraint_position(self.rotation)
+
+    @cached_property
+    def constraint_velocity(self) -> np.ndarray:
+        return inv.constraint_velocity(self.rotation, self.director_velocity)
 
     def __len__(self) -> int:
         return self.t.shape[-1]
@@ -283,17 +321,15 @@ def _finish(cls, scheme, t, X, V, D, Dp, mass, Jbar, pivoted, g, nstep, wall, cp
         velocity=V,
         rotation=D,
         director_velocity=Dp,
-        omega_body=omega_body_from_directors(D, Dp),
-        energy=inv.energy(mass, Jbar, pivoted, g, X, V, Dp),
-        angular_momentum=inv.angular_momentum(mass, Jbar, pivoted, X, V, D, Dp),
-        linear_momentum=inv.linear_momentum(mass, V),
-        constraint_position=inv.constraint_position(D),
-        constraint_velocity=inv.constraint_velocity(D, Dp),
         nstep=nstep,
         wall_time_s=wall,
         cpu_time_s=cpu,
         dt=dt,
         scheme=scheme.name,
+        _mass=mass,
+        _Jbar=Jbar,
+        _pivoted=pivoted,
+        _gravity=g,
     )
 
 
