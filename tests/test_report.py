@@ -213,6 +213,35 @@ def test_figures_are_reused_when_nothing_changed(folder):
     assert {p: p.stat().st_mtime_ns for p in pngs} == before
 
 
+def test_figures_drawn_beside_a_worker_process_are_the_serial_ones(folder, tmp_path, monkeypatch):
+    """With a worker process (two cores), this process draws the scorecard picture and takes
+    scenarios as well: every figure is drawn once, into the same files, byte for byte, as
+    when one process draws them all."""
+    import reports.report.plots as plots
+
+    made = {}
+    for name, cores in (("serial", 1), ("pooled", 2)):
+        dst = tmp_path / name
+        shutil.copytree(folder, dst, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
+        monkeypatch.setattr(plots, "_cpus", lambda cores=cores: cores)
+        monkeypatch.setattr(plots, "PARALLEL_FROM", 2)  # the folder has two scenarios
+        made[name] = plots.report_figures(read_results(dst), dst)
+    (serial, card), (pooled, pooled_card) = made["serial"], made["pooled"]
+    names = {sc: [p.name for p in ps] for sc, ps in serial.items()}
+    assert names == {sc: [p.name for p in ps] for sc, ps in pooled.items()}
+    assert sorted(names) == ["cone_top", "free_tumbling"] and all(names.values())
+    for sc, ps in serial.items():
+        for p, q in zip(ps, pooled[sc], strict=True):
+            assert p.read_bytes() == q.read_bytes(), p.name
+            assert p.with_suffix(".json").read_bytes() == q.with_suffix(".json").read_bytes()
+    assert (
+        [p.name for p in card]
+        == [p.name for p in pooled_card]
+        == ["scorecard.png", "scorecard.svg"]
+    )
+    assert card[0].read_bytes() == pooled_card[0].read_bytes()
+
+
 def test_figures_are_reused_when_the_folder_is_named_relative_or_absolute(folder, monkeypatch):
     """The same folder named once relative to the working directory and once absolute is
     the same folder: nothing is drawn again."""

@@ -1031,7 +1031,7 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     ``root``; with ``GITHUB_STEP_SUMMARY`` set, append the scorecard to that file.
     ``progress``: a progress bar while figures are drawn (figures whose inputs did not
     change since the last report are reused, reports.report.plots)."""
-    from reports.report.plots import all_plots, scorecard_figure_cached
+    from reports.report.plots import report_figures
     from reports.store.ensemble import read_ensemble
     from reports.store.results import STORE_NAME, frame, read_results
 
@@ -1042,8 +1042,7 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     else:  # a folder holding only an ensemble
         df = frame([])
     prov = read_provenance(root)
-    plots = all_plots(df, root, progress=progress)
-    card_figures = scorecard_figure_cached(df, root) if len(df) else []
+    plots, card_figures = report_figures(df, root, progress=progress)
     md, page = document(df, prov, plots, root, edf, card_figures)
     _write(root / "report.md", md)
     _write(root / "report.html", page)

@@ -1362,18 +1362,35 @@ def _draw_scenario(scenario, df, root, out) -> tuple[str, list[str]]:
 
 
 #: draw in parallel processes from this many scenarios to draw on (a process costs ~1 s to
-#: start, a scenario's four figures ~2.5 s to draw)
+#: start, a scenario's figures ~1-2.5 s to draw)
 PARALLEL_FROM = 3
 
 
-def _draw_all(todo, df, cache, root, out, styles, bar):
-    """Yield (scenario, figure file names) for the scenarios in ``todo`` (scenario, kind)
-    pairs, drawing them in a process pool when there are several."""
+def _cpus() -> int:
+    """The cores this process may run on."""
     import os
 
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
+    """Yield (scenario, figure file names) for the scenarios in ``todo`` (scenario, kind)
+    pairs. With several scenarios and cores, this process draws alongside a pool of one
+    worker process fewer than the cores: it first calls ``alongside`` (another figure, while
+    the workers start), then both take the scenarios with the most runs first (the longest
+    to draw, so that the last ones to finish are short), a worker being handed its next
+    scenario as soon as it returns one. Without a pool ``alongside`` is called first too."""
+    import threading
+    from collections import deque
+
     scenarios = list(dict.fromkeys(sc for sc, _ in todo))
-    workers = min(os.cpu_count() or 1, len(scenarios))
-    if len(scenarios) < PARALLEL_FROM or workers < 2:
+    workers = min(_cpus() - 1, len(scenarios) - 1)
+    if len(scenarios) < PARALLEL_FROM or workers < 1:
+        if alongside is not None:
+            alongside()
         for sc in scenarios:
             paths = [scenario_plot(k, df, cache, out, sc, styles) for k in KINDS]
             bar.update(len(KINDS))
@@ -1382,23 +1399,60 @@ def _draw_all(todo, df, cache, root, out, styles, bar):
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
+    runs = df["scenario"].value_counts()
+    pending = deque(sorted(scenarios, key=lambda sc: (-int(runs.get(sc, 0)), sc)))
+    lock = threading.Lock()
+    jobs = []  # a scenario leaves ``pending`` and its job enters ``jobs`` under one lock
+
+    def take():
+        with lock:
+            return pending.popleft() if pending else None
+
+    def hand_out(_done=None):
+        # called here and, as each job finishes, from the pool's thread: a job per worker
+        with lock:
+            if not pending:
+                return
+            job = pool.submit(_draw_scenario, pending.popleft(), df, str(root), str(out))
+            jobs.append(job)
+        job.add_done_callback(hand_out)
+
     with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-        jobs = [pool.submit(_draw_scenario, sc, df, str(root), str(out)) for sc in scenarios]
-        for job in jobs:
-            sc, names = job.result()
-            bar.update(len(KINDS))
-            yield sc, names
+        try:
+            for _ in range(workers):
+                hand_out()
+            if alongside is not None:
+                alongside()
+            while (sc := take()) is not None:
+                paths = [scenario_plot(k, df, cache, out, sc, styles) for k in KINDS]
+                bar.update(len(KINDS))
+                yield sc, [p.name for p in paths if p is not None]
+            # ``pending`` is empty: no job is handed out any more, ``jobs`` is complete
+            for job in jobs:
+                sc, names = job.result()
+                bar.update(len(KINDS))
+                yield sc, names
+        finally:  # on an error, hand out nothing more while the pool shuts down
+            with lock:
+                pending.clear()
 
 
 def all_plots(
-    df, root: str | Path, out: str | Path | None = None, progress: bool = False
+    df,
+    root: str | Path,
+    out: str | Path | None = None,
+    progress: bool = False,
+    alongside=None,
 ) -> dict[str, list[Path]]:
     """Every figure of every scenario (:data:`KINDS`); returns {scenario: [png paths]}.
 
     A scenario whose figures exist and were made from the same inputs (rows, series files,
     styles and this code: :data:`CACHE_FILE` in the plots folder) is not drawn again, so a
     report regenerated from an unchanged store draws nothing. ``progress``: the progress of
-    the figures (:class:`reports.run.progress.Progress`; nothing when none is drawn)."""
+    the figures (:class:`reports.run.progress.Progress`; nothing when none is drawn).
+    ``alongside``: a callable this process calls while worker processes start drawing
+    (:func:`report_figures`: the scorecard picture); called once, also when nothing else is
+    drawn (not for an empty table)."""
     import json
 
     from reports.run.progress import Progress
@@ -1429,12 +1483,27 @@ def all_plots(
             made_from[scenario] = {"key": key, "files": []}
             todo += [(scenario, k) for k in KINDS]
     bar = Progress(len(todo), desc="plots", unit="figure", disable=not progress)
-    for scenario, names in _draw_all(todo, df, cache, root, out, styles, bar):
+    for scenario, names in _draw_all(todo, df, cache, root, out, styles, bar, alongside):
         made[scenario] = [out / n for n in names]
         made_from[scenario]["files"] = names
     bar.close()
     write_text(out / CACHE_FILE, json.dumps(made_from, indent=1))
     return made
+
+
+def report_figures(df, root: str | Path, progress: bool = False):
+    """The report's figures: every scenario's (:func:`all_plots`, {scenario: [png paths]})
+    and the scorecard picture's paths (:func:`scorecard_figure_cached`), the latter drawn in
+    this process while the worker processes start and draw scenarios. ({}, []) for an empty
+    table."""
+    if df.empty:
+        return {}, []
+    card: list[Path] = []
+
+    def scorecard():
+        card.extend(scorecard_figure_cached(df, root))
+
+    return all_plots(df, root, progress=progress, alongside=scorecard), card
 
 
 # -- the scorecard as one picture --------------------------------------------------------------
