@@ -422,3 +422,24 @@ def test_an_error_controlled_run_gets_its_target_accuracy():
     assert json.loads(row["settings"])["target accuracy"] == 1e-8
     assert row["steps_taken"] > 0
     assert row["attitude_error_max"] < 1e-5
+
+
+def test_references_are_cached_by_content_not_by_object(dzh):
+    """A worker receives a new copy of the scenario with each unit of work: a copy of the same
+    content gets the reference already computed, a scenario of other content its own."""
+    import pickle
+
+    from reports.run.runner import _reference_cached, expected_for, reference_for
+
+    _reference_cached.cache_clear()
+    t = np.linspace(0.0, SHORT, 11)
+    copy = pickle.loads(pickle.dumps(dzh))
+    assert copy is not dzh
+    first = reference_for(dzh, t)
+    assert reference_for(copy, t) is first
+    assert expected_for(copy) is expected_for(dzh)
+    other = dzh.replace(omega_body=dzh.omega_body * 1.5)
+    ref = reference_for(other, t)
+    assert ref is not first and not np.array_equal(ref.omega_body, first.omega_body)
+    assert reference_for(dzh, t[:6]) is not first  # other times, another reference
+    _reference_cached.cache_clear()

@@ -43,23 +43,50 @@ from scenarios.schema import InputError, magnitude_problems, step_count_problem
 # -- references, cached per process ------------------------------------------------------------
 
 
+class _Content:
+    """A scenario as a cache key: equal to any scenario of the same content
+    (``scenario_hash``: every field a reference depends on), since a worker process receives
+    a new copy of the scenario with each unit of work and a scenario object compares by
+    identity."""
+
+    __slots__ = ("hash", "scenario")
+
+    def __init__(self, scenario):
+        self.scenario = scenario
+        self.hash = scenario.scenario_hash
+
+    def __hash__(self) -> int:
+        return hash(self.hash)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _Content) and other.hash == self.hash
+
+
 @functools.lru_cache(maxsize=64)
-def _reference_cached(scenario, t_bytes: bytes):
+def _reference_cached(key: _Content, t_bytes: bytes):
     from references.exact import reference_trajectory
 
-    return reference_trajectory(scenario, np.frombuffer(t_bytes, dtype=float))
+    return reference_trajectory(key.scenario, np.frombuffer(t_bytes, dtype=float))
 
 
 def reference_for(scenario, t):
-    """The scenario's reference at times ``t`` (cached: several engines share one grid)."""
-    return _reference_cached(scenario, np.ascontiguousarray(t, dtype=float).tobytes())
+    """The scenario's reference at times ``t``, cached per process by the scenario's content
+    and the times (the engines of a scenario share a grid)."""
+    t_bytes = np.ascontiguousarray(t, dtype=float).tobytes()
+    return _reference_cached(_Content(scenario), t_bytes)
 
 
 @functools.lru_cache(maxsize=64)
-def expected_for(scenario) -> dict:
+def _expected_cached(key: _Content) -> dict:
     from references.exact import expected_observables
 
-    return dict(expected_observables(scenario))
+    return dict(expected_observables(key.scenario))
+
+
+def expected_for(scenario) -> dict:
+    """The scenario's exact observables (references.exact.expected_observables), cached per
+    process by the scenario's content."""
+    return _expected_cached(_Content(scenario))
 
 
 def write_run_files(
