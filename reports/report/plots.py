@@ -1383,6 +1383,7 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
     the workers start), then both take the scenarios with the most runs first (the longest
     to draw, so that the last ones to finish are short), a worker being handed its next
     scenario as soon as it returns one. Without a pool ``alongside`` is called first too."""
+    import itertools
     import threading
     from collections import deque
 
@@ -1408,10 +1409,11 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
         with lock:
             return pending.popleft() if pending else None
 
-    def hand_out(_done=None):
-        # called here and, as each job finishes, from the pool's thread: a job per worker
+    def hand_out(done=None):
+        # called here and, as each job finishes, from the pool's thread: a job per worker;
+        # none after a failed job (a broken pool: its error is raised where it is collected)
         with lock:
-            if not pending:
+            if not pending or (done is not None and done.exception() is not None):
                 return
             job = pool.submit(_draw_scenario, pending.popleft(), df, str(root), str(out))
             jobs.append(job)
@@ -1423,12 +1425,19 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
                 hand_out()
             if alongside is not None:
                 alongside()
+            returned = 0  # the workers' scenarios yielded so far, in the order handed out
             while (sc := take()) is not None:
                 paths = [scenario_plot(k, df, cache, out, sc, styles) for k in KINDS]
                 bar.update(len(KINDS))
                 yield sc, [p.name for p in paths if p is not None]
+                with lock:  # those returned, up to the first still drawing
+                    ready = list(itertools.takewhile(lambda j: j.done(), jobs[returned:]))
+                for job in ready:
+                    returned += 1
+                    bar.update(len(KINDS))
+                    yield job.result()
             # ``pending`` is empty: no job is handed out any more, ``jobs`` is complete
-            for job in jobs:
+            for job in jobs[returned:]:
                 sc, names = job.result()
                 bar.update(len(KINDS))
                 yield sc, names
