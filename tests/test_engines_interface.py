@@ -177,10 +177,10 @@ def test_director_batch_refused_when_a_member_cannot_be_stepped():
 
 @pytest.mark.parametrize("pivoted", [False, True])
 def test_default_packed_dynamics_is_the_engine_s_forward_dynamics(pivoted):
-    """The interface's default forward_dynamics_packed (a BodyState from the flat stage state,
-    then forward_dynamics) agrees with Pinocchio's own packed call to round-off: 1e-12 of the
+    """The interface's default packed_dynamics (a BodyState from the flat stage state, then
+    forward_dynamics) agrees with Pinocchio's own packed call to round-off: 1e-12 of the
     accelerations' size, a few ulps of the two conversions (rotation matrix against the
-    compiled packing)."""
+    compiled packing). Both time the engine's call on the run's clock."""
     engine = engine_or_skip("pinocchio")
     sc = scenarios.load("heavy_top" if pivoted else "dzhanibekov")
     integ = engine.integrator("RKMK4")
@@ -189,15 +189,23 @@ def test_default_packed_dynamics_is_the_engine_s_forward_dynamics(pivoted):
     rng = np.random.default_rng(1)
     q = rng.normal(size=4)
     z = np.concatenate([q / np.linalg.norm(q), rng.normal(size=9)])
-    own, default = np.zeros(6), np.zeros(6)
-    engine.forward_dynamics_packed(ctx, z, own)
-    Engine.forward_dynamics_packed(engine, ctx, z, default)
+    own_fd, default_fd = engine.packed_dynamics(ctx), Engine.packed_dynamics(engine, ctx)
+    assert own_fd is not default_fd
+    own, default = np.full(6, np.nan), np.full(6, np.nan)
+    own_fd(z, own)
+    assert ctx.clock.elapsed > 0
+    timed = ctx.clock.elapsed
+    default_fd(z, default)
+    assert ctx.clock.elapsed > timed
+    assert np.all(np.isfinite(own)) and np.abs(own).max() > 0
     assert np.abs(own - default).max() <= 1e-12 * np.abs(own).max()
+    if pivoted:
+        assert np.array_equal(default[3:], np.zeros(3))
     # and a planted mistake is seen: the body rates read in another order
     z_bad = z.copy()
     z_bad[7:10] = z[[8, 9, 7]]
     wrong = np.zeros(6)
-    Engine.forward_dynamics_packed(engine, ctx, z_bad, wrong)
+    default_fd(z_bad, wrong)
     assert np.abs(own - wrong).max() > 1e-6 * np.abs(own).max()
 
 

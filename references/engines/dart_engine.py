@@ -227,11 +227,6 @@ class DartEngine(Engine):
             return a, None
         return state.rotation.T @ a[:3], a[3:]
 
-    def forward_dynamics_packed(self, ctx, z, acc) -> None:
-        """:meth:`forward_dynamics` on the compiled RKMK4's flat stage state (quaternion
-        form): one call of :meth:`packed_dynamics`'s function."""
-        self.packed_dynamics(ctx)(z, acc)
-
     def packed_dynamics(self, ctx):
         """The RKMK4's per-stage call ``fd(z, acc)`` with DART's methods and the buffers
         bound once: the state packed and the accelerations unpacked by compiled code, the

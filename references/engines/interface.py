@@ -19,7 +19,6 @@ result row with that status and the message, so messages say what happened and w
 
 from __future__ import annotations
 
-import functools
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from typing import ClassVar
@@ -220,26 +219,26 @@ class Engine(EngineBase):
         ignored."""
         raise NotImplementedError(f"{self.name}: no forward-dynamics call")
 
-    def forward_dynamics_packed(self, ctx: RunContext, z: np.ndarray, acc: np.ndarray) -> None:
-        """:meth:`forward_dynamics` as the compiled RKMK4 calls it at every stage
-        (:class:`~references.engines.liegroup.CompiledRKMK4Stepper`): ``z`` the flat stage
-        state (13,) = (unit quaternion w, x, y, z; x_G (3,) world; W (3,) body axes; v_G (3,)
-        world), ``acc`` (6,) filled in place with (dW/dt, dv_G/dt), zeros for dv_G/dt of a
-        pivoted body. The default builds a ``BodyState`` from ``z`` and calls
-        :meth:`forward_dynamics`; an adapter overrides it to hand ``z`` to its engine
-        directly, without a ``BodyState`` per stage (Pinocchio, DART)."""
-        pivoted = ctx.model.pivoted
-        dW, a = self.forward_dynamics(ctx, unpack_state(ctx.model, z))
-        acc[0:3] = dW
-        acc[3:6] = 0.0 if pivoted else a
-
     def packed_dynamics(self, ctx: RunContext) -> Callable[[np.ndarray, np.ndarray], None]:
-        """The function ``fd(z, acc)`` the compiled RKMK4 calls at every stage of the run
-        ``ctx``: :meth:`forward_dynamics_packed` with ``ctx`` bound. An adapter may return
-        one with its engine's calls and buffers bound once per run instead, so that a stage
-        costs no attribute look-ups (Pinocchio, DART); it must time only the engine's calls
-        on ``ctx.clock``, as :meth:`forward_dynamics_packed` does."""
-        return functools.partial(self.forward_dynamics_packed, ctx)
+        """The function ``fd(z, acc)`` the compiled RKMK4
+        (:class:`~references.engines.liegroup.CompiledRKMK4Stepper`) calls at every stage of
+        the run ``ctx``, made once per run: ``z`` the flat stage state (13,) = (unit quaternion
+        w, x, y, z; x_G (3,) world; W (3,) body axes; v_G (3,) world), ``acc`` (6,) filled in
+        place with (dW/dt, dv_G/dt), zeros for dv_G/dt of a pivoted body. The default's
+        ``fd`` builds a ``BodyState`` from ``z`` and calls :meth:`forward_dynamics`. An
+        adapter may return one that hands ``z`` to its engine directly, with its engine's
+        calls and buffers bound here, so that a stage costs no ``BodyState`` and no
+        attribute look-ups (Pinocchio, DART); it must time only the engine's calls on
+        ``ctx.clock``, as :meth:`forward_dynamics` does."""
+        model, forward_dynamics = ctx.model, self.forward_dynamics
+        pivoted = model.pivoted
+
+        def fd(z: np.ndarray, acc: np.ndarray) -> None:
+            dW, a = forward_dynamics(ctx, unpack_state(model, z))
+            acc[0:3] = dW
+            acc[3:6] = 0.0 if pivoted else a
+
+        return fd
 
     def guard(self, ctx: RunContext, state: cv.BodyState) -> str | None:
         """A reason if the engine reached one of its own limits (e.g. a velocity clamp): the

@@ -216,10 +216,9 @@ class CompiledRKMK4Stepper:
     stage arithmetic compiled (:mod:`references.engines._rkmk4`): per step four calls of the
     engine and five small compiled calls, so that the cost is the engine's, not the suite's
     Python. It calls the function ``fd(z, acc)`` of the adapter's ``packed_dynamics(ctx)``
-    (z the flat stage state, acc the 6 accelerations to fill), by default its
-    ``forward_dynamics_packed``, whose default builds a BodyState per stage for
-    ``forward_dynamics``. The run loop uses this stepper; RKMK4Stepper is the
-    readable reference it is tested against."""
+    (z the flat stage state, acc the 6 accelerations to fill), whose default builds a
+    BodyState per stage for ``forward_dynamics``. The run loop uses this stepper;
+    RKMK4Stepper is the readable reference it is tested against."""
 
     def __init__(self, engine, ctx):
         from references.engines import _rkmk4

@@ -186,11 +186,6 @@ class PinocchioEngine(Engine):
         v_local = R.T @ state.velocity
         return a[3:], R @ (a[:3] + np.cross(state.omega_body, v_local))
 
-    def forward_dynamics_packed(self, ctx, z, acc) -> None:
-        """:meth:`forward_dynamics` on the compiled RKMK4's flat stage state (quaternion
-        form): one call of :meth:`packed_dynamics`'s function."""
-        self.packed_dynamics(ctx)(z, acc)
-
     def packed_dynamics(self, ctx):
         """The RKMK4's per-stage call ``fd(z, acc)`` with aba, the model, data and buffers
         bound once: the state packed and the accelerations unpacked by compiled code, the
