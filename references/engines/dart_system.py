@@ -151,6 +151,19 @@ class _Model:
         self.world, self.skel = world, skel
         self.constraints = []
         self.clock = 0.0
+        # per tree joint (tree order), for the RKMK4: (body index, kind, its slice of u, the
+        # DART joint, the index of its first degree of freedom in the skeleton)
+        self.blocks, k = [], 0
+        for c in pl.order:
+            kind = pl.tree[c].kind
+            n = {"free": 6, "spherical": 3, "revolute": 1}[kind]
+            joint = self.joint[c]
+            self.blocks.append((c, kind, slice(k, k + n), joint, joint.getIndexInSkeleton(0)))
+            k += n
+        # the rotational slices of u (ball joints and free roots), where dexpinv acts
+        self.rot_slices = [
+            slice(b[2].start, b[2].start + 3) for b in self.blocks if b[1] != "revolute"
+        ]
 
     # -- initial state -----------------------------------------------------------------------
     def set_initial(self) -> None:
@@ -239,17 +252,9 @@ class _Model:
                 u.append(np.array(v, float))
         return q, np.concatenate(u)
 
-    def _blocks(self):
-        out, k = [], 0
-        for c in self.pl.order:
-            n = {"free": 6, "spherical": 3, "revolute": 1}[self.pl.tree[c].kind]
-            out.append((c, self.pl.tree[c].kind, slice(k, k + n)))
-            k += n
-        return out
-
     def integrate(self, q, theta):
         out = []
-        for (_, kind, s), g in zip(self._blocks(), q, strict=True):
+        for (_, kind, s, _, _), g in zip(self.blocks, q, strict=True):
             th = theta[s]
             if kind == "revolute":
                 out.append((g[0] + float(th[0]),))
@@ -261,38 +266,49 @@ class _Model:
 
     def dexpinv(self, theta, u):
         out = np.array(u, float)
-        for _, kind, s in self._blocks():
-            if kind != "revolute":
-                r = slice(s.start, s.start + 3)
-                out[r] = so3_right_jacobian_inverse(theta[r]) @ out[r]
+        for r in self.rot_slices:
+            out[r] = so3_right_jacobian_inverse(theta[r]) @ out[r]
+        return out
+
+    def _joint_states(self, q, u) -> list:
+        """(joint, positions, velocities) per tree joint of (q, u), in DART's coordinates."""
+        out = []
+        for (_, kind, s, j, _), g in zip(self.blocks, q, strict=True):
+            if kind == "free":
+                us = u[s]
+                pos, vel = cv.dart_free_from_state(g[1], us[3:], g[0], us[:3])
+            elif kind == "spherical":
+                pos, vel = cv.dart_ball_from_state(g[0], u[s])
+            else:
+                pos, vel = np.array([g[0]], float), u[s]
+            out.append((j, pos, vel))
         return out
 
     def unpack(self, q, u) -> None:
         """Set DART's positions and velocities from (q, u)."""
-        for (c, kind, s), g in zip(self._blocks(), q, strict=True):
-            j = self.joint[c]
-            if kind == "free":
-                pos, vel = cv.dart_free_from_state(g[1], u[s][3:], g[0], u[s][:3])
-            elif kind == "spherical":
-                pos, vel = cv.dart_ball_from_state(g[0], u[s])
-            else:
-                pos, vel = [g[0]], u[s]
-            j.setPositions(np.asarray(pos, float))
-            j.setVelocities(np.asarray(vel, float))
+        for j, pos, vel in self._joint_states(q, u):
+            j.setPositions(pos)
+            j.setVelocities(vel)
 
     def accel(self, q, u):
-        t0 = time.perf_counter()  # DART's setters are engine calls too
-        self.unpack(q, u)
+        """u' at (q, u) from computeForwardDynamics: the stopwatch runs around DART's calls
+        (the joints' setters, the dynamics, the accelerations' read-out), not around the
+        conversions into DART's coordinates and back."""
+        states = self._joint_states(q, u)
+        t0 = time.perf_counter()
+        for j, pos, vel in states:
+            j.setPositions(pos)
+            j.setVelocities(vel)
         self.skel.computeForwardDynamics()
-        a = np.array(self.skel.getAccelerations())
+        a = self.skel.getAccelerations()
         self.clock += time.perf_counter() - t0
         out = np.empty_like(a)
-        for (c, kind, s), g in zip(self._blocks(), q, strict=True):
-            idx = self.joint[c].getIndexInSkeleton(0)
-            ac = a[idx : idx + (s.stop - s.start)]
+        for (_, kind, s, _, idx), g in zip(self.blocks, q, strict=True):
             if kind == "free":  # world angular acceleration -> body: dW/dt = R^T dw/dt
-                ac = np.concatenate([g[0].T @ ac[:3], ac[3:]])
-            out[s] = ac
+                out[s.start : s.start + 3] = g[0].T @ a[idx : idx + 3]
+                out[s.start + 3 : s.stop] = a[idx + 3 : idx + 6]
+            else:
+                out[s] = a[idx : idx + (s.stop - s.start)]
         return out
 
     def step_rkmk4(self, q, u, h):
