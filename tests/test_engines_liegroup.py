@@ -126,3 +126,15 @@ def test_compiled_glue_equals_the_readable_rkmk4(monkeypatch, name, scenario):
     W = np.max(np.abs(b.omega_body))
     np.testing.assert_allclose(a.omega_body, b.omega_body, rtol=0, atol=1e-13 * W)
     np.testing.assert_allclose(a.position, b.position, rtol=0, atol=1e-13)
+
+
+def test_an_engine_vector_of_another_layout_is_refused():
+    """The compiled unpacking reads a C-contiguous float64 vector; anything else an engine
+    might return (a strided view, float32, another length, a list) is refused by name."""
+    from references.engines.liegroup import check_engine_vector
+    from references.errors import EngineError
+
+    check_engine_vector(np.arange(6.0), 6, "toy")
+    for bad in (np.arange(12.0)[::2], np.arange(6, dtype=np.float32), np.arange(3.0), [0.0] * 6):
+        with pytest.raises(EngineError, match="toy returned"):
+            check_engine_vector(bad, 6, "toy")

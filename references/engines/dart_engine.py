@@ -30,7 +30,7 @@ from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine
-from references.engines.liegroup import direct
+from references.engines.liegroup import check_engine_vector, direct
 from references.engines.native import import_engine
 
 
@@ -235,12 +235,15 @@ class DartEngine(Engine):
         pos, vel = ctx.dart_buffers
         piv = bool(ctx.model.pivoted)
         clock, now = ctx.clock, time.perf_counter
-        # the engine's accelerations go through numba's dispatch, which checks their layout
-        pack, unpack = direct(_rkmk4.pack_dart), _rkmk4.unpack_dart
+        # the compiled entries without numba's type dispatch: the stage state and buffers are
+        # ours; the engine's accelerations are checked once (the binding fixes their layout)
+        pack, unpack = direct(_rkmk4.pack_dart), direct(_rkmk4.unpack_dart)
         set_pos, set_vel = skel.setPositions, skel.setVelocities
         compute, accelerations = skel.computeForwardDynamics, skel.getAccelerations
+        checked = False
 
         def fd(z, acc) -> None:
+            nonlocal checked
             pack(z, piv, pos, vel)
             t0 = now()
             set_pos(pos)
@@ -248,6 +251,9 @@ class DartEngine(Engine):
             compute()
             a = accelerations()
             clock.elapsed += now() - t0
+            if not checked:
+                check_engine_vector(a, len(pos), "DART's getAccelerations")
+                checked = True
             unpack(z, piv, a, acc)
 
         return fd

@@ -29,7 +29,7 @@ from collections.abc import Callable
 import numpy as np
 
 from references.conventions import BodyState, rotvec_to_matrix
-from references.errors import StepFailure
+from references.errors import EngineError, StepFailure
 
 
 class StageRotationTooLarge(StepFailure):
@@ -185,12 +185,34 @@ def direct(fn):
     called without numba's type dispatch, which costs about half a microsecond a call: a
     tenth of a stage of the RKMK4. Only for arguments of that signature made by the suite:
     float64 arrays it allocated (C-contiguous, as the signature says; the compiled entry
-    does not check contiguity) and Python scalars. ``fn`` itself when it has another number
+    does not check contiguity) or whose layout :func:`check_engine_vector` checked, and
+    Python scalars. ``fn`` itself when it has another number
     of signatures, or when it is not compiled (``NUMBA_DISABLE_JIT=1``)."""
     signatures = getattr(fn, "signatures", ())
     if len(signatures) != 1:
         return fn
     return fn.overloads[signatures[0]].entry_point
+
+
+def check_engine_vector(a, n: int, what: str) -> None:
+    """Raise :class:`EngineError` unless ``a`` (an array an engine returned) has the layout of
+    the suite's own float64 vectors of ``n`` entries (C-contiguous), so that it may be handed
+    to the compiled entry of :func:`direct`. The layout is fixed by the engine binding's return
+    type, not by the values: checked on the first array a run receives."""
+    if not (
+        isinstance(a, np.ndarray)
+        and a.dtype == np.float64
+        and a.shape == (n,)
+        and a.flags.c_contiguous
+        and a.flags.aligned
+    ):
+        layout = (
+            f"{a.dtype} {a.shape} strides {a.strides}" if isinstance(a, np.ndarray) else type(a)
+        )
+        raise EngineError(
+            f"{what} returned {layout}, not a C-contiguous float64 vector of {n} entries; "
+            "the compiled unpacking of the RKMK4 stages reads only that layout"
+        )
 
 
 #: what the first run of the suite's RKMK4 in a process compiles (numba's cache then serves

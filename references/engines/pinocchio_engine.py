@@ -27,7 +27,7 @@ from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine
-from references.engines.liegroup import direct
+from references.engines.liegroup import check_engine_vector, direct
 from references.engines.native import import_engine
 
 
@@ -194,14 +194,20 @@ class PinocchioEngine(Engine):
         aba, model, data, qbuf, vbuf, tau = h.pin.aba, h.model, h.data, h.qbuf, h.vbuf, h.tau
         piv = bool(ctx.model.pivoted)
         clock, now = ctx.clock, time.perf_counter
-        # the engine's accelerations go through numba's dispatch, which checks their layout
-        pack, unpack = direct(_rkmk4.pack_pinocchio), _rkmk4.unpack_pinocchio
+        # the compiled entries without numba's type dispatch: the stage state and buffers are
+        # ours; the engine's accelerations are checked once (the binding fixes their layout)
+        pack, unpack = direct(_rkmk4.pack_pinocchio), direct(_rkmk4.unpack_pinocchio)
+        checked = False
 
         def fd(z, acc) -> None:
+            nonlocal checked
             pack(z, piv, qbuf, vbuf)
             t0 = now()
             a = aba(model, data, qbuf, vbuf, tau)
             clock.elapsed += now() - t0
+            if not checked:
+                check_engine_vector(a, len(vbuf), "Pinocchio's aba")
+                checked = True
             unpack(z, piv, a, acc)
 
         return fd
