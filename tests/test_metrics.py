@@ -341,6 +341,27 @@ def test_nearest_rotation_of_a_reflection_and_of_non_finite_matrices():
     assert metrics._max([0.1, math.nan]) == math.inf
 
 
+def test_a_read_only_reference_keeps_its_nearest_rotation_and_a_writable_one_does_not():
+    """The reference the runner shares among runs has read-only arrays: its polar factor is
+    computed once and reused while its rotation is the same array; a writable trajectory is
+    projected anew at each call (it may be changed in place), with the same errors."""
+    sc = spin_scenario(omega_body=(0, 0, 0.0))
+    t = np.linspace(0, 1, 9)
+    ref = spin_traj(sc, t)
+    tr = spin_traj(sc, t, angle_offset=1e-3)
+    want = metrics.attitude_error(tr, ref)
+    assert not hasattr(ref, "_nearest_rotation")  # writable: nothing kept
+    ref.rotation.setflags(write=False)
+    np.testing.assert_array_equal(metrics.attitude_error(tr, ref), want)
+    R, Q = ref._nearest_rotation
+    assert R is ref.rotation and not Q.flags.writeable
+    np.testing.assert_array_equal(Q, metrics.nearest_rotation(ref.rotation))
+    np.testing.assert_array_equal(metrics.attitude_error(tr, ref), want)
+    assert ref._nearest_rotation[1] is Q  # reused
+    ref.rotation = rz(sc.omega_body[2] * t + 2e-3)  # another array: projected anew
+    np.testing.assert_allclose(metrics.attitude_error(tr, ref), 1e-3, rtol=1e-9)
+
+
 def test_linear_momentum_drift_in_closed_form():
     """A free body thrown with v0 = (1, 0, 0) m/s under g = (0, 0, -9.81) m/s^2 for 1 s: the
     largest speed is the final one, |v1| = sqrt(1 + 9.81^2), so p_c = sqrt(2 m E_tr,c) =

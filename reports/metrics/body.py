@@ -184,6 +184,21 @@ def nearest_rotation(R) -> np.ndarray:
     return out
 
 
+def _nearest_kept(traj) -> np.ndarray:
+    """:func:`nearest_rotation` of ``traj.rotation``, kept on ``traj`` when that array is
+    read-only (a reference the runner shares among the runs on its grid, whose arrays it
+    makes read-only): computed once per reference, not once per run."""
+    R = traj.rotation
+    kept = getattr(traj, "_nearest_rotation", None)
+    if kept is not None and kept[0] is R:
+        return kept[1]
+    Q = nearest_rotation(R)
+    if isinstance(R, np.ndarray) and not R.flags.writeable:
+        Q.setflags(write=False)
+        traj._nearest_rotation = (R, Q)
+    return Q
+
+
 @measures("attitude_error_max")
 def attitude_error(traj, ref) -> np.ndarray:
     """Geodesic angle between the rotations nearest to R and to R_ref
@@ -193,7 +208,7 @@ def attitude_error(traj, ref) -> np.ndarray:
 
     Uses ||Q - Q_ref||_F = 2 sqrt(2) sin(theta/2) for rotations Q, Q_ref, accurate for small
     angles, unlike the arccos of the trace (which loses half the digits near zero)."""
-    Q, Q_ref = nearest_rotation(traj.rotation), nearest_rotation(ref.rotation)
+    Q, Q_ref = nearest_rotation(traj.rotation), _nearest_kept(ref)
     d = np.linalg.norm(Q - Q_ref, axis=(1, 2)) / (2.0 * math.sqrt(2.0))
     return 2.0 * np.arcsin(np.clip(d, 0.0, 1.0))
 

@@ -66,12 +66,17 @@ class _Content:
 def _reference_cached(key: _Content, t_bytes: bytes):
     from references.exact import reference_trajectory
 
-    return reference_trajectory(key.scenario, np.frombuffer(t_bytes, dtype=float))
+    ref = reference_trajectory(key.scenario, np.frombuffer(t_bytes, dtype=float))
+    for f in dataclasses.fields(ref):  # shared by the runs on this grid: nobody may change it
+        value = getattr(ref, f.name)
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+    return ref
 
 
 def reference_for(scenario, t):
     """The scenario's reference at times ``t``, cached per process by the scenario's content
-    and the times (the engines of a scenario share a grid)."""
+    and the times (the engines of a scenario share a grid); its arrays are read-only."""
     t_bytes = np.ascontiguousarray(t, dtype=float).tobytes()
     return _reference_cached(_Content(scenario), t_bytes)
 
