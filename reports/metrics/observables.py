@@ -77,17 +77,38 @@ def _stencils(i: np.ndarray, n: int) -> np.ndarray:
     return start[:, None] + np.arange(min(4, n))
 
 
+class _Polynomials:
+    """The polynomials through the nodes x (m, p) with values y (m, p), in Lagrange form:
+    P(xq) = sum_j y_j prod_{k != j} (xq - x_k)/(x_j - x_k), the products taken in the order of
+    k and the sum in the order of j. The node differences are formed once, for the many
+    evaluations of a bisection."""
+
+    def __init__(self, x: np.ndarray, y: np.ndarray):
+        p = x.shape[1]
+        self.x, self.y, self.p = x, y, p
+        #: others[j]: the nodes k != j, in order
+        self.others = np.array([[k for k in range(p) if k != j] for j in range(p)], dtype=int)
+        self.den = x[:, :, None] - x[:, self.others] if p > 1 else None  # (m, p, p - 1)
+
+    def __call__(self, xq: np.ndarray) -> np.ndarray:
+        """P at xq (m,), one point per polynomial."""
+        if self.p == 1:
+            L = np.ones((len(xq), 1))
+        else:
+            r = (xq[:, None] - self.x)[:, self.others] / self.den  # (xq - x_k)/(x_j - x_k)
+            L = r[:, :, 0]
+            for c in range(1, self.p - 1):
+                L = L * r[:, :, c]
+        terms = self.y * L
+        out = np.zeros(len(xq))
+        for j in range(self.p):
+            out += terms[:, j]
+        return out
+
+
 def _lagrange(x: np.ndarray, y: np.ndarray, xq: np.ndarray) -> np.ndarray:
     """Value at xq (m,) of the polynomial through the nodes x (m, p), values y (m, p)."""
-    out = np.zeros(len(xq))
-    p = x.shape[1]
-    for j in range(p):
-        L = np.ones(len(xq))
-        for k in range(p):
-            if k != j:
-                L *= (xq - x[:, k]) / (x[:, j] - x[:, k])
-        out += y[:, j] * L
-    return out
+    return _Polynomials(x, y)(xq)
 
 
 def _interp(t: np.ndarray, y: np.ndarray, tq: np.ndarray) -> np.ndarray:
@@ -120,9 +141,10 @@ def crossings(t, y, level: float = 0.0, direction: int = 0) -> np.ndarray:
     x, v = t[st], s[st]
     lo, hi = t[i].copy(), t[i + 1].copy()
     slo = s[i]
+    local = _Polynomials(x, v)
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        smid = _lagrange(x, v, mid)
+        smid = local(mid)
         same = np.sign(smid) == np.sign(slo)
         lo = np.where(same, mid, lo)
         slo = np.where(same, smid, slo)
