@@ -1,12 +1,13 @@
 """Compiled pieces of the suite's RKMK4 (see :mod:`references.engines.liegroup` for the method).
 
-The state is one flat float64 array ``y`` of 13 entries, ``[q (4, w x y z), x_G (3), W (3),
+The state is a flat float64 vector ``y`` of 13 entries, ``[q (4, w x y z), x_G (3), W (3),
 v_G (3)]``: the rotation as a unit quaternion, so a stage rotation R0 exp(theta) is the
 quaternion product q0 (x) exp(theta) and costs a few dozen flops instead of a 3x3 matrix
 exponential. Slopes are kept in ``K`` (4 stages x 12: the algebra-valued theta' (6) and the
-acceleration (6)). A step is four calls of :func:`stage` (each preparing the state at which the
-engine is asked for accelerations) and one of :func:`finish`; between them the engine fills
-``acc`` = [dW/dt (3) body axes, dv_G/dt (3) world axes].
+acceleration (6)). A step is four calls of :func:`stage` (each preparing the state ``z`` at
+which the engine is asked for accelerations) and one of :func:`finish`; between them the engine
+fills ``acc`` = [dW/dt (3) body axes, dv_G/dt (3) world axes]. y, z and acc are slices of one
+workspace array (:data:`WORKSPACE`).
 
 The arithmetic is the readable :func:`references.engines.liegroup.rkmk4_step` on SO(3) x R^3
 in another parametrisation; a test holds the two to round-off. ``TOO_LARGE`` is returned when
@@ -25,6 +26,12 @@ TOO_LARGE = 1
 
 #: Runge-Kutta nodes of the classical tableau (stage i uses c_i h and the slope of stage i-1)
 _C = np.array([0.0, 0.5, 0.5, 1.0])
+
+#: the workspace of :func:`stage` and :func:`finish`: one array of WORKSPACE entries holding the
+#: state y, the stage state z and the engine's accelerations acc at these slices (one array to
+#: hand over instead of three: each array argument costs the call ~0.15 us of unboxing)
+Y, Z, ACC = slice(0, 13), slice(13, 26), slice(26, 32)
+WORKSPACE = 32
 
 
 @njit(cache=True, inline="always")
@@ -66,10 +73,11 @@ def _qexp_mul(q, t0, t1, t2, out):
 
 
 @njit(cache=True)
-def stage(i, y, K, acc, h, pivoted, z):
+def stage(i, w, K, h, pivoted):
     """Store the previous stage's acceleration ``acc`` (i > 0) in K, then write into ``z`` the
     state of stage i (0..3) at which the engine is asked for accelerations. Returns OK or
-    TOO_LARGE."""
+    TOO_LARGE. ``w`` is the workspace (:data:`WORKSPACE`) holding y, z and acc."""
+    y, z, acc = w[Y], w[Z], w[ACC]
     if i > 0:
         for k in range(6):
             K[i - 1, 6 + k] = acc[k]
@@ -101,9 +109,10 @@ def stage(i, y, K, acc, h, pivoted, z):
 
 
 @njit(cache=True)
-def finish(y, K, acc, h, pivoted, z):
+def finish(w, K, h, pivoted):
     """Store the last stage's acceleration and advance ``y`` by one step (in place, with the
-    quaternion renormalised). Returns OK or TOO_LARGE."""
+    quaternion renormalised). Returns OK or TOO_LARGE. ``w`` as for :func:`stage`."""
+    y, z, acc = w[Y], w[Z], w[ACC]
     for k in range(6):
         K[3, 6 + k] = acc[k]
     w1, w2 = h / 6.0, h / 3.0
@@ -218,14 +227,13 @@ def unpack_dart(z, pivoted, a, acc):
 
 def warm_up() -> None:
     """Compile (or load from numba's cache) every function once, outside any timed region."""
-    y = np.zeros(13)
-    y[0] = 1.0
-    z = np.zeros(13)
+    w = np.zeros(WORKSPACE)
+    w[0] = 1.0
+    z, acc = w[Z], w[ACC]
     K = np.zeros((4, 12))
-    acc = np.zeros(6)
     for i in range(4):
-        stage(i, y, K, acc, 1e-3, False, z)
-    finish(y, K, acc, 1e-3, False, z)
+        stage(i, w, K, 1e-3, False)
+    finish(w, K, 1e-3, False)
     for pivoted in (False, True):
         n = 4 if pivoted else 7
         m = 3 if pivoted else 6

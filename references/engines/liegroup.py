@@ -248,10 +248,10 @@ class CompiledRKMK4Stepper:
         _rkmk4.warm_up()
         self.engine, self.ctx, self.k = engine, ctx, _rkmk4
         self.pivoted = bool(ctx.model.pivoted)
-        self.y = np.zeros(13)
-        self.z = np.zeros(13)
+        # y (the state), z (a stage's state) and acc (its accelerations): views of one array
+        self.w = np.zeros(_rkmk4.WORKSPACE)
+        self.y, self.z, self.acc = self.w[_rkmk4.Y], self.w[_rkmk4.Z], self.w[_rkmk4.ACC]
         self.K = np.zeros((4, 12))
-        self.acc = np.zeros(6)
         self.fd = engine.packed_dynamics(ctx)
 
     def start(self, state: BodyState) -> None:
@@ -268,26 +268,27 @@ class CompiledRKMK4Stepper:
         return unpack_state(self.ctx.model, y)
 
     def run(self, steps: list[int]) -> BodyState:
-        stage, finish = direct(self.k.stage), direct(self.k.finish)  # y, K, acc, z are ours
-        y, z, K, acc, h, piv = self.y, self.z, self.K, self.acc, self.ctx.dt, self.pivoted
+        stage, finish = direct(self.k.stage), direct(self.k.finish)  # w and K are ours
+        w, y, z, K, acc = self.w, self.y, self.z, self.K, self.acc
+        h, piv = self.ctx.dt, self.pivoted
         fd, ctx = self.fd, self.ctx
         rows = np.empty((len(steps), 13))
         taken = 0
         for j, n in enumerate(steps):
             for _ in range(n):
                 # the four stages written out (stage 0 never fails: it only copies y)
-                stage(0, y, K, acc, h, piv, z)
+                stage(0, w, K, h, piv)
                 fd(z, acc)
-                if stage(1, y, K, acc, h, piv, z):
+                if stage(1, w, K, h, piv):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 fd(z, acc)
-                if stage(2, y, K, acc, h, piv, z):
+                if stage(2, w, K, h, piv):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 fd(z, acc)
-                if stage(3, y, K, acc, h, piv, z):
+                if stage(3, w, K, h, piv):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 fd(z, acc)
-                if finish(y, K, acc, h, piv, z):
+                if finish(w, K, h, piv):
                     raise self._failure("a Runge-Kutta step rotation >= pi", taken, rows[:j])
                 taken += 1
             ctx.nevals += 4 * n
