@@ -5,6 +5,10 @@ eliminated, Moser-Veselov on the pivot inertia), from exact conservation laws an
 closed-form input rules; no value is copied from the code under test.
 """
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -212,7 +216,8 @@ def test_block_solver_equals_banded_to_round_off():
 def test_kernels_one_signature_each():
     """Each numba function of the system kernels is compiled for one signature whatever the
     solver (a constant flag or index, a non-contiguous view or another integer width would
-    add a specialisation, and with it compile time). A kernel loaded from numba's cache
+    add a specialisation, and with it compile time), except the step itself, once per
+    entry (the banded solver's and the others'). A kernel loaded from numba's cache
     compiles no helper at all, which also passes."""
     from director_model.system import _kernels as K
 
@@ -221,8 +226,28 @@ def test_kernels_one_signature_each():
         simulate_system(bodies, joints, gravity=(0, 0, -9.81), dt=1e-3, t_end=3e-3,
                         solver=solver)  # fmt: skip
     counts = {name: len(f.overloads) for name, f in vars(K).items() if hasattr(f, "overloads")}
-    assert counts["run_system"] == 1
-    assert all(n <= 1 for n in counts.values()), counts
+    assert counts["run_system"] == 1 and counts["run_system_banded"] == 1
+    assert counts["_run_system"] <= 2
+    assert all(n <= 1 for name, n in counts.items() if name != "_run_system"), counts
+
+
+def test_block_and_minnorm_runs_leave_the_banded_entry_alone():
+    """Runs with the block and the minnorm solvers compile (or load) run_system only, not the
+    banded solver's entry (a fresh process: the other tests here run the banded solver)."""
+    code = (
+        "from director_model.system import _kernels as K, simulate_system\n"
+        "from director_model.system.examples import rod_chain\n"
+        "from director_model.system.examples import parallelogram_four_bar\n"
+        "b, j = rod_chain(3, hang=True, seed=1)\n"
+        "assert simulate_system(b, j, dt=1e-3, t_end=3e-3).solver == 'block'\n"
+        "b, j, _, _ = parallelogram_four_bar()\n"
+        "assert simulate_system(b, j, dt=1e-3, t_end=3e-3).solver == 'minnorm'\n"
+        "print(len(K.run_system.overloads), len(K.run_system_banded.overloads))\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                         text=True, check=True, timeout=600)  # fmt: skip
+    assert out.stdout.split() == ["1", "0"], out.stdout + out.stderr
 
 
 @pytest.mark.parametrize("n", [1, 2, 5, 9])

@@ -37,10 +37,10 @@ State per body (``S`` rows, length NS): x (0:3) and its compensation (3:6), v (6
 (9:12), the unnormalised attitude quaternion p (12:16) with D = D_0 R(p/|p|) and (16:20),
 Pi = I W (20:23) and (23:26). Sums into x, v, p, Pi are compensated (Kahan). ``mu`` holds
 the last velocity multipliers and the position multipliers of each sub-step of the two last
-steps (force units; layout in :func:`run_system`): the start values of the next position
+steps (force units; layout in :func:`_run_system`): the start values of the next position
 multipliers, so a stepper restarted from (S, mu) continues bit for bit.
 
-The step is written out inside :func:`run_system`: a call with some thirty array arguments
+The step is written out inside :func:`_run_system`: a call with some thirty array arguments
 per sub-step cost about 0.4 us (1 body: 540 ns per step with the call, 130 ns without).
 Compile time (a cold numba cache) decides how the helpers are joined to it:
 
@@ -56,6 +56,10 @@ Compile time (a cold numba cache) decides how the helpers are joined to it:
   directly, as np.linalg.svd does, without the checks and copies that make np.linalg.svd
   compile for several seconds; arrays are cleared by loops (a slice assignment ``A[:] = 0``
   lowers numba's general broadcasting store at each use).
+
+- the banded solver is compiled into an entry of its own (:func:`run_system_banded`), apart
+  from the block and minnorm solvers (:func:`run_system`): a run compiles the solvers of its
+  entry only.
 
 tests/test_director_system.py checks that every kernel compiles a single signature.
 """
@@ -686,10 +690,10 @@ def _blk_solve(Dg, Up, Lo, b, x):
         x[3 * k], x[3 * k + 1], x[3 * k + 2] = _mul(_row9(Dg, k), y0, y1, y2)
 
 
-@njit(cache=True)
-def run_system(
+@njit
+def _run_system(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, blk, jptr, jidx, jside,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, banded,
 ):  # fmt: skip
     """Advance the system nstep steps of dt (each step the composition ``coef`` of RATTLE
     sub-steps), storing the states at the step indices ``saves`` (increasing, 0 = the start)
@@ -699,7 +703,12 @@ def run_system(
     ``mu`` (length nr (1 + 2 ns) + 1, nr = max(nrow, 1), ns = len(coef)): the last velocity
     multipliers (0:nr), the position multipliers of each sub-step j of the last step
     (nr (1 + j) ...) and of the step before (nr (1 + ns + j) ...), and the number of steps
-    in that history (0, 1, 2) in the last entry: the integrator state besides S."""
+    in that history (0, 1, 2) in the last entry: the integrator state besides S.
+
+    The solver of the multiplier equations: ``minnorm`` the dense SVD, else ``banded`` (a
+    literal constant: numba drops the branches of the other value before typing them) the
+    banded LU and L D L^T, else the 3x3 block elimination. Called by the entries
+    :func:`run_system` and :func:`run_system_banded`."""
     nb = S.shape[0]
     nrow = rint.shape[0]
     nr = max(nrow, 1)
@@ -727,7 +736,7 @@ def run_system(
     Vt = np.zeros((nd, nd))
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
-    nK = nrow // 3 if blk else 1
+    nK = 1 if banded or minnorm else nrow // 3
     Dg = np.zeros((nK, 9))
     Up = np.zeros((nK, 9))
     Lo = np.zeros((nK, 9))
@@ -756,7 +765,7 @@ def run_system(
                 _rows(rint, rvec, S, Dn, gv, Jold)
             # start value: in the banded solver the position multipliers of this sub-step
             # extrapolated linearly from the same sub-step of the two previous steps
-            # (history in mu, see run_system); else the last velocity multipliers
+            # (history in mu, see _run_system); else the last velocity multipliers
             ho1 = nr * (1 + j)
             ho2 = nr * (1 + ns + j)
             for r in range(nrow):
@@ -832,22 +841,22 @@ def run_system(
                         if rank < 0:
                             _fail(info, n, h)
                             return FAIL_SVD
-                    elif blk:
-                        _blk_assemble(jptr, jidx, jside, Jnew, Jold, Mx, Mth, Dg, Up, Lo)
-                        if not _blk_lu(Dg, Up, Lo):
-                            _fail(info, n, h)
-                            return FAIL_SINGULAR
-                    else:
+                    elif banded:
                         _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, band, bw, full)
                         if not _band_lu(Ab, bw):
                             _fail(info, n, h)
                             return FAIL_SINGULAR
+                    else:
+                        _blk_assemble(jptr, jidx, jside, Jnew, Jold, Mx, Mth, Dg, Up, Lo)
+                        if not _blk_lu(Dg, Up, Lo):
+                            _fail(info, n, h)
+                            return FAIL_SINGULAR
                 if minnorm:
                     _svd_solve(U, sv, Vt, rank, gv, dl)
-                elif blk:
-                    _blk_solve(Dg, Up, Lo, gv, dl)
-                else:
+                elif banded:
                     _band_solve(Ab, bw, gv, dl)
+                else:
+                    _blk_solve(Dg, Up, Lo, gv, dl)
                 ih2 = 1.0 / (h * h)
                 for r in range(nrow):
                     lam[r] += dl[r] * ih2
@@ -904,18 +913,18 @@ def run_system(
                         if rel < diag[D_SMIN]:
                             diag[D_SMIN] = rel
                             diag[D_TSMIN] = n
-                elif blk:
-                    _blk_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Dg, Up, Lo)
-                    if not _blk_lu(Dg, Up, Lo):
-                        _fail(info, n, h)
-                        return FAIL_SINGULAR
-                    _blk_solve(Dg, Up, Lo, r0, dl)
-                else:
+                elif banded:
                     _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, band, bw, upper)
                     if not _band_ldl(Ab, bw):
                         _fail(info, n, h)
                         return FAIL_SINGULAR
                     _band_ldl_solve(Ab, bw, r0, dl)
+                else:
+                    _blk_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Dg, Up, Lo)
+                    if not _blk_lu(Dg, Up, Lo):
+                        _fail(info, n, h)
+                        return FAIL_SINGULAR
+                    _blk_solve(Dg, Up, Lo, r0, dl)
 
             if nrow > 0:
                 _forces(rint, Jnew, dl, Fn, Tn)
@@ -973,3 +982,30 @@ def run_system(
             _store(B, D0, S, X, V, D, W, ks)
             ks += 1
     return OK
+
+
+# The entries, one per group of solvers, so that a run compiles (or loads) only the code of
+# its own: the default suite's systems use the block and minnorm solvers, and without the
+# banded factorisations and solves the kernel compiles in about 0.9 of the time.
+@njit(cache=True)
+def run_system(
+    B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside,
+):  # fmt: skip
+    """:func:`_run_system` with the minnorm solver (``minnorm`` True) or the block one
+    (False; the joint rows in 3x3 blocks, ``jptr``, ``jidx``, ``jside``)."""
+    return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
+                       V, D, W, minnorm, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
+                       jidx, jside, False)  # fmt: skip
+
+
+@njit(cache=True)
+def run_system_banded(
+    B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside,
+):  # fmt: skip
+    """:func:`_run_system` with the banded solver (the arguments of :func:`run_system` less
+    ``minnorm``)."""
+    return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
+                       V, D, W, False, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
+                       jidx, jside, True)  # fmt: skip

@@ -2,11 +2,11 @@
 
 N systems with the same bodies (names, masses, principal moments) and the same joints, each
 with its own initial state, are advanced by the compiled single-system step
-(:func:`director_model.system._kernels.run_system`) called once per member inside a numba
-``prange`` loop, so the members run on the threads of numba's pool. Every member owns its
-state, multipliers, diagnostics and output slices and no sum runs across members, so each
-member's saved states are bit for bit those of its own :func:`simulate_system` run, whatever
-the number of threads.
+(:func:`director_model.system._kernels.run_system`, or ``run_system_banded`` for the banded
+solver) called once per member inside a numba ``prange`` loop, so the members run on the
+threads of numba's pool. Every member owns its state, multipliers, diagnostics and output
+slices and no sum runs across members, so each member's saved states are bit for bit those
+of its own :func:`simulate_system` run, whatever the number of threads.
 """
 
 from __future__ import annotations
@@ -33,16 +33,30 @@ from director_model.system.simulate import (
 @njit(parallel=True, cache=True)
 def run_batch(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, blk, jptr, jidx, jside, status,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, status,
 ):  # fmt: skip
-    """:func:`run_system` for each member k of a batch (leading axis of D0, S, mu, X, V, D,
-    W, diag, info; status (nbatch,) receives each member's return value), members spread
-    over numba's threads."""
+    """:func:`run_system` (the block or minnorm solver) for each member k of a batch (leading
+    axis of D0, S, mu, X, V, D, W, diag, info; status (nbatch,) receives each member's
+    return value), members spread over numba's threads."""
     for k in prange(S.shape[0]):
         status[k] = K.run_system(
             B, D0[k], rint, rvec, ptr, idx, side, g, S[k], mu[k], coef, dt, nstep, saves,
             X[k], V[k], D[k], W[k], minnorm, bw, rank_nom, rank_tol, tol_rel, Lsc, diag[k],
-            info[k], blk, jptr, jidx, jside,
+            info[k], jptr, jidx, jside,
+        )  # fmt: skip
+
+
+@njit(parallel=True, cache=True)
+def run_batch_banded(
+    B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, status,
+):  # fmt: skip
+    """:func:`run_batch` with the banded solver (:func:`run_system_banded`)."""
+    for k in prange(S.shape[0]):
+        status[k] = K.run_system_banded(
+            B, D0[k], rint, rvec, ptr, idx, side, g, S[k], mu[k], coef, dt, nstep, saves,
+            X[k], V[k], D[k], W[k], bw, rank_nom, rank_tol, tol_rel, Lsc, diag[k], info[k],
+            jptr, jidx, jside,
         )  # fmt: skip
 
 
@@ -181,7 +195,8 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
     S = np.ascontiguousarray([st._S for st in steppers])
     mu = np.ascontiguousarray([st._mu for st in steppers])
     rint = asm.rint if asm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
-    _ensure_compiled()
+    banded = ref.solver == "banded"
+    _ensure_compiled(banded)
     old = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(int(threads))
@@ -189,12 +204,18 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
     try:
         c0 = time.process_time()
         t0 = time.perf_counter()
-        run_batch(
+        args = (
             asm.bodies, D0, rint, asm.rvec, asm.brow_ptr, asm.brow_idx, asm.brow_side, ref._g,
-            S, mu, ref._coef, ref.dt, nstep, saves, X, V, D, W, ref.solver == "minnorm",
-            asm.bandwidth, ref.rank_nominal, RANK_TOL, TOL_EPS * K.EPS, asm.length_scale,
-            diag, info, ref.solver == "block", asm.jptr, asm.jidx, asm.jside, status,
+            S, mu, ref._coef, ref.dt, nstep, saves, X, V, D, W,
         )  # fmt: skip
+        rest = (
+            asm.bandwidth, ref.rank_nominal, RANK_TOL, TOL_EPS * K.EPS, asm.length_scale,
+            diag, info, asm.jptr, asm.jidx, asm.jside, status,
+        )  # fmt: skip
+        if banded:
+            run_batch_banded(*args, *rest)
+        else:
+            run_batch(*args, ref.solver == "minnorm", *rest)
         wall = time.perf_counter() - t0
         cpu = time.process_time() - c0
     finally:
