@@ -362,6 +362,30 @@ def test_a_read_only_reference_keeps_its_nearest_rotation_and_a_writable_one_doe
     np.testing.assert_allclose(metrics.attitude_error(tr, ref), 1e-3, rtol=1e-9)
 
 
+def test_gram_is_einsums_product_bit_for_bit():
+    """gram(R) = R^T R with the products and sums einsum forms, in its order: equal to
+    np.einsum's bit for bit on stretched rotations, on matrices of any scale and with
+    non-finite entries (quietly, as einsum), and exactly 1 for rotations by quarter turns."""
+    import warnings
+
+    rng = np.random.default_rng(7)
+    for trial in range(40):
+        n = int(rng.integers(1, 500))
+        R = Rotation.random(n, random_state=trial).as_matrix()
+        R = R * (1 + 10 ** rng.uniform(-16, -1) * rng.standard_normal((n, 3, 3)))
+        if trial % 2:
+            R = rng.standard_normal((n, 3, 3)) * 10 ** rng.uniform(-150, 150)
+        if trial % 5 == 0:
+            R.flat[rng.integers(0, R.size, 4)] = [np.nan, np.inf, -np.inf, -0.0]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            G = metrics.gram(R)
+        assert G.flags.c_contiguous
+        np.testing.assert_array_equal(G, np.einsum("nki,nkj->nij", R, R))
+    quarter = Rotation.from_rotvec(np.pi / 2 * np.eye(3)).as_matrix().round()
+    np.testing.assert_array_equal(metrics.gram(quarter), np.broadcast_to(np.eye(3), (3, 3, 3)))
+
+
 def test_linear_momentum_drift_in_closed_form():
     """A free body thrown with v0 = (1, 0, 0) m/s under g = (0, 0, -9.81) m/s^2 for 1 s: the
     largest speed is the final one, |v1| = sqrt(1 + 9.81^2), so p_c = sqrt(2 m E_tr,c) =

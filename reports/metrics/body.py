@@ -126,11 +126,28 @@ def linear_momentum_drift(scenario, traj) -> np.ndarray | None:
     return scenario.mass * np.linalg.norm(dv, axis=1) / p_c
 
 
+def gram(R) -> np.ndarray:
+    """R^T R of each matrix of ``R`` (n, 3, 3), C-contiguous: entry (i, j) is
+    (R_0i R_0j + R_1i R_1j) + R_2i R_2j, the products and the sum in the order in which
+    ``np.einsum("nki,nkj->nij", R, R)`` forms them (bit for bit the same), as 30 operations on
+    contiguous rows of n, several times faster than einsum's loop over the stack."""
+    R = np.asarray(R, dtype=float)
+    n = len(R)
+    c = np.ascontiguousarray(R.reshape(n, 9).T)  # c[3 k + i] = R[:, k, i]
+    out = np.empty((9, n))
+    with np.errstate(all="ignore"):  # as quiet as einsum on a run that blew up (inf - inf)
+        for i in range(3):
+            for j in range(i, 3):
+                out[3 * i + j] = (c[i] * c[j] + c[3 + i] * c[3 + j]) + c[6 + i] * c[6 + j]
+                if j != i:
+                    out[3 * j + i] = out[3 * i + j]
+    return np.ascontiguousarray(out.T).reshape(n, 3, 3)
+
+
 @measures("orthonormality_max")
 def orthonormality(traj) -> np.ndarray:
     """||R^T R - 1|| (Frobenius) at each saved time, shape (n,)."""
-    RtR = np.einsum("nki,nkj->nij", traj.rotation, traj.rotation)
-    return np.linalg.norm(RtR - np.eye(3), axis=(1, 2))
+    return np.linalg.norm(gram(traj.rotation) - np.eye(3), axis=(1, 2))
 
 
 @measures("constraint_velocity_max")
@@ -168,7 +185,7 @@ def nearest_rotation(R) -> np.ndarray:
     if not ok.any():
         return out
     Rk = R[ok]
-    E = np.einsum("nki,nkj->nij", Rk, Rk) - np.eye(3)
+    E = gram(Rk) - np.eye(3)
     near = (np.linalg.norm(E, axis=(1, 2)) < POLAR_SERIES) & (_det3(Rk) > 0)
     Q = np.empty_like(Rk)
     if near.any():

@@ -40,7 +40,7 @@ import math
 import numpy as np
 
 from references.trajectory import system_energy, system_momenta
-from reports.metrics.body import _max, attitude_error, nearest_rotation
+from reports.metrics.body import _max, attitude_error, gram, nearest_rotation
 from reports.metrics.catalog import SYSTEM_METRICS, check_attached, computed, measures
 from scenarios.system import joint_residuals
 
@@ -137,7 +137,7 @@ def loop_gap(scenario, traj) -> np.ndarray | None:
 def orthonormality(traj) -> np.ndarray:
     """max over bodies of ||R^T R - 1||_F, (n,)."""
     R = traj.rotation
-    E = np.einsum("nbki,nbkj->nbij", R, R) - np.eye(3)
+    E = gram(R.reshape(-1, 3, 3)).reshape(R.shape) - np.eye(3)
     return np.max(np.linalg.norm(E, axis=(2, 3)), axis=1)
 
 
