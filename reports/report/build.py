@@ -972,9 +972,12 @@ def _toc(df, has_settings: bool, has_ensemble: bool) -> tuple[str, str]:
     return f"**Contents:** {md}", f"<nav class='toc'><b>Contents:</b> {h}</nav>"
 
 
-def document(df, prov: dict, plots: dict, root: Path, edf=None, card_figures=()) -> tuple[str, str]:
+def document(
+    df, prov: dict, plots: dict, root: Path, edf=None, card_figures=(), card=None
+) -> tuple[str, str]:
     """(report.md, report.html) of a results table; ``card_figures``: the scorecard picture
-    (reports.report.plots.scorecard_figure: its PNG is shown, its SVG linked)."""
+    (reports.report.plots.scorecard_figure: its PNG is shown, its SVG linked); ``card``: the
+    table's :func:`reports.report.tables.scorecard` if the caller has it already."""
     doc = Doc()
     doc.md.append("# director-bench report\n")
     doc.html.append("<h1 id='director-bench-report'>director-bench report</h1>")
@@ -988,7 +991,7 @@ def document(df, prov: dict, plots: dict, root: Path, edf=None, card_figures=())
     doc.md.append(toc_md + "\n")
     doc.html.append(toc_html)
     if len(df):
-        card = scorecard(df)
+        card = scorecard(df) if card is None else card
         doc.heading(2, "Scorecard")
         scorecard_picture(doc, [Path(p) for p in card_figures], root, df)
         scorecard_section(doc, df, card)
@@ -1016,13 +1019,14 @@ def document(df, prov: dict, plots: dict, root: Path, edf=None, card_figures=())
     return md, page
 
 
-def step_summary(df) -> str:
-    """The scorecard as Markdown for a CI job summary (no links: the details are elsewhere)."""
+def step_summary(df, card=None) -> str:
+    """The scorecard as Markdown for a CI job summary (no links: the details are elsewhere);
+    ``card`` as for :func:`document`."""
     doc = Doc()
     doc.md.append("## director-bench scorecard\n")
     doc.para(count_line(df))
     if len(df):
-        scorecard_section(doc, df, scorecard(df), links=False)
+        scorecard_section(doc, df, scorecard(df) if card is None else card, links=False)
     return "\n".join(doc.md)
 
 
@@ -1056,14 +1060,15 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     df = python_strings(df)
     prov = read_provenance(root)
     plots, card_figures = report_figures(df, root, progress=progress)
-    md, page = document(df, prov, plots, root, edf, card_figures)
+    card = scorecard(df)  # shown in the report, summary.json and the CI job summary
+    md, page = document(df, prov, plots, root, edf, card_figures, card)
     _write(root / "report.md", md)
     _write(root / "report.html", page)
-    summary_path = write_summary(root, df, prov)
+    summary_path = write_summary(root, df, prov, card)
     target = os.environ.get("GITHUB_STEP_SUMMARY")
     if target:
         with open(target, "a", encoding="utf-8") as fh:
-            fh.write(step_summary(df) + "\n")
+            fh.write(step_summary(df, card) + "\n")
     return {
         "markdown": root / "report.md",
         "html": root / "report.html",

@@ -71,12 +71,14 @@ def _group_json(g: Group) -> dict:
     }
 
 
-def summary(df, prov: dict | None = None) -> dict:
-    """The content of summary.json (documented in docs/results.md)."""
+def summary(df, prov: dict | None = None, card: list | None = None) -> dict:
+    """The content of summary.json (documented in docs/results.md); ``card``: the table's
+    :func:`reports.report.tables.scorecard` if the caller has it already."""
     from reports import __version__
 
+    scenarios = scorecard(df) if card is None else card
     card = []
-    for s in scorecard(df):
+    for s in scenarios:
         card.append(
             {
                 "scenario": s["scenario"],
@@ -118,7 +120,8 @@ def summary(df, prov: dict | None = None) -> dict:
     }
 
 
-def write_summary(root: str | Path, df, prov: dict | None = None) -> Path:
-    """Write ``summary.json`` into the results folder (atomically)."""
-    text = json.dumps(summary(df, prov), indent=1, allow_nan=False)
+def write_summary(root: str | Path, df, prov: dict | None = None, card: list | None = None) -> Path:
+    """Write ``summary.json`` into the results folder (atomically); ``card`` as for
+    :func:`summary`."""
+    text = json.dumps(summary(df, prov, card), indent=1, allow_nan=False)
     return write_text(Path(root) / "summary.json", text + "\n")

@@ -99,11 +99,11 @@ def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
     cheapest first, with the cost ratio to the cheapest (by engine time; wall times given as
     figures). An error below the reference's accuracy does not reach a level below that
     accuracy: it is not a measurement."""
-    ok = sub[(sub["status"] == "ok") & ~reference_rows(sub)]
+    ok = records(sub[(sub["status"] == "ok") & ~reference_rows(sub)])
     out = []
     for level in levels:
         best = {}
-        for r in records(ok):
+        for r in ok:
             err = num(r["attitude_error_max"])
             acc = num(r["reference_accuracy"])
             reached = max(err, 0.0 if math.isnan(acc) else acc)
