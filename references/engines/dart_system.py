@@ -449,8 +449,9 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     parameter of its joint constraints, a global of DART; default: DART's own).
 
     Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio_system.
-    simulate_system`), ``engine_time_s`` (inside World.step, or computeForwardDynamics and the
-    state setters for RKMK4) and ``settings``. Raises :class:`Unsupported`,
+    simulate_system`), ``engine_time_s`` (inside World.step, or, for RKMK4, inside the joints'
+    state setters, computeForwardDynamics and getAccelerations, not the conversions to and from
+    DART's coordinates) and ``settings``. Raises :class:`Unsupported`,
     :class:`EngineError` (read-back or initial-state mismatch) and :class:`Diverged`
     (non-finite state, or one DART replaced).
     """
