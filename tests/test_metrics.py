@@ -386,6 +386,34 @@ def test_gram_is_einsums_product_bit_for_bit():
     np.testing.assert_array_equal(metrics.gram(quarter), np.broadcast_to(np.eye(3), (3, 3, 3)))
 
 
+def test_convergence_orders_fill_each_configuration_from_its_ok_runs():
+    """Per (scenario, engine, integrator): the slope of its ok runs' attitude errors over dt
+    (errors 3e-3 (dt/0.04)^p, so the slope is p) on each of those rows; NaN on a failed run
+    and for a configuration with one dt, whatever the table's index."""
+    import pandas as pd
+
+    dts = [0.04, 0.02, 0.01]
+    rows = []
+    for engine, p in (("a", 2.0), ("b", 4.0)):
+        for h in dts:
+            rows.append(dict(scenario="s", engine=engine, integrator="i", dt=h, status="ok",
+                             attitude_error_max=3e-3 * (h / 0.04) ** p))  # fmt: skip
+    rows.append(dict(scenario="s", engine="b", integrator="i", dt=0.005, status="diverged",
+                     attitude_error_max=math.inf))  # fmt: skip
+    rows.append(dict(scenario="s", engine="c", integrator="i", dt=0.01, status="ok",
+                     attitude_error_max=1e-6))  # fmt: skip
+    df = pd.DataFrame(rows, index=np.arange(len(rows)) * 3 + 5)  # not 0..n-1
+    df["reference_accuracy"], df["roundoff_floor"] = 1e-14, math.nan
+    out = metrics.add_convergence_orders(df)
+    assert list(out.index) == list(df.index) and "convergence_order" not in df
+    order = dict(zip(out["engine"] + out["status"], out["convergence_order"], strict=True))
+    assert order["aok"] == pytest.approx(2.0, rel=1e-12)
+    assert order["bok"] == pytest.approx(4.0, rel=1e-12)
+    assert math.isnan(order["bdiverged"])
+    assert math.isnan(order["cok"])
+    assert list(out["convergence_points"].fillna(-1)) == [3, 3, 3, 3, 3, 3, -1, -1]
+
+
 def test_linear_momentum_drift_in_closed_form():
     """A free body thrown with v0 = (1, 0, 0) m/s under g = (0, 0, -9.81) m/s^2 for 1 s: the
     largest speed is the final one, |v1| = sqrt(1 + 9.81^2), so p_c = sqrt(2 m E_tr,c) =
