@@ -166,6 +166,14 @@ def check_out(out) -> Path:
     return out
 
 
+def worker_preload(engines) -> tuple[str, ...]:
+    """What local workers import before they start, beyond the suite's own modules
+    (reports.run.parallel.PRELOAD): JAX when MJX is among ``engines`` (its import starts no
+    thread and initialises no device; MJX itself starts a thread at import, so each worker
+    imports it when it first runs MJX)."""
+    return ("jax",) if "mjx" in engines else ()
+
+
 def run(
     names=(),
     *,
@@ -215,13 +223,15 @@ def run(
     integrators = check_integrators(integrators, engines)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
     limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.runner
+    # a local pool's workers start importing now (reports.run.parallel), during the planning
+    local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
     specs = plan(
         scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
     )
     if not specs:
         why = "".join(f"; {w}" for w in unloadable.values())
         raise InputError(f"nothing to run: no engine offers the integrators asked for{why}")
-    mapper = make_mapper(jobs, scheduler, out)
+    mapper = local or make_mapper(jobs, scheduler, out)
     # every input is checked: only now is anything written
     out = check_out(out)
     write_provenance(out, engines)

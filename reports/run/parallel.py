@@ -11,9 +11,21 @@ use ``--jobs 1`` when the cost columns matter.
 
 Engines run with the output folder's ``logs/`` as their working directory (MuJoCo writes
 MUJOCO_LOG.TXT into the current directory), so nothing is written outside the output folder.
-Local worker processes end with their parent, also when it is killed (SIGKILL included):
+Local worker processes end with the main process, also when it is killed (SIGKILL included):
 each asks the kernel for SIGKILL on its parent's death (Linux ``PR_SET_PDEATHSIG``) and
-watches its parent's process id as a fallback.
+watches its parent's process id as a fallback. On Linux a worker's parent is a fork server
+(below), killed in turn by the kernel when the main process dies (reports.run.server_guard);
+elsewhere it is the main process.
+
+How local workers start: engines hold native state that does not survive a fork safely, so a
+worker is never a fork of a process that has imported an engine. On Linux the workers are
+forked from a fork server (multiprocessing's ``forkserver``) that imports only
+:data:`PRELOAD` (the suite's own modules, numpy, scipy, numba) and, when asked, JAX: modules
+whose import starts no thread other than OpenBLAS's pool, which OpenBLAS itself stops before a
+fork, and initialises no device (JAX warns at a fork only once a backend is initialised; its
+import initialises none). The server starts when the mapper is made, so its imports overlap
+the main process's planning, and each worker starts with them done instead of importing them
+again. Elsewhere workers are spawned (a fresh interpreter each).
 
 Lost workers: a local worker that dies (killed, out of memory) breaks the pool, and a Dask
 cluster whose scheduler goes away, or which has no worker for :data:`NO_WORKER_S` seconds
@@ -79,14 +91,31 @@ def serial(out: Path | None = None) -> Callable:
     return mapper
 
 
-def _die_with_parent(parent: int, logs: str | None) -> None:
-    """Initializer of a local worker: end when the parent dies; run engines in ``logs``."""
+def _parent_of(pid: int) -> int | None:
+    """The parent process id of ``pid`` (Linux /proc), or None if it cannot be read."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return int(f.read().rsplit(b")", 1)[1].split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _die_with_parent(main: int, logs: str | None) -> None:
+    """Initializer of a local worker: end when the main process ``main`` dies (the worker's
+    parent is ``main`` itself, or a fork server that ``main`` started and that ends with it);
+    run engines in ``logs``."""
     with contextlib.suppress(Exception):  # Linux only; the watcher below covers the rest
         import ctypes
 
         libc = ctypes.CDLL("libc.so.6", use_errno=True)
         libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
-    if os.getppid() != parent:
+    parent = os.getppid()
+
+    def orphaned() -> bool:
+        # the parent changed (it died), or the fork server no longer has main as its parent
+        return os.getppid() != parent or (parent != main and _parent_of(parent) != main)
+
+    if orphaned():  # also when the parent died before the kernel was asked above
         os._exit(1)
 
     def watch():
@@ -94,7 +123,7 @@ def _die_with_parent(parent: int, logs: str | None) -> None:
 
         while True:
             time.sleep(1.0)
-            if os.getppid() != parent:
+            if orphaned():
                 os._exit(1)
 
     threading.Thread(target=watch, daemon=True).start()
@@ -102,8 +131,53 @@ def _die_with_parent(parent: int, logs: str | None) -> None:
         os.chdir(logs)
 
 
-def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
+#: what a local worker's fork server imports before it forks the workers (see the module
+#: docstring): every one starts no thread but OpenBLAS's and holds no engine
+PRELOAD = (
+    "reports.run.server_guard",  # first: the server dies with the main process from then on
+    "numpy",
+    "scipy.linalg",
+    "numba",
+    "reports.run.runner",
+    "references.engines",
+    "references.exact",
+    "references.engines.director",
+)
+
+
+def _context(preload: tuple[str, ...]):
+    """The multiprocessing context of local workers: a fork server importing ``preload``
+    (Linux), else spawn."""
+    import multiprocessing as mp
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    # a server already running in this process (an earlier pool) keeps what it imported
+    ctx.set_forkserver_preload(list(preload))
+    from multiprocessing import forkserver
+
+    from reports.run.server_guard import PARENT_VARIABLE
+
+    # the server starts importing now, while the caller plans the runs; it learns this
+    # process's id from its environment (reports.run.server_guard)
+    os.environ[PARENT_VARIABLE] = str(os.getpid())
+    try:
+        forkserver.ensure_running()
+    finally:
+        del os.environ[PARENT_VARIABLE]
+    return ctx
+
+
+def process_pool(
+    jobs: int | None = None, out: Path | None = None, preload: tuple[str, ...] = ()
+) -> Callable:
     """A mapper over a local pool of ``jobs`` processes (default: the number of cores).
+
+    Making the mapper with more than one job starts the workers' fork server, which imports
+    :data:`PRELOAD` and ``preload`` (modules safe to import before a fork, see the module
+    docstring; e.g. ``("jax",)`` when the runs include MJX's) while the caller goes on.
 
     ``mapper(fn, units, keys)``: ``keys(unit)``, optional, names the compilations (numba
     kernels, JAX functions) the unit goes through the first time in a process. A unit is
@@ -115,9 +189,9 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
     are handed out in the order given, skipping those that must wait; at most
     :data:`IN_FLIGHT_PER_WORKER` per worker are in flight at a time."""
     jobs = jobs or os.cpu_count() or 1
+    ctx = _context((*PRELOAD, *preload)) if jobs > 1 else None
 
     def mapper(fn, specs, keys: Callable | None = None):
-        import multiprocessing as mp
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
@@ -126,8 +200,7 @@ def process_pool(jobs: int | None = None, out: Path | None = None) -> Callable:
             yield from serial(out)(fn, specs)
             return
         logs = log_dir(out)
-        # spawn, not fork: engines hold native state that does not survive a fork safely
-        ctx = mp.get_context("spawn")
+        # never a fork of this process: engines hold native state that does not survive one
         pool = ProcessPoolExecutor(
             max_workers=jobs,
             mp_context=ctx,
@@ -312,10 +385,16 @@ def _error_rows(unit, message: str):
 
 
 def make_mapper(
-    jobs: int | None = None, scheduler: str | None = None, out: Path | None = None
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    out: Path | None = None,
+    preload: tuple[str, ...] = (),
 ) -> Callable:
+    """The mapper of a command's options: a Dask cluster (``scheduler``), this process
+    (``jobs`` 1) or a local pool (:func:`process_pool`, whose workers' fork server also
+    imports ``preload``)."""
     if scheduler:
         return dask_cluster(scheduler)
     if jobs == 1:
         return serial(out)
-    return process_pool(jobs, out)
+    return process_pool(jobs, out, preload)
