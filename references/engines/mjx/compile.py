@@ -123,17 +123,26 @@ def x64_mode(x64: bool):
     return jax.enable_x64(x64)
 
 
-def _versions() -> dict[str, str]:
-    from importlib.metadata import PackageNotFoundError, version
+_VERSIONS: dict[str, str] = {}
 
+
+def _versions() -> dict[str, str]:
+    """The versions of MuJoCo, JAX, MJX and jaxlib (a new dict each call), read once per
+    process: the installed packages' metadata costs ~2 ms a look-up (measured), and the adapter
+    asks for every run and every key of an exported computation. Imports MJX (raising
+    :class:`EngineUnavailable` when it does not import) on every call."""
     mujoco, jax, _ = _import()
-    out = {"mujoco": mujoco.__version__, "jax": jax.__version__}
-    for pkg in ("mujoco-mjx", "jaxlib"):
-        try:
-            out[pkg] = version(pkg)
-        except PackageNotFoundError:
-            out[pkg] = "unknown"
-    return out
+    if not _VERSIONS:
+        from importlib.metadata import PackageNotFoundError, version
+
+        out = {"mujoco": mujoco.__version__, "jax": jax.__version__}
+        for pkg in ("mujoco-mjx", "jaxlib"):
+            try:
+                out[pkg] = version(pkg)
+            except PackageNotFoundError:
+                out[pkg] = "unknown"
+        _VERSIONS.update(out)
+    return dict(_VERSIONS)
 
 
 # -- compiled functions -----------------------------------------------------------------------
@@ -163,6 +172,13 @@ class _Compiled:
         return self.comp(*args)
 
 
+def _dtype(a) -> str:
+    """The name of an array's dtype, read from the array (``np.asarray`` of a JAX array would
+    copy it from the device first)."""
+    dt = getattr(a, "dtype", None)
+    return str(dt if dt is not None else np.asarray(a).dtype)
+
+
 #: (kind, 64-bit mode, tree structures, shapes and dtypes) -> _Compiled
 _COMPILED: dict[tuple, _Compiled] = {}
 
@@ -174,10 +190,7 @@ def _compiled(kind: str, fn, trees: tuple, extra: tuple, x64: bool):
     _, jax, _ = _import()
     flat = [jax.tree_util.tree_flatten(t) for t in trees]
     defs = tuple(d for _, d in flat)
-    avals = tuple(
-        (np.shape(a), str(np.asarray(a).dtype))
-        for a in [*(x for lv, _ in flat for x in lv), *extra]
-    )
+    avals = tuple((np.shape(a), _dtype(a)) for a in [*(x for lv, _ in flat for x in lv), *extra])
     key = (kind, x64, defs, avals)
     hit = _COMPILED.get(key)
     if hit is not None:
