@@ -275,3 +275,41 @@ def test_a_killed_scheduler_is_a_message_not_a_traceback(tmp_path, short_and_lon
     assert f"the Dask scheduler at {address} went away" in err and "Traceback" not in err
     assert "1 of 2 units of work did not finish" in err
     assert read_results(tmp_path / "out")["dt"].tolist() == [1e-3]
+
+
+def test_a_scheduler_lost_while_a_result_is_fetched_is_the_same_message(monkeypatch):
+    """The scheduler may die between the wait that sees a unit finished and the fetch of its
+    result (Dask then raises CommClosedError from the fetch): the same "went away" message as
+    when the watcher sees the client stop, counting the units not received."""
+    import distributed
+    from distributed.comm.core import CommClosedError
+
+    from reports.run.parallel import _watch
+
+    class Unit:
+        def __init__(self, value, lost=False):
+            self.value, self.lost = value, lost
+
+        def result(self):
+            if self.lost:
+                raise CommClosedError("in <TCP (closed) ConnectionPool.gather>: Stream is closed")
+            return self.value
+
+        def cancelled(self):
+            return False
+
+    first, second = Unit(["row 1"]), Unit(None, lost=True)
+    rounds = iter([[first], [second]])
+
+    def wait(futures, timeout, return_when):
+        done = next(rounds)
+        return type("Res", (), {"done": done, "not_done": [f for f in futures if f not in done]})
+
+    monkeypatch.setattr(distributed, "wait", wait)
+    client = type("Client", (), {"status": "running", "scheduler_info": lambda self: {
+        "workers": {"w": None}}})()  # fmt: skip
+    got = []
+    with pytest.raises(ClusterLost, match=r"tcp://x:1 went away: 1 of 2 units"):
+        for rows in _watch(client, {first: "a", second: "b"}, "tcp://x:1", 30.0):
+            got.append(rows)
+    assert got == [["row 1"]]

@@ -324,9 +324,20 @@ def _watch(client, spec_of: dict, address: str, no_worker_s: float):
     from concurrent.futures import CancelledError
 
     from distributed import wait
+    from distributed.comm.core import CommClosedError
     from distributed.scheduler import KilledWorker
 
     pending, total, idle_since = set(spec_of), len(spec_of), None
+    finished = 0
+
+    def went_away() -> ClusterLost:
+        return _lost(
+            f"the Dask scheduler at {address} went away: {total - finished} of {total} units "
+            "of work did not finish; finished runs are kept in the results store. "
+            "Restart the scheduler and its workers and rerun the same command (finished "
+            "runs are skipped), or run without --scheduler"
+        )
+
     while pending:
         try:
             res = wait(list(pending), timeout=POLL_S, return_when="FIRST_COMPLETED")
@@ -335,16 +346,16 @@ def _watch(client, spec_of: dict, address: str, no_worker_s: float):
             done = set()
         for fut in done:
             try:
-                yield fut.result()
+                result = fut.result()
             except KilledWorker as exc:
-                yield _error_rows(spec_of[fut], f"its Dask worker died each time it ran it: {exc}")
+                why = f"its Dask worker died each time it ran it: {exc}"
+                result = _error_rows(spec_of[fut], why)
+            except CommClosedError:  # the scheduler died between the wait and the fetch
+                raise went_away() from None
+            finished += 1
+            yield result
         if client.status != "running" or any(f.cancelled() for f in pending):
-            raise _lost(
-                f"the Dask scheduler at {address} went away: {len(pending)} of {total} units "
-                "of work did not finish; finished runs are kept in the results store. "
-                "Restart the scheduler and its workers and rerun the same command (finished "
-                "runs are skipped), or run without --scheduler"
-            )
+            raise went_away()
         try:
             workers = len(client.scheduler_info()["workers"])
         except Exception:  # noqa: BLE001 - the next round sees the client's status
