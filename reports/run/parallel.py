@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -104,11 +103,9 @@ def _die_with_parent(main: int, logs: str | None) -> None:
     """Initializer of a local worker: end when the main process ``main`` dies (the worker's
     parent is ``main`` itself, or a fork server that ``main`` started and that ends with it);
     run engines in ``logs``."""
-    with contextlib.suppress(Exception):  # Linux only; the watcher below covers the rest
-        import ctypes
+    from reports.run.server_guard import kill_on_parent_death
 
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
+    kill_on_parent_death()  # Linux only; the watcher below covers the rest
     parent = os.getppid()
 
     def orphaned() -> bool:

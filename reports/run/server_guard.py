@@ -21,11 +21,17 @@ import signal
 PARENT_VARIABLE = "DIRECTOR_BENCH_SERVER_PARENT"
 
 
-def _guard(parent: str) -> None:
-    with contextlib.suppress(Exception):  # Linux only; elsewhere workers are spawned
+def kill_on_parent_death() -> None:
+    """Ask the kernel for SIGKILL when this process's parent dies (Linux
+    ``PR_SET_PDEATHSIG``); elsewhere nothing (callers also watch their parent)."""
+    with contextlib.suppress(Exception):
         import ctypes
 
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+
+
+def _guard(parent: str) -> None:
+    kill_on_parent_death()
     if os.getppid() != int(parent):
         os._exit(1)
 
