@@ -1357,8 +1357,14 @@ def _draw_scenario(scenario, df, root, out) -> tuple[str, list[str]]:
     """Every figure of one scenario (a worker's task: styles and series are rebuilt here from
     the same inputs, so they are the ones a serial draw would use)."""
     styles, cache = Styles(df), SeriesCache(Path(root))
-    paths = [scenario_plot(k, df, cache, Path(out), scenario, styles) for k in KINDS]
-    return scenario, [p.name for p in paths if p is not None]
+    return scenario, _figures_of(scenario, df, cache, Path(out), styles)
+
+
+def _figures_of(scenario, df, cache, out: Path, styles) -> list[str]:
+    """Draw every figure of ``scenario`` (:data:`KINDS`) into ``out``; the file names of
+    those drawn."""
+    paths = [scenario_plot(k, df, cache, out, scenario, styles) for k in KINDS]
+    return [p.name for p in paths if p is not None]
 
 
 #: draw in parallel processes from this many scenarios to draw on (a process costs ~1 s to
@@ -1393,9 +1399,9 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
         if alongside is not None:
             alongside()
         for sc in scenarios:
-            paths = [scenario_plot(k, df, cache, out, sc, styles) for k in KINDS]
+            names = _figures_of(sc, df, cache, out, styles)
             bar.update(len(KINDS))
-            yield sc, [p.name for p in paths if p is not None]
+            yield sc, names
         return
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
@@ -1427,9 +1433,9 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
                 alongside()
             returned = 0  # the workers' scenarios yielded so far, in the order handed out
             while (sc := take()) is not None:
-                paths = [scenario_plot(k, df, cache, out, sc, styles) for k in KINDS]
+                names = _figures_of(sc, df, cache, out, styles)
                 bar.update(len(KINDS))
-                yield sc, [p.name for p in paths if p is not None]
+                yield sc, names
                 with lock:  # those returned, up to the first still drawing
                     ready = list(itertools.takewhile(lambda j: j.done(), jobs[returned:]))
                 for job in ready:
