@@ -5,6 +5,7 @@ import json
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from reports.cli import main
 from reports.run.runner import execute, plan, run_suite
 from reports.store.results import RunSpec, read_results
 
+ROOT = Path(__file__).resolve().parents[1]
 SHORT = 1.0  # s: long enough for every metric, short enough for a unit test
 
 
@@ -443,3 +445,76 @@ def test_references_are_cached_by_content_not_by_object(dzh):
     assert ref is not first and not np.array_equal(ref.omega_body, first.omega_body)
     assert reference_for(dzh, t[:6]) is not first  # other times, another reference
     _reference_cached.cache_clear()
+
+
+# -- engine versions: planned from package metadata, checked where the runs run -----------------
+
+
+def test_planning_imports_no_engine_and_files_each_runs_under_its_own_version():
+    """Planning the default suite reads the engines' versions from their packages' metadata
+    (no engine imported in the planning process), and each version is the one the engine
+    reports once imported (importlib.metadata and the engines' own attributes, read here)."""
+    code = (
+        "import sys, json\n"
+        "from reports.suite import resolve_scenarios\n"
+        "from reports.run.runner import plan\n"
+        "specs = plan(resolve_scenarios(()), None)\n"
+        "versions = {s.engine: s.engine_version for s in specs}\n"
+        "engines = ['mujoco', 'pinocchio', 'dartpy', 'pybullet', 'pydrake', 'jax', 'jaxlib']\n"
+        "print(json.dumps([versions, [m for m in engines if m in sys.modules]]))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    ).stdout
+    versions, imported = json.loads(out.strip().splitlines()[-1])
+    assert imported == []
+    from importlib.metadata import version
+
+    from references.engines import get_engine
+
+    expected = {"director": version("director-bench"), "exact": version("director-bench")}
+    for name, module, attr in (
+        ("mujoco", "mujoco", "__version__"),
+        ("pinocchio", "pinocchio", "__version__"),
+        ("dart", "dartpy", "__version__"),
+    ):
+        if get_engine(name).availability() is None:
+            expected[name] = getattr(__import__(module), attr)
+    for name, dist in (("pybullet", "pybullet"), ("drake", "drake")):
+        if get_engine(name).availability() is None:
+            expected[name] = version(dist)
+    for name, v in expected.items():
+        assert versions[name] == v, name
+
+
+def test_a_run_planned_for_another_engine_version_is_an_error_naming_both(tmp_path, dzh):
+    from importlib.metadata import version
+
+    spec = RunSpec(dzh, "exact", "reference", dzh.dt, engine_version="0.0.0-planned")
+    row = execute(spec, tmp_path)
+    assert row["status"] == "error"
+    assert "'0.0.0-planned'" in row["message"]
+    assert repr(version("director-bench")) in row["message"]
+    assert row["engine_version"] == "0.0.0-planned"  # the row keeps its identity
+
+
+def test_an_engine_missing_from_the_metadata_and_the_path_is_planned_unavailable(
+    monkeypatch, dzh
+):
+    """No metadata (the package is not installed) and no import: the plan's version is
+    'unavailable' and the run is an 'unavailable' row saying how to install it."""
+    import importlib.metadata as md
+
+    real = md.version
+
+    def version(dist):
+        if dist == "mujoco":
+            raise md.PackageNotFoundError(dist)
+        return real(dist)
+
+    monkeypatch.setattr(md, "version", version)
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # `import mujoco` raises
+    (spec,) = plan([dzh], ["mujoco"], ["Euler"], dts=[4e-3])
+    assert spec.engine_version == "unavailable"
+    row = execute(spec, None)
+    assert row["status"] == "unavailable" and "pip install mujoco" in row["message"]

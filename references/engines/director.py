@@ -12,7 +12,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback, RunOutput
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine
+from references.engines.interface import Engine, installed
 from references.engines.stepping import check_batch_members
 from references.errors import EngineError, EngineUnavailable, StepFailure, Unsupported
 
@@ -85,6 +85,10 @@ class DirectorEngine(Engine):
             return version("director-bench")
         except PackageNotFoundError:  # a source tree that was never installed
             return "0+unknown"
+
+    @classmethod
+    def installed_version(cls) -> str | None:
+        return installed("director-bench")  # director_model ships in the suite's package
 
     # -- model -------------------------------------------------------------------------
     def build(self, ctx) -> None:

@@ -34,6 +34,12 @@ class ExactEngine(EngineBase):
 
         return DirectorEngine.version()
 
+    @classmethod
+    def installed_version(cls) -> str | None:
+        from references.engines.director import DirectorEngine
+
+        return DirectorEngine.installed_version()
+
     def run(
         self,
         scenario,

@@ -75,6 +75,31 @@ class EngineBase(ABC):
             return str(exc)
         return None
 
+    @classmethod
+    def installed_version(cls) -> str | None:
+        """What :meth:`version` returns, read from the installed packages' metadata
+        (:func:`installed`) without importing the engine, or None when the metadata does not
+        say it (a package installed without it, or not installed). The default: None."""
+        return None
+
+    @classmethod
+    def planned_version(cls) -> str:
+        """The version under which a process that plans runs of this engine files them,
+        without importing the engine where its packages' metadata says it
+        (:meth:`installed_version`; an engine import costs up to seconds, paid again by each
+        worker that runs the engine), else :meth:`version`. Raises :class:`EngineUnavailable`
+        with :meth:`availability`'s message when the metadata says nothing and the engine
+        does not import. The process that runs them compares it with :meth:`version`
+        (reports.run.runner): a package whose import reports another version than its
+        metadata, or that does not import, fails its runs there with the reason."""
+        known = cls.installed_version()
+        if known is not None:
+            return known
+        why = cls.availability()
+        if why is not None:
+            raise EngineUnavailable(why)
+        return cls.version()
+
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         slugs: dict[str, str] = {}
@@ -140,6 +165,17 @@ class EngineBase(ABC):
             except EngineError as exc:
                 out.append(exc)
         return out
+
+
+def installed(distribution: str) -> str | None:
+    """The version of the installed ``distribution`` (its package metadata, read without
+    importing it: ~2 ms), or None if it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(distribution)
+    except PackageNotFoundError:
+        return None
 
 
 class Engine(EngineBase):

@@ -217,15 +217,29 @@ def failure_message(text: str, where: str, exc: BaseException, spec: RunSpec, ou
 
 def _prepare(row: dict, spec: RunSpec):
     """(engine class, integrator, scenario at the run's horizon) of ``spec``, with the row's
-    engine version, integrator facts and, for a horizon other than the file's, its scales."""
-    from references.engines import get_engine
+    engine version, integrator facts and, for a horizon other than the file's, its scales.
+
+    The version is the engine's own (``version()``, which imports it): a spec planned under
+    another (the installed package's metadata, :func:`plan`) is refused with both, since its
+    run_id and row name a version that does not run here."""
+    from references.engines import EngineError, get_engine
 
     cls = get_engine(spec.engine)
     if not row["engine_version"]:
-        row["engine_version"] = cls.version()
+        row["engine_version"] = _running_version(spec.engine)
     integ = cls.integrator(spec.integrator)
     row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
     row["reference"] = float(cls.is_reference)
+    if row["engine_version"] != UNAVAILABLE:  # else the run says why (EngineUnavailable)
+        running = _running_version(spec.engine)
+        if row["engine_version"] != running:
+            raise EngineError(
+                f"engine {spec.engine!r} reports version {running!r} here, but the run was "
+                f"planned for {row['engine_version']!r} (its installed package's metadata, "
+                "read where the runs were planned): the package imported is not the one "
+                "installed (a source build on the path?), or another version runs on this "
+                "worker; install one version of the engine"
+            )
     sc = spec.scenario
     if spec.t_end is not None and spec.horizon != sc.t_end:
         sc = sc.replace(t_end=spec.horizon)
@@ -301,6 +315,16 @@ def _timed_again(cls, sc, integrator: str, spec: RunSpec, output, call_s: float)
         output, wall_time_s=min(walls), engine_time_s=min(engines), cpu_time_s=min(cpus)
     )
     return fast, tuple(times)
+
+
+@functools.cache
+def _running_version(engine: str) -> str:
+    """The version of ``engine`` in this process (its ``version()``, read once per process:
+    some read package metadata, milliseconds a call); raises EngineUnavailable if it does not
+    import (not kept: the next run tries again)."""
+    from references.engines import get_engine
+
+    return get_engine(engine).version()
 
 
 def _is_reference(engine: str) -> bool:
@@ -537,9 +561,20 @@ def _check_states(sc, dt, horizon, save_every, segment, max_states) -> None:
         )
 
 
+#: the engine version of the specs of an engine that is not available where they are planned
+UNAVAILABLE = "unavailable"
+
+
 def _version(cls) -> str:
-    why = cls.availability()
-    return cls.version() if why is None else "unavailable"
+    """The version runs of ``cls`` are planned under (``planned_version``: its installed
+    package's metadata, so that this process need not import every engine; each run's
+    process checks it against the engine's own, :func:`_prepare`), or :data:`UNAVAILABLE`."""
+    from references.engines import EngineUnavailable
+
+    try:
+        return cls.planned_version()
+    except EngineUnavailable:
+        return UNAVAILABLE
 
 
 def run_suite(

@@ -57,13 +57,17 @@ def machine() -> dict:
 
 
 def engine_versions(names=None) -> dict:
-    from references.engines import engine_names, get_engine
+    """Each engine's version as the runner plans its runs (``planned_version``: the installed
+    package's metadata where it says it, without importing the engine), or why it is not
+    available."""
+    from references.engines import EngineUnavailable, engine_names, get_engine
 
     out = {}
     for name in names or engine_names():
-        cls = get_engine(name)
-        why = cls.availability()
-        out[name] = cls.version() if why is None else f"not available ({why})"
+        try:
+            out[name] = get_engine(name).planned_version()
+        except EngineUnavailable as exc:
+            out[name] = f"not available ({exc})"
     return out
 
 

@@ -40,7 +40,7 @@ from references.engines.drake.plant import (
     model_checks,
     update_count,
 )
-from references.engines.interface import Engine
+from references.engines.interface import Engine, installed
 from references.errors import EngineError, StepFailure, Unsupported
 
 #: an error-controlled run may make at most this many dynamics evaluations per fixed step of
@@ -88,6 +88,10 @@ class DrakeEngine(Engine):
             import pydrake.common
 
             return str(getattr(pydrake.common, "__version__", "unknown"))
+
+    @classmethod
+    def installed_version(cls) -> str | None:
+        return installed("drake")
 
     def check_supported(self, scenario, integrator) -> None:
         scheme = integrator.options["scheme"]

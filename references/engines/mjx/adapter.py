@@ -10,7 +10,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import BodyModel, ModelReadback
 from references.engines.integrators import Family, Integrator, register_family
-from references.engines.interface import Engine
+from references.engines.interface import Engine, installed
 from references.engines.mjx.batch import run_batch
 from references.engines.mjx.compile import (
     CHECKPOINTS,
@@ -209,8 +209,12 @@ class MjxEngine(Engine):
 
     @classmethod
     def version(cls) -> str:
-        v = _versions()
-        return f"{v['mujoco-mjx']} (mujoco {v['mujoco']}, jax {v['jax']}, jaxlib {v['jaxlib']})"
+        return _version_text(_versions())
+
+    @classmethod
+    def installed_version(cls) -> str | None:
+        v = {p: installed(p) for p in ("mujoco-mjx", "mujoco", "jax", "jaxlib")}
+        return None if None in v.values() else _version_text(v)
 
     def check_supported(self, scenario, integrator) -> None:
         MujocoEngine().check_supported(scenario, MujocoEngine.integrator(_mj_name(integrator)))
@@ -450,6 +454,11 @@ class MjxEngine(Engine):
             qv.append(np.asarray(qvel)[: len(part)])
         h.handed = False
         return _states(ctx.model, np.concatenate(qp), np.concatenate(qv))
+
+
+def _version_text(v: dict[str, str]) -> str:
+    """MJX's version as the runs record it, of the versions of its packages."""
+    return f"{v['mujoco-mjx']} (mujoco {v['mujoco']}, jax {v['jax']}, jaxlib {v['jaxlib']})"
 
 
 def _mj_name(integrator: Integrator) -> str:
