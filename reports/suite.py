@@ -168,10 +168,13 @@ def check_out(out) -> Path:
 
 def worker_preload(engines) -> tuple[str, ...]:
     """What local workers import before they start, beyond the suite's own modules
-    (reports.run.parallel.PRELOAD): JAX when MJX is among ``engines`` (its import starts no
-    thread and initialises no device; MJX itself starts a thread at import, so each worker
-    imports it when it first runs MJX)."""
-    return ("jax",) if "mjx" in engines else ()
+    (reports.run.parallel.PRELOAD): JAX when MJX is among ``engines`` (None: every engine;
+    names in any case) (its import starts no thread and initialises no device; MJX imports
+    MuJoCo, an engine, so each worker imports it when it first runs MJX)."""
+    from references.engines import engine_names
+
+    asked = engine_names() if engines is None else engines
+    return ("jax",) if "mjx" in {str(e).lower() for e in asked} else ()
 
 
 def run(
@@ -217,14 +220,15 @@ def run(
             raise InputError(f"--out {out}: is a file, not a folder")
     except OSError as exc:  # a name the file system cannot hold (over 255 bytes)
         raise InputError(f"--out {out}: {exc.strerror or exc}") from None
+    # a local pool's workers start importing now (reports.run.parallel), while this process
+    # loads the scenarios and plans the runs (nothing runs before every input is checked)
+    local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
     scs = resolve_scenarios(names, all_scenarios)
     check_engine_settings(scs)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
     limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.runner
-    # a local pool's workers start importing now (reports.run.parallel), during the planning
-    local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
     specs = plan(
         scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
     )
