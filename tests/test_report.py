@@ -59,6 +59,25 @@ def test_numbers_are_formatted_one_way():
     assert {v: fmt(v) for v in cases} == cases
 
 
+def test_steps_are_written_with_the_short_exponent_of_every_other_number():
+    """A step size is written as given, with its exponent as fmt writes one (``6.25e-5``
+    beside ``1.00e-12``, never ``6.25e-05``), in tables, titles and a dt axis' ticks."""
+    from reports.store.format import fmt_step
+
+    cases = {0.002: "0.002", 0.000125: "0.000125", 6.25e-5: "6.25e-5", 1e-5: "1e-5", 2.0: "2"}
+    assert {v: fmt_step(v) for v in cases} == cases
+
+
+def test_an_error_controlled_line_says_so_once_on_hover():
+    """The hover text of an error-controlled work-precision line names it error-controlled
+    once (Drake's integrator is called ``runge_kutta5 (error-controlled)`` already)."""
+    import reports.report.plots as plots
+
+    said = plots._adaptive_gid("drake runge_kutta5 (error-controlled)")
+    assert said.count("error-controlled") == 1 and "target accuracies" in said
+    assert plots._adaptive_gid("x rk45").startswith("x rk45, error-controlled, ")
+
+
 def test_engines_running_one_algorithm_collapse_into_one_entry(df):
     """MuJoCo RK4 and Pinocchio RKMK4 are the same 4th-order Lie-group method: one scorecard
     entry listing both, their largest relative difference far below the 1e-3 that groups

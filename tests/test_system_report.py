@@ -148,3 +148,80 @@ def test_a_system_without_series_files_gets_no_single_body_figure(built, df, tmp
     made = [plots.scenario_plot(k, rows, cache, tmp_path, "four_bar", styles) for k in plots.KINDS]
     assert all(p is None or p.stem.endswith(("work_precision", "convergence")) for p in made)
     assert capfd.readouterr().err == ""
+
+
+def _lines_by_name(fig) -> dict:
+    """The configuration lines of a figure (those with a hover name) by configuration: the
+    name up to its closure settings or divergence time, on one line."""
+    return {
+        " ".join(ln.get_label().split("\n(")[0].split()): ln
+        for ax in fig.axes
+        for ln in ax.get_lines()
+        if ln.get_gid()
+    }
+
+
+def test_the_system_figure_draws_each_configuration_as_the_errors_figure_does(
+    built, df, tmp_path, monkeypatch
+):
+    """A configuration looks the same in the system figure as in the errors figure beside it:
+    colour, line style and marker (the marker is what tells apart two colours that look
+    alike, mujoco Euler's and mjx Euler's purples; the system figure once drew no marker)."""
+    import reports.report.plots as plots
+
+    kept = _capture_figures(monkeypatch)
+    styles, cache = plots.Styles(df), plots.SeriesCache(built)
+    plots.scenario_plot("errors", df, cache, tmp_path, "four_bar", styles)
+    plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    (errors, system) = (_lines_by_name(fig) for _, fig in kept)
+    names = set(system) - {"exact reference"}
+    assert {"director rattle", "mujoco RK4", "pinocchio + suite RKMK4"} <= names <= set(errors)
+    for name in names:
+        a, b = errors[name], system[name]
+        assert b.get_marker() not in ("None", "", None), name
+        looks = (b.get_color(), b.get_linestyle(), b.get_marker())
+        assert looks == (a.get_color(), a.get_linestyle(), a.get_marker()), name
+
+
+def test_the_system_figure_s_drift_axes_name_their_scale(built, df, tmp_path, monkeypatch):
+    """The energy drift's axis says what E_c is, as the errors figure's does: the scenario's
+    energy scale in J (loaded from the scenario, not from the results)."""
+    import reports.report.plots as plots
+    from reports.store.format import fmt
+
+    kept = _capture_figures(monkeypatch)
+    styles, cache = plots.Styles(df), plots.SeriesCache(built)
+    plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    ((_, fig),) = kept
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    e_c = scenarios.load("four_bar").energy_scale
+    assert labels[1] == f"|E − E₀| / E_c [1]\nE_c = {fmt(e_c)} J", labels
+
+
+def test_figures_are_drawn_again_when_the_system_figure_s_code_changes(
+    built, df, tmp_path, monkeypatch
+):
+    """The key that lets a report reuse its figures covers the system figure's code: a
+    change there draws them again (it once covered plots.py and the tables only)."""
+    import importlib.machinery
+    import importlib.util
+    from pathlib import Path
+
+    import reports.report.plots as plots
+    import reports.report.system_plots as system_plots
+
+    styles = plots.Styles(df)
+    before = plots._scenario_key(df, "four_bar", styles, built)
+    changed = tmp_path / "system_plots.py"
+    changed.write_text(Path(system_plots.__file__).read_text() + "\n# another line\n")
+    real = importlib.util.find_spec
+
+    def find_spec(name, *args, **kw):
+        if name == "reports.report.system_plots":
+            return importlib.machinery.ModuleSpec(name, None, origin=str(changed))
+        return real(name, *args, **kw)
+
+    monkeypatch.setattr(importlib.util, "find_spec", find_spec)
+    assert plots._scenario_key(df, "four_bar", styles, built) != before
+    monkeypatch.setattr(importlib.util, "find_spec", real)
+    assert plots._scenario_key(df, "four_bar", styles, built) == before

@@ -1,6 +1,7 @@
 """How the report names and orders what it shows: integrator families and engines in table
 order, a configuration's label, a run's outcome in one word, the metrics' short names in
-verdict texts, the attitude error and fitted order as table cells.
+verdict texts, the attitude error and fitted order as table cells, a figure's axis label with
+the value of the scale its quantity is divided by.
 """
 
 from __future__ import annotations
@@ -62,6 +63,17 @@ def config_label(row, with_step: bool = False) -> str:
     elif with_step:
         text += f" dt {fmt_step(row['dt'])} s"
     return text
+
+
+def scaled_label(label: str, rows, scale_col: str | None, unit: str) -> str:
+    """An axis label of a quantity divided by a scale, with that scale's value on a second
+    line from the rows' ``scale_col`` (``|E − E₀| / E_c [1]`` then ``E_c = 5.41 J``); the
+    label alone when there is no such column or no value in it."""
+    if not scale_col or scale_col not in rows or not rows[scale_col].notna().any():
+        return label
+    scale = float(rows[scale_col].dropna().iloc[0])
+    sym = label.split("/")[-1].split("[")[0].strip()
+    return f"{label}\n{sym} = {fmt(scale)} {unit}"
 
 
 def outcome(row) -> str:

@@ -37,6 +37,7 @@ the pointer.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import textwrap
@@ -55,6 +56,7 @@ from reports.report.labels import (
     engine_key,
     family_key,
     reference_label,
+    scaled_label,
 )
 from reports.report.tables import at_scenario_dt, scenario_dt
 from reports.store.atomic import write_text
@@ -574,11 +576,7 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
         left = _error_panel(ax, rows, groups, ref, column, styles)
         for name, t_left in left:
             off.setdefault(name, []).append((column, t_left))
-        if scale_col and rows[scale_col].notna().any():
-            scale = float(rows[scale_col].dropna().iloc[0])
-            sym = ylabel.split("/")[-1].split("[")[0].strip()
-            ylabel = f"{ylabel}\n{sym} = {fmt(scale)} {unit}"
-        ax.set_ylabel(ylabel)
+        ax.set_ylabel(scaled_label(ylabel, rows, scale_col, unit))
         ax.grid(True, which="major", alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
@@ -1017,7 +1015,7 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
             lw=1.6,
             label=name,
         )
-        line.set_gid(name + (", error-controlled (points: target accuracies)" if adaptive else ""))
+        line.set_gid(_adaptive_gid(name) if adaptive else name)
         drawn.append(name)
     finished = set(zip(sub["engine"], sub["integrator"], strict=True))
     unfinished = [
@@ -1051,6 +1049,13 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     return _save(
         fig, out / f"{slug(scenario)}__work_precision.png", alt=alt, notes="\n".join(parts)
     )
+
+
+def _adaptive_gid(name: str) -> str:
+    """The hover text of an error-controlled configuration's work-precision line: its name,
+    that it is error-controlled (unless the name says so) and what its points are."""
+    said = "error-controlled" in name
+    return f"{name}, {'' if said else 'error-controlled, '}points: its target accuracies"
 
 
 # -- a picture of each scenario ------------------------------------------------------------------
@@ -1320,17 +1325,24 @@ CACHE_FILE = ".made-from.json"
 
 
 def _hash_code(h) -> None:
-    """Add to the hash ``h`` the code that decides what a figure shows: this module and the
-    report's labels, groups and tables, and the number formatting."""
-    import reports.report.groups
-    import reports.report.labels
-    import reports.report.tables
-    import reports.store.format
+    """Add to the hash ``h`` the code that decides what a figure shows: this module, the
+    system figure's, the drawing backend's, the report's labels, groups and tables, the
+    metric catalog (panel labels and tops) and the number formatting."""
+    for mod in _FIGURE_CODE:  # found, not imported (the backend would import matplotlib)
+        h.update(Path(importlib.util.find_spec(mod).origin).read_bytes())
 
-    h.update(Path(__file__).read_bytes())
-    for mod in (reports.report.labels, reports.report.groups, reports.report.tables):
-        h.update(Path(mod.__file__).read_bytes())
-    h.update(Path(reports.store.format.__file__).read_bytes())
+
+#: the modules whose code decides what a figure shows (:func:`_hash_code`)
+_FIGURE_CODE = (
+    "reports.report.plots",
+    "reports.report.system_plots",
+    "reports.report.agg_text",
+    "reports.report.labels",
+    "reports.report.groups",
+    "reports.report.tables",
+    "scenarios.metric_catalog",
+    "reports.store.format",
+)
 
 
 def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:

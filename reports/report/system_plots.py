@@ -8,7 +8,10 @@ time, (1) the largest gap of the loop closures (m; of every joint for a tree), (
 drift |E - E0| / E_c and (3) the drift of the conserved momenta (when the system has one),
 each on a log axis (round-off, 1e-16, and a joint open by a millimetre on one figure). A
 value of exactly 0 (a joint a reduced-coordinate engine holds by construction) is drawn at
-the axis floor :data:`FLOOR`. A configuration that closes a loop with settings of its own
+the axis floor :data:`FLOOR`. The drifts' axes are labelled as in the errors figure, with the
+value of the scale each is divided by (``E_c = 66.8 J``). Each configuration has its colour,
+line style and marker of every figure (the marker tells apart colours that look alike); the
+reference is drawn last, in grey. A configuration that closes a loop with settings of its own
 (MuJoCo's ``solref``, Pinocchio's Baumgarte gains, DART's ERP, PyBullet's ``erp``:
 :func:`reports.report.tables.closure_settings`) carries the stiffness among them in its
 legend entry.
@@ -21,17 +24,25 @@ from pathlib import Path
 
 import numpy as np
 
+from reports.metrics.catalog import ERROR_PANELS
 from reports.store.results import is_reference_record
 
 #: the smallest value shown on the log axes (exact zeros are drawn here)
 FLOOR = 1e-17
 
-#: the panels: (series column, fallback column, y label, what the title calls it)
+_DRIFT = {p[0]: p for p in ERROR_PANELS}  # (series, y label, scale column, unit)
+
+#: the panels: (series column, fallback column, y label, scale column, unit, what the title
+#: calls it); the drifts labelled as the metric catalog labels them in the errors figure
 PANELS = (
-    ("loop_gap", "joint_gap", "gap [m]", "joints"),
-    ("energy_drift", None, "|E − E₀| / E_c [1]", "energy"),
-    ("momentum_drift", None, "momentum drift / scale [1]", "momentum"),
+    ("loop_gap", "joint_gap", "gap [m]", None, "", "joints"),
+    ("energy_drift", None, *_DRIFT["energy_drift"][1:], "energy"),
+    ("momentum_drift", None, *_DRIFT["momentum_drift"][1:], "momentum"),
 )
+
+#: markers per line over the time axis, every line's first placed a little later than the
+#: one before, so that lines lying on one another still show each marker
+MARKERS_PER_LINE = 6
 
 
 def system_plot(
@@ -44,13 +55,14 @@ def system_plot(
     ``plt``: matplotlib's pyplot; ``save(fig, path, alt=...)`` writes the figure. The
     caller's helpers, so that every figure of a report looks alike (this module imports
     nothing of :mod:`reports.report.plots`, which calls it): ``styles``, an object whose
-    ``of(row)`` gives a configuration's line style (default: a colour per line);
+    ``of(row, always_marker=True)`` gives a configuration's colour, line style and marker
+    (default: a colour per line);
     ``new_figure(n)``, (figure, n axes sharing t); ``legend(ax)``, the legend of the figure
     beside the axes (default: matplotlib's, inside the first axes)."""
     import textwrap
 
     from reports.report.groups import group_rows
-    from reports.report.labels import config_label
+    from reports.report.labels import config_label, scaled_label
     from reports.report.tables import closure_settings
     from reports.store.results import slug
 
@@ -66,6 +78,7 @@ def system_plot(
             runs.append((g.first, label, s))
     if not runs:
         return None
+    runs.sort(key=lambda run: is_reference_record(run[0]))  # the reference last
     panels = [p for p in PANELS if any(p[0] in s or (p[1] and p[1] in s) for *_, s in runs)]
     if new_figure is not None:
         fig, axes = new_figure(len(panels))
@@ -74,27 +87,31 @@ def system_plot(
         axes = list(np.atleast_1d(axes))
     colours = plt.get_cmap("tab10").colors
     loops = any("loop_gap" in s for *_, s in runs)
-    for ax, (col, alt_col, label, _) in zip(axes, panels, strict=True):
+    for ax, (col, alt_col, label, scale_col, unit, _) in zip(axes, panels, strict=True):
         for k, (row, name, s) in enumerate(runs):
             key = col if col in s else alt_col if alt_col and alt_col in s else None
             if key is None:
                 continue
             y = np.maximum(np.abs(np.asarray(s[key], dtype=float)), FLOOR)
-            st = styles.of(row) if styles is not None else {"color": colours[k % len(colours)]}
             if is_reference_record(row):
                 st = {"color": "0.55", "linestyle": "-", "lw": 2.4, "alpha": 0.6}
-            st.pop("marker", None)
+            elif styles is not None:
+                st = styles.of(row, always_marker=True)
+                every = max(1, len(y) // MARKERS_PER_LINE)
+                st.update(markevery=(k * max(1, every // len(runs)) % every, every), ms=5)
+            else:
+                st = {"color": colours[k % len(colours)]}
             (line,) = ax.plot(s["t"], y, lw=st.pop("lw", 1.3), label=name, **st)
             line.set_gid(" ".join(name.split()))
         ax.set_yscale("log")
         if col == "loop_gap":
             label = f"{'loop closure' if loops else 'largest joint'} {label}"
-        ax.set_ylabel(label)
+        ax.set_ylabel(scaled_label(label, rows, scale_col, unit))
         ax.grid(True, which="major", alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(0, max(float(s["t"][-1]) for *_, s in runs))
     dt = "" if math.isnan(h) else f" at dt = {h:g} s"
-    axes[0].set_title(f"{scenario}: {_and([p[3] for p in panels])} over time{dt}", fontsize=10)
+    axes[0].set_title(f"{scenario}: {_and([p[-1] for p in panels])} over time{dt}", fontsize=10)
     if legend is not None:
         legend(axes[0])
     else:
@@ -108,7 +125,7 @@ def system_plot(
     }
     n_ref = sum(1 for row, *_ in runs if is_reference_record(row))
     alt = (
-        f"{scenario}: per engine and integrator{dt}, {_and([said[p[3]] for p in panels])} "
+        f"{scenario}: per engine and integrator{dt}, {_and([said[p[-1]] for p in panels])} "
         f"over time, log axes, {len(runs) - n_ref} line(s) of configurations"
         + (" and the reference" if n_ref else "")
     )

@@ -58,8 +58,10 @@ def fmt_level(v: float) -> str:
 
 
 def fmt_step(dt: float) -> str:
-    """A step size as given: ``0.002``, ``1e-05``."""
-    return f"{float(dt):g}"
+    """A step size as given, with a short exponent as in :func:`fmt`: ``0.002``, ``1e-5``,
+    ``6.25e-5``."""
+    mant, e, exp = f"{float(dt):g}".partition("e")
+    return f"{mant}e{int(exp)}" if e else mant
 
 
 def num(v) -> float:
