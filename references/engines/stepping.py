@@ -207,17 +207,20 @@ def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
 _ENERGY_PART = {"total": "energy", "rot": "rotational energy", "trans": "translational energy"}
 
 
-def _first_divergence(engine, ctx, block, energy0) -> tuple[int, str] | None:
+def _first_divergence(engine, ctx, block, energy0, scales=None) -> tuple[int, str] | None:
     """(index of the first diverged state of a block, why), or None: a non-finite state or
     an energy error beyond DIVERGENCE_ENERGY of its scale (vectorised over the block): of the
     total energy, and for a free body of its rotational and its translational energy apart,
     each against its own scale (:attr:`Scenario.energy_scales`), so that neither hides the
     other; or the engine's own limit (:meth:`Engine.guard`, on the block's last state).
-    ``energy0``: the parts of the initial energy (:func:`energy_parts`)."""
+    ``energy0``: the parts of the initial energy (:func:`energy_parts`); ``scales``: the
+    scenario's :attr:`Scenario.energy_scales`, read once per run by the caller (computing
+    them costs about as much as the check of a block), None to read them here."""
     x, v, R, W = block
     finite = np.isfinite(x).all(1) & np.isfinite(v).all(1) & np.isfinite(W).all(1)
     finite &= np.isfinite(R).all((1, 2))
-    scales = ctx.scenario.energy_scales
+    if scales is None:
+        scales = ctx.scenario.energy_scales
     with np.errstate(all="ignore"):
         parts = energy_parts(ctx.scenario, x, v, R, W)
         drifts = {p: np.abs(parts[p] - energy0[p]) / scales[p] for p in parts}
@@ -245,6 +248,7 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
         p: float(e[0])
         for p, e in energy_parts(sc, *(np.asarray(a)[None] for a in initial_state(sc))).items()
     }
+    check = (energy0, sc.energy_scales)
     first = stepper.state()
     rec.record_block([0], cv.BodyState(*(np.asarray(a)[None] for a in first)))
     wall = 0.0
@@ -263,25 +267,26 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
             t_div, span = _failed_step(exc, done, block[-1], dt)
             kept = exc.states  # the checkpoints completed before it
             if kept is not None and len(kept[0]):
-                _record_checked(engine, ctx, rec, block, kept, done, wall, energy0)
+                _record_checked(engine, ctx, rec, block, kept, done, wall, check)
                 done = block[len(kept[0]) - 1]
             raise _diverged(
                 engine, ctx, rec, done, wall, t_div, f"{span} could not be taken: {exc}"
             ) from exc
         wall += time.perf_counter() - t0
         ctx.cpu_time += time.process_time() - c0
-        _record_checked(engine, ctx, rec, block, states, done, wall, energy0)
+        _record_checked(engine, ctx, rec, block, states, done, wall, check)
         done = block[-1]
         if progress is not None:
             progress(done / nstep)
     return wall, done
 
 
-def _record_checked(engine, ctx, rec, block, states, done, wall, energy0) -> None:
+def _record_checked(engine, ctx, rec, block, states, done, wall, check) -> None:
     """Record the states of the checkpoints ``block[:len(states)]`` up to the first diverged
-    one, and raise :class:`Diverged` at that one if there is one."""
+    one, and raise :class:`Diverged` at that one if there is one. ``check``: the parts of the
+    initial energy and the scenario's energy scales (:func:`_first_divergence`)."""
     dt = ctx.dt
-    found = _first_divergence(engine, ctx, states, energy0)
+    found = _first_divergence(engine, ctx, states, *check)
     good = len(states[0]) if found is None else found[0]
     if good:
         rec.record_block(block[:good], cv.BodyState(*(a[:good] for a in states)))
