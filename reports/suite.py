@@ -27,7 +27,8 @@ class RunSummary:
 
 def resolve_scenarios(names, all_: bool = False) -> list:
     """Scenario objects for names or paths; none given: the default suite. Two different
-    scenarios with the same name are an error naming both files (results are filed by name)."""
+    scenarios with the same name are an error naming both files (results are filed by name),
+    and so is a closed-form reference that does not apply (:func:`check_references`)."""
     import scenarios
 
     if all_:
@@ -46,7 +47,63 @@ def resolve_scenarios(names, all_: bool = False) -> list:
         if prev is None:
             seen[sc.name] = sc
             out.append(sc)
+    check_references(out)
     return out
+
+
+#: the reference kinds that name one closed form (single bodies, then systems): a file asking
+#: for one by name must describe that motion; ``auto``, ``numerical`` and ``none`` always apply
+CLOSED_FORM_KINDS = ("free_body", "lagrange_top", "steady_precession")
+SYSTEM_CLOSED_FORM_KINDS = ("spinning_chain", "conical_pendulum", "four_bar")
+
+
+def check_references(scs) -> None:
+    """A user's file that asks for a closed-form reference by name (``reference.kind``
+    ``free_body``, ``lagrange_top``, ``steady_precession``; a system's ``spinning_chain``,
+    ``conical_pendulum``, ``four_bar``) describes that motion: the closed form sets up from
+    the file and, for a system, its state at t = 0 is the file's; else
+    :class:`scenarios.ScenarioError` naming the file, ``reference.kind``, the value and why,
+    before any run. Unchecked, each run would find it: a single body's rows become errors of
+    the suite, and a system's rows run without a reference, their trajectory errors not
+    measured, and pass. The library's files are skipped: tests hold each of them to this
+    check, and setting up the spinning chain's closed form loads the multibody reference's
+    compiled code (about 1.5 s in this process)."""
+    import scenarios
+    from scenarios.schema import file_error
+
+    for sc in scs:
+        system = getattr(sc, "is_system", False)
+        kinds = SYSTEM_CLOSED_FORM_KINDS if system else CLOSED_FORM_KINDS
+        if sc.reference not in kinds or scenarios.is_library_file(sc):
+            continue
+        why = reference_problem(sc)
+        if why is not None:
+            other = "auto (numerical for a tree, none for a loop)" if system else "auto, numerical"
+            rule = f"the closed form asked for does not apply: {why} (or ask for {other})"
+            raise file_error(sc.path, [("reference.kind", sc.reference, rule)])
+
+
+def reference_problem(sc) -> str | None:
+    """Why the closed-form reference ``sc`` asks for does not apply to it, or None (see
+    :func:`check_references`): the reference's own refusal, set up at t = 0."""
+    if getattr(sc, "is_system", False):
+        import numpy as np
+
+        from references.engines import exact_system
+        from references.errors import Unsupported
+
+        try:
+            exact_system.reference(sc, np.zeros(1))
+        except Unsupported as exc:
+            return str(exc)
+        return None
+    from references.exact import ReferenceNotApplicable, resolve_kind
+
+    try:
+        resolve_kind(sc)
+    except ReferenceNotApplicable as exc:
+        return str(exc)
+    return None
 
 
 def _did_you_mean(word: str, candidates) -> str:

@@ -31,6 +31,7 @@ __all__ = [
     "SystemScenario",
     "default_suite",
     "default_systems",
+    "is_library_file",
     "library_path",
     "list_scenarios",
     "list_systems",
@@ -43,6 +44,15 @@ __all__ = [
 def library_path() -> Path:
     """The directory holding the library's scenario files."""
     return Path(__file__).resolve().parent
+
+
+def is_library_file(sc) -> bool:
+    """Whether the scenario ``sc`` was read from one of the library's files (this package's
+    directory or its ``systems/``), which the tests hold to every rule, rather than a user's."""
+    if not getattr(sc, "path", None):
+        return False
+    folder = Path(sc.path).resolve().parent
+    return folder in (library_path(), systems_path())
 
 
 def list_scenarios() -> list[str]:

@@ -597,6 +597,14 @@ def _check_tolerances(table, bad) -> dict:
     return out
 
 
+def file_error(path: str | None, problems: list[tuple]) -> ScenarioError:
+    """The :class:`ScenarioError` of the file ``path`` with ``problems`` ((field, value, rule)
+    triples), its message in :func:`validate`'s format: for rules checked outside this module
+    (e.g. that a requested reference applies, which needs the references' code)."""
+    where = path if path is not None else "<scenario data>"
+    return ScenarioError(_message(where, problems), path=path, problems=problems)
+
+
 def _message(where: str, probs: list[tuple]) -> str:
     n = len(probs)
     head = f"invalid scenario file {where}: {n} problem{'s' if n > 1 else ''}"
