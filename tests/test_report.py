@@ -580,10 +580,14 @@ window.addEventListener('load', function () {
     if (t.scrollWidth > box + 1)
       wide.push((sec ? sec.id : '') + ' ' + t.className + ': ' + t.scrollWidth + ' in ' + box);
   });
+  var cards = [];
+  document.querySelectorAll('table').forEach(function (t) {
+    if (getComputedStyle(t).display !== 'table') cards.push(t.className);
+  });
   var pre = document.createElement('pre');
   pre.id = 'table-widths';
   pre.textContent = JSON.stringify({width: document.documentElement.clientWidth, wide: wide,
-    tables: document.querySelectorAll('table').length});
+    tables: document.querySelectorAll('table').length, cards: cards});
   document.body.appendChild(pre);
 });
 </script>"""
@@ -592,17 +596,20 @@ window.addEventListener('load', function () {
 @pytest.mark.skipif(
     shutil.which("chromium") is None, reason="Debian's chromium is not installed: not rendered"
 )
-def test_every_table_fits_its_container_at_1400_and_800_px(folder, tmp_path):
-    """In headless Chromium at 1400 px (a laptop) and 800 px (cards), with every section
+def test_every_table_fits_its_container_at_1400_800_and_600_px(folder, tmp_path):
+    """In headless Chromium at 1400 px (a laptop), 800 px and 600 px, with every section
     open: no table is wider than its container, so nothing scrolls sideways (free_tumbling's
-    table of every metric was 1326 px in 1320)."""
+    table of every metric was 1326 px in 1320). Tables of many columns turn into cards below
+    1000 px; the cheapest configuration per accuracy and the settings stay tables at 800 px
+    (as cards they were 5 and 3 times as tall on the default suite) and turn into cards at
+    600 px."""
     import html as htmlmod
     import subprocess
 
     probe = tmp_path / "probe.html"
     page = (folder / "report.html").read_text()
     probe.write_text(page.replace("</body>", TABLE_WIDTHS + "</body>"))
-    for width in (1400, 800):
+    for width in (1400, 800, 600):
         dom = subprocess.run(
             [
                 shutil.which("chromium"),
@@ -625,6 +632,14 @@ def test_every_table_fits_its_container_at_1400_and_800_px(folder, tmp_path):
         check = json.loads(htmlmod.unescape(found.group(1)))
         assert check["width"] == width and check["tables"] >= 5, check
         assert check["wide"] == [], check
+        cards = {c.split()[0] for c in check["cards"]}  # the first class names the table
+        stay = {"wp", "settings"}
+        if width == 1400:
+            assert cards == set(), check
+        elif width == 800:
+            assert "scorecard" in cards and not stay & cards, check
+        else:
+            assert {"scorecard", *stay} <= cards, check
 
 
 def test_scenario_box_has_the_scenario_s_moments():

@@ -182,9 +182,10 @@ class Doc:
     def table(self, title: str, header: list, rows: list[list], cls: str = "") -> None:
         """A table with its one-line title; header entries and cells are text or
         :class:`Cell`. In HTML inside a container that scrolls should the table be wider than
-        the page; a table of class ``stack`` turns into one card per row on a narrow screen,
-        each cell labelled with its column (``data-label``); so does every table of more than
-        seven columns."""
+        the page; a table of class ``stack`` turns into one card per row on a narrow screen
+        (below 1000 px, :data:`CARDS`), each cell labelled with its column (``data-label``);
+        so does every table of more than seven columns; one of class ``narrow-stack`` only
+        below 640 px."""
         heads = [h if isinstance(h, Cell) else Cell(h) for h in header]
         if len(heads) > 7 and "stack" not in cls.split():
             cls = f"{cls} stack".strip()
@@ -484,16 +485,20 @@ def wp_cell(entry, winner: bool) -> tuple[str, str]:
     if entry is None:
         return "-", "<span class='none'>-</span>"
     conf = entry["configuration"][len(entry["engine"]) :].strip()
+    # semi_explicit_euler may break at its underscores, "dt 0.002 s" nowhere
+    conf_html = re.sub(r"dt (\S+) s$", "dt&nbsp;\\1&nbsp;s", html.escape(conf)).replace(
+        "_", "_<wbr>"
+    )
     ratio = "cheapest" if winner else f"x{fmt(entry['cost_ratio'])}"
     cost = f"{fmt(entry['engine_time_s'])} s, {ratio}"
     if winner:
         return (
             f"**{md_cell(conf)}**<br>{cost}",
-            f"<b>{html.escape(conf)}</b><br><small class='win'>{html.escape(cost)}</small>",
+            f"<b>{conf_html}</b><br><small class='win'>{html.escape(cost)}</small>",
         )
     return (
         f"{md_cell(conf)}<br>{cost}",
-        f"{html.escape(conf)}<br><small>{html.escape(cost)}</small>",
+        f"{conf_html}<br><small>{html.escape(cost)}</small>",
     )
 
 
@@ -530,8 +535,11 @@ def work_precision_section(doc: Doc, df) -> None:
         "bodies the attitude error is the largest over its bodies." + _finer_sweep_note(df)
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
-    # seven columns of configurations and times do not fit 800 px: cards on a narrow screen
-    doc.table("Cheapest configuration of each engine per accuracy", header, rows, cls="wp stack")
+    # seven columns of configurations and times (names break at underscores) fit 800 px;
+    # cards on a narrower screen
+    doc.table(
+        "Cheapest configuration of each engine per accuracy", header, rows, cls="wp narrow-stack"
+    )
 
 
 def _finer_sweep_note(df) -> str:
@@ -849,7 +857,7 @@ def settings_section(doc: Doc, df) -> None:
         "Settings changed from the engines' defaults, every value that ran",
         ["engine", "integrator", "setting", "values", "scenarios"],
         rows,
-        cls="settings stack",
+        cls="settings narrow-stack",  # values wrap anywhere: a table down to 640 px
     )
     doc.close_details()
 
@@ -918,17 +926,25 @@ figure.fig img{display:block;max-width:100%;height:auto;border:1px solid #eee}
 figure.fig .tip{position:absolute;pointer-events:none;background:#1b1b1b;color:#fff;
  font-size:12px;padding:2px 6px;border-radius:3px;white-space:nowrap;z-index:5}
 figure.fig figcaption{font-size:.88em;color:#555}
-@media (max-width:1000px){
- table.stack,table.stack tbody,table.stack tr,table.stack td{display:block;width:auto}
- table.stack{border:none} table.stack thead{display:none}
- table.stack tr{border:1px solid #d0d7de;border-radius:4px;margin:0 0 8px}
- table.stack td{border:none;border-bottom:1px solid #eee;text-align:left;white-space:normal;
+"""
+
+#: a table of class ``stack`` becomes one card per row, each cell labelled with its column,
+#: below 1000 px; one of class ``narrow-stack`` (few columns that wrap) only below 640 px
+CARDS = """@media (max-width:WIDTHpx){
+ table.CLS,table.CLS tbody,table.CLS tr,table.CLS td{display:block;width:auto}
+ table.CLS{border:none} table.CLS thead{display:none}
+ table.CLS tr{border:1px solid #d0d7de;border-radius:4px;margin:0 0 8px}
+ table.CLS td{border:none;border-bottom:1px solid #eee;text-align:left;white-space:normal;
   min-width:0}
- table.stack td:empty{display:none}
- table.stack td::before{content:attr(data-label);display:block;font-size:11px;color:#555;
+ table.CLS td:empty{display:none}
+ table.CLS td::before{content:attr(data-label);display:block;font-size:11px;color:#555;
   font-weight:600}
 }
 """
+CSS += "".join(
+    CARDS.replace("WIDTH", str(w)).replace("CLS", c)
+    for c, w in (("stack", 1000), ("narrow-stack", 640))
+)
 
 #: opens the collapsed section a link points into (the scorecard links to the details), and
 #: names the line under the pointer in a figure (its polylines are the figure's data-lines)
