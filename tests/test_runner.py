@@ -518,3 +518,20 @@ def test_an_engine_missing_from_the_metadata_and_the_path_is_planned_unavailable
     assert spec.engine_version == "unavailable"
     row = execute(spec, None)
     assert row["status"] == "unavailable" and "pip install mujoco" in row["message"]
+
+
+def test_the_workers_fork_server_preloads_no_engine():
+    """The local workers' fork server imports reports.run.parallel.PRELOAD (and JAX for
+    MJX) before it forks them: no engine among them, nor anything they import (an engine
+    holds native state that a fork does not carry safely)."""
+    code = (
+        "import sys, json\n"
+        "from reports.run.parallel import PRELOAD\n"
+        "for m in (*PRELOAD, 'jax'): __import__(m)\n"
+        "engines = ['mujoco', 'pinocchio', 'dartpy', 'pybullet', 'pydrake']\n"
+        "print(json.dumps([m for m in engines if m in sys.modules]))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    ).stdout
+    assert json.loads(out.strip().splitlines()[-1]) == []

@@ -20,12 +20,14 @@ elsewhere it is the main process.
 How local workers start: engines hold native state that does not survive a fork safely, so a
 worker is never a fork of a process that has imported an engine. On Linux the workers are
 forked from a fork server (multiprocessing's ``forkserver``) that imports only
-:data:`PRELOAD` (the suite's own modules, numpy, scipy, numba) and, when asked, JAX: modules
-whose import starts no thread other than OpenBLAS's pool, which OpenBLAS itself stops before a
-fork, and initialises no device (JAX warns at a fork only once a backend is initialised; its
-import initialises none). The server starts when the mapper is made, so its imports overlap
-the main process's planning, and each worker starts with them done instead of importing them
-again. Elsewhere workers are spawned (a fresh interpreter each).
+:data:`PRELOAD` (the suite's own modules, numpy, scipy, numba, pandas, pyarrow) and, when
+asked, JAX: modules whose import starts no thread other than OpenBLAS's pool, which OpenBLAS
+itself stops before a fork, and the background thread of Arrow's allocator (jemalloc), whose
+fork handlers hold its locks across the fork (the child runs without that thread: seen with
+pyarrow 26), and initialises no device (JAX warns at a fork only once a backend is
+initialised; its import initialises none). The server starts when the mapper is made, so its
+imports overlap the main process's planning, and each worker starts with them done instead of
+importing them again. Elsewhere workers are spawned (a fresh interpreter each).
 
 Lost workers: a local worker that dies (killed, out of memory) breaks the pool, and a Dask
 cluster whose scheduler goes away, or which has no worker for :data:`NO_WORKER_S` seconds
@@ -129,16 +131,23 @@ def _die_with_parent(main: int, logs: str | None) -> None:
 
 
 #: what a local worker's fork server imports before it forks the workers (see the module
-#: docstring): every one starts no thread but OpenBLAS's and holds no engine
+#: docstring): what every worker imports for its first runs, none of it an engine; every one
+#: starts no thread but OpenBLAS's pool and Arrow's allocator's (pyarrow, imported by pandas)
 PRELOAD = (
     "reports.run.server_guard",  # first: the server dies with the main process from then on
     "numpy",
     "scipy.linalg",
     "numba",
+    "pandas",  # pyarrow's tables import it (each run's trajectory file)
+    "pyarrow.parquet",
     "reports.run.runner",
     "references.engines",
     "references.exact",
     "references.engines.director",
+    "reports.run.system",  # a system of bodies' runs
+    "references.exact.multibody",
+    "references.engines.director_system",
+    "references.engines.exact_system",
 )
 
 
