@@ -33,16 +33,23 @@ def _csv_list(text: str) -> list[str]:
 
 
 def _number_list(text: str, option: str, example: str, ok, rule: str) -> list[float]:
-    """The comma-separated numbers of ``option``'s value ``text``, each passing ``ok``; else
-    an argparse error naming the option, the value and the ``rule``."""
+    """The comma-separated numbers of ``option``'s value ``text``, each passing ``ok`` and
+    each given once; else an argparse error naming the option, the value and the rule. An
+    empty item ("1e-3,,5e-4", "1e-3,") is refused, not skipped: it is a number left out."""
+    items = [t.strip() for t in text.split(",")]
     try:
-        vals = [float(t) for t in _csv_list(text)]
+        vals = [float(t) for t in items]
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"{option} {text!r}: expected comma-separated numbers, e.g. {example}"
-        ) from None
-    if not vals or any(not ok(v) for v in vals):
+        what = "an empty item: expected" if "" in items else "expected"
+        what += " comma-separated numbers"
+        raise argparse.ArgumentTypeError(f"{option} {text!r}: {what}, e.g. {example}") from None
+    if any(not ok(v) for v in vals):
         raise argparse.ArgumentTypeError(f"{option} {text!r}: {rule}")
+    twice = sorted({v for v in vals if vals.count(v) > 1})
+    if twice:
+        raise argparse.ArgumentTypeError(
+            f"{option} {text!r}: {', '.join(f'{v:g}' for v in twice)} given twice; give each once"
+        )
     return vals
 
 
@@ -511,10 +518,24 @@ def _add_folder_commands(sub) -> None:
     s.set_defaults(func=cmd_check)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, taking a negative number in exponent notation ("--dt -1e-3") as
+    an option's value like "-0.001", so that the option's own check refuses it by its rule
+    instead of argparse saying the option "expected one argument". (Python 3.11's argparse
+    recognises only "-1" and "-.5" forms; the parser has no option that looks like a
+    negative number, so nothing else changes meaning.)"""
+
+    def __init__(self, *args, **kwargs):
+        import re
+
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from reports import __version__
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="director-bench",
         description="Validation and benchmark suite for rigid-body dynamics.",
     )
