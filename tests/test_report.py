@@ -78,6 +78,22 @@ def test_an_error_controlled_line_says_so_once_on_hover():
     assert plots._adaptive_gid("x rk45").startswith("x rk45, error-controlled, ")
 
 
+def test_a_note_under_a_figure_keeps_a_number_with_its_unit():
+    """Wherever the wrap of a note under a figure falls, ``0.107 s`` and ``dt 0.001`` stay
+    on one line (a line once ended in ``diverged at 0.107`` with ``s)`` alone below)."""
+    import reports.report.plots as plots
+
+    plt = plots._plt()
+    for k in range(90):
+        fig, _ = plots._new_figure(1)
+        note = "x" * k + " semi_explicit_euler (dt 0.001: diverged at 0.107 s) " + "y " * 60
+        plots._fit(fig, note)
+        lines = fig.texts[-1].get_text().split("\n")
+        plt.close(fig)
+        assert not any(ln.rstrip().endswith(("0.107", " dt")) for ln in lines), (k, lines)
+        assert not any(ln.lstrip().startswith(("s)", "0.001:")) for ln in lines), (k, lines)
+
+
 def test_engines_running_one_algorithm_collapse_into_one_entry(df):
     """MuJoCo RK4 and Pinocchio RKMK4 are the same 4th-order Lie-group method: one scorecard
     entry listing both, their largest relative difference far below the 1e-3 that groups

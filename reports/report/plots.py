@@ -40,6 +40,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import re
 import textwrap
 from pathlib import Path
 
@@ -272,7 +273,7 @@ def _fit(fig, notes: str = "") -> None:
         wrapped = "\n".join(
             "\n".join(
                 textwrap.wrap(
-                    par,
+                    _unbroken(par),
                     chars,
                     break_long_words=False,
                     break_on_hyphens=False,
@@ -292,6 +293,17 @@ def _fit(fig, notes: str = "") -> None:
         a.set_position([ax0 / new_w, ay0 / new_h, p.width * W / new_w, p.height * H / new_h])
     if text is not None:
         text.set_position((PAD / new_w, PAD / new_h))
+
+
+#: a space that a note under a figure never breaks at: between a number and its unit
+#: (``0.107 s``) and after ``dt`` (``dt 0.001``); a no-break space in its place
+UNBROKEN = re.compile(r"(?<=\d) (?=(?:s|rad|rad/s|J|m|kg)\b)|(?<=\bdt) (?=\d)")
+
+
+def _unbroken(text: str) -> str:
+    """``text`` with the spaces of :data:`UNBROKEN` made no-break spaces (textwrap and
+    the figure's text see them as letters; they are drawn as spaces)."""
+    return UNBROKEN.sub("\u00a0", text)
 
 
 def _hover_lines(fig, width_px: float, height_px: float) -> list[dict]:
