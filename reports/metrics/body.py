@@ -179,26 +179,29 @@ def nearest_rotation(R) -> np.ndarray:
     small (:data:`POLAR_SERIES`) and det R > 0, Q = R (1 - E/2 + 3 E^2/8 - 5 E^3/16); else
     from the SVD R = U S V^T, Q = U diag(1, 1, det(U V^T)) V^T (the sign keeps Q a rotation).
     A non-finite matrix gives NaN."""
-    R = np.asarray(R, dtype=float)
-    out = np.full(R.shape, np.nan)
+    # contiguous, as the selections it replaces were: matmul's arithmetic may depend on it
+    R = np.ascontiguousarray(R, dtype=float)
     ok = np.isfinite(R).all(axis=(1, 2))
-    if not ok.any():
+    if not ok.all():
+        out = np.full(R.shape, np.nan)
+        if ok.any():
+            out[ok] = nearest_rotation(R[ok])
         return out
-    Rk = R[ok]
-    E = gram(Rk) - np.eye(3)
-    near = (np.linalg.norm(E, axis=(1, 2)) < POLAR_SERIES) & (_det3(Rk) > 0)
-    Q = np.empty_like(Rk)
+    E = gram(R) - np.eye(3)
+    near = (np.linalg.norm(E, axis=(1, 2)) < POLAR_SERIES) & (_det3(R) > 0)
+    if near.all():  # the usual case: no selection (a copy of each array) needed
+        E2 = E @ E
+        return R @ (np.eye(3) - 0.5 * E + 0.375 * E2 - 0.3125 * (E2 @ E))
+    Q = np.empty_like(R)
     if near.any():
         En = E[near]
         E2 = En @ En
-        Q[near] = Rk[near] @ (np.eye(3) - 0.5 * En + 0.375 * E2 - 0.3125 * (E2 @ En))
+        Q[near] = R[near] @ (np.eye(3) - 0.5 * En + 0.375 * E2 - 0.3125 * (E2 @ En))
     far = ~near
-    if far.any():
-        U, _, Vt = np.linalg.svd(Rk[far])
-        U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]
-        Q[far] = U @ Vt
-    out[ok] = Q
-    return out
+    U, _, Vt = np.linalg.svd(R[far])
+    U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]
+    Q[far] = U @ Vt
+    return Q
 
 
 def _nearest_kept(traj) -> np.ndarray:
