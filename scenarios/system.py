@@ -664,7 +664,14 @@ def _joints(raw, bodies, bad) -> list[SystemJoint]:
             bad(f"{p}.kind", kind, f"must be one of {', '.join(JOINT_KINDS)}")
         a, b = good.get("body_a"), good.get("body_b")
         known = ", ".join(sorted(names))
-        if a is not None and a not in names:
+        if a == "ground":
+            bad(
+                f"{p}.body_a",
+                a,
+                "the ground is always body_b (its anchor_b and axis_b in world axes): swap "
+                "the sides, anchors and axes included",
+            )
+        elif a is not None and a not in names:
             bad(f"{p}.body_a", a, f"not a body of this file; bodies: {known}")
         if b is not None and b != "ground" and b not in names:
             bad(f"{p}.body_b", b, f"not a body of this file nor 'ground'; bodies: {known}")
