@@ -146,9 +146,14 @@ def crossings(t, y, level: float = 0.0, direction: int = 0) -> np.ndarray:
         mid = 0.5 * (lo + hi)
         smid = local(mid)
         same = np.sign(smid) == np.sign(slo)
-        lo = np.where(same, mid, lo)
-        slo = np.where(same, smid, slo)
-        hi = np.where(same, hi, mid)
+        lo2 = np.where(same, mid, lo)
+        slo2 = np.where(same, smid, slo)
+        hi2 = np.where(same, hi, mid)
+        # (lo, hi, slo) alone decide the next bisection: once one leaves them unchanged (the
+        # brackets are adjacent floats), so would every later one of the 60
+        if np.array_equal(lo2, lo) and np.array_equal(hi2, hi) and np.array_equal(slo2, slo):
+            break
+        lo, hi, slo = lo2, hi2, slo2
     return 0.5 * (lo + hi)
 
 
@@ -216,6 +221,13 @@ def _axis_signals(traj, axis: int, up):
     return u, s, np.unwrap(np.arctan2(y, x))
 
 
+def _axis_cos(traj, axis: int, up) -> np.ndarray:
+    """u = d_k . up alone (:func:`_axis_signals`' first signal, computed the same way),
+    without the tilt and the azimuth that cost most of that function."""
+    _, _, e3 = _frame(up)
+    return np.asarray(traj.rotation, dtype=float)[:, :, int(axis)] @ e3
+
+
 def _nutation_crossings(t, u):
     """Upward crossings of the mean of u, or a reason why there are none to use."""
     if not np.all(np.isfinite(u)):
@@ -239,7 +251,7 @@ def nutation_period(traj, axis: int, up) -> Measured:
     u = d_axis . up (cos of the tilt of body axis ``axis`` from the vertical ``up``). Any level
     strictly between the extremes recurs once per period; the mean is used because it lies
     where the slope is large, which makes the interpolated times accurate."""
-    u, _, _ = _axis_signals(traj, axis, up)
+    u = _axis_cos(traj, axis, up)
     tc, why = _nutation_crossings(np.asarray(traj.t, dtype=float), u)
     if tc is None:
         return _nan(why)
