@@ -185,13 +185,15 @@ def _inside(traj, ref):
     return traj.head(k), ref.trajectory.head(k)
 
 
-def compute_system_metrics(scenario, traj, ref=None) -> dict[str, float]:
+def compute_system_metrics(scenario, traj, ref=None, keep: dict | None = None) -> dict[str, float]:
     """Every metric of one system run: each system metric of the catalog
     (:mod:`reports.metrics.catalog`; the module docstring) as its largest value over the
     samples, those against the reference over the samples up to its trusted horizon, NaN
     where it does not apply. ``ref``: the
     :class:`references.engines.exact_system.SystemReference` at the same times, or None
-    (error metrics NaN)."""
+    (error metrics NaN). ``keep``: a dict that receives the per-sample series of the metrics
+    not against the reference (metric name: series, None where one does not apply), for
+    :func:`error_series` to reuse."""
     if ref is not None:
         rt = ref.trajectory
         if len(rt) != len(traj) or not np.allclose(rt.t, traj.t, rtol=0, atol=1e-9):
@@ -204,24 +206,33 @@ def compute_system_metrics(scenario, traj, ref=None) -> dict[str, float]:
         else:
             v = fn(scenario, traj)
             m[metric.name] = math.nan if v is None else _max(v)
+            if keep is not None:
+                keep[metric.name] = v
     return m
 
 
-def error_series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
+def error_series(scenario, traj, ref=None, kept: dict | None = None) -> dict[str, np.ndarray]:
     """Per-sample series of one system run, written beside its trajectory so that figures
     are pure functions of files: energy (E - E0, J) and its drift, momentum drift, joint and
-    loop gaps (m), and, with a reference, the attitude error (NaN beyond its horizon)."""
+    loop gaps (m), and, with a reference, the attitude error (NaN beyond its horizon).
+    ``kept``: the series :func:`compute_system_metrics` kept for the same run (its ``keep``),
+    reused instead of computed again; the same functions give the same arrays."""
+    kept = kept or {}
+
+    def series(name, fn, *args):
+        return kept[name] if name in kept else fn(*args)
+
     cols = {
         "energy_change": energy(scenario, traj),
-        "energy_drift": energy_drift(scenario, traj),
-        "orthonormality": orthonormality(traj),
+        "energy_drift": series("energy_drift_max", energy_drift, scenario, traj),
+        "orthonormality": series("orthonormality_max", orthonormality, traj),
     }
-    md = momentum_drift(scenario, traj)
+    md = series("momentum_drift_max", momentum_drift, scenario, traj)
     if md is not None:
         cols["momentum_drift"] = md
-    gaps = joint_gaps(scenario, traj)
-    if gaps:
-        cols["joint_gap"] = np.max([g["gap"] for g in gaps.values()], axis=0)
+    gap = series("joint_gap_max", joint_gap, scenario, traj)
+    if gap is not None:
+        cols["joint_gap"] = gap
     lg = loop_gap(scenario, traj)
     if lg is not None:
         cols["loop_gap"] = lg

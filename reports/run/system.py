@@ -78,10 +78,11 @@ def _measure(row, spec, sc, output, out, fmt):
         except Unsupported as exc:
             row["reference_kind"] = "none"
             row["message"] = f"no reference, trajectory errors not measured: {exc}"
+    kept = {}  # the metrics' series, reused by the file's series
     if len(traj):
-        row.update(compute_system_metrics(sc, traj, ref))
+        row.update(compute_system_metrics(sc, traj, ref, keep=kept))
     if out is not None and len(traj):
-        _write(row, spec, traj, error_series(sc, traj, ref), Path(out), fmt)
+        _write(row, spec, traj, error_series(sc, traj, ref, kept), Path(out), fmt)
     return ref
 
 
