@@ -181,6 +181,64 @@ def cmd_list(args) -> int:
     return 0
 
 
+def _show_lines(sc) -> list[str]:
+    """What ``show`` prints of one checked scenario: its bodies and joints, run, reference
+    and the scales its metrics are divided by."""
+    from references.engines.exact_system import reference_kind as system_reference_kind
+
+    def vec(a) -> str:
+        return "[" + ", ".join(f"{float(x):.6g}" for x in a) + "]"
+
+    lines = [f"{sc.name} ({sc.path}): valid"]
+    if getattr(sc, "is_system", False):
+        loops = sc.loop_joints
+        lines.append(
+            f"  a system of {len(sc.bodies)} bodies, {len(sc.joints)} joints"
+            + (f"; loop closures: {', '.join(sorted(loops))}" if loops else "; a tree")
+            + ("; floating" if sc.floating else "")
+        )
+        for b in sc.bodies:
+            lines.append(
+                f"    body {b.name}: mass {b.mass:.6g} kg, moments {vec(b.inertia)} kg m^2, "
+                f"x_G {vec(b.position)} m"
+            )
+        for j in sc.joints:
+            lines.append(f"    joint {j.name}: {j.kind} {j.body_a} - {j.body_b or 'ground'}")
+        kind = system_reference_kind(sc)
+    else:
+        from references.exact import resolve_kind
+
+        where = "pivoted" if sc.pivoted else "free"
+        lines.append(
+            f"  one {where} body: mass {sc.mass:.6g} kg, moments {vec(sc.inertia)} kg m^2, "
+            f"W0 {vec(sc.omega_body)} rad/s"
+        )
+        kind = resolve_kind(sc)
+    lines.append(f"  gravity {vec(sc.gravity)} m/s^2")
+    sweep = ", ".join(f"{h:g}" for h in sc.dt_sweep) or "-"
+    lines.append(
+        f"  run: t_end {sc.t_end:g} s, dt {sc.dt:g} s ({round(sc.t_end / sc.dt)} steps), "
+        f"dt_sweep {sweep}, save_every {sc.save_every}"
+    )
+    asked = "" if sc.reference == kind else f" (asked: {sc.reference})"
+    lines.append(f"  reference: {kind}{asked}")
+    scales = ", ".join(f"{k} {v:.4g}" for k, v in sc.energy_scales.items())
+    lines.append(f"  scales: energy ({scales}) J, momentum {sc.momentum_scale:.4g} kg m^2/s")
+    if sc.tolerances:
+        lines.append(f"  tolerances: {sc.tolerances}")
+    return lines
+
+
+def cmd_show(args) -> int:
+    from reports.suite import resolve_scenarios
+
+    out = []
+    for sc in resolve_scenarios(args.scenarios):
+        out += _show_lines(sc)
+    print("\n".join(out))
+    return 0
+
+
 def cmd_run(args) -> int:
     from reports.suite import run
 
@@ -548,6 +606,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="machine-readable output (each integrator with its slug and default flag)",
     )
     s.set_defaults(func=cmd_list)
+    s = sub.add_parser(
+        "show",
+        help="check scenario files (or library names) as run does, and show what they hold, "
+        "without running anything",
+        description="Check each scenario as `run` checks it (every field, the joints at t = 0, "
+        "the reference asked for) and print its bodies, joints, run, reference and metric "
+        "scales; nothing is run or written. Exit 2 with the file, field, value and rule when "
+        "a file is invalid.",
+    )
+    s.add_argument(
+        "scenarios", nargs="+", metavar="SCENARIO_OR_FILE", help="library names or TOML files"
+    )
+    s.set_defaults(func=cmd_show)
     _add_run(sub)
     _add_ensemble(sub)
     _add_folder_commands(sub)
