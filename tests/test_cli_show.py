@@ -67,3 +67,18 @@ def test_show_refuses_a_reference_that_does_not_apply(tmp_path, capsys):
     path.write_text(BOX + '\n[reference]\nkind = "lagrange_top"\n')
     code, _, err = _run(["show", str(path)], capsys)
     assert code == 2 and "reference.kind = 'lagrange_top'" in err
+
+
+def test_show_refuses_what_run_refuses_before_planning(tmp_path, capsys):
+    """A tolerance for a family no engine registers, an engine setting no builder takes."""
+    path = tmp_path / "box.toml"
+    path.write_text(BOX + '\n[tolerances."4th order"]\nattitude_error_max = 1e-6\n')
+    code, _, err = _run(["show", str(path)], capsys)
+    assert code == 2 and "unknown integrator families ['4th order']" in err
+    system = tmp_path / "four_bar.toml"
+    import scenarios
+
+    text = open(scenarios.load("four_bar").path).read().replace('"four_bar"', '"my_bar"', 1)
+    system.write_text(text + "\n[engine_settings.mujoco]\nsolreff = [0.004, 1.0]\n")
+    code, _, err = _run(["show", str(system)], capsys)
+    assert code == 2 and "engine_settings.mujoco.solreff" in err
