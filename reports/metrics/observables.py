@@ -123,8 +123,9 @@ def crossings(t, y, level: float = 0.0, direction: int = 0) -> np.ndarray:
 
     ``direction``: +1 upward only (y - level goes from < 0 to >= 0), -1 downward only
     (from > 0 to <= 0), 0 both. A sample exactly at the level counts once. The time inside each
-    bracketing interval is the root of the local cubic (see the module docstring), found by 60
-    bisections (to round-off of the interval). Non-finite samples are never bracketed.
+    bracketing interval is the root of the local cubic (see the module docstring), found by
+    bisection down to round-off of the interval (at most 60 halvings; it stops early once
+    a halving no longer moves the brackets). Non-finite samples are never bracketed.
     """
     t = np.asarray(t, dtype=float)
     s = np.asarray(y, dtype=float) - level
