@@ -85,21 +85,28 @@ def _import():
 
 
 @contextmanager
-def dart_warnings():
+def dart_warnings(tmp=None):
     """Collect what DART writes to the process's stderr (file descriptor 2) inside the block
     into the yielded list (one string): DART reports a non-finite state there and replaces it
-    by zeros or identities ("to avoid instability"), so positions can stay finite and wrong."""
-    box: list[str] = []
-    with tempfile.TemporaryFile() as tmp:
-        saved = os.dup(2)
-        os.dup2(tmp.fileno(), 2)
-        try:
+    by zeros or identities ("to avoid instability"), so positions can stay finite and wrong.
+    ``tmp``: a binary temporary file to capture into, emptied after it is read (one file for
+    a run's blocks instead of one created per block); by default one of its own."""
+    if tmp is None:
+        with tempfile.TemporaryFile() as own, dart_warnings(own) as box:
             yield box
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            box.append(tmp.read().decode(errors="replace"))
+        return
+    box: list[str] = []
+    saved = os.dup(2)
+    os.dup2(tmp.fileno(), 2)
+    try:
+        yield box
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        tmp.seek(0)
+        box.append(tmp.read().decode(errors="replace"))
+        tmp.seek(0)
+        tmp.truncate()
 
 
 def engine_frames(pl: ps.Plan, c: int) -> ps.EngineFrames:
@@ -561,31 +568,34 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     world, skel = dm.world, dm.skel
     done = 0
     h = float(dt)
-    for k in range(1, n):
-        m = int(steps[k] - done)
-        with dart_warnings() as said:
-            if rk:
-                stepper.run(m, h)
-                stepper.unpack()
-            else:
-                t0 = time.perf_counter()
-                for _ in range(m):
-                    world.step()
-                dm.clock += time.perf_counter() - t0
-        done = int(steps[k])
-        pos, vel = skel.getPositions(), skel.getVelocities()
-        patched = [_ANSI.sub("", ln).strip() for ln in said[0].splitlines() if "Non-finite" in ln]
-        if patched or not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
-            why = f"DART replaced a non-finite quantity ({patched[0]})" if patched else (
-                "a non-finite state")  # fmt: skip
-            raise Diverged(
-                f"dart {integrator} at dt = {dt:g} s: {why} between t = "
-                f"{steps[k - 1] * dt:.6g} and {done * dt:.6g} s (reduce dt"
-                + (", or the constraints' ERP)" if dm.constraints else ")"),
-                done * dt,
-                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
-            )
-        x[k], R[k], v[k], W[k] = dm.states()
+    with tempfile.TemporaryFile() as capture:
+        for k in range(1, n):
+            m = int(steps[k] - done)
+            with dart_warnings(capture) as said:
+                if rk:
+                    stepper.run(m, h)
+                    stepper.unpack()
+                else:
+                    t0 = time.perf_counter()
+                    for _ in range(m):
+                        world.step()
+                    dm.clock += time.perf_counter() - t0
+            done = int(steps[k])
+            pos, vel = skel.getPositions(), skel.getVelocities()
+            patched = [
+                _ANSI.sub("", ln).strip() for ln in said[0].splitlines() if "Non-finite" in ln
+            ]
+            if patched or not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
+                why = f"DART replaced a non-finite quantity ({patched[0]})" if patched else (
+                    "a non-finite state")  # fmt: skip
+                raise Diverged(
+                    f"dart {integrator} at dt = {dt:g} s: {why} between t = "
+                    f"{steps[k - 1] * dt:.6g} and {done * dt:.6g} s (reduce dt"
+                    + (", or the constraints' ERP)" if dm.constraints else ")"),
+                    done * dt,
+                    ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
+                )
+            x[k], R[k], v[k], W[k] = dm.states()
     if not math.isfinite(dm.clock):
         dm.clock = 0.0
     return ps.output(steps, dt, x, R, v, W, dm.clock, rec)
