@@ -137,6 +137,7 @@ import sys
 from reports.store.results import RESULT_COLUMNS, Store
 folder, tag, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 with Store(folder, create=True) as st:
+    print("open", flush=True)
     for i in range(n):
         row = dict.fromkeys(RESULT_COLUMNS, "")
         row.update(run_id=f"{tag}-{i}", scenario=tag, engine="e", integrator="i", dt=0.001,
@@ -146,9 +147,11 @@ with Store(folder, create=True) as st:
 
 
 def writer(folder, tag, n):
+    """A process writing ``n`` rows tagged ``tag``; its first line on stdout, "open", says the
+    store is open and the rows start."""
     return subprocess.Popen(
         [sys.executable, "-c", WRITER, str(folder), tag, str(n)],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )  # fmt: skip
 
 
@@ -169,6 +172,9 @@ def test_kill_9_during_store_writes_leaves_no_half_row(tmp_path, seed):
     total = 0
     for k in range(3):
         p = writer(tmp_path, f"w{k}", 100000)
+        # the kill lands 0.5-1.5 s into the writing, not into the start-up (imports take
+        # seconds on a loaded machine: a kill before the store opens would test nothing)
+        assert p.stdout.readline() == b"open\n", p.stderr.read().decode()
         time.sleep(rng.uniform(0.5, 1.5))
         p.send_signal(signal.SIGKILL)
         p.wait()
