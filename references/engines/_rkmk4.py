@@ -226,13 +226,7 @@ def unpack_dart(z, pivoted, a, acc):
 
 
 def warm_up() -> None:
-    """Compile (or load from numba's cache) every function once, outside any timed region,
-    with the stages of the RKMK4 on trees of joints (:mod:`references.engines._rkmk4_tree`):
-    one warm-up for every run of the suite's RKMK4, which a runner never compiles in two
-    workers at once."""
-    from references.engines import _rkmk4_tree
-
-    _rkmk4_tree.warm_up()
+    """Compile (or load from numba's cache) every function once, outside any timed region."""
     w = np.zeros(WORKSPACE)
     w[0] = 1.0
     z, acc = w[Z], w[ACC]

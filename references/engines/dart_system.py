@@ -33,9 +33,7 @@ by ``computeForwardDynamics``), as is any other closing kind.
 Integrators: ``semi-implicit Euler`` is ``World.step`` (DART's only stepper); ``RKMK4`` is the
 suite's Runge-Kutta-Munthe-Kaas of order 4 (:mod:`references.engines.liegroup`) on the product
 of each joint's group (SO(3) for a ball joint, R for a hinge, SO(3) x R^3 for a free root with
-body-axes W and world v_G), accelerations from ``Skeleton.computeForwardDynamics``; its stages
-are compiled (:mod:`references.engines._rkmk4_tree`, bit-identical with the readable
-``_Model.step_rkmk4``), so that a stage costs DART's calls and one compiled call.
+body-axes W and world v_G), accelerations from ``Skeleton.computeForwardDynamics``.
 
 Neutralised and read back: deactivation (sleeping) off, joint damping, spring stiffness, Coulomb
 friction 0, limit enforcement off, no shape nodes (nothing collides), gravity set (DART's default
@@ -57,14 +55,9 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import pinocchio_system as ps
-from references.engines.liegroup import (
-    check_engine_vector,
-    check_stage_rotation,
-    direct,
-    so3_right_jacobian_inverse,
-)
+from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
-from references.errors import Diverged, EngineError, Unsupported
+from references.errors import Diverged, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -326,8 +319,6 @@ class _Model:
         return out
 
     def step_rkmk4(self, q, u, h):
-        """One RKMK4 step from (q, u) (:meth:`pack`), in Python: the readable form of what
-        :class:`_CompiledRKMK4` computes (a test holds the two to bit-identity)."""
         k1t, k1v = u, self.accel(q, u)
         th = 0.5 * h * k1t
         u2 = u + 0.5 * h * k1v
@@ -340,92 +331,6 @@ class _Model:
         k4t, k4v = self.dexpinv(th, u4), self.accel(self.integrate(q, th), u4)
         theta = (h / 6.0) * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
         return self.integrate(q, theta), u + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-
-
-class _CompiledRKMK4:
-    """The RKMK4 of :meth:`_Model.step_rkmk4` with its state in arrays and the arithmetic of a
-    stage compiled (:mod:`references.engines._rkmk4_tree`): per stage one compiled call and
-    DART's four (skeleton positions and velocities, computeForwardDynamics, accelerations),
-    timed on ``dm.clock``. The state starts as DART holds it (:meth:`_Model.pack`)."""
-
-    def __init__(self, dm: _Model):
-        from references.engines import _rkmk4_tree as kt
-
-        kt.warm_up()
-        q, u = dm.pack()
-        rows, Rs, Ls = [], [], []
-        for (_, kind, s, _, idx), g in zip(dm.blocks, q, strict=True):
-            if kind == "revolute":
-                rows.append((kt.REVOLUTE, s.start, -1, len(Ls), idx))
-                Ls.append(g[0])
-            elif kind == "spherical":
-                rows.append((kt.SPHERICAL, s.start, len(Rs), -1, idx))
-                Rs.append(g[0])
-            else:
-                rows.append((kt.FREE, s.start, len(Rs), len(Ls), idx))
-                Rs.append(g[0])
-                Ls.extend(g[1])
-        n = len(u)
-        # the skeleton's dofs must be exactly the joints' (each block once, no gaps)
-        covered = sorted((idx, s.stop - s.start) for (_, _, s, _, idx) in dm.blocks)
-        ends = [0] + [i + m for i, m in covered]
-        if dm.skel.getNumDofs() != n or [i for i, _ in covered] != ends[:-1]:
-            raise EngineError(
-                f"dart: the skeleton's {dm.skel.getNumDofs()} dofs are not the joints' "
-                f"{n} in blocks {covered}"
-            )
-        self.dm, self.kt = dm, kt
-        self.blocks = np.array(rows, dtype=np.int64).reshape(len(rows), 5)
-        self.R = np.zeros((2, len(Rs), 3, 3))
-        self.R[0] = np.array(Rs).reshape(len(Rs), 3, 3)
-        self.L = np.zeros((2, len(Ls)))
-        self.L[0] = Ls
-        self.U = np.zeros((2, n))
-        self.U[0] = u
-        self.K = np.zeros((2, 4, n))
-        self.PV = np.zeros((2, n))
-        self.a = np.zeros(n)
-        self.checked = False
-
-    def run(self, m: int, h: float) -> None:
-        """Take ``m`` steps of size ``h``; DART then holds the last stage's state, not the
-        step's (:meth:`unpack` sets it)."""
-        kt, dm = self.kt, self.dm
-        # the compiled entries without numba's type dispatch: every array is ours, DART's
-        # accelerations checked on the first (the binding fixes their layout)
-        stage, finish = direct(kt.stage), direct(kt.finish)
-        blocks, R, L, U, K, PV, a = self.blocks, self.R, self.L, self.U, self.K, self.PV, self.a
-        pos, vel = PV[0], PV[1]
-        skel, now = dm.skel, time.perf_counter
-        set_pos, set_vel = skel.setPositions, skel.setVelocities
-        compute, accelerations = skel.computeForwardDynamics, skel.getAccelerations
-        two = 2.0  # an argument, not a constant: s ** 2 stays libm's pow (see _rkmk4_tree)
-        clock = 0.0
-        try:
-            for _ in range(m):
-                for i in range(4):
-                    bad = stage(i, blocks, R, L, U, K, a, PV, h, two)
-                    if bad >= 0.0:
-                        check_stage_rotation(bad)  # raises StageRotationTooLarge
-                    t0 = now()
-                    set_pos(pos)
-                    set_vel(vel)
-                    compute()
-                    a = accelerations()
-                    clock += now() - t0
-                    if not self.checked:
-                        check_engine_vector(a, len(pos), "DART's getAccelerations")
-                        self.checked = True
-                finish(blocks, R, L, U, K, a, h, two)
-        finally:
-            dm.clock += clock
-            self.a = a
-
-    def unpack(self) -> None:
-        """Set DART's positions and velocities to the step's state."""
-        self.kt.pack(self.blocks, self.R[0], self.L[0], self.U[0], self.PV)
-        self.dm.skel.setPositions(self.PV[0])
-        self.dm.skel.setVelocities(self.PV[1])
 
 
 def read_back(dm: _Model, scenario, dt: float) -> None:
@@ -564,7 +469,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     x[0], R[0], v[0], W[0] = dm.states()
     rk = integrator == "RKMK4"
     if rk:
-        stepper = _CompiledRKMK4(dm)
+        q, u = dm.pack()
     world, skel = dm.world, dm.skel
     done = 0
     h = float(dt)
@@ -573,8 +478,9 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
             m = int(steps[k] - done)
             with dart_warnings(capture) as said:
                 if rk:
-                    stepper.run(m, h)
-                    stepper.unpack()
+                    for _ in range(m):
+                        q, u = dm.step_rkmk4(q, u, h)
+                    dm.unpack(q, u)
                 else:
                     t0 = time.perf_counter()
                     for _ in range(m):

@@ -18,15 +18,12 @@ rotational inertia about the COM (Pinocchio documentation, class Inertia).
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
-from numba import njit
 
 from references import conventions as cv
 from references.engines import _rkmk4
-from references.engines._rkmk4_tree import _fma
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine, installed
@@ -36,25 +33,6 @@ from references.engines.native import import_engine
 
 def _import():
     return import_engine("pinocchio", "Pinocchio", "pin")
-
-
-@njit(cache=True)
-def _euler_velocity(v, a, dt, dv):
-    """v += dt a, then dv = dt v: numpy's ``v + dt * a`` and ``dt * v``, element by element."""
-    for i in range(v.size):
-        v[i] = v[i] + dt * a[i]
-        dv[i] = dt * v[i]
-
-
-@njit(cache=True)
-def _normalize_last_quaternion(q):
-    """q[-4:] /= |q[-4:]|: numpy's ``quat / np.sqrt(quat @ quat)``, the dot product as its
-    BLAS (OpenBLAS ddot) sums four terms: fused multiply-adds in order."""
-    n = q.size
-    a, b, c, d = q[n - 4], q[n - 3], q[n - 2], q[n - 1]
-    r = math.sqrt(_fma(d, d, _fma(c, c, _fma(b, b, a * a))))
-    for i in range(n - 4, n):
-        q[i] = q[i] / r
 
 
 class PinocchioEngine(Engine):
@@ -101,9 +79,6 @@ class PinocchioEngine(Engine):
         # Gravity is on by default in Pinocchio (docs/engines.md): set it from the scenario.
         model.gravity = pin.Motion(ctx.model.gravity, np.zeros(3))
         ctx.handle = _Handle(pin, model, model.createData())
-        # compiled (or loaded from numba's cache) here, not in the first timed step
-        _euler_velocity(np.zeros(1), np.zeros(1), 0.0, np.zeros(1))
-        _normalize_last_quaternion(np.array([1.0, 0.0, 0.0, 0.0]))
 
     def read_model(self, ctx) -> ModelReadback:
         h = ctx.handle
@@ -185,31 +160,21 @@ class PinocchioEngine(Engine):
     # -- stepping ----------------------------------------------------------------------
     def advance(self, ctx, k: int) -> None:
         """Semi-implicit Euler: v += h aba(q, v); q = integrate(q, h v); the quaternion (the
-        last 4 entries of q for both joints) renormalised. The arithmetic between Pinocchio's
-        calls is compiled (:func:`_euler_velocity`, :func:`_normalize_last_quaternion`: numpy's
-        operations, bit for bit)."""
+        last 4 entries of q for both joints) renormalised."""
         h = ctx.handle
         model, data, tau, dt, clock = h.model, h.data, h.tau, ctx.dt, ctx.clock
-        aba, integrate, now = h.pin.aba, h.pin.integrate, time.perf_counter
-        # compiled entries without numba's dispatch: v and dv are ours, Pinocchio's arrays
-        # are checked on the first step of a run (the binding fixes their layout)
-        velocity, normalize = direct(_euler_velocity), direct(_normalize_last_quaternion)
-        q, v = h.q, np.array(h.v, dtype=float)
-        dv = np.empty_like(v)
+        aba, integrate, sqrt, now = h.pin.aba, h.pin.integrate, np.sqrt, time.perf_counter
+        q, v = h.q, h.v
         for _ in range(k):
             t0 = now()  # the stopwatch around the two Pinocchio calls only
             a = aba(model, data, q, v, tau)
             clock.elapsed += now() - t0
-            if not h.checked:
-                check_engine_vector(a, len(v), "Pinocchio's aba")
-            velocity(v, a, dt, dv)
+            v = v + dt * a
             t0 = now()
-            q = integrate(model, q, dv)
+            q = integrate(model, q, dt * v)
             clock.elapsed += now() - t0
-            if not h.checked:
-                check_engine_vector(q, len(h.q), "Pinocchio's integrate")
-                h.checked = True
-            normalize(q)
+            quat = q[-4:]
+            q[-4:] = quat / sqrt(quat @ quat)
         h.q, h.v = q, v
 
     def forward_dynamics(self, ctx, state):
@@ -261,5 +226,3 @@ class _Handle:
         self.q = self.v = None
         self.qbuf = np.zeros(model.nq)
         self.vbuf = np.zeros(model.nv)
-        #: the layout of aba's and integrate's arrays checked (semi-implicit Euler)
-        self.checked = False
