@@ -11,6 +11,21 @@ from references import conventions as cv
 from references.trajectory import Trajectory
 
 
+def sorted_unique(a) -> np.ndarray:
+    """The distinct values of the integers ``a`` in increasing order, as int64 (what
+    ``np.unique`` returns for them), by a sort and a comparison of neighbours: numpy 2's
+    ``np.unique`` hashes the values first, ~1 ms for the 4000 sorted steps of a run's saves
+    against ~15 us here (measured, numpy 2.4)."""
+    a = np.sort(np.asarray(a, dtype=np.int64), axis=None)
+    if a.size > 1:
+        keep = np.empty(a.size, dtype=bool)
+        keep[0] = True
+        np.not_equal(a[1:], a[:-1], out=keep[1:])
+        if not keep.all():
+            a = a[keep]
+    return a
+
+
 class Recorder:
     """Receives the states of a run, block by block (:func:`conventions.block_row`: stacked
     arrays), and keeps those at the saved step indices. A subclass with ``every_step = True``
@@ -21,7 +36,7 @@ class Recorder:
 
     def __init__(self, saves: np.ndarray):
         #: sorted and unique, so that a block's saved steps are found by bisection
-        self.saves = np.unique(np.asarray(saves, dtype=np.int64))
+        self.saves = sorted_unique(saves)
         self.steps: list[np.ndarray] = []
         self.blocks: list[cv.BodyState] = []
         self.cv: list[np.ndarray] = []

@@ -21,7 +21,7 @@ from references import conventions as cv
 from references.engines.context import BodyModel, ModelReadback, RunContext, RunOutput
 from references.engines.liegroup import CompiledRKMK4Stepper
 from references.engines.native import NativeStderr
-from references.engines.recording import Recorder
+from references.engines.recording import Recorder, sorted_unique
 from references.errors import Diverged, EngineError, StepFailure, Unsupported
 from references.trajectory import energy_parts
 from scenarios.schema import step_plan
@@ -194,7 +194,7 @@ def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
             yield list(range(start, min(start + CHUNK, nstep + 1)))
         return
     saves = np.asarray(saves)
-    points = np.union1d(saves[saves > 0].astype(np.int64), np.arange(CHUNK, nstep, CHUNK))
+    points = sorted_unique(np.concatenate([saves[saves > 0], np.arange(CHUNK, nstep, CHUNK)]))
     ends = np.flatnonzero((points % CHUNK == 0) | (points == nstep)) + 1
     start = 0
     for end in (*ends.tolist(), len(points)):
