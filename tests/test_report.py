@@ -2,6 +2,7 @@
 formatted one way, Markdown that a GitHub-flavoured parser renders as tables, summary.json,
 the CI job summary and the README block; on a small real suite with failures in it."""
 
+import html
 import json
 import math
 import re
@@ -870,3 +871,26 @@ def test_the_text_caching_backend_draws_the_pixels_agg_draws(tmp_path):
     assert want.shape == first.shape == second.shape
     assert (want != first).any(axis=-1).sum() == 0
     assert (want != second).any(axis=-1).sum() == 0
+
+
+def test_cheapest_per_accuracy_table_does_not_print_digits_the_reference_lacks(df):
+    """The "its error" column of a scenario's cheapest-per-accuracy table says "< a" for an
+    error below the reference's accuracy a, as every other table does: the error of a run
+    better than its reference is not measured."""
+    from reports.report.build import Doc, wp_table
+
+    sub = df[df["scenario"] == "free_tumbling"].copy()
+    # the cheapest run within the loosest level; a reference accuracy twice its error, still
+    # within that level, leaves it the cheapest there with its error unmeasured
+    lv = work_precision(sub)[0]
+    first = lv["ranked"][0]
+    err = first["attitude_error_max"]
+    acc = 2 * err
+    assert 0 < acc <= lv["level"]
+    sub["reference_accuracy"] = acc
+    doc = Doc()
+    wp_table(doc, "free_tumbling", sub)
+    row = next(r for r in doc.md[0].splitlines() if first["configuration"] in r)
+    row = html.unescape(row)  # Markdown cells carry "<" as "&lt;"
+    assert f"| < {fmt(acc)} |" in row
+    assert f"| {fmt(err)} |" not in row

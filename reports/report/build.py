@@ -762,7 +762,7 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
             [
                 num(None, fmt_level(lv["level"])),
                 first["configuration"],
-                num(first["attitude_error_max"]),
+                num(None, fmt_attitude(first)),
                 num(first["engine_time_s"]),
                 num(first["wall_time_s"]),
                 nxt or "-",

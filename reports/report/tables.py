@@ -125,6 +125,7 @@ def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
                     "dt": float(r["dt"]),
                     "target_accuracy": num(r["target_accuracy"]),
                     "attitude_error_max": num(r["attitude_error_max"]),
+                    "reference_accuracy": num(r["reference_accuracy"]),
                     "engine_time_s": num(r["engine_time_s"]),
                     "wall_time_s": num(r["wall_time_s"]),
                     "cost_ratio": cost_of(r) / cost_of(ranked[0]),
