@@ -129,6 +129,8 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", type=Path, help="keep the clones and logs under this folder")
     args = ap.parse_args(argv)
     _become_subreaper()
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)  # the folder the user named to keep in
     base = Path(tempfile.mkdtemp(prefix="first-run-", dir=args.keep))
     rows = []
     try:
