@@ -498,9 +498,7 @@ def test_a_run_planned_for_another_engine_version_is_an_error_naming_both(tmp_pa
     assert row["engine_version"] == "0.0.0-planned"  # the row keeps its identity
 
 
-def test_an_engine_missing_from_the_metadata_and_the_path_is_planned_unavailable(
-    monkeypatch, dzh
-):
+def test_an_engine_missing_from_the_metadata_and_the_path_is_planned_unavailable(monkeypatch, dzh):
     """No metadata (the package is not installed) and no import: the plan's version is
     'unavailable' and the run is an 'unavailable' row saying how to install it."""
     import importlib.metadata as md
