@@ -230,21 +230,14 @@ def _show_lines(sc) -> list[str]:
 
 
 def cmd_show(args) -> int:
-    from references.engines import FAMILIES
-    from reports.metrics.verdicts import unknown_families
+    from reports.run.runner import check_families
     from reports.suite import check_engine_settings, resolve_scenarios
-    from scenarios.schema import InputError
 
     scs = resolve_scenarios(args.scenarios)
     check_engine_settings(scs)
     out = []
     for sc in scs:
-        unknown = unknown_families(sc)
-        if unknown:
-            raise InputError(
-                f"scenario {sc.name!r} ({sc.path}): [tolerances] names unknown integrator "
-                f"families {unknown}; known: {', '.join(FAMILIES)}"
-            )
+        check_families(sc)
         out += _show_lines(sc)
     print("\n".join(out))
     return 0

@@ -463,14 +463,7 @@ def plan(
     versions = {name: _version(get_engine(name)) for name in engines}
     specs = []
     for sc in scenarios:
-        unknown = verdicts.unknown_families(sc)
-        if unknown:
-            from references.engines import FAMILIES
-
-            raise InputError(
-                f"scenario {sc.name!r} ({sc.path}): [tolerances] names unknown integrator "
-                f"families {unknown}; known: {', '.join(FAMILIES)}"
-            )
+        check_families(sc)
         steps = [float(h) for h in dts] if dts else [sc.dt, *(sc.dt_sweep if sweep else ())]
         steps = sorted(set(steps), reverse=True)
         horizon = sc.t_end if t_end is None else t_end
@@ -510,6 +503,19 @@ def plan(
                         _check_states(sc, h, horizon, keep, segment, max_states)
                     specs += [RunSpec(sc, name, integ, h, *common) for h in run_at]
     return specs
+
+
+def check_families(sc) -> None:
+    """Refuse a scenario whose [tolerances] name an integrator family no engine registers,
+    naming the file and the known families (``plan`` and the CLI's ``show`` ask it)."""
+    unknown = verdicts.unknown_families(sc)
+    if unknown:
+        from references.engines import FAMILIES
+
+        raise InputError(
+            f"scenario {sc.name!r} ({sc.path}): [tolerances] names unknown integrator "
+            f"families {unknown}; known: {', '.join(FAMILIES)}"
+        )
 
 
 def _check_input(sc, steps: list[float], horizon: float) -> None:
