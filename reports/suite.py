@@ -51,12 +51,6 @@ def resolve_scenarios(names, all_: bool = False) -> list:
     return out
 
 
-#: the reference kinds that name one closed form (single bodies, then systems): a file asking
-#: for one by name must describe that motion; ``auto``, ``numerical`` and ``none`` always apply
-CLOSED_FORM_KINDS = ("free_body", "lagrange_top", "steady_precession")
-SYSTEM_CLOSED_FORM_KINDS = ("spinning_chain", "conical_pendulum", "four_bar")
-
-
 def check_references(scs) -> None:
     """A user's file that asks for a closed-form reference by name (``reference.kind``
     ``free_body``, ``lagrange_top``, ``steady_precession``; a system's ``spinning_chain``,
@@ -69,11 +63,13 @@ def check_references(scs) -> None:
     check, and setting up the spinning chain's closed form loads the multibody reference's
     compiled code (about 1.5 s in this process)."""
     import scenarios
+    from references.exact import CLOSED_FORMS
     from scenarios.schema import file_error
+    from scenarios.system import SYSTEM_CLOSED_FORMS
 
     for sc in scs:
         system = getattr(sc, "is_system", False)
-        kinds = SYSTEM_CLOSED_FORM_KINDS if system else CLOSED_FORM_KINDS
+        kinds = SYSTEM_CLOSED_FORMS if system else CLOSED_FORMS
         if sc.reference not in kinds or scenarios.is_library_file(sc):
             continue
         why = reference_problem(sc)

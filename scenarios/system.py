@@ -62,14 +62,8 @@ AXIS_KINDS = ("revolute", "universal", "cylindrical", "prismatic")
 #: motions of references.exact.multibody.exact, the reduced-coordinate DOP853 reference
 #: ("numerical", trees only) and "none" (no independent reference: trajectory errors are
 #: not measured, invariants and joint gaps are)
-SYSTEM_REFERENCE_KINDS = (
-    "auto",
-    "spinning_chain",
-    "conical_pendulum",
-    "four_bar",
-    "numerical",
-    "none",
-)
+SYSTEM_CLOSED_FORMS = ("spinning_chain", "conical_pendulum", "four_bar")
+SYSTEM_REFERENCE_KINDS = ("auto", *SYSTEM_CLOSED_FORMS, "numerical", "none")
 
 #: a joint must hold at t = 0 to this, m for points and rad for axes: the tolerance of
 #: director_model.system (INIT_TOL), so that a file accepted here runs there (files give

@@ -10,14 +10,11 @@ import re
 import pytest
 
 import scenarios
+from references.exact import CLOSED_FORMS
 from reports import cli
-from reports.suite import (
-    CLOSED_FORM_KINDS,
-    SYSTEM_CLOSED_FORM_KINDS,
-    reference_problem,
-    resolve_scenarios,
-)
+from reports.suite import reference_problem, resolve_scenarios
 from scenarios import ScenarioError
+from scenarios.system import SYSTEM_CLOSED_FORMS
 
 ASYMMETRIC_TOP = """\
 name = "my_asym_top"
@@ -149,7 +146,7 @@ def test_every_library_file_passes_the_check_it_skips():
     for name in scenarios.list_scenarios() + scenarios.list_systems():
         sc = scenarios.load(name)
         assert scenarios.is_library_file(sc)
-        kinds = SYSTEM_CLOSED_FORM_KINDS if getattr(sc, "is_system", False) else CLOSED_FORM_KINDS
+        kinds = SYSTEM_CLOSED_FORMS if getattr(sc, "is_system", False) else CLOSED_FORMS
         if sc.reference in kinds:
             assert reference_problem(sc) is None, name
             checked += 1
