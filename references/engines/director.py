@@ -79,12 +79,8 @@ class DirectorEngine(Engine):
     @classmethod
     def version(cls) -> str:
         _dm()
-        from importlib.metadata import PackageNotFoundError, version
-
-        try:
-            return version("director-bench")
-        except PackageNotFoundError:  # a source tree that was never installed
-            return "0+unknown"
+        # "0+unknown": a source tree that was never installed
+        return installed("director-bench") or "0+unknown"
 
     @classmethod
     def installed_version(cls) -> str | None:

@@ -133,14 +133,10 @@ def _versions() -> dict[str, str]:
     :class:`EngineUnavailable` when it does not import) on every call."""
     mujoco, jax, _ = _import()
     if not _VERSIONS:
-        from importlib.metadata import PackageNotFoundError, version
+        from references.engines.interface import installed
 
         out = {"mujoco": mujoco.__version__, "jax": jax.__version__}
-        for pkg in ("mujoco-mjx", "jaxlib"):
-            try:
-                out[pkg] = version(pkg)
-            except PackageNotFoundError:
-                out[pkg] = "unknown"
+        out.update({pkg: installed(pkg) or "unknown" for pkg in ("mujoco-mjx", "jaxlib")})
         _VERSIONS.update(out)
     return dict(_VERSIONS)
 
