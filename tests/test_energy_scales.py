@@ -152,14 +152,14 @@ def test_divergence_is_judged_part_by_part():
     ctx = SimpleNamespace(scenario=sc)
     engine = SimpleNamespace(guard=lambda ctx, state: None)
     e0 = {"total": float(tr.energy[0]), "rot": _rot_energy(sc), "trans": 0.0}
-    i, why = stepping._first_divergence(engine, ctx, block, e0)
+    i, why = stepping._first_divergence(engine, ctx, block, e0, sc.energy_scales)
     assert "rotational energy error" in why
     # the first state whose rotational energy exceeds twice its initial value
     want = int(np.argmax(np.linspace(1.0, 1.5, len(tr.t)) ** 2 > 2.0))
     assert i == want
     # the exact rates: no divergence, although the semi-implicit fall is off by 0.096 J
     exact = (tr.position, tr.velocity, tr.rotation, tr.omega_body)
-    assert stepping._first_divergence(engine, ctx, exact, e0) is None
+    assert stepping._first_divergence(engine, ctx, exact, e0, sc.energy_scales) is None
 
 
 @pytest.mark.parametrize("name", ["mujoco", "dart"])

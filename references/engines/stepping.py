@@ -207,7 +207,7 @@ def _blocks(nstep: int, saves: np.ndarray, every_step: bool):
 _ENERGY_PART = {"total": "energy", "rot": "rotational energy", "trans": "translational energy"}
 
 
-def _first_divergence(engine, ctx, block, energy0, scales=None) -> tuple[int, str] | None:
+def _first_divergence(engine, ctx, block, energy0, scales) -> tuple[int, str] | None:
     """(index of the first diverged state of a block, why), or None: a non-finite state or
     an energy error beyond DIVERGENCE_ENERGY of its scale (vectorised over the block): of the
     total energy, and for a free body of its rotational and its translational energy apart,
@@ -215,12 +215,10 @@ def _first_divergence(engine, ctx, block, energy0, scales=None) -> tuple[int, st
     other; or the engine's own limit (:meth:`Engine.guard`, on the block's last state).
     ``energy0``: the parts of the initial energy (:func:`energy_parts`); ``scales``: the
     scenario's :attr:`Scenario.energy_scales`, read once per run by the caller (computing
-    them costs about as much as the check of a block), None to read them here."""
+    them costs about as much as the check of a block)."""
     x, v, R, W = block
     finite = np.isfinite(x).all(1) & np.isfinite(v).all(1) & np.isfinite(W).all(1)
     finite &= np.isfinite(R).all((1, 2))
-    if scales is None:
-        scales = ctx.scenario.energy_scales
     with np.errstate(all="ignore"):
         parts = energy_parts(ctx.scenario, x, v, R, W)
         drifts = {p: np.abs(parts[p] - energy0[p]) / scales[p] for p in parts}
