@@ -450,6 +450,15 @@ def test_references_are_cached_by_content_not_by_object(dzh):
 # -- engine versions: planned from package metadata, checked where the runs run -----------------
 
 
+def _last_json_line_of_fresh_python(code: str):
+    """The JSON value on the last line printed by ``code`` run in a new interpreter (so that
+    what it imports is not what this test process has imported already)."""
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    ).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
 def test_planning_imports_no_engine_and_files_each_runs_under_its_own_version():
     """Planning the default suite reads the engines' versions from their packages' metadata
     (no engine imported in the planning process), and each version is the one the engine
@@ -463,10 +472,7 @@ def test_planning_imports_no_engine_and_files_each_runs_under_its_own_version():
         "engines = ['mujoco', 'pinocchio', 'dartpy', 'pybullet', 'pydrake', 'jax', 'jaxlib']\n"
         "print(json.dumps([versions, [m for m in engines if m in sys.modules]]))\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
-    ).stdout
-    versions, imported = json.loads(out.strip().splitlines()[-1])
+    versions, imported = _last_json_line_of_fresh_python(code)
     assert imported == []
     from importlib.metadata import version
 
@@ -529,7 +535,4 @@ def test_the_workers_fork_server_preloads_no_engine():
         "engines = ['mujoco', 'pinocchio', 'dartpy', 'pybullet', 'pydrake']\n"
         "print(json.dumps([m for m in engines if m in sys.modules]))\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
-    ).stdout
-    assert json.loads(out.strip().splitlines()[-1]) == []
+    assert _last_json_line_of_fresh_python(code) == []
