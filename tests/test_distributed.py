@@ -263,9 +263,11 @@ def test_a_killed_scheduler_is_a_message_not_a_traceback(tmp_path, short_and_lon
     address, scheduler, (worker,) = start_cluster(1)
     try:
         watcher = kill_after_first_row(tmp_path / "out", scheduler)
+        # as short_and_long: 1e5 steps at dt 1e-3, then 1e7 at 1e-5 (far longer than the
+        # kill takes; at --t-end 1 the second unit's 1e5 steps could finish before it)
         code = main(["run", "major_axis_spin", "--engines", "director", "--integrators",
-                     "rattle", "--dt", "1e-3,1e-5", "--t-end", "1", "--out",
-                     str(tmp_path / "out"), "--scheduler", address, "--quiet",
+                     "rattle", "--dt", "1e-3,1e-5", "--t-end", "100", "--save-every", "10000",
+                     "--out", str(tmp_path / "out"), "--scheduler", address, "--quiet",
                      "--no-report"])  # fmt: skip
         watcher.join()
     finally:
