@@ -410,8 +410,9 @@ def _add_compare(sub) -> None:
         type=_csv_list,
         default=(),
         metavar="FIELD[,FIELD]",
-        help="identity fields allowed to differ between A and B, e.g. engine_version to "
-        "compare two engine versions (by default any difference is a mismatch)",
+        help="identity fields allowed to differ between A and B, e.g. suite_version "
+        "(by default any difference is a mismatch; engine releases may always differ and "
+        "are reported)",
     )
     s.add_argument("--markdown", metavar="FILE", help="the Markdown summary (default B/compare.md)")
     s.add_argument("--json", metavar="FILE", help="the JSON summary (default B/compare.json)")

@@ -85,9 +85,12 @@ def test_classification():
     assert classify("ns_per_step", math.nan, math.nan, 2.0) is None
 
 
-def test_another_engine_version_is_a_mismatch_unless_allowed(folders, tmp_path, capsys):
-    """Two folders made with two versions of an engine are not the same runs: a mismatch
-    named field by field, exit 1, unless the version is declared to vary (--vary)."""
+def test_another_engine_version_is_compared_and_its_release_change_reported(
+    folders, tmp_path, capsys
+):
+    """Two folders made with two releases of an engine hold the same runs on another
+    release: compared as usual (no mismatch), with the release change on a line of its own;
+    another suite version is a mismatch unless declared to vary (--vary)."""
     a, _ = folders
     c = tmp_path / "c"
     shutil.copytree(a, c)
@@ -98,16 +101,28 @@ def test_another_engine_version_is_a_mismatch_unless_allowed(folders, tmp_path, 
             st.put(r)
     assert set(read_results(c)["engine_version"]) == {"9.9.9"}
     cmp = compare_folders(a, c)
-    assert len(cmp.compared) == 2 and not cmp.ok
-    assert {ch.change for ch in cmp.changes} == {"mismatch"}
-    assert all(f"engine_version {old} vs 9.9.9" in ch.b for ch in cmp.changes)
-    assert main(["compare", str(a), str(c)]) == 1
+    assert len(cmp.compared) == 2 and cmp.ok
+    assert "mismatch" not in {ch.change for ch in cmp.changes}
+    (vc,) = cmp.versions.values()
+    assert (vc.a, vc.b, vc.compared, vc.identical, vc.changed) == (old, "9.9.9", 2, 2, 0)
+    assert main(["compare", str(a), str(c)]) == 0
+    out = capsys.readouterr().out
+    assert f"{vc.engine} {old} -> 9.9.9: 2 runs compared, 0 changed" in out
+    d = tmp_path / "d"
+    shutil.copytree(a, d)
+    with Store(d) as st:
+        for r in st.rows():
+            r["suite_version"] = "99.0"
+            st.put(r)
+    cmp = compare_folders(a, d)
+    assert {ch.change for ch in cmp.changes} == {"mismatch"} and not cmp.ok
+    assert all("suite_version" in ch.b and "vs 99.0" in ch.b for ch in cmp.changes)
+    assert main(["compare", str(a), str(d)]) == 1
     out = capsys.readouterr().out
     assert "FAIL: 2 run(s) are not the same run in A and B (identity mismatch)" in out
-    cmp = compare_folders(a, c, vary=("engine_version",))
-    assert cmp.ok and "mismatch" not in {ch.change for ch in cmp.changes}
-    assert main(["compare", str(a), str(c), "--vary", "engine_version"]) == 0
-    assert main(["compare", str(a), str(c), "--vary", "colour"]) == 2
+    assert compare_folders(a, d, vary=("suite_version",)).ok
+    assert main(["compare", str(a), str(d), "--vary", "suite_version"]) == 0
+    assert main(["compare", str(a), str(d), "--vary", "colour"]) == 2
     assert "--vary 'colour': not an identity column" in capsys.readouterr().err
 
 

@@ -236,7 +236,6 @@ def test_a_known_failure_failing_one_more_check_is_a_regression(tmp_path, capsys
         ),
         ("save_every", 1, "save_every 10 vs 1"),
         ("segment", 1000, "segment none vs 1000"),
-        ("engine_version", "3.4.0", "engine_version 3.3.0 vs 3.4.0"),
         ("suite_version", "99.0", f"suite_version {suite_version()} vs 99.0"),
     ],
 )
@@ -262,6 +261,57 @@ def test_a_run_of_another_identity_is_a_mismatch_never_a_pass(
     _, cases = junit_cases(cur)
     kind, msg = cases["mujoco/RK4/dt=0.001"]
     assert kind == "failure" and words in msg
+
+
+def test_an_engine_patch_release_is_compared_and_reported_not_a_mismatch(
+    tmp_path, baseline, capsys
+):
+    """The same runs on a newer release of MuJoCo (a patch release installed after the
+    baseline was written) with every metric equal: the gate passes and says which release
+    changed and that no run changed; check.md and check.json name it too."""
+    cur = write(
+        tmp_path / "cur",
+        [
+            row(engine_version="3.3.1"),
+            row(engine="pybullet", integrator="multibody", energy_drift_max=0.3),
+        ],
+    )
+    cmp = gate.compare(cur, baseline)
+    assert cmp.ok and not cmp.changes
+    (vc,) = cmp.versions.values()
+    assert (vc.engine, vc.a, vc.b, vc.compared, vc.identical, vc.changed) == (
+        "mujoco", "3.3.0", "3.3.1", 1, 1, 0
+    )  # fmt: skip
+    assert main(["check", str(cur), "--baseline", str(baseline)]) == 0
+    out = capsys.readouterr().out
+    line = (
+        "engine release mujoco 3.3.0 -> 3.3.1: 1 runs compared, 0 changed (1 identical in "
+        "every metric, 0 regressed, 0 better)"
+    )
+    assert out.splitlines()[0] == line
+    assert "mujoco 3.3.0 -&gt; 3.3.1: 1 runs compared, 0 changed" in (cur / "check.md").read_text()
+    doc = json.loads((cur / "check.json").read_text())
+    assert doc["ok"] and doc["engine_releases"][0]["b"] == "3.3.1"
+
+
+def test_a_metric_regression_on_a_new_engine_release_stays_red(tmp_path, baseline, capsys):
+    """A release change does not hide a regression: the metric that got worse on the new
+    release is the one finding, and the release line counts it."""
+    cur = write(
+        tmp_path / "cur",
+        [
+            row(engine_version="3.3.1", attitude_error_max=1e-3),
+            row(engine="pybullet", integrator="multibody", energy_drift_max=0.3),
+        ],
+    )
+    cmp = gate.compare(cur, baseline)
+    assert [(f.key[1], f.column) for f in cmp.regressions] == [("mujoco", "attitude_error_max")]
+    (vc,) = cmp.versions.values()
+    assert (vc.compared, vc.identical, vc.regressed) == (1, 0, 1)
+    assert main(["check", str(cur), "--baseline", str(baseline)]) == 1
+    out = capsys.readouterr().out
+    assert "mujoco 3.3.0 -> 3.3.1: 1 runs compared, 1 changed" in out
+    assert "FAIL: 1 finding(s) in 1 run(s)" in out
 
 
 def test_history_rows_are_missing_runs_with_the_reason(tmp_path, baseline):

@@ -29,7 +29,7 @@ from references import conventions as cv
 from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine
 from references.engines.liegroup import check_engine_vector, direct
 from references.engines.native import import_engine
 
@@ -81,13 +81,12 @@ class DartEngine(Engine):
         "joint damping left on": (_plant_damping, ("free", "pivoted")),
     }
 
+    packages = ("dartpy",)
+
     @classmethod
     def version(cls) -> str:
         return _import().__version__
 
-    @classmethod
-    def installed_version(cls) -> str | None:
-        return installed("dartpy")
 
     # -- model -------------------------------------------------------------------------
     def build(self, ctx) -> None:

@@ -75,12 +75,29 @@ class EngineBase(ABC):
             return str(exc)
         return None
 
+    #: the Python distributions (pip names) whose versions make up the engine's version
+    #: (:meth:`version_of`), e.g. ("mujoco",); empty for an engine that ships with the suite
+    #: or that does not say. The CI pins them (reports/baselines/engines.txt).
+    packages: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def version_of(cls, versions: Mapping[str, str | None]) -> str | None:
+        """The engine's version string given the versions of its :attr:`packages` (None when
+        one is missing). The default: the version of its one package."""
+        if len(cls.packages) != 1:
+            return None
+        return versions.get(cls.packages[0])
+
     @classmethod
     def installed_version(cls) -> str | None:
         """What :meth:`version` returns, read from the installed packages' metadata
         (:func:`installed`) without importing the engine, or None when the metadata does not
-        say it (a package installed without it, or not installed). The default: None."""
-        return None
+        say it (a package installed without it, or not installed). The default: the
+        :meth:`version_of` the installed :attr:`packages`."""
+        if not cls.packages:
+            return None
+        versions = {p: installed(p) for p in cls.packages}
+        return None if None in versions.values() else cls.version_of(versions)
 
     @classmethod
     def planned_version(cls) -> str:

@@ -22,7 +22,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine
 from references.engines.native import import_engine
 from references.errors import EngineError, Unsupported
 
@@ -123,13 +123,12 @@ class MujocoEngine(Engine):
         ),
     }
 
+    packages = ("mujoco",)
+
     @classmethod
     def version(cls) -> str:
         return _import().__version__
 
-    @classmethod
-    def installed_version(cls) -> str | None:
-        return installed("mujoco")
 
     def check_supported(self, scenario, integrator) -> None:
         mujoco = _import()

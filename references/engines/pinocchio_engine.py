@@ -26,7 +26,7 @@ from references import conventions as cv
 from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine
 from references.engines.liegroup import check_engine_vector, direct
 from references.engines.native import import_engine
 
@@ -60,13 +60,12 @@ class PinocchioEngine(Engine):
         ),
     )
 
+    packages = ("pin",)
+
     @classmethod
     def version(cls) -> str:
         return _import().__version__
 
-    @classmethod
-    def installed_version(cls) -> str | None:
-        return installed("pin")
 
     # -- model -------------------------------------------------------------------------
     def build(self, ctx) -> None:

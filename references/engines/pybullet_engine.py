@@ -35,7 +35,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine
 from references.engines.native import import_engine
 from references.errors import Unsupported
 
@@ -139,14 +139,13 @@ class PybulletEngine(Engine):
         "PyBullet's 100 rad/s velocity clamp back on": (_plant_clamp, ("free", "pivoted")),
     }
 
+    packages = ("pybullet",)
+
     @classmethod
     def version(cls) -> str:
         _import()
         return importlib.metadata.version("pybullet")
 
-    @classmethod
-    def installed_version(cls) -> str | None:
-        return installed("pybullet")
 
     def check_supported(self, scenario, integrator) -> None:
         if integrator.name == "maximal coordinates" and scenario.pivot is not None:

@@ -8,7 +8,10 @@ folder to the baseline on the configuration and reports, by the comparison rule 
 :mod:`reports.gate.rule` (the one ``compare`` applies to two folders):
 
 - a run whose identity differs (``t_end 30 vs 10``, a changed scenario file): a mismatch, never
-  a pass, since the two runs did not do the same thing;
+  a pass, since the two runs did not do the same thing; a run on another release of its engine
+  (``engine_version``, e.g. a patch release installed since the baseline was written) is the
+  same run, compared as usual, and each release change is reported with how many runs it
+  changed (:class:`reports.gate.rule.VersionChange`);
 - each metric worse than the baseline by more than a factor, a status that got worse, a
   verdict that went from pass to fail, a failing run that fails a check it passed before;
 - runs missing from or new to the results.
@@ -26,6 +29,7 @@ double-precision round-off accumulated over the suite's ~1e4-1e5 steps (eps * ns
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -37,6 +41,7 @@ from reports.gate.rule import (
     Comparison,
     NothingComparable,
     classify,
+    count_version_change,
     failed_checks,
     failing,
     status_change,
@@ -212,6 +217,7 @@ def compare(
             continue
         found = _run_findings(key, b, r, factor, timing_factor)
         cmp.changes += found
+        count_version_change(cmp, key, b, r, found)
         if not found and failing(r):
             cmp.known[key] = (_reason(r), b.get("reason", ""))
     for key in current:
@@ -313,8 +319,9 @@ def format_comparison(cmp: Comparison) -> str:
         f"{len(cmp.regressed)} regressed, {len(cmp.known)} known failure(s) failing as in the "
         "baseline (expected, not regressions)"
     )
+    versions = [f"engine release {line}" for line in cmp.version_lines()]
     if cmp.ok:
-        return f"OK: {head_line}."
+        return "\n".join([*versions, f"OK: {head_line}."])
     head = ["scenario", "engine", "integrator", "dt", "problem", "baseline", "current", "ratio"]
     rows = []
     for c in cmp.regressions:
@@ -322,7 +329,7 @@ def format_comparison(cmp: Comparison) -> str:
         integ = integ if acc is None else f"{integ} (accuracy {acc:g})"
         rows.append([sc, eng, integ, f"{dt:g}", _problem(c), _fmt(c.a), _fmt(c.b), _ratio_text(c)])
     n = len(cmp.regressions)
-    out = [f"FAIL: {n} finding(s) in {len(cmp.regressed)} run(s); {head_line}:"]
+    out = [*versions, f"FAIL: {n} finding(s) in {len(cmp.regressed)} run(s); {head_line}:"]
     return "\n".join(out + text_table(head, rows))
 
 
@@ -412,6 +419,7 @@ def as_json(cmp: Comparison, problems: list[str]) -> dict:
             {"run": _run_dict(k), "reason": reason, "baseline_reason": was}
             for k, (reason, was) in cmp.known.items()
         ],
+        "engine_releases": [dataclasses.asdict(v) for v in cmp.versions.values()],
         "invariant_problems": list(problems),
     }
 
@@ -436,6 +444,13 @@ def as_markdown(cmp: Comparison, problems: list[str]) -> str:
             "rrrrr",
         ),
     ]  # fmt: skip
+    if cmp.versions:
+        out += [
+            "",
+            "Engine releases other than the baseline's (the same runs, compared as usual):",
+            "",
+        ]
+        out += [f"- {md_escape(line)}" for line in cmp.version_lines()]
     if cmp.regressions:
         rows = [
             [run_name(c.key), _problem(c), _fmt(c.a), _fmt(c.b), _ratio_text(c)]

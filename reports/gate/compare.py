@@ -2,11 +2,13 @@
 
 The runs of A and B are matched on their configuration (scenario, engine, integrator, dt,
 target accuracy: :data:`reports.store.results.CONFIG_KEY`) and must be the same run: a pair whose
-identity differs (:data:`reports.store.results.IDENTITY_COLUMNS`: scenario content, horizon,
-save_every, segmenting, engine and suite versions) is a ``mismatch`` naming each field
-(``t_end 30 vs 10``), never compared as if it were the same run. To compare two engine
-versions (or two suite versions) on purpose, name the field that may differ: ``--vary
-engine_version`` (docs/results.md has the recipe).
+identity differs (:data:`reports.store.results.RUN_IDENTITY`: scenario content, horizon,
+save_every, segmenting, suite version) is a ``mismatch`` naming each field (``t_end 30 vs
+10``), never compared as if it were the same run. Two releases of an engine are the same run
+on another release: compared as usual, each release change reported with the number of runs
+it changed (``mujoco 4.0.0 -> 4.0.1: 196 runs compared, 0 changed``). To compare two suite
+versions on purpose, name the field that may differ: ``--vary suite_version``
+(docs/results.md has the recipe).
 
 For each run in both, every metric and the cost get a ratio B/A and a word by the comparison
 rule of :mod:`reports.gate.rule`, the one ``check`` applies against a baseline: ``worse``
@@ -32,6 +34,7 @@ file; this compares two folders, e.g. two engine versions (docs/results.md has t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -46,6 +49,7 @@ from reports.gate.rule import (
     classify_cost,
     corroborate_costs,
     cost_range,
+    count_version_change,
     status_change,
     verdict_change,
 )
@@ -78,7 +82,7 @@ def compare_folders(
     """Compare the results of folders ``a`` and ``b`` (see the module docstring); a folder
     without a results store is a FileNotFoundError naming it; :class:`NothingComparable`
     when either folder holds no run or they share none. ``vary``: identity columns that may
-    differ between the two (e.g. ``("engine_version",)``)."""
+    differ between the two (e.g. ``("suite_version",)``; engine releases always may)."""
     if not factor >= 1.0:
         raise InputError(f"--factor {factor!r}: must be a number >= 1")
     if cost_factor is not None and not cost_factor >= 1.0:
@@ -109,7 +113,9 @@ def compare_folders(
                 Change(key, "identity", "A", "; ".join(diff), math.nan, "mismatch", gates=True)
             )
             continue
-        cmp.changes += _run_changes(key, x, y, factor, cost_factor)
+        found = _run_changes(key, x, y, factor, cost_factor)
+        cmp.changes += found
+        count_version_change(cmp, key, x, y, found)
     corroborate_costs(cmp.changes)
     return cmp
 
@@ -224,7 +230,7 @@ def format_comparison(cmp: Comparison, show_all: bool = False) -> str:
     """The comparison as text: a summary line, then every change that is not ``same``
     (every change with ``show_all``), mismatches and worse first, then the runs in one
     folder only."""
-    lines = [f"A: {cmp.a}", f"B: {cmp.b}", _summary_line(cmp)]
+    lines = [f"A: {cmp.a}", f"B: {cmp.b}", *cmp.version_lines(), _summary_line(cmp)]
     shown = _shown(cmp, show_all)
     if shown:
         head = ["change", "run", "what", "A", "B", "B/A"]
@@ -271,6 +277,7 @@ def as_json(cmp: Comparison) -> dict:
             }
             for c in _shown(cmp, False)
         ],
+        "engine_releases": [dataclasses.asdict(v) for v in cmp.versions.values()],
         "only_a": [{"run": run(k), "status": st} for k, st in cmp.only_a],
         "only_b": [{"run": run(k), "status": st} for k, st in cmp.only_b],
     }
@@ -283,6 +290,7 @@ def as_markdown(cmp: Comparison) -> str:
         "",
         f"A `{md_escape(cmp.a)}`, B `{md_escape(cmp.b)}`.",
         "",
+        *[f"{md_escape(line)}  " for line in cmp.version_lines()],
         md_escape(_summary_line(cmp)),
     ]
     shown = _shown(cmp, False)

@@ -19,6 +19,11 @@ gates.
   sweep moved the same way (the engine's own change moves every step size; a burst of load on
   the machine single runs).
 
+- **An engine release** (:class:`VersionChange`): a run of the same configuration and run
+  identity on another release of the engine is the same run on a new release, compared by
+  the rules above; the pairs are counted per release change, so that a patch release shows
+  as ``mujoco 4.0.0 -> 4.0.1: 196 runs compared, 0 changed``.
+
 The outcome of a comparison of one configuration is a :class:`Change`.
 """
 
@@ -27,7 +32,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, ORDER_SLACK
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, METRIC_COLUMNS, ORDER_SLACK
 from reports.store.format import num
 
 #: statuses in order of how bad they are for a run that should have run; a status not listed
@@ -97,6 +102,64 @@ class Change:
 
 
 @dataclass
+class VersionChange:
+    """The runs of one engine compared across a release change (``a`` -> ``b``): a new patch
+    release is not a new run, so the pairs are compared as usual and counted here.
+    ``identical``: runs whose status, verdict and every metric are bit for bit the same;
+    ``regressed`` / ``better``: runs with a regression / an improvement beyond the rule."""
+
+    engine: str
+    a: str
+    b: str
+    compared: int = 0
+    identical: int = 0
+    regressed: int = 0
+    better: int = 0
+
+    @property
+    def changed(self) -> int:
+        return self.regressed + self.better
+
+    def line(self) -> str:
+        """``mujoco 4.0.0 -> 4.0.1: 196 runs compared, 0 changed (196 identical in every
+        metric, 0 regressed, 0 better)``."""
+        return (
+            f"{self.engine} {self.a} -> {self.b}: {self.compared} runs compared, "
+            f"{self.changed} changed ({self.identical} identical in every metric, "
+            f"{self.regressed} regressed, {self.better} better)"
+        )
+
+
+def identical_metrics(a, b) -> bool:
+    """Whether two rows (or baseline entries) have the same status, verdict and every metric
+    (:data:`reports.metrics.catalog.METRIC_COLUMNS`) bit for bit, missing values alike."""
+    if a.get("status") != b.get("status") or a.get("verdict") != b.get("verdict"):
+        return False
+    for m in METRIC_COLUMNS:
+        x, y = num(a.get(m)), num(b.get(m))
+        if not (x == y or (math.isnan(x) and math.isnan(y))):
+            return False
+    return True
+
+
+def count_version_change(cmp: Comparison, key, a, b, changes: list[Change]) -> None:
+    """Count the pair (``a``, ``b``) of configuration ``key`` in ``cmp.versions`` when the two
+    ran on different releases of the engine (``engine_version``); ``changes``: what the
+    comparison found for the pair."""
+    va, vb = str(a.get("engine_version") or "none"), str(b.get("engine_version") or "none")
+    if va == vb:
+        return
+    vc = cmp.versions.setdefault((key[1], va, vb), VersionChange(key[1], va, vb))
+    vc.compared += 1
+    if any(c.worse and c.gates for c in changes):
+        vc.regressed += 1
+    elif any(c.change == "better" for c in changes):
+        vc.better += 1
+    if identical_metrics(a, b):
+        vc.identical += 1
+
+
+@dataclass
 class Comparison:
     """The comparison of results B against A: ``check``'s against a baseline file (A), or
     ``compare``'s of two folders.
@@ -106,7 +169,8 @@ class Comparison:
     the runs in one folder only (``compare``; the gate records them as changes ``missing``
     and ``new``); ``known``: the runs failing as in the baseline, key -> (reason now, reason
     in the baseline); ``cost_factor``: the factor a cost is gated at (None: not gated);
-    ``vary``: identity columns allowed to differ; ``provenance_a``: the baseline's."""
+    ``vary``: identity columns allowed to differ; ``provenance_a``: the baseline's;
+    ``versions``: the release changes of the engines, (engine, a, b) -> :class:`VersionChange`."""
 
     a: str
     b: str
@@ -119,6 +183,11 @@ class Comparison:
     only_b: list = field(default_factory=list)
     known: dict = field(default_factory=dict)
     provenance_a: dict = field(default_factory=dict)
+    versions: dict = field(default_factory=dict)
+
+    def version_lines(self) -> list[str]:
+        """One line per engine release change (:meth:`VersionChange.line`)."""
+        return [v.line() for v in self.versions.values()]
 
     @property
     def regressions(self) -> list[Change]:

@@ -18,8 +18,10 @@ store as history: :func:`current` keeps, per scenario, only the rows of its newe
 (:data:`IDENTITY_COLUMNS`: scenario content, horizon, segmenting, suite version; per engine
 its newest version, per integrator its newest save_every), then the newest row per
 configuration (:data:`CONFIG_KEY`); tables, reports and convergence fits read that view. The
-gate and ``compare`` match runs on the configuration and name every identity column that
-differs (:func:`identity_differences`).
+gate and ``compare`` match runs on the configuration, refuse a pair that is not the same run
+(:data:`RUN_IDENTITY`, every column that differs named by :func:`identity_differences`) and
+compare the metrics of a pair that differs only in the engine's release
+(:data:`VERSION_COLUMNS`), reporting the release change.
 
 The store is refused, never converted, when the file is an SQLite database of another
 application (:data:`APPLICATION_ID`, the tables it holds).
@@ -148,6 +150,14 @@ IDENTITY_COLUMNS = (
     "engine_version",
     "suite_version",
 )
+#: the identity columns that name an engine's release: two runs of one configuration that
+#: differ only in them did the same thing on another release, so the gate and ``compare``
+#: compare their metrics and report the release change (:class:`reports.gate.rule.VersionChange`)
+#: instead of refusing the pair
+VERSION_COLUMNS = ("engine_version",)
+#: the identity columns that make two runs of one configuration different runs (another
+#: scenario content, horizon, save_every, segmenting or suite version): never compared
+RUN_IDENTITY = tuple(c for c in IDENTITY_COLUMNS if c not in VERSION_COLUMNS)
 #: the identity columns shared by every run of a scenario in one invocation (the engine's
 #: version is per engine, save_every per integrator: an error-controlled one saves at its
 #: checkpoints)
@@ -286,11 +296,12 @@ def _show(col: str, v) -> str:
 
 
 def identity_differences(a, b, vary: Iterable[str] = ()) -> list[str]:
-    """The identity columns (:data:`IDENTITY_COLUMNS`) in which rows ``a`` and ``b`` (of one
+    """The run-identity columns (:data:`RUN_IDENTITY`) in which rows ``a`` and ``b`` (of one
     configuration) differ, each as ``"<column> <a> vs <b>"`` (e.g. ``"t_end 30 vs 10"``);
-    columns named in ``vary`` are allowed to differ. An empty list: the same run."""
+    columns named in ``vary`` are allowed to differ. An empty list: the same run, possibly on
+    another engine release (:data:`VERSION_COLUMNS`, compared by :func:`same_version`)."""
     out = []
-    for col in IDENTITY_COLUMNS:
+    for col in RUN_IDENTITY:
         if col in vary:
             continue
         x, y = _ident_value(col, a.get(col)), _ident_value(col, b.get(col))
@@ -298,6 +309,11 @@ def identity_differences(a, b, vary: Iterable[str] = ()) -> list[str]:
             what = "scenario content (scenario_hash)" if col == "scenario_hash" else col
             out.append(f"{what} {_show(col, x)} vs {_show(col, y)}")
     return out
+
+
+def same_version(a, b) -> bool:
+    """Whether rows ``a`` and ``b`` ran on the same engine release (:data:`VERSION_COLUMNS`)."""
+    return all(_ident_value(c, a.get(c)) == _ident_value(c, b.get(c)) for c in VERSION_COLUMNS)
 
 
 def blank_row(spec: RunSpec) -> dict:

@@ -40,7 +40,7 @@ from references.engines.drake.plant import (
     model_checks,
     update_count,
 )
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine
 from references.errors import EngineError, StepFailure, Unsupported
 
 #: an error-controlled run may make at most this many dynamics evaluations per fixed step of
@@ -77,6 +77,8 @@ class DrakeEngine(Engine):
         ),
     }
 
+    packages = ("drake",)
+
     @classmethod
     def version(cls) -> str:
         import_drake()
@@ -89,9 +91,6 @@ class DrakeEngine(Engine):
 
             return str(getattr(pydrake.common, "__version__", "unknown"))
 
-    @classmethod
-    def installed_version(cls) -> str | None:
-        return installed("drake")
 
     def check_supported(self, scenario, integrator) -> None:
         scheme = integrator.options["scheme"]

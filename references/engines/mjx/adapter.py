@@ -10,7 +10,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import BodyModel, ModelReadback
 from references.engines.integrators import Family, Integrator, register_family
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine
 from references.engines.mjx.batch import run_batch
 from references.engines.mjx.compile import (
     CHECKPOINTS,
@@ -211,10 +211,13 @@ class MjxEngine(Engine):
     def version(cls) -> str:
         return _version_text(_versions())
 
+    packages = ("mujoco-mjx", "mujoco", "jax", "jaxlib")
+
     @classmethod
-    def installed_version(cls) -> str | None:
-        v = {p: installed(p) for p in ("mujoco-mjx", "mujoco", "jax", "jaxlib")}
-        return None if None in v.values() else _version_text(v)
+    def version_of(cls, versions) -> str | None:
+        return (
+            None if any(versions.get(p) is None for p in cls.packages) else _version_text(versions)
+        )
 
     def check_supported(self, scenario, integrator) -> None:
         MujocoEngine().check_supported(scenario, MujocoEngine.integrator(_mj_name(integrator)))
