@@ -3,7 +3,7 @@
 The body: a free body, m = 1 kg, I = (1, 2, 3) kg m^2, no gravity, W0 = (0.01, 2, 0.01) rad/s
 with its direction drawn at random per body (the ensemble's rule, reports.run.ensemble.members:
 same kinetic energy), dt = 1e-3 s. Both engines get the same MJCF (the adapters',
-references.engines.mujoco_engine.MujocoEngine.model_xml) and the same initial states.
+references.engines.mujoco.adapter.MujocoEngine.model_xml) and the same initial states.
 
 - MJX: the mjx adapter's compiled stepping (references.engines.mjx), vmapped over the
   bodies, one call for ``--nstep`` steps with only the last state returned; compiled ahead of
@@ -99,7 +99,7 @@ def rollout_rate(integrator: str, n: int, nstep: int, repeat: int, nthread: int)
     from mujoco import rollout
 
     from references.engines.context import BodyModel
-    from references.engines.mujoco_engine import MujocoEngine
+    from references.engines.mujoco.adapter import MujocoEngine
 
     m = mujoco.MjModel.from_xml_string(
         MujocoEngine.model_xml(BodyModel.of(scenario(), DT), integrator)

@@ -184,7 +184,7 @@ def cmd_list(args) -> int:
 def _show_lines(sc) -> list[str]:
     """What ``show`` prints of one checked scenario: its bodies and joints, run, reference
     and the scales its metrics are divided by."""
-    from references.engines.exact_system import reference_kind as system_reference_kind
+    from references.engines.exact.system import reference_kind as system_reference_kind
 
     def vec(a) -> str:
         return "[" + ", ".join(f"{float(x):.6g}" for x in a) + "]"

@@ -85,7 +85,7 @@ def reference_problem(sc) -> str | None:
     if getattr(sc, "is_system", False):
         import numpy as np
 
-        from references.engines import exact_system
+        from references.engines.exact import system as exact_system
         from references.errors import Unsupported
 
         try:

@@ -27,8 +27,8 @@ from scipy.integrate import solve_ivp
 from director_model.system import Body, Joint
 from director_model.system.examples import rod_chain
 from references.conventions import rotvec_to_matrix
-from references.engines import pinocchio_system as ps
 from references.engines import system_conformance as kit
+from references.engines.pinocchio import system as ps
 from references.engines.system_conformance import hinge_chain, scenario
 from references.errors import EngineError, Unsupported
 from references.exact.multibody import solve, tree_from_world

@@ -1,4 +1,4 @@
-"""The DART builder for systems of bodies (references/engines/dart_system.py).
+"""The DART builder for systems of bodies (references/engines/dart/system.py).
 
 Expected values come from formulations that share nothing with DART: the reduced-coordinate
 reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("dartpy")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
-from references.engines import dart_system as ds  # noqa: E402
+from references.engines.dart import system as ds  # noqa: E402
 from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
 from tests import system_builders as sb  # noqa: E402

@@ -1,4 +1,4 @@
-"""The Drake builder for systems of bodies (references/engines/drake_system.py).
+"""The Drake builder for systems of bodies (references/engines/drake/system.py).
 
 Expected values come from formulations that share nothing with Drake: the reduced-coordinate
 reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
@@ -17,8 +17,8 @@ pytest.importorskip("pydrake")
 
 from director_model.system import Body, Joint  # noqa: E402
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
-from references.engines import drake_system as ds  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
+from references.engines.drake import system as ds  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
 from tests import system_builders as sb  # noqa: E402

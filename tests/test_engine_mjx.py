@@ -262,7 +262,7 @@ def _rk4_mjx_algorithm(sc, dt, nstep):
     then v1 = v0 + h sum b_i a_i and q1 = q0 (+) h sum b_i v_i. Returns qpos, qvel at the end."""
     import mujoco
 
-    from references.engines.mujoco_engine import MujocoEngine
+    from references.engines.mujoco.adapter import MujocoEngine
 
     bm = BodyModel.of(sc, dt)
     m = mujoco.MjModel.from_xml_string(MujocoEngine.model_xml(bm, "Euler"))

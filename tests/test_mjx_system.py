@@ -1,4 +1,4 @@
-"""The MJX builder for systems of bodies (references/engines/mjx_system.py), float64: trees
+"""The MJX builder for systems of bodies (references/engines/mjx/system.py), float64: trees
 and loops closed by MuJoCo's equality connects, stepped by MJX's JAX backend.
 
 Expected values: C MuJoCo (the same model, MJX's Euler is MuJoCo's algorithm), the
@@ -16,8 +16,8 @@ import pytest
 pytest.importorskip("mujoco.mjx")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
-from references.engines import mjx_system  # noqa: E402
-from references.engines import mujoco_system as ms  # noqa: E402
+from references.engines.mjx import system as mjx_system  # noqa: E402
+from references.engines.mujoco import system as ms  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
 from tests.test_mujoco_system import four_bar_solref_errors, max_err, reference  # noqa: E402

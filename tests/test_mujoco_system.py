@@ -1,4 +1,4 @@
-"""The MuJoCo builder for systems of bodies (references/engines/mujoco_system.py).
+"""The MuJoCo builder for systems of bodies (references/engines/mujoco/system.py).
 
 Expected values come from formulations that share nothing with MuJoCo: the reduced-coordinate
 reference (references/exact/multibody: its own recursive dynamics, DOP853 at rtol 1e-13),
@@ -25,7 +25,7 @@ from director_model.system.examples import (  # noqa: E402
     rod_chain,
     rot_y,
 )
-from references.engines import mujoco_system as ms  # noqa: E402
+from references.engines.mujoco import system as ms  # noqa: E402
 from references.engines.system_conformance import scenario, slider  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
 from references.exact.multibody import solve, tree_from_world  # noqa: E402

@@ -1,4 +1,4 @@
-"""The Pinocchio builder for systems of bodies (references/engines/pinocchio_system.py).
+"""The Pinocchio builder for systems of bodies (references/engines/pinocchio/system.py).
 
 Expected values come from formulations that share nothing with Pinocchio: the reduced-coordinate
 reference (references/exact/multibody: its own recursive dynamics, DOP853 at rtol 1e-13, far
@@ -18,8 +18,8 @@ import pytest
 pytest.importorskip("pinocchio")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
-from references.engines import pinocchio_system as ps  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
+from references.engines.pinocchio import system as ps  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError  # noqa: E402
 from tests import system_builders as sb  # noqa: E402

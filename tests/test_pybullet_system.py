@@ -1,4 +1,4 @@
-"""The PyBullet builder for systems of bodies (references/engines/pybullet_system.py).
+"""The PyBullet builder for systems of bodies (references/engines/pybullet/system.py).
 
 Expected values come from formulations that share nothing with PyBullet: the reduced-coordinate
 reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulum of the
@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("pybullet")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
-from references.engines import pybullet_system as bs  # noqa: E402
+from references.engines.pybullet import system as bs  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
 from tests import system_builders as sb  # noqa: E402

@@ -127,7 +127,7 @@ def test_a_long_native_error_keeps_its_first_line_and_points_to_the_whole_text(
     JAX's "Cannot lower jaxpr" for MJX) is an 'error' row whose message is the first line,
     where it was raised and the file holding the whole text and the traceback; without an
     output folder the row keeps the whole text; a short message stays whole."""
-    from references.engines.mujoco_engine import MujocoEngine
+    from references.engines.mujoco.adapter import MujocoEngine
 
     dump = "Cannot lower jaxpr with verifier errors:\n" + "\tat loc(jit(step)/tril)\n" * 150
 

@@ -98,7 +98,7 @@ def test_the_plant_is_restored_and_the_kit_reports_an_uncaught_mistake(monkeypat
     """The kit fails a builder that lets a mistake through: with the director's joint check
     switched off (its refusal becomes a silent run), the kit reports each mistake uncaught;
     and a plant never outlives its block."""
-    from references.engines import director_system
+    from references.engines.director import system as director_system
 
     orig = director_system.model
     with kit.planted("director", kit.MISTAKES[0]):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import scenarios
-from references.engines.exact_system import reference
+from references.engines.exact.system import reference
 from references.trajectory import SystemTrajectory
 from reports.metrics.system import compute_system_metrics
 from scenarios import ScenarioError
@@ -177,7 +177,7 @@ def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
 def test_trajectory_errors_are_judged_only_inside_the_trusted_horizon():
     """A run that departs from the reference after the reference's horizon: its attitude
     error counts only up to the horizon; its invariants count over the whole run."""
-    from references.engines.exact_system import SystemReference
+    from references.engines.exact.system import SystemReference
 
     sc = scenarios.load("spinning_chain").replace(t_end=1.0)
     t = np.linspace(0.0, 1.0, 11)

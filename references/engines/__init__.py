@@ -24,12 +24,12 @@ from references.errors import Diverged, EngineError, EngineUnavailable, StepFail
 ENTRY_POINT_GROUP = "director_bench.engines"
 
 BUILTIN = {
-    "director": "references.engines.director:DirectorEngine",
-    "exact": "references.engines.exact:ExactEngine",
-    "mujoco": "references.engines.mujoco_engine:MujocoEngine",
-    "pinocchio": "references.engines.pinocchio_engine:PinocchioEngine",
-    "dart": "references.engines.dart_engine:DartEngine",
-    "pybullet": "references.engines.pybullet_engine:PybulletEngine",
+    "director": "references.engines.director.adapter:DirectorEngine",
+    "exact": "references.engines.exact.adapter:ExactEngine",
+    "mujoco": "references.engines.mujoco.adapter:MujocoEngine",
+    "pinocchio": "references.engines.pinocchio.adapter:PinocchioEngine",
+    "dart": "references.engines.dart.adapter:DartEngine",
+    "pybullet": "references.engines.pybullet.adapter:PybulletEngine",
     "drake": "references.engines.drake:DrakeEngine",
     "mjx": "references.engines.mjx:MjxEngine",
 }

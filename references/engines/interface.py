@@ -37,8 +37,8 @@ from references.errors import EngineError, EngineUnavailable, Unsupported
 class EngineBase(ABC):
     """What the runner needs of anything that produces trajectories: a name, integrators, a
     version, and :meth:`run`. :class:`Engine` (an engine adapter) implements :meth:`run` with
-    the shared loop; the exact reference (:mod:`references.engines.exact`) implements it by
-    evaluating closed forms."""
+    the shared loop; the exact reference (:mod:`references.engines.exact.adapter`) implements
+    it by evaluating closed forms."""
 
     name: ClassVar[str]
     integrators: ClassVar[tuple[Integrator, ...]]

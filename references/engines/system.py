@@ -1,8 +1,8 @@
 """Runs of systems of bodies: the suite's side of the contract with the engine builders.
 
 An engine runs a system scenario (:class:`scenarios.SystemScenario`) through a builder module
-``references/engines/<engine>_system.py`` (the engine's registry name, e.g.
-``director_system``, ``mujoco_system``) that provides::
+``references/engines/<engine>/system.py`` (the engine's registry name, e.g.
+``director/system.py``, ``mujoco/system.py``) that provides::
 
     def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
                         **settings) -> dict | object
@@ -56,9 +56,9 @@ class SystemRunOutput:
 
 
 def builder(engine: str):
-    """The builder module of ``engine`` (``references.engines.<engine>_system``), or raise
+    """The builder module of ``engine`` (``references.engines.<engine>.system``), or raise
     :class:`Unsupported` saying that the engine has none."""
-    name = f"references.engines.{engine}_system"
+    name = f"references.engines.{engine}.system"
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as exc:
@@ -66,7 +66,7 @@ def builder(engine: str):
             raise
         raise Unsupported(
             f"{engine}: this engine has no system builder (references/engines/"
-            f"{engine}_system.py), so it runs no system of bodies yet"
+            f"{engine}/system.py), so it runs no system of bodies yet"
         ) from None
 
 

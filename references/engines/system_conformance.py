@@ -4,7 +4,7 @@ systems of bodies must catch, and the kit's systems (shared by the builders' tes
 :func:`check_mistakes` runs one of the kit's systems (:func:`hinge_chain`: four links on
 revolute joints with random attitudes, so that no relative rotation is the identity and an
 axis written in the wrong body's frame points elsewhere) through an engine's builder
-(``references.engines.<engine>_system``), first as built (it must run), then with each
+(``references.engines.<engine>.system``), first as built (it must run), then with each
 mistake of :data:`MISTAKES` planted at the builder's boundary with the engine, and returns a
 :class:`~references.engines.conformance.Check` per mistake: ``ok`` when the run refuses with
 :class:`~references.errors.EngineError` naming the planted joint (``'h1'``) or its child body
@@ -254,7 +254,7 @@ def _plant_mjcf(mistake):
 
 
 def _plant_director(mistake):
-    """The mistake in the director's Body and Joint lists (``director_system.model``)."""
+    """The mistake in the director's Body and Joint lists (``director.system.model``)."""
 
     def change(orig):
         def planted(scenario):
@@ -282,13 +282,13 @@ def _unit(a) -> np.ndarray:
 
 #: per builder: where and how each mistake is planted (module docstring)
 PLANTS = {
-    "director": ("director_system", _plant_director),
-    "mujoco": ("mujoco_system", _plant_mjcf),
-    "mjx": ("mujoco_system", _plant_mjcf),  # MJX steps the C builder's checked model
-    "pinocchio": ("pinocchio_system", _plant_engine_frames),
-    "dart": ("dart_system", _plant_engine_frames),
-    "pybullet": ("pybullet_system", _plant_engine_frames),
-    "drake": ("drake_system", _plant_drake_frames),
+    "director": ("director.system", _plant_director),
+    "mujoco": ("mujoco.system", _plant_mjcf),
+    "mjx": ("mujoco.system", _plant_mjcf),  # MJX steps the C builder's checked model
+    "pinocchio": ("pinocchio.system", _plant_engine_frames),
+    "dart": ("dart.system", _plant_engine_frames),
+    "pybullet": ("pybullet.system", _plant_engine_frames),
+    "drake": ("drake.system", _plant_drake_frames),
 }
 
 

@@ -190,7 +190,7 @@ def compute_system_metrics(scenario, traj, ref=None, keep: dict | None = None) -
     (:mod:`reports.metrics.catalog`; the module docstring) as its largest value over the
     samples, those against the reference over the samples up to its trusted horizon, NaN
     where it does not apply. ``ref``: the
-    :class:`references.engines.exact_system.SystemReference` at the same times, or None
+    :class:`references.engines.exact.system.SystemReference` at the same times, or None
     (error metrics NaN). ``keep``: a dict that receives the per-sample series of the metrics
     not against the reference (metric name: series, None where one does not apply), for
     :func:`error_series` to reuse."""

@@ -143,11 +143,11 @@ PRELOAD = (
     "reports.run.runner",
     "references.engines",
     "references.exact",
-    "references.engines.director",
+    "references.engines.director.adapter",
     "reports.run.system",  # a system of bodies' runs
     "references.exact.multibody",
-    "references.engines.director_system",
-    "references.engines.exact_system",
+    "references.engines.director.system",
+    "references.engines.exact.system",
 )
 
 

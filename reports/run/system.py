@@ -4,7 +4,7 @@ scenarios here and turns a failure into the row's status.
 
 Flow: the engine's system builder (:func:`references.engines.system.run_system`) -> the
 states (:class:`references.trajectory.SystemTrajectory`) -> the reference
-(:func:`references.engines.exact_system.reference`) -> the metrics
+(:func:`references.engines.exact.system.reference`) -> the metrics
 (:mod:`reports.metrics.system`) -> status and verdict (:mod:`reports.metrics.verdicts`) -> the
 trajectory file (Parquet, per-body columns and the error series).
 """
@@ -49,7 +49,7 @@ def _measure(row, spec, sc, output, out, fmt):
     """Timings, settings, metrics and the trajectory file of a run's output; returns the
     reference used (None: none)."""
     from references.engines import Unsupported, get_engine
-    from references.engines.exact_system import reference
+    from references.engines.exact.system import reference
     from reports.metrics.system import compute_system_metrics, error_series
 
     if output is None:

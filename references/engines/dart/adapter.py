@@ -87,7 +87,6 @@ class DartEngine(Engine):
     def version(cls) -> str:
         return _import().__version__
 
-
     # -- model -------------------------------------------------------------------------
     def build(self, ctx) -> None:
         dart = _import()

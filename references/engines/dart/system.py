@@ -1,10 +1,10 @@
 """DART (dartpy) builder for systems of rigid bodies: one Skeleton in DART's reduced coordinates,
 loops closed by DART's own joint constraints inside ``World.step``.
 
-Input: a system scenario as for :mod:`references.engines.pinocchio_system` (the contract's
+Input: a system scenario as for :mod:`references.engines.pinocchio.system` (the contract's
 ``name, gravity, bodies, joints``); the spanning tree, the reference orientations and the frames
-are that module's :func:`~references.engines.pinocchio_system.plan` and
-:func:`~references.engines.pinocchio_system.engine_frames` (one definition for both engines):
+are that module's :func:`~references.engines.pinocchio.system.plan` and
+:func:`~references.engines.pinocchio.system.engine_frames` (one definition for both engines):
 every DART body frame sits at its joint point, parallel to the body's principal frame, with the
 local COM at -Y (``setLocalCOM``) and ``Inertia(m, -Y, diag(I))`` (moments about the COM); the
 joint's transform from the parent body node is (R_ref, X - Y_p) and from the child body node the
@@ -54,9 +54,9 @@ from contextlib import contextmanager
 import numpy as np
 
 from references import conventions as cv
-from references.engines import pinocchio_system as ps
 from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
+from references.engines.pinocchio import system as ps
 from references.errors import Diverged, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
@@ -455,7 +455,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     ``nstep`` steps saved at 0, s, 2s, ..., nstep; ``settings``: ``erp`` (DART's error reduction
     parameter of its joint constraints, a global of DART; default: DART's own).
 
-    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio_system.
+    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio.system.
     simulate_system`), ``engine_time_s`` (inside World.step, or, for RKMK4, inside the joints'
     state setters, computeForwardDynamics and getAccelerations, not the conversions to and from
     DART's coordinates) and ``settings``. Raises :class:`Unsupported`,

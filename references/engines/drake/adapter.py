@@ -91,7 +91,6 @@ class DrakeEngine(Engine):
 
             return str(getattr(pydrake.common, "__version__", "unknown"))
 
-
     def check_supported(self, scenario, integrator) -> None:
         scheme = integrator.options["scheme"]
         if integrator.options["mode"] == "discrete":

@@ -3,9 +3,9 @@
 floating root), loops
 closed by ``AddBallConstraint`` on discrete (SAP) plants only.
 
-Input: a system scenario as for :mod:`references.engines.pinocchio_system` (the contract's
+Input: a system scenario as for :mod:`references.engines.pinocchio.system` (the contract's
 ``name, gravity, bodies, joints``); the spanning tree is that module's
-:func:`~references.engines.pinocchio_system.plan` (one definition for every reduced-coordinate
+:func:`~references.engines.pinocchio.system.plan` (one definition for every reduced-coordinate
 engine).
 
 Frames. Every Drake body frame is the body's principal frame at its COM
@@ -26,7 +26,7 @@ revolute            ``RevoluteJoint`` (axis  angle 0; rate n . (W_c - R_rel^T W_
                     = the child's, in M)
 prismatic           ``PrismaticJoint`` (axis translation = the anchors' offset along the
                     = the child's, in M)    axis, rate its rate
-                                            (:func:`~references.engines.pinocchio_system.slide_state`)
+                                            (:func:`~references.engines.pinocchio.system.slide_state`)
 (floating root)     ``QuaternionFloatingJoint``  SetFreeBodyPose / SetFreeBodySpatialVelocity
 others              -                       unsupported (not built by this adapter)
 ==================  ======================  ================================================
@@ -71,8 +71,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from references.engines import pinocchio_system as ps
 from references.engines.native import import_engine
+from references.engines.pinocchio import system as ps
 from references.errors import Diverged, EngineError, Unsupported
 
 #: fixed-step continuous schemes (Drake's names) and the discrete plant
@@ -474,7 +474,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
 
     ``integrator``: one of :data:`INTEGRATORS`; ``dt`` s; ``nstep`` steps saved at 0, s, 2s,
     ..., nstep; no settings. Returns a dict with ``t, x, R, v, W`` (as
-    :func:`references.engines.pinocchio_system.simulate_system`), ``engine_time_s`` (inside
+    :func:`references.engines.pinocchio.system.simulate_system`), ``engine_time_s`` (inside
     Simulator.AdvanceTo, summed over the plants of every chart) and ``settings`` (with the
     number and times of the chart switches). Raises :class:`Unsupported` (a loop on a
     continuous plant), :class:`EngineError` (read-back or state mismatch at t = 0 or at a chart

@@ -30,13 +30,13 @@ class ExactEngine(EngineBase):
 
     @classmethod
     def version(cls) -> str:
-        from references.engines.director import DirectorEngine
+        from references.engines.director.adapter import DirectorEngine
 
         return DirectorEngine.version()
 
     @classmethod
     def installed_version(cls) -> str | None:
-        from references.engines.director import DirectorEngine
+        from references.engines.director.adapter import DirectorEngine
 
         return DirectorEngine.installed_version()
 

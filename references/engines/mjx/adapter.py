@@ -28,7 +28,7 @@ from references.engines.mjx.compile import (
     _versions,
     x64_mode,
 )
-from references.engines.mujoco_engine import MujocoEngine
+from references.engines.mujoco.adapter import MujocoEngine
 from references.errors import EngineError, Unsupported
 
 #: MJX's RK4 (see the module docstring); registered like Drake's families

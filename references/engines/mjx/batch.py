@@ -20,7 +20,7 @@ from references.engines.mjx.compile import (
     _native_fn,
     _states,
 )
-from references.engines.mujoco_engine import MujocoEngine
+from references.engines.mujoco.adapter import MujocoEngine
 from references.engines.stepping import CHUNK, DIVERGENCE_ENERGY, check_readback
 from references.errors import Diverged, EngineError
 from scenarios.schema import step_plan

@@ -31,7 +31,7 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.context import BodyModel, RunContext
-from references.engines.mujoco_engine import MujocoEngine
+from references.engines.mujoco.adapter import MujocoEngine
 from references.engines.native import import_engine
 from references.errors import EngineError, EngineUnavailable
 
@@ -95,9 +95,9 @@ def _import():
 
     _persistent_cache(jax)
     # the C adapter's warning handler (MuJoCo's warnings to its log file)
-    from references.engines import mujoco_engine
+    from references.engines.mujoco import adapter
 
-    mujoco_engine._import()
+    adapter._import()
     _MODULES = (mujoco, jax, mjx)
     return _MODULES
 
@@ -212,7 +212,7 @@ def _compiled(kind: str, fn, trees: tuple, extra: tuple, x64: bool):
 _EXPORT_FORMAT = b"director-bench mjx exported 1\n"
 
 #: the sources whose text is part of every key: ours that define the compiled functions
-_OWN_SOURCES = ("mjx/compile.py", "mjx/adapter.py", "mjx/batch.py", "mjx_system.py")
+_OWN_SOURCES = ("mjx/compile.py", "mjx/adapter.py", "mjx/batch.py", "mjx/system.py")
 
 _SOURCES_DIGEST: list[bytes] = []
 

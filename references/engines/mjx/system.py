@@ -1,5 +1,5 @@
 """MJX builder for systems of rigid bodies (trees and loops), in float64: MuJoCo's JAX
-implementation stepping the model of the C builder (:mod:`references.engines.mujoco_system`).
+implementation stepping the model of the C builder (:mod:`references.engines.mujoco.system`).
 
 The model is built, checked and read back exactly as for C MuJoCo (:func:`mujoco_system.build`:
 the spanning tree, the initial states checked against every joint, the compiled ``MjModel``
@@ -51,8 +51,8 @@ import time
 
 import numpy as np
 
-from references.engines import mujoco_system as ms
-from references.engines.pinocchio_system import check_settings
+from references.engines.mujoco import system as ms
+from references.engines.pinocchio.system import check_settings
 from references.errors import Diverged, EngineError, Unsupported
 
 #: the integrators MJX's JAX backend steps, and what each is
@@ -126,7 +126,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                     **settings) -> dict:  # fmt: skip
     """Run ``scenario`` on MJX in float64 (module docstring); arguments, settings (``solref``
     and ``solimp`` of the loop-closing connects) and result as
-    :func:`references.engines.mujoco_system.simulate_system`. Raises :class:`Unsupported` for
+    :func:`references.engines.mujoco.system.simulate_system`. Raises :class:`Unsupported` for
     a joint or loop the C builder does not build, or an integrator MJX does not implement."""
     check_settings("mjx", settings, _SETTINGS)
     integrator = _base_name(integrator)

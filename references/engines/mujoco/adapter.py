@@ -129,7 +129,6 @@ class MujocoEngine(Engine):
     def version(cls) -> str:
         return _import().__version__
 
-
     def check_supported(self, scenario, integrator) -> None:
         mujoco = _import()
         enum = _INTEGRATOR_ENUM[integrator.name]

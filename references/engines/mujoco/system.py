@@ -9,7 +9,7 @@ body's principal frame relative to its COM; a world point for the ground), ``axi
 (same frames), ``name``), the fields of ``director_model.system.Body`` and ``Joint``.
 
 Spanning tree: the plan of every reduced-coordinate builder
-(:func:`references.engines.pinocchio_system.plan`, :func:`plan`): the scenario's loop closures
+(:func:`references.engines.pinocchio.system.plan`, :func:`plan`): the scenario's loop closures
 (``loop_joints``, else the rule of ``scenarios.system.spanning_tree``), the other joints a
 tree grown from the ground, a body joined to nothing a floating root with a ``free`` joint.
 
@@ -75,11 +75,11 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from references import conventions as cv
-from references.engines import pinocchio_system as ps
 from references.engines.native import import_engine
-from references.engines.pinocchio_system import saves as _saves
-from references.engines.pinocchio_system import unit as _unit
-from references.engines.pinocchio_system import vec as _vec
+from references.engines.pinocchio import system as ps
+from references.engines.pinocchio.system import saves as _saves
+from references.engines.pinocchio.system import unit as _unit
+from references.engines.pinocchio.system import vec as _vec
 from references.errors import Diverged, EngineError, Unsupported
 
 #: MuJoCo's integrators offered (``mjtIntegrator``); "discrete" only where MuJoCo has it
@@ -121,10 +121,10 @@ class InconsistentSystem(EngineError):
 
 
 def _import():
-    from references.engines import mujoco_engine
+    from references.engines.mujoco import adapter
 
     mujoco = import_engine("mujoco", "MuJoCo", "mujoco")
-    mujoco_engine._import()  # MuJoCo's warnings to its log file, as for one body
+    adapter._import()  # MuJoCo's warnings to its log file, as for one body
     return mujoco
 
 
@@ -144,7 +144,7 @@ _MJ = {"free": "free", "spherical": "ball", "revolute": "hinge", "prismatic": "s
 
 def plan(scenario) -> ps.Plan:
     """The spanning tree, reference configuration and loop closures of ``scenario``: the plan
-    of every reduced-coordinate builder (:func:`references.engines.pinocchio_system.plan`)
+    of every reduced-coordinate builder (:func:`references.engines.pinocchio.system.plan`)
     with every kind of :data:`TREE_KINDS` in the tree. Raises ``ValueError`` for malformed
     joints, :class:`Unsupported` for a closure this builder cannot express."""
     return ps.plan(scenario, "mujoco", TREE_KINDS)

@@ -66,7 +66,6 @@ class PinocchioEngine(Engine):
     def version(cls) -> str:
         return _import().__version__
 
-
     # -- model -------------------------------------------------------------------------
     def build(self, ctx) -> None:
         pin = _import()

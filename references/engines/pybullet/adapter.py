@@ -146,7 +146,6 @@ class PybulletEngine(Engine):
         _import()
         return importlib.metadata.version("pybullet")
 
-
     def check_supported(self, scenario, integrator) -> None:
         if integrator.name == "maximal coordinates" and scenario.pivot is not None:
             raise Unsupported(

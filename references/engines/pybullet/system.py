@@ -1,9 +1,9 @@
 """PyBullet builder for systems of rigid bodies: btMultiBody trees in Bullet's reduced
 (Featherstone) coordinates, loops closed by ``createConstraint(JOINT_POINT2POINT)``.
 
-Input: a system scenario as for :mod:`references.engines.pinocchio_system` (the contract's
+Input: a system scenario as for :mod:`references.engines.pinocchio.system` (the contract's
 ``name, gravity, bodies, joints``); the spanning tree, reference orientations and frames are that
-module's :func:`~references.engines.pinocchio_system.plan` and ``engine_frames`` (one definition
+module's :func:`~references.engines.pinocchio.system.plan` and ``engine_frames`` (one definition
 for every reduced-coordinate engine). Every body that hangs from the ground is a link of one
 fixed-base multibody (massless base at the world origin); every floating root is the base of a
 multibody of its own (base inertial frame = link frame = its principal frame at its COM).
@@ -65,8 +65,8 @@ import time
 import numpy as np
 
 from references import conventions as cv
-from references.engines import pinocchio_system as ps
-from references.engines.pybullet_engine import MAX_JOINT_VELOCITY, _import
+from references.engines.pinocchio import system as ps
+from references.engines.pybullet.adapter import MAX_JOINT_VELOCITY, _import
 from references.errors import Diverged, EngineError, Unsupported
 
 INTEGRATORS = ("multibody", "maximal coordinates")
@@ -470,7 +470,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     :data:`DEFAULT_ERP`), ``max_force`` (their force limit, N, default
     :data:`DEFAULT_MAX_FORCE`).
 
-    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio_system.
+    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio.system.
     simulate_system`), ``engine_time_s`` (inside stepSimulation) and ``settings``. Raises
     :class:`Unsupported`, :class:`EngineError` (read-back, probe or initial-state mismatch) and
     :class:`Diverged` (non-finite state, or a speed near the raised velocity clamp).
