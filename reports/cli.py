@@ -204,6 +204,10 @@ def _show_lines(sc) -> list[str]:
             )
         for j in sc.joints:
             lines.append(f"    joint {j.name}: {j.kind} {j.body_a} - {j.body_b or 'ground'}")
+        if getattr(sc, "model", None) is not None:
+            from scenarios.models.scenario import describe
+
+            lines += describe(sc)
         kind = system_reference_kind(sc)
     else:
         from references.exact import resolve_kind

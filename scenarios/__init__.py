@@ -34,8 +34,10 @@ __all__ = [
     "is_library_file",
     "library_path",
     "list_scenarios",
+    "list_robots",
     "list_systems",
     "load",
+    "robots_path",
     "systems_path",
     "validate",
 ]
@@ -52,7 +54,7 @@ def is_library_file(sc) -> bool:
     if not getattr(sc, "path", None):
         return False
     folder = Path(sc.path).resolve().parent
-    return folder in (library_path(), systems_path())
+    return folder in (library_path(), systems_path(), robots_path())
 
 
 def list_scenarios() -> list[str]:
@@ -73,6 +75,16 @@ def systems_path() -> Path:
 def list_systems() -> list[str]:
     """Names of the library's systems of bodies (file stems), sorted."""
     return sorted(p.stem for p in systems_path().glob("*.toml"))
+
+
+def robots_path() -> Path:
+    """The directory holding the library's robot-model scenarios (``[model]`` files)."""
+    return library_path() / "robots"
+
+
+def list_robots() -> list[str]:
+    """Names of the library's robot-model scenarios (file stems), sorted."""
+    return sorted(p.stem for p in robots_path().glob("*.toml"))
 
 
 def default_systems() -> list[str]:
@@ -96,7 +108,9 @@ def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     if not path.is_file():
         path = systems_path() / f"{s}.toml"
     if not path.is_file():
-        names = ", ".join(list_scenarios() + list_systems())
+        path = robots_path() / f"{s}.toml"
+    if not path.is_file():
+        names = ", ".join(list_scenarios() + list_systems() + list_robots())
         raise ScenarioError(
             f"no scenario named {s!r} in the library ({library_path()}); available: {names}. "
             "To load a file of your own, pass its path (ending in .toml)."
