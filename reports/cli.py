@@ -243,8 +243,21 @@ def cmd_show(args) -> int:
     for sc in scs:
         check_families(sc)
         out += _show_lines(sc)
+        if args.importers and getattr(sc, "model", None) is not None:
+            out += _importer_lines(sc, args.engines)
     print("\n".join(out))
     return 0
+
+
+def _importer_lines(sc, engines) -> list[str]:
+    """The importer-difference table of a robot-model scenario (``show --importers``)."""
+    from references.importers import importer_table
+
+    rows = importer_table(sc.model, engines=engines, fixed_base=not sc.floating)
+    lines = ["  importers (each engine's own loader, read back at the zero configuration, "
+             "root-link frame; differences from our reading):"]  # fmt: skip
+    lines += [f"    {r.line()}" for r in rows]
+    return lines
 
 
 def cmd_run(args) -> int:
@@ -627,6 +640,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument(
         "scenarios", nargs="+", metavar="SCENARIO_OR_FILE", help="library names or TOML files"
     )
+    s.add_argument(
+        "--importers",
+        action="store_true",
+        help="robot-model scenarios: load the model file with every engine's own importer "
+        "(as loaded, and with the settings that make it faithful), read each model back and "
+        "print every difference from our reading by name and size",
+    )
+    s.add_argument(
+        "--engines", type=_csv_list, default=None, metavar="A,B",
+        help="with --importers: these engines only",
+    )  # fmt: skip
     s.set_defaults(func=cmd_show)
     _add_run(sub)
     _add_ensemble(sub)

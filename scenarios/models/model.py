@@ -79,6 +79,8 @@ class ModelJoint:
     armature: float = 0.0
     stiffness: float = 0.0
     where: str = ""
+    #: URDF <mimic>: the joint this one follows (refused unless held)
+    mimic: str | None = None
 
 
 @dataclass
@@ -314,6 +316,14 @@ def to_system(
                 )
             kinds[j.name] = "free" if floating else "fixed"
             continue
+        if j.mimic is not None:
+            raise _bad(
+                model,
+                f"joint {j.name!r} {j.where}",
+                f"a mimic joint (it follows "
+                f"{j.mimic!r}): the suite's joints move independently; hold it with "
+                f"lock = [{j.name!r}]",
+            )
         if k not in SUPPORTED:
             raise _bad(
                 model,

@@ -8,7 +8,8 @@ the parent's at q = 0), ``<axis xyz>`` (joint frame = child frame; default (1, 0
 normalised), ``<limit lower upper>``, ``<dynamics damping friction>``; the geometry of
 ``<visual>`` and ``<collision>`` for ``show`` and the mesh files it names (each must exist
 unless the caller says meshes do not matter); ``<transmission>`` counted as actuators.
-Refused with the reason: ``<mimic>`` (couples joints), an unknown joint type, a link with two
+Refused with the reason: a ``<mimic>`` joint that is not held (it couples joints), an
+unknown joint type, a link with two
 parents, a loop, several roots, a joint naming a link that does not exist, numbers that do
 not parse. The URDF specification: wiki.ros.org/urdf/XML (link, joint).
 
@@ -34,6 +35,12 @@ from scenarios.models.model import (
 from scenarios.models.xml import ModelError, Node, parse
 
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+
+def axis_in_child(axis: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """The joint axis in the child link's frame: URDF gives it in the joint frame, which is
+    the child's frame, so it is taken as written (``origin`` unused; one place to change)."""
+    return axis
 
 
 class _Reader:
@@ -175,13 +182,7 @@ def read(path, packages: dict | None = None, meshes: str = "require") -> RobotMo
         kind = el.get("type")
         if kind not in JOINT_TYPES:
             raise rd.bad(el, f"type={kind!r}: a URDF joint type is one of {', '.join(JOINT_TYPES)}")
-        if el.find("mimic") is not None:
-            raise rd.bad(
-                el.find("mimic"),
-                "a mimic joint couples two joints' motions; the "
-                "suite's systems have independent joints: remove it (or lock the "
-                "joint) for this test",
-            )
+        mimic = el.find("mimic")
         ends = {}
         for side in ("parent", "child"):
             s = el.find(side)
@@ -222,13 +223,14 @@ def read(path, packages: dict | None = None, meshes: str = "require") -> RobotMo
                 kind=kind,
                 parent=ends["parent"],
                 child=ends["child"],
-                origin=rd.origin(el),
-                axis=axis / n if n > 0 else axis,
+                origin=(T := rd.origin(el)),
+                axis=axis_in_child(axis / n if n > 0 else axis, T),
                 lower=lower,
                 upper=upper,
                 damping=damping,
                 friction=friction,
                 where=el.label(),
+                mimic=None if mimic is None else mimic.get("joint", "?"),
             )
         )
     roots = [lk.name for lk in links if lk.name not in child_of]
