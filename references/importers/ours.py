@@ -48,8 +48,8 @@ def readback(model) -> Readback:
         rb.bodies[lk.name] = to_root(eye, ine.mass, R @ ine.com + t[:3, 3],
                                      R @ ine.inertia @ R.T)  # fmt: skip
     for j in model.moving_joints:
-        if j.kind in ("free", "floating"):
-            continue
+        if j.kind not in ("revolute", "continuous"):
+            continue  # the importers are read back for revolute joints
         t = T[j.child]
         rb.joints[j.name] = {
             "axis": t[:3, :3] @ j.axis,
