@@ -20,7 +20,26 @@ from pathlib import Path
 
 from scenarios.model import REFERENCE_KINDS, Scenario
 from scenarios.schema import ScenarioError
-from scenarios.system import SystemBody, SystemJoint, SystemScenario, load_file, validate
+from scenarios.system import SystemBody, SystemJoint, SystemScenario
+from scenarios.system import validate as _validate_body_or_system
+
+
+def validate(data: dict, path: str | None = None):
+    """A scenario of one body, of a system (``[[bodies]]``) or of a robot model (``[model]``,
+    :mod:`scenarios.models.scenario`), validated from parsed TOML ``data``."""
+    if isinstance(data, dict) and "model" in data and "bodies" not in data:
+        from scenarios.models.scenario import validate_model
+
+        return validate_model(data, path)
+    return _validate_body_or_system(data, path)
+
+
+def load_file(path):
+    """Read and validate one scenario file (one body, a system, or a robot model)."""
+    from scenarios.schema import read_file
+
+    return validate(read_file(path), path=str(path))
+
 
 __all__ = [
     "REFERENCE_KINDS",

@@ -420,10 +420,6 @@ def validate(data: dict, path: str | None = None):
 
     if isinstance(data, dict) and "bodies" in data:
         return validate_system(data, path)
-    if isinstance(data, dict) and "model" in data:
-        from scenarios.models.scenario import validate_model
-
-        return validate_model(data, path)
     return schema.validate(data, path)
 
 
