@@ -1,9 +1,10 @@
 """Compiled kernels: the step functions of every scheme and the time loops.
 
-All numba code of director_model is in this one module on purpose: numba's on-disk cache
-(``cache=True``) is invalidated by the timestamp of the file that defines the cached
-function, not by the files of the functions it calls, so kernels spread over several modules
-could silently run stale machine code after an edit.
+The primitives shared with the system and contact kernels (the compensated sum, the
+attitude quaternion, the DMV residual and solve) are in :mod:`director_model._primitives`;
+numba keys the on-disk cache (``cache=True``) of a function on its own file only, so the
+caches of this module are tied to the primitives' file as well (:func:`director_model._cache.tie`,
+at the end of this module): an edit there recompiles these kernels.
 
 Debugging: run with the environment variable ``NUMBA_DISABLE_JIT=1`` to execute these same
 functions as plain Python (``prange`` becomes ``range``); the numbers are the same (a test
@@ -32,7 +33,7 @@ Data layout (float64 arrays, so one compiled signature serves every body):
     start. S[24:27] Pi = Ibar W; S[27:30] the body torque of gravity (cached between
     steps); S[30:33] D_0^T g. S[40:44] and S[44:47] are the compensations of p and Pi: the
     rounding error of the last sum into each entry (Kahan's compensated summation, see
-    :func:`_kahan`); the value of an entry is S[k] + its compensation, S[k] being that
+    :func:`kahan`); the value of an entry is S[k] + its compensation, S[k] being that
     value rounded to double. Zero at the start of a run.
     A free centre of mass is never stepped: every scheme integrates free flight exactly
     (RATTLE and the energy-momentum midpoint rule both give x += h v + h^2/2 g, v += h g,
@@ -55,6 +56,27 @@ import math
 import numpy as np
 from numba import literally, njit, prange
 
+from director_model import _cache
+from director_model._primitives import (
+    EPS,
+    FAIL_BRANCH,
+    FAIL_NEWTON,
+    FAIL_NONFINITE,
+    FP_SMAX,
+    MAXIT,
+    OK,
+    cramer3,
+    diag_finish,
+    dmv_residual,
+    dmv_solve_diag,
+    fp_count,
+    fp_step,
+    kahan,
+    quat_increment,
+    quat_matrix,
+    stagnated,
+)
+
 NP = 36
 NS = 47
 #: RATTLE family: the attitude quaternion p (S[36:40]), its compensation (S[40:44]) and the
@@ -73,12 +95,9 @@ RESCALE_EVERY = 64
 RATTLE_FAMILY = 0
 ENERGY_MOMENTUM = 1
 
-#: status codes
-OK = 0
-FAIL_NEWTON = 1  # Newton did not reach the round-off tolerance within the iteration cap
-FAIL_BRANCH = 2  # no admissible solution: |v| >= 1, det(Jacobian) <= 0, or rotation >= 90 deg
+#: status codes: OK, FAIL_NEWTON, FAIL_BRANCH and FAIL_NONFINITE those of the DMV solve
+#: (director_model._primitives), and
 FAIL_SINGULAR = 3  # singular saddle-point matrix (energy-momentum Newton)
-FAIL_NONFINITE = 4  # a non-finite number appeared in the state
 
 STATUS_TEXT = {
     FAIL_NEWTON: "Newton's method did not converge to round-off within the iteration cap",
@@ -91,36 +110,9 @@ STATUS_TEXT = {
     FAIL_NONFINITE: "a non-finite number appeared in the state",
 }
 
-EPS = 2.220446049250313e-16
-#: Residual tolerance of the DMV Newton solve, relative to the sum of the magnitudes of the
-#: terms of each equation (their rounding error is about 2-3 ulps of that sum).
-DMV_TOL = 4.0 * EPS
 #: Energy-momentum residual tolerance, relative to the magnitude of the terms (9x9 products
 #: with up to 6 terms each: rounding of order 10 ulps).
 EM_TOL = 16.0 * EPS
-MAXIT = 30
-
-
-@njit(inline="always")
-def _qnorm(w0, w1, w2):
-    """1 + |w|^2, summed as (w0^2 + w1^2) + (w2^2 + 1): two roundings at the ulp of 1 and a
-    chain two additions deep."""
-    return (w0 * w0 + w1 * w1) + (w2 * w2 + 1.0)
-
-
-@njit(inline="always")
-def _kahan(hi, lo, d, comp):
-    """Add the increment d to the value hi + lo (Kahan's compensated summation, Kahan 1965;
-    Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed., section 4.3).
-
-    Returns (t, e): t = hi + (d + lo) rounded, the new value in double, and e the part of
-    d + lo that the rounding lost (exactly, when |hi| >= |d + lo|). Over many steps the error
-    of the running sum stays at a few ulps of the sum of the |d|, instead of one rounding of
-    the (large) value per step. ``comp`` False gives the plain sum hi + d and e = 0 (the
-    uncompensated variant, for round-off studies; lo is then always 0)."""
-    y = d + lo
-    t = hi + y
-    return t, (y - (t - hi)) if comp else 0.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -177,7 +169,7 @@ def _dmv_solve(P, b0, b1, b2):
         u0 = I00 * w0 + I01 * w1 + I02 * w2
         u1 = I10 * w0 + I11 * w1 + I12 * w2
         u2 = I20 * w0 + I21 * w1 + I22 * w2
-        G0, G1, G2, conv, finite = _dmv_residual(b0, b1, b2, w0, w1, w2, u0, u1, u2)
+        G0, G1, G2, conv, finite = dmv_residual(b0, b1, b2, w0, w1, w2, u0, u1, u2)
         if conv:
             # Polish: one simplified-Newton step with the leading part Ibar of the Jacobian
             # (K = Ibar (1 + O(|w|))) shrinks the accepted residual (<= 4 ulps) by a factor
@@ -210,7 +202,7 @@ def _dmv_solve(P, b0, b1, b2):
         K20 = I20 + (-w1 * I00 + w0 * I10) + u1 - t2 * w0
         K21 = I21 + (-w1 * I01 + w0 * I11) - u0 - t2 * w1
         K22 = I22 + (-w1 * I02 + w0 * I12) - t2 * w2
-        det, d0, d1, d2 = _cramer3(K00, K01, K02, K10, K11, K12, K20, K21, K22, G0, G1, G2)
+        det, d0, d1, d2 = cramer3(K00, K01, K02, K10, K11, K12, K20, K21, K22, G0, G1, G2)
         if not det > 0.0:
             # the branch through Q = 1 has det > 0 up to its first fold; det <= 0 means the
             # step is past the solvability limit or Newton is heading to another branch
@@ -218,7 +210,7 @@ def _dmv_solve(P, b0, b1, b2):
         w0 -= d0
         w1 -= d1
         w2 -= d2
-        if _stagnated(d0, d1, d2, w0, w1, w2):
+        if stagnated(d0, d1, d2, w0, w1, w2):
             # c = w x Ibar w and q at the final w for the momentum update
             u0 = I00 * w0 + I01 * w1 + I02 * w2
             u1 = I10 * w0 + I11 * w1 + I12 * w2
@@ -237,205 +229,13 @@ def _dmv_solve(P, b0, b1, b2):
     return OK, w0, w1, w2, c0, c1, c2, q
 
 
-@njit(inline="always")
-def _dmv_residual(b0, b1, b2, w0, w1, w2, u0, u1, u2):
-    """G(w) = u + w x u - (1 + |w|^2) b with u = Ibar w (computed by the caller, general or
-    diagonal Ibar). Returns (G0, G1, G2, converged, finite): converged when every |G_i| is
-    within DMV_TOL of the largest sum of term magnitudes, finite unless that sum overflowed.
-    Used by both DMV solvers and the straight-line form, inlined by numba."""
-    q = _qnorm(w0, w1, w2)
-    c0 = w1 * u2 - w2 * u1
-    c1 = w2 * u0 - w0 * u2
-    c2 = w0 * u1 - w1 * u0
-    G0 = u0 + c0 - q * b0
-    G1 = u1 + c1 - q * b1
-    G2 = u2 + c2 - q * b2
-    sc = max(
-        abs(u0) + abs(c0) + abs(q * b0),
-        abs(u1) + abs(c1) + abs(q * b1),
-        abs(u2) + abs(c2) + abs(q * b2),
-    )
-    return G0, G1, G2, max(abs(G0), abs(G1), abs(G2)) <= DMV_TOL * sc, sc < math.inf
-
-
-@njit(inline="always")
-def _cramer3(K00, K01, K02, K10, K11, K12, K20, K21, K22, G0, G1, G2):
-    """det K and K^{-1} G by cofactors (Cramer's rule). With det == 0 the correction is inf,
-    never a ZeroDivisionError (callers test det first; the guard keeps plain Python, under
-    NUMBA_DISABLE_JIT=1, and the branch-free vector code alike)."""
-    C00 = K11 * K22 - K12 * K21
-    C01 = K12 * K20 - K10 * K22
-    C02 = K10 * K21 - K11 * K20
-    det = K00 * C00 + K01 * C01 + K02 * C02
-    C10 = K02 * K21 - K01 * K22
-    C11 = K00 * K22 - K02 * K20
-    C12 = K01 * K20 - K00 * K21
-    C20 = K01 * K12 - K02 * K11
-    C21 = K02 * K10 - K00 * K12
-    C22 = K00 * K11 - K01 * K10
-    rd = 1.0 / det if det != 0.0 else math.inf
-    d0 = (C00 * G0 + C10 * G1 + C20 * G2) * rd
-    d1 = (C01 * G0 + C11 * G1 + C21 * G2) * rd
-    d2 = (C02 * G0 + C12 * G1 + C22 * G2) * rd
-    return det, d0, d1, d2
-
-
-# The pieces of the diagonal-Ibar solve, inlined by numba into the Newton loop
-# (_dmv_solve_diag), the scalar RATTLE step and the block step of the batched loop.
-@njit(inline="always")
-def _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2):
-    """Predictor Ibar w = b, then two fixed-point corrections
-    w <- Ibar^{-1} ((1 + |w|^2) b - w x Ibar w) (contraction ~|w|, error O(|w|^4))."""
-    e0 = I2 - I1
-    e1 = I0 - I2
-    e2 = I1 - I0
-    w0 = a0 * b0
-    w1 = a1 * b1
-    w2 = a2 * b2
-    for _ in range(2):
-        q = 1.0 + w0 * w0 + w1 * w1 + w2 * w2
-        # w x (Ibar w) = (e0 w1 w2, e1 w2 w0, e2 w0 w1)
-        w0n = a0 * (q * b0 - e0 * w1 * w2)
-        w1n = a1 * (q * b1 - e1 * w2 * w0)
-        w2n = a2 * (q * b2 - e2 * w0 * w1)
-        w0 = w0n
-        w1 = w1n
-        w2 = w2n
-    return w0, w1, w2
-
-
-@njit(inline="always")
-def _diag_newton(I0, I1, I2, b0, b1, b2, w0, w1, w2, G0, G1, G2):
-    """det K and the Newton correction K^{-1} G, K = Ibar + hat(w) Ibar - hat(Ibar w) - 2 b w^T
-    (the diagonal-Ibar entries of the Jacobian in _dmv_solve)."""
-    e0 = I2 - I1
-    e1 = I0 - I2
-    e2 = I1 - I0
-    t0 = 2.0 * b0
-    t1 = 2.0 * b1
-    t2 = 2.0 * b2
-    return _cramer3(
-        I0 - t0 * w0, w2 * e0 - t0 * w1, w1 * e0 - t0 * w2,
-        w2 * e1 - t1 * w0, I1 - t1 * w1, w0 * e1 - t1 * w2,
-        w1 * e2 - t2 * w0, w0 * e2 - t2 * w1, I2 - t2 * w2,
-        G0, G1, G2,
-    )  # fmt: skip
-
-
-@njit(inline="always")
-def _diag_polish(I0, I1, I2, a0, a1, a2, w0, w1, w2, G0, G1, G2):
-    """Polish (see _dmv_solve): w -= Ibar^{-1} G, then c = w x Ibar w and q = 1 + |w|^2 at
-    the new w; this takes the slow torque-free energy drift from ~0.6 to ~0.1 ulp per step.
-    Returns (w0, w1, w2, c0, c1, c2, q)."""
-    w0 -= a0 * G0
-    w1 -= a1 * G1
-    w2 -= a2 * G2
-    q = _qnorm(w0, w1, w2)
-    u0 = I0 * w0
-    u1 = I1 * w1
-    u2 = I2 * w2
-    return w0, w1, w2, w1 * u2 - w2 * u1, w2 * u0 - w0 * u2, w0 * u1 - w1 * u0, q
-
-
-@njit(inline="always")
-def _stagnated(d0, d1, d2, w0, w1, w2):
-    """The Newton correction is below one ulp of w: Newton has stagnated at round-off."""
-    return max(abs(d0), abs(d1), abs(d2)) <= EPS * max(abs(w0), abs(w1), abs(w2))
-
-
-#: Largest predictor size s = max_i |(Ibar^{-1} b)_i| (about h|W|/2, the half rotation angle)
-#: for which the straight-line solve is tried; larger steps go to the Newton loop at once.
-FP_SMAX = 2.5e-2
-
-
-@njit(inline="always")
-def _fp_count(s):
-    """Number of fixed-point corrections after which the predictor w = Ibar^{-1} b of size s
-    is within 0.1 ulp of the solution, as a float: 3 for s <= 6.5e-5, 4 up to 3.7e-4, 5 up
-    to 1.45e-3 (h|W| ~ 3e-3), 7 up to 6.5e-3, 10 up to FP_SMAX.
-
-    Each correction (:func:`_fp_step`) shrinks the error by about 0.7 s (its Jacobian is
-    Ibar^{-1} (2 b w^T - w x Ibar - ...) = O(|w|)) and the predictor's relative error is about
-    0.7 s. The least k that leaves a worst-case relative error of 0.1 ulp, measured in
-    80-bit arithmetic over 400 random bodies (a quarter of them flat) and directions, is 3
-    up to s = 8e-5, 4 up to 4.6e-4, 5 up to 1.8e-3, 7 up to 8e-3, 10 up to 3.2e-2; the
-    thresholds here are 20 % lower. The acceptance test that follows decides; the count
-    only makes it pass. Four comparisons, no branch."""
-    return (
-        3.0
-        + (1.0 if s > 6.5e-5 else 0.0)
-        + (1.0 if s > 3.7e-4 else 0.0)
-        + (2.0 if s > 1.45e-3 else 0.0)
-        + (3.0 if s > 6.5e-3 else 0.0)
-    )
-
-
-@njit(inline="always")
-def _fp_step(ab0, ab1, ab2, ae0, ae1, ae2, w0, w1, w2):
-    """One fixed-point correction of the diagonal DMV equation,
-    w <- Ibar^{-1} ((1 + |w|^2) b - w x Ibar w) = (1 + |w|^2) ab - ae * (w1 w2, w2 w0, w0 w1)
-    with ab = Ibar^{-1} b and ae = Ibar^{-1} e (P[33:36]). Latency: a product, two additions
-    (the norm), a product and a subtraction, no division."""
-    q = _qnorm(w0, w1, w2)
-    return q * ab0 - ae0 * (w1 * w2), q * ab1 - ae1 * (w2 * w0), q * ab2 - ae2 * (w0 * w1)
-
-
-@njit(inline="always")
-def _diag_finish(I0, I1, I2, a0, a1, a2, b0, b1, b2, w0, w1, w2):
-    """The end of the straight-line solve: the residual G of w (:func:`_dmv_residual`), the
-    polish w -= Ibar^{-1} G (:func:`_diag_polish`), and whether the solve is done: the
-    polish moved w by at most DMV_TOL max|w_i| (then the error left after it is a fraction
-    ~|w| of that, below an ulp) and the rotation is below 90 degrees (q = 1 + |w|^2 < 2).
-    Returns (ok, w0, w1, w2, c0, c1, c2, q) with c = w x Ibar w and q at the polished w."""
-    G0, G1, G2, _, _ = _dmv_residual(b0, b1, b2, w0, w1, w2, I0 * w0, I1 * w1, I2 * w2)
-    d = max(abs(a0 * G0), abs(a1 * G1), abs(a2 * G2))
-    conv = d <= DMV_TOL * max(abs(w0), abs(w1), abs(w2))
-    w0, w1, w2, c0, c1, c2, q = _diag_polish(I0, I1, I2, a0, a1, a2, w0, w1, w2, G0, G1, G2)
-    return conv & (q < 2.0), w0, w1, w2, c0, c1, c2, q
-
-
 @njit(cache=True)
 def _dmv_solve_diag(P, b0, b1, b2):
-    """:func:`_dmv_solve` for a diagonal Ibar (a free body, or a pivot on a principal axis):
-    the same equations and tests with the zero products left out. Called when the
-    straight-line solve of :func:`_rattle_substep` did not finish (a large step, a failure):
-    predictor, two fixed-point corrections, then Newton."""
-    I0 = P[10]
-    I1 = P[14]
-    I2 = P[18]
-    a0 = P[19]
-    a1 = P[23]
-    a2 = P[27]
-    c0 = 0.0
-    c1 = 0.0
-    c2 = 0.0
-    q = 1.0
-    w0, w1, w2 = _diag_start(I0, I1, I2, a0, a1, a2, b0, b1, b2)
-    for _ in range(MAXIT):
-        G0, G1, G2, conv, finite = _dmv_residual(b0, b1, b2, w0, w1, w2, I0 * w0, I1 * w1, I2 * w2)
-        if conv:
-            w0, w1, w2, c0, c1, c2, q = _diag_polish(I0, I1, I2, a0, a1, a2, w0, w1, w2, G0, G1, G2)
-            break
-        if not finite:
-            return FAIL_NONFINITE, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-        det, d0, d1, d2 = _diag_newton(I0, I1, I2, b0, b1, b2, w0, w1, w2, G0, G1, G2)
-        if not det > 0.0:
-            return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-        w0 -= d0
-        w1 -= d1
-        w2 -= d2
-        if _stagnated(d0, d1, d2, w0, w1, w2):
-            # c = w x Ibar w and q at the final w for the momentum update
-            q = _qnorm(w0, w1, w2)
-            c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
-            c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
-            c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-            break
-    else:
-        return FAIL_NEWTON, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-    if not (w0 * w0 + w1 * w1 + w2 * w2) < 1.0:
-        return FAIL_BRANCH, w0, w1, w2, 0.0, 0.0, 0.0, 1.0
-    return OK, w0, w1, w2, c0, c1, c2, q
+    """The Newton-loop DMV solve for a diagonal Ibar
+    (:func:`director_model._primitives.dmv_solve_diag`) with the moments of P. Called when
+    the straight-line solve of :func:`_rattle_substep` did not finish (a large step, a
+    failure)."""
+    return dmv_solve_diag(P[10], P[14], P[18], P[19], P[23], P[27], b0, b1, b2)
 
 
 @njit(inline="always")
@@ -450,42 +250,6 @@ def _torque(piv, m, c, gb):
     t1 = m * (gb[2] * c[0] - gb[0] * c[2]) if piv else 0.0
     t2 = m * (gb[0] * c[1] - gb[1] * c[0]) if piv else 0.0
     return (t0, t1, t2)
-
-
-@njit(inline="always")
-def _quat_increment(p, w):
-    """p (x) (0, w), the Hamilton product: the increment of the quaternion p when it is
-    multiplied by (1, w), the (unnormalised) quaternion of Q with Gibbs vector w. p a
-    4-tuple (scalar first), w a 3-tuple; O(|w| |p|)."""
-    return (
-        -((p[1] * w[0] + p[2] * w[1]) + p[3] * w[2]),
-        p[0] * w[0] + (p[2] * w[2] - p[3] * w[1]),
-        p[0] * w[1] + (p[3] * w[0] - p[1] * w[2]),
-        p[0] * w[2] + (p[1] * w[1] - p[2] * w[0]),
-    )
-
-
-@njit(inline="always")
-def _quat_matrix(p):
-    """R(p/|p|), the rotation of the quaternion p (any norm > 0), as a 9-tuple row-major:
-    ((p0^2 - |v|^2) 1 + 2 v v^T + 2 p0 hat(v)) / |p|^2."""
-    a = p[0] * p[0]
-    b = p[1] * p[1]
-    c = p[2] * p[2]
-    d = p[3] * p[3]
-    r = 1.0 / ((a + b) + (c + d))
-    r2 = 2.0 * r
-    xy = p[1] * p[2]
-    xz = p[1] * p[3]
-    yz = p[2] * p[3]
-    sx = p[0] * p[1]
-    sy = p[0] * p[2]
-    sz = p[0] * p[3]
-    return (
-        ((a + b) - (c + d)) * r, (xy - sz) * r2, (xz + sy) * r2,
-        (xy + sz) * r2, ((a + c) - (b + d)) * r, (yz - sx) * r2,
-        (xz - sy) * r2, (yz + sx) * r2, ((a + d) - (b + c)) * r,
-    )  # fmt: skip
 
 
 @njit(inline="always")
@@ -513,7 +277,7 @@ def _quat_rotate_back(p, x):
 @njit(inline="always")
 def _directors(S):
     """D = D_0 R(p/|p|) of a RATTLE state: D_0 in S[6:15], p in S[36:40]. A 9-tuple."""
-    R = _quat_matrix((S[QP], S[QP + 1], S[QP + 2], S[QP + 3]))
+    R = quat_matrix((S[QP], S[QP + 1], S[QP + 2], S[QP + 3]))
     return (
         (S[6] * R[0] + S[7] * R[3]) + S[8] * R[6],
         (S[6] * R[1] + S[7] * R[4]) + S[8] * R[7],
@@ -529,20 +293,20 @@ def _directors(S):
 
 @njit(inline="always")
 def _kahan3(hi, lo, d, comp):
-    """:func:`_kahan` on 3-tuples; returns (new values, new compensations)."""
-    t0, e0 = _kahan(hi[0], lo[0], d[0], comp)
-    t1, e1 = _kahan(hi[1], lo[1], d[1], comp)
-    t2, e2 = _kahan(hi[2], lo[2], d[2], comp)
+    """:func:`kahan` on 3-tuples; returns (new values, new compensations)."""
+    t0, e0 = kahan(hi[0], lo[0], d[0], comp)
+    t1, e1 = kahan(hi[1], lo[1], d[1], comp)
+    t2, e2 = kahan(hi[2], lo[2], d[2], comp)
     return (t0, t1, t2), (e0, e1, e2)
 
 
 @njit(inline="always")
 def _kahan4(hi, lo, d, comp):
-    """:func:`_kahan` on 4-tuples; returns (new values, new compensations)."""
-    t0, e0 = _kahan(hi[0], lo[0], d[0], comp)
-    t1, e1 = _kahan(hi[1], lo[1], d[1], comp)
-    t2, e2 = _kahan(hi[2], lo[2], d[2], comp)
-    t3, e3 = _kahan(hi[3], lo[3], d[3], comp)
+    """:func:`kahan` on 4-tuples; returns (new values, new compensations)."""
+    t0, e0 = kahan(hi[0], lo[0], d[0], comp)
+    t1, e1 = kahan(hi[1], lo[1], d[1], comp)
+    t2, e2 = kahan(hi[2], lo[2], d[2], comp)
+    t3, e3 = kahan(hi[3], lo[3], d[3], comp)
     return (t0, t1, t2, t3), (e0, e1, e2, e3)
 
 
@@ -598,13 +362,13 @@ def _rattle_init(P, g, S):
 #
 #   _rattle_solve:  pi = Pi_n + h/2 tau_n, b = h pi/2; the Gibbs vector w of
 #                   Q = D_n^T D_{n+1} from Q Jbar - Jbar Q^T = h hat(pi), by the
-#                   straight-line solve when Ibar is diagonal (predictor, _fp_count
-#                   fixed-point corrections, _diag_finish); otherwise, or if it does not
+#                   straight-line solve when Ibar is diagonal (predictor, fp_count
+#                   fixed-point corrections, diag_finish); otherwise, or if it does not
 #                   finish, the caller runs _solve_loop.
 #   _rattle_commit: D_{n+1} = D_n Q, kept as D_0 R(p) with p_{n+1} = p_n + p_n (x) (0, w);
 #                   Pi_{n+1} = Q^T pi + h/2 tau_{n+1}, computed as
 #                   Pi_n + (h/2 (tau_n + tau_{n+1}) - 4 c/(q h)) (Q^T pi = pi - 4 c/(q h), see
-#                   _dmv_solve). Both sums are compensated (_kahan) unless comp is False.
+#                   _dmv_solve). Both sums are compensated (kahan) unless comp is False.
 #                   (The centre of mass is not stepped: see _store_com.)
 #
 # The RATTLE state as tuples: p, pl (4: attitude quaternion and its compensation), Pi, Pl
@@ -635,9 +399,9 @@ def _rattle_solve(diag, I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, hh, Pi, T):
             w0 = ab0
             w1 = ab1
             w2 = ab2
-            for _ in range(int(_fp_count(s))):
-                w0, w1, w2 = _fp_step(ab0, ab1, ab2, ae0, ae1, ae2, w0, w1, w2)
-            ok, w0, w1, w2, c0, c1, c2, q = _diag_finish(
+            for _ in range(int(fp_count(s))):
+                w0, w1, w2 = fp_step(ab0, ab1, ab2, ae0, ae1, ae2, w0, w1, w2)
+            ok, w0, w1, w2, c0, c1, c2, q = diag_finish(
                 I0, I1, I2, a0, a1, a2, b0, b1, b2, w0, w1, w2
             )
     return ok, b0, b1, b2, w0, w1, w2, c0, c1, c2, q
@@ -675,7 +439,7 @@ def _rattle_commit(comp, piv, m, pc, hh, rh, w, c, q, p, pl, Pi, Pl, T, G, vecto
 @njit(inline="always")
 def _commit_attitude(p, pl, w, comp):
     """p + p (x) (0, w), compensated: the attitude part of :func:`_rattle_commit`."""
-    return _kahan4(p, pl, _quat_increment(p, w), comp)
+    return _kahan4(p, pl, quat_increment(p, w), comp)
 
 
 @njit(inline="always")
@@ -1019,7 +783,7 @@ def _rattle_block_substep(B, hh, rh, nl, anypiv):
         cand = (
             (B[ROW_LIVE * BLOCK + l] != 0.0) & (B[(ROW_P + 32) * BLOCK + l] != 0.0) & (s <= FP_SMAX)
         )
-        B[ROW_K * BLOCK + l] = _fp_count(s) if cand else 0.0
+        B[ROW_K * BLOCK + l] = fp_count(s) if cand else 0.0
         B[ROW_B * BLOCK + l] = b0
         B[(ROW_B + 1) * BLOCK + l] = b1
         B[(ROW_B + 2) * BLOCK + l] = b2
@@ -1027,7 +791,7 @@ def _rattle_block_substep(B, hh, rh, nl, anypiv):
         B[(ROW_AB + 1) * BLOCK + l] = ab1
         B[(ROW_AB + 2) * BLOCK + l] = ab2
         # the first correction here: every lane the vector code accepts takes at least 3
-        w0, w1, w2 = _fp_step(
+        w0, w1, w2 = fp_step(
             ab0, ab1, ab2, B[(ROW_P + 33) * BLOCK + l], B[(ROW_P + 34) * BLOCK + l],
             B[(ROW_P + 35) * BLOCK + l], ab0, ab1, ab2,
         )  # fmt: skip
@@ -1050,7 +814,7 @@ def _rattle_block_substep(B, hh, rh, nl, anypiv):
     it = 1.0
     while it < kmin:
         for l in range(nl):
-            w0, w1, w2 = _fp_step(
+            w0, w1, w2 = fp_step(
                 B[ROW_AB * BLOCK + l], B[(ROW_AB + 1) * BLOCK + l], B[(ROW_AB + 2) * BLOCK + l],
                 B[(ROW_P + 33) * BLOCK + l], B[(ROW_P + 34) * BLOCK + l],
                 B[(ROW_P + 35) * BLOCK + l], B[ROW_W * BLOCK + l], B[(ROW_W + 1) * BLOCK + l],
@@ -1065,7 +829,7 @@ def _rattle_block_substep(B, hh, rh, nl, anypiv):
             w0 = B[ROW_W * BLOCK + l]
             w1 = B[(ROW_W + 1) * BLOCK + l]
             w2 = B[(ROW_W + 2) * BLOCK + l]
-            n0, n1, n2 = _fp_step(
+            n0, n1, n2 = fp_step(
                 B[ROW_AB * BLOCK + l], B[(ROW_AB + 1) * BLOCK + l], B[(ROW_AB + 2) * BLOCK + l],
                 B[(ROW_P + 33) * BLOCK + l], B[(ROW_P + 34) * BLOCK + l],
                 B[(ROW_P + 35) * BLOCK + l], w0, w1, w2,
@@ -1093,7 +857,7 @@ def _block_finish(B, hh, rh, nl, torque):
     # 3a: residual, test and polish; w, c = w x Ibar w, q = 1 + |w|^2 and the outcome go to
     # the rows of w, ab and b (two short loops overlap across lanes better than one long one)
     for l in range(nl):
-        ok, w0, w1, w2, c0, c1, c2, q = _diag_finish(
+        ok, w0, w1, w2, c0, c1, c2, q = diag_finish(
             B[(ROW_P + 10) * BLOCK + l], B[(ROW_P + 14) * BLOCK + l],
             B[(ROW_P + 18) * BLOCK + l], B[(ROW_P + 19) * BLOCK + l],
             B[(ROW_P + 23) * BLOCK + l], B[(ROW_P + 27) * BLOCK + l],
@@ -1627,3 +1391,6 @@ def run_batch_serial(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout,
         lo, hi = _block_bounds(n, nblock, b)
         _run_body_range(method, coef, P, g, S0, h, nstep, saves, X, V, Dout, Dpout, status, info,
                         vec, lo, hi)  # fmt: skip
+
+
+_cache.tie(globals())

@@ -1,7 +1,8 @@
 """Compiled kernels of the system integrator: RATTLE on M q'' = f - G^T lambda, g(q) = 0.
 
-All numba code of director_model.system is in this module (numba's disk cache is keyed on the
-file of the cached function; see director_model/_kernels.py).
+All numba code of director_model.system is in this module, apart from the primitives it shares
+with the single-body kernels (director_model/_primitives.py: the compensated sum and the
+attitude quaternion's rotation); its disk cache is tied to that file (director_model/_cache.py).
 
 Formulation. Body i has the director coordinates q_i = (x_i, d_1i, d_2i, d_3i) and the
 constant mass matrix blockdiag(m 1, J_1 1, J_2 1, J_3 1). RATTLE on the whole system splits
@@ -72,6 +73,9 @@ import numpy as np
 from numba import njit, types
 from numba.np.linalg import _LAPACK, ensure_lapack
 
+from director_model import _cache
+from director_model._primitives import kahan, quat_matrix
+
 ensure_lapack()
 #: LAPACK's dgesdd through numba's wrapper (numba_ez_gesdd: workspace query, then the call),
 #: the routine and arguments of numba's np.linalg.svd; calling it directly compiles in about
@@ -125,35 +129,6 @@ def _zero2(A):
     for i in range(A.shape[0]):
         for j in range(A.shape[1]):
             A[i, j] = 0.0
-
-
-@njit(forceinline=True)
-def _kahan(hi, lo, d):
-    y = d + lo
-    t = hi + y
-    return t, y - (t - hi)
-
-
-@njit(forceinline=True)
-def _qmat(p0, p1, p2, p3):
-    """R(p/|p|) of a quaternion (scalar first, any norm > 0), a row-major 9-tuple."""
-    a = p0 * p0
-    b = p1 * p1
-    c = p2 * p2
-    d = p3 * p3
-    r = 1.0 / ((a + b) + (c + d))
-    r2 = 2.0 * r
-    xy = p1 * p2
-    xz = p1 * p3
-    yz = p2 * p3
-    sx = p0 * p1
-    sy = p0 * p2
-    sz = p0 * p3
-    return (
-        ((a + b) - (c + d)) * r, (xy - sz) * r2, (xz + sy) * r2,
-        (xy + sz) * r2, ((a + c) - (b + d)) * r, (yz - sx) * r2,
-        (xz - sy) * r2, (yz + sx) * r2, ((a + d) - (b + c)) * r,
-    )  # fmt: skip
 
 
 @njit(forceinline=True)
@@ -587,7 +562,7 @@ def _store(B, D0, S, X, V, D, W, k):
             X[k, i, c] = S[i, c]
             V[k, i, c] = S[i, 6 + c]
             W[k, i, c] = S[i, 20 + c] * B[i, 4 + c]
-        R = _mm(_row9(D0, i), _qmat(S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
+        R = _mm(_row9(D0, i), quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15])))
         for c in range(9):
             D[k, i, c // 3, c % 3] = R[c]
 
@@ -757,7 +732,8 @@ def _run_system(
             hh = 0.5 * h
             xmax = Lsc
             for i in range(nb):
-                _put9(Dn, i, _mm(_row9(D0, i), _qmat(S[i, 12], S[i, 13], S[i, 14], S[i, 15])))
+                Ri = quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
+                _put9(Dn, i, _mm(_row9(D0, i), Ri))
                 for c in range(3):
                     xmax = max(xmax, abs(S[i, c]))
             tol = tol_rel * xmax
@@ -803,7 +779,7 @@ def _run_system(
                     WG[i, 0] = w0
                     WG[i, 1] = w1
                     WG[i, 2] = w2
-                    Dj = _mm(Di, _qmat(1.0, w0, w1, w2))
+                    Dj = _mm(Di, quat_matrix((1.0, w0, w1, w2)))
                     _put9(Dnew, i, Dj)
                     if fresh and nrow > 0:
                         # Mth = Dnew (1 - hat(w)) A^{-1} Dn^T, the rotation's response to a torque
@@ -942,9 +918,9 @@ def _run_system(
                 # x += h v_half; v += h/2 (g + F/m) + h/2 g + Fn/m  (VH holds v_half + h/2 g)
                 for c in range(3):
                     vh = VH[i, c] - hh * g[c]
-                    S[i, c], S[i, 3 + c] = _kahan(S[i, c], S[i, 3 + c], h * vh)
+                    S[i, c], S[i, 3 + c] = kahan(S[i, c], S[i, 3 + c], h * vh, True)
                     dv = hh * (g[c] + F[i, c] / m) + hh * g[c] + Fn[i, c] / m
-                    S[i, 6 + c], S[i, 9 + c] = _kahan(S[i, 6 + c], S[i, 9 + c], dv)
+                    S[i, 6 + c], S[i, 9 + c] = kahan(S[i, 6 + c], S[i, 9 + c], dv, True)
                 # Pi += h/2 Dn^T T - 4 c/(q h) + Dnew^T Tn
                 rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
                 c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
@@ -952,19 +928,19 @@ def _run_system(
                 c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
                 a0, a1, a2 = _tmul(_row9(Dn, i), T[i, 0], T[i, 1], T[i, 2])
                 b0, b1, b2 = _tmul(_row9(Dnew, i), Tn[i, 0], Tn[i, 1], Tn[i, 2])
-                S[i, 20], S[i, 23] = _kahan(S[i, 20], S[i, 23], (hh * a0 - rq * c0) + b0)
-                S[i, 21], S[i, 24] = _kahan(S[i, 21], S[i, 24], (hh * a1 - rq * c1) + b1)
-                S[i, 22], S[i, 25] = _kahan(S[i, 22], S[i, 25], (hh * a2 - rq * c2) + b2)
+                S[i, 20], S[i, 23] = kahan(S[i, 20], S[i, 23], (hh * a0 - rq * c0) + b0, True)
+                S[i, 21], S[i, 24] = kahan(S[i, 21], S[i, 24], (hh * a1 - rq * c1) + b1, True)
+                S[i, 22], S[i, 25] = kahan(S[i, 22], S[i, 25], (hh * a2 - rq * c2) + b2, True)
                 # p += p (x) (0, w)
                 p0, p1, p2, p3 = S[i, 12], S[i, 13], S[i, 14], S[i, 15]
                 dp0 = -((p1 * w0 + p2 * w1) + p3 * w2)
                 dp1 = p0 * w0 + (p2 * w2 - p3 * w1)
                 dp2 = p0 * w1 + (p3 * w0 - p1 * w2)
                 dp3 = p0 * w2 + (p1 * w1 - p2 * w0)
-                S[i, 12], S[i, 16] = _kahan(p0, S[i, 16], dp0)
-                S[i, 13], S[i, 17] = _kahan(p1, S[i, 17], dp1)
-                S[i, 14], S[i, 18] = _kahan(p2, S[i, 18], dp2)
-                S[i, 15], S[i, 19] = _kahan(p3, S[i, 19], dp3)
+                S[i, 12], S[i, 16] = kahan(p0, S[i, 16], dp0, True)
+                S[i, 13], S[i, 17] = kahan(p1, S[i, 17], dp1, True)
+                S[i, 14], S[i, 18] = kahan(p2, S[i, 18], dp2, True)
+                S[i, 15], S[i, 19] = kahan(p3, S[i, 19], dp3, True)
                 nn = (S[i, 12] * S[i, 12] + S[i, 13] * S[i, 13]) + (
                     S[i, 14] * S[i, 14] + S[i, 15] * S[i, 15]
                 )
@@ -1009,3 +985,6 @@ def run_system_banded(
     return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
                        V, D, W, False, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
                        jidx, jside, True)  # fmt: skip
+
+
+_cache.tie(globals())
