@@ -27,8 +27,8 @@ from scipy.integrate import solve_ivp
 from director_model.system import Body, Joint
 from director_model.system.examples import rod_chain
 from references.conventions import rotvec_to_matrix
+from references.engines import reduced
 from references.engines import system_conformance as kit
-from references.engines.pinocchio import system as ps
 from references.engines.system_conformance import hinge_chain, scenario
 from references.errors import EngineError, Unsupported
 from references.exact.multibody import solve, tree_from_world
@@ -197,12 +197,12 @@ def assert_prismatic_mistake_caught(monkeypatch, mod, mistake: str, integrator) 
             f = orig(pl, c)
             if pl.names[c] != "collar":
                 return f
-            return dataclasses.replace(f, axis=ps.unit(joints[1].axis_a, ""))
+            return dataclasses.replace(f, axis=reduced.unit(joints[1].axis_a, ""))
 
         monkeypatch.setattr(mod, "engine_frames", planted)
     else:
-        orig_state = ps.slide_state
-        monkeypatch.setattr(ps, "slide_state", lambda pl, tj: (0.0, orig_state(pl, tj)[1]))
+        orig_state = reduced.slide_state
+        monkeypatch.setattr(reduced, "slide_state", lambda pl, tj: (0.0, orig_state(pl, tj)[1]))
     with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
         mod.simulate_system(scenario("slider", bodies, joints), integrator, 1e-3, 1, 1)
 

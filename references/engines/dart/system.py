@@ -1,10 +1,9 @@
 """DART (dartpy) builder for systems of rigid bodies: one Skeleton in DART's reduced coordinates,
 loops closed by DART's own joint constraints inside ``World.step``.
 
-Input: a system scenario as for :mod:`references.engines.pinocchio.system` (the contract's
-``name, gravity, bodies, joints``); the spanning tree, the reference orientations and the frames
-are that module's :func:`~references.engines.pinocchio.system.plan` and
-:func:`~references.engines.pinocchio.system.engine_frames` (one definition for both engines):
+Input: a system scenario (the contract's ``name, gravity, bodies, joints``); the spanning tree,
+the reference orientations and the frames are the kit's :func:`~references.engines.reduced.plan`
+and :func:`~references.engines.reduced.engine_frames` (one definition for Pinocchio too):
 every DART body frame sits at its joint point, parallel to the body's principal frame, with the
 local COM at -Y (``setLocalCOM``) and ``Inertia(m, -Y, diag(I))`` (moments about the COM); the
 joint's transform from the parent body node is (R_ref, X - Y_p) and from the child body node the
@@ -54,9 +53,9 @@ from contextlib import contextmanager
 import numpy as np
 
 from references import conventions as cv
+from references.engines import reduced
 from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
-from references.engines.pinocchio import system as ps
 from references.errors import Diverged, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
@@ -102,9 +101,9 @@ def dart_warnings(tmp=None):
         tmp.truncate()
 
 
-def engine_frames(pl: ps.Plan, c: int) -> ps.EngineFrames:
+def engine_frames(pl: reduced.Plan, c: int) -> reduced.EngineFrames:
     """The builder's boundary: what DART is given for body c's joint (module docstring)."""
-    return ps.engine_frames(pl, c)
+    return reduced.engine_frames(pl, c)
 
 
 def _iso(dart, R, p):
@@ -117,7 +116,7 @@ def _iso(dart, R, p):
 class _Model:
     """DART's world, skeleton, joints and bodies (scenario order), and the loop constraints."""
 
-    def __init__(self, dart, pl: ps.Plan, dt: float):
+    def __init__(self, dart, pl: reduced.Plan, dt: float):
         self.dart, self.pl = dart, pl
         world = dart.simulation.World()
         world.setGravity(pl.gravity)
@@ -177,13 +176,13 @@ class _Model:
         pl = self.pl
         for c in pl.order:
             tj, joint = pl.tree[c], self.joint[c]
-            x, R, vG, w = ps.world(pl, c)
+            x, R, vG, w = reduced.world(pl, c)
             if tj.kind == "free":
                 pos, vel = cv.dart_free_from_state(x, vG, R, R.T @ w)
             elif tj.kind == "spherical":
-                pos, vel = cv.dart_ball_from_state(*ps.relative_state(pl, tj))
+                pos, vel = cv.dart_ball_from_state(*reduced.relative_state(pl, tj))
             else:
-                pos, vel = [0.0], [float(tj.axis_c @ ps.relative_state(pl, tj)[1])]
+                pos, vel = [0.0], [float(tj.axis_c @ reduced.relative_state(pl, tj)[1])]
             joint.setPositions(np.asarray(pos, float))
             joint.setVelocities(np.asarray(vel, float))
 
@@ -194,7 +193,7 @@ class _Model:
         # a global of DART's process: set on every build (DART's default unless given)
         C.DynamicJointConstraint.setErrorReductionParameter(float(erp))
         for lp in pl.loops:
-            xa, Ra, _, _ = ps.world(pl, lp.a)
+            xa, Ra, _, _ = reduced.world(pl, lp.a)
             Xa = lp.pairs[0][0]
             point = xa + Ra @ Xa
             ba = self.body[lp.a]
@@ -203,7 +202,7 @@ class _Model:
                 if lp.b < 0:
                     con = C.RevoluteJointConstraint(ba, point, na)
                 else:
-                    _, Rb, _, _ = ps.world(pl, lp.b)
+                    _, Rb, _, _ = reduced.world(pl, lp.b)
                     nb = Rb @ (lp.pairs[1][1] - lp.pairs[0][1]) / pl.length
                     con = C.RevoluteJointConstraint(ba, self.body[lp.b], point, na, nb)
             elif lp.b < 0:
@@ -216,7 +215,7 @@ class _Model:
     # -- read-out ----------------------------------------------------------------------------
     def states(self):
         """(x, R, v, W) per body (scenario order) from DART's kinematics."""
-        x, R, v, W = ps.state_arrays(len(self.pl.bodies))
+        x, R, v, W = reduced.state_arrays(len(self.pl.bodies))
         for c, body in self.body.items():
             Rc = body.getWorldTransform().rotation()
             R[c] = Rc
@@ -336,7 +335,7 @@ class _Model:
 def read_back(dm: _Model, scenario, dt: float) -> None:
     """Compare DART's model with the scenario (module docstring)."""
     pl, world, skel = dm.pl, dm.world, dm.skel
-    bad = ps.Mismatches()
+    bad = reduced.Mismatches()
     want = bad.want
 
     kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint"}
@@ -392,8 +391,8 @@ def _constraint_record(dm: _Model) -> dict:
 def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record) of ``scenario``: planned, built, read back, the initial state
     set and checked against DART's kinematics, the loops closed."""
-    ps.check_run_args(integrator, dt, INTEGRATORS)
-    ps.check_settings("dart", settings, _SETTINGS)
+    reduced.check_run_args(integrator, dt, INTEGRATORS)
+    reduced.check_settings("dart", settings, _SETTINGS)
     erp = settings.get("erp")
     if erp is not None and not (isinstance(erp, (int, float)) and 0 <= erp <= 1):
         raise ValueError(f"erp {erp!r}: DART's error reduction parameter, a number in [0, 1]")
@@ -401,7 +400,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     if closure not in REVOLUTE_CLOSURES:
         raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
     dart = _import()
-    pl = ps.plan(scenario, "dart")
+    pl = reduced.plan(scenario, "dart")
     if pl.loops and integrator == "RKMK4":
         raise Unsupported(
             f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
@@ -413,7 +412,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     dm.set_initial()
     x, R, v, W = dm.states()
     points, axes = dm.joint_world()
-    ps.check_states("dart", pl, x, R, v, W, points, axes)
+    reduced.check_states("dart", pl, x, R, v, W, points, axes)
     dm.add_loops(DEFAULT_ERP if erp is None else erp, closure)
     rec = {
         "engine": f"dart {dart.__version__}",
@@ -423,7 +422,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         else "the suite's RKMK4 around Skeleton.computeForwardDynamics (World.step not used)",
         "dt": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": ps.tree_record(pl),
+        "tree": reduced.tree_record(pl),
         "frames": "each body frame at its joint point, parallel to its principal frame "
         "(local COM -Y)",
         "deactivation (sleeping)": False,
@@ -462,10 +461,10 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     :class:`EngineError` (read-back or initial-state mismatch) and :class:`Diverged`
     (non-finite state, or one DART replaced).
     """
-    steps = ps.saves(nstep, save_every)
+    steps = reduced.saves(nstep, save_every)
     dm, rec = build(scenario, integrator, dt, **settings)
     nb, n = len(dm.pl.bodies), len(steps)
-    x, R, v, W = ps.state_arrays(n, nb)
+    x, R, v, W = reduced.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = dm.states()
     rk = integrator == "RKMK4"
     if rk:
@@ -499,9 +498,9 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                     f"{steps[k - 1] * dt:.6g} and {done * dt:.6g} s (reduce dt"
                     + (", or the constraints' ERP)" if dm.constraints else ")"),
                     done * dt,
-                    ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
+                    reduced.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], dm.clock, rec),
                 )
             x[k], R[k], v[k], W[k] = dm.states()
     if not math.isfinite(dm.clock):
         dm.clock = 0.0
-    return ps.output(steps, dt, x, R, v, W, dm.clock, rec)
+    return reduced.output(steps, dt, x, R, v, W, dm.clock, rec)

@@ -3,10 +3,9 @@
 floating root), loops
 closed by ``AddBallConstraint`` on discrete (SAP) plants only.
 
-Input: a system scenario as for :mod:`references.engines.pinocchio.system` (the contract's
-``name, gravity, bodies, joints``); the spanning tree is that module's
-:func:`~references.engines.pinocchio.system.plan` (one definition for every reduced-coordinate
-engine).
+Input: a system scenario (the contract's ``name, gravity, bodies, joints``); the spanning tree
+is the kit's :func:`~references.engines.reduced.plan` (one definition for every
+reduced-coordinate engine).
 
 Frames. Every Drake body frame is the body's principal frame at its COM
 (``SpatialInertia.MakeFromCentralInertia(m, 0, RotationalInertia(I1, I2, I3))``), so Drake's
@@ -26,7 +25,7 @@ revolute            ``RevoluteJoint`` (axis  angle 0; rate n . (W_c - R_rel^T W_
                     = the child's, in M)
 prismatic           ``PrismaticJoint`` (axis translation = the anchors' offset along the
                     = the child's, in M)    axis, rate its rate
-                                            (:func:`~references.engines.pinocchio.system.slide_state`)
+                                            (:func:`~references.engines.reduced.slide_state`)
 (floating root)     ``QuaternionFloatingJoint``  SetFreeBodyPose / SetFreeBodySpatialVelocity
 others              -                       unsupported (not built by this adapter)
 ==================  ======================  ================================================
@@ -71,8 +70,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from references.engines import reduced
 from references.engines.native import import_engine
-from references.engines.pinocchio import system as ps
 from references.errors import Diverged, EngineError, Unsupported
 
 #: fixed-step continuous schemes (Drake's names) and the discrete plant
@@ -122,18 +121,18 @@ class DrakeFrames:
     axis: np.ndarray | None
 
 
-def engine_frames(pl: ps.Plan, c: int) -> DrakeFrames:
+def engine_frames(pl: reduced.Plan, c: int) -> DrakeFrames:
     """The builder's boundary: the frames of body c's joint (module docstring)."""
     tj = pl.tree[c]
-    _, Rp, _, _ = ps.world(pl, tj.parent)
-    _, Rc, _, _ = ps.world(pl, c)
+    _, Rp, _, _ = reduced.world(pl, tj.parent)
+    _, Rc, _, _ = reduced.world(pl, c)
     return DrakeFrames(tj.kind, tj.X, Rp.T @ Rc, tj.Y, tj.axis_c)
 
 
 class _Model:
     """Drake's plant, context, simulator; joints and bodies per scenario body."""
 
-    def __init__(self, pl: ps.Plan, integrator: str, dt: float):
+    def __init__(self, pl: reduced.Plan, integrator: str, dt: float):
         from pydrake.math import RigidTransform, RotationMatrix
         from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
         from pydrake.multibody.tree import (
@@ -202,18 +201,18 @@ class _Model:
         pl, plant, ctx = self.pl, self.plant, self.context
         for c in pl.order:
             tj = pl.tree[c]
-            x, R, v, w = ps.world(pl, c)
+            x, R, v, w = reduced.world(pl, c)
             if tj.kind == "free":
                 plant.SetFreeBodyPose(ctx, self.body[c], RigidTransform(RotationMatrix(R), x))
                 plant.SetFreeBodySpatialVelocity(ctx, self.body[c], SpatialVelocity(w, v))
                 continue
-            _, Rp, _, wp = ps.world(pl, tj.parent)
+            _, Rp, _, wp = reduced.world(pl, tj.parent)
             joint, f = self.joint[c], self.frames[c]
             if tj.kind == "spherical":
                 joint.set_angles(ctx, np.zeros(3))
                 joint.set_angular_velocity(ctx, f.R_F.T @ Rp.T @ (w - wp))
             elif tj.kind == "prismatic":
-                d0, rate = ps.slide_state(pl, tj)
+                d0, rate = reduced.slide_state(pl, tj)
                 joint.set_translation(ctx, d0)
                 joint.set_translation_rate(ctx, rate)
             else:
@@ -221,7 +220,7 @@ class _Model:
                 joint.set_angular_rate(ctx, float(tj.axis_c @ (R.T @ (w - wp))))
 
     def states(self):
-        x, R, v, W = ps.state_arrays(len(self.pl.bodies))
+        x, R, v, W = reduced.state_arrays(len(self.pl.bodies))
         for c, body in self.body.items():
             X = body.EvalPoseInWorld(self.context)
             V = body.EvalSpatialVelocityInWorld(self.context)
@@ -255,7 +254,7 @@ class _Model:
 def read_back(dm: _Model, scenario) -> None:
     """Compare Drake's model with the scenario (module docstring)."""
     pl, plant, ctx = dm.pl, dm.plant, dm.context
-    bad = ps.Mismatches()
+    bad = reduced.Mismatches()
     want = bad.want
 
     types = {"spherical": "ball_rpy", "revolute": "revolute", "prismatic": "prismatic",
@@ -313,7 +312,7 @@ def read_back(dm: _Model, scenario) -> None:
     bad.raise_any("drake", scenario)
 
 
-def at_state(pl: ps.Plan, x, R, v, W) -> ps.Plan:
+def at_state(pl: reduced.Plan, x, R, v, W) -> reduced.Plan:
     """``pl`` with every body's state replaced by (x, R, v, W) (arrays in scenario order; W in
     body axes): what a chart switch builds from. Anchors, axes and the tree are body-fixed and
     carry over."""
@@ -324,7 +323,7 @@ def at_state(pl: ps.Plan, x, R, v, W) -> ps.Plan:
     return dataclasses.replace(pl, bodies=bodies)
 
 
-def assemble(scenario, pl: ps.Plan, integrator: str, dt: float) -> _Model:
+def assemble(scenario, pl: reduced.Plan, integrator: str, dt: float) -> _Model:
     """The single entry point of every plant of a run: Drake's model of ``pl`` built from its
     bodies' world states (the scenario's at t = 0, the current ones at a chart switch, every
     joint coordinate 0), read back, the state set and checked against Drake's kinematics."""
@@ -333,7 +332,7 @@ def assemble(scenario, pl: ps.Plan, integrator: str, dt: float) -> _Model:
     dm.set_initial()
     x, R, v, W = dm.states()
     points, axes = dm.joint_world()
-    ps.check_states("drake", pl, x, R, v, W, points, axes)
+    reduced.check_states("drake", pl, x, R, v, W, points, axes)
     return dm
 
 
@@ -349,10 +348,10 @@ def build(scenario, integrator: str, dt: float, **settings):
         raise Unsupported(
             "drake: cenic needs a Diagram with a SceneGraph, which this builder does not build"
         )
-    ps.check_run_args(integrator, dt, INTEGRATORS)
-    ps.check_settings("drake", settings, _SETTINGS)
+    reduced.check_run_args(integrator, dt, INTEGRATORS)
+    reduced.check_settings("drake", settings, _SETTINGS)
     _import()
-    pl = ps.plan(scenario, "drake", ps.SLIDING_KINDS)
+    pl = reduced.plan(scenario, "drake", reduced.SLIDING_KINDS)
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "
@@ -369,7 +368,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         else "continuous; Simulator with the fixed-step integrator at dt",
         "dt": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": ps.tree_record(pl),
+        "tree": reduced.tree_record(pl),
         "frames": "body frames principal at the COM; joint frames F (parent, rotation R_p^T R_c "
         "at t = 0 and at every chart switch) and M (child) at the anchors: every joint "
         "coordinate 0 at t = 0 and after every switch",
@@ -481,11 +480,11 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     switch, or Drake's step count off the plan) and :class:`Diverged` (a failed step or a
     non-finite state).
     """
-    steps = ps.saves(nstep, save_every)
+    steps = reduced.saves(nstep, save_every)
     dm, rec = build(scenario, integrator, dt, **settings)
     st = _stepper(dm, integrator, dt, 0.0, 0)
     nb, n = len(dm.pl.bodies), len(steps)
-    x, R, v, W = ps.state_arrays(n, nb)
+    x, R, v, W = reduced.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = dm.states()
     switches: list = []
     t = 0.0
@@ -504,7 +503,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                     f"drake {integrator} at dt = {dt:g} s: a step failed between t = "
                     f"{steps[k - 1] * dt:.6g} and {steps[k] * dt:.6g} s: {str(exc)[:300]}",
                     steps[k - 1] * dt,
-                    ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], st.dm.clock, rec),
+                    reduced.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], st.dm.clock, rec),
                 ) from None
             st.dm.clock += time.perf_counter() - t0
             if st.pending is None:
@@ -520,7 +519,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                 f"drake {integrator} at dt = {dt:g} s: a non-finite state at t = "
                 f"{steps[k] * dt:.6g} s",
                 steps[k] * dt,
-                ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], st.dm.clock, rec),
+                reduced.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], st.dm.clock, rec),
             )
     if st.steps() != int(steps[-1]):
         raise EngineError(
@@ -533,4 +532,4 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     rec["RPY chart switch joints"] = [lab for _, lab, _ in switches]
     st.sim.clear_monitor()
     clock = st.dm.clock if math.isfinite(st.dm.clock) else 0.0
-    return ps.output(steps, dt, x, R, v, W, clock, rec)
+    return reduced.output(steps, dt, x, R, v, W, clock, rec)

@@ -52,7 +52,7 @@ import time
 import numpy as np
 
 from references.engines.mujoco import system as ms
-from references.engines.pinocchio.system import check_settings
+from references.engines.reduced import check_settings
 from references.errors import Diverged, EngineError, Unsupported
 
 #: the integrators MJX's JAX backend steps, and what each is

@@ -9,7 +9,7 @@ body's principal frame relative to its COM; a world point for the ground), ``axi
 (same frames), ``name``), the fields of ``director_model.system.Body`` and ``Joint``.
 
 Spanning tree: the plan of every reduced-coordinate builder
-(:func:`references.engines.pinocchio.system.plan`, :func:`plan`): the scenario's loop closures
+(:func:`references.engines.reduced.plan`, :func:`plan`): the scenario's loop closures
 (``loop_joints``, else the rule of ``scenarios.system.spanning_tree``), the other joints a
 tree grown from the ground, a body joined to nothing a floating root with a ``free`` joint.
 
@@ -75,11 +75,11 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from references import conventions as cv
+from references.engines import reduced
 from references.engines.native import import_engine
-from references.engines.pinocchio import system as ps
-from references.engines.pinocchio.system import saves as _saves
-from references.engines.pinocchio.system import unit as _unit
-from references.engines.pinocchio.system import vec as _vec
+from references.engines.reduced import saves as _saves
+from references.engines.reduced import unit as _unit
+from references.engines.reduced import vec as _vec
 from references.errors import Diverged, EngineError, Unsupported
 
 #: MuJoCo's integrators offered (``mjtIntegrator``); "discrete" only where MuJoCo has it
@@ -142,20 +142,20 @@ _MJ = {"free": "free", "spherical": "ball", "revolute": "hinge", "prismatic": "s
        "universal": "universal", "cylindrical": "cylindrical"}  # fmt: skip
 
 
-def plan(scenario) -> ps.Plan:
+def plan(scenario) -> reduced.Plan:
     """The spanning tree, reference configuration and loop closures of ``scenario``: the plan
-    of every reduced-coordinate builder (:func:`references.engines.pinocchio.system.plan`)
+    of every reduced-coordinate builder (:func:`references.engines.reduced.plan`)
     with every kind of :data:`TREE_KINDS` in the tree. Raises ``ValueError`` for malformed
     joints, :class:`Unsupported` for a closure this builder cannot express."""
-    return ps.plan(scenario, "mujoco", TREE_KINDS)
+    return reduced.plan(scenario, "mujoco", TREE_KINDS)
 
 
-def mj_type(tj: ps.TreeJoint) -> str:
+def mj_type(tj: reduced.TreeJoint) -> str:
     """MuJoCo's name of the tree joint's type (module docstring's table)."""
     return _MJ[tj.kind]
 
 
-def parts(tj: ps.TreeJoint) -> list:
+def parts(tj: reduced.TreeJoint) -> list:
     """The MuJoCo joints of the body ``tj`` attaches, in order: (type, axis in the child's
     frame or None); a universal joint is a hinge about the parent-fixed axis then one about
     the child-fixed axis, a cylindrical one a hinge and a slide on the axis."""
@@ -173,10 +173,10 @@ def parts(tj: ps.TreeJoint) -> list:
 # -- consistency of the initial world states -----------------------------------------------------
 
 
-_world = ps.world
+_world = reduced.world
 
 
-def check_consistent(scenario, pl: ps.Plan | None = None) -> None:
+def check_consistent(scenario, pl: reduced.Plan | None = None) -> None:
     """Raise :class:`InconsistentSystem` naming the joint and the residual if the initial
     world states violate a joint (tree joints and loop closures alike): the anchors' gap (m)
     and slip (m/s), a revolute's or prismatic's axis misalignment (rad) and relative rotation
@@ -186,7 +186,7 @@ def check_consistent(scenario, pl: ps.Plan | None = None) -> None:
     tol_v = STATE_TOL * pl.rate
     idx = {n: i for i, n in enumerate(pl.names)}
     for j in pl.joints:
-        what = ps.label(j)
+        what = reduced.label(j)
         a = idx[j.body_a]
         b = -1 if j.body_b is None else idx[j.body_b]
         xa, Ra, va, wa = _world(pl, a)
@@ -253,7 +253,7 @@ def check_consistent(scenario, pl: ps.Plan | None = None) -> None:
 # -- MJCF --------------------------------------------------------------------------------------
 
 
-def model_xml(scenario, pl: ps.Plan, integrator: str, dt: float, solref, solimp) -> str:
+def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, solimp) -> str:
     """The MJCF of a plan (public so that tests can inspect, and plant mistakes in, what is
     built)."""
     children: dict[int, list[int]] = {}
@@ -332,11 +332,11 @@ def _quat_close(got, want) -> float:
     return min(_close(got, want), _close(got, -want))
 
 
-def read_back(mujoco, m, scenario, pl: ps.Plan, integrator: str, dt, solref, solimp) -> dict:
+def read_back(mujoco, m, scenario, pl: reduced.Plan, integrator: str, dt, solref, solimp) -> dict:
     """Compare the compiled model with the scenario (module docstring); raise
     :class:`EngineError` naming the body, joint or setting on a mismatch. Returns the
     read-back values recorded in the settings."""
-    bad = ps.Mismatches()
+    bad = reduced.Mismatches()
 
     def want(what, got, expect, scale=1.0, quat=False):
         err = _quat_close(got, expect) if quat else _close(got, expect, scale)
@@ -455,7 +455,7 @@ def read_back(mujoco, m, scenario, pl: ps.Plan, integrator: str, dt, solref, sol
 # -- state ---------------------------------------------------------------------------------
 
 
-def initial_qpos_qvel(m, pl: ps.Plan, bid: dict) -> tuple[np.ndarray, np.ndarray]:
+def initial_qpos_qvel(m, pl: reduced.Plan, bid: dict) -> tuple[np.ndarray, np.ndarray]:
     """qpos, qvel of the scenario's initial world states (module docstring's table);
     ``bid``: MuJoCo's body id of each body (scenario order)."""
     qpos = np.zeros(m.nq)
@@ -492,7 +492,7 @@ def read_states(mujoco, m, d, bid: dict, out=None):
     mujoco.mj_kinematics(m, d)
     mujoco.mj_comPos(m, d)
     mujoco.mj_comVel(m, d)
-    x, R, v, W = ps.state_arrays(len(bid))
+    x, R, v, W = reduced.state_arrays(len(bid))
     res = np.zeros(6)
     for c, i in bid.items():
         x[c] = d.xipos[i]
@@ -503,7 +503,7 @@ def read_states(mujoco, m, d, bid: dict, out=None):
     return x, R, v, W
 
 
-def check_initial(mujoco, m, d, scenario, pl: ps.Plan, bid: dict) -> None:
+def check_initial(mujoco, m, d, scenario, pl: reduced.Plan, bid: dict) -> None:
     """MuJoCo's own kinematics of the initial qpos/qvel against the scenario: every body's
     x, R, v, W, and every tree joint's anchor (xanchor) and axis (xaxis) against both the
     parent's and the child's side (:data:`INITIAL_TOL` relative to the length and rate
@@ -563,7 +563,7 @@ def check_initial(mujoco, m, d, scenario, pl: ps.Plan, bid: dict) -> None:
 
 
 def _settings(kw: dict) -> tuple[tuple, tuple]:
-    ps.check_settings("mujoco", kw, _SETTINGS)
+    reduced.check_settings("mujoco", kw, _SETTINGS)
     solref = tuple(float(s) for s in kw.get("solref", DEFAULT_SOLREF))
     solimp = tuple(float(s) for s in kw.get("solimp", DEFAULT_SOLIMP))
     if len(solref) != 2 or not all(math.isfinite(s) for s in solref) or solref[0] <= 0:
@@ -608,7 +608,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         "integrator": integrator,
         "timestep": float(dt),
         "gravity": pl.gravity.tolist(),
-        "tree": ps.tree_record(pl, mj_type),
+        "tree": reduced.tree_record(pl, mj_type),
         "frames": "each body frame is its principal frame at its COM (explicit inertial, "
         "pos 0, identity quat); no geoms, inertia never inferred",
         "damping, armature, frictionloss, stiffness": "0 (set and read back)",
@@ -667,7 +667,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     mujoco, m, d, pl, bid, rec = build(scenario, integrator, dt, **settings)
     nb = len(pl.bodies)
     n = len(saves)
-    x, R, v, W = ps.state_arrays(n, nb)
+    x, R, v, W = reduced.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = read_states(mujoco, m, d, bid)
     engine = 0.0
     warns = [int(getattr(mujoco.mjtWarning, w)) for w in

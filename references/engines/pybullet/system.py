@@ -1,12 +1,12 @@
 """PyBullet builder for systems of rigid bodies: btMultiBody trees in Bullet's reduced
 (Featherstone) coordinates, loops closed by ``createConstraint(JOINT_POINT2POINT)``.
 
-Input: a system scenario as for :mod:`references.engines.pinocchio.system` (the contract's
-``name, gravity, bodies, joints``); the spanning tree, reference orientations and frames are that
-module's :func:`~references.engines.pinocchio.system.plan` and ``engine_frames`` (one definition
-for every reduced-coordinate engine). Every body that hangs from the ground is a link of one
-fixed-base multibody (massless base at the world origin); every floating root is the base of a
-multibody of its own (base inertial frame = link frame = its principal frame at its COM).
+Input: a system scenario (the contract's ``name, gravity, bodies, joints``); the spanning tree,
+reference orientations and frames are the kit's :func:`~references.engines.reduced.plan` and
+:func:`~references.engines.reduced.engine_frames` (one definition for Pinocchio and DART too).
+Every body that hangs from the ground is a link of one fixed-base multibody (massless base at the
+world origin); every floating root is the base of a multibody of its own (base inertial frame = link
+frame = its principal frame at its COM).
 
 Frames: each link frame (PyBullet's joint frame) sits at the link's joint point, parallel to the
 body's principal frame; the inertial frame is given explicitly (position -Y, the COM relative to
@@ -65,7 +65,7 @@ import time
 import numpy as np
 
 from references import conventions as cv
-from references.engines.pinocchio import system as ps
+from references.engines import reduced
 from references.engines.pybullet.adapter import MAX_JOINT_VELOCITY, _import
 from references.errors import Diverged, EngineError, Unsupported
 
@@ -91,20 +91,20 @@ DEFAULT_MAX_FORCE = 1e6
 PROBES = ((150.0, 1e-7, 1e-6), (0.003, 1e-3, 1e-7))
 
 
-def engine_frames(pl: ps.Plan, c: int) -> ps.EngineFrames:
+def engine_frames(pl: reduced.Plan, c: int) -> reduced.EngineFrames:
     """The builder's boundary: what PyBullet is given for body c's link (module docstring)."""
-    return ps.engine_frames(pl, c)
+    return reduced.engine_frames(pl, c)
 
 
 class _Model:
     """PyBullet's client, multibodies and links (per scenario body) and loop constraints."""
 
-    def __init__(self, p, pl: ps.Plan, dt: float):
+    def __init__(self, p, pl: reduced.Plan, dt: float):
         self.p, self.pl = p, pl
         self.cid = p.connect(p.DIRECT)
         self.clock = 0.0
         self.where: dict[int, tuple[int, int]] = {}  # body -> (multibody id, link index)
-        self.frames: dict[int, ps.EngineFrames] = {}
+        self.frames: dict[int, reduced.EngineFrames] = {}
         self.constraints: list = []
         p.setGravity(*pl.gravity.tolist(), physicsClientId=self.cid)
         p.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, physicsClientId=self.cid)
@@ -203,14 +203,14 @@ class _Model:
         p, cid, pl = self.p, self.cid, self.pl
         for c, (mb, k) in self.where.items():
             tj = pl.tree[c]
-            x, R, vG, w = ps.world(pl, c)
+            x, R, vG, w = reduced.world(pl, c)
             if tj.kind == "free":
                 W = R.T @ w if rates is None else np.array([rates, -0.8 * rates, 0.6 * rates])
                 X, q, v, ww = cv.pybullet_base_from_state(x, vG if rates is None else 0 * vG, R, W)
                 p.resetBasePositionAndOrientation(mb, X, q, physicsClientId=cid)
                 p.resetBaseVelocity(mb, v, ww, physicsClientId=cid)
                 continue
-            Rr, Wr = ps.relative_state(pl, tj)
+            Rr, Wr = reduced.relative_state(pl, tj)
             if rates is not None:
                 Wr = np.array([rates, -0.8 * rates, 0.6 * rates])
             if tj.kind == "spherical":
@@ -225,7 +225,7 @@ class _Model:
         """(x, R, v, W) per body (scenario order), and per multibody link the world link-frame
         point and orientation (joint frames), from PyBullet's kinematics."""
         p, cid = self.p, self.cid
-        x, R, v, W = ps.state_arrays(len(self.pl.bodies))
+        x, R, v, W = reduced.state_arrays(len(self.pl.bodies))
         frames = {}
         for c, (mb, k) in self.where.items():
             if k < 0:
@@ -297,7 +297,7 @@ class _Model:
 def read_back(bm: _Model, scenario, dt: float) -> None:
     """Compare PyBullet's model with the scenario (module docstring)."""
     p, cid, pl = bm.p, bm.cid, bm.pl
-    bad = ps.Mismatches()
+    bad = reduced.Mismatches()
     want = bad.want
 
     kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE}
@@ -388,7 +388,7 @@ def _check_constraints(bm: _Model, erp: float, max_force: float) -> None:
             ("erp", info[14], erp),
             ("max force", info[10], max_force),
         ):
-            if not np.allclose(got, exp, rtol=ps.CHECK_TOL, atol=ps.CHECK_TOL):
+            if not np.allclose(got, exp, rtol=reduced.CHECK_TOL, atol=reduced.CHECK_TOL):
                 bad.append(f"{lp.label}: {what} {np.round(got, 12).tolist()}, expected "
                            f"{np.round(exp, 12).tolist()}")  # fmt: skip
     if bad:
@@ -398,8 +398,8 @@ def _check_constraints(bm: _Model, erp: float, max_force: float) -> None:
 def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record): planned, built, read back, probed, the initial state set and
     checked against PyBullet's kinematics, the loops closed and read back."""
-    ps.check_run_args(integrator, dt, INTEGRATORS)
-    ps.check_settings("pybullet", settings, _SETTINGS)
+    reduced.check_run_args(integrator, dt, INTEGRATORS)
+    reduced.check_settings("pybullet", settings, _SETTINGS)
     erp = float(settings.get("erp", DEFAULT_ERP))
     if not 0 <= erp <= 1:
         raise ValueError(f"erp {erp!r}: Bullet's error reduction parameter, a number in [0, 1]")
@@ -413,7 +413,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "of jointed bodies is not built there"
         )
     p = _import()
-    pl = ps.plan(scenario, "pybullet")
+    pl = reduced.plan(scenario, "pybullet")
     bm = _Model(p, pl, float(dt))
     try:
         read_back(bm, scenario, float(dt))
@@ -421,7 +421,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         bm.set_joints()
         x, R, v, W, frames = bm.states()
         points, axes = bm.joint_world(frames)
-        ps.check_states("pybullet", pl, x, R, v, W, points, axes)
+        reduced.check_states("pybullet", pl, x, R, v, W, points, axes)
         bm.add_loops(erp, max_force)
         _check_constraints(bm, erp, max_force)
     except Exception:
@@ -434,7 +434,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         "dt": float(dt),
         "numSubSteps": 0,
         "gravity": pl.gravity.tolist(),
-        "tree": ps.tree_record(pl),
+        "tree": reduced.tree_record(pl),
         "frames": "link frame at the joint point, parallel to the principal frame; inertial "
         "frame explicit (-Y, identity)",
         "joint motors": "off (spherical: POSITION_CONTROL force 0; revolute: VELOCITY_CONTROL "
@@ -475,12 +475,12 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     :class:`Unsupported`, :class:`EngineError` (read-back, probe or initial-state mismatch) and
     :class:`Diverged` (non-finite state, or a speed near the raised velocity clamp).
     """
-    steps = ps.saves(nstep, save_every)
+    steps = reduced.saves(nstep, save_every)
     bm, rec = build(scenario, integrator, dt, **settings)
     p, cid = bm.p, bm.cid
     try:
         nb, n = len(bm.pl.bodies), len(steps)
-        x, R, v, W = ps.state_arrays(n, nb)
+        x, R, v, W = reduced.state_arrays(n, nb)
         x[0], R[0], v[0], W[0], _ = bm.states()
         done = 0
         for k in range(1, n):
@@ -500,8 +500,8 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                     f"pybullet {integrator} at dt = {dt:g} s: {why} between t = "
                     f"{steps[k - 1] * dt:.6g} and {done * dt:.6g} s",
                     done * dt,
-                    ps.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], bm.clock, rec),
+                    reduced.output(steps[:k], dt, x[:k], R[:k], v[:k], W[:k], bm.clock, rec),
                 )
-        return ps.output(steps, dt, x, R, v, W, bm.clock, rec)
+        return reduced.output(steps, dt, x, R, v, W, bm.clock, rec)
     finally:
         p.disconnect(physicsClientId=cid)
