@@ -36,20 +36,21 @@ file, the field (``bodies[1].inertia``, ``joints[0].anchor_b``), the value and t
 bodies' physics (as for one body), unknown or repeated names, the joints' shape, and the
 joints holding at t = 0 in position (:data:`JOINT_TOL`) and velocity. Nothing is repaired.
 
-The spanning tree (from the ground outwards, breadth first; a floating system from its first
-body) and the loop closures (every joint the tree does not need) are computed once here:
-:attr:`SystemScenario.tree_joints`, :attr:`SystemScenario.loop_joints`.
+The spanning tree (:func:`scenarios.tree.spanning_tree`: from the ground outwards, breadth
+first; a floating system from its first body) and the loop closures (every joint the tree does
+not need) are kept with the scenario: :attr:`SystemScenario.tree_joints`,
+:attr:`SystemScenario.loop_joints`.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from scenarios.model import RunFields, frozen
+from scenarios.tree import spanning_tree
 
 #: joint kinds (the same names and meanings as ``director_model.system.Joint``)
 JOINT_KINDS = ("spherical", "fixed_point", "revolute", "universal", "cylindrical", "prismatic")
@@ -110,53 +111,6 @@ class SystemJoint:
                 object.__setattr__(self, k, frozen(v))
 
 
-def spanning_tree(bodies, joints) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """(names of the tree joints, names of the loop closures): breadth first from the ground
-    (the joints to the ground in file order; a second one to a body already reached closes
-    a loop through the ground), then from each body not yet reached (a floating part). A
-    joint whose two sides are already in the tree closes a loop."""
-    reached: set[str] = set()
-    tree: list[str] = []
-    loops: list[str] = []
-    adj: dict[str, list] = {b.name: [] for b in bodies}
-    for j in joints:
-        if j.body_b is not None:
-            adj[j.body_a].append(j)
-            adj[j.body_b].append(j)
-    used: set[str] = set()
-    queue: deque[str] = deque()
-    for j in joints:
-        if j.body_b is not None:
-            continue
-        used.add(j.name)
-        if j.body_a in reached:
-            loops.append(j.name)
-        else:
-            tree.append(j.name)
-            reached.add(j.body_a)
-            queue.append(j.body_a)
-    while True:
-        while queue:
-            p = queue.popleft()
-            for j in adj[p]:
-                if j.name in used:
-                    continue
-                used.add(j.name)
-                other = j.body_b if j.body_a == p else j.body_a
-                if other in reached:
-                    loops.append(j.name)
-                else:
-                    tree.append(j.name)
-                    reached.add(other)
-                    queue.append(other)
-        rest = [b.name for b in bodies if b.name not in reached]
-        if not rest:
-            break
-        reached.add(rest[0])
-        queue.append(rest[0])
-    return tuple(tree), tuple(loops)
-
-
 def system_inertia(bodies, about) -> np.ndarray:
     """3x3 inertia tensor of the bodies about the world point ``about`` in their initial
     configuration, kg m^2."""
@@ -210,9 +164,9 @@ class SystemScenario(RunFields):
         object.__setattr__(self, "gravity", frozen(self.gravity))
         object.__setattr__(self, "reference_params", dict(self.reference_params))
         self._normalise_run()
-        tree, loops = spanning_tree(self.bodies, self.joints)
-        object.__setattr__(self, "tree_joints", tree)
-        object.__setattr__(self, "loop_joints", loops)
+        st = spanning_tree(self.bodies, self.joints)
+        object.__setattr__(self, "tree_joints", tuple(self.joints[k].name for k in st.tree))
+        object.__setattr__(self, "loop_joints", tuple(self.joints[k].name for k in st.loops))
 
     # -- structure ------------------------------------------------------------------------
     @property
@@ -755,11 +709,11 @@ def _tree_states(bodies, joints, raw_bodies, raw_joints, bad) -> list[SystemBody
     excepted, whose ``position`` is required)."""
     from scenarios import schema as sch
 
-    tree, loops = spanning_tree(bodies, joints)
+    st = spanning_tree(bodies, joints)
     jidx = {j.name: i for i, j in enumerate(joints)}
     ok = True
-    for name in loops:
-        i = jidx[name]
+    for i in st.loops:
+        name = joints[i].name
         given = [k for k in _ALL_COORDINATES if k in raw_joints[i]]
         field_ = f"joints[{i}].{given[0]}" if given else f"joints[{i}]"
         bad(field_, raw_joints[i][given[0]] if given else name, f"joint {name!r} closes a "
@@ -767,8 +721,7 @@ def _tree_states(bodies, joints, raw_bodies, raw_joints, bad) -> list[SystemBody
             "is not solved); give per-body states")  # fmt: skip
         ok = False
     zero = {}
-    for name in tree:
-        i = jidx[name]
+    for i in st.tree:
         j = joints[i]
         keys = COORDINATE_KEYS.get(j.kind)
         if keys is None:
@@ -781,29 +734,14 @@ def _tree_states(bodies, joints, raw_bodies, raw_joints, bad) -> list[SystemBody
                 bad(f"joints[{i}].{k}", raw_joints[i][k], f"a {j.kind} joint's coordinates "
                     f"are {' and '.join(keys)}")  # fmt: skip
                 ok = False
-    # the tree's traversal: parents before children, roots of floating parts
-    adj: dict[str, list] = {"ground": [], **{b.name: [] for b in bodies}}
-    for name in tree:
-        j = joints[jidx[name]]
-        b = j.body_b if j.body_b is not None else "ground"
-        adj[j.body_a].append((j, b))
-        adj[b].append((j, j.body_a))
-    order, roots, reached = [], [], {"ground"}
-    queue: deque[str] = deque(["ground"])
-    for start in [None] + [b.name for b in bodies]:
-        if start is not None:
-            if start in reached:
-                continue
-            roots.append(start)
-            reached.add(start)
-            queue.append(start)
-        while queue:
-            p = queue.popleft()
-            for j, c in adj[p]:
-                if c not in reached:
-                    reached.add(c)
-                    order.append((j, p, c))
-                    queue.append(c)
+    # the tree joints, parents before children (the walk's order), as (joint, parent, child);
+    # the parent of a joint to the ground is "ground"
+    order = []
+    for c in st.order:
+        p, k = st.parent[c]
+        if k is not None:
+            order.append((joints[k], p or "ground", c))
+    roots = st.floating_roots
     placed_by = {c: j.name for j, _, c in order}
     for i, b in enumerate(bodies):
         tab = raw_bodies[i]

@@ -18,6 +18,7 @@ import pytest
 pytest.importorskip("pinocchio")
 
 from director_model.system.examples import parallelogram_four_bar, rod_chain  # noqa: E402
+from references.engines import reduced  # noqa: E402
 from references.engines import system_conformance as kit  # noqa: E402
 from references.engines.pinocchio import system as ps  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
@@ -92,20 +93,20 @@ def test_joints_are_added_depth_first():
     crba and constraintDynamics wrong silently (aba is not affected): the plan is depth first."""
     bodies, joints, _, _ = parallelogram_four_bar()
     sc = scenario("four_bar", bodies, joints)
-    pl = ps.plan(sc, "pinocchio")
+    pl = reduced.plan(sc, "pinocchio")
     assert [pl.names[c] for c in pl.order] == ["crank", "coupler", "rocker"]
 
 
 def test_a_breadth_first_joint_order_is_caught(monkeypatch):
     bodies, joints, _, _ = parallelogram_four_bar()
-    orig = ps.plan
+    orig = reduced.plan
 
     def breadth_first(*a, **k):
         pl = orig(*a, **k)
         pl.order = sorted(pl.order, key=lambda c: (pl.tree[c].parent >= 0, c))
         return pl
 
-    monkeypatch.setattr(ps, "plan", breadth_first)
+    monkeypatch.setattr(reduced, "plan", breadth_first)
     with pytest.raises(EngineError, match="joint 'crank_joint'.*not contiguous"):
         ps.simulate_system(scenario("four_bar", bodies, joints), RK, 1e-3, 1, 1)
 

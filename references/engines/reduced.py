@@ -1,7 +1,7 @@
 """The kit of the reduced-coordinate system builders (Pinocchio, MuJoCo, MJX, DART, PyBullet,
 Drake): what each of them does the same way before and after it talks to its engine.
 
-- The plan (:func:`plan`): the scenario's spanning tree (:func:`scenarios.system.spanning_tree`,
+- The plan (:func:`plan`): the scenario's spanning tree (:func:`scenarios.tree.spanning_tree`,
   the one walk of a system's joints: from the ground outwards, a part joined to nothing a
   floating root on its first body in the scenario's order), the bodies depth first (parents
   first, every subtree contiguous), each tree joint's anchors, axes and reference orientation
@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from references.errors import EngineError, Unsupported
+from scenarios.tree import spanning_tree
 
 #: Read-back and initial-state tolerance relative to each quantity's scale: the conversions are
 #: exact up to a few operations of round-off per body along a chain.
@@ -112,12 +113,11 @@ def _named(joints) -> list:
 
 def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
     """The spanning tree, reference orientations and loop closures of ``scenario`` (module
-    docstring): the scenario's loop closures (``scenario.loop_joints``, else
-    ``scenarios.system.spanning_tree``), bodies added depth first from the ground, a body
-    joined to nothing a floating root. A joint with an axis has R_ref = R_p^T R_c at t = 0 and
-    its axis on both sides (``axis_c``, ``axis_p``). ``ValueError`` for malformed joints,
-    :class:`Unsupported` (naming ``engine``) for a kind outside ``tree_kinds`` in the tree, or
-    a closure other than spherical/revolute."""
+    docstring): the spanning tree and loop closures of :func:`scenarios.tree.spanning_tree`,
+    bodies added depth first from the ground, a body joined to nothing a floating root. A joint
+    with an axis has R_ref = R_p^T R_c at t = 0 and its axis on both sides (``axis_c``,
+    ``axis_p``). ``ValueError`` for malformed joints, :class:`Unsupported` (naming ``engine``)
+    for a kind outside ``tree_kinds`` in the tree, or a closure other than spherical/revolute."""
     bodies = list(scenario.bodies)
     names = [b.name for b in bodies]
     if len(set(names)) != len(names):
@@ -129,54 +129,20 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
             raise ValueError(f"{label(j)}: a body is not one of {names} (None is the ground)")
         if j.body_a == j.body_b:
             raise ValueError(f"{label(j)}: joins body {j.body_a!r} to itself")
-    loop_names = getattr(scenario, "loop_joints", None)
-    if loop_names is None:
-        from scenarios.system import spanning_tree
-
-        loop_names = spanning_tree(bodies, joints)[1]
-    loop_names = set(loop_names)
-    tree_js = [j for j in joints if j.name not in loop_names]
-    parent_of: dict[int, tuple] = {}
-    order: list[int] = []
-
-    def grow(start):
-        queue = [start]
-        while queue:
-            p = queue.pop(0)
-            for j in tree_js:
-                if j.body_b is None:
-                    continue
-                a, b = idx[j.body_a], idx[j.body_b]
-                if p in (a, b):
-                    c = b if a == p else a
-                    if c not in parent_of:
-                        parent_of[c] = (p, j)
-                        order.append(c)
-                        queue.append(c)
-
-    for j in tree_js:
-        if j.body_b is None:
-            a = idx[j.body_a]
-            parent_of[a] = (-1, j)
-            order.append(a)
-    for c in list(order):
-        grow(c)
-    for i in range(len(bodies)):
-        if i not in parent_of:
-            parent_of[i] = (-1, None)
-            order.append(i)
-            grow(i)
+    st = spanning_tree(bodies, joints)
+    loop_names = {joints[k].name for k in st.loops}
     # depth first, parents first, children in the order reached: every subtree is contiguous
     # (Pinocchio's crba and constraintDynamics need it; aba does not, docs/engines.md)
-    children: dict[int, list] = {i: [] for i in range(-1, len(bodies))}
-    for c in order:
-        children[parent_of[c][0]].append(c)
+    parent_of: dict[int, tuple] = {}
+    for c in st.order:
+        p, k = st.parent[c]
+        parent_of[idx[c]] = (-1 if p is None else idx[p], None if k is None else joints[k])
     order = []
-    stack = list(reversed(children[-1]))
+    stack = list(reversed(st.children[None]))
     while stack:
         c = stack.pop()
-        order.append(c)
-        stack.extend(reversed(children[c]))
+        order.append(idx[c])
+        stack.extend(reversed(st.children[c]))
 
     R = [np.asarray(b.rotation, dtype=float) for b in bodies]
     anchors = [np.zeros(3)]

@@ -9,9 +9,9 @@ body's principal frame relative to its COM; a world point for the ground), ``axi
 (same frames), ``name``), the fields of ``director_model.system.Body`` and ``Joint``.
 
 Spanning tree: the plan of every reduced-coordinate builder
-(:func:`references.engines.reduced.plan`, :func:`plan`): the scenario's loop closures
-(``loop_joints``, else the rule of ``scenarios.system.spanning_tree``), the other joints a
-tree grown from the ground, a body joined to nothing a floating root with a ``free`` joint.
+(:func:`references.engines.reduced.plan`, :func:`plan`): the loop closures of
+:func:`scenarios.tree.spanning_tree`, the other joints a tree grown from the ground, a body joined
+to nothing a floating root with a ``free`` joint.
 
 Frames. Every MuJoCo body frame IS the body's principal frame at its centre of mass: each body
 has an explicit ``<inertial pos="0 0 0" quat="1 0 0 0" mass diaginertia>`` (no inertia is

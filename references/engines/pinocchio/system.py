@@ -2,11 +2,10 @@
 loops closed by Pinocchio's ``RigidConstraintModel`` (CONTACT_3D) with ``constraintDynamics``
 and a Baumgarte corrector.
 
-Input: a system scenario with ``name``, ``gravity`` (3,), ``bodies`` and ``joints`` with the
-fields of ``director_model.system.Body`` and ``Joint`` (docs of that module: anchors and axes in
-each body's principal frame relative to its centre of mass, world for the ground). The spanning
-tree is the scenario's (``scenario.loop_joints`` when present, else
-``scenarios.system.spanning_tree``): from the ground outwards; a part joined to nothing is a
+Input: a system scenario with ``name``, ``gravity`` (3,), ``bodies`` and ``joints`` with the fields
+of ``director_model.system.Body`` and ``Joint`` (docs of that module: anchors and axes in each
+body's principal frame relative to its centre of mass, world for the ground). The spanning tree is
+:func:`scenarios.tree.spanning_tree`'s: from the ground outwards; a part joined to nothing is a
 floating root (its first body in the scenario's order) on a ``JointModelFreeFlyer``.
 
 Frames (the kit's :func:`~references.engines.reduced.plan` computes them once;

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from references.conventions import matrix_to_quat_wxyz, quat_wxyz_to_matrix
+from scenarios.tree import spanning_tree
 
 KINDS = {"free": 0, "spherical": 1, "revolute": 2}
 NQ = {"free": 7, "spherical": 4, "revolute": 1}
@@ -343,12 +344,13 @@ def tree_from_world(bodies, joints, gravity=(0.0, 0.0, 0.0)):
     that violate a joint).
     """
     bodies = list(bodies)
+    joints = list(joints)
     names = [b.name for b in bodies]
     known = set(names)
-    adj = {n: [] for n in names}
-    ground = []
+    whats = []
     for k, j in enumerate(joints):
         what = f"joint {getattr(j, 'name', None) or k} ({j.kind} {j.body_a!r}-{j.body_b!r})"
+        whats.append(what)
         if j.kind not in ("spherical", "fixed_point", "revolute"):
             raise ValueError(
                 f"{what}: kind {j.kind!r} is not treated by the reduced reference "
@@ -359,41 +361,34 @@ def tree_from_world(bodies, joints, gravity=(0.0, 0.0, 0.0)):
                 raise ValueError(f"{what}: body {side!r} unknown; bodies: {names}")
         if j.body_a is None:
             raise ValueError(f"{what}: body_a must be a body (body_b None is the ground)")
-        if j.body_b is None:
-            ground.append((j, what))
-        else:
-            adj[j.body_a].append((j, what))
-            adj[j.body_b].append((j, what))
+    st = spanning_tree(bodies, joints)
+    if st.loops:
+        raise ValueError(
+            f"{whats[st.loops[0]]}: closes a loop; the reduced reference treats trees only"
+        )
     parent_joint = {}
-    seen = set()
-    order = []
-
-    def attach(child, parent, j, what):
-        if child in seen:
-            raise ValueError(f"{what}: closes a loop; the reduced reference treats trees only")
-        seen.add(child)
-        order.append(child)
-        parent_joint[child] = (parent, j, what)
+    for n, (parent, k) in st.parent.items():
+        parent_joint[n] = (
+            (parent, None, "free root") if k is None else (parent, joints[k], whats[k])
+        )
+    # the bodies on the ground, then depth first from each (a body's children when it is
+    # taken from the stack), then each floating root and its part: the order in which the
+    # tree lists the bodies of one generation
+    ground = [r for r in st.children[None] if st.parent[r][1] is not None]
+    order = list(ground)
 
     def grow(root):
         stack = [root]
         while stack:
-            p = stack.pop()
-            for j, what in adj[p]:
-                if parent_joint[p][1] is j:
-                    continue  # the joint to p's own parent
-                other = j.body_b if j.body_a == p else j.body_a
-                attach(other, p, j, what)
-                stack.append(other)
+            kids = st.children[stack.pop()]
+            order.extend(kids)
+            stack.extend(kids)
 
-    for j, what in ground:  # bodies on the ground first, then the floating ones
-        attach(j.body_a, None, j, what)
-    for j, _ in ground:
-        grow(j.body_a)
-    for n in names:
-        if n not in seen:
-            attach(n, None, None, "free root")
-            grow(n)
+    for r in ground:
+        grow(r)
+    for r in st.floating_roots:
+        order.append(r)
+        grow(r)
     by = dict(zip(names, bodies, strict=True))
     tb, tj = [], []
     for n in order:
