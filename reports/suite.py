@@ -158,11 +158,14 @@ def check_engine_settings(scs) -> None:
                     )
 
 
-def check_integrators(integrators, engines: list[str]) -> list[str] | None:
+def check_integrators(integrators, engines: list[str], named: bool = False) -> list[str] | None:
     """The display names of the integrators asked for, each offered by at least one of
     ``engines``. A name is given as displayed ("semi-implicit Euler", quoted in a shell) or
     as its slug (``semi-implicit-euler``, :func:`references.engines.slug`), in any case;
-    it selects every integrator of these engines with that slug."""
+    it selects every integrator of these engines with that slug. ``named``: the engines were
+    named by the user (``--engines``), so each must offer at least one of the integrators,
+    else it would run nothing, silently (InputError naming it, what it offers and the
+    closest name); without ``--engines`` an integrator selects the engines that offer it."""
     from references.engines import get_engine, slug
 
     if integrators is None:
@@ -182,6 +185,17 @@ def check_integrators(integrators, engines: list[str]) -> list[str] | None:
             f"--integrators: {', '.join(map(repr, bad))} offered by none of the engines "
             f"{', '.join(engines)}{hint}; they offer: {', '.join(offered)}"
         )
+    asked = {slug(i) for i in integrators}
+    for e in engines if named else ():
+        own = list(dict.fromkeys(i.slug for i in get_engine(e).integrators))
+        if not asked & set(own):
+            hint = _did_you_mean(slug(integrators[0]), own)
+            raise InputError(
+                f"--engines {e}: offers none of the integrators asked for (--integrators "
+                f"{','.join(integrators)}), so it would run nothing; {e} offers "
+                f"{', '.join(own)}{hint}. Add one of them to --integrators or leave {e} out "
+                "of --engines"
+            )
     return list(dict.fromkeys(n for i in integrators for n in offered[slug(i)]))
 
 
@@ -278,8 +292,9 @@ def run(
     local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
     scs = resolve_scenarios(names, all_scenarios)
     check_engine_settings(scs)
+    named = engines is not None
     engines = check_engines(engines)
-    integrators = check_integrators(integrators, engines)
+    integrators = check_integrators(integrators, engines, named)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
     limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.runner
     specs = plan(
@@ -325,8 +340,9 @@ def ensemble(
     (sc,) = resolve_scenarios([name])
     if getattr(sc, "is_system", False):
         raise InputError(f"ensemble: {name!r} is a system of bodies; ensembles perturb one body")
+    named = engines is not None
     engines = check_engines(engines)
-    integrators = check_integrators(integrators, engines)
+    integrators = check_integrators(integrators, engines, named)
     check_count("--jobs", jobs)
     check_jobs(jobs)
     check_ensemble(sc, n, sc.dt if dt is None else dt, sc.t_end if t_end is None else t_end, jobs)

@@ -111,6 +111,16 @@ def default_systems() -> list[str]:
     return [name for name in list_systems() if "default" in load(name).tags]
 
 
+def _did_you_mean(word: str, names: list[str]) -> str:
+    """`` (did you mean 'x'?)`` naming the names closest to ``word`` in spelling (difflib's
+    ratio of at least 0.6, case ignored), or "" when none is close."""
+    import difflib
+
+    by_lower = {n.lower(): n for n in names}
+    close = difflib.get_close_matches(word.lower(), list(by_lower), n=3, cutoff=0.6)
+    return f" (did you mean {' or '.join(repr(by_lower[c]) for c in close)}?)" if close else ""
+
+
 def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     """Load a scenario: a library name (e.g. ``"dzhanibekov"``) or the path of a ``.toml`` file.
 
@@ -129,10 +139,11 @@ def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     if not path.is_file():
         path = robots_path() / f"{s}.toml"
     if not path.is_file():
-        names = ", ".join(list_scenarios() + list_systems() + list_robots())
+        known = list_scenarios() + list_systems() + list_robots()
         raise ScenarioError(
-            f"no scenario named {s!r} in the library ({library_path()}); available: {names}. "
-            "To load a file of your own, pass its path (ending in .toml)."
+            f"no scenario named {s!r} in the library{_did_you_mean(s, known)}; available: "
+            f"{', '.join(known)} ({library_path()}). To load a file of your own, pass its path "
+            "(ending in .toml)."
         )
     sc = load_file(path)
     if sc.name != s:

@@ -640,7 +640,9 @@ def read_file(path: str | Path) -> dict:
             path=str(path),
         )
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
+        # "utf-8-sig": a leading byte-order mark (Windows editors write one) is not TOML, but
+        # it is no part of the text either; one anywhere else stays an error
+        data = tomllib.loads(raw.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
         raise ScenarioError(
             f"invalid scenario file {path}: not UTF-8 text ({exc})", path=str(path)

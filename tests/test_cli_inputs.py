@@ -74,6 +74,27 @@ def cases(tmp_path):
         (["run", "--integrators", "rattle,RK44", "--out", out], 2, ["RK44", "rattle4"]),
         (["run", "--integrators", "rattel", "--out", out], 2, ["rattel", "offer"]),
         (["run", "--engines", "mujoco", "--integrators", "rattle", "--out", out], 2, ["rattle"]),
+        # an engine named in --engines that offers none of --integrators would run nothing
+        (
+            ["run", "--engines", "mujoco,pinocchio", "--integrators", "rk4", "--out", out],
+            2,
+            ["--engines pinocchio", "offers none", "rkmk4", "did you mean 'rkmk4'?"],
+        ),
+        (
+            [
+                "ensemble",
+                "dzhanibekov",
+                "--engines",
+                "mujoco,director",
+                "--integrators",
+                "rk4",
+                "--out",
+                out,
+            ],
+            2,
+            ["--engines director", "rattle4"],
+        ),
+        (["run", "dzhanibekow", "--out", out], 2, ["did you mean 'dzhanibekov'?"]),
         (["run", "--jobs", "0", "--out", out], 2, ["--jobs", ">= 1"]),
         (["run", "--segment", "0", "--out", out], 2, ["--segment", ">= 1"]),
         (["run", "--save-every", "-3", "--out", out], 2, ["--save-every", ">= 1"]),

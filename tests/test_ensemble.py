@@ -58,3 +58,22 @@ def test_batched_members_equal_single_runs(tmp_path, dzh):
     assert s_dir["members"] == "4/4" and s_mj["members"] == "4/4"
     # RK4 and the Yoshida composition at dt = 1e-3 over 1 s: both far below 1e-6 rad
     assert s_dir["attitude_error_max max"] < 1e-6 and s_mj["attitude_error_max max"] < 1e-6
+
+
+def test_an_ensemble_in_a_fresh_folder_writes_its_report(tmp_path):
+    """``director-bench ensemble`` into a new folder draws its figures into plots/, which
+    nothing else made there: the report is written, with the two ensemble figures, instead
+    of the run failing on 'plots/<figure>.png: No such file or directory'."""
+    from reports.cli import main
+
+    out = tmp_path / "ens"
+    code = main(["ensemble", "dzhanibekov", "--n", "2", "--engines", "mujoco", "--integrators",
+                 "rk4", "--t-end", "0.2", "--quiet", "--jobs", "1", "--out", str(out)])  # fmt: skip
+    assert code == 0
+    figures = sorted(p.name for p in (out / "plots").glob("*.png"))
+    assert figures == [
+        "dzhanibekov__ensemble_attitude-error-max.png",
+        "dzhanibekov__ensemble_energy-drift-max.png",
+    ]
+    page = (out / "report.html").read_text()
+    assert page.count("data:image/png;base64,") == 2 and "ensemble of 2 initial" in page

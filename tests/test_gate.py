@@ -358,13 +358,65 @@ def test_bad_baseline_file_is_a_clear_error(tmp_path, capsys):
             "runs[0].attitude_error_max = '1e-3' is not a number"
         ),
         "[" * 100000: "nested too deeply",
+        # NaN compares as nothing: a baseline of NaN metrics would pass any results
+        json.dumps({"format": 3, "runs": [{**entry, "attitude_error_max": math.nan}]}): (
+            "runs[0].attitude_error_max = NaN: not a number (a value that was not measured is null)"
+        ),
+        json.dumps({"format": 3, "runs": [{**entry, "energy_drift_max": -1.0}]}): (
+            "runs[0].energy_drift_max = -1.0: must be >= 0"
+        ),
+        json.dumps({"format": 3, "runs": [{**entry, "dt": math.inf}]}): (
+            "runs[0].dt = Infinity: a step must be finite and > 0"
+        ),
+        json.dumps({"format": 3, "runs": [{**entry, "target_accuracy": 5.0}]}): (
+            "runs[0].target_accuracy = 5.0: a target accuracy is in (0, 1)"
+        ),
+        json.dumps({"format": 3, "runs": [{**entry, "status": "bogus"}]}): (
+            "runs[0].status = 'bogus': must be one of 'ok', 'reference-inaccurate'"
+        ),
+        json.dumps({"format": 3, "runs": [{**entry, "verdict": "maybe"}]}): (
+            "runs[0].verdict = 'maybe': must be one of 'pass', 'fail', ''"
+        ),
+        json.dumps({"format": 3, "runs": [entry, {**entry, "attitude_error_max": 1e-30}]}): (
+            "runs[1] repeats the configuration of runs[0] (dzhanibekov mujoco/RK4/dt=0.001)"
+        ),
     }
+    failed = []  # every case is tried: each must fail on its own without its check
     for text, words in cases.items():
         bad = tmp_path / "bad.json"
         bad.write_text(text)
-        assert main(["check", str(cur), "--baseline", str(bad)]) == 2
+        code = main(["check", str(cur), "--baseline", str(bad)])
         err = capsys.readouterr().err
-        assert "bad.json:" in err and words in err and "Traceback" not in err, (words, err)
+        if code != 2 or "bad.json:" not in err or words not in err or "Traceback" in err:
+            failed.append(f"exit {code}, {words!r} not in {err.strip()[:200]!r}")
+    assert not failed, "\n".join(failed)
+
+
+def test_a_blown_up_run_and_a_negative_fitted_order_are_valid_baseline_values(tmp_path):
+    """The writer writes an infinite metric (a run that blew up) as Infinity, and a fitted
+    order may be negative (an error growing as dt falls): both are read, and compared."""
+    blown = row(status="diverged", verdict="fail", energy_drift_max=math.inf, t_diverged=0.5)
+    cur = write(tmp_path / "cur", [blown])
+    path = gate.write_baseline(cur, tmp_path / "inf.json")
+    assert "Infinity" in path.read_text()
+    assert gate.read_baseline(path)["runs"][0]["energy_drift_max"] == math.inf
+    assert main(["check", str(cur), "--baseline", str(path)]) == 0
+    doc = json.loads(path.read_text())
+    doc["runs"][0]["convergence_order"] = -0.5
+    path.write_text(json.dumps(doc))
+    assert gate.read_baseline(path)["runs"][0]["convergence_order"] == -0.5
+
+
+def test_a_baseline_with_a_byte_order_mark_is_read(tmp_path, baseline):
+    """A baseline saved by an editor that writes a UTF-8 byte-order mark is the same baseline
+    (json refuses it: "Unexpected UTF-8 BOM")."""
+    marked = tmp_path / "marked.json"
+    marked.write_bytes(b"\xef\xbb\xbf" + baseline.read_bytes())
+    cur = write(
+        tmp_path / "cur",
+        [row(), row(engine="pybullet", integrator="multibody", energy_drift_max=0.3)],
+    )
+    assert main(["check", str(cur), "--baseline", str(marked)]) == 0
 
 
 # -- invariants ---------------------------------------------------------------------------------

@@ -185,6 +185,26 @@ def test_unknown_library_name_lists_the_library():
         assert name in msg
 
 
+@pytest.mark.parametrize(
+    ("typed", "hint"),
+    [
+        ("dzhanibekow", "(did you mean 'dzhanibekov'?)"),
+        ("Heavy_Top", "(did you mean 'heavy_top'?)"),
+        ("four-bar", "(did you mean 'four_bar'?)"),
+        ("double_pendulum", "(did you mean 'double_pendulum_3d' or 'conical_pendulum'?)"),
+        ("xyz", None),
+    ],
+)
+def test_a_misspelt_name_gets_the_closest_names(typed, hint):
+    with pytest.raises(ScenarioError) as err:
+        scenarios.load(typed)
+    first = str(err.value).split(";")[0]
+    if hint is None:
+        assert "did you mean" not in str(err.value)
+    else:
+        assert first == f"no scenario named {typed!r} in the library {hint}"
+
+
 def test_missing_file(tmp_path):
     with pytest.raises(ScenarioError, match="does not exist"):
         scenarios.load(tmp_path / "nope.toml")
@@ -373,6 +393,20 @@ def test_not_utf8(tmp_path):
     path = tmp_path / "latin.toml"
     path.write_bytes(VALID.replace("a test body", "caf\xe9").encode("latin-1"))
     with pytest.raises(ScenarioError, match="not UTF-8"):
+        scenarios.load(path)
+
+
+def test_a_byte_order_mark_is_not_part_of_the_file(tmp_path):
+    """A file saved with a UTF-8 byte-order mark (as Windows editors do) is the same scenario,
+    content hash included; tomllib alone refuses it ("Invalid statement (at line 1, column 1)").
+    A mark anywhere else is still invalid TOML."""
+    lib = scenarios.library_path() / "dzhanibekov.toml"
+    path = tmp_path / "dzhanibekov.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + lib.read_bytes())
+    sc = scenarios.load(path)
+    assert sc.scenario_hash == scenarios.load("dzhanibekov").scenario_hash
+    path.write_bytes(lib.read_bytes() + b"\xef\xbb\xbf")
+    with pytest.raises(ScenarioError, match="not valid TOML"):
         scenarios.load(path)
 
 

@@ -47,10 +47,16 @@ from reports.gate.rule import (
     status_change,
     verdict_change,
 )
-from reports.metrics.catalog import ORDER_SLACK
+from reports.metrics.catalog import HIGHER_IS_BETTER, ORDER_SLACK
 from reports.report.junit import SKIPPED, case_name
 from reports.store.atomic import write_text
-from reports.store.results import IDENTITY_COLUMNS, METRIC_COLUMNS, config_key, identity_differences
+from reports.store.results import (
+    IDENTITY_COLUMNS,
+    METRIC_COLUMNS,
+    STATUSES,
+    config_key,
+    identity_differences,
+)
 from scenarios.model import RELATIVE_EQUILIBRIA
 from scenarios.schema import InputError
 
@@ -119,7 +125,7 @@ def read_baseline(path: str | Path) -> dict:
             raise InputError(
                 f"{path}: not a baseline file (larger than {MAX_BASELINE_BYTES} bytes)"
             )
-        doc = json.loads(data.decode())
+        doc = json.loads(data.decode("utf-8-sig"))  # a leading byte-order mark is no JSON
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: baseline file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -137,17 +143,65 @@ def read_baseline(path: str | Path) -> dict:
             "save_every, segmenting, engine and suite versions); write it again with "
             "`director-bench baseline DIR --write FILE`"
         )
+    seen: dict[tuple, int] = {}
     for i, run in enumerate(doc["runs"]):
         missing = [k for k in _ENTRY_KEYS if not isinstance(run, dict) or k not in run]
         if missing:
             raise InputError(f"{path}: runs[{i}] lacks {', '.join(missing)}")
-        for k in ("dt", *METRIC_COLUMNS, *TIMING_METRICS):
+        for k in ("dt", "target_accuracy", *METRIC_COLUMNS, *TIMING_METRICS):
             v = run.get(k)
             if (v is not None or k == "dt") and (
                 not isinstance(v, int | float) or isinstance(v, bool)
             ):
                 raise InputError(f"{path}: runs[{i}].{k} = {v!r} is not a number")
+            rule = _number_rule(k, v)
+            if rule:
+                raise InputError(f"{path}: runs[{i}].{k} = {_json_text(v)}: {rule}")
+        for k, allowed in (("status", STATUSES), ("verdict", VERDICTS)):
+            if run.get(k, "") not in allowed:
+                raise InputError(
+                    f"{path}: runs[{i}].{k} = {run.get(k)!r}: must be one of "
+                    f"{', '.join(repr(a) for a in allowed)}"
+                )
+        key = entry_key(run)
+        if key in seen:
+            raise InputError(
+                f"{path}: runs[{i}] repeats the configuration of runs[{seen[key]}] "
+                f"({run_name(key)}): each run is in a baseline once (which of the two would "
+                "count is not for the order of the file to decide); remove one, or write "
+                "the baseline again with `director-bench baseline DIR --write FILE`"
+            )
+        seen[key] = i
     return doc
+
+
+#: the verdicts a baseline entry may hold ("" for a run with nothing to judge)
+VERDICTS = ("pass", "fail", "")
+
+
+def _number_rule(column: str, v) -> str:
+    """The rule a number of a baseline entry breaks, or "": no NaN anywhere (the baseline's
+    writer writes a value that was not measured as null, and NaN compares as nothing, so a
+    baseline of NaN would pass any results); a step is finite and > 0; a metric of error,
+    drift or cost is >= 0 (infinite for a run that blew up), a fitted order finite."""
+    if v is None or isinstance(v, bool) or not isinstance(v, int | float):
+        return ""
+    if math.isnan(v):
+        return "not a number (a value that was not measured is null)"
+    if column == "dt":
+        return "" if 0 < v < math.inf else "a step must be finite and > 0"
+    if column == "target_accuracy":
+        return "" if 0 < v < 1 else "a target accuracy is in (0, 1), or null for a fixed step"
+    if column in HIGHER_IS_BETTER:
+        return "" if math.isfinite(v) else "a fitted order must be finite"
+    return "" if v >= 0 else "must be >= 0 (an error, a drift or a cost; Infinity for a blow-up)"
+
+
+def _json_text(v) -> str:
+    """A number as the JSON file spells it (NaN, Infinity)."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return "NaN" if math.isnan(v) else ("Infinity" if v > 0 else "-Infinity")
+    return repr(v)
 
 
 def entry_key(b: dict) -> tuple:

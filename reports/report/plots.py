@@ -348,6 +348,7 @@ def _save(fig, path: Path, alt: str = "", notes: str = "") -> Path:
     _fit(fig, notes)
     w, h = fig.get_size_inches() * fig.dpi
     meta = {"alt": alt, "lines": _hover_lines(fig, w, h)}
+    path.parent.mkdir(parents=True, exist_ok=True)  # a folder holding only an ensemble has none
     _write_png(fig, path)
     _plt().close(fig)
     path.with_suffix(".json").write_text(json.dumps(meta, separators=(",", ":")))

@@ -278,7 +278,7 @@ def run_matrix(
         check_count(name, value)
     scenarios = resolve_scenarios(scenario_names)
     engines = list(dict.fromkeys(t.engine for t in targets))
-    integrators = check_integrators(integrators, engines)
+    integrators = check_integrators(integrators, engines, named=True)
     opts = dict(
         integrators=integrators, dts=dts, t_end=t_end, sweep=sweep, full=full,
         accuracies=accuracies, jobs=jobs, redo=redo,
