@@ -19,7 +19,10 @@ just after the command, averaged. On a virtual machine whose host is shared, the
 core changes from minute to minute (here the same loop has taken from 1.0x to 1.9x its fastest
 time within ten minutes) and the guest's CPU accounting inflates with it, so neither wall nor
 CPU time compares across days; the yardstick says how fast the machine was while the command
-ran. Then the median of each.
+ran. And how far the progress display's estimate of the time left was off: the largest
+factor between its estimate and the time actually left, over its lines from 10 % of the runs
+on (:func:`eta_errors`; the command's progress goes to its log, one line per finished
+scenario). Then the median of each.
 
 Usage: python benchmarks/bench_first_run.py [--rounds 3] [--repo PATH] [--keep DIR]
 (about 4 to 8 minutes per round on 2 cores).
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import resource
 import shutil
 import statistics
@@ -104,6 +108,39 @@ def yardstick() -> float:
     return float(out.stdout)
 
 
+#: a progress line of the run (reports.run.progress, outside a terminal): runs done, their
+#: percentage, the time so far and the estimate of the time left; and its closing line
+_PROGRESS = re.compile(
+    r"director-bench: .*?(\d+)/(\d+) runs \((\d+) %\), ([\d:]+)(?:, about ([\d:]+) left)?"
+)
+_CLOSING = re.compile(r"director-bench: (\d+)/\1 runs in ([\d:]+)")
+
+
+def _seconds(clock: str) -> int:
+    s = 0
+    for part in clock.split(":"):
+        s = 60 * s + int(part)
+    return s
+
+
+def eta_errors(log: str, start: float = 10.0) -> list[tuple[int, float]]:
+    """(percentage done, estimated over actual time left) of each progress line of ``log``
+    from ``start`` % of the runs on that gives an estimate (the actual time left: the
+    closing line's time minus the line's; lines 3 s or less before the end are left out,
+    a second's rounding being a factor there)."""
+    end = _CLOSING.search(log)
+    if end is None:
+        return []
+    total_s = _seconds(end.group(2))
+    out = []
+    for m in _PROGRESS.finditer(log):
+        pct, now, left = int(m.group(3)), _seconds(m.group(4)), m.group(5)
+        actual = total_s - now
+        if pct >= start and left is not None and actual > 3:
+            out.append((pct, _seconds(left) / actual))
+    return out
+
+
 def fresh_clone(repo: Path, where: Path) -> Path:
     clone = where / "clone"
     subprocess.run(["git", "clone", "--quiet", str(repo), str(clone)], check=True)
@@ -140,7 +177,7 @@ def main(argv=None) -> int:
         ).stdout.strip()  # fmt: skip
         print(f"repository {args.repo} at {commit}; {os.cpu_count()} cores; logs in {base}")
         print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
-              f"{'load after':>11} {'yardstick s':>12}")  # fmt: skip
+              f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12}")  # fmt: skip
         for k in range(1, args.rounds + 1):
             where = base / f"round{k}"
             where.mkdir()
@@ -153,8 +190,10 @@ def main(argv=None) -> int:
                 out = where / f"results-{kind}"
                 row = timed([*COMMAND, str(out)], clone, env, where / f"{kind}.log")
                 rows.append((kind, *row))
+                errs = eta_errors((where / f"{kind}.log").read_text(errors="replace"))
+                worst = max((max(r, 1 / r) for _, r in errs if r > 0), default=float("nan"))
                 print(f"{k:>5} {kind:>6} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
-                      f"{row[3]:11.2f} {row[4]:12.2f}", flush=True)  # fmt: skip
+                      f"{row[3]:11.2f} {row[4]:12.2f} {worst:12.2f}", flush=True)  # fmt: skip
         for kind in ("cold", "warm"):
             sel = [r for r in rows if r[0] == kind]
             wall = statistics.median(r[1] for r in sel)

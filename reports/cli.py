@@ -297,6 +297,9 @@ def cmd_run(args) -> int:
     print(f"junit:        {summary.junit}")
     for why in summary.unloadable.values():
         print(f"not run:      {why}")
+    for engine, why in summary.left_out.items():
+        print(f"not run:      {engine}, left out of the default suite here: {why}; "
+              "--engines all adds it")  # fmt: skip
     failed = df[(df["verdict"] == "fail") | (df["status"] == "error")]
     if len(failed):
         print(f"{len(failed)} run(s) failed their verdict or errored; see the report's failures.")
@@ -487,7 +490,13 @@ def _add_run(sub) -> None:
         help="every integrator of every engine (not only the default suite's) and the full "
         "sweep of target accuracies",
     )
-    s.add_argument("--engines", type=_csv_list, metavar="A,B", help="comma-separated engine names")
+    s.add_argument(
+        "--engines",
+        type=_csv_list,
+        metavar="A,B",
+        help="comma-separated engine names, or all (default: every engine but those left "
+        "out of the default suite on this machine: MJX where JAX sees no accelerator)",
+    )
     s.add_argument(
         "--integrators",
         type=_csv_list,

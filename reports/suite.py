@@ -23,6 +23,8 @@ class RunSummary:
     junit: Path | None
     #: engines whose adapter does not load here (no integrator to run), with the reason
     unloadable: dict = field(default_factory=dict)
+    #: engines left out of the default suite on this machine, with the reason
+    left_out: dict = field(default_factory=dict)
 
 
 def resolve_scenarios(names, all_: bool = False) -> list:
@@ -111,13 +113,35 @@ def _did_you_mean(word: str, candidates) -> str:
     return f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""
 
 
+def default_engines(every: bool = False) -> tuple[list[str], dict[str, str]]:
+    """(the engines of the default suite on this machine, {engine left out: why}): every
+    registered engine but those whose adapter says they do not belong here
+    (``default_suite_exclusion``: MJX where JAX sees no accelerator); ``every``: all of them
+    (``--engines all``, ``--full``)."""
+    from references.engines import engine_names, get_engine
+
+    names = engine_names()
+    if every:
+        return names, {}
+    left_out = {}
+    for name in names:
+        why = get_engine(name).default_suite_exclusion()
+        if why:
+            left_out[name] = why
+    return [n for n in names if n not in left_out], left_out
+
+
+#: the --engines word that asks for every registered engine
+ALL_ENGINES = "all"
+
+
 def check_engines(engines) -> list[str]:
-    """The engine names asked for (None: every registered engine), each checked; a name
-    matches in any case ("MuJoCo" is ``mujoco``)."""
+    """The engine names asked for (None: every registered engine; ``all`` among them: every
+    one too), each checked; a name matches in any case ("MuJoCo" is ``mujoco``)."""
     from references.engines import engine_names
 
     known = engine_names()
-    if engines is None:
+    if engines is None or any(str(e).lower() == ALL_ENGINES for e in engines or ()):
         return known
     if not engines:
         raise InputError(f"--engines: an empty list; give one or more of {', '.join(known)}")
@@ -289,10 +313,13 @@ def run(
         raise InputError(f"--out {out}: {exc.strerror or exc}") from None
     # a local pool's workers start importing now (reports.run.parallel), while this process
     # loads the scenarios and plans the runs (nothing runs before every input is checked)
+    named = engines is not None
+    left_out = {}
+    if engines is None:  # the default suite's engines on this machine
+        engines, left_out = default_engines(every=full)
     local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
     scs = resolve_scenarios(names, all_scenarios)
     check_engine_settings(scs)
-    named = engines is not None
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines, named)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
@@ -306,11 +333,11 @@ def run(
     mapper = local or make_mapper(jobs, scheduler, out)
     # every input is checked: only now is anything written
     out = check_out(out)
-    write_provenance(out, engines)
+    write_provenance(out, engines, left_out)
     df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
     path = junit.write(df, out / "junit.xml")  # first: the verdicts never wait on the report
     rep = build_report(out, progress=progress) if report else {}
-    return RunSummary(out, n_run, len(specs) - n_run, df, rep, path, unloadable)
+    return RunSummary(out, n_run, len(specs) - n_run, df, rep, path, unloadable, left_out)
 
 
 def ensemble(

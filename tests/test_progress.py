@@ -161,3 +161,54 @@ def test_a_bundle_holds_only_its_engines_warm_up_and_runs_its_systems_last():
     # the reference's leader is a single run, which holds it only while it runs
     lead = next(b for b in order if "multibody" in unit_warm_ups(b))
     assert len(lead) == 1 and lead[0].scenario.name == "four_bar"
+
+
+def test_the_clock_of_a_terminal_display_runs_while_nothing_finishes(monkeypatch):
+    import time
+
+    from reports.run import progress
+
+    monkeypatch.setattr(progress, "TICK_S", 0.05)
+    log = io.StringIO()
+    bar = Progress(10, warming={"a": "the kernels"}, stream=log, terminal=True)
+    t = time.monotonic()
+    monkeypatch.setattr(progress.time, "monotonic", lambda: t + 61.0)  # a minute later
+    time.sleep(0.3)  # no update: the clock thread alone redraws
+    frame = log.getvalue().split("\r")[-1]
+    bar.close()
+    assert "[1:01]" in frame and "compiling the kernels" in frame, frame
+
+
+def test_outside_a_terminal_one_line_per_finished_group_with_its_outcomes():
+    from reports.run.progress import Item
+
+    items = {f"{g}{k}": Item(g, "c", 100.0) for g in "ab" for k in range(3)}
+    log = io.StringIO()
+    bar = Progress(len(items), stream=log, items=items)
+    for i, key in enumerate(sorted(items)):
+        bar.update(1, item=key, seconds=0.1, outcome="pass" if i % 3 else "fail")
+    bar.close()
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 1 + 2 + 1, lines
+    assert lines[1].startswith("director-bench: a done (1 fail, 2 pass); 3/6 runs (50 %)")
+    assert lines[2].startswith("director-bench: b done (1 fail, 2 pass); 6/6 runs (100 %)")
+
+
+def test_the_estimate_prices_what_is_left_per_configuration():
+    from reports.run.progress import Estimate, Item
+
+    # config "slow" costs 1 s per 100 steps, "fast" 0.1 s; none compiled
+    items = {f"s{k}": Item("g", "slow", 100.0) for k in range(4)}
+    items |= {f"f{k}": Item("g", "fast", 100.0) for k in range(10)}
+    items["new"] = Item("g", "unseen", 300.0)
+    est = Estimate(items)
+    for key, secs in (("s0", 1.0), ("f0", 0.1), ("f1", 0.1), ("f2", 0.1)):
+        est.finished(key, secs, measured=True, counts=True)
+    # measured 1.3 s of runs in 2.6 s: one busy worker in two (throughput 0.5)
+    # left: 3 slow (3 s), 7 fast (0.7 s), 300 steps of an unseen config at the mean of
+    # the two rates, (0.01 + 0.001) / 2 s per step = 1.65 s: 5.35 s of runs, 10.7 s of time
+    assert abs(est.left_s(2.6) - 10.7) < 1e-9
+    # a run that compiled is not a rate
+    est.finished("s1", 100.0, measured=False, counts=True)
+    assert abs(est.left_s(2.6) - (2.0 + 0.7 + 1.65) / 0.5) < 1e-9
+    assert Estimate(items).left_s(10.0) is None  # nothing measured yet

@@ -75,6 +75,13 @@ class EngineBase(ABC):
             return str(exc)
         return None
 
+    @classmethod
+    def default_suite_exclusion(cls) -> str | None:
+        """None when the engine belongs in the default suite on this machine, else why it is
+        left out (a sentence: the runner lists it with the flag that adds it). Asked without
+        running the engine; the default: None."""
+        return None
+
     #: the Python distributions (pip names) whose versions make up the engine's version
     #: (:meth:`version_of`), e.g. ("mujoco",); empty for an engine that ships with the suite
     #: or that does not say. The CI pins them (reports/baselines/engines.txt).

@@ -315,6 +315,10 @@ def provenance_rows(prov: dict) -> list[list[str]]:
         ["platform", f"{m.get('platform', '?')}, Python {m.get('python', '?')}"],
     ]
     rows += [[f"engine {e}", str(v)] for e, v in (prov.get("engines", {}) or {}).items()]
+    rows += [
+        [f"engine {e}", f"not in the default suite here: {why} (--engines all adds it)"]
+        for e, why in (prov.get("left_out", {}) or {}).items()
+    ]
     if prov.get("note"):
         rows.append(["note", str(prov["note"])])
     return rows

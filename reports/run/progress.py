@@ -1,31 +1,50 @@
 """Progress of a batch of runs on standard error, for a terminal and for a log.
 
-In a terminal, one line redrawn in place: the count, a bar, the time so far, an estimate of
-the time left and what finished last or what is compiling. Anywhere else (CI, a pipe, a
-file) a plain line at every tenth of the work and at the end, never a carriage return, so a
-log of the whole default suite holds about a dozen lines.
+In a terminal, one line redrawn in place: the count, a bar, the time so far (redrawn every
+second by a clock thread, so it never stands still while a worker compiles), an estimate of
+the time left and what finished last or what is compiling. Anywhere else (CI, a pipe, a file)
+plain lines, never a carriage return: one when the work starts (what compiles first), one per
+finished group of work (a scenario, when the runner names them; else a tenth of the work),
+and one at the end, so that a log of the default suite holds about a dozen lines.
 
 The first run of some engines in a process compiles code first (the director model's and the
 suite's RKMK4 numba kernels, MJX's step with JAX); such a run takes seconds where the others
 take milliseconds. The runner names these warm-ups (``warming``: key -> what compiles) and
 says which key each finished run belongs to; until the first run of every key has finished,
-the display says what is compiling and gives no estimate, and the estimate afterwards uses
-only the runs finished since then, so that compilation does not inflate it. A warm-up at the
-start of a bundle of runs that finish together (MJX's) is only named at the start
-(``bundled``): its end is not seen before the whole bundle's.
+the display says what is compiling and gives no estimate. A warm-up at the start of a bundle
+of runs that finish together (MJX's) is only named at the start (``bundled``): its end is not
+seen before the whole bundle's.
+
+The estimate (:class:`Estimate`): runs differ in cost by three orders of magnitude (a
+thousand steps of MuJoCo against thirty thousand of a Runge-Kutta in Drake), so counting runs
+misleads. Each unit of work has a size (its number of steps) and a configuration (engine,
+integrator, body or system); the seconds each finished run took in its worker give a rate per
+configuration (seconds per step), the runs not finished are priced at their configuration's
+rate (the mean rate of all configurations for one not seen yet), and the time left is that
+price over the throughput since the warm-ups ended (seconds of runs finished per second,
+about the number of busy workers). Runs that compiled are left out of both.
 """
 
 from __future__ import annotations
 
 import shutil
 import sys
+import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass
 
-#: a terminal line is redrawn at most this often (s) for a running run's own progress
+#: a terminal line is redrawn at most this often (s) for a running run's own progress, and
+#: at least this often by the clock thread
 REDRAW_S = 0.2
-#: outside a terminal, a line every this fraction of the work
+#: the clock thread's period in a terminal (s)
+TICK_S = 1.0
+#: outside a terminal and without groups, a line every this fraction of the work
 LOG_STEP = 0.1
+#: no estimate before this many runs have finished since the warm-ups ended, nor before
+#: this many seconds have passed since: a rate from one run is a guess
+ETA_MIN_RUNS = 3
+ETA_MIN_S = 2.0
 
 
 def _clock(seconds: float) -> str:
@@ -35,13 +54,65 @@ def _clock(seconds: float) -> str:
     return f"{s // 60}:{s % 60:02d}"
 
 
+@dataclass(frozen=True)
+class Item:
+    """One unit of the work as the estimate sees it: its ``group`` (a scenario: a log line
+    when the last of its items finishes), its ``config`` (items of one config cost alike per
+    unit of size) and its ``size`` (e.g. its number of steps, > 0)."""
+
+    group: str
+    config: Hashable
+    size: float
+
+
+class Estimate:
+    """The time left from the items finished so far (see the module docstring)."""
+
+    def __init__(self, items: Mapping[Hashable, Item]):
+        self.items = dict(items)
+        self.left = set(self.items)
+        self.seconds: dict[Hashable, float] = {}  # config -> seconds of its measured runs
+        self.sizes: dict[Hashable, float] = {}  # config -> size of its measured runs
+        self.since = 0.0  # seconds of the runs measured since the origin
+        self.n_since = 0
+
+    def finished(self, item, seconds: float | None, measured: bool, counts: bool) -> None:
+        """``item`` finished after ``seconds`` in its worker; ``measured``: its time is a
+        run's (it compiled nothing); ``counts``: it finished after the origin."""
+        self.left.discard(item)
+        it = self.items.get(item)
+        if it is None or seconds is None or not measured or not seconds >= 0:
+            return
+        self.seconds[it.config] = self.seconds.get(it.config, 0.0) + seconds
+        self.sizes[it.config] = self.sizes.get(it.config, 0.0) + it.size
+        if counts:
+            self.since += seconds
+            self.n_since += 1
+
+    def left_s(self, elapsed: float) -> float | None:
+        """Seconds left, ``elapsed`` seconds after the origin; None when too little is known."""
+        if self.n_since < ETA_MIN_RUNS or elapsed < ETA_MIN_S or not self.seconds:
+            return None
+        rates = {c: self.seconds[c] / self.sizes[c] for c in self.seconds if self.sizes[c] > 0}
+        if not rates:
+            return None
+        mean = sum(rates.values()) / len(rates)
+        price = sum(self.items[k].size * rates.get(self.items[k].config, mean) for k in self.left)
+        throughput = self.since / elapsed  # seconds of runs per second: the busy workers
+        return price / throughput if throughput > 0 else None
+
+
 class Progress:
     """Progress of ``total`` units of work (runs) on ``stream`` (default: standard error).
 
-    ``update(n, key)`` counts ``n`` finished units of warm-up key ``key`` (or None);
+    ``update(n, key, label, item, seconds, outcome)`` counts ``n`` finished units of warm-up
+    key(s) ``key`` (or None); ``item``: which one finished (a key of ``items``), ``seconds``
+    the time it took, ``outcome`` a word counted in its group's line (e.g. its verdict).
     ``set_postfix_str(text)`` shows what is running (a terminal only); ``close()`` ends the
-    display. ``terminal``: draw in place (default: whether ``stream`` is a terminal);
-    ``disable``: show nothing. No work (``total`` 0) shows nothing either."""
+    display. ``items``: {item: :class:`Item`} of the whole work (the estimate and the
+    per-group lines; without them the estimate counts units and a log gets a line per tenth).
+    ``terminal``: draw in place (default: whether ``stream`` is a terminal); ``disable``:
+    show nothing. No work (``total`` 0) shows nothing either."""
 
     def __init__(
         self,
@@ -52,7 +123,8 @@ class Progress:
         stream=None,
         terminal: bool | None = None,
         disable: bool = False,
-        bundled: Sequence[str] = (),
+        bundled: Mapping[str, str] | Sequence[str] = (),
+        items: Mapping[Hashable, Item] | None = None,
     ):
         # nothing to show: no work, or the caller asked for quiet
         self.total = 0 if disable else max(int(total), 0)
@@ -63,70 +135,119 @@ class Progress:
             terminal = bool(isatty and isatty())
         self.terminal = terminal
         self.warming = dict(warming or {})
+        # warm-ups at the start of bundles: named until a row of their bundle arrives
+        self.bundled = dict(bundled) if isinstance(bundled, Mapping) else dict.fromkeys(bundled)
+        self.bundled = {k: (v if v is not None else k) for k, v in self.bundled.items()}
         self.n = 0
         self.t0 = time.monotonic()
         # the estimate's origin: the end of the warm-ups (the start if there are none)
         self.t_warm = self.t0 if not self.warming else None
         self.n_warm = 0
+        self.items = dict(items or {})
+        self.estimate = Estimate(self.items) if self.items else None
+        self.groups: dict[str, int] = {}  # group -> items not finished
+        for it in self.items.values():
+            self.groups[it.group] = self.groups.get(it.group, 0) + 1
+        self.outcomes: dict[str, dict[str, int]] = {}
         self.postfix = ""
         self.logged = 0  # tenths of the work reported outside a terminal
         self._drawn = 0.0
         self._width = 0
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._ticker = None
         if not self.total:
             return
         if not self.terminal:
             first = f"{self.desc}: {self.total} {self.unit}s"
+            if self.groups:
+                first += f" in {len(self.groups)} groups" if len(self.groups) > 1 else ""
             if self.warming:
                 first += "; compiling first: " + ", ".join(self.warming.values())
-            if bundled:
-                first += "; at the start of their bundles: " + ", ".join(bundled)
+            if self.bundled:
+                first += "; at the start of their bundles: " + ", ".join(self.bundled.values())
             self._line(first)
         else:
             self._draw()
+            self._ticker = threading.Thread(target=self._tick, daemon=True, name="progress")
+            self._ticker.start()
 
     # -- the interface the runner uses ---------------------------------------------------------
 
-    def update(self, n: int = 1, key: str | Sequence[str] | None = None, label: str = "") -> None:
+    def update(
+        self,
+        n: int = 1,
+        key: str | Sequence[str] | None = None,
+        label: str = "",
+        item: Hashable | None = None,
+        seconds: float | None = None,
+        outcome: str = "",
+    ) -> None:
         """``n`` more units finished; ``key``: their warm-up key or keys (those compilations
-        are over); ``label``: what finished (shown in a terminal)."""
+        are over); ``label``: what finished (shown in a terminal); ``item``, ``seconds``,
+        ``outcome``: which item of ``items`` finished, how long it took, what came of it."""
         if not self.total:
             return
-        self.n += n
-        keys = (key,) if isinstance(key, str) else tuple(key or ())
-        ended = [k for k in keys if self.warming.pop(k, None) is not None]
-        if ended and not self.warming:
-            self.t_warm, self.n_warm = time.monotonic(), self.n
-        if label:
-            self.postfix = label
-        if self.terminal:
-            self._draw()
-        else:
-            tenth = int(self.n / self.total / LOG_STEP + 1e-9) if self.total else 0
-            if tenth > self.logged and self.n < self.total:
-                self.logged = tenth
-                self._line(self._status())
+        with self._lock:
+            self.n += n
+            keys = (key,) if isinstance(key, str) else tuple(key or ())
+            ended = [k for k in keys if self.warming.pop(k, None) is not None]
+            compiled = bool(ended) | any([self.bundled.pop(k, None) is not None for k in keys])
+            if self.estimate is not None and item is not None:
+                # a run that ended a warm-up compiled: its time is not a run's
+                self.estimate.finished(item, seconds, not compiled, self.t_warm is not None)
+            if ended and not self.warming:
+                self.t_warm, self.n_warm = time.monotonic(), self.n
+            if label:
+                self.postfix = label
+            group = self.items[item].group if item in self.items else None
+            done_group = None
+            if group is not None:
+                if outcome:
+                    counts = self.outcomes.setdefault(group, {})
+                    counts[outcome] = counts.get(outcome, 0) + 1
+                self.groups[group] -= 1
+                if self.groups[group] == 0:
+                    done_group = group
+            if self.terminal:
+                self._draw()
+            elif self.groups:
+                if done_group is not None:
+                    self._line(self._group_line(done_group))
+            else:
+                tenth = int(self.n / self.total / LOG_STEP + 1e-9) if self.total else 0
+                if tenth > self.logged and self.n < self.total:
+                    self.logged = tenth
+                    self._line(self._status())
 
     def set_postfix_str(self, text: str, refresh: bool = True) -> None:
         """What is running now (a run's own progress); a terminal shows it, a log does not."""
-        self.postfix = text
-        now = time.monotonic()
-        if self.total and self.terminal and refresh and now - self._drawn >= REDRAW_S:
-            self._draw()
+        with self._lock:
+            self.postfix = text
+            now = time.monotonic()
+            if self.total and self.terminal and refresh and now - self._drawn >= REDRAW_S:
+                self._draw()
 
     def close(self) -> None:
         """The final state: the count and the time taken."""
         if not self.total:
             return
-        if self.terminal:
-            self.postfix = ""
-            self._draw(final=True)
-            self.stream.write("\n")
-            self.stream.flush()
-        elif self.total:
-            self._line(
-                f"{self.desc}: {self.n}/{self.total} {self.unit}s in "
-                f"{_clock(time.monotonic() - self.t0)}"
-            )
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+            self._ticker = None
+        with self._lock:
+            if self.terminal:
+                self.postfix = ""
+                self._draw(final=True)
+                self.stream.write("\n")
+                self.stream.flush()
+            else:
+                self._line(
+                    f"{self.desc}: {self.n}/{self.total} {self.unit}s in "
+                    f"{_clock(time.monotonic() - self.t0)}"
+                )
+            self.total = 0  # closed: nothing more is shown
 
     def __enter__(self) -> Progress:
         return self
@@ -137,21 +258,45 @@ class Progress:
     # -- text ----------------------------------------------------------------------------------
 
     def eta(self) -> float | None:
-        """Seconds left, from the rate since the warm-ups ended; None while they last or
-        before a run has finished since."""
-        if self.t_warm is None or self.n <= self.n_warm:
+        """Seconds left: from the items' sizes and the rates measured since the warm-ups
+        ended (:class:`Estimate`), or without items from the count of units finished since
+        then; None while the warm-ups last or before enough has finished since."""
+        if self.t_warm is None:
             return None
-        rate = (self.n - self.n_warm) / max(time.monotonic() - self.t_warm, 1e-9)
+        elapsed = time.monotonic() - self.t_warm
+        if self.estimate is not None:
+            return self.estimate.left_s(elapsed)
+        if self.n <= self.n_warm:
+            return None
+        rate = (self.n - self.n_warm) / max(elapsed, 1e-9)
         return (self.total - self.n) / rate
 
-    def _status(self) -> str:
+    def _count(self) -> str:
         pct = 100 * self.n / self.total if self.total else 100.0
-        text = f"{self.desc}: {self.n}/{self.total} {self.unit}s ({pct:.0f} %), "
-        text += _clock(time.monotonic() - self.t0)
+        elapsed = _clock(time.monotonic() - self.t0)
+        return f"{self.n}/{self.total} {self.unit}s ({pct:.0f} %), {elapsed}"
+
+    def _tail(self) -> str:
         if self.warming:
-            return text + ", compiling " + ", ".join(self.warming.values())
+            return ", compiling " + ", ".join(self.warming.values())
         eta = self.eta()
-        return text + (f", about {_clock(eta)} left" if eta is not None else "")
+        return f", about {_clock(eta)} left" if eta is not None else ""
+
+    def _status(self) -> str:
+        return f"{self.desc}: {self._count()}{self._tail()}"
+
+    def _group_line(self, group: str) -> str:
+        counts = self.outcomes.get(group, {})
+        said = ", ".join(f"{n} {w}" for w, n in sorted(counts.items()))
+        said = f" ({said})" if said else ""
+        return f"{self.desc}: {group} done{said}; {self._count()}{self._tail()}"
+
+    def _tick(self) -> None:
+        """The clock thread of a terminal display: a redraw every :data:`TICK_S`."""
+        while not self._stop.wait(TICK_S):
+            with self._lock:
+                if self.total and time.monotonic() - self._drawn >= TICK_S * 0.9:
+                    self._draw()
 
     def _draw(self, final: bool = False) -> None:
         if not self.terminal:
@@ -164,6 +309,10 @@ class Progress:
         else:
             eta = self.eta()
             tail = f"{_clock(eta)} left" if eta is not None and not final else ""
+            if self.bundled and not final:
+                tail += (
+                    (" " if tail else "") + "bundles compiling " + ", ".join(self.bundled.values())
+                )
             tail += (" " if tail and self.postfix else "") + self.postfix
         head = f"{self.desc} {100 * pct:3.0f}% {self.n}/{self.total} [{elapsed}]"
         nbar = max(min(20, width - len(head) - len(tail) - 4), 0)

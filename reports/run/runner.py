@@ -164,6 +164,7 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     """
     from references.engines import EngineError
 
+    started = time.perf_counter()
     row = blank_row(spec)
     try:
         cls, integ, sc = _prepare(row, spec)
@@ -184,7 +185,14 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
         where = f" (at {Path(tb.filename).name}:{tb.lineno})"
         row["message"] = failure_message(f"{type(exc).__name__}: {exc}", where, exc, spec, out)
     row["finished_at"] = finish_time()
+    # the run's seconds in its process, for the progress display's estimate (not a column:
+    # the store keeps only RESULT_COLUMNS)
+    row[RUN_SECONDS] = time.perf_counter() - started
     return row
+
+
+#: the key of a row (not a column) holding the seconds :func:`execute` took
+RUN_SECONDS = "_run_seconds"
 
 
 #: longest failure message a result row holds whole (characters; the suite's own messages
@@ -634,7 +642,14 @@ def run_suite(
                     if bar is not None:
                         label = f"{row['scenario']}/{row['engine']}/{row['integrator']}"
                         spec = spec_of.get(row["run_id"])
-                        bar.update(1, key=tuple(warm_ups(spec)) if spec else None, label=label)
+                        bar.update(
+                            1,
+                            key=tuple(warm_ups(spec)) if spec else None,
+                            label=label,
+                            item=row["run_id"],
+                            seconds=row.get(RUN_SECONDS),
+                            outcome=row["verdict"] or row["status"],
+                        )
         finally:
             if bar is not None:
                 bar.close()
@@ -742,7 +757,34 @@ def bundles(specs) -> list[list[RunSpec]]:
     held = collections.Counter(k for b in out for s in b for k in warm_ups(s))
     leaders.sort(key=lambda b: -max(held[k] for k in unit_warm_ups(b)))
     lead = {id(b) for b in leaders}
-    return leaders + [b for b in out if id(b) not in lead]
+    rest = [b for b in out if id(b) not in lead]
+    # then one unit of each configuration not yet started, its cheapest: the progress
+    # display prices the runs left by their configuration's measured rate, known early so
+    probes: dict[tuple, list[RunSpec]] = {}
+    seen = {_config(b[0]) for b in leaders}
+    for b in rest:
+        key = _config(b[0])
+        if key not in seen and (key not in probes or _steps(b) < _steps(probes[key])):
+            probes[key] = b
+    probe = {id(b) for b in probes.values()}
+    return leaders + list(probes.values()) + [b for b in rest if id(b) not in probe]
+
+
+def _config(spec: RunSpec) -> tuple:
+    """(engine, integrator, body or system): runs of one configuration cost alike per step."""
+    return spec.engine, spec.integrator, bool(getattr(spec.scenario, "is_system", False))
+
+
+def _steps(unit: list[RunSpec]) -> float:
+    """The steps of a unit's runs (bodies times steps for a system of bodies)."""
+    return sum(_size(s) for s in unit)
+
+
+def _size(s: RunSpec) -> float:
+    """A run's size for the progress display's estimate: its steps, times its bodies for a
+    system of bodies."""
+    steps = max(s.horizon / s.dt, 1.0) if s.dt > 0 else 1.0
+    return steps * max(len(getattr(s.scenario, "bodies", ()) or ()), 1)
 
 
 def _export_quietly(out: Path):
@@ -765,7 +807,15 @@ def _bar(todo: list[RunSpec]):
         for key, what in warm_ups(s).items():
             bundle_key = _bundled(s.engine) and key.startswith(f"{s.engine}/")
             (bundled if bundle_key else warming)[key] = what
-    return Progress(len(todo), warming=warming, bundled=list(bundled.values()))
+    return Progress(len(todo), warming=warming, bundled=bundled, items=progress_items(todo))
+
+
+def progress_items(todo: list[RunSpec]) -> dict:
+    """{run_id: :class:`reports.run.progress.Item`} of ``todo``: grouped by scenario, priced
+    per configuration (:func:`_config`) by their size (:func:`_size`)."""
+    from reports.run.progress import Item
+
+    return {s.run_id: Item(s.scenario.name, _config(s), _size(s)) for s in todo}
 
 
 def _inner(bar, spec):

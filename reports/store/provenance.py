@@ -71,22 +71,28 @@ def engine_versions(names=None) -> dict:
     return out
 
 
-def provenance(engines=None) -> dict:
+def provenance(engines=None, left_out=None) -> dict:
+    """The provenance of a run of ``engines``; ``left_out``: {engine: why} of the engines
+    the default suite left out on this machine (kept only when there are some)."""
     from reports import __version__
 
-    return {
+    doc = {
         "suite_version": __version__,
         "git_commit": git_commit(),
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "engines": engine_versions(engines),
     }
+    if left_out:
+        doc["left_out"] = dict(left_out)
+    return doc
 
 
-def write_provenance(out: Path, engines=None) -> Path:
+def write_provenance(out: Path, engines=None, left_out=None) -> Path:
     """Write ``provenance.json`` into ``out`` (atomically: a temporary file renamed)."""
     return write_text(
-        Path(out) / "provenance.json", json.dumps(provenance(engines), indent=2) + "\n"
+        Path(out) / "provenance.json",
+        json.dumps(provenance(engines, left_out), indent=2) + "\n",
     )
 
 

@@ -123,6 +123,47 @@ def _configurations() -> tuple[Integrator, ...]:
 # -- the handle -------------------------------------------------------------------------------
 
 
+#: the Python distributions through which JAX reaches an accelerator (its GPU and TPU plugins)
+ACCELERATOR_PLUGINS = (
+    "jax-cuda12-plugin",
+    "jax-cuda13-plugin",
+    "jax-rocm60-plugin",
+    "jax-rocm7-plugin",
+    "libtpu",
+    "libtpu-nightly",
+    "jax-metal",
+)
+
+
+def accelerator() -> str | None:
+    """The accelerator platform JAX runs on here ("gpu", "tpu", ...), or None when it sees
+    none. Without an accelerator plugin installed (:data:`ACCELERATOR_PLUGINS`, read from
+    the packages' metadata) or with ``JAX_PLATFORMS`` naming only the CPU, None without
+    importing JAX; else JAX is asked (its import and a device query, about a second)."""
+    import os
+    from importlib.metadata import PackageNotFoundError, version
+
+    platforms = os.environ.get("JAX_PLATFORMS", "").strip().lower()
+    if platforms and set(platforms.replace(" ", "").split(",")) <= {"cpu"}:
+        return None
+    plugins = []
+    for name in ACCELERATOR_PLUGINS:
+        try:
+            version(name)
+            plugins.append(name)
+        except PackageNotFoundError:
+            pass
+    if not plugins:
+        return None
+    try:
+        import jax
+
+        backend = jax.default_backend()
+    except Exception:  # noqa: BLE001 - a plugin that cannot start: no accelerator
+        return None
+    return None if backend == "cpu" else backend
+
+
 class _Handle:
     """A run's MuJoCo and MJX objects. The state MJX holds is ``dx`` (an mjx.Data), kept
     between compiled calls as its leaf list and rebuilt only when read."""
@@ -212,6 +253,20 @@ class MjxEngine(Engine):
         return _version_text(_versions())
 
     packages = ("mujoco-mjx", "mujoco", "jax", "jaxlib")
+
+    @classmethod
+    def default_suite_exclusion(cls) -> str | None:
+        """Left out where JAX sees no accelerator (:func:`accelerator`): on a CPU, MJX steps
+        one instance at a time at hundreds of times MuJoCo's cost per step and compiles for
+        tens of seconds first, which is not how it is meant to run (batched, on a GPU or
+        TPU); in the default suite where an accelerator is present."""
+        if accelerator() is not None:
+            return None
+        return (
+            "JAX sees no accelerator here (no GPU or TPU), and MJX on the CPU runs one "
+            "instance at a time at hundreds of times MuJoCo's cost per step, after tens of "
+            "seconds of compilation; it is meant to run batched on an accelerator"
+        )
 
     @classmethod
     def version_of(cls, versions) -> str | None:
