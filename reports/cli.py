@@ -300,10 +300,43 @@ def cmd_run(args) -> int:
     for engine, why in summary.left_out.items():
         print(f"not run:      {engine}, left out of the default suite here: {why}; "
               "--engines all adds it")  # fmt: skip
+    for path in summary.moved:
+        print(
+            f"moved aside:  {path} (it was changed by hand after director-bench wrote it; the "
+            f"commands read the store, and {path.stem} was written again from it)"
+        )
+    if summary.removed:
+        names = ", ".join(p.name for p in summary.removed)
+        print(
+            f"removed:      {names} (the verdict of an earlier `check` or `compare` on the "
+            "results before this run; run it again)"
+        )
     failed = df[(df["verdict"] == "fail") | (df["status"] == "error")]
     if len(failed):
-        print(f"{len(failed)} run(s) failed their verdict or errored; see the report's failures.")
+        print(f"{len(failed)} run(s) failed their verdict or errored{_known(out, df)}; see the "
+              "report's failures.")  # fmt: skip
     return 1 if (args.strict and len(failed)) else 0
+
+
+def _known(out, df) -> str:
+    """How many of the failures of the results ``df`` the committed baseline expects: ``: all
+    190 fail as in the committed baseline (FILE), known failures`` or ``: 185 fail as in ...,
+    5 do not (`director-bench check` lists them)``."""
+    from reports.gate.check import failures_in_baseline
+    from reports.suite import DEFAULT_BASELINE
+
+    if not DEFAULT_BASELINE.is_file():
+        return ""
+    known, other = failures_in_baseline(out, df, DEFAULT_BASELINE)
+    where = f"the committed baseline ({DEFAULT_BASELINE})"
+    if not known:
+        return f": none of them fails as in {where}"
+    if not other:
+        return f": all {known} fail as in {where}, known failures, not regressions"
+    return (
+        f": {known} fail as in {where}, {other} do not (`director-bench check {out} "
+        f"--baseline {DEFAULT_BASELINE}` lists them)"
+    )
 
 
 def _counts(series) -> str:
@@ -341,10 +374,23 @@ def cmd_ensemble(args) -> int:
     return 0
 
 
+def _warn_edited(folder) -> None:
+    """Say so when an export of ``folder`` (results.csv, results.parquet) was changed by
+    hand (reports.store.exports): the commands read the store, so the change is not read."""
+    from reports.store.exports import edited
+
+    for sentence in edited(folder).values():
+        print(f"director-bench: warning: {sentence}", file=sys.stderr)
+        if os.environ.get("GITHUB_ACTIONS"):
+            print(f"::warning title=director-bench: an export was edited::{sentence}")
+
+
 def cmd_report(args) -> int:
     from reports.report.build import build_report
 
     folder = Path(args.dir)
+    if (folder / "results.sqlite").is_file():
+        _warn_edited(folder)
     if (folder / "results.sqlite").is_file() and not os.access(folder, os.W_OK):
         # the store reads fine (compare and check work here); the report is written beside it
         print(
@@ -373,6 +419,8 @@ def cmd_baseline(args) -> int:
 def cmd_check(args) -> int:
     from reports.gate.check import check
 
+    if (Path(args.dir) / "results.sqlite").is_file():
+        _warn_edited(args.dir)
     return check(
         args.dir,
         args.baseline,
@@ -386,6 +434,9 @@ def cmd_check(args) -> int:
 def cmd_compare(args) -> int:
     from reports.gate.compare import run_compare
 
+    for folder in (args.a, args.b):
+        if (Path(folder) / "results.sqlite").is_file():
+            _warn_edited(folder)
     return run_compare(
         args.a,
         args.b,

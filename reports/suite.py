@@ -25,6 +25,16 @@ class RunSummary:
     unloadable: dict = field(default_factory=dict)
     #: engines left out of the default suite on this machine, with the reason
     left_out: dict = field(default_factory=dict)
+    #: exports edited by hand, moved aside before they were written again
+    #: (reports.store.exports.keep_edited)
+    moved: list = field(default_factory=list)
+    #: the verdicts of an earlier check or compare of the folder, removed (:data:`VERDICTS`)
+    removed: list = field(default_factory=list)
+
+
+#: what ``check`` and ``compare`` write into a results folder by default: a verdict on the
+#: results as they were, stale once a run changes them, so ``run`` removes them
+VERDICT_FILES = ("check.md", "check.json", "compare.md", "compare.json")
 
 
 def resolve_scenarios(names, all_: bool = False) -> list:
@@ -300,7 +310,9 @@ def run(
     from reports.report.build import build_report
     from reports.run.parallel import make_mapper
     from reports.run.runner import max_states, plan, run_suite
+    from reports.store.exports import keep_edited
     from reports.store.provenance import write_provenance
+    from reports.store.results import STORE_NAME
 
     for name, value in (("--jobs", jobs), ("--segment", segment), ("--save-every", save_every)):
         check_count(name, value)
@@ -334,10 +346,16 @@ def run(
     # every input is checked: only now is anything written
     out = check_out(out)
     write_provenance(out, engines, left_out)
+    moved = keep_edited(out) if (out / STORE_NAME).is_file() else []
+    removed = [out / n for n in VERDICT_FILES if (out / n).is_file()]
+    for p in removed:
+        p.unlink()
     df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
     path = junit.write(df, out / "junit.xml")  # first: the verdicts never wait on the report
     rep = build_report(out, progress=progress) if report else {}
-    return RunSummary(out, n_run, len(specs) - n_run, df, rep, path, unloadable, left_out)
+    return RunSummary(
+        out, n_run, len(specs) - n_run, df, rep, path, unloadable, left_out, moved, removed
+    )
 
 
 def ensemble(

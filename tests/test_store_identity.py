@@ -178,6 +178,44 @@ def test_rows_of_an_older_engine_version_are_history():
     assert len(df[df["engine"] == "director"]) == 1  # another engine's rows stay current
 
 
+def _as_other_version(r: dict, version: str, finished_at: str) -> dict:
+    """Row ``r`` as another suite version would have stored it: another identity."""
+    new_id = hashlib.sha256(f"{r['run_id']}{version}".encode()).hexdigest()[:20]
+    return {**r, "run_id": new_id, "suite_version": version, "finished_at": finished_at,
+            "attitude_error_max": 9.99}  # fmt: skip
+
+
+def test_the_run_just_made_is_shown_whatever_the_clocks_say(tmp_path):
+    """A store holding rows of another suite version stamped a day ahead (a clock set ahead,
+    on the machine that wrote them): a run of this version into the folder, made or found
+    already done, is what the tables show, not the other rows because of their later
+    finished_at."""
+    from reports.run.runner import run_suite
+
+    sc = scenarios.load("free_tumbling").replace(t_end=0.01, dt_sweep=())
+    spec = RunSpec(sc, "director", "rattle", 1e-3)
+    run_suite([spec], tmp_path, progress=False)
+    with Store(tmp_path) as st:
+        (ours,) = st.rows()
+    ahead = _as_other_version(ours, "0.2.0", "2999-01-01T00:00:00+00:00")
+    # the other version wrote last: its rows are the newest
+    with Store(tmp_path, create=True) as st:
+        st.put(ahead)
+    assert list(read_results(tmp_path)["suite_version"]) == ["0.2.0"]
+    # this version's run asked for again (found done, not run again): it is shown
+    df, n_run = run_suite([spec], tmp_path, progress=False)
+    assert n_run == 0 and list(df["suite_version"]) == [ours["suite_version"]]
+    assert list(df["attitude_error_max"]) == [ours["attitude_error_max"]]
+    # made fresh after the other version's rows (stamped a day ahead): shown too
+    with Store(tmp_path, create=True) as st:
+        st.delete([ours["run_id"]])
+        st.touch([ahead["run_id"]])
+    df, n_run = run_suite([spec], tmp_path, progress=False)
+    assert n_run == 1 and list(df["suite_version"]) == [ours["suite_version"]]
+    # the other version's row is history, kept
+    assert len(read_results(tmp_path, all_rows=True)) == 2
+
+
 # -- timings ------------------------------------------------------------------------------------
 @pytest.fixture
 def cheap():

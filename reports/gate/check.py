@@ -282,6 +282,23 @@ def compare(
     return cmp
 
 
+def failures_in_baseline(results_dir, df, baseline_path) -> tuple[int, int]:
+    """(failing as in the baseline, failing otherwise) of the failing runs of ``df`` (a
+    failed verdict or an error, :func:`reports.gate.rule.failing`) against the baseline
+    ``baseline_path``: the first are its known failures, the others fail differently, anew or
+    are not in it. For the closing line of ``run``: the committed baseline says which of a
+    suite's failures are expected."""
+    failed = {row_key(r) for _, r in df.iterrows() if failing(r)}
+    if not failed:
+        return 0, 0
+    try:
+        cmp = compare(results_dir, baseline_path, only_present=True, df=df)
+    except NothingComparable:
+        return 0, len(failed)
+    known = len(failed & set(cmp.known))
+    return known, len(failed) - known
+
+
 def _run_findings(key, b, r, factor, timing_factor) -> list[Change]:
     """The regressions of run ``r`` against its baseline entry ``b`` (:mod:`reports.gate.rule`:
     a status ranked worse, a verdict from pass to fail or failing one more check, a metric

@@ -26,12 +26,12 @@ import numpy as np
 from reports.metrics import verdicts
 from reports.metrics.body import metrics_and_series, roundoff_floor
 from reports.store.atomic import replacing
+from reports.store.exports import export
 from reports.store.results import (
     RunSpec,
     Store,
     StoreUnwritable,
     blank_row,
-    export,
     finish_time,
     output_columns,
     read_results,
@@ -617,6 +617,9 @@ def run_suite(
     with Store(out, create=True) as store:
         done = set() if redo else store.done_ids()
         todo = [s for s in specs if s.run_id not in done]
+        # the runs asked for again are this invocation's too: newest in the store's order,
+        # which decides what the tables show (reports.store.results.current)
+        store.touch(s.run_id for s in specs if s.run_id in done)
         n_run = 0
         bar = _bar(todo) if progress and todo else None
         if mapper is None:

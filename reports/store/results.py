@@ -7,7 +7,7 @@ local pool's parent, several ``director-bench run`` commands, a Dask client) may
 one folder at once without losing a row, a killed process never leaves half a row, and every
 row carries a checksum of its content, verified on every read, so a damaged file is reported
 (:class:`StoreDamaged`), never read as a result. ``results.csv`` and ``results.parquet`` are
-exports written from the store (atomically, by rename); ``report``, ``check`` and
+exports written from the store (reports.store.exports); ``report``, ``check`` and
 ``compare`` read the store.
 
 A run's identity (:attr:`RunSpec.run_id`) is a hash of everything that determines its
@@ -30,7 +30,6 @@ application (:data:`APPLICATION_ID`, the tables it holds).
 from __future__ import annotations
 
 import contextlib
-import csv
 import datetime as _dt
 import hashlib
 import json
@@ -573,6 +572,37 @@ class Store:
                 self._con.execute("ROLLBACK")
             raise self._damaged(exc) from None
 
+    def touch(self, run_ids: Iterable[str]) -> None:
+        """Make the stored rows ``run_ids`` the newest, in this order, unchanged: a rerun that
+        skips runs the store holds asks for them again, so they are what :func:`current`
+        shows, whatever another invocation wrote since (one transaction)."""
+        ids = list(run_ids)
+        try:
+            self._con.execute("BEGIN IMMEDIATE")
+            for i in ids:
+                self._con.execute(
+                    "UPDATE runs SET rowid = (SELECT MAX(rowid) + 1 FROM runs) WHERE run_id = ?",
+                    (i,),
+                )
+            self._con.execute("COMMIT")
+        except sqlite3.Error as exc:
+            with contextlib.suppress(sqlite3.Error):
+                self._con.execute("ROLLBACK")
+            raise self._damaged(exc) from None
+
+    def get_meta(self, key: str) -> str | None:
+        try:
+            got = self._con.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
+        except sqlite3.DatabaseError as exc:
+            raise self._damaged(exc) from None
+        return None if got is None else got[0]
+
+    def set_meta(self, key: str, value: str) -> None:
+        try:
+            self._con.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (key, value))
+        except sqlite3.Error as exc:
+            raise self._damaged(exc) from None
+
     def delete(self, run_ids: Iterable[str]) -> None:
         ids = list(run_ids)
         try:
@@ -654,12 +684,18 @@ def current(df):
     the scenario's content, horizon, segmenting and suite version of its newest row; per
     engine, the version of that engine's newest row; per integrator, the save_every of its
     newest row); older rows are history, never current and never in a fit. Of the rest, the
-    newest row of each configuration."""
+    newest row of each configuration.
+
+    Newest is last in ``df``'s order, the store's (:meth:`Store.rows`): the order the rows
+    were written in, a rerun's skipped runs moved last (:meth:`Store.touch`), so that the
+    runs of the last invocation are what every table shows. Never the rows' ``finished_at``:
+    a clock set ahead, on this machine or another that wrote into the folder, would make
+    another invocation's rows win."""
     from reports.metrics.body import add_convergence_orders
 
     if df.empty:
         return df
-    df = df.sort_values("finished_at", kind="stable")
+    df = df.reset_index(drop=True)
     df = df[_newest_identity(df)]
     df = df.drop_duplicates(subset=list(CONFIG_KEY), keep="last")  # NaN accuracies match
     df = df.sort_values(list(CONFIG_KEY), ignore_index=True)
@@ -667,7 +703,7 @@ def current(df):
 
 
 def _newest_identity(df):
-    """Mask of the rows (sorted oldest first) that share their scenario's newest identity
+    """Mask of the rows (in store order, oldest first) that share their scenario's newest identity
     and their engine's newest version."""
     import pandas as pd
 
@@ -703,27 +739,6 @@ def read_results(folder: str | Path, all_rows: bool = False):
     return df if all_rows else current(df)
 
 
-def export(folder: str | Path, df=None) -> list[Path]:
-    """Write ``results.csv`` and ``results.parquet`` (the current view) from the store, each
-    by writing a temporary file and renaming it over the old one."""
-    folder = Path(folder)
-    if df is None:
-        df = read_results(folder)
-    paths = []
-    csv_path = folder / "results.csv"
-    with replacing(csv_path) as tmp, tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(RESULT_COLUMNS)
-        for rec in df[list(RESULT_COLUMNS)].itertuples(index=False):
-            w.writerow(_csv_value(v) for v in rec)
-    paths.append(csv_path)
-    pq = folder / "results.parquet"
-    with replacing(pq) as tmp:
-        df[list(RESULT_COLUMNS)].to_parquet(tmp, index=False)
-    paths.append(pq)
-    return paths
-
-
 def reference_rows(df):
     """Boolean Series: the rows of a reference engine (the exact or numerical reference every
     configuration is measured against, not a configuration under test), as the runner recorded
@@ -756,12 +771,6 @@ def default_dt(rows) -> float:
         return float(exact["dt"].iloc[0])
     counts = rows.groupby("dt").size()
     return max(counts.index, key=lambda h: (counts[h], -h))
-
-
-def _csv_value(v) -> str:
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
-    return str(v)
 
 
 def write_parquet_table(table, path: Path, metadata: dict) -> None:

@@ -333,7 +333,8 @@ def run_matrix(
         for fut in as_completed(futs):
             runs[futs[fut]] = fut.result()
     result.runs = [runs[i] for i in range(n)]
-    from reports.store.results import export, read_results
+    from reports.store.exports import export
+    from reports.store.results import read_results
 
     df = read_results(out, all_rows=True)
     export(out, df)
