@@ -254,6 +254,48 @@ def test_upgrade_gate(matrix):
         check(tab, "1.0", "9.9")
 
 
+def test_two_checks_of_one_store_give_one_verdict_and_leave_the_report(
+    matrix, tmp_path, monkeypatch
+):
+    """The 3x cost change of 'costly' is a candidate confirmed by timing the two versions side
+    by side. The probes give other times at every call (here: a 3x slowdown the first time,
+    none after, as a loaded machine can): the times are taken once per folder, recorded and
+    reused, so that two checks of one store agree, and a check rewrites no versions.md."""
+    import hashlib
+
+    from reports.versions import cost, run_versions
+
+    folder = tmp_path / "v"
+    shutil.copytree(matrix, folder)
+    calls = []
+
+    def probe(python, change, dt):  # 3x slower in 1.1 for the first 6 probes, then the same
+        calls.append(python)
+        slow = len(calls) <= 6 and python.name == "1.1"
+        return 3000.0 + len(calls) if slow else 1000.0 + len(calls)
+
+    monkeypatch.setattr(cost, "_python", lambda engine, version, root: Path(version))
+    monkeypatch.setattr(cost, "_probe", probe)
+    run_versions(out=folder, figures=False, log=lambda line: None)
+    assert len(calls) == 6  # the report's candidate, timed once
+    md = hashlib.sha256((folder / "versions.md").read_bytes()).hexdigest()
+    assert "engine_ns_per_step" in (folder / "versions.md").read_text()
+    verdicts = []
+    for _ in range(2):
+        s = run_versions(out=folder, check=("1.0", "1.1"), cost_factor=2.0, log=lambda x: None)
+        verdicts.append(sorted((c.integrator, c.kind) for c in s.check.failures))
+        assert s.paths == {}
+    assert len(calls) == 6  # recorded: never timed again
+    assert verdicts[0] == verdicts[1] and ("costly", "cost") in verdicts[0]
+    assert hashlib.sha256((folder / "versions.md").read_bytes()).hexdigest() == md
+    # --retime: timed again (now no slowdown), recorded for the next call
+    s = run_versions(out=folder, check=("1.0", "1.1"), cost_factor=2.0, retime=True,
+                     log=lambda x: None)  # fmt: skip
+    assert len(calls) == 12 and ("costly", "cost") not in [
+        (c.integrator, c.kind) for c in s.check.failures
+    ]
+
+
 def test_a_factor_of_four_hides_the_threefold_change(matrix):
     tab = load_table(matrix, factor=4.0)
     assert not _changes(tab, integrator="implicitfast")

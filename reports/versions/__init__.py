@@ -36,6 +36,7 @@ def run_versions(
     factor: float = 2.0,
     cost_factor: float | None = None,
     figures: bool = True,
+    retime: bool = False,
     log=print,
     **run_options,
 ) -> VersionsSummary:
@@ -43,7 +44,11 @@ def run_versions(
     (:func:`reports.versions.matrix.run_matrix`, ``run_options`` passed on); then, from the
     folder's store, write ``versions.md``, ``versions.json``, the figures and ``history.html``
     and, with ``check = (FROM, TO)``, decide the upgrade gate
-    (:func:`reports.versions.changes.check`)."""
+    (:func:`reports.versions.changes.check`). A check of a folder without ``requirements``
+    reads it and writes nothing but the timings it had to take: versions.md stays the report
+    of the matrix run (``paths`` is empty). Cost candidates are timed once per folder, their
+    times recorded and reused (:data:`reports.versions.cost.TIMINGS_FILE`), unless
+    ``retime``, so that two calls on one store give one verdict."""
     from reports.versions.changes import check as check_upgrade
     from reports.versions.changes import load_table
     from reports.versions.cost import confirm
@@ -71,10 +76,12 @@ def run_versions(
     res = check_upgrade(tab, *check, cost_factor=cost_factor) if check else None
     memo: dict = {}  # cost candidates timed side by side once, for the table and the gate
     cache = run_options.get("cache")
-    tab.changes, tab.cost_candidates = confirm(tab, tab.changes, factor, cache, log=log, memo=memo)
+    timed = dict(log=log, memo=memo, folder=out, retime=retime)
     if res is not None:
-        res.changes, res.cost_candidates = confirm(tab, res.changes, factor, cache, log=log,
-                                                   memo=memo)  # fmt: skip
+        res.changes, res.cost_candidates = confirm(tab, res.changes, factor, cache, **timed)
+    if res is not None and not requirements:
+        return VersionsSummary(out, matrix, tab, {}, res)  # the gate alone: the report stays
+    tab.changes, tab.cost_candidates = confirm(tab, tab.changes, factor, cache, **timed)
     paths = write_report(tab, out, envs, figures=figures)
     paths["history"] = write_history([out], out / "history.html", factor)
     return VersionsSummary(out, matrix, tab, paths, res)

@@ -31,6 +31,7 @@ def cmd_versions(args) -> int:
         factor=args.factor,
         cost_factor=args.cost_factor,
         figures=not args.no_figures,
+        retime=args.retime,
         log=log,
         **opts,
     )
@@ -47,6 +48,11 @@ def cmd_versions(args) -> int:
         print("\n".join(text_table(SUMMARY_HEAD, summary_rows(s.table.changes))))
     for k, path in s.paths.items():
         print(f"{k + ':':<10} {path}")
+    if s.check and not args.engines:
+        print(
+            f"{s.out / 'versions.md'} left as it is: a --check of a folder reads it (without "
+            "--check, `versions --out` writes the report again)"
+        )
     code = 0
     if failed:
         print(f"{len(failed)} environment(s) could not be made or their runs failed:")
@@ -127,6 +133,12 @@ def add_subcommands(sub, types: dict) -> None:
         help="--check also fails when the cost per step grew by more than this factor",
     )
     s.add_argument("--no-figures", action="store_true", help="no figures in versions.md")
+    s.add_argument(
+        "--retime",
+        action="store_true",
+        help="time the cost candidates side by side again (default: the times recorded in "
+        "OUT/versions-timings.json by an earlier call, so that two calls give one verdict)",
+    )
     s.set_defaults(func=cmd_versions)
 
     s = sub.add_parser(
