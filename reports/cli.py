@@ -251,7 +251,7 @@ def cmd_show(args) -> int:
 
 def _importer_lines(sc, engines) -> list[str]:
     """The importer-difference table of a robot-model scenario (``show --importers``)."""
-    from references.importers import importer_table
+    from references.engines.importers import importer_table
 
     rows = importer_table(sc.model, engines=engines, fixed_base=not sc.floating)
     lines = ["  importers (each engine's own loader, read back at the zero configuration, "

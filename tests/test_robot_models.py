@@ -144,7 +144,7 @@ def test_mjcf_angles_eulerseq_and_defaults(tmp_path):
 @pytest.mark.parametrize("engine", ["mujoco", "drake"])
 def test_arm3_reading_agrees_with_engine_importers(engine):
     pytest.importorskip({"mujoco": "mujoco", "drake": "pydrake"}[engine])
-    from references.importers import importer_table
+    from references.engines.importers import importer_table
 
     rows = importer_table(read_model(ARM3), engines=[engine], configs=["faithful"])
     assert [r.quantity for r in rows] == ["agree"], "\n".join(r.line() for r in rows)
@@ -154,7 +154,7 @@ def test_mjcf_reading_agrees_with_mujoco_compiler():
     # every body's mass, centre of mass and inertia (from geoms, defaults, degrees, five
     # orientation forms) and every hinge's axis, point, limits, damping, armature
     pytest.importorskip("mujoco")
-    from references.importers import importer_table
+    from references.engines.importers import importer_table
 
     rows = importer_table(read_model(CRAWLER), engines=["mujoco"], configs=["as-loaded"])
     assert [r.quantity for r in rows] == ["agree"], "\n".join(r.line() for r in rows)
@@ -162,7 +162,7 @@ def test_mjcf_reading_agrees_with_mujoco_compiler():
 
 def test_pybullet_as_loaded_reports_recomputed_inertia():
     pytest.importorskip("pybullet")
-    from references.importers import importer_table
+    from references.engines.importers import importer_table
 
     rows = importer_table(read_model(ARM3), engines=["pybullet"])
     inertia = [r for r in rows if r.quantity == "inertia"]
@@ -176,7 +176,7 @@ def test_pybullet_as_loaded_reports_recomputed_inertia():
 
 def test_planted_inertial_rotated_twice_is_caught(monkeypatch, tmp_path):
     pytest.importorskip("mujoco")
-    from references.importers import importer_table
+    from references.engines.importers import importer_table
 
     monkeypatch.setattr(U, "rotate_inertia", lambda I, R: (R @ R) @ I @ (R @ R).T)
     rows = importer_table(read_model(ARM3), engines=["mujoco"], configs=["faithful"])
@@ -188,7 +188,7 @@ def test_planted_inertial_rotated_twice_is_caught(monkeypatch, tmp_path):
 
 def test_planted_axis_in_parent_frame_is_caught(monkeypatch):
     pytest.importorskip("mujoco")
-    from references.importers import importer_table
+    from references.engines.importers import importer_table
 
     monkeypatch.setattr(U, "axis_in_child", lambda a, T: T[:3, :3].T @ a)
     rows = importer_table(read_model(ARM3), engines=["mujoco"], configs=["faithful"])

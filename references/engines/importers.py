@@ -1,11 +1,27 @@
-"""What a model file holds, read back from a loaded model, and the differences between two
-read-backs (ours and an engine importer's), by name and size.
+"""Each engine's own importer on a model file (issue 36): the part every engine shares.
 
-A :class:`Readback` holds, at the model's zero configuration (each joint at 0, an MJCF joint
-at its ``ref``), per body of the loaded model (named after the URDF link or MJCF body it
-carries): mass, centre of mass and inertia about the centre of mass, both in the root link's
-frame (so that where an importer puts the base does not matter); per moving joint: axis and a
-point of it in the root link's frame, limits, damping, friction, armature.
+An engine's importer lives in its home, ``references/engines/<engine>/importer.py``, and
+provides ``readback(model, config) -> Readback``: the engine's own loader on the model file
+in one of the named configurations :data:`CONFIGS`, its loaded model read back at the zero
+configuration. This module holds what they share: the read-back (:class:`Readback`), our own
+reading of the file as one (:func:`our_readback`), the comparison (:func:`compare`,
+:class:`Difference`), the table over every engine and configuration (:func:`importer_table`)
+and the loaders' common chores (a URDF copy without geometry, C-level output captured).
+
+The configurations:
+
+- ``as-loaded``: the file passed to the importer as a user would, with the importer's
+  defaults (PyBullet's loadURDF without flags, MuJoCo's compiler defaults, ...);
+- ``faithful``: the settings that make the importer take the file's mass properties as
+  written: PyBullet ``URDF_USE_INERTIA_FROM_FILE``; for URDF files, geometry removed (a copy
+  without ``<visual>``/``<collision>``: mesh files are not needed, and no inertia is computed
+  from shapes; MuJoCo also gets ``fusestatic="false"``).
+
+A read-back holds, at the model's zero configuration (each joint at 0, an MJCF joint at its
+``ref``), per body of the loaded model (named after the URDF link or MJCF body it carries):
+mass, centre of mass and inertia about the centre of mass, both in the root link's frame (so
+that where an importer puts the base does not matter); per moving joint: axis and a point of
+it in the root link's frame, limits, damping, friction, armature.
 
 :func:`compare` groups the bodies of each side into the rigid groups of our reading (links
 joined by fixed joints: an importer may fuse them, as MuJoCo's URDF import and Pinocchio do,
@@ -18,10 +34,23 @@ armature as the importer holds them against the file's values.
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+
+from scenarios.models.model import joint_transform
+
+#: the named configurations of every importer (module docstring)
+CONFIGS = ("as-loaded", "faithful")
+#: the engines with an importer (``references/engines/<engine>/importer.py``)
+ENGINES = ("mujoco", "mjx", "pinocchio", "pybullet", "drake", "dart")
 
 #: differences below these are agreement: relative 1e-9 for masses and inertias (the files'
 #: numbers pass through float parsing and a few products), 1e-9 m, 1e-9 rad
@@ -196,4 +225,174 @@ def compare(
             if vo is None or vt is None or abs(vo - vt) > 1e-9 * max(1.0, abs(vo)):
                 size = abs(vt - vo) if (vo is not None and vt is not None) else math.nan
                 row(f"joint {name!r}", q, f"{vo}", f"{vt}", size, "")
+    return rows
+
+
+# -- our own reading as a read-back ----------------------------------------------------------
+
+
+def zero_poses(model) -> dict:
+    """{link: (4, 4) pose in the root link's frame} at the zero configuration."""
+    by_child: dict = {}
+    for j in model.joints:
+        by_child.setdefault(j.child, []).append(j)
+    T: dict = {}
+
+    def pose_of(n):
+        if n in T:
+            return T[n]
+        js = by_child.get(n, [])
+        moving = [j for j in js if j.kind not in ("fixed", "free", "floating")]
+        j = moving[0] if moving else (js[0] if js else None)
+        if j is None or j.parent is None:
+            T[n] = np.eye(4) if j is None or j.kind in ("free", "floating") else j.origin
+        else:
+            q = np.zeros(3) if j.kind == "ball" else j.ref
+            T[n] = pose_of(j.parent) @ joint_transform(j, q)
+        return T[n]
+
+    for lk in model.links:
+        pose_of(lk.name)
+    root = T[model.root]
+    return {n: np.linalg.solve(root, t) for n, t in T.items()}
+
+
+def our_readback(model) -> Readback:
+    """Our own reading of ``model`` as a read-back: every link at the zero configuration (MJCF
+    joints at their ``ref``), in the root link's frame; each revolute joint's axis and point
+    there, and its limits, damping, friction and armature as the file gives them."""
+    rb = Readback("ours", "reader")
+    T = zero_poses(model)
+    eye = np.eye(4)
+    for lk in model.links:
+        t = T[lk.name]
+        ine = lk.inertial
+        R = t[:3, :3]
+        rb.bodies[lk.name] = to_root(eye, ine.mass, R @ ine.com + t[:3, 3],
+                                     R @ ine.inertia @ R.T)  # fmt: skip
+    for j in model.moving_joints:
+        if j.kind not in ("revolute", "continuous"):
+            continue  # the importers are read back for revolute joints
+        t = T[j.child]
+        rb.joints[j.name] = {
+            "axis": t[:3, :3] @ j.axis,
+            "point": t[:3, :3] @ j.point + t[:3, 3],
+            "lower": j.lower,
+            "upper": j.upper,
+            "damping": j.damping,
+            "friction": j.friction,
+            "armature": j.armature,
+        }
+    return rb
+
+
+# -- the loaders' common chores ------------------------------------------------------------
+
+
+def strip_urdf(path, extra: str | None = None) -> Path:
+    """The path of a copy of the URDF ``path`` with every link's visual and collision removed
+    (and ``extra``, an XML element's text, appended to the robot element)."""
+    tree = ET.parse(path)
+    root = tree.getroot()
+    for link in root.findall("link"):
+        for tag in ("visual", "collision"):
+            for el in link.findall(tag):
+                link.remove(el)
+    if extra:
+        root.append(ET.fromstring(extra))
+    folder = Path(tempfile.mkdtemp(prefix="director-bench-urdf-"))
+    out = folder / Path(path).name
+    tree.write(out)
+    return out
+
+
+def file_for(model, config: str, extra: str | None = None) -> tuple[Path, Path | None]:
+    """(the file an importer loads in ``config``, a temporary folder to remove afterwards):
+    the user's file, or for a faithful URDF a copy without geometry (:func:`strip_urdf`)."""
+    if config == "faithful" and model.format == "urdf":
+        p = strip_urdf(model.path, extra)
+        return p, p.parent
+    return Path(model.path).resolve(), None
+
+
+@contextlib.contextmanager
+def quiet_fd():
+    """Capture C-level stdout and stderr (PyBullet and DART print from C++); the text is the
+    one item of the list yielded, once the block ends."""
+    saved = [os.dup(1), os.dup(2)]
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        out: list = []
+        try:
+            yield out
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            os.close(saved[0])
+            os.close(saved[1])
+            tmp.seek(0)
+            out.append(tmp.read().decode("utf-8", "replace"))
+
+
+def rot_inertia(R, diag):
+    """R diag(diag) R^T."""
+    return R @ np.diag(diag) @ R.T
+
+
+def limit(v):
+    """A joint limit as a float, or None for an unbounded side (inf, or +-1e300 and beyond)."""
+    v = float(v)
+    return None if not np.isfinite(v) or abs(v) >= 1e300 else v
+
+
+def packages(model) -> dict:
+    """Package folders for ``package://`` file names, guessed as our URDF reader does: the
+    first folder above the file holding ``robots/`` is example-robot-data's."""
+    from scenarios.models.urdf import _Reader
+
+    if model.format != "urdf" or not model.meshes:
+        return {}
+    out = {}
+    rd = _Reader(model.path, None)
+    for a in [rd.dir, *rd.dir.parents]:
+        if (a / "robots").is_dir():
+            out["example-robot-data"] = a
+            break
+    return out
+
+
+# -- the table -----------------------------------------------------------------------------------
+
+
+def importer(engine: str):
+    """The importer module of ``engine`` (``references.engines.<engine>.importer``)."""
+    return importlib.import_module(f"references.engines.{engine}.importer")
+
+
+def importer_table(model, engines=None, configs=None, fixed_base=None) -> list:
+    """Difference rows (:class:`Difference`) of every engine and configuration against our
+    reading, and one row per engine not installed; an importer that refuses the file is one
+    row with its message. An engine module's ``HINTS`` {(config, quantity): remark} names the
+    known cause of a difference beside it."""
+    ours = our_readback(model)
+    if fixed_base is None:
+        fixed_base = model.format == "urdf"
+    rows = []
+    for e in engines or ENGINES:
+        mod = importer(e)
+        for c in configs or CONFIGS:
+            try:
+                rb = mod.readback(model, c)
+            except ImportError as exc:
+                rows.append(Difference(e, c, "engine", "not installed", "-", str(exc),
+                                       float("nan"), ""))  # fmt: skip
+                break
+            hints = {q: h for (hc, q), h in getattr(mod, "HINTS", {}).items() if hc == c}
+            diff = compare(model, ours, rb, hints, fixed_base)
+            if not diff:
+                diff = [Difference(e, c, "all", "agree", "-", "-", float("nan"), "",
+                                   f"{len(rb.bodies)} bodies, {len(rb.joints)} revolute "
+                                   "joints read back")]  # fmt: skip
+            rows.extend(diff)
     return rows
