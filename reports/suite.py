@@ -196,20 +196,22 @@ def check_integrators(integrators, engines: list[str], named: bool = False) -> l
     """The display names of the integrators asked for, each offered by at least one of
     ``engines``. A name is given as displayed ("semi-implicit Euler", quoted in a shell) or
     as its slug (``semi-implicit-euler``, :func:`references.engines.slug`), in any case;
-    it selects every integrator of these engines with that slug. ``named``: the engines were
+    it selects every integrator of these engines with that slug, an importer configuration
+    of one ("rk4-as-loaded") included. ``named``: the engines were
     named by the user (``--engines``), so each must offer at least one of the integrators,
     else it would run nothing, silently (InputError naming it, what it offers and the
     closest name); without ``--engines`` an integrator selects the engines that offer it."""
-    from references.engines import get_engine, slug
+    from references.engines import get_engine, importers, slug
 
     if integrators is None:
         return None
     offered: dict[str, list[str]] = {}  # slug -> display names
     for e in engines:
-        for i in get_engine(e).integrators:
-            names = offered.setdefault(i.slug, [])
-            if i.name not in names:
-                names.append(i.name)
+        own = [i.name for i in get_engine(e).integrators]
+        for name in own + importers.variants(e, own):  # and its importer configurations
+            names = offered.setdefault(slug(name), [])
+            if name not in names:
+                names.append(name)
     if not integrators:
         raise InputError(f"--integrators: an empty list; give one or more of {', '.join(offered)}")
     bad = [i for i in integrators if slug(i) not in offered]
@@ -221,7 +223,8 @@ def check_integrators(integrators, engines: list[str], named: bool = False) -> l
         )
     asked = {slug(i) for i in integrators}
     for e in engines if named else ():
-        own = list(dict.fromkeys(i.slug for i in get_engine(e).integrators))
+        names = [i.name for i in get_engine(e).integrators]
+        own = list(dict.fromkeys(slug(n) for n in names + importers.variants(e, names)))
         if not asked & set(own):
             hint = _did_you_mean(slug(integrators[0]), own)
             raise InputError(

@@ -396,3 +396,152 @@ def importer_table(model, engines=None, configs=None, fixed_base=None) -> list:
                                    "joints read back")]  # fmt: skip
             rows.extend(diff)
     return rows
+
+
+# -- runs through an importer ---------------------------------------------------------------------
+
+#: how a configuration reads in an integrator's name ("RK4 (as loaded)")
+CONFIG_WORDS = {"as-loaded": "as loaded", "faithful": "faithful"}
+
+
+def variant(integrator: str, config: str) -> str:
+    """The name of ``integrator`` run through the engine's importer in ``config``: "RK4 (as
+    loaded)", "Euler (float64, faithful)"."""
+    word = CONFIG_WORDS[config]
+    if integrator.endswith(")"):
+        return f"{integrator[:-1]}, {word})"
+    return f"{integrator} ({word})"
+
+
+def split_variant(name: str) -> tuple[str, str | None]:
+    """(integrator, configuration) of a name made by :func:`variant`; (name, None) for any
+    other name."""
+    for config, word in CONFIG_WORDS.items():
+        for tail in (f" ({word})", f", {word})"):
+            if name.endswith(tail):
+                base = name[: -len(tail)] + ("" if tail.startswith(" ") else ")")
+                return base, config
+    return name, None
+
+
+def variants(engine: str, selected) -> list[str]:
+    """The importer configurations of ``engine`` planned beside its ``selected`` integrators
+    for a robot-model scenario: every configuration of each selected integrator that the
+    engine's importer runs (its module's ``INTEGRATORS``); none for an engine without one."""
+    if engine not in ENGINES:
+        return []
+    runs = getattr(importer(engine), "INTEGRATORS", ())
+    return [variant(i, c) for i in selected if i in runs for c in CONFIGS]
+
+
+@dataclass
+class Start:
+    """The initial state of a model scenario as an importer run sets it: joint coordinates
+    ``q`` and rates ``qd`` by joint name (radians; a joint the file names and the scenario
+    does not: its zero, MJCF: its ``ref``), ``floating``, the root link's world pose ``T``
+    (4, 4), its origin's velocity ``v`` and angular velocity ``w`` (world axes), ``gravity``,
+    ``held`` (the joints the scenario holds)."""
+
+    q: dict
+    qd: dict
+    floating: bool
+    T: np.ndarray
+    v: np.ndarray
+    w: np.ndarray
+    gravity: np.ndarray
+    held: list
+
+
+def start_of(scenario) -> Start:
+    """The :class:`Start` of a model scenario (its ``[model.initial]`` table and the pose and
+    twist of its root link that our conversion placed)."""
+    spec = scenario.model_spec
+    init = spec.get("initial", {})
+    q = {k[7:]: v for k, v in init.items() if k.startswith("joints.")}
+    qd = {k[6:]: v for k, v in init.items() if k.startswith("rates.")}
+    model, conv = scenario.model, scenario.conversion
+    root = model.root
+    T = np.asarray(conv.link_pose[root], dtype=float)
+    v = w = np.zeros(3)
+    floating = bool(spec.get("floating"))
+    if floating:
+        b = scenario.bodies[[x.name for x in scenario.bodies].index(root)]
+        w = np.asarray(b.rotation, float) @ np.asarray(b.omega_body, float)
+        v = np.asarray(b.velocity, float) + np.cross(w, T[:3, 3] - np.asarray(b.position, float))
+    return Start(q, qd, floating, T, v, w, np.asarray(scenario.gravity, float),
+                 list(spec.get("lock", ())))  # fmt: skip
+
+
+def body_offsets(scenario) -> tuple[list, np.ndarray]:
+    """(the link that carries each body of the scenario, in order: the root link of its rigid
+    group; each body's principal frame in that link's frame, (nb, 4, 4))."""
+    conv = scenario.conversion
+    links, off = [], []
+    for b in scenario.bodies:
+        T_link = np.asarray(conv.link_pose[b.name], dtype=float)
+        T_body = np.eye(4)
+        T_body[:3, :3] = b.rotation
+        T_body[:3, 3] = b.position
+        links.append(b.name)
+        off.append(np.linalg.solve(T_link, T_body))
+    return links, np.asarray(off)
+
+
+def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nstep: int,
+             save_every: int) -> dict:  # fmt: skip
+    """Run a robot-model ``scenario`` through ``engine``'s own importer in ``config`` (the
+    system builders' contract, :mod:`references.engines.system`): the engine's importer
+    module loads the file (``load(scenario, config, integrator, dt) -> sim``), sets the
+    initial state by joint name, steps (``sim.advance(n)``) and reports each body's link
+    (``sim.links(names) -> (T (nl, 4, 4), v (nl, 3) of the link origins, w (nl, 3))``, world);
+    each body's principal frame moves with its link (:func:`body_offsets`), so an importer's
+    change of the model shows in the motion of the links, never in our reading of the
+    frames. Raises :class:`~references.errors.Unsupported` with the reason when the
+    importer cannot load the file as a user would (the run's row says so)."""
+    from references.errors import Diverged, Unsupported
+
+    if getattr(scenario, "model", None) is None:
+        raise Unsupported(
+            f"{engine}: an importer configuration runs a robot-model scenario (a [model] file); "
+            f"{scenario.name!r} is a system of the suite's own"
+        )
+    mod = importer(engine)
+    if integrator not in getattr(mod, "INTEGRATORS", ()):
+        raise Unsupported(
+            f"{engine}: the importer runs {list(getattr(mod, 'INTEGRATORS', ()))}, not "
+            f"{integrator!r}"
+        )
+    sim = mod.load(scenario, config, integrator, float(dt))
+    links, off = body_offsets(scenario)
+    steps = np.arange(0, nstep + 1, save_every, dtype=np.int64)
+    if steps[-1] != nstep:
+        steps = np.append(steps, nstep)
+    n, nb = len(steps), len(links)
+    x, R = np.zeros((n, nb, 3)), np.zeros((n, nb, 3, 3))
+    v, W = np.zeros((n, nb, 3)), np.zeros((n, nb, 3))
+
+    def read(k):
+        T, vo, w = sim.links(links)
+        Tb = T @ off
+        R[k] = Tb[:, :3, :3]
+        x[k] = Tb[:, :3, 3]
+        r = x[k] - T[:, :3, 3]
+        v[k] = vo + np.cross(w, r)
+        W[k] = np.einsum("bji,bj->bi", R[k], w)
+
+    def output(m):
+        return {"t": steps[:m] * float(dt), "x": x[:m], "R": R[:m], "v": v[:m], "W": W[:m],
+                "engine_time_s": float(sim.clock), "settings": dict(sim.settings)}  # fmt: skip
+
+    read(0)
+    for k in range(1, n):
+        sim.advance(int(steps[k] - steps[k - 1]))
+        read(k)
+        if not all(np.all(np.isfinite(a[k])) for a in (x, R, v, W)):
+            raise Diverged(
+                f"{engine} {variant(integrator, config)} at dt = {dt:g} s: a non-finite state "
+                f"between t = {steps[k - 1] * dt:.6g} and {steps[k] * dt:.6g} s",
+                float(steps[k - 1] * dt),
+                output(k),
+            )
+    return output(n)

@@ -19,6 +19,7 @@ result row with that status and the message, so messages say what happened and w
 
 from __future__ import annotations
 
+import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from typing import ClassVar
@@ -137,10 +138,18 @@ class EngineBase(ABC):
 
     @classmethod
     def integrator(cls, name: str) -> Integrator:
-        """The integrator called ``name``, by its display name or its slug, in any case."""
+        """The integrator called ``name``, by its display name or its slug, in any case; an
+        importer configuration of one ("RK4 (as loaded)",
+        :func:`references.engines.importers.variant`) is that integrator under that name."""
         for integ in cls.integrators:
             if integ.slug == slug(name):
                 return integ
+        from references.engines import importers
+
+        for integ in cls.integrators:
+            for v in importers.variants(cls.name, [integ.name]):
+                if slug(v) == slug(name):
+                    return dataclasses.replace(integ, name=v, default=False)
         names = ", ".join(i.slug for i in cls.integrators)
         raise Unsupported(f"engine {cls.name!r} has no integrator {name!r}; it offers: {names}")
 

@@ -18,6 +18,12 @@ stops it at a divergence (a non-finite state, or an energy error beyond DIVERGEN
 times the scenario's energy scale, the rule of one body) and computes every metric itself.
 
 An engine with no builder module is ``unsupported`` for systems, with that reason.
+
+A robot-model scenario also runs through each engine's own importer: an integrator named
+for an importer configuration ("RK4 (as loaded)", "RK4 (faithful)":
+:func:`references.engines.importers.variant`) loads the scenario's model file with the
+engine's importer (``references/engines/<engine>/importer.py``) and returns the same result
+(:func:`references.engines.importers.simulate`).
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from references.engines import importers
 from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
 from references.trajectory import SystemTrajectory, system_energy
@@ -99,11 +106,16 @@ def run_system(
     t_end = scenario.t_end if t_end is None else float(t_end)
     save_every = scenario.save_every if save_every is None else int(save_every)
     nstep, saves = step_plan(dt, t_end, save_every)
-    mod = builder(engine)
-    settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
+    base, config = importers.split_variant(integrator)
     t0 = time.perf_counter()
-    res = mod.simulate_system(scenario, integrator, float(dt), int(nstep), int(save_every),
-                              **settings)  # fmt: skip
+    if config is not None:  # through the engine's own importer (references.engines.importers)
+        res = importers.simulate(engine, scenario, config, base, float(dt), int(nstep),
+                                 int(save_every))  # fmt: skip
+    else:
+        mod = builder(engine)
+        settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
+        res = mod.simulate_system(scenario, integrator, float(dt), int(nstep), int(save_every),
+                                  **settings)  # fmt: skip
     wall = time.perf_counter() - t0
     get = res.get if isinstance(res, dict) else (lambda k, d=None: getattr(res, k, d))
     missing = [k for k in RESULT_KEYS if get(k) is None]

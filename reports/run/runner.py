@@ -465,7 +465,7 @@ def plan(
     tolerance for an unknown family, more kept states than ``max_states``) is a ``ValueError``
     naming the scenario, before any run.
     """
-    from references.engines import engine_names, get_engine, step_plan
+    from references.engines import engine_names, get_engine, importers, step_plan
 
     engines = list(engines) if engines else engine_names()
     versions = {name: _version(get_engine(name)) for name in engines}
@@ -489,6 +489,12 @@ def plan(
                 names = [i.name for i in offered if i.name in integrators]
             else:
                 names = [i.name for i in offered if full or i.default]
+            if getattr(sc, "model", None) is not None:
+                # a robot model also runs through the engine's importer: the configurations
+                # of the integrators selected, or those asked for by name
+                every = importers.variants(name, [i.name for i in offered])
+                names += [v for v in every if importers.split_variant(v)[0] in names
+                          or (integrators and v in integrators)]  # fmt: skip
             cls = get_engine(name)
             steps_e = [sc.dt if not dts else steps[-1]] if cls.is_reference else steps
             for integ in names:

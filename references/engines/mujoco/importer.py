@@ -86,3 +86,154 @@ def readback(model, config: str) -> Readback:
     except Exception as exc:  # the importer's refusal is the finding
         return Readback("mujoco", config, error=f"{type(exc).__name__}: {exc}".strip())
     return mujoco_readback(m, model, "mujoco", config)
+
+
+# -- runs through the importer ---------------------------------------------------------------------
+
+#: the integrators an importer run takes (:func:`references.engines.importers.variants`)
+INTEGRATORS = ("RK4",)
+
+#: the integrator names of MuJoCo's ``mjtIntegrator``
+_MJINT = {"Euler": "mjINT_EULER", "implicit": "mjINT_IMPLICIT",
+          "implicitfast": "mjINT_IMPLICITFAST", "RK4": "mjINT_RK4"}  # fmt: skip
+
+#: what the faithful configuration switches off through MuJoCo's disable flags
+_FAITHFUL_OFF = ("mjDSBL_CONTACT", "mjDSBL_LIMIT", "mjDSBL_PASSIVE", "mjDSBL_FRICTIONLOSS",
+                 "mjDSBL_ACTUATION", "mjDSBL_SPRING", "mjDSBL_DAMPER")  # fmt: skip
+
+
+def _compile(scenario, config: str, st):
+    """MuJoCo's model of the scenario's file in ``config``: as loaded, the file itself; a
+    floating URDF root gets a free joint through ``MjSpec`` (MuJoCo's URDF import attaches
+    the root to the world), which is what a user does; a fixed URDF root is placed at the
+    scenario's base pose ``st.T`` (an MJCF root keeps the file's). Faithful:
+    :func:`mujoco_model`'s file (a URDF without geometry, static bodies kept)."""
+    import mujoco
+
+    from references import conventions as cv
+
+    model = scenario.model
+    extra = '<mujoco><compiler fusestatic="false" discardvisual="true"/></mujoco>'
+    path, tmp = file_for(model, config, extra)
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+        root = spec.body(model.root) or spec.worldbody.first_body()
+        if model.format == "urdf" and st.floating:
+            root.add_freejoint()
+        elif model.format == "urdf":  # a fixed URDF root, placed where the scenario puts it
+            root.pos = st.T[:3, 3]
+            root.quat = cv.matrix_to_quat_wxyz(st.T[:3, :3])
+        return spec.compile()
+    finally:
+        if tmp:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+class _Sim:
+    """A model loaded by MuJoCo's importer, its state set from the scenario's start, stepped
+    by ``mj_step`` (``references.engines.importers.simulate``'s ``sim``)."""
+
+    def __init__(self, scenario, config: str, integrator: str, dt: float):
+        import mujoco
+
+        from references.engines.importers import start_of
+        from references.errors import Unsupported
+
+        self.mj = mujoco
+        st = start_of(scenario)
+        try:
+            m = _compile(scenario, config, st)
+        except Exception as exc:  # the importer's refusal is the row's finding
+            raise Unsupported(
+                f"mujoco: its importer cannot load {scenario.model_spec['file']} "
+                f"({config}): {type(exc).__name__}: {str(exc).strip()[:300]}"
+            ) from None
+        self.names = _mujoco_names(m, scenario.model)
+        m.opt.timestep = float(dt)
+        m.opt.integrator = int(getattr(mujoco.mjtIntegrator, _MJINT[integrator]))
+        m.opt.gravity[:] = st.gravity
+        rec = {"importer": "MjSpec.from_file + compile", "configuration": config,
+               "integrator": integrator, "gravity": st.gravity.tolist()}  # fmt: skip
+        if config == "faithful":
+            for f in _FAITHFUL_OFF:
+                bit = getattr(mujoco.mjtDisableBit, f, None)
+                if bit is not None:
+                    m.opt.disableflags |= int(bit)
+            m.dof_armature[:] = 0.0
+            m.body_gravcomp[:] = 0.0
+            rec["switched off"] = "contact, limits, passive forces (damping, springs), "
+            rec["switched off"] += "friction loss, actuation (disable flags); armature 0"
+        else:
+            off_contact = m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+            rec["as the file has it"] = (
+                f"damping {sorted(set(np.round(m.dof_damping, 12).tolist()))}, armature "
+                f"{sorted(set(np.round(m.dof_armature, 12).tolist()))}, "
+                f"{int(np.sum(m.jnt_limited))} limited joints, {m.nu} actuators (ctrl 0), "
+                f"{m.ngeom} geoms (contact {'off' if off_contact else 'on'})"
+            )
+        d = mujoco.MjData(m)
+        self._set_state(m, d, st, scenario)
+        if st.held:
+            rec["held joints"] = f"{st.held}: free in MuJoCo's model, at rest at t = 0"
+        self.m, self.d, self.settings, self.clock = m, d, rec, 0.0
+        self._ids: dict = {}
+
+    def _set_state(self, m, d, st, scenario):
+        mj = self.mj
+        from references import conventions as cv
+
+        for j in range(m.njnt):
+            name = mj.mj_id2name(m, mj.mjtObj.mjOBJ_JOINT, j) or ""
+            qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
+            typ = int(m.jnt_type[j])
+            if typ == int(mj.mjtJoint.mjJNT_FREE):
+                b = m.jnt_bodyid[j]
+                if self.names[b] != scenario.model.root:
+                    raise ValueError(f"a free joint on body {self.names[b]!r}, not the root")
+                R = st.T[:3, :3]
+                d.qpos[qa : qa + 3] = st.T[:3, 3]
+                d.qpos[qa + 3 : qa + 7] = cv.matrix_to_quat_wxyz(R)
+                d.qvel[va : va + 3] = st.v
+                d.qvel[va + 3 : va + 6] = R.T @ st.w
+            elif typ in (int(mj.mjtJoint.mjJNT_HINGE), int(mj.mjtJoint.mjJNT_SLIDE)):
+                if name in st.q:
+                    d.qpos[qa] = float(st.q[name])
+                if name in st.qd:
+                    d.qvel[va] = float(st.qd[name])
+            elif name in st.q or name in st.qd:
+                raise ValueError(f"joint {name!r}: a ball joint's start is not set here")
+        mj.mj_forward(m, d)
+
+    def advance(self, n: int) -> None:
+        import time
+
+        t0 = time.perf_counter()
+        self.mj.mj_step(self.m, self.d, n)
+        self.clock += time.perf_counter() - t0
+
+    def links(self, names):
+        mj, m, d = self.mj, self.m, self.d
+        mj.mj_kinematics(m, d)
+        mj.mj_comPos(m, d)
+        mj.mj_comVel(m, d)
+        n = len(names)
+        T = np.tile(np.eye(4), (n, 1, 1))
+        v, w = np.zeros((n, 3)), np.zeros((n, 3))
+        res = np.zeros(6)
+        for i, name in enumerate(names):
+            if name not in self._ids:
+                if name not in self.names:
+                    raise KeyError(f"mujoco: link {name!r} is not a body of the loaded model")
+                self._ids[name] = self.names.index(name)
+            b = self._ids[name]
+            T[i, :3, :3] = d.xmat[b].reshape(3, 3)
+            T[i, :3, 3] = d.xpos[b]
+            mj.mj_objectVelocity(m, d, mj.mjtObj.mjOBJ_XBODY, b, res, 0)
+            w[i], v[i] = res[:3], res[3:]
+        return T, v, w
+
+
+def load(scenario, config: str, integrator: str, dt: float) -> _Sim:
+    """The scenario's model file loaded by MuJoCo's importer in ``config``, its state set
+    (:func:`references.engines.importers.simulate`)."""
+    return _Sim(scenario, config, integrator, dt)
