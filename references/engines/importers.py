@@ -473,16 +473,23 @@ def start_of(scenario) -> Start:
 
 
 def body_offsets(scenario) -> tuple[list, np.ndarray]:
-    """(the link that carries each body of the scenario, in order: the root link of its rigid
-    group; each body's principal frame in that link's frame, (nb, 4, 4))."""
+    """(the link that carries each body of the scenario, in order: (the root link of its rigid
+    group, the name of the joint that moves that link, None for a floating root), so that an
+    importer that names a body otherwise (an unnamed MJCF body) finds it by its joint; each
+    body's principal frame in that link's frame, (nb, 4, 4))."""
     conv = scenario.conversion
+    held = set(conv.locked)
+    moves = {}
+    for j in scenario.model.joints:
+        if j.kind != "fixed" and j.name not in held and j.parent is not None:
+            moves.setdefault(j.child, j.name)
     links, off = [], []
     for b in scenario.bodies:
         T_link = np.asarray(conv.link_pose[b.name], dtype=float)
         T_body = np.eye(4)
         T_body[:3, :3] = b.rotation
         T_body[:3, 3] = b.position
-        links.append(b.name)
+        links.append((b.name, moves.get(b.name)))
         off.append(np.linalg.solve(T_link, T_body))
     return links, np.asarray(off)
 
@@ -493,7 +500,8 @@ def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nst
     system builders' contract, :mod:`references.engines.system`): the engine's importer
     module loads the file (``load(scenario, config, integrator, dt) -> sim``), sets the
     initial state by joint name, steps (``sim.advance(n)``) and reports each body's link
-    (``sim.links(names) -> (T (nl, 4, 4), v (nl, 3) of the link origins, w (nl, 3))``, world);
+    (``sim.links([(link, joint), ...]) -> (T (nl, 4, 4), v (nl, 3) of the link origins,
+    w (nl, 3))``, world: :func:`body_offsets`);
     each body's principal frame moves with its link (:func:`body_offsets`), so an importer's
     change of the model shows in the motion of the links, never in our reading of the
     frames. Raises :class:`~references.errors.Unsupported` with the reason when the
@@ -533,7 +541,10 @@ def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nst
         return {"t": steps[:m] * float(dt), "x": x[:m], "R": R[:m], "v": v[:m], "W": W[:m],
                 "engine_time_s": float(sim.clock), "settings": dict(sim.settings)}  # fmt: skip
 
-    read(0)
+    try:
+        read(0)
+    except KeyError as exc:  # the importer's model lacks a body the scenario moves
+        raise Unsupported(f"{exc.args[0]}: the importer dropped it ({config})") from None
     for k in range(1, n):
         sim.advance(int(steps[k] - steps[k - 1]))
         read(k)

@@ -108,14 +108,20 @@ def run_system(
     nstep, saves = step_plan(dt, t_end, save_every)
     base, config = importers.split_variant(integrator)
     t0 = time.perf_counter()
-    if config is not None:  # through the engine's own importer (references.engines.importers)
-        res = importers.simulate(engine, scenario, config, base, float(dt), int(nstep),
-                                 int(save_every))  # fmt: skip
-    else:
-        mod = builder(engine)
-        settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
-        res = mod.simulate_system(scenario, integrator, float(dt), int(nstep), int(save_every),
-                                  **settings)  # fmt: skip
+    try:
+        if config is not None:  # through the engine's own importer (references.engines.importers)
+            res = importers.simulate(engine, scenario, config, base, float(dt), int(nstep),
+                                     int(save_every))  # fmt: skip
+        else:
+            mod = builder(engine)
+            settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
+            res = mod.simulate_system(scenario, integrator, float(dt), int(nstep),
+                                      int(save_every), **settings)  # fmt: skip
+    except Diverged as exc:  # the builder's states up to the divergence, as an output
+        if isinstance(exc.output, dict):
+            exc.output = _output(engine, scenario, exc.output, integrator, dt,
+                                 time.perf_counter() - t0)  # fmt: skip
+        raise
     wall = time.perf_counter() - t0
     get = res.get if isinstance(res, dict) else (lambda k, d=None: getattr(res, k, d))
     missing = [k for k in RESULT_KEYS if get(k) is None]
@@ -157,6 +163,24 @@ def run_system(
             f"{engine} system builder: {n} saved states, the step plan has {len(want)}"
         )
     return out
+
+
+def _output(engine, scenario, res: dict, integrator, dt, wall) -> SystemRunOutput | None:
+    """The output of a builder's result dict that ended at a divergence (states up to the
+    last good save); None when it holds none."""
+    try:
+        traj = SystemTrajectory(res["t"], res["x"], res["v"], res["R"], res["W"],
+                                scenario.body_names)  # fmt: skip
+    except (KeyError, ValueError):
+        return None
+    settings = {**dict(res.get("settings", {}) or {}), "integrator": integrator, "timestep": dt}
+    return SystemRunOutput(
+        trajectory=traj,
+        nstep=int(round(traj.t[-1] / dt)) if len(traj) else 0,
+        wall_time_s=wall,
+        engine_time_s=float(min(res.get("engine_time_s", wall) or wall, wall)),
+        settings=settings,
+    )
 
 
 def _first_divergence(scenario, traj) -> tuple[int, str] | None:

@@ -5,6 +5,7 @@ limits and default damping."""
 
 from __future__ import annotations
 
+import logging
 import shutil
 
 import numpy as np
@@ -73,3 +74,168 @@ def _ji(i):
     from pydrake.multibody.tree import JointIndex
 
     return JointIndex(i)
+
+
+# -- runs through the importer ---------------------------------------------------------------------
+
+#: the integrators an importer run takes (:func:`references.engines.importers.variants`)
+INTEGRATORS = ("runge_kutta5",)
+
+
+class _Sim:
+    """A continuous ``MultibodyPlant`` filled by Drake's ``Parser`` (a URDF root that the
+    scenario fixes welded where the scenario puts it, as a Drake user welds it; a floating one
+    left free, Drake's default), its state set from the scenario's start, stepped by a
+    ``Simulator`` with the fixed-step integrator (``ResetIntegratorFromFlags``):
+    ``references.engines.importers.simulate``'s ``sim``. No SceneGraph: no contact. A
+    continuous plant applies joint damping and reflected rotor inertia, not position limits
+    (Drake enforces those in discrete plants only): the settings say so."""
+
+    def __init__(self, scenario, config: str, integrator: str, dt: float):
+        from pydrake.math import RigidTransform
+        from pydrake.multibody.parsing import Parser
+        from pydrake.multibody.plant import MultibodyPlant
+        from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+
+        from references.engines.importers import start_of
+        from references.errors import EngineError, Unsupported
+
+        model = scenario.model
+        st = start_of(scenario)
+        path, tmp = file_for(model, config)
+        plant = MultibodyPlant(time_step=0.0)
+        said = _Said()
+        logging.getLogger("drake").addHandler(said)
+        try:
+            parser = Parser(plant)
+            for k, v in packages(model).items():
+                parser.package_map().Add(k, str(v))
+            parser.AddModels(str(path))
+        except Exception as exc:
+            raise Unsupported(
+                f"drake: its importer cannot load {scenario.model_spec['file']} ({config}): "
+                f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
+            ) from None
+        finally:
+            logging.getLogger("drake").removeHandler(said)
+            if tmp:
+                shutil.rmtree(tmp, ignore_errors=True)
+        rec = {"importer": "Parser.AddModels", "configuration": config,
+               "integrator": f"{integrator} (fixed step)", "gravity": st.gravity.tolist(),
+               "contact": "none (no SceneGraph)",
+               "limits": "not enforced (a continuous plant)"}  # fmt: skip
+        if said.lines:  # what the parser ignored, in its words (file name dropped)
+            rec["importer warnings"] = sorted({ln.split(": warning: ")[-1] for ln in said.lines})
+        root = plant.GetBodyByName(model.root)
+        if model.format == "urdf" and not st.floating:
+            plant.WeldFrames(plant.world_frame(), root.body_frame(), RigidTransform(st.T))
+            rec["root"] = "welded to the world at the scenario's base pose"
+        joints = [plant.get_joint(_ji(i)) for i in range(plant.num_joints())]
+        if config == "faithful":
+            for jt in joints:
+                if hasattr(jt, "set_default_damping"):
+                    jt.set_default_damping(0.0)
+            for i in range(plant.num_actuators()):
+                plant.get_joint_actuator(_ai(i)).set_default_rotor_inertia(0.0)
+            rec["switched off"] = "joint damping 0, rotor inertia 0"
+        else:
+            damp = sorted({float(jt.default_damping()) for jt in joints
+                           if hasattr(jt, "default_damping")})  # fmt: skip
+            rec["as the file has it"] = f"damping {damp}, {plant.num_actuators()} actuators"
+        plant.mutable_gravity_field().set_gravity_vector(st.gravity)
+        plant.Finalize()
+        self.plant = plant
+        sim = Simulator(plant)
+        ctx = sim.get_mutable_context()
+        if plant.num_actuated_dofs():
+            plant.get_actuation_input_port().FixValue(ctx, np.zeros(plant.num_actuated_dofs()))
+            rec["actuation"] = "0"
+        self._start(ctx, st, model)
+        integ = ResetIntegratorFromFlags(sim, integrator, float(dt))
+        integ.set_fixed_step_mode(True)
+        if not (integ.get_fixed_step_mode() and integ.get_maximum_step_size() == float(dt)):
+            raise EngineError(f"drake: {integrator}: the fixed step {dt:g} s did not take")
+        sim.Initialize()
+        if st.held:
+            rec["held joints"] = f"{st.held}: free in Drake's plant, at rest at t = 0"
+        self.sim, self.ctx, self.integ, self.dt = sim, ctx, integ, float(dt)
+        self.t, self.settings, self.clock = 0.0, rec, 0.0
+        self._bodies: dict = {}
+
+    def _start(self, ctx, st, model) -> None:
+        """The start by joint name (an MJCF hinge's Drake angle is MuJoCo's qpos, the
+        scenario's coordinate: measured so that at its ``ref`` the body sits where the file
+        puts it; shown by the faithful run of crawler_float, whose wrist has a ref)."""
+        from pydrake.math import RigidTransform
+        from pydrake.multibody.math import SpatialVelocity
+
+        plant = self.plant
+        for name in set(st.q) | set(st.qd):
+            if not plant.HasJointNamed(name):
+                continue
+            jt = plant.GetJointByName(name)
+            if jt.num_positions() != 1:
+                raise ValueError(f"drake: joint {name!r} ({jt.type_name()}): start not set here")
+            if name in st.q:
+                q = plant.GetPositions(ctx)
+                q[jt.position_start()] = float(st.q[name])
+                plant.SetPositions(ctx, q)
+            if name in st.qd:
+                v = plant.GetVelocities(ctx)
+                v[jt.velocity_start()] = float(st.qd[name])
+                plant.SetVelocities(ctx, v)
+        root = plant.GetBodyByName(model.root)
+        if root.is_floating_base_body():
+            plant.SetFreeBodyPose(ctx, root, RigidTransform(st.T))
+            plant.SetFreeBodySpatialVelocity(ctx, root, SpatialVelocity(st.w, st.v))
+
+    def advance(self, n: int) -> None:
+        import time
+
+        for _ in range(n):
+            self.t += self.dt  # the Simulator's own running sum of steps
+        t0 = time.perf_counter()
+        self.sim.AdvanceTo(self.t)
+        self.clock += time.perf_counter() - t0
+
+    def links(self, names):
+        plant, ctx = self.plant, self.ctx
+        n = len(names)
+        T = np.tile(np.eye(4), (n, 1, 1))
+        v, w = np.zeros((n, 3)), np.zeros((n, 3))
+        for i, (name, joint) in enumerate(names):
+            if name not in self._bodies:
+                if plant.HasBodyNamed(name):
+                    self._bodies[name] = plant.GetBodyByName(name)
+                elif joint is not None and plant.HasJointNamed(joint):
+                    self._bodies[name] = plant.GetJointByName(joint).child_body()
+                else:
+                    raise KeyError(f"drake: link {name!r} (joint {joint!r}) is not in the plant")
+            b = self._bodies[name]
+            T[i] = b.EvalPoseInWorld(ctx).GetAsMatrix4()
+            V = b.EvalSpatialVelocityInWorld(ctx)
+            w[i], v[i] = V.rotational(), V.translational()
+        return T, v, w
+
+
+class _Said(logging.Handler):
+    """The lines Drake's parser logs (its warnings about what it ignores), kept."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.lines: list = []
+
+    def emit(self, record) -> None:
+        self.lines.append(record.getMessage())
+
+
+def _ai(i):
+    from pydrake.multibody.tree import JointActuatorIndex
+
+    return JointActuatorIndex(i)
+
+
+def load(scenario, config: str, integrator: str, dt: float) -> _Sim:
+    """The scenario's model file loaded by Drake's importer in ``config``, its state set
+    (:func:`references.engines.importers.simulate`)."""
+    return _Sim(scenario, config, integrator, dt)

@@ -224,8 +224,10 @@ def _numerical(scenario, t, start) -> SystemReference:
     traj = SystemTrajectory(t, sol.x[:, order], sol.v[:, order], sol.R[:, order],
                             sol.W[:, order], scenario.body_names)  # fmt: skip
     inside = t <= hz.horizon
-    acc = float(np.max(sol.accuracy_t["attitude"][inside]))
-    acc_x = float(np.max(sol.accuracy_t["position"][inside]))
+    # a run that diverged in its first save has only t = 0: the start, exact (no estimate)
+    zero = np.zeros(len(t))
+    acc = float(np.max(sol.accuracy_t.get("attitude", zero)[inside]))
+    acc_x = float(np.max(sol.accuracy_t.get("position", zero)[inside]))
     method = sol.method + (
         f"; trusted horizon {hz.horizon:.6g} s of {t[-1]:.6g} s (perturbed runs stay within "
         f"{HORIZON_ATTITUDE:g} rad and {HORIZON_POSITION:g} of the size"

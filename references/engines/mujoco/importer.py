@@ -118,6 +118,15 @@ def _compile(scenario, config: str, st):
     try:
         spec = mujoco.MjSpec.from_file(str(path))
         root = spec.body(model.root) or spec.worldbody.first_body()
+        if config == "faithful":  # held joints welded where the scenario holds them
+            for name in st.held:
+                j = spec.joint(name)
+                if j is None:
+                    continue
+                q = float(st.q.get(name, j.ref))
+                if q != j.ref:
+                    raise ValueError(f"held joint {name!r} at {q}, not at its ref {j.ref}")
+                spec.delete(j)
         if model.format == "urdf" and st.floating:
             root.add_freejoint()
         elif model.format == "urdf":  # a fixed URDF root, placed where the scenario puts it
@@ -174,7 +183,11 @@ class _Sim:
         d = mujoco.MjData(m)
         self._set_state(m, d, st, scenario)
         if st.held:
-            rec["held joints"] = f"{st.held}: free in MuJoCo's model, at rest at t = 0"
+            rec["held joints"] = f"{st.held}: " + (
+                "removed from the spec (welded at their ref)"
+                if config == "faithful"
+                else "free in MuJoCo's model, at rest at t = 0"
+            )
         self.m, self.d, self.settings, self.clock = m, d, rec, 0.0
         self._ids: dict = {}
 
@@ -204,6 +217,16 @@ class _Sim:
                 raise ValueError(f"joint {name!r}: a ball joint's start is not set here")
         mj.mj_forward(m, d)
 
+    def _body(self, name, joint) -> int:
+        """MuJoCo's body id of a link: by its name, else as the body its joint moves."""
+        mj, m = self.mj, self.m
+        if name in self.names:
+            return self.names.index(name)
+        j = -1 if joint is None else mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, joint)
+        if j < 0:
+            raise KeyError(f"mujoco: link {name!r} (joint {joint!r}) is not in the loaded model")
+        return int(m.jnt_bodyid[j])
+
     def advance(self, n: int) -> None:
         import time
 
@@ -220,11 +243,9 @@ class _Sim:
         T = np.tile(np.eye(4), (n, 1, 1))
         v, w = np.zeros((n, 3)), np.zeros((n, 3))
         res = np.zeros(6)
-        for i, name in enumerate(names):
+        for i, (name, joint) in enumerate(names):
             if name not in self._ids:
-                if name not in self.names:
-                    raise KeyError(f"mujoco: link {name!r} is not a body of the loaded model")
-                self._ids[name] = self.names.index(name)
+                self._ids[name] = self._body(name, joint)
             b = self._ids[name]
             T[i, :3, :3] = d.xmat[b].reshape(3, 3)
             T[i, :3, 3] = d.xpos[b]

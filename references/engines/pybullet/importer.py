@@ -96,3 +96,171 @@ def _T(pos, orn, p):
     T[:3, :3] = np.asarray(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
     T[:3, 3] = pos
     return T
+
+
+# -- runs through the importer ---------------------------------------------------------------------
+
+#: the integrators an importer run takes (:func:`references.engines.importers.variants`)
+INTEGRATORS = ("multibody",)
+
+#: faithful: PyBullet's velocity clamp raised (the builder's value, rad/s and m/s)
+MAX_JOINT_VELOCITY = 1e6
+#: faithful: the joint limits moved this far (rad, m); a limit whose lower end exceeds its
+#: upper end stays in force in PyBullet (measured: arm3_swing hit one at t = 0.35 s)
+FAR = 1e6
+
+
+class _Sim:
+    """The model loaded by ``loadURDF`` (``useFixedBase`` as the scenario says: a floating
+    root honestly floating) or ``loadMJCF``, its state set from the scenario's start, stepped by
+    ``stepSimulation`` (Bullet's multibody semi-implicit Euler):
+    ``references.engines.importers.simulate``'s ``sim``. As loaded, PyBullet's defaults stay:
+    inertias from collision shapes (no flag), a velocity motor on every joint, linear and
+    angular damping 0.04 on every link, the file's joint damping and limits, the 100 rad/s
+    clamp. Faithful: ``URDF_USE_INERTIA_FROM_FILE``, the motors off (zero force), every
+    damping 0, the limits moved to :data:`FAR`, the clamp raised."""
+
+    def __init__(self, scenario, config: str, integrator: str, dt: float):
+        import pybullet as p
+
+        from references.engines.importers import start_of
+        from references.errors import Unsupported
+
+        self.p = p
+        model = scenario.model
+        st = start_of(scenario)
+        path, tmp = file_for(model, config)
+        cid = p.connect(p.DIRECT)
+        self.cid = cid
+        flags = p.URDF_USE_INERTIA_FROM_FILE if config == "faithful" else 0
+        try:
+            with quiet_fd() as out:
+                if model.format == "urdf":
+                    ids = [p.loadURDF(str(path), useFixedBase=not st.floating, flags=flags,
+                                      physicsClientId=cid)]  # fmt: skip
+                else:
+                    ids = list(p.loadMJCF(str(path), physicsClientId=cid))
+        except Exception as exc:
+            p.disconnect(cid)
+            said = out[0].strip().splitlines()[-1][:200] if out and out[0].strip() else ""
+            raise Unsupported(
+                f"pybullet: its importer cannot load {scenario.model_spec['file']} ({config}): "
+                f"{type(exc).__name__}: {exc}" + (f" ({said})" if said else "")
+            ) from None
+        finally:
+            if tmp:
+                shutil.rmtree(tmp, ignore_errors=True)
+        rec = {"importer": ("loadURDF" if model.format == "urdf" else "loadMJCF")
+               + f" (flags {flags}, useFixedBase {not st.floating})"
+               if model.format == "urdf" else "loadMJCF", "configuration": config,
+               "integrator": "stepSimulation (multibody)",
+               "gravity": st.gravity.tolist()}  # fmt: skip
+        p.setGravity(*st.gravity.tolist(), physicsClientId=cid)
+        p.setPhysicsEngineParameter(fixedTimeStep=float(dt), numSubSteps=0, physicsClientId=cid)
+        self.where: dict = {}  # link name -> (body, link index); joint name -> same
+        self.joint_of: dict = {}
+        for b in ids:
+            self.where[p.getBodyInfo(b, physicsClientId=cid)[0].decode()] = (b, -1)
+            for j in range(p.getNumJoints(b, physicsClientId=cid)):
+                info = p.getJointInfo(b, j, physicsClientId=cid)
+                self.where[info[12].decode()] = (b, j)
+                self.joint_of[info[1].decode()] = (b, j, info[2])
+        if config == "faithful":
+            for b in ids:
+                for j in range(-1, p.getNumJoints(b, physicsClientId=cid)):
+                    p.changeDynamics(b, j, linearDamping=0.0, angularDamping=0.0,
+                                     maxJointVelocity=MAX_JOINT_VELOCITY,
+                                     activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING,
+                                     physicsClientId=cid)  # fmt: skip
+                    if j >= 0:
+                        p.changeDynamics(b, j, jointDamping=0.0, jointLowerLimit=-FAR,
+                                         jointUpperLimit=FAR, physicsClientId=cid)  # fmt: skip
+                        p.setJointMotorControl2(b, j, p.VELOCITY_CONTROL, targetVelocity=0.0,
+                                                force=0.0, physicsClientId=cid)  # fmt: skip
+            rec["switched off"] = "joint motors (force 0), linear/angular damping, joint "
+            rec["switched off"] += f"damping, limits (moved to +-{FAR:g}); velocity clamp 1e6"
+        else:
+            rec["as the file has it"] = ("PyBullet's defaults: velocity motors on, damping "
+                                         "0.04, the file's joint damping and limits")  # fmt: skip
+        if st.held:
+            rec["held joints"] = f"{st.held}: free in PyBullet's model, at rest at t = 0"
+        self._start(st, model, ids)
+        self.settings, self.clock = rec, 0.0
+
+    def _start(self, st, model, ids) -> None:
+        p, cid = self.p, self.cid
+        for name, (b, j, kind) in self.joint_of.items():
+            if kind not in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
+                if name in st.q or name in st.qd:
+                    raise ValueError(f"pybullet: joint {name!r} (type {kind}): start not set here")
+                continue
+            if name in st.q or name in st.qd:
+                p.resetJointState(b, j, float(st.q.get(name, 0.0)),
+                                  float(st.qd.get(name, 0.0)), physicsClientId=cid)  # fmt: skip
+        if model.root not in self.where or self.where[model.root][1] != -1:
+            if model.format == "urdf":
+                raise ValueError(f"pybullet: the root link {model.root!r} is not a base")
+            return  # an MJCF root below a base: placed by the file
+        b = self.where[model.root][0]
+        dyn = p.getDynamicsInfo(b, -1, physicsClientId=cid)
+        Tc = st.T @ _T(dyn[3], dyn[4], p)  # the base's inertial frame
+        p.resetBasePositionAndOrientation(b, Tc[:3, 3].tolist(), _quat(Tc[:3, :3]),
+                                          physicsClientId=cid)  # fmt: skip
+        if st.floating:
+            vc = st.v + np.cross(st.w, Tc[:3, 3] - st.T[:3, 3])
+            p.resetBaseVelocity(b, vc.tolist(), st.w.tolist(), physicsClientId=cid)
+
+    def advance(self, n: int) -> None:
+        import time
+
+        p, cid = self.p, self.cid
+        t0 = time.perf_counter()
+        for _ in range(n):
+            p.stepSimulation(physicsClientId=cid)
+        self.clock += time.perf_counter() - t0
+
+    def links(self, names):
+        p, cid = self.p, self.cid
+        n = len(names)
+        T = np.tile(np.eye(4), (n, 1, 1))
+        v, w = np.zeros((n, 3)), np.zeros((n, 3))
+        for i, (name, joint) in enumerate(names):
+            if name in self.where:
+                b, j = self.where[name]
+            elif joint in self.joint_of:
+                b, j, _ = self.joint_of[joint]
+            else:
+                raise KeyError(f"pybullet: link {name!r} (joint {joint!r}) is not in the model")
+            if j < 0:
+                pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=cid)
+                vc, w[i] = p.getBaseVelocity(b, physicsClientId=cid)
+                dyn = p.getDynamicsInfo(b, -1, physicsClientId=cid)
+                Tc = _T(pos, orn, p)
+                T[i] = Tc @ np.linalg.inv(_T(dyn[3], dyn[4], p))
+            else:
+                s = p.getLinkState(b, j, computeLinkVelocity=1, computeForwardKinematics=1,
+                                   physicsClientId=cid)  # fmt: skip
+                T[i] = _T(s[4], s[5], p)
+                Tc = _T(s[0], s[1], p)
+                vc, w[i] = s[6], s[7]
+            # the link origin's velocity from the centre of mass's (PyBullet reports that one)
+            v[i] = np.asarray(vc) + np.cross(w[i], T[i, :3, 3] - Tc[:3, 3])
+        return T, v, w
+
+    def __del__(self):
+        try:
+            self.p.disconnect(self.cid)
+        except Exception:  # noqa: BLE001 - already disconnected
+            pass
+
+
+def _quat(R) -> list:
+    from references import conventions as cv
+
+    return list(map(float, cv.matrix_to_quat_xyzw(R)))
+
+
+def load(scenario, config: str, integrator: str, dt: float) -> _Sim:
+    """The scenario's model file loaded by PyBullet's importer in ``config``, its state set
+    (:func:`references.engines.importers.simulate`)."""
+    return _Sim(scenario, config, integrator, dt)
