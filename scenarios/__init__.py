@@ -9,6 +9,7 @@ The library is one TOML file per scenario in this package's directory (see
     sc = scenarios.load("my_body.toml") # ... or the path of a user's file
     scenarios.default_suite()           # names of the files tagged "default"
     scenarios.list_systems()            # systems of bodies (files in systems/)
+    scenarios.list_contact()            # bodies in contact (files in contact/)
 
 Invalid files raise :class:`ScenarioError` (a ``ValueError``) naming the file, the field, the
 value and the rule.
@@ -48,12 +49,15 @@ __all__ = [
     "SystemBody",
     "SystemJoint",
     "SystemScenario",
+    "contact_path",
+    "default_contact",
     "default_suite",
     "default_systems",
     "is_library_file",
     "library_path",
-    "list_scenarios",
+    "list_contact",
     "list_robots",
+    "list_scenarios",
     "list_systems",
     "load",
     "robots_path",
@@ -73,7 +77,7 @@ def is_library_file(sc) -> bool:
     if not getattr(sc, "path", None):
         return False
     folder = Path(sc.path).resolve().parent
-    return folder in (library_path(), systems_path(), robots_path())
+    return folder in (library_path(), systems_path(), robots_path(), contact_path())
 
 
 def list_scenarios() -> list[str]:
@@ -111,6 +115,22 @@ def default_systems() -> list[str]:
     return [name for name in list_systems() if "default" in load(name).tags]
 
 
+def contact_path() -> Path:
+    """The directory holding the library's contact scenes (bodies, planes and the pairs that
+    touch; docs/scenarios.md, "Contact")."""
+    return library_path() / "contact"
+
+
+def list_contact() -> list[str]:
+    """Names of the library's contact scenes (file stems), sorted."""
+    return sorted(p.stem for p in contact_path().glob("*.toml"))
+
+
+def default_contact() -> list[str]:
+    """Names of the library's contact scenes tagged ``"default"``, sorted."""
+    return [name for name in list_contact() if "default" in load(name).tags]
+
+
 def _did_you_mean(word: str, names: list[str]) -> str:
     """`` (did you mean 'x'?)`` naming the names closest to ``word`` in spelling (difflib's
     ratio of at least 0.6, case ignored), or "" when none is close."""
@@ -139,7 +159,9 @@ def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     if not path.is_file():
         path = robots_path() / f"{s}.toml"
     if not path.is_file():
-        known = list_scenarios() + list_systems() + list_robots()
+        path = contact_path() / f"{s}.toml"
+    if not path.is_file():
+        known = list_scenarios() + list_systems() + list_robots() + list_contact()
         raise ScenarioError(
             f"no scenario named {s!r} in the library{_did_you_mean(s, known)}; available: "
             f"{', '.join(known)} ({library_path()}). To load a file of your own, pass its path "

@@ -45,10 +45,12 @@ not need) are kept with the scenario: :attr:`SystemScenario.tree_joints`,
 from __future__ import annotations
 
 import math
+import types
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from scenarios import contact as ct
 from scenarios.model import RunFields, frozen
 from scenarios.tree import spanning_tree
 
@@ -64,7 +66,10 @@ AXIS_KINDS = ("revolute", "universal", "cylindrical", "prismatic")
 #: ("numerical", trees only) and "none" (no independent reference: trajectory errors are
 #: not measured, invariants and joint gaps are)
 SYSTEM_CLOSED_FORMS = ("spinning_chain", "conical_pendulum", "four_bar")
-SYSTEM_REFERENCE_KINDS = ("auto", *SYSTEM_CLOSED_FORMS, "numerical", "none")
+#: the closed forms of bodies in contact (references.exact.contact); a scene with
+#: ``[[contacts]]`` takes one of these or "none"
+CONTACT_CLOSED_FORMS = ("sliding_block", "tipping_block", "rolling", "bounce", "resting")
+SYSTEM_REFERENCE_KINDS = ("auto", *SYSTEM_CLOSED_FORMS, *CONTACT_CLOSED_FORMS, "numerical", "none")
 
 #: a joint must hold at t = 0 to this, m for points and rad for axes: the tolerance of
 #: director_model.system (INIT_TOL), so that a file accepted here runs there (files give
@@ -83,6 +88,8 @@ class SystemBody:
     rotation: np.ndarray
     velocity: np.ndarray
     omega_body: np.ndarray
+    #: the body's collision shape (:class:`scenarios.contact.Shape`), or None
+    shape: object = None
 
     def __post_init__(self):
         for k in ("inertia", "position", "rotation", "velocity", "omega_body"):
@@ -148,6 +155,10 @@ class SystemScenario(RunFields):
     tolerances: dict = field(default_factory=dict)
     #: settings handed to one engine's builder, {engine: {name: value}} (``[engine_settings]``)
     engine_settings: dict = field(default_factory=dict)
+    #: contact (:mod:`scenarios.contact`): static planes, the pairs that touch, constant forces
+    planes: tuple = ()
+    contacts: tuple = ()
+    forces: tuple = ()
     source: str = ""
     tags: tuple[str, ...] = ()
     path: str | None = None
@@ -163,6 +174,8 @@ class SystemScenario(RunFields):
         object.__setattr__(self, "joints", tuple(self.joints))
         object.__setattr__(self, "gravity", frozen(self.gravity))
         object.__setattr__(self, "reference_params", dict(self.reference_params))
+        for k in ("planes", "contacts", "forces"):
+            object.__setattr__(self, k, tuple(getattr(self, k)))
         self._normalise_run()
         st = spanning_tree(self.bodies, self.joints)
         object.__setattr__(self, "tree_joints", tuple(self.joints[k].name for k in st.tree))
@@ -172,6 +185,11 @@ class SystemScenario(RunFields):
     @property
     def body_names(self) -> tuple[str, ...]:
         return tuple(b.name for b in self.bodies)
+
+    @property
+    def has_contact(self) -> bool:
+        """The scene lists pairs that may touch (``[[contacts]]``)."""
+        return bool(self.contacts)
 
     @property
     def is_tree(self) -> bool:
@@ -305,7 +323,10 @@ class SystemScenario(RunFields):
              "axis_b": v(j.axis_b)}
             for j in self.joints
         ]  # fmt: skip
-        return {
+        for d, b in zip(bodies, self.bodies, strict=True):
+            if b.shape is not None:  # only then: the hashes of scenes without contact stay
+                d["shape"] = b.shape.to_dict()
+        out = {
             "name": self.name,
             "description": self.description,
             "bodies": bodies,
@@ -317,6 +338,11 @@ class SystemScenario(RunFields):
             "tolerances": self.tolerances,
             "engine_settings": self.engine_settings,
         }
+        if self.planes or self.contacts or self.forces:
+            out["planes"] = [p.to_dict() for p in self.planes]
+            out["contacts"] = [c.to_dict() for c in self.contacts]
+            out["forces"] = [f.to_dict() for f in self.forces]
+        return out
 
     def magnitude_problems(self, t_end: float | None = None) -> list[tuple]:
         """See :func:`magnitude_problems`."""
@@ -335,6 +361,7 @@ _BODY_KEYS = {
     "rotation_vector": "vec3",
     "velocity": "vec3",
     "omega_body": "vec3",
+    "shape": "table",
 }
 _BODY_REQUIRED = ("name", "mass", "inertia", "position")
 _JOINT_KEYS = {
@@ -364,6 +391,9 @@ _TOP_KEYS = (
     "reference",
     "tolerances",
     "engine_settings",
+    "planes",
+    "contacts",
+    "forces",
 )
 
 
@@ -429,6 +459,17 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         bodies = _tree_states(bodies, joints, data["bodies"], data["joints"], bad)
     if not probs and joints:
         _initial_gaps(bodies, joints, bad)
+    planes, contacts, forces = ct.read_contact_parts(data, bodies, bad)
+    if contacts and kind not in (*CONTACT_CLOSED_FORMS, "none", "auto"):
+        bad("reference.kind", kind, "a scene with [[contacts]] takes a contact closed form ("
+            f"{', '.join(CONTACT_CLOSED_FORMS)}) or none")  # fmt: skip
+    elif kind in CONTACT_CLOSED_FORMS and not contacts:
+        bad("reference.kind", kind, "a contact closed form needs [[contacts]] (the pairs that "
+            "touch)")  # fmt: skip
+    if not probs and contacts:
+        ct.initial_penetrations(
+            types.SimpleNamespace(bodies=bodies, planes=planes, contacts=contacts), bad
+        )
     if probs:
         raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
     sc = SystemScenario(
@@ -446,6 +487,9 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         reference_params=params,
         tolerances=tolerances,
         engine_settings=engine_settings,
+        planes=planes,
+        contacts=contacts,
+        forces=forces,
         source=data.get("source", ""),
         tags=tuple(data.get("tags", ())),
         path=path,
@@ -578,6 +622,7 @@ def _bodies(raw, bad, by_joints: bool = False) -> list[SystemBody]:
         for f, v, rule in sch.body_problems(good.get("mass"), good.get("inertia"), p):
             bad(f, v, rule)
         R = _attitude(good, p, bad)
+        shape = ct.read_shape(tab["shape"], f"{p}.shape", bad) if "shape" in tab else None
         out.append(
             SystemBody(
                 name=name,
@@ -587,6 +632,7 @@ def _bodies(raw, bad, by_joints: bool = False) -> list[SystemBody]:
                 rotation=R,
                 velocity=np.array(good.get("velocity", z), dtype=float),
                 omega_body=np.array(good.get("omega_body", z), dtype=float),
+                shape=shape,
             )
         )
     return out
@@ -798,7 +844,8 @@ def _tree_states(bodies, joints, raw_bodies, raw_joints, bad) -> list[SystemBody
     for b in bodies:
         x, R, v, w = state[b.name]
         out.append(SystemBody(name=b.name, mass=b.mass, inertia=b.inertia, position=x,
-                              rotation=R, velocity=v, omega_body=R.T @ w))  # fmt: skip
+                              rotation=R, velocity=v, omega_body=R.T @ w,
+                              shape=b.shape))  # fmt: skip
     return out
 
 
