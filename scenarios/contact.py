@@ -76,10 +76,12 @@ class Shape:
     rotation: np.ndarray = None  # type: ignore[assignment]
 
     def __post_init__(self):
-        object.__setattr__(self, "position", frozen(np.zeros(3) if self.position is None
-                                                    else self.position))  # fmt: skip
-        object.__setattr__(self, "rotation", frozen(np.eye(3) if self.rotation is None
-                                                    else self.rotation))  # fmt: skip
+        object.__setattr__(
+            self, "position", frozen(np.zeros(3) if self.position is None else self.position)
+        )
+        object.__setattr__(
+            self, "rotation", frozen(np.eye(3) if self.rotation is None else self.rotation)
+        )
         if self.half_extents is not None:
             object.__setattr__(self, "half_extents", frozen(self.half_extents))
         object.__setattr__(self, "radius", float(self.radius))
@@ -100,8 +102,11 @@ class Shape:
         return self.radius + self.half_length
 
     def to_dict(self) -> dict:
-        d = {"kind": self.kind, "position": self.position.tolist(),
-             "rotation": self.rotation.tolist()}  # fmt: skip
+        d = {
+            "kind": self.kind,
+            "position": self.position.tolist(),
+            "rotation": self.rotation.tolist(),
+        }
         if self.kind == "box":
             d["half_extents"] = self.half_extents.tolist()
         else:
@@ -372,11 +377,20 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
             continue
         norm = math.sqrt(sum(float(c) * float(c) for c in n))
         if abs(norm - 1.0) > NORMAL_TOL:
-            bad(f"{p}.normal", n, f"must be a unit vector to {NORMAL_TOL:g} (|n| = {norm!r}); "
-                "it is never normalised for you")  # fmt: skip
+            bad(
+                f"{p}.normal",
+                n,
+                f"must be a unit vector to {NORMAL_TOL:g} (|n| = {norm!r}); "
+                "it is never normalised for you",
+            )
             continue
-        planes.append(Plane(name, np.array(n, dtype=float),
-                            np.array(good.get("point", [0.0, 0.0, 0.0]), dtype=float)))  # fmt: skip
+        planes.append(
+            Plane(
+                name,
+                np.array(n, dtype=float),
+                np.array(good.get("point", [0.0, 0.0, 0.0]), dtype=float),
+            )
+        )
     plane_names = {q.name for q in planes}
     pairs = []
     seen = set()
@@ -401,8 +415,11 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
         problem = False
         for nm in pair:
             if nm not in names and nm not in plane_names:
-                bad(f"{p}.pair", pair, f"{nm!r} is neither a body nor a plane of this file; "
-                    f"known: {known}")  # fmt: skip
+                bad(
+                    f"{p}.pair",
+                    pair,
+                    f"{nm!r} is neither a body nor a plane of this file; known: {known}",
+                )
                 problem = True
         if problem:
             continue
@@ -428,9 +445,13 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
         if b in names:
             kinds = tuple(sorted((names[a].shape.kind, names[b].shape.kind)))
             if kinds not in BODY_PAIRS:
-                bad(f"{p}.pair", pair, f"a {kinds[0]}-{kinds[1]} pair is not measured by the "
+                bad(
+                    f"{p}.pair",
+                    pair,
+                    f"a {kinds[0]}-{kinds[1]} pair is not measured by the "
                     "suite's contact geometry (it measures sphere-sphere, box-sphere, box-box "
-                    "and every shape against a plane)")  # fmt: skip
+                    "and every shape against a plane)",
+                )
                 continue
         if mu is None or e is None:
             continue
@@ -445,8 +466,13 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
             continue
         if body is None or "force" not in good:
             continue
-        forces.append(Force(body, np.array(good["force"], dtype=float),
-                            np.array(good.get("point", [0.0, 0.0, 0.0]), dtype=float)))  # fmt: skip
+        forces.append(
+            Force(
+                body,
+                np.array(good["force"], dtype=float),
+                np.array(good.get("point", [0.0, 0.0, 0.0]), dtype=float),
+            )
+        )
     return tuple(planes), tuple(pairs), tuple(forces)
 
 

@@ -71,8 +71,16 @@ def test_push_isotropic(frac, angle):
     F = frac * mu * m * G
     A = math.radians(angle)
     f = [F * math.cos(A), F * math.sin(A), 0.0]
-    blk = SlidingBlock(m, [0.1, 0.1, 0.1], [0, 0, 0.1], np.eye(3), [0, 0, 1], mu, [0, 0, -G],
-                       [(f, [0.0, 0.0, 0.0])])  # fmt: skip
+    blk = SlidingBlock(
+        m,
+        [0.1, 0.1, 0.1],
+        [0, 0, 0.1],
+        np.eye(3),
+        [0, 0, 1],
+        mu,
+        [0, 0, -G],
+        [(f, [0.0, 0.0, 0.0])],
+    )
     assert blk.facts["sticks"] == (frac <= 1.0)
     a = max(F / m - mu * G, 0.0)
     assert blk.facts["acceleration"] == pytest.approx(a, abs=TIGHT)
@@ -87,11 +95,27 @@ def test_block_that_would_tip_is_refused():
     """A tall block pushed at its top tips: no sliding closed form."""
     half = [0.05, 0.05, 0.3]
     with pytest.raises(ReferenceNotApplicable, match="tips"):
-        SlidingBlock(1.0, half, [0, 0, 0.3], np.eye(3), [0, 0, 1], 0.8, [0, 0, -G],
-                     [([0.7 * G, 0, 0], [0.0, 0.0, 0.3])])  # fmt: skip
+        SlidingBlock(
+            1.0,
+            half,
+            [0, 0, 0.3],
+            np.eye(3),
+            [0, 0, 1],
+            0.8,
+            [0, 0, -G],
+            [([0.7 * G, 0, 0], [0.0, 0.0, 0.3])],
+        )
     # the same push at the centre of mass of a cube slides without tipping
-    SlidingBlock(1.0, [0.1] * 3, [0, 0, 0.1], np.eye(3), [0, 0, 1], 0.5, [0, 0, -G],
-                 [([0.7 * G, 0, 0], [0.0, 0.0, 0.0])])  # fmt: skip
+    SlidingBlock(
+        1.0,
+        [0.1] * 3,
+        [0, 0, 0.1],
+        np.eye(3),
+        [0, 0, 1],
+        0.5,
+        [0, 0, -G],
+        [([0.7 * G, 0, 0], [0.0, 0.0, 0.0])],
+    )
 
 
 def test_block_not_flat_is_refused():
@@ -153,13 +177,22 @@ def _sphere_ode(m, r, k, mu, n, g, x0, v0, w0, t_end, t_eval, slide_first=False)
     t0 = 0.0
     while t0 < t_end:
         if np.linalg.norm(slip(y)) > 1e-9 or (slide_first and t0 == 0.0):
-            sol = solve_ivp(sliding, (t0, t_end), y, method="DOP853", rtol=1e-12, atol=1e-14,
-                            events=stop_slip, dense_output=True)  # fmt: skip
+            sol = solve_ivp(
+                sliding,
+                (t0, t_end),
+                y,
+                method="DOP853",
+                rtol=1e-12,
+                atol=1e-14,
+                events=stop_slip,
+                dense_output=True,
+            )
         else:
             f, N = rolling_force(y)
             assert np.linalg.norm(f) <= mu * N * (1 + 1e-12), "test set-up: it cannot roll"
-            sol = solve_ivp(rolling, (t0, t_end), y, method="DOP853", rtol=1e-12, atol=1e-14,
-                            dense_output=True)  # fmt: skip
+            sol = solve_ivp(
+                rolling, (t0, t_end), y, method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True
+            )
         t1 = sol.t[-1]
         sel = (t_eval >= t0) & (t_eval <= t1)
         if sel.any():
@@ -192,8 +225,9 @@ def test_sphere_sliding_into_rolling(v0, rw0, label):
     assert mo.facts["energy_lost"] == pytest.approx(lost, rel=1e-12)
     # the 3-D event-driven integration, independent of the closed form
     a = np.cross(n, e)
-    x, v, w, tt = _sphere_ode(m, r, k, mu, n, np.array([0, 0, -G]), np.array([0, 0, r]),
-                              v0 * e, rw0 / r * a, 1.0, t)  # fmt: skip
+    x, v, w, tt = _sphere_ode(
+        m, r, k, mu, n, np.array([0, 0, -G]), np.array([0, 0, r]), v0 * e, rw0 / r * a, 1.0, t
+    )
     assert np.allclose(tt, t)
     assert np.max(np.abs(x - mo.x[:, 0])) < ODE
     assert np.max(np.abs(v - mo.v[:, 0])) < ODE
@@ -221,16 +255,29 @@ def test_round_body_on_incline(k, name, mu):
     wdot = a / r if rolls else mu * G * math.cos(th) / (k * r)
     assert np.allclose(spin, wdot * t, rtol=TIGHT, atol=TIGHT)
     if not rolls:  # the integration needs a slip direction: 1e-12 m/s downhill
-        x, *_ = _sphere_ode(m, r, k, mu, n, np.array([0, 0, -G]), r * n, 1e-12 * down,
-                            np.zeros(3), 0.8, t, slide_first=True)  # fmt: skip
+        x, *_ = _sphere_ode(
+            m,
+            r,
+            k,
+            mu,
+            n,
+            np.array([0, 0, -G]),
+            r * n,
+            1e-12 * down,
+            np.zeros(3),
+            0.8,
+            t,
+            slide_first=True,
+        )
         assert np.max(np.abs(x - mo.x[:, 0])) < ODE
 
 
 def test_rolling_attitude_turns_with_the_distance():
     """Rolling without slip: the angle turned is the distance over r (a rolled ball's marker)."""
     r = 0.05
-    roll = Rolling(1.0, r, 0.4, [0, 0, r], np.eye(3), [0, 0, 1], [1, 0, 0], 1.0, 20.0, 0.5,
-                   [0, 0, -G])  # fmt: skip
+    roll = Rolling(
+        1.0, r, 0.4, [0, 0, r], np.eye(3), [0, 0, 1], [1, 0, 0], 1.0, 20.0, 0.5, [0, 0, -G]
+    )
     t = np.linspace(0, 0.5, 6)
     mo = roll.motion(t)
     ang = np.arctan2(mo.R[:, 0, 0, 2], mo.R[:, 0, 0, 0])  # rotation about +y
@@ -252,8 +299,15 @@ def _bounce_ode(z0, e, t_end, t_eval):
 
     hit.terminal, hit.direction = True, -1
     while t0 < t_end and len(impacts) < 30:
-        sol = solve_ivp(lambda t, y: [y[1], -G], (t0, t_end), y, events=hit, rtol=1e-13,
-                        atol=1e-15, dense_output=True)  # fmt: skip
+        sol = solve_ivp(
+            lambda t, y: [y[1], -G],
+            (t0, t_end),
+            y,
+            events=hit,
+            rtol=1e-13,
+            atol=1e-15,
+            dense_output=True,
+        )
         sel = (t_eval >= t0) & (t_eval <= sol.t[-1])
         if sel.any():
             out[sel] = sol.sol(t_eval[sel])[0]

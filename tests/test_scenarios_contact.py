@@ -33,8 +33,12 @@ def _box_vertices(h, c, A):
 
 def test_plane_distance_box_is_its_lowest_vertex():
     h = np.array([0.1, 0.25, 0.05])
-    shape = Shape("box", half_extents=h, position=[0.01, -0.02, 0.03],
-                  rotation=rotation_from_vector([0.2, 0.1, -0.3]))  # fmt: skip
+    shape = Shape(
+        "box",
+        half_extents=h,
+        position=[0.01, -0.02, 0.03],
+        rotation=rotation_from_vector([0.2, 0.1, -0.3]),
+    )
     n = np.array([0.3, -0.2, 0.9])
     n /= np.linalg.norm(n)
     plane = Plane("p", n, [0.1, 0.2, -0.05])
@@ -100,8 +104,11 @@ def test_sphere_box_distance():
     b = Shape("box", half_extents=np.array([0.1, 0.2, 0.3]))
     sp = Shape("sphere", radius=0.05)
     I = np.eye(3)[None]
-    for p, want in (([0, 0, 0.36], 0.01), ([0.15, 0.25, 0.0], math.hypot(0.05, 0.05) - 0.05),
-                    ([0.0, 0.0, 0.28], -0.07)):  # fmt: skip
+    for p, want in (
+        ([0, 0, 0.36], 0.01),
+        ([0.15, 0.25, 0.0], math.hypot(0.05, 0.05) - 0.05),
+        ([0.0, 0.0, 0.28], -0.07),
+    ):
         assert body_distance(b, [[0, 0, 0]], I, sp, [p], I)[0] == pytest.approx(want, abs=1e-15)
         assert body_distance(sp, [p], I, b, [[0, 0, 0]], I)[0] == pytest.approx(want, abs=1e-15)
 
@@ -180,28 +187,68 @@ def test_penetration_at_start_named():
         (lambda d: d["contacts"][0].update(mu=-0.1), "contacts[0].mu", -0.1, ">= 0"),
         (lambda d: d["contacts"][0].update(e=1.5), "contacts[0].e", 1.5, "in [0, 1]"),
         (lambda d: d["contacts"][0].update(e=-0.2), "contacts[0].e", -0.2, "in [0, 1]"),
-        (lambda d: d["contacts"][0].update(pair=["block", "floor"]), "contacts[0].pair",
-         ["block", "floor"], "neither a body nor a plane"),
-        (lambda d: d["contacts"][0].update(pair=["ground", "ground"]), "contacts[0].pair",
-         ["ground", "ground"], "two planes never touch"),
-        (lambda d: d["planes"][0].update(normal=[0.0, 0.0, 2.0]), "planes[0].normal",
-         [0.0, 0.0, 2.0], "unit vector"),
-        (lambda d: d["bodies"][0]["shape"].update(kind="cone"), "bodies[0].shape.kind", "cone",
-         "sphere, box, capsule, cylinder"),
-        (lambda d: d["bodies"][0]["shape"].update(half_extents=[0.1, 0.0, 0.1]),
-         "bodies[0].shape.half_extents", [0.1, 0.0, 0.1], "> 0"),
-        (lambda d: d["bodies"][0]["shape"].update(radius=0.1), "bodies[0].shape.radius", 0.1,
-         "a box takes only half_extents"),
-        (lambda d: d.update(forces=[{"body": "ghost", "force": [1.0, 0.0, 0.0]}]),
-         "forces[0].body", "ghost", "not a body"),
-        (lambda d: d["contacts"].append({"pair": ["ground", "block"], "mu": 0.2}),
-         "contacts[1].pair", ["ground", "block"], "listed twice"),
-        (lambda d: d["reference"].update(kind="numerical"), "reference.kind", "numerical",
-         "contact closed form"),
-        (lambda d: d["contacts"][0].update(friction=0.3), "contacts[0].friction", 0.3,
-         "unknown key"),
+        (
+            lambda d: d["contacts"][0].update(pair=["block", "floor"]),
+            "contacts[0].pair",
+            ["block", "floor"],
+            "neither a body nor a plane",
+        ),
+        (
+            lambda d: d["contacts"][0].update(pair=["ground", "ground"]),
+            "contacts[0].pair",
+            ["ground", "ground"],
+            "two planes never touch",
+        ),
+        (
+            lambda d: d["planes"][0].update(normal=[0.0, 0.0, 2.0]),
+            "planes[0].normal",
+            [0.0, 0.0, 2.0],
+            "unit vector",
+        ),
+        (
+            lambda d: d["bodies"][0]["shape"].update(kind="cone"),
+            "bodies[0].shape.kind",
+            "cone",
+            "sphere, box, capsule, cylinder",
+        ),
+        (
+            lambda d: d["bodies"][0]["shape"].update(half_extents=[0.1, 0.0, 0.1]),
+            "bodies[0].shape.half_extents",
+            [0.1, 0.0, 0.1],
+            "> 0",
+        ),
+        (
+            lambda d: d["bodies"][0]["shape"].update(radius=0.1),
+            "bodies[0].shape.radius",
+            0.1,
+            "a box takes only half_extents",
+        ),
+        (
+            lambda d: d.update(forces=[{"body": "ghost", "force": [1.0, 0.0, 0.0]}]),
+            "forces[0].body",
+            "ghost",
+            "not a body",
+        ),
+        (
+            lambda d: d["contacts"].append({"pair": ["ground", "block"], "mu": 0.2}),
+            "contacts[1].pair",
+            ["ground", "block"],
+            "listed twice",
+        ),
+        (
+            lambda d: d["reference"].update(kind="numerical"),
+            "reference.kind",
+            "numerical",
+            "contact closed form",
+        ),
+        (
+            lambda d: d["contacts"][0].update(friction=0.3),
+            "contacts[0].friction",
+            0.3,
+            "unknown key",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_contact_input(edit, field, value, words):
     d = _data()
     edit(d)

@@ -212,9 +212,10 @@ class SlidingBlock:
             "velocity": 16 * EPS * self.a * float(t[-1]),
         }
         out.method = (
-            "closed form: sticks (motion 0)" if self.sticks else
-            f"closed form: slides, s = a t^2/2 with a = {self.a:.15g} m/s^2"
-        )  # fmt: skip
+            "closed form: sticks (motion 0)"
+            if self.sticks
+            else f"closed form: slides, s = a t^2/2 with a = {self.a:.15g} m/s^2"
+        )
         return out
 
 
@@ -274,8 +275,16 @@ class TippingBlock:
     def _solve(self, t, rtol):
         from scipy.integrate import solve_ivp
 
-        sol = solve_ivp(self._rhs, (0.0, float(t[-1])), [0.0, 0.0], method="DOP853",
-                        t_eval=t, rtol=rtol, atol=rtol * 1e-6, dense_output=False)  # fmt: skip
+        sol = solve_ivp(
+            self._rhs,
+            (0.0, float(t[-1])),
+            [0.0, 0.0],
+            method="DOP853",
+            t_eval=t,
+            rtol=rtol,
+            atol=rtol * 1e-6,
+            dense_output=False,
+        )
         if not sol.success:
             raise ReferenceNotApplicable(f"tipping_block: the integration failed ({sol.message})")
         return sol.y[0], sol.y[1]

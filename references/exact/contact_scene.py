@@ -75,24 +75,43 @@ def builder(sc):
         raise ReferenceNotApplicable(f"scenario {sc.name!r}: {kind!r} is not a contact kind")
     if kind == "resting":
         return _resting(sc, g)
-    shapes = {"sliding_block": ("box",), "tipping_block": ("box",),
-              "rolling": ("sphere", "cylinder"), "bounce": ("sphere", "box", "capsule",
-                                                             "cylinder")}[kind]  # fmt: skip
+    shapes = {
+        "sliding_block": ("box",),
+        "tipping_block": ("box",),
+        "rolling": ("sphere", "cylinder"),
+        "bounce": ("sphere", "box", "capsule", "cylinder"),
+    }[kind]
     body, plane, pair = _one_body_on_plane(sc, kind, shapes)
     if kind != "bounce":
         _shape_at_centre(sc, body, kind)
     if kind == "sliding_block":
         if np.any(body.velocity != 0) or np.any(body.omega_body != 0):
             raise ReferenceNotApplicable(f"scenario {sc.name!r}: sliding_block starts at rest")
-        return SlidingBlock(body.mass, body.shape.half_extents, body.position, body.rotation,
-                            plane.normal, pair.mu, g, _forces_on(sc, body.name))  # fmt: skip
+        return SlidingBlock(
+            body.mass,
+            body.shape.half_extents,
+            body.position,
+            body.rotation,
+            plane.normal,
+            pair.mu,
+            g,
+            _forces_on(sc, body.name),
+        )
     if sc.forces:
         raise ReferenceNotApplicable(f"scenario {sc.name!r}: {kind} takes no external force")
     if kind == "tipping_block":
         if np.any(body.velocity != 0) or np.any(body.omega_body != 0):
             raise ReferenceNotApplicable(f"scenario {sc.name!r}: tipping_block starts at rest")
-        return TippingBlock(body.mass, body.inertia, body.shape.half_extents, body.position,
-                            body.rotation, plane.normal, pair.mu, g)  # fmt: skip
+        return TippingBlock(
+            body.mass,
+            body.inertia,
+            body.shape.half_extents,
+            body.position,
+            body.rotation,
+            plane.normal,
+            pair.mu,
+            g,
+        )
     if kind == "rolling":
         return _rolling(sc, body, plane, pair, g)
     n = plane.normal
@@ -141,8 +160,19 @@ def _rolling(sc, body, plane, pair, g):
             )
     Iw = body.rotation @ np.diag(body.inertia) @ body.rotation.T
     k = float(a @ Iw @ a) / (body.mass * s.radius**2)
-    return Rolling(body.mass, s.radius, k, body.position, body.rotation, n, e,
-                   float(v @ e), float(w @ a), pair.mu, g)  # fmt: skip
+    return Rolling(
+        body.mass,
+        s.radius,
+        k,
+        body.position,
+        body.rotation,
+        n,
+        e,
+        float(v @ e),
+        float(w @ a),
+        pair.mu,
+        g,
+    )
 
 
 def _resting(sc, g):
@@ -170,8 +200,13 @@ def _resting(sc, g):
                 f"scenario {sc.name!r}: body {b.name!r} rests on nothing listed in [[contacts]]"
             )
         supports.append(max(below)[1] if all(h > -np.inf for h, _ in below) else -1)
-    return Resting([b.mass for b in sc.bodies], [b.position for b in sc.bodies],
-                   [b.rotation for b in sc.bodies], supports, g)  # fmt: skip
+    return Resting(
+        [b.mass for b in sc.bodies],
+        [b.position for b in sc.bodies],
+        [b.rotation for b in sc.bodies],
+        supports,
+        g,
+    )
 
 
 def contact_motion(sc, t) -> ContactMotion:

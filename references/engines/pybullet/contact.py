@@ -1,0 +1,337 @@
+"""PyBullet's contact: ``stepSimulation`` with Bullet's multibody sequential-impulse solver
+(projected Gauss-Seidel on velocity impulses, ERP position correction), its default friction
+(two tangent directions, each bounded by mu N: a friction box) or its cone friction
+(``enableConeFriction``).
+
+Model: each body a base-only multibody (``createMultiBody``; its base frame is the inertial
+frame at the centre of mass, engines.md) with one collision shape (``GEOM_SPHERE``,
+``GEOM_BOX`` half extents, ``GEOM_CAPSULE`` and ``GEOM_CYLINDER`` with ``height`` the length
+of the cylinder, along z) at the shape's offset, the inertia set and read back
+(``localInertiaDiagonal``), damping 0 (PyBullet's default 0.04 removes energy), rolling and
+spinning friction 0; each plane a static ``GEOM_PLANE`` with its normal, based at its point.
+Only the scene's pairs collide (``setCollisionFilterPair`` off for every other pair).
+
+Friction and restitution are per body and Bullet multiplies the two bodies' values
+(:func:`references.engines.contact.pair_coefficients` with the product rule, planes 1; a
+scene they cannot express is unsupported). Read back with ``getDynamicsInfo`` and
+``getCollisionShapeData``.
+
+A scene with restitution (some e > 0) sets every body's ``contactProcessingThreshold`` to 0:
+with Bullet's default predictive contacts a ball with e = 0.5 did not rebound at all (a check
+made here; bullet3 issue 3094); with 0 it rebounded to 0.135 m from 0.5 m (exact 0.125).
+
+Contacts: ``getContactPoints`` after each step: position on A, ``contactNormalOnB`` (from B
+towards A), ``contactDistance`` (< 0 penetrating), ``normalForce`` and the two lateral
+friction forces along their directions, the forces Bullet applied on A over the step
+(impulse/dt).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from references import conventions as cv
+from references.engines.contact import ContactLog, external_wrench, pair_coefficients
+from references.engines.integrators import Integrator
+from references.errors import Unsupported
+
+FAMILY = "sequential impulses"
+
+CONFIGURATIONS = (
+    Integrator(
+        "default friction",
+        FAMILY,
+        1,
+        "Bullet's default: two friction directions, each bounded by mu N (a box)",
+        options={"enableConeFriction": 0},
+    ),
+    Integrator(
+        "cone friction",
+        FAMILY,
+        1,
+        "Bullet's cone friction (enableConeFriction): |friction| <= mu N",
+        options={"enableConeFriction": 1},
+    ),
+)
+
+SETTINGS = ("numSolverIterations", "erp", "contactERP", "frictionERP", "enableSAT")
+
+
+def _import():
+    from references.engines.native import import_engine
+
+    return import_engine("pybullet", "PyBullet", "pybullet")
+
+
+def _shape(p, s, cid):
+    kw = {
+        "collisionFramePosition": list(map(float, s.position)),
+        "collisionFrameOrientation": list(map(float, cv.matrix_to_quat_xyzw(s.rotation))),
+        "physicsClientId": cid,
+    }
+    if s.kind == "sphere":
+        return p.createCollisionShape(p.GEOM_SPHERE, radius=s.radius, **kw)
+    if s.kind == "box":
+        return p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=list(map(float, s.half_extents)), **kw
+        )
+    kind = p.GEOM_CAPSULE if s.kind == "capsule" else p.GEOM_CYLINDER
+    return p.createCollisionShape(kind, radius=s.radius, height=2.0 * s.half_length, **kw)
+
+
+class Scene:
+    def __init__(self, p, scenario, conf, dt, settings):
+        if scenario.joints:
+            raise Unsupported("pybullet contact builder: joints with contact are not built yet")
+        self.p, self.sc = p, scenario
+        self.cid = cid = p.connect(p.DIRECT)
+        self.mu_set = pair_coefficients(scenario, "mu", "product", plane_value=1.0)
+        self.e_set = pair_coefficients(scenario, "e", "product", plane_value=1.0)
+        p.setGravity(*map(float, scenario.gravity), physicsClientId=cid)
+        p.setTimeStep(float(dt), physicsClientId=cid)
+        params = {"enableConeFriction": int(conf.options["enableConeFriction"])}
+        for k in SETTINGS:
+            if k in settings:
+                params[k] = settings[k]
+        p.setPhysicsEngineParameter(**params, physicsClientId=cid)
+        self.ids = {}
+        for pl in scenario.planes:
+            s = p.createCollisionShape(
+                p.GEOM_PLANE, planeNormal=list(map(float, pl.normal)), physicsClientId=cid
+            )
+            self.ids[pl.name] = p.createMultiBody(
+                0, s, basePosition=list(map(float, pl.point)), physicsClientId=cid
+            )
+        for b in scenario.bodies:
+            s = _shape(p, b.shape, cid) if b.shape is not None else -1
+            bid = p.createMultiBody(
+                b.mass,
+                s,
+                basePosition=list(map(float, b.position)),
+                baseOrientation=list(map(float, cv.matrix_to_quat_xyzw(b.rotation))),
+                physicsClientId=cid,
+            )
+            self.ids[b.name] = bid
+            p.changeDynamics(
+                bid,
+                -1,
+                localInertiaDiagonal=list(map(float, b.inertia)),
+                linearDamping=0.0,
+                angularDamping=0.0,
+                physicsClientId=cid,
+            )
+            p.resetBaseVelocity(
+                bid,
+                list(map(float, b.velocity)),
+                list(map(float, b.rotation @ b.omega_body)),
+                physicsClientId=cid,
+            )
+        # Bullet's predictive contacts (its contact processing threshold) swallow restitution:
+        # a ball with e = 0.5 did not rebound at all until it was 0 (bullet3 issue 3094)
+        self.bouncy = any(c.e > 0 for c in scenario.contacts)
+        extra = {"contactProcessingThreshold": 0.0} if self.bouncy else {}
+        for name, bid in self.ids.items():
+            p.changeDynamics(
+                bid,
+                -1,
+                lateralFriction=float(self.mu_set[name]),
+                restitution=float(self.e_set[name]),
+                rollingFriction=0.0,
+                spinningFriction=0.0,
+                physicsClientId=cid,
+                **extra,
+            )
+        listed = {frozenset((c.a, c.b)) for c in scenario.contacts}
+        names = list(self.ids)
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                if frozenset((a, b)) not in listed:
+                    p.setCollisionFilterPair(
+                        self.ids[a], self.ids[b], -1, -1, 0, physicsClientId=cid
+                    )
+
+    def readback(self) -> dict:
+        p, cid = self.p, self.cid
+        info = {n: p.getDynamicsInfo(i, -1, physicsClientId=cid) for n, i in self.ids.items()}
+        for b in self.sc.bodies:
+            got = np.array(info[b.name][2])
+            if not np.allclose(got, b.inertia, rtol=1e-9, atol=0.0):
+                from references.errors import EngineError
+
+                raise EngineError(
+                    f"pybullet: body {b.name!r} has inertia {got.tolist()}, the "
+                    f"scene {b.inertia.tolist()}"
+                )
+        pairs = {
+            i: {"mu": info[c.a][1] * info[c.b][1], "e": info[c.a][5] * info[c.b][5]}
+            for i, c in enumerate(self.sc.contacts)
+        }
+        kinds = {
+            p.GEOM_SPHERE: "sphere",
+            p.GEOM_BOX: "box",
+            p.GEOM_CAPSULE: "capsule",
+            p.GEOM_CYLINDER: "cylinder",
+        }
+        shapes = {}
+        for b in self.sc.bodies:
+            data = p.getCollisionShapeData(self.ids[b.name], -1, physicsClientId=cid)
+            if not data:
+                continue
+            d = data[0]
+            kind = kinds.get(d[2], str(d[2]))
+            dims = d[3]
+            if kind == "box":
+                size = tuple(0.5 * np.asarray(dims))
+            elif kind == "sphere":
+                size = (dims[0],)
+            else:
+                size = (dims[1], 0.5 * dims[0])
+            # the collision frame relative to the inertial (COM) frame of the base
+            shapes[b.name] = {
+                "kind": kind,
+                "size": size,
+                "offset": tuple(d[5]),
+                "rotation": cv.quat_xyzw_to_matrix(d[6]),
+            }
+        return {"pairs": pairs, "shapes": shapes}
+
+    def close(self):
+        self.p.disconnect(physicsClientId=self.cid)
+
+
+def _plant_mu(scene):
+    for bid in scene.ids.values():
+        scene.p.changeDynamics(bid, -1, lateralFriction=1.0, physicsClientId=scene.cid)
+
+
+def _plant_offset(scene):
+    b = scene.sc.bodies[0]
+    p, cid = scene.p, scene.cid
+    s = b.shape
+    moved = type(s)(
+        s.kind,
+        s.radius,
+        s.half_extents,
+        s.half_length,
+        s.position + np.array([0.0, 0.0, 0.01]),
+        s.rotation,
+    )
+    bid = p.createMultiBody(
+        b.mass,
+        _shape(p, moved, cid),
+        basePosition=list(b.position),
+        baseOrientation=list(cv.matrix_to_quat_xyzw(b.rotation)),
+        physicsClientId=cid,
+    )
+    p.removeBody(scene.ids[b.name], physicsClientId=cid)
+    scene.ids[b.name] = bid
+
+
+PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}
+
+
+def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None, **settings):
+    """Run the scene (module docstring); the contract of :mod:`references.engines.contact`."""
+    from references.engines.contact import configuration as find
+
+    p = _import()
+    conf = find("pybullet", configuration)
+    sc = Scene(p, scenario, conf, dt, settings)
+    try:
+        if _plant is not None:
+            PLANTABLE[_plant](sc)
+        return _run(p, sc, scenario, conf, dt, nstep, save_every)
+    finally:
+        sc.close()
+
+
+def _run(p, sc, scenario, conf, dt, nstep, save_every):
+    cid = sc.cid
+    names = [b.name for b in scenario.bodies]
+    byid = {i: n for n, i in sc.ids.items()}
+    pidx = {frozenset((c.a, c.b)): i for i, c in enumerate(scenario.contacts)}
+    forced = [
+        i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
+    ]
+    nb = len(names)
+    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
+    X, R, V, W = (
+        np.zeros((nsave, nb, 3)),
+        np.zeros((nsave, nb, 3, 3)),
+        np.zeros((nsave, nb, 3)),
+        np.zeros((nsave, nb, 3)),
+    )
+    t = np.zeros(nsave)
+    log = ContactLog()
+
+    def save(k, step):
+        for i, n in enumerate(names):
+            bid = sc.ids[n]
+            pos, orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)
+            lin, ang = p.getBaseVelocity(bid, physicsClientId=cid)
+            Rb = cv.quat_xyzw_to_matrix(orn)
+            X[k, i], R[k, i], V[k, i], W[k, i] = pos, Rb, lin, Rb.T @ np.asarray(ang)
+        t[k] = step * dt
+        if step > 0:
+            for c in p.getContactPoints(physicsClientId=cid):
+                na, nb_ = byid.get(c[1]), byid.get(c[2])
+                pi = pidx.get(frozenset((na, nb_)))
+                if pi is None:
+                    continue
+                nrm = np.asarray(c[7])  # on B, pointing towards A
+                f = c[9] * nrm + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13])  # on A
+                point = np.asarray(c[5])
+                if na != scenario.contacts[pi].a:
+                    f, nrm, point = -f, -nrm, np.asarray(c[6])
+                log.add(pi, point, nrm, f, -float(c[8]))
+        log.save()
+
+    save(0, 0)
+    engine = 0.0
+    k = 1
+    for step in range(1, nstep + 1):
+        for i in forced:
+            bid = sc.ids[names[i]]
+            pos, orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)
+            F, tau = external_wrench(scenario, i, cv.quat_xyzw_to_matrix(orn))
+            p.applyExternalForce(bid, -1, list(F), list(pos), p.WORLD_FRAME, physicsClientId=cid)
+            if np.any(tau):
+                p.applyExternalTorque(bid, -1, list(tau), p.WORLD_FRAME, physicsClientId=cid)
+        t0 = time.perf_counter()
+        p.stepSimulation(physicsClientId=cid)
+        engine += time.perf_counter() - t0
+        if step % save_every == 0 or step == nstep:
+            save(k, step)
+            k += 1
+            if not np.all(np.isfinite(X[k - 1])):
+                break
+    params = p.getPhysicsEngineParameters(physicsClientId=cid)
+    record = {
+        "solver": "Bullet multibody sequential impulses (stepSimulation)",
+        "enableConeFriction": int(conf.options["enableConeFriction"]),
+        "numSolverIterations": params.get("numSolverIterations"),
+        "fixedTimeStep": params.get("fixedTimeStep"),
+        "numSubSteps": params.get("numSubSteps"),
+        "friction per body (pair: product)": {k: float(v) for k, v in sc.mu_set.items()},
+        "restitution per body (pair: product)": {k: float(v) for k, v in sc.e_set.items()},
+        "damping": 0.0,
+        "contactProcessingThreshold": "0 (restitution in the scene; bullet3 issue 3094)"
+        if sc.bouncy
+        else "PyBullet's default",
+        "rolling and spinning friction": 0.0,
+        "other parameters": "PyBullet's defaults (ERP, contact ERP, split impulse, "
+        "restitution velocity threshold) unless set in [engine_settings.pybullet]",
+    }
+    return {
+        "t": t[:k],
+        "x": X[:k],
+        "R": R[:k],
+        "v": V[:k],
+        "W": W[:k],
+        "contacts": log.arrays(),
+        "engine_time_s": engine,
+        "settings": record,
+        "readback": sc.readback(),
+    }
