@@ -204,6 +204,8 @@ def _show_lines(sc) -> list[str]:
             )
         for j in sc.joints:
             lines.append(f"    joint {j.name}: {j.kind} {j.body_a} - {j.body_b or 'ground'}")
+        if getattr(sc, "has_contact", False):
+            lines += _contact_lines(sc, vec)
         if getattr(sc, "model", None) is not None:
             from scenarios.models.scenario import describe
 
@@ -226,11 +228,59 @@ def _show_lines(sc) -> list[str]:
     )
     asked = "" if sc.reference == kind else f" (asked: {sc.reference})"
     lines.append(f"  reference: {kind}{asked}")
-    scales = ", ".join(f"{k} {v:.4g}" for k, v in sc.energy_scales.items())
-    lines.append(f"  scales: energy ({scales}) J, momentum {sc.momentum_scale:.4g} kg m^2/s")
+    if getattr(sc, "has_contact", False):
+        from reports.metrics import contact as mc
+
+        lines.append(
+            f"  contact scales: L {mc.size(sc):.4g} m (slides beyond L/10), F_c "
+            f"{mc.force_scale(sc):.4g} N, V_c {mc.speed_scale(sc):.4g} m/s"
+        )
+    else:
+        scales = ", ".join(f"{k} {v:.4g}" for k, v in sc.energy_scales.items())
+        lines.append(f"  scales: energy ({scales}) J, momentum {sc.momentum_scale:.4g} kg m^2/s")
     if sc.tolerances:
         lines.append(f"  tolerances: {sc.tolerances}")
     return lines
+
+
+def _contact_lines(sc, vec) -> list[str]:
+    """The shapes, planes, touching pairs, forces and closed form of a contact scene."""
+    out = []
+    for b in sc.bodies:
+        s = b.shape
+        if s is None:
+            continue
+        size = (
+            f"half extents {vec(s.half_extents)}"
+            if s.kind == "box"
+            else f"radius {s.radius:g}"
+            + (f", half length {s.half_length:g}" if s.kind in ("capsule", "cylinder") else "")
+        )
+        out.append(f"    shape of {b.name}: {s.kind}, {size} m, offset {vec(s.position)} m")
+    for p in sc.planes:
+        out.append(f"    plane {p.name}: normal {vec(p.normal)}, through {vec(p.point)} m")
+    for c in sc.contacts:
+        out.append(f"    contact {c.a} - {c.b}: mu {c.mu:g}, e {c.e:g}")
+    for f in sc.forces:
+        out.append(f"    force on {f.body}: {vec(f.force)} N at {vec(f.point)} m (body axes)")
+    if sc.reference not in ("auto", "none"):
+        import numpy as np
+
+        from references.exact.contact_scene import contact_motion
+
+        facts = contact_motion(sc, np.array([0.0, sc.t_end])).facts
+        shown = {
+            k: v
+            for k, v in facts.items()
+            if isinstance(v, bool | float) and k not in ("friction_ratio",)
+        }
+        out.append(
+            "    closed form: "
+            + ", ".join(
+                f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}" for k, v in shown.items()
+            )
+        )
+    return out  # fmt: skip
 
 
 def cmd_show(args) -> int:

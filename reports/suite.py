@@ -44,9 +44,10 @@ def resolve_scenarios(names, all_: bool = False) -> list:
     import scenarios
 
     if all_:
-        names = scenarios.list_scenarios() + scenarios.list_systems()
+        names = scenarios.list_scenarios() + scenarios.list_systems() + scenarios.list_contact()
     elif not names:
         names = scenarios.default_suite() + scenarios.default_systems()
+        names += scenarios.default_contact()
     out, seen = [], {}
     for n in names:
         sc = scenarios.load(n)
@@ -77,11 +78,13 @@ def check_references(scs) -> None:
     import scenarios
     from references.exact import CLOSED_FORMS
     from scenarios.schema import file_error
-    from scenarios.system import SYSTEM_CLOSED_FORMS
+    from scenarios.system import CONTACT_CLOSED_FORMS, SYSTEM_CLOSED_FORMS
 
     for sc in scs:
         system = getattr(sc, "is_system", False)
         kinds = SYSTEM_CLOSED_FORMS if system else CLOSED_FORMS
+        if getattr(sc, "has_contact", False):
+            kinds = CONTACT_CLOSED_FORMS
         if sc.reference not in kinds or scenarios.is_library_file(sc):
             continue
         why = reference_problem(sc)
@@ -94,6 +97,15 @@ def check_references(scs) -> None:
 def reference_problem(sc) -> str | None:
     """Why the closed-form reference ``sc`` asks for does not apply to it, or None (see
     :func:`check_references`): the reference's own refusal, set up at t = 0."""
+    if getattr(sc, "has_contact", False):
+        from references.exact._util import ReferenceNotApplicable
+        from references.exact.contact_scene import contact_motion
+
+        try:
+            contact_motion(sc, [0.0, sc.t_end])
+        except ReferenceNotApplicable as exc:
+            return str(exc)
+        return None
     if getattr(sc, "is_system", False):
         import numpy as np
 
@@ -167,7 +179,8 @@ def check_engines(engines) -> list[str]:
 
 def check_engine_settings(scs) -> None:
     """A system file's ``[engine_settings]``: each table names a registered engine and each
-    setting one its system builder takes (where the builder declares them), or InputError
+    setting one its system builder takes (where the builder declares them; a contact scene:
+    its contact builder, :mod:`references.engines.contact`), or InputError
     naming the file, the field, the value and the rule, before any run: a misspelt engine
     would otherwise be ignored, a misspelt setting fail every run of that engine."""
     from references.engines import engine_names
@@ -182,12 +195,20 @@ def check_engine_settings(scs) -> None:
                     f"not a registered engine{_did_you_mean(engine, known_engines)}; known: "
                     f"{', '.join(known_engines)}"
                 )
-            known = builder_settings(engine)
+            contact = getattr(sc, "has_contact", False)
+            if contact:
+                from references.engines.contact import builder_settings as contact_settings
+
+                known, what = contact_settings(engine), "contact builder"
+                if known is None:
+                    known = ()
+            else:
+                known, what = builder_settings(engine), "system builder"
             for name, value in values.items():
                 if known is not None and name not in known:
                     raise InputError(
                         f"invalid scenario file {sc.path}: engine_settings.{engine}.{name} = "
-                        f"{value!r}: not a setting of {engine}'s system builder"
+                        f"{value!r}: not a setting of {engine}'s {what}"
                         f"{_did_you_mean(name, known)}; known: {', '.join(known) or 'none'}"
                     )
 
@@ -422,7 +443,8 @@ def catalog() -> dict:
 
     scs = []
     default = set(scenarios.default_suite()) | set(scenarios.default_systems())
-    for name in scenarios.list_scenarios() + scenarios.list_systems():
+    default |= set(scenarios.default_contact())
+    for name in scenarios.list_scenarios() + scenarios.list_systems() + scenarios.list_contact():
         sc = scenarios.load(name)
         scs.append(
             {

@@ -53,7 +53,8 @@ class Metric:
       None: reported, not judged unless a family, an integrator or a scenario bounds it;
     - ``higher_is_better``: a larger value is better (an order); otherwise it is an error;
     - ``slack``: for a higher-is-better metric, by how much it may fall before it is worse;
-    - ``body``, ``system``: whether it applies to a single body, to a system of bodies;
+    - ``body``, ``system``, ``contact``: whether it applies to a single body, to a system of
+      bodies, to a scene of bodies in contact (computed by ``reports.metrics.contact``);
     - ``kind``: :data:`POINTWISE`, :data:`OBSERVABLE` or :data:`SWEEP`;
     - ``reference``: needs the reference trajectory (NaN without one);
     - ``series``: the name of its per-sample series, written beside a single body's
@@ -76,6 +77,7 @@ class Metric:
     slack: float | None = None
     body: bool = True
     system: bool = False
+    contact: bool = False
     kind: str = POINTWISE
     reference: bool = False
     series: str | None = None
@@ -127,7 +129,7 @@ METRICS: tuple[Metric, ...] = (
     Metric(
         "orthonormality_max", "1", "none: ||R^T R - 1||_F is relative to the identity",
         floor=1e-11, title="‖RᵀR − 1‖", short="orthonormality", tolerance=1e-9, system=True,
-        series="orthonormality",
+        contact=True, series="orthonormality",
     ),
     Metric(
         "constraint_velocity_max", "1", "w_c, the rate scale (Scenario.rate_scale)",
@@ -136,15 +138,17 @@ METRICS: tuple[Metric, ...] = (
     Metric(
         "attitude_error_max", "rad", "none: an angle", floor=1e-10,
         title="attitude error [rad]", short="attitude", tolerance=0.1, system=True,
-        reference=True, series="attitude_error", panel="attitude error [rad]", panel_top=4.0,
+        contact=True, reference=True, series="attitude_error", panel="attitude error [rad]",
+        panel_top=4.0,
     ),
     Metric(
         "omega_error_max", "rad/s", "none: |W - W_ref| in rad/s", floor=1e-10,
-        title="W error [rad/s]", short="W", system=True, reference=True, series="omega_error",
+        title="W error [rad/s]", short="W", system=True, contact=True, reference=True,
+        series="omega_error",
     ),
     Metric(
         "position_error_max", "m", "none: |x_G - x_G,ref| in m", floor=1e-10,
-        title="x_G error [m]", short="position", system=True, reference=True,
+        title="x_G error [m]", short="position", system=True, contact=True, reference=True,
     ),
     Metric(
         "flip_interval_error", "1", "the exact flip interval", floor=1e-9,
@@ -171,6 +175,89 @@ METRICS: tuple[Metric, ...] = (
     Metric(
         "branch_error", "rad", "none: an angle", title="branch error [rad]", tolerance=0.1,
         body=False, system=True,
+    ),
+    # bodies in contact (reports.metrics.contact): measured on the engine's states and its own
+    # contact forces against the closed form of the scene (references.exact.contact); L is
+    # the smallest half-size of a body's shape, F_c the scene's weight plus its external
+    # forces, V_c = sqrt(|g| L), E_c the energy in play. The bounds: creep 1e-4 m/s, 0.1 % of
+    # the library's 0.1 m half-sizes per second (a grasped part would drift 6 mm a minute);
+    # penetration 1e-3 m, 1 % of those half-sizes; energy gained 1 % of E_c (as the drifts);
+    # rolling onset 5 % of t* (the library's dt is 0.5 % of its t*, its saves 5 %, crossings
+    # interpolated); final rolling speed 1 % of v*; rebound ratio h1/h0 within 0.05 of e^2;
+    # law residuals and support forces 1 % of F_c (of the weight carried).
+    Metric(
+        "creep_speed", "m/s",
+        "none: the mean speed of a body over the second half of a run where Coulomb sticks "
+        "(exact 0), shown in um/s", floor=1e-12, title="creep [m/s]", short="creep",
+        tolerance=1e-4, body=False, contact=True, reference=True,
+    ),
+    Metric(
+        "slide_distance", "m",
+        "none: the distance a body's centre of mass moved over the run (the stick/slide "
+        "matrix: it slides when this exceeds L/10)", title="slide distance [m]",
+        body=False, contact=True,
+    ),
+    Metric(
+        "stick_slide_mismatch", "1",
+        "none: 1 when the run slides (moves more than L/10) where Coulomb sticks or sticks "
+        "where it slides, else 0", title="stick/slide wrong", short="stick/slide",
+        tolerance=0.5, body=False, contact=True, reference=True,
+    ),
+    Metric(
+        "penetration_max", "m", "none: the deepest overlap of a listed pair over the run, "
+        "from the suite's geometry on the engine's states (scale L)", floor=1e-12,
+        title="penetration [m]", short="penetration", tolerance=1e-3, body=False,
+        contact=True,
+    ),
+    Metric(
+        "penetration_rest", "m", "none: the mean overlap over the last tenth of a run that "
+        "ends at rest (stick and rest cases)", floor=1e-12, title="penetration at rest [m]",
+        short="penetration at rest", tolerance=1e-3, body=False, contact=True,
+        reference=True,
+    ),
+    Metric(
+        "energy_gain_max", "1", "E_c, the largest kinetic energy of the closed form plus "
+        "m |g| L: the mechanical energy less the external forces' work may only fall",
+        floor=1e-11, title="energy gained [E_c]", short="energy gained", tolerance=1e-2,
+        body=False, contact=True,
+    ),
+    Metric(
+        "roll_onset_error", "1", "t*, the closed form's end of slip", floor=1e-9,
+        title="rolling onset error [t*]", short="rolling onset", tolerance=5e-2, body=False,
+        contact=True, reference=True,
+    ),
+    Metric(
+        "roll_speed_error", "1", "v*, the closed form's rolling speed", floor=1e-9,
+        title="rolling speed error [v*]", short="rolling speed", tolerance=1e-2, body=False,
+        contact=True, reference=True,
+    ),
+    Metric(
+        "rebound_ratio_error", "1", "none: |h1/h0 - e^2|, the first rebound height over the "
+        "drop height against Newton's law", floor=1e-9, title="rebound ratio error",
+        short="rebound", tolerance=5e-2, body=False, contact=True, reference=True,
+    ),
+    Metric(
+        "signorini_residual", "1", "F_c and F_c V_c: a negative normal force, or a normal "
+        "force while the contact separates (lambda_n v_n+)", floor=1e-12,
+        title="Signorini residual", short="Signorini", tolerance=1e-2, body=False,
+        contact=True,
+    ),
+    Metric(
+        "coulomb_residual", "1", "mu F_c: friction beyond the cone, (|lambda_t| - mu "
+        "lambda_n)+", floor=1e-12, title="Coulomb residual", short="Coulomb",
+        tolerance=1e-2, body=False, contact=True,
+    ),
+    Metric(
+        "dissipation_residual", "1", "mu F_c: a slipping contact's friction away from "
+        "-mu lambda_n u_t/|u_t| (slip above 1e-3 V_c)", floor=1e-12,
+        title="max-dissipation residual", short="max dissipation", tolerance=1e-2,
+        body=False, contact=True,
+    ),
+    Metric(
+        "force_sum_error", "1", "the weight each support carries (resting cases): the "
+        "normal forces through it summed, mean over the second half", floor=1e-12,
+        title="support force error [rel.]", short="support force", tolerance=1e-2,
+        body=False, contact=True, reference=True,
     ),
     Metric(
         "convergence_order", "1", "none: a slope of log(error) against log(dt)",

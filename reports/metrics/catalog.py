@@ -67,7 +67,7 @@ __all__ = [
 #: the arguments a metric function may take, by name
 ARGUMENTS = ("scenario", "traj", "ref", "expected")
 #: what a metric applies to
-TARGETS = ("body", "system")
+TARGETS = ("body", "system", "contact")
 
 _BY_NAME = {m.name: m for m in METRICS}
 #: (name, target) -> the function, called with keyword arguments among :data:`ARGUMENTS`

@@ -36,6 +36,7 @@ import re
 from pathlib import Path
 
 from reports.metrics import catalog
+from reports.report.contact import contact_rows, contact_section
 from reports.report.groups import group_rows, sweep_groups
 from reports.report.labels import (
     METRIC_SHORT,
@@ -979,7 +980,10 @@ document.querySelectorAll('figure[data-lines]').forEach(hover);openTarget();});
 def _toc(df, has_settings: bool, has_ensemble: bool) -> tuple[str, str]:
     entries = []
     if len(df):
-        entries += [("Scorecard", "scorecard"), ("Work precision", "work-precision")]
+        entries.append(("Scorecard", "scorecard"))
+        if len(contact_rows(df)):
+            entries.append(("Contact", "contact"))
+        entries.append(("Work precision", "work-precision"))
         entries.append(("Failures and divergences", "failures-and-divergences"))
         entries += [(s, anchor(s)) for s in scenarios_of(df)]
     if has_ensemble:
@@ -1015,6 +1019,7 @@ def document(
         doc.heading(2, "Scorecard")
         scorecard_picture(doc, [Path(p) for p in card_figures], root, df)
         scorecard_section(doc, df, card)
+        contact_section(doc, df)
         doc.heading(2, "Work precision")
         work_precision_section(doc, df)
         doc.heading(2, "Failures and divergences")

@@ -1307,6 +1307,10 @@ def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Style
         from reports.report.system_plots import system_plot  # joints, invariants over time
 
         rows, h = _plot_rows(df, scenario)
+        if "slide_distance" in rows and rows["slide_distance"].notna().any():
+            from reports.report.contact import contact_plot  # distance, penetration
+
+            system_plot = contact_plot
         return system_plot(
             rows, h, cache, out, scenario, _plt(), _save, styles, _new_figure, _legend
         )
@@ -1349,6 +1353,7 @@ def _hash_code(h) -> None:
 _FIGURE_CODE = (
     "reports.report.plots",
     "reports.report.system_plots",
+    "reports.report.contact",
     "reports.report.agg_text",
     "reports.report.labels",
     "reports.report.groups",

@@ -168,7 +168,11 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     row = blank_row(spec)
     try:
         cls, integ, sc = _prepare(row, spec)
-        if getattr(sc, "is_system", False):  # a system of bodies: reports.run.system
+        if getattr(sc, "has_contact", False):  # bodies in contact: reports.run.contact
+            from reports.run.contact import run_contact_spec
+
+            run_contact_spec(spec, row, integ, sc, out, fmt)
+        elif getattr(sc, "is_system", False):  # a system of bodies: reports.run.system
             from reports.run.system import run_system_spec
 
             run_system_spec(spec, row, integ, sc, out, fmt)
@@ -235,7 +239,9 @@ def _prepare(row: dict, spec: RunSpec):
     cls = get_engine(spec.engine)
     if not row["engine_version"]:
         row["engine_version"] = _running_version(spec.engine)
-    integ = cls.integrator(spec.integrator)
+    integ = offered(spec.engine, spec.scenario).get(spec.integrator) or cls.integrator(
+        spec.integrator
+    )
     row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)
     row["reference"] = float(cls.is_reference)
     if row["engine_version"] != UNAVAILABLE:  # else the run says why (EngineUnavailable)
@@ -484,22 +490,22 @@ def plan(
             except ValueError as exc:
                 raise InputError(f"scenario {sc.name!r}: {exc}") from None
         for name in engines:
-            offered = get_engine(name).integrators
+            offers = offered(name, sc)
             if integrators:
-                names = [i.name for i in offered if i.name in integrators]
+                names = [i.name for i in offers.values() if i.name in integrators]
             else:
-                names = [i.name for i in offered if full or i.default]
+                names = [i.name for i in offers.values() if full or i.default]
             if getattr(sc, "model", None) is not None:
                 # a robot model also runs through the engine's importer: the configurations
                 # of the integrators selected, or those asked for by name
-                every = importers.variants(name, [i.name for i in offered])
+                every = importers.variants(name, list(offers))
                 names += [v for v in every if importers.split_variant(v)[0] in names
                           or (integrators and v in integrators)]  # fmt: skip
             cls = get_engine(name)
             steps_e = [sc.dt if not dts else steps[-1]] if cls.is_reference else steps
             for integ in names:
                 common = (t_end, save_every, segment, versions[name])
-                if cls.integrator(integ).adaptive:
+                if (offers.get(integ) or cls.integrator(integ)).adaptive:
                     accs = (
                         accuracies
                         or sc.accuracies
@@ -512,11 +518,30 @@ def plan(
                 else:
                     # a system's sweep is its file's (the halvings serve the fast tops)
                     swept = sweep and not dts and not getattr(sc, "is_system", False)
-                    run_at = steps_e + _halvings(cls.integrator(integ), steps, swept)
+                    run_at = steps_e + _halvings(offers.get(integ) or cls.integrator(integ), steps,
+                                                 swept)
                     for h in run_at[len(steps_e) :]:
                         _check_states(sc, h, horizon, keep, segment, max_states)
                     specs += [RunSpec(sc, name, integ, h, *common) for h in run_at]
     return specs
+
+
+def offered(engine: str, sc) -> dict:
+    """{name: Integrator} of what ``engine`` runs ``sc`` with: its integrators, or for a
+    contact scene its contact configurations (:mod:`references.engines.contact`; an engine
+    without a contact builder offers its first integrator, whose run then says that the
+    engine has no contact builder)."""
+    from references.engines import get_engine
+
+    if getattr(sc, "has_contact", False):
+        from references.engines.contact import configurations
+
+        confs = configurations(engine)
+        if confs:
+            return {c.name: c for c in confs}
+        first = get_engine(engine).integrators[:1]
+        return {i.name: i for i in first}
+    return {i.name: i for i in get_engine(engine).integrators}
 
 
 def check_families(sc) -> None:
@@ -708,7 +733,7 @@ def warm_ups(spec: RunSpec) -> dict[str, str]:
     through (:func:`warm_up`, and for a system of bodies its reference's)."""
     system = bool(getattr(spec.scenario, "is_system", False))
     out = dict([w]) if (w := warm_up(spec.engine, spec.integrator, system)) else {}
-    if system:
+    if system and not getattr(spec.scenario, "has_contact", False):  # a closed form: no numba
         out.setdefault(*SYSTEM_REFERENCE_WARM_UP)
     return out
 

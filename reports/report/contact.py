@@ -1,0 +1,170 @@
+"""The report's contact section and figures: contact runs are the rows with a ``slide_distance``
+(a metric only contact scenes have, :mod:`reports.metrics.contact`).
+
+- :func:`creep_table`: engine x configuration x stick scene, the creep speed in um/s (exact 0:
+  Coulomb friction holds every stick scene);
+- :func:`stick_slide_matrix`: engine x configuration x stick/slide scene, whether the run
+  sticks where Coulomb sticks and slides where it slides (a body slides when it moves more
+  than a tenth of its size, :data:`reports.metrics.contact.SLIDE_FRACTION`);
+- :func:`contact_section`: both tables under the heading "Contact", with how they are made;
+- :func:`contact_plot`: a scene's figure, drawn from the series beside each run's trajectory
+  (:func:`reports.run.contact.series`): the distance moved and the deepest penetration over
+  time, each configuration at the scene's own dt, the closed form's distance in grey.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+#: the smallest value shown on the penetration's log axis (no overlap is drawn here)
+FLOOR = 1e-12
+
+
+def contact_rows(df):
+    """The contact runs of a results table (their scenes have a slide distance)."""
+    if "slide_distance" not in df:
+        return df.iloc[0:0]
+    return df[df["slide_distance"].notna()]
+
+
+def _config(row) -> str:
+    return f"{row['engine']} {row['integrator']}"
+
+
+def _pivot(df, value, scenes):
+    """{configuration: {scene: value(row)}} at each scene's own dt (the largest run of a
+    configuration when several dt are present: the file's dt is the sweep's largest)."""
+    out: dict[str, dict] = {}
+    for scene in scenes:
+        sub = df[df["scenario"] == scene]
+        if not len(sub):
+            continue
+        h = float(sub["dt"].max())
+        for _, r in sub[sub["dt"] == h].iterrows():
+            out.setdefault(_config(r), {})[scene] = value(r)
+    return out
+
+
+def creep_scenes(df) -> list[str]:
+    rows = contact_rows(df)
+    return sorted(rows[rows["creep_speed"].notna()]["scenario"].unique())
+
+
+def matrix_scenes(df) -> list[str]:
+    rows = contact_rows(df)
+    return sorted(rows[rows["stick_slide_mismatch"].notna()]["scenario"].unique())
+
+
+def creep_table(df) -> tuple[list[str], list[list[str]]]:
+    """(header, rows) of the creep table: um/s, the status where a run did not finish."""
+    rows = contact_rows(df)
+    scenes = creep_scenes(df)
+
+    def cell(r):
+        if r["status"] != "ok":
+            return r["status"]
+        v = float(r["creep_speed"])
+        return "-" if math.isnan(v) else f"{v * 1e6:.3g}"
+
+    table = _pivot(rows, cell, scenes)
+    body = [[c, *[table[c].get(s, "") for s in scenes]] for c in sorted(table)]
+    return ["configuration", *[f"{s} [um/s]" for s in scenes]], body
+
+
+def stick_slide_matrix(df) -> tuple[list[str], list[list[str]]]:
+    """(header, rows): per stick/slide scene the closed form's answer in the header and each
+    run's (its own, and 'wrong' where it differs)."""
+    rows = contact_rows(df)
+    scenes = matrix_scenes(df)
+    expect = {}
+    for s in scenes:
+        sub = rows[rows["scenario"] == s]
+        expect[s] = "sticks" if sub["creep_speed"].notna().any() else "slides"
+
+    def cell(r):
+        if r["status"] not in ("ok", "diverged"):
+            return r["status"]
+        wrong = float(r["stick_slide_mismatch"]) > 0.5
+        scene_sticks = expect[r["scenario"]] == "sticks"
+        did = "sticks" if scene_sticks != wrong else "slides"
+        return f"{did} (wrong)" if wrong else did
+
+    table = _pivot(rows, cell, scenes)
+    head = ["configuration", *[f"{s} (Coulomb: {expect[s]})" for s in scenes]]
+    return head, [[c, *[table[c].get(s, "") for s in scenes]] for c in sorted(table)]
+
+
+def contact_section(doc, df) -> None:
+    """The report's contact section (module docstring), when the results hold contact runs."""
+    rows = contact_rows(df)
+    if not len(rows):
+        return
+    doc.heading(2, "Contact")
+    doc.para(
+        "Creep: the mean speed of a body over the second half of a run where Coulomb friction "
+        "holds it (exact 0; the default bound is 100 um/s). Stick/slide: a run slides when a "
+        "body moves more than a tenth of its size over the run; the closed form's answer "
+        "heads each column. Each run's errors against the closed form are in the scene's "
+        "table below."
+    )
+    head, body = creep_table(df)
+    if body:
+        doc.table("Creep speed in stick scenes, um/s", head, body)
+    head, body = stick_slide_matrix(df)
+    if body:
+        doc.table("Stick or slide, against Coulomb's law", head, body)
+
+
+def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=None,
+                 new_figure=None, legend=None):  # fmt: skip
+    """The figure of a contact scene (module docstring) as ``<slug>__system.png``, or None."""
+    from reports.report.groups import group_rows
+    from reports.report.labels import config_label
+    from reports.store.results import is_reference_record, slug
+
+    runs = []
+    for g in group_rows(rows):
+        s = cache.get(g.first)
+        if s is not None and "moved" in s:
+            runs.append((g.first, ", ".join(config_label(r) for r in g.rows), s))
+    if not runs:
+        return None
+    if new_figure is not None:
+        fig, axes = new_figure(2)
+    else:
+        fig, axes = plt.subplots(2, 1, figsize=(7.5, 4.6), sharex=True)
+    exact_drawn = False
+    for k, (row, name, s) in enumerate(runs):
+        if is_reference_record(row):
+            continue
+        st = styles.of(row, always_marker=True) if styles is not None else {}
+        st.pop("lw", None)
+        every = max(1, len(s["t"]) // 6)
+        st.setdefault("markevery", (k % every, every))
+        axes[0].plot(s["t"], np.asarray(s["moved"], float), lw=1.3, label=name, **st)
+        pen = np.maximum(np.asarray(s["penetration"], float), FLOOR)
+        axes[1].plot(s["t"], pen, lw=1.3, label=name, **st)
+        ex = np.asarray(s.get("moved_exact", []), float)
+        if not exact_drawn and len(ex) and np.isfinite(ex).all():
+            axes[0].plot(s["t"], ex, color="0.55", lw=2.4, alpha=0.6, label="closed form",
+                         zorder=0)  # fmt: skip
+            exact_drawn = True
+    axes[0].set_ylabel("distance moved [m]")
+    axes[1].set_ylabel("penetration [m]")
+    axes[1].set_yscale("log")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[1].set_xlabel("t [s]")
+    dt = "" if math.isnan(h) else f" at dt = {h:g} s"
+    axes[0].set_title(f"{scenario}: distance moved and penetration over time{dt}", fontsize=10)
+    if legend is not None:
+        legend(axes[0])
+    else:
+        axes[0].legend(fontsize=7)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    alt = (f"{scenario}: per configuration{dt}, the distance its bodies moved (the closed form "
+           "in grey) and the deepest penetration (log axis) over time")  # fmt: skip
+    return save(fig, Path(out) / f"{slug(scenario)}__system.png", alt=alt)

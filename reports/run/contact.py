@@ -1,0 +1,130 @@
+"""One run of a contact scene, from its spec to its result row: the contact counterpart of
+:func:`reports.run.system.run_system_spec`, called by :func:`reports.run.runner.execute` for a
+scene with ``[[contacts]]``.
+
+Flow: the engine's contact builder (:func:`references.engines.contact.run_contact`) -> the
+states and the engine's contact forces -> the scene's closed form at the saved times
+(:func:`references.exact.contact_scene.contact_motion`) -> the contact metrics
+(:mod:`reports.metrics.contact`) -> status and verdict (:mod:`reports.metrics.verdicts`) -> the
+trajectory file (Parquet: per-body columns, and per sample the distance moved, the deepest
+penetration and the closed form's distance, for the report's figures).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from reports.metrics import verdicts
+from reports.store.results import (
+    StoreUnwritable,
+    output_columns,
+    trajectory_path,
+    write_parquet_table,
+)
+
+
+def run_contact_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:
+    """Run the contact spec ``spec`` (its configuration ``integ``, its scene at the run's
+    horizon ``sc``) and fill ``row``; a failure raises (the caller makes it the row)."""
+    from references.engines import Diverged, Unsupported, get_engine
+    from references.engines.contact import run_contact
+
+    if spec.accuracy is not None or spec.segment:
+        raise Unsupported(
+            f"{spec.engine} {integ.name}: contact scenes run at fixed steps with the metrics at "
+            "the saved states (no target accuracy, no --segment streaming)"
+        )
+    try:
+        output = run_contact(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
+        diverged = None
+    except Diverged as exc:
+        output, diverged = exc.output, exc
+    ref = _measure(row, spec, sc, output, out, get_engine(spec.engine).is_reference)
+    bounds = verdicts.tolerances(sc, integ)
+    if diverged is not None:
+        row["status"] = "diverged"
+        row["t_diverged"] = diverged.t_diverged
+        row["message"] = str(diverged)
+    elif ref is None and not get_engine(spec.engine).is_reference:
+        row["status"] = "ok"
+        row["message"] = row["message"] or "no closed form: errors against it not measured"
+    else:
+        row["status"] = "ok"
+    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)
+
+
+def _measure(row, spec, sc, output, out, is_reference):
+    """Timings, settings, metrics and the trajectory file; returns the closed form (or None)."""
+    from references.exact._util import ReferenceNotApplicable
+    from references.exact.contact_scene import contact_motion
+    from reports.metrics.contact import compute_contact_metrics
+
+    if output is None:
+        return None
+    traj = output.trajectory
+    row.update(output_columns(output, cpu_time=False))
+    ref = None
+    if len(traj):
+        try:
+            ref = contact_motion(sc, traj.t)
+            row["reference_kind"] = sc.reference
+            row["reference_accuracy"] = float(ref.accuracy["attitude"])
+        except ReferenceNotApplicable as exc:
+            row["reference_kind"] = "none"
+            row["message"] = f"no closed form: {exc}"
+        if is_reference:
+            row["reference_kind"] = sc.reference
+        row.update(compute_contact_metrics(sc, output, ref))
+    if out is not None and len(traj):
+        _write(row, spec, sc, output, ref, Path(out))
+    return ref
+
+
+def series(sc, output, ref) -> dict:
+    """Per-sample series of a contact run (the figures read them): the distance each body's
+    centre of mass has moved, the largest over the bodies (m), the deepest penetration over
+    the pairs (m), and the closed form's distance moved (m; NaN without one)."""
+    import numpy as np
+
+    from reports.metrics.contact import _gaps
+
+    tr = output.trajectory
+    moved = np.max(np.linalg.norm(tr.position - tr.position[:1], axis=2), axis=1)
+    pen = np.max(np.maximum(-_gaps(sc, output), 0.0), axis=0)
+    exact = np.full(len(tr), math.nan)
+    if ref is not None:
+        exact = np.max(np.linalg.norm(ref.x - ref.x[:1], axis=2), axis=1)
+    return {"moved": moved, "penetration": pen, "moved_exact": exact}
+
+
+def _write(row, spec, sc, output, ref, out: Path) -> None:
+    import numpy as np
+    import pyarrow as pa
+
+    from references.trajectory import UNITS
+
+    traj = output.trajectory
+    rel = trajectory_path(spec, "parquet")
+    path = out / rel
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols = traj.columns()
+    units = {c: UNITS[c.rsplit(".", 1)[1]] for c in cols if c != "t"} | {"t": "s"}
+    keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
+    meta = {
+        "director_bench.units": units | {"moved": "m", "penetration": "m", "moved_exact": "m"},
+        "director_bench.frames": {
+            "<body>.x .. <body>.vz": "world axes, centre of mass of the body",
+            "<body>.R00 .. R22": "body-to-world rotation, row-major; columns: principal axes",
+            "<body>.wx .. wz": "body axes",
+        },
+        "director_bench.bodies": list(traj.body_names),
+        "director_bench.run": {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")},
+    }
+    extra = {k: np.asarray(v, dtype=float) for k, v in series(sc, output, ref).items()}
+    table = pa.table({**cols, **extra})
+    try:
+        write_parquet_table(table, path, meta)
+    except OSError as exc:
+        raise StoreUnwritable(f"{path}: cannot write the run's trajectory ({exc})") from exc
+    row["trajectory"] = rel.as_posix()
