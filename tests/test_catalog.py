@@ -11,7 +11,10 @@ import textwrap
 import pytest
 
 from reports.metrics import catalog as C
-from reports.metrics import system  # noqa: F401  (attaches the system functions)
+from reports.metrics import (
+    contact,  # noqa: F401  (attaches the contact functions)
+    system,  # noqa: F401  (attaches the system functions)
+)
 from scenarios.metric_catalog import METRICS, OBSERVABLE, POINTWISE, SWEEP, Metric
 
 
@@ -19,7 +22,7 @@ def test_names_are_unique_and_every_metric_is_well_formed():
     names = [m.name for m in METRICS]
     assert len(names) == len(set(names))
     for m in METRICS:
-        assert m.body or m.system, m.name
+        assert m.body or m.system or m.contact, m.name
         assert m.kind in (POINTWISE, OBSERVABLE, SWEEP), m.name
         assert m.floor is None or m.floor > 0, m.name
         assert m.tolerance is None or m.tolerance > 0, m.name

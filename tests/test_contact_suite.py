@@ -1,0 +1,120 @@
+"""Contact scenes through the suite: planned with each engine's contact configurations, run by
+the runner into rows with verdicts, drawn and tabled by the report (the creep table and the
+stick/slide matrix), refused when a file asks for what no builder takes; the docs' example."""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import scenarios
+from reports.run.runner import execute, plan
+from reports.store.results import RunSpec
+from scenarios.schema import InputError
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
+
+
+def test_plan_offers_the_contact_configurations():
+    sc = scenarios.load("block_incline_stick")
+    specs = plan([sc], ["mujoco", "pinocchio", "director"], sweep=False)
+    mj = sorted(s.integrator for s in specs if s.engine == "mujoco")
+    assert mj == ["elliptic impratio 10", "elliptic noslip 10", "pyramidal"]
+    assert sorted(s.integrator for s in specs if s.engine == "pinocchio") == [
+        "ADMM + suite", "PGS + suite"]  # fmt: skip
+    # an engine without a contact builder gets one row that says so
+    (d,) = [s for s in specs if s.engine == "director"]
+    row = execute(d)
+    assert row["status"] == "unsupported" and "no contact builder" in row["message"]
+
+
+def test_a_contact_scene_runs_end_to_end(tmp_path):
+    sc = scenarios.load("block_incline_stick")
+    rows = [execute(RunSpec(sc, e, i, 1e-3, t_end=0.5), tmp_path)
+            for e, i in (("mujoco", "pyramidal"), ("mujoco", "elliptic noslip 10"),
+                         ("exact", "closed form"))]  # fmt: skip
+    pyr, noslip, exact = rows
+    for r in rows:
+        assert r["status"] == "ok", r["message"]
+    # MuJoCo's default creeps at ~1.2 mm/s on the 15 degree ramp: above the 1e-4 m/s bound
+    assert pyr["creep_speed"] > 5e-4 and pyr["verdict"] == "fail"
+    assert "creep_speed" in pyr["verdict_detail"]
+    assert noslip["creep_speed"] < 1e-6 and noslip["stick_slide_mismatch"] == 0.0
+    assert exact["verdict"] == "pass" and exact["creep_speed"] == 0.0
+    assert exact["reference_kind"] == "sliding_block"
+    traj = pd.read_parquet(tmp_path / pyr["trajectory"])
+    assert {"moved", "penetration", "moved_exact"} <= set(traj.columns)
+    assert np.all(traj["moved_exact"] == 0.0)
+    # the report's tables
+    from reports.report.contact import creep_table, stick_slide_matrix
+
+    df = pd.DataFrame(rows)
+    head, body = creep_table(df)
+    assert head == ["configuration", "block_incline_stick [um/s]"]
+    cells = {r[0]: r[1] for r in body}
+    assert float(cells["mujoco pyramidal"]) == pytest.approx(pyr["creep_speed"] * 1e6, rel=1e-2)
+    assert cells["exact closed form"] == "0"
+    head, body = stick_slide_matrix(df)
+    assert head[1] == "block_incline_stick (Coulomb: sticks)"
+    assert {r[0]: r[1] for r in body}["mujoco pyramidal"] == "sticks"
+
+
+def test_the_diagonal_push_separates_the_friction_cones(tmp_path):
+    """MuJoCo's pyramid holds only mu N/sqrt 2 on the diagonal: at 0.8 mu m g it slides where
+    Coulomb sticks; the matrix says so."""
+    sc = scenarios.load("push_diagonal_stick")
+    rows = [execute(RunSpec(sc, "mujoco", c, 1e-3, t_end=0.5), tmp_path)
+            for c in ("pyramidal", "elliptic impratio 10")]  # fmt: skip
+    assert rows[0]["stick_slide_mismatch"] == 1.0 and rows[1]["stick_slide_mismatch"] == 0.0
+    from reports.report.contact import stick_slide_matrix
+
+    _, body = stick_slide_matrix(pd.DataFrame(rows))
+    assert {r[0]: r[1] for r in body}["mujoco pyramidal"] == "slides (wrong)"
+
+
+def test_contact_settings_checked_before_any_run(tmp_path):
+    from reports.suite import check_engine_settings
+
+    data = tomllib.loads((scenarios.contact_path() / "box_resting.toml").read_text())
+    data["name"] = "mine"
+    data["engine_settings"] = {"mujoco": {"cone": "elliptic"}}
+    sc = scenarios.validate(data, path="mine.toml")
+    with pytest.raises(InputError, match=r"engine_settings\.mujoco\.cone = 'elliptic': not a "
+                       r"setting of mujoco's contact builder.*known: solver"):  # fmt: skip
+        check_engine_settings([sc])
+    data["engine_settings"] = {"mujoco": {"solver": "CG"}}
+    check_engine_settings([scenarios.validate(data, path="mine.toml")])
+
+
+def _docs_example() -> dict:
+    text = DOCS.read_text()
+    section = text[text.index("## Contact") :]
+    return tomllib.loads(re.search(r"```toml\n(.*?)```", section, re.S).group(1))
+
+
+def test_the_docs_example_is_a_valid_scene_that_slides():
+    sc = scenarios.validate(_docs_example(), path="my_ramp.toml")
+    from references.exact.contact_scene import contact_motion
+
+    facts = contact_motion(sc, [0.0, sc.t_end]).facts
+    assert not facts["sticks"]
+    # tan(20 deg) = 0.364 > mu = 0.3, as the description says
+    th = math.radians(20.0)
+    assert facts["acceleration"] == pytest.approx(9.81 * (math.sin(th) - 0.3 * math.cos(th)))
+
+
+def test_the_docs_refusal_text_is_the_suites():
+    data = _docs_example()
+    data["bodies"][0]["position"] = [0.0, 0.0, 0.0]
+    with pytest.raises(InputError) as err:
+        scenarios.validate(data, path="my_ramp.toml")
+    said = "penetrates plane 'ramp' by"
+    assert said in str(err.value)
+    page = " ".join(DOCS.read_text().split())
+    assert "body 'block' penetrates plane 'ground' by 0.003 m at t = 0" in page
