@@ -518,8 +518,9 @@ def plan(
                 else:
                     # a system's sweep is its file's (the halvings serve the fast tops)
                     swept = sweep and not dts and not getattr(sc, "is_system", False)
-                    run_at = steps_e + _halvings(offers.get(integ) or cls.integrator(integ), steps,
-                                                 swept)
+                    run_at = steps_e + _halvings(
+                        offers.get(integ) or cls.integrator(integ), steps, swept
+                    )
                     for h in run_at[len(steps_e) :]:
                         _check_states(sc, h, horizon, keep, segment, max_states)
                     specs += [RunSpec(sc, name, integ, h, *common) for h in run_at]
