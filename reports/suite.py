@@ -89,7 +89,7 @@ def check_references(scs) -> None:
             continue
         why = reference_problem(sc)
         if why is not None:
-            other = "auto (numerical for a tree, none for a loop)" if system else "auto, numerical"
+            other = "auto, numerical"
             rule = f"the closed form asked for does not apply: {why} (or ask for {other})"
             raise file_error(sc.path, [("reference.kind", sc.reference, rule)])
 

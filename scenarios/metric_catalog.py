@@ -259,6 +259,14 @@ METRICS: tuple[Metric, ...] = (
         title="support force error [rel.]", short="support force", tolerance=1e-2,
         body=False, contact=True, reference=True,
     ),
+    # a joint's coordinate (the relative rotation of its two bodies) judged like an attitude:
+    # a crank 0.1 rad off its reference is a wrong motion even when every body's attitude
+    # error is shared with its neighbours
+    Metric(
+        "joint_coordinate_error_max", "rad", "none: an angle", floor=1e-10,
+        title="joint coordinate error [rad]", short="joint coordinate", tolerance=0.1,
+        body=False, system=True, reference=True,
+    ),
     Metric(
         "convergence_order", "1", "none: a slope of log(error) against log(dt)",
         higher_is_better=True, slack=0.3, system=True, kind=SWEEP,

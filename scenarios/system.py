@@ -61,11 +61,12 @@ POINT_KINDS = ("spherical", "fixed_point", "revolute", "universal")
 #: kinds that need axes
 AXIS_KINDS = ("revolute", "universal", "cylindrical", "prismatic")
 
-#: reference kinds of a system: "auto" (numerical for a tree, none for a loop), the exact
-#: motions of references.exact.multibody.exact, the reduced-coordinate DOP853 reference
-#: ("numerical", trees only) and "none" (no independent reference: trajectory errors are
-#: not measured, invariants and joint gaps are)
-SYSTEM_CLOSED_FORMS = ("spinning_chain", "conical_pendulum", "four_bar")
+#: reference kinds of a system: "auto" (numerical), the exact motions of
+#: references.exact.multibody.exact, the reduced-coordinate DOP853 reference ("numerical":
+#: the spanning tree's spherical and revolute joints, the loop closures and other joints as
+#: constraint rows) and "none" (no independent reference: trajectory errors are not
+#: measured, invariants and joint gaps are)
+SYSTEM_CLOSED_FORMS = ("spinning_chain", "conical_pendulum", "four_bar", "n_four_bar")
 #: the closed forms of bodies in contact (references.exact.contact); a scene with
 #: ``[[contacts]]`` takes one of these or "none"
 CONTACT_CLOSED_FORMS = ("sliding_block", "tipping_block", "rolling", "bounce", "resting")
@@ -495,10 +496,6 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         path=path,
     )
     probs = magnitude_problems(sc)
-    if kind == "numerical" and sc.loop_joints:
-        probs.append(("reference.kind", kind, "the reduced-coordinate reference treats trees "
-                      f"only; joints {list(sc.loop_joints)} close loops (give none, or an "
-                      "exact motion)"))  # fmt: skip
     if probs:
         raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
     return sc

@@ -62,7 +62,12 @@ def test_derived_tables_follow_the_declarations():
         "nutation_period_error",
     ]
     assert [p[0] for p in C.ERROR_PANELS] == ["attitude_error", "energy_drift", "momentum_drift"]
-    assert set(C.SYSTEM_METRICS) == {"joint_gap_max", "joint_angle_gap_max", "branch_error"}
+    assert set(C.SYSTEM_METRICS) == {
+        "joint_gap_max",
+        "joint_angle_gap_max",
+        "branch_error",
+        "joint_coordinate_error_max",
+    }
 
 
 def test_the_consumers_read_the_catalog():

@@ -23,6 +23,10 @@ one body where the meaning carries over (the largest over the bodies) and three 
 ``joint_angle_gap_max``    max over t and joints of the angle between a hinge's (or a     rad
                            cylindrical or prismatic joint's) two axes; a universal
                            joint's departure from perpendicular axes
+``joint_coordinate_error_``  max over t <= the horizon and every joint (loop closures        rad
+``max``                    included) of the angle between the run's relative rotation
+                           R_a^T R_b of the joint's two bodies and the reference's (a
+                           slider's travel is in position_error_max)
 ``branch_error``           a mechanism through a singular configuration: for a            rad
                            parallelogram four-bar (a scenario tagged ``parallelogram``
                            with a body ``coupler``), the largest rotation of the coupler
@@ -165,6 +169,31 @@ def position_errors(traj, ref) -> np.ndarray:
 @measures("omega_error_max", on="system")
 def omega_errors(traj, ref) -> np.ndarray:
     return np.max(np.linalg.norm(traj.omega_body - ref.omega_body, axis=2), axis=1)
+
+
+@measures("joint_coordinate_error_max", on="system")
+def joint_coordinate_errors(scenario, traj, ref) -> np.ndarray | None:
+    """Largest error of a joint's relative rotation over the joints (rad), (n,), or None
+    without joints. The ground has R = 1."""
+    if not scenario.joints:
+        return None
+    idx = {n: i for i, n in enumerate(scenario.body_names)}
+    n = len(traj.t)
+    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
+
+    def rel(tr, j):
+        Ra = tr.rotation[:, idx[j.body_a]]
+        Rb = eye if j.body_b is None else tr.rotation[:, idx[j.body_b]]
+        return np.einsum("nji,njk->nik", Ra, Rb)
+
+    class _Flat:  # the single-body metric on the relative rotations
+        def __init__(self, R):
+            self.rotation = R
+
+    return np.max(
+        [attitude_error(_Flat(rel(traj, j)), _Flat(rel(ref, j))) for j in scenario.joints],
+        axis=0,
+    )
 
 
 @measures("branch_error", on="system")

@@ -3,19 +3,22 @@
 
 Kinds (``[reference] kind`` of the file, :data:`scenarios.system.SYSTEM_REFERENCE_KINDS`):
 
-- ``spinning_chain``, ``conical_pendulum``, ``four_bar``: the closed forms of
+- ``spinning_chain``, ``conical_pendulum``, ``four_bar``, ``n_four_bar``: the closed forms of
   :mod:`references.exact.multibody.exact`, built from the file's bodies and the parameters
   of its ``[reference]`` table; the closed form's state at t = 0 must equal the file's
   initial state (:data:`INITIAL_TOL`), so a file whose state is not that motion's is refused
   rather than compared with another motion. Accuracy: the closed form's round-off estimate.
-- ``numerical`` (``auto`` for a tree): the reduced-coordinate tree of
-  :func:`references.exact.multibody.tree_from_world` (a formulation that shares nothing with
-  the director model) integrated by DOP853 at rtol 1e-13 with its error estimate
-  (:func:`references.exact.multibody.solve`), and the horizon over which it is meaningful
+- ``numerical`` (``auto``): the reduced-coordinate tree of the spanning tree's spherical and
+  revolute joints, every other joint (the loop closures; universal, cylindrical, prismatic
+  joints) as constraint rows on it (:func:`references.exact.multibody.loops.system_from_world`,
+  a formulation that shares nothing with the director model), integrated by DOP853 at rtol
+  1e-13 with its error estimate (:func:`references.exact.multibody.solve`); a loop that
+  reaches a singular configuration has none (the branches meet there: the closed forms
+  cover the four-bars that pass through one), and the horizon over which it is meaningful
   (:func:`references.exact.multibody.trajectory_horizon`: perturbed runs depart by less than
   :data:`HORIZON_ATTITUDE` rad and HORIZON_POSITION times the system's size): trajectory
   errors are judged only up to that horizon, the accuracy is the estimate's over it.
-- ``none`` (``auto`` for a closed loop): no independent reference; the exact engine's row is
+- ``none``: no independent reference, asked for by the file; the exact engine's row is
   ``unsupported`` with that reason and other engines' trajectory errors are not measured
   (their invariants and joint gaps are).
 """
@@ -65,7 +68,7 @@ def reference_kind(scenario) -> str:
     """The reference kind a scenario gets (``auto`` resolved)."""
     if scenario.reference != "auto":
         return scenario.reference
-    return "numerical" if scenario.is_tree else "none"
+    return "numerical"
 
 
 def _order(names_from, names_to) -> list[int]:
@@ -147,6 +150,25 @@ def _closed_form(scenario):
                                              P["coupler_com"], -float(g[2]), P["theta0"],
                                              P["thetadot0"])  # fmt: skip
             names = motion.names
+        elif kind == "n_four_bar":
+            g = np.asarray(scenario.gravity)
+            if not (g[0] == 0 and g[2] == 0 and g[1] < 0):
+                raise Unsupported("n_four_bar: the reference needs gravity along -y")
+            P = {k: _param(scenario, k) for k in ("N", "L", "m", "J", "theta0", "thetadot0")}
+            motion = ex.NFourBar(P["N"], P["L"], P["m"], P["J"], -float(g[1]), P["theta0"],
+                                 P["thetadot0"])  # fmt: skip
+            missing = set(motion.names) - set(by)
+            if missing:
+                raise Unsupported(f"n_four_bar: the reference needs bodies named {sorted(missing)}")
+            for n in motion.names:
+                b = by[n]
+                if b.mass != motion.m or b.inertia[2] != motion.J:
+                    raise Unsupported(
+                        f"n_four_bar: body {n!r} has mass {b.mass} and hinge moment "
+                        f"{b.inertia[2]} (inertia[2]); the reference's links have m = "
+                        f"{motion.m}, J = {motion.J}"
+                    )
+            names = motion.names
         else:  # pragma: no cover - kinds are validated by the scenario layer
             raise Unsupported(f"no closed form of kind {kind!r}")
     except (ReferenceNotApplicable, ValueError) as exc:
@@ -184,11 +206,9 @@ def _compute(scenario, t) -> SystemReference:
     kind = reference_kind(scenario)
     start = time.perf_counter()
     if kind == "none":
-        why = "closes a loop" if scenario.loop_joints else "asks for none"
         raise Unsupported(
-            f"{scenario.name}: no independent reference (the system {why}: the "
-            "reduced-coordinate reference treats trees, and no closed form is known); its "
-            "rows judge invariants and joint gaps, not trajectory errors"
+            f"{scenario.name}: no independent reference (the file asks for none); its rows "
+            "judge invariants and joint gaps, not trajectory errors"
         )
     if kind != "numerical":
         at, accuracy = _closed_form(scenario)
@@ -202,18 +222,16 @@ def _compute(scenario, t) -> SystemReference:
 
 
 def _numerical(scenario, t, start) -> SystemReference:
-    from references.exact.multibody import (
-        ReferenceCostExceeded,
-        solve,
-        trajectory_horizon,
-        tree_from_world,
-    )
+    from references.exact.multibody import ReferenceCostExceeded, solve, trajectory_horizon
+    from references.exact.multibody.loops import system_from_world
 
     try:
-        tree, q0, u0 = tree_from_world(scenario.bodies, scenario.joints, scenario.gravity)
-        sol = solve(tree, q0, u0, t)
+        system, q0, u0 = system_from_world(scenario.bodies, scenario.joints, scenario.gravity)
+        tree = system.tree
+        sol = solve(tree, q0, u0, t, system=system)
         size = scenario.length_scale
-        hz = trajectory_horizon(tree, q0, u0, t, HORIZON_ATTITUDE, HORIZON_POSITION * size)
+        hz = trajectory_horizon(tree, q0, u0, t, HORIZON_ATTITUDE, HORIZON_POSITION * size,
+                                system=system)  # fmt: skip
     except ReferenceCostExceeded as exc:
         raise Unsupported(
             f"{scenario.name}: the numerical reference is too costly: {exc}"

@@ -121,7 +121,10 @@ def _mcross(v, m, out):
 
 @njit(cache=True)
 def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
-    """(M (nu,nu), C (nu,), R, x, v, Ib) at the state (q, u): M u' + C = 0."""
+    """(M (nu,nu), C (nu,), R, x, v, Ib, S, a) at the state (q, u): M u' + C = 0; S (nu, 6)
+    the motion-subspace columns as rows, a (nb, 6) each body's spatial acceleration at
+    u' = 0 with gravity as the ground's upward acceleration (a_b + (0, g) is the
+    velocity-product acceleration)."""
     nb = len(kind)
     nu = len(u)
     # every element of these is written by the kinematics below
@@ -334,14 +337,16 @@ def _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
                 a_ = parent[a_]
     if err != 0:
         raise RuntimeError("multibody reference: a BLAS call returned an error")
-    return M, C, R, x, v, Ib
+    return M, C, R, x, v, Ib, S, a
 
 
 @njit(cache=True)
 def _rhs(y, nq, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g):
     q = y[:nq]
     u = y[nq:]
-    M, C, _, _, _, _ = _dynamics(q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g)
+    M, C, _, _, _, _, _, _ = _dynamics(
+        q, u, kind, parent, qofs, uofs, mass, J, X, Y, axis, offset, g
+    )
     out = np.empty(len(y))
     # joint kinematics q'
     for b in range(len(kind)):
@@ -431,7 +436,7 @@ def body_states(tree, q, u):
     velocities, and the spatial velocities and inertias (nb,6) and (nb,6,6) about the origin."""
     q = np.ascontiguousarray(q, dtype=float)
     u = np.ascontiguousarray(u, dtype=float)
-    _, _, R, x, vs, Ib = _dynamics(q, u, *_args(tree))
+    _, _, R, x, vs, Ib, _, _ = _dynamics(q, u, *_args(tree))
     w = vs[:, :3]
     vG = vs[:, 3:] + np.cross(w, x)  # v_G = v_O + w x x_G
     W = np.einsum("bji,bj->bi", R, w)

@@ -48,6 +48,19 @@ over time, with the state to start a simulation from and a round-off accuracy es
    e1 = e_x, e2 = e_z, e3 = -e_y and its centre of mass at ``coupler_com`` along e1 from the
    crank's tip.
 
+4. :class:`NFourBar`: IFToMM benchmark A02, N parallelogram four-bars side by side in the
+   x-y plane under gravity along -y: N + 1 cranks of length L pivoting on the ground at
+   (i L, 0, 0), i = 0..N, and N couplers of length L, coupler j joining the tips of cranks
+   j - 1 and j. Every crank turns by the same angle theta (from the upward vertical, positive
+   towards +x: the crank tip at L (sin theta, cos theta, 0)) and the couplers translate, so
+   the mechanism is a planar pendulum about the cranks' pivots with
+   T = 1/2 ((N + 1)(J + m L^2/4) + N m L^2) theta'^2 and
+   V = |g| m L ((N + 1)/2 + N) cos theta (J: each link's moment about its hinge axis through
+   its centre of mass, m its mass), solved by the same closed form. Bodies ``crank0`` ..
+   ``crankN`` (e1 from pivot to tip, e3 = -e_z, the hinge axis, so that theta' > 0 is
+   W = (0, 0, theta')), then ``coupler1`` .. ``couplerN`` (e1 = e_x, e2 = -e_y, e3 = -e_z).
+   It passes through its singular configuration (all links on the x axis) twice per turn.
+
 Accuracy: the closed forms are exact; their evaluation errs by the rounding of the phase,
 estimated as 16 eps (1 + |Omega| t) rad (as for the single-body closed forms), and positions by
 that times the largest distance from the rotation axis plus 16 eps |x|.
@@ -352,3 +365,76 @@ class ParallelogramFourBar(ExactMotion):
     def accuracy(self, t) -> dict:
         thd = 2.0 * math.sqrt(self.pendulum.k2 * self.wp2) if self.case != "at rest" else 0.0
         return _rate_accuracy(thd, t, self.L, self.D + self.L)
+
+
+class NFourBar(ExactMotion):
+    """IFToMM A02, the N-four-bar (module docstring, item 4): ``N`` loops, links of length
+    ``L`` (m) and mass ``m`` (kg), ``J`` each link's moment about its hinge axis through its
+    centre of mass (kg m^2), ``g`` = |g| (gravity along -y), ``theta0`` (rad from the upward
+    vertical, positive towards +x) and ``thetadot0`` (rad/s; the benchmark: the crank tip B0
+    moving at 1 m/s along +x, theta' = 1/L). Bodies: cranks then couplers (``names``)."""
+
+    def __init__(self, N: int, L: float, m: float, J: float, g: float, theta0: float,
+                 thetadot0: float):  # fmt: skip
+        if int(N) != N or N < 1:
+            raise ValueError(f"N-four-bar: N = {N!r} must be an integer >= 1")
+        self.N, self.L, self.m, self.J, self.g = int(N), float(L), float(m), float(J), float(g)
+        n = self.N
+        self.names = [f"crank{i}" for i in range(n + 1)] + [f"coupler{j}" for j in range(1, n + 1)]
+        self.inertia = (n + 1) * (self.J + self.m * self.L**2 / 4) + n * self.m * self.L**2
+        self.moment = self.g * self.m * self.L * ((n + 1) / 2 + n)
+        self.wp2 = self.moment / self.inertia
+        self.axis = np.array([0.0, 0.0, -1.0])  # theta > 0 turns the tips towards +x
+        up = np.array([0.0, 1.0, 0.0])
+        self.Rref = np.column_stack([up, [1.0, 0.0, 0.0], self.axis])  # a crank at theta = 0
+        self.Rc = np.column_stack([[1.0, 0.0, 0.0], -up, self.axis])
+        self.theta0, self.thetadot0 = float(theta0), float(thetadot0)
+        R0 = rot_axis(self.axis, self.theta0)[0] @ self.Rref
+        W0 = self.thetadot0 * (R0.T @ self.axis)
+        self.pendulum = PlanarPendulum(R0, W0, up, R0[:, 0], self.wp2)
+        self.case = self.pendulum.case
+        if self.case != "at rest" and np.dot(self.pendulum.n, self.axis) < 0:
+            self._sign = -1.0
+        else:
+            self._sign = 1.0
+
+    def theta(self, t):
+        """theta(t) and theta'(t) (rad, rad/s)."""
+        dth, thd = self.pendulum.theta(t)
+        return self.theta0 + self._sign * dth, self._sign * thd
+
+    def tip(self, t, i: int = 0):
+        """The tip of crank ``i`` (B_i of the benchmark), position and velocity (n, 3)."""
+        th, thd = self.theta(np.atleast_1d(np.asarray(t, dtype=float)))
+        u = np.stack([np.sin(th), np.cos(th), np.zeros_like(th)], axis=1)
+        du = thd[:, None] * np.stack([np.cos(th), -np.sin(th), np.zeros_like(th)], axis=1)
+        return np.array([i * self.L, 0.0, 0.0]) + self.L * u, self.L * du
+
+    def motion(self, t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        th, thd = self.theta(t)
+        Q = rot_axis(self.axis, th)
+        Rk = Q @ self.Rref
+        u = Rk[:, :, 0]  # pivot -> tip
+        du = thd[:, None] * np.cross(self.axis, u)
+        n, L = self.N, self.L
+        nb = 2 * n + 1
+        x = np.empty((len(t), nb, 3))
+        v = np.empty((len(t), nb, 3))
+        R = np.empty((len(t), nb, 3, 3))
+        W = np.zeros((len(t), nb, 3))
+        ex = np.array([1.0, 0.0, 0.0])
+        for i in range(n + 1):
+            x[:, i] = i * L * ex + 0.5 * L * u
+            v[:, i] = 0.5 * L * du
+            R[:, i] = Rk
+            W[:, i, 2] = thd  # e3 is the axis
+        for j in range(1, n + 1):
+            x[:, n + j] = ((j - 1) * L + 0.5 * L) * ex + L * u
+            v[:, n + j] = L * du
+            R[:, n + j] = self.Rc
+        return x, R, v, W
+
+    def accuracy(self, t) -> dict:
+        thd = 2.0 * math.sqrt(self.pendulum.k2 * self.wp2) if self.case != "at rest" else 0.0
+        return _rate_accuracy(thd, t, self.L, (self.N + 1) * self.L)

@@ -69,6 +69,7 @@ def trajectory_horizon(
     rtol: float = RTOL,
     seed: int = 1,
     max_wall: float = MAX_WALL,
+    system=None,
 ) -> Horizon:
     """Horizon of the reference of ``tree`` from (``q0``, ``u0``) over the times ``t``
     (module docstring). ``tol_attitude`` rad, ``tol_position`` m (inf: attitude only)."""
@@ -77,17 +78,28 @@ def trajectory_horizon(
             f"tolerances must be > 0, got attitude {tol_attitude!r}, position {tol_position!r}"
         )
     delta = 10.0 * rtol if delta is None else float(delta)
-    ref = solve(tree, q0, u0, t, rtol=rtol, estimate=False, max_wall=max_wall)
+    ref = solve(tree, q0, u0, t, rtol=rtol, estimate=False, max_wall=max_wall, system=system)
     main = (ref.x, ref.R, ref.v, ref.W)
     q0, u0 = tree.initial_from_joint(q0, u0)
     y0 = np.concatenate([q0, u0])
-    scale, _ = _scales(tree, q0, u0)
-    f = rhs_function(tree)
+    scale, wscale = _scales(tree, q0, u0)
+    loop = system is not None and system.nc > 0
+    if loop:
+        from references.exact.multibody import loops
+
+        f = loops.rhs_function(system, alpha=wscale)
+    else:
+        f = rhs_function(tree)
     rng = np.random.default_rng(seed)
     div = {"attitude": np.zeros(len(ref.t)), "position": np.zeros(len(ref.t))}
     deadline = time.perf_counter() + max_wall
     for i in range(probes):
         d = rng.standard_normal(len(y0))
+        if loop:
+            # the positions stay on the loops: the rates are perturbed within the velocity
+            # constraints (by delta times their scale)
+            d[: tree.nq] = 0.0
+            d[tree.nq :] = loops.project_rates(system, q0, d[tree.nq :])
         yp = y0 + delta * scale * d / np.linalg.norm(d)
         Yp, _, _ = _run(f, yp, ref.t, rtol, scale, np.inf, 10**7, deadline, f"horizon probe {i}")
         dd = _differences(main, _world(tree, Yp))
