@@ -2,3 +2,13 @@
 the regression gate and the command-line interface."""
 
 __version__ = "0.1.0"
+
+
+def cache_root():
+    """The suite's cache folder: ``$DIRECTOR_BENCH_CACHE`` or ``~/.cache/director-bench``
+    (engine environments of ``versions``, figures reused across results folders)."""
+    import os
+    from pathlib import Path
+
+    root = os.environ.get("DIRECTOR_BENCH_CACHE")
+    return Path(root).expanduser() if root else Path.home() / ".cache" / "director-bench"

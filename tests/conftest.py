@@ -10,6 +10,13 @@ of a run in one process (``-n 0``), where it changes nothing but the order of th
 
 from __future__ import annotations
 
+import os
+import tempfile
+
+#: the suite's user cache (reports.cache_root: figures reused across results folders, engine
+#: environments) is a fresh folder for the tests, never the user's own
+os.environ["DIRECTOR_BENCH_CACHE"] = tempfile.mkdtemp(prefix="director-bench-test-cache-")
+
 #: test files that take longest (seconds of one worker, measured in a two-worker run of the
 #: default tests: the fault injection ~100 s, the report folders, the CLI's subprocess runs, the
 #: Dask clusters, the import-layering check, the plug-in's pip install, then the runner's)

@@ -259,6 +259,7 @@ def test_figures_drawn_beside_a_worker_process_are_the_serial_ones(folder, tmp_p
     for name, cores in (("serial", 1), ("pooled", 2)):
         dst = tmp_path / name
         shutil.copytree(folder, dst, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
+        monkeypatch.setenv("DIRECTOR_BENCH_CACHE", str(tmp_path / f"cache-{name}"))  # drawn
         monkeypatch.setattr(plots, "_cpus", lambda cores=cores: cores)
         monkeypatch.setattr(plots, "PARALLEL_FROM", 2)  # the folder has two scenarios
         made[name] = plots.report_figures(read_results(dst), dst)
@@ -276,6 +277,60 @@ def test_figures_drawn_beside_a_worker_process_are_the_serial_ones(folder, tmp_p
         == ["scorecard.png", "scorecard.svg"]
     )
     assert card[0].read_bytes() == pooled_card[0].read_bytes()
+
+
+def test_figures_without_timings_are_reused_from_another_folder(folder, tmp_path, monkeypatch):
+    """A second folder with the same results (another run of the same code: timings and
+    clock times differ) copies every figure but the work-precision one from the user's
+    cache, byte for byte; a series file that differs (a planted change) is drawn anew."""
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    import reports.report.plots as plots
+
+    monkeypatch.setenv("DIRECTOR_BENCH_CACHE", str(tmp_path / "cache"))
+    first = tmp_path / "first"
+    shutil.copytree(folder, first, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
+    made = plots.all_plots(read_results(first), first)
+    drawn = []
+    real = plots.scenario_plot
+
+    def counting(kind, df, cache, out, scenario, styles, failed=None):
+        drawn.append((scenario, kind))
+        return real(kind, df, cache, out, scenario, styles, failed)
+
+    monkeypatch.setattr(plots, "scenario_plot", counting)
+    second = tmp_path / "second"
+    shutil.copytree(folder, second, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
+    df = read_results(second)
+    df["engine_time_s"] *= 3.0  # another run's timings
+    df["finished_at"] = "2030-01-01T00:00:00+00:00"
+    again = plots.all_plots(df, second)
+    assert sorted(drawn) == [("cone_top", "work_precision"), ("free_tumbling", "work_precision")]
+    for sc, paths in made.items():
+        assert [p.name for p in paths] == [p.name for p in again[sc]]
+        for p, q in zip(paths, again[sc], strict=True):
+            if "work_precision" not in p.name:
+                assert p.read_bytes() == q.read_bytes(), p.name
+    # a planted change in one run's series: that scenario's figures are drawn again
+    row = df[(df["scenario"] == "cone_top") & (df["trajectory"] != "")].iloc[0]
+    path = second / row["trajectory"]
+    table = pq.read_table(path)
+    series = table.to_pandas()
+    series["t"] = series["t"] * 1.0 + 1e-9
+    pq.write_table(pa_table(series, table.schema.metadata), path)
+    drawn.clear()
+    third = tmp_path / "third"
+    shutil.copytree(second, third, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
+    plots.all_plots(df, third)
+    assert ("cone_top", "errors") in drawn and ("free_tumbling", "errors") not in drawn
+    assert isinstance(df, pd.DataFrame)
+
+
+def pa_table(frame, metadata):
+    import pyarrow as pa
+
+    return pa.Table.from_pandas(frame, preserve_index=False).replace_schema_metadata(metadata)
 
 
 def test_figures_are_reused_when_the_folder_is_named_relative_or_absolute(folder, monkeypatch):

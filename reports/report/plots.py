@@ -48,6 +48,7 @@ import numpy as np
 
 from reports.metrics import catalog
 from reports.metrics.body import SATURATION
+from reports.report import figure_cache
 from reports.report.groups import group_rows, sweep_groups
 from reports.report.labels import (
     ENGINE_ORDER,
@@ -1276,15 +1277,18 @@ SINGLE_BODY_KINDS = ("scenario", "rates")
 SYSTEM_KINDS = ("system",)
 
 
-def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles):
+def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles, failed=None):
     """One figure of a scenario, or None. A figure that cannot be drawn (data a log axis
-    cannot show, a library failure) is said on the standard error and left out: a figure
-    never costs the report, junit.xml or the results."""
+    cannot show, a library failure) is said on the standard error and left out (its kind
+    appended to ``failed`` when given): a figure never costs the report, junit.xml or the
+    results."""
     try:
         return _scenario_plot(kind, df, cache, out, scenario, styles)
     except Exception as exc:  # noqa: BLE001 - any failure of one figure
         import sys
 
+        if failed is not None:
+            failed.append(kind)
         _plt().close("all")
         print(
             f"director-bench: the {kind} figure of {scenario} was not drawn "
@@ -1383,18 +1387,28 @@ def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:
     return h.hexdigest()
 
 
-def _draw_scenario(scenario, df, root, out) -> tuple[str, list[str]]:
-    """Every figure of one scenario (a worker's task: styles and series are rebuilt here from
-    the same inputs, so they are the ones a serial draw would use)."""
+def _draw_scenario(scenario, kinds, df, root, out) -> tuple[str, dict]:
+    """The figures ``kinds`` of one scenario (a worker's task: styles and series are rebuilt
+    here from the same inputs, so they are the ones a serial draw would use)."""
     styles, cache = Styles(df), SeriesCache(Path(root))
-    return scenario, _figures_of(scenario, df, cache, Path(out), styles)
+    return scenario, _figures_of(scenario, kinds, df, cache, Path(out), styles)
 
 
-def _figures_of(scenario, df, cache, out: Path, styles) -> list[str]:
-    """Draw every figure of ``scenario`` (:data:`KINDS`) into ``out``; the file names of
-    those drawn."""
-    paths = [scenario_plot(k, df, cache, out, scenario, styles) for k in KINDS]
-    return [p.name for p in paths if p is not None]
+def _figures_of(scenario, kinds, df, cache, out: Path, styles) -> dict[str, str | None]:
+    """Draw the figures ``kinds`` of ``scenario`` into ``out``: {kind: file name, or None
+    when the scenario has no such figure}; a kind whose figure failed is left out."""
+    failed: list[str] = []
+    paths = {k: scenario_plot(k, df, cache, out, scenario, styles, failed) for k in kinds}
+    return {k: None if p is None else p.name for k, p in paths.items() if k not in failed}
+
+
+def _code_digest() -> str:
+    """The digest of the code that decides what a figure shows (:func:`_hash_code`)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    _hash_code(h)
+    return h.hexdigest()
 
 
 #: draw in parallel processes from this many scenarios to draw on (a process costs ~1 s to
@@ -1412,6 +1426,30 @@ def _cpus() -> int:
         return os.cpu_count() or 1
 
 
+def _warm_matplotlib() -> None:
+    """Import pyplot and load the fonts (a figure with text drawn once), so that processes
+    forked from this one start with them."""
+    plt = _plt()
+    fig = plt.figure(figsize=(1, 1))
+    fig.text(0.5, 0.5, "µ 1e-3")
+    fig.canvas.draw()
+    plt.close(fig)
+
+
+def _pool_context():
+    """The multiprocessing context of the drawing workers: a fork of this process where that
+    is safe (Linux, and no other thread of this interpreter: the caller pauses its own), so
+    that a worker starts with the modules and data already here (a spawned one imports
+    matplotlib, pandas and the suite again: ~2 s of CPU, as much as drawing two scenarios);
+    elsewhere spawn."""
+    import multiprocessing as mp
+    import sys
+    import threading
+
+    safe = sys.platform.startswith("linux") and threading.active_count() == 1
+    return mp.get_context("fork" if safe else "spawn")
+
+
 def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
     """Yield (scenario, figure file names) for the scenarios in ``todo`` (scenario, kind)
     pairs. With several scenarios and cores, this process draws alongside a pool of one
@@ -1423,17 +1461,19 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
     import threading
     from collections import deque
 
-    scenarios = list(dict.fromkeys(sc for sc, _ in todo))
+    kinds_of: dict[str, list[str]] = {}
+    for sc, kind in todo:
+        kinds_of.setdefault(sc, []).append(kind)
+    scenarios = list(kinds_of)
     workers = min(_cpus() - 1, len(scenarios) - 1)
     if len(scenarios) < PARALLEL_FROM or workers < 1:
         if alongside is not None:
             alongside()
         for sc in scenarios:
-            names = _figures_of(sc, df, cache, out, styles)
-            bar.update(len(KINDS))
+            names = _figures_of(sc, kinds_of[sc], df, cache, out, styles)
+            bar.update(len(kinds_of[sc]))
             yield sc, names
         return
-    import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     runs = df["scenario"].value_counts()
@@ -1451,31 +1491,38 @@ def _draw_all(todo, df, cache, root, out, styles, bar, alongside=None):
         with lock:
             if not pending or (done is not None and done.exception() is not None):
                 return
-            job = pool.submit(_draw_scenario, pending.popleft(), df, str(root), str(out))
+            sc = pending.popleft()
+            job = pool.submit(_draw_scenario, sc, kinds_of[sc], df, str(root), str(out))
             jobs.append(job)
         job.add_done_callback(hand_out)
 
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+    ctx = _pool_context()
+    if ctx.get_start_method() == "fork":
+        _warm_matplotlib()  # once here, not again in each forked worker
+    with bar.paused():  # no thread of ours across a fork
+        pool = ProcessPoolExecutor(workers, mp_context=ctx)
+        for _ in range(workers):  # a forking pool starts its workers at the first job
+            hand_out()
+    with pool:
         try:
-            for _ in range(workers):
-                hand_out()
             if alongside is not None:
                 alongside()
             returned = 0  # the workers' scenarios yielded so far, in the order handed out
             while (sc := take()) is not None:
-                names = _figures_of(sc, df, cache, out, styles)
-                bar.update(len(KINDS))
+                names = _figures_of(sc, kinds_of[sc], df, cache, out, styles)
+                bar.update(len(kinds_of[sc]))
                 yield sc, names
                 with lock:  # those returned, up to the first still drawing
                     ready = list(itertools.takewhile(lambda j: j.done(), jobs[returned:]))
                 for job in ready:
                     returned += 1
-                    bar.update(len(KINDS))
-                    yield job.result()
+                    sc, names = job.result()
+                    bar.update(len(kinds_of[sc]))
+                    yield sc, names
             # ``pending`` is empty: no job is handed out any more, ``jobs`` is complete
             for job in jobs[returned:]:
                 sc, names = job.result()
-                bar.update(len(KINDS))
+                bar.update(len(kinds_of[sc]))
                 yield sc, names
         finally:  # on an error, hand out nothing more while the pool shuts down
             with lock:
@@ -1488,6 +1535,7 @@ def all_plots(
     out: str | Path | None = None,
     progress: bool = False,
     alongside=None,
+    reuse_figures: bool = True,
 ) -> dict[str, list[Path]]:
     """Every figure of every scenario (:data:`KINDS`); returns {scenario: [png paths]}.
 
@@ -1497,7 +1545,8 @@ def all_plots(
     the figures (:class:`reports.run.progress.Progress`; nothing when none is drawn).
     ``alongside``: a callable this process calls while worker processes start drawing
     (:func:`report_figures`: the scorecard picture); called once, also when nothing else is
-    drawn (not for an empty table)."""
+    drawn (not for an empty table). ``reuse_figures``: copy a figure whose inputs are those
+    of one drawn before in any folder from the user's cache (:mod:`figure_cache`)."""
     import json
 
     from reports.run.progress import Progress
@@ -1515,6 +1564,9 @@ def all_plots(
         made_from = {}
     made: dict[str, list[Path]] = {}
     todo = []
+    names: dict[str, dict[str, str]] = {}  # scenario -> {kind: file name}
+    reuse: dict[tuple[str, str], str] = {}  # (scenario, kind) -> its key in the user's cache
+    code = _code_digest() if reuse_figures else ""
     for scenario in sorted(df["scenario"].unique()):
         key = _scenario_key(df, scenario, styles, root)
         old = made_from.get(scenario, {})
@@ -1523,15 +1575,33 @@ def all_plots(
             f.exists() and f.with_suffix(".json").exists() for f in files
         ):
             made[scenario] = [out / f for f in old["files"]]
-        else:
-            made[scenario] = []
-            made_from[scenario] = {"key": key, "files": []}
-            todo += [(scenario, k) for k in KINDS]
+            continue
+        made_from[scenario] = {"key": key, "files": []}
+        names[scenario] = {}
+        sub = df[df["scenario"] == scenario] if reuse_figures else None
+        for kind in KINDS:
+            if reuse_figures and kind in figure_cache.REUSED:
+                k = figure_cache.key(kind, scenario, sub, styles, root, code)
+                got = figure_cache.fetch(k, out)
+                if got is not None:  # "" : the scenario has no such figure
+                    names[scenario][kind] = got or None
+                    continue
+                reuse[scenario, kind] = k
+            todo.append((scenario, kind))
     bar = Progress(len(todo), desc="plots", unit="figure", disable=not progress)
-    for scenario, names in _draw_all(todo, df, cache, root, out, styles, bar, alongside):
-        made[scenario] = [out / n for n in names]
-        made_from[scenario]["files"] = names
+    for scenario, drawn in _draw_all(todo, df, cache, root, out, styles, bar, alongside):
+        names[scenario].update(drawn)
+        for kind, name in drawn.items():
+            if (scenario, kind) in reuse:
+                figure_cache.put(reuse[scenario, kind], None if name is None else out / name)
     bar.close()
+    if reuse:
+        figure_cache.prune()
+    for scenario, by_kind in names.items():
+        ordered = [by_kind[k] for k in KINDS if by_kind.get(k)]
+        made[scenario] = [out / n for n in ordered]
+        made_from[scenario]["files"] = ordered
+    made = {sc: made[sc] for sc in sorted(made)}
     write_text(out / CACHE_FILE, json.dumps(made_from, indent=1))
     return made
 

@@ -27,6 +27,7 @@ about the number of busy workers). Runs that compiled are left out of both.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import sys
 import threading
@@ -248,6 +249,23 @@ class Progress:
                     f"{_clock(time.monotonic() - self.t0)}"
                 )
             self.total = 0  # closed: nothing more is shown
+
+    @contextlib.contextmanager
+    def paused(self):
+        """The block runs with the clock thread stopped (restarted after): e.g. while the
+        process forks, so that no child starts with a lock that thread held."""
+        ticking = self._ticker is not None
+        if ticking:
+            self._stop.set()
+            self._ticker.join()
+            self._ticker = None
+        try:
+            yield
+        finally:
+            if ticking and self.total:
+                self._stop = threading.Event()
+                self._ticker = threading.Thread(target=self._tick, daemon=True, name="progress")
+                self._ticker.start()
 
     def __enter__(self) -> Progress:
         return self

@@ -28,6 +28,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from reports import cache_root
 from reports.versions.requirements import Target
 
 #: the record each complete environment holds
@@ -35,12 +36,6 @@ MARKER = "director-bench-env.json"
 #: longest a single ``uv`` call may take (Drake's wheels are ~200 MB)
 UV_TIMEOUT_S = 1800
 CHECKOUT = Path(__file__).resolve().parents[2]
-
-
-def cache_root() -> Path:
-    """Where environments are kept: ``$DIRECTOR_BENCH_CACHE`` or ``~/.cache/director-bench``."""
-    root = os.environ.get("DIRECTOR_BENCH_CACHE")
-    return Path(root).expanduser() if root else Path.home() / ".cache" / "director-bench"
 
 
 def python_tag() -> str:
