@@ -332,6 +332,7 @@ def cmd_run(args) -> int:
         segment=args.segment,
         accuracies=args.accuracy,
         full=args.full,
+        trajectories=args.trajectories,
     )
     df = summary.results
     print(
@@ -342,6 +343,11 @@ def cmd_run(args) -> int:
     print("Verdict: " + _counts(df["verdict"].replace("", "none")))
     out = summary.out
     print(f"results:      {out / 'results.sqlite'} (exported: results.csv, results.parquet)")
+    if args.trajectories == "report":
+        print(
+            f"trajectories: {out / 'trajectories'}: the series the report draws, at each "
+            "scenario's own step (--trajectories full keeps every run's whole trajectory)"
+        )
     if summary.report:
         print(f"report:       {summary.report['html']}\n              {summary.report['markdown']}")
     print(f"junit:        {summary.junit}")
@@ -615,7 +621,19 @@ def _add_run(sub) -> None:
     s.add_argument("--out", default=RUN_OUT, help=f"output folder (default: {RUN_OUT})")
     s.add_argument("--redo", action="store_true", help="run again runs already in the results")
     s.add_argument(
-        "--format", choices=["parquet", "csv"], default="parquet", help="trajectory file format"
+        "--format",
+        choices=["parquet", "csv"],
+        default="parquet",
+        help="file format of full trajectories (with --trajectories full)",
+    )
+    s.add_argument(
+        "--trajectories",
+        choices=["report", "full"],
+        default="report",
+        help="what each run keeps beside its row: report (default), the series the report "
+        "draws, at each scenario's own step, a few MB for the default suite; full, every "
+        "run's whole trajectory (about 200 MB for the default suite). The metrics are "
+        "computed from the full run either way",
     )
     s.add_argument("--no-report", action="store_true", help="skip plots and reports")
     s.add_argument("--strict", action="store_true", help="exit 1 if any run failed or errored")

@@ -322,16 +322,19 @@ def run(
     segment: int | None = None,
     accuracies=None,
     full: bool = False,
+    trajectories: str = "report",
 ) -> RunSummary:
     """Run scenarios x engines x integrators x dt into ``out`` and write the report and
     ``junit.xml`` (the verdicts). Every input is checked before any run (ValueError naming the
     argument, value and rule). ``jobs``: local worker processes (default: one per core);
-    ``scheduler``: a Dask scheduler address."""
+    ``scheduler``: a Dask scheduler address; ``trajectories``: what each run keeps on disk,
+    ``report`` (the series the report draws) or ``full`` (reports.run.files)."""
     import os
 
     from references.engines import get_engine
     from reports.report import junit
     from reports.report.build import build_report
+    from reports.run.files import MODES, assign
     from reports.run.parallel import make_mapper
     from reports.run.runner import max_states, plan, run_suite
     from reports.store.exports import keep_edited
@@ -341,6 +344,13 @@ def run(
     for name, value in (("--jobs", jobs), ("--segment", segment), ("--save-every", save_every)):
         check_count(name, value)
     check_jobs(jobs)
+    if trajectories not in MODES:
+        raise InputError(f"--trajectories {trajectories!r}: one of {', '.join(MODES)}")
+    if fmt != "parquet" and trajectories != "full":
+        raise InputError(
+            f"--format {fmt}: the format of full trajectories; by default a run keeps the "
+            "series the report draws, in Parquet: add --trajectories full"
+        )
     out = Path(out).expanduser().resolve()
     try:
         if out.exists() and not out.is_dir():
@@ -366,6 +376,7 @@ def run(
     if not specs:
         why = "".join(f"; {w}" for w in unloadable.values())
         raise InputError(f"nothing to run: no engine offers the integrators asked for{why}")
+    specs = assign(specs, trajectories)
     mapper = local or make_mapper(jobs, scheduler, out)
     # every input is checked: only now is anything written
     out = check_out(out)

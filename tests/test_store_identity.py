@@ -68,6 +68,20 @@ def test_a_database_that_is_not_ours_is_refused_not_converted(tmp_path, capsys, 
     assert digest(path) == before
 
 
+def test_a_store_whose_creation_was_cut_short_holds_no_rows(tmp_path):
+    """A run killed while its store was being created leaves a database with no tables (the
+    schema is made in one transaction): it reads as a store of no rows, and the next run
+    completes it; it was reported damaged ("no such table: meta") for good."""
+    con = sqlite3.connect(tmp_path / "results.sqlite")
+    con.execute("PRAGMA journal_mode = WAL")
+    con.close()
+    with Store(tmp_path) as st:
+        assert st.rows() == [] and st.done_ids() == set()
+    with Store(tmp_path, create=True) as st:
+        st.put(row("r1"))
+    assert [r["run_id"] for r in Store(tmp_path).rows()] == ["r1"]
+
+
 def test_our_store_carries_our_application_id(tmp_path):
     with Store(tmp_path, create=True):
         pass

@@ -25,6 +25,7 @@ import numpy as np
 
 from reports.metrics import verdicts
 from reports.metrics.body import metrics_and_series, roundoff_floor
+from reports.run.files import SERIES_FORMAT, SERIES_NOTE, kept_less, series_table
 from reports.store.atomic import replacing
 from reports.store.exports import export
 from reports.store.results import (
@@ -95,17 +96,38 @@ def expected_for(scenario) -> dict:
 
 
 def write_run_files(
-    traj, series: dict, path: Path, fmt: str, identity: dict, body: dict | None = None
+    traj,
+    series: dict,
+    path: Path,
+    fmt: str,
+    identity: dict,
+    body: dict | None = None,
+    keep: str = "full",
 ) -> None:
     """Write a run's trajectory, atomically: Parquet with the per-sample error series as
     extra columns and units, frames, the run's identity and the scenario's ``body``
     (:func:`body_of`, what the report's scenario picture draws) in the schema metadata; or
-    CSV with the series, and the body in its metadata, in a Parquet file beside it."""
+    CSV with the series, and the body in its metadata, in a Parquet file beside it. With
+    ``keep == "series"``: the series file the report draws (reports.run.files) at ``path``."""
     import pyarrow as pa
 
     from references.trajectory import COLUMNS, UNITS
 
     path.parent.mkdir(parents=True, exist_ok=True)
+    if keep == "series":
+        cols = dict(zip(COLUMNS, _columns_of(traj).T, strict=True)) | series
+        table = series_table(cols, bool(identity.get("reference")))
+        meta = {
+            "director_bench.units": {
+                c: UNITS.get(c, "1 (see docs/results.md)") for c in table.column_names
+            },  # fmt: skip
+            "director_bench.kept": SERIES_NOTE,
+            "director_bench.run": {k: v for k, v in identity.items() if k != "reference"},
+        }
+        if body:
+            meta["director_bench.body"] = body
+        write_parquet_table(table, path, meta)
+        return
     if fmt != "parquet":
         with replacing(path) as tmp:
             traj.write(tmp, "csv")
@@ -114,13 +136,7 @@ def write_run_files(
         meta = {"director_bench.body": body} if body else {}
         write_parquet_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), meta)
         return
-    n = len(traj)
-    data = np.column_stack(
-        [
-            traj.t, traj.position, traj.velocity, traj.rotation.reshape(n, 9),
-            traj.omega_body, traj.energy, traj.angular_momentum, traj.constraint_velocity,
-        ]
-    )  # fmt: skip
+    data = _columns_of(traj)
     table = pa.table({c: data[:, i] for i, c in enumerate(COLUMNS)} | series)
     meta = {
         "director_bench.units": {**UNITS, **dict.fromkeys(series, "1 (see docs/results.md)")},
@@ -135,6 +151,18 @@ def write_run_files(
     if body:
         meta["director_bench.body"] = body
     write_parquet_table(table, path, meta)
+
+
+def _columns_of(traj):
+    """The trajectory as an (n, len(COLUMNS)) array, columns in references.trajectory's
+    order."""
+    n = len(traj)
+    return np.column_stack(
+        [
+            traj.t, traj.position, traj.velocity, traj.rotation.reshape(n, 9),
+            traj.omega_body, traj.energy, traj.angular_momentum, traj.constraint_velocity,
+        ]
+    )  # fmt: skip
 
 
 def body_of(sc) -> dict:
@@ -399,12 +427,14 @@ def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
         row.update(recorder.maxima)
         if not math.isnan(recorder.reference_accuracy):
             row["reference_accuracy"] = max(row["reference_accuracy"], recorder.reference_accuracy)
-    if out is not None and len(traj):
-        rel = trajectory_path(spec, fmt)
+    if out is not None and len(traj) and spec.keep != "none":
+        rel = trajectory_path(spec, SERIES_FORMAT if spec.keep == "series" else fmt)
         keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
         identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
+        if spec.keep == "series":
+            identity["reference"] = _is_reference(spec.engine)
         try:
-            write_run_files(traj, series, Path(out) / rel, fmt, identity, body_of(sc))
+            write_run_files(traj, series, Path(out) / rel, fmt, identity, body_of(sc), spec.keep)
         except OSError as exc:
             raise StoreUnwritable(
                 f"{Path(out) / rel}: cannot write the run's trajectory ({exc.strerror or exc}; "
@@ -648,6 +678,10 @@ def run_suite(
         raise StoreUnwritable(f"{out}: cannot create the output folder ({exc})") from None
     with Store(out, create=True) as store:
         done = set() if redo else store.done_ids()
+        if any(s.keep != "none" for s in specs) and done:
+            # a run kept with less than it is asked to keep now (reports.run.files) runs again
+            stored = {r["run_id"]: r for r in store.rows()}
+            done -= {s.run_id for s in specs if kept_less(stored.get(s.run_id, {}), s.keep)}
         todo = [s for s in specs if s.run_id not in done]
         # the runs asked for again are this invocation's too: newest in the store's order,
         # which decides what the tables show (reports.store.results.current)

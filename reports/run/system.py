@@ -81,7 +81,7 @@ def _measure(row, spec, sc, output, out, fmt):
     kept = {}  # the metrics' series, reused by the file's series
     if len(traj):
         row.update(compute_system_metrics(sc, traj, ref, keep=kept))
-    if out is not None and len(traj):
+    if out is not None and len(traj) and spec.keep != "none":
         _write(row, spec, traj, error_series(sc, traj, ref, kept), Path(out), fmt)
     return ref
 
@@ -93,8 +93,9 @@ def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
     import pyarrow as pa
 
     from references.trajectory import UNITS
+    from reports.run.files import SERIES_FORMAT, SERIES_NOTE, series_table
 
-    rel = trajectory_path(spec, "parquet")
+    rel = trajectory_path(spec, SERIES_FORMAT if spec.keep == "series" else "parquet")
     path = out / rel
     path.parent.mkdir(parents=True, exist_ok=True)
     cols = traj.columns()
@@ -112,6 +113,16 @@ def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
         "director_bench.run": {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")},
     }
     table = pa.table({**cols, **{k: np.asarray(v, dtype=float) for k, v in series.items()}})
+    if spec.keep == "series":  # the series the system figure draws (reports.run.files)
+        table = series_table({c: table.column(c).to_numpy() for c in table.column_names}, False)
+        meta = {
+            "director_bench.units": {
+                c: meta["director_bench.units"].get(c, "1") for c in table.column_names
+            },  # fmt: skip
+            "director_bench.kept": SERIES_NOTE,
+            "director_bench.bodies": meta["director_bench.bodies"],
+            "director_bench.run": meta["director_bench.run"],
+        }
     try:
         write_parquet_table(table, path, meta)
     except OSError as exc:

@@ -101,13 +101,16 @@ def energy_behaviour(t, e, floor: float = FLOORS["energy_drift_max"]) -> dict:
 
 
 def signed_energy_error(folder: Path, row: dict):
-    """(t, (E(t) - E(0)) / E_c) of a run from its trajectory file, or None without one.
+    """(t, (E(t) - E(0)) / E_c) of a run from its trajectory file, or None without one (a
+    run that kept only the series the report draws, reports.run.files, has no energy).
     E(0) is the first saved sample, the initial state as the suite computes its energy."""
     import pyarrow.parquet as pq
 
     rel = row.get("trajectory") or ""
     path = Path(folder) / rel
     if not rel or path.suffix != ".parquet" or not path.exists():
+        return None
+    if "energy" not in pq.read_schema(path).names:
         return None
     tab = pq.read_table(path, columns=["t", "energy"])
     t = tab.column("t").to_numpy()

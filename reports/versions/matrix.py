@@ -60,6 +60,7 @@ def sub_folder(out: Path, target: Target) -> Path:
 def _run_args(scenarios, target, folder, opts: dict) -> list[str]:
     args = ["-m", "reports.cli", "run", *[str(s.path) for s in scenarios]]
     args += ["--engines", target.engine, "--out", str(folder), "--no-report", "--quiet"]
+    args += ["--trajectories", "full"]  # the versions figures read each run's energy
     if opts.get("integrators"):
         args += ["--integrators", ",".join(opts["integrators"])]
     if opts.get("dts"):
