@@ -61,7 +61,75 @@ def resolve_scenarios(names, all_: bool = False) -> list:
             seen[sc.name] = sc
             out.append(sc)
     check_references(out)
+    check_singular(out)
     return out
+
+
+def check_singular(scs) -> None:
+    """Refuse a system whose loops are at a singular configuration at t = 0 (two branches
+    of the loop meet there, so no motion follows from the state: the director model's
+    Newton iteration found no step and every other engine picks a branch by its own
+    round-off), naming the loop closures
+    (:func:`references.exact.multibody.loops.singular_at`)."""
+    from scenarios.schema import file_error
+
+    for sc in scs:
+        if not getattr(sc, "is_system", False) or not sc.loop_joints:
+            continue
+        from references.exact.multibody import loops
+
+        try:
+            system, q0, _ = loops.system_from_world(sc.bodies, sc.joints, sc.gravity)
+        except ValueError:
+            continue  # the reference says why when it runs
+        rel = loops.singular_at(system, q0)
+        if rel > 0:
+            idx = [i for i, j in enumerate(sc.joints) if j.name in system.closure_joints]
+            field = f"joints[{idx[0]}]" if idx else "joints"
+            rule = (f"the loops are at a singular configuration at t = 0: their rows lose rank "
+                    f"there (directions their rates allow break their second-order condition "
+                    f"by {rel:.3g} relative), two branches of the loop meet and no motion "
+                    f"follows from this state; start off it (loop closures "
+                    f"{', '.join(system.closure_joints)})")  # fmt: skip
+            raise file_error(sc.path, [(field, sc.joints[idx[0]].name if idx else "", rule)])
+
+
+#: a system's reference estimated to take longer than this (s) is announced before the runs
+COST_WARNING_S = 60.0
+
+
+def warn_costs(scs, t_end=None) -> list[str]:
+    """Print (stderr) and return a line for each system whose numerical reference is
+    estimated to take more than :data:`COST_WARNING_S` (a pilot run,
+    :func:`references.engines.exact.system.estimate`), and say when that exceeds the
+    reference's bound (it is then refused at once and the rows have no reference)."""
+    import sys
+
+    from references.engines.exact import system as exact_system
+    from references.exact.multibody.integrate import MAX_WALL
+
+    lines = []
+    for sc in scs:
+        if not getattr(sc, "is_system", False):
+            continue
+        sc2 = sc if t_end is None else sc.replace(t_end=float(t_end))
+        try:
+            got = exact_system.estimate(sc2)
+        except ValueError:
+            continue  # the reference says why when it runs
+        if got is None or got[0] <= COST_WARNING_S:
+            continue
+        est, how = got
+        over = (
+            f"; beyond its bound of {MAX_WALL:g} s it is refused at once and the rows judge "
+            "invariants and joints only"
+            if est > MAX_WALL
+            else ""
+        )
+        lines.append(f"scenario {sc.name!r}: its reference will take about {est:.3g} s "
+                     f"({how}){over}")  # fmt: skip
+        print(f"director-bench: note: {lines[-1]}", file=sys.stderr)
+    return lines
 
 
 def check_references(scs) -> None:
@@ -366,6 +434,7 @@ def run(
     local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
     scs = resolve_scenarios(names, all_scenarios)
     check_engine_settings(scs)
+    warn_costs(scs, t_end)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines, named)
     unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}

@@ -94,8 +94,10 @@ class Metric:
 METRICS: tuple[Metric, ...] = (
     Metric(
         "energy_drift_max", "1",
-        "E_c, the energy in play over the horizon (Scenario.energy_scale, "
-        "SystemScenario.energy_scale), never E0",
+        "E_c, the energy in play over the horizon: the largest kinetic energy the motion can "
+        "reach, never E0 nor energy that cannot change hands (a body on a level slider) "
+        "(Scenario.energy_scale; SystemScenario.energy_scale: T0 + V0 - V_low over the "
+        "configurations the joints allow, scenarios/energy.py)",
         floor=1e-11, title="energy drift [E_c]", short="energy", tolerance=1e-2, system=True,
         series="energy_drift", panel="|E − E₀| / E_c [1]", panel_top=10.0,
         scale_column="energy_scale", scale_unit="J",

@@ -255,23 +255,14 @@ class SystemScenario(RunFields):
 
     @property
     def energy_scale(self) -> float:
-        """E_c (J), never E0 (it depends on where the potential's zero is): the initial
-        kinetic energy plus the potential energy in play: tied to the ground, m_tot |g|
-        times the system's size (:attr:`length_scale`, at least the largest distance from
-        a ground joint to a centre of mass); floating, the translational kinetic energy
-        gravity can give the centre of mass over the horizon, 1/2 m_tot max(|v_c|^2,
-        |v_c + g t_end|^2). 1 J if all of it is 0."""
-        m = self.total_mass
-        g = float(np.linalg.norm(self.gravity))
-        e = self.kinetic_energy0()
-        if self.floating:
-            if g > 0:
-                vc = sum(b.mass * b.velocity for b in self.bodies) / m
-                v1 = vc + self.gravity * self.t_end
-                e += 0.5 * m * max(float(vc @ vc), float(v1 @ v1))
-        else:
-            e += m * g * self.length_scale
-        return e if e > 0 else 1.0
+        """E_c (J), never E0 (its zero is arbitrary): the energy in play, the largest kinetic
+        energy the motion can reach, T0 + V0 - V_low, V_low bounded below over the
+        configurations the joints allow; a part the joints do not hold up adds what gravity
+        can give its centre of mass over the horizon (:func:`scenarios.energy.energy_in_play`).
+        1 J if all of it is 0."""
+        from scenarios.energy import energy_in_play
+
+        return energy_in_play(self)
 
     @property
     def energy_scales(self) -> dict[str, float]:
@@ -452,8 +443,14 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
             params[key] = float(value)
     tolerances = sch._check_tolerances(data.get("tolerances"), bad)
     engine_settings = _engine_settings(data.get("engine_settings"), bad)
+    from scenarios import system_checks as chk
+
     by_joints = _uses_joint_coordinates(data.get("joints"))
     n_probs = len(probs)
+    angles = chk.angle_problems(data.get("joints"), data.get("bodies"))
+    if angles:  # the states and joints are built from these numbers: nothing more to check
+        probs.extend(angles)
+        raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
     bodies = _bodies(data.get("bodies"), bad, by_joints)
     joints = _joints(data.get("joints"), bodies, bad)
     if by_joints and len(probs) == n_probs:
@@ -471,6 +468,10 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         ct.initial_penetrations(
             types.SimpleNamespace(bodies=bodies, planes=planes, contacts=contacts), bad
         )
+    touching = {n for c in contacts for n in (c.a, c.b)}
+    probs.extend(chk.unjoined_problems(bodies, joints, touching))
+    if not probs:
+        probs.extend(chk.step_problems(bodies, good_run["dt"], sweep))
     if probs:
         raise sch.ScenarioError(sch._message(where, probs), path=path, problems=probs)
     sc = SystemScenario(
@@ -642,6 +643,7 @@ def _joints(raw, bodies, bad) -> list[SystemJoint]:
         bad("joints", raw, "must be an array of [[joints]] tables")
         return []
     names = {b.name for b in bodies}
+    known = ", ".join(sorted(names)[:20]) + (" ..." if len(names) > 20 else "")
     out, seen = [], set()
     for i, tab in enumerate(raw):
         p = f"joints[{i}]"
@@ -654,7 +656,6 @@ def _joints(raw, bodies, bad) -> list[SystemJoint]:
         if kind not in JOINT_KINDS:
             bad(f"{p}.kind", kind, f"must be one of {', '.join(JOINT_KINDS)}")
         a, b = good.get("body_a"), good.get("body_b")
-        known = ", ".join(sorted(names))
         if a == "ground":
             bad(
                 f"{p}.body_a",
@@ -846,7 +847,7 @@ def _tree_states(bodies, joints, raw_bodies, raw_joints, bad) -> list[SystemBody
     return out
 
 
-def joint_residuals(bodies, joint, x, R, v=None, W=None) -> dict[str, np.ndarray]:
+def joint_residuals(bodies, joint, x, R, v=None, W=None, index=None) -> dict[str, np.ndarray]:
     """Violations of one joint at a stack of states, each (n,):
 
     ``"gap"`` (m): for a point joint |x_a + R_a anchor_a - x_b - R_b anchor_b|; for a
@@ -860,9 +861,10 @@ def joint_residuals(bodies, joint, x, R, v=None, W=None) -> dict[str, np.ndarray
 
     ``x`` (n, nb, 3), ``R`` (n, nb, 3, 3), ``v`` (n, nb, 3), ``W`` (n, nb, 3, body axes) in
     the order of ``bodies``; the ground is x = 0, R = 1. The one implementation of the
-    joints' rules: the file check and the metrics use it.
+    joints' rules: the file check and the metrics use it. ``index``: {body name: position in
+    ``bodies``}, when the caller has it (one dict for all the joints of a large system).
     """
-    idx = {b.name: i for i, b in enumerate(bodies)}
+    idx = index if index is not None else {b.name: i for i, b in enumerate(bodies)}
     x = np.asarray(x, dtype=float)
     R = np.asarray(R, dtype=float)
     n = x.shape[0]
@@ -920,8 +922,9 @@ def _initial_gaps(bodies, joints, bad) -> None:
         + [float(np.linalg.norm(b.velocity)) for b in bodies]
         + [float(np.linalg.norm(b.omega_body)) * size for b in bodies]
     )
+    index = {b.name: i for i, b in enumerate(bodies)}
     for i, j in enumerate(joints):
-        r = joint_residuals(bodies, j, x, R, v, W)
+        r = joint_residuals(bodies, j, x, R, v, W, index=index)
         if r["gap"][0] > JOINT_TOL:
             bad(f"joints[{i}].anchor_b", j.anchor_b.tolist(), f"joint {j.name!r} is open at "
                 f"t = 0 by {r['gap'][0]:.3g} m (the anchors must coincide to {JOINT_TOL:g} m; "

@@ -52,9 +52,10 @@ def angle_problems(raw_joints, raw_bodies) -> list[tuple]:
     return probs
 
 
-def unjoined_problems(bodies, joints) -> list[tuple]:
-    """(field, value, rule) of each body that no joint names."""
-    named = {j.body_a for j in joints} | {j.body_b for j in joints}
+def unjoined_problems(bodies, joints, touching=()) -> list[tuple]:
+    """(field, value, rule) of each body that no joint names and that is in no contact pair
+    (``touching``: the names of the bodies of the contact pairs)."""
+    named = {j.body_a for j in joints} | {j.body_b for j in joints} | set(touching)
     return [
         (f"bodies[{i}].name", b.name, "this body is joined to nothing: a system's bodies are "
          "joined to each other or to the ground (a body of its own is a single-body "

@@ -107,8 +107,9 @@ def momentum_drift(scenario, traj) -> np.ndarray | None:
 
 def joint_gaps(scenario, traj) -> dict[str, dict[str, np.ndarray]]:
     """Every joint's residuals over time, {joint name: {"gap": m, "angle": rad}}."""
+    index = {b.name: i for i, b in enumerate(scenario.bodies)}
     return {
-        j.name: joint_residuals(scenario.bodies, j, traj.position, traj.rotation)
+        j.name: joint_residuals(scenario.bodies, j, traj.position, traj.rotation, index=index)
         for j in scenario.joints
     }
 

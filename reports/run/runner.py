@@ -625,14 +625,17 @@ def _check_states(sc, dt, horizon, save_every, segment, max_states) -> None:
     """Refuse, before any run, a horizon whose kept states would not fit in memory."""
     if max_states is None:
         return
-    kept = round(horizon / dt) // save_every + 2 + (segment or 0)
+    # a system keeps every body's state: count them as states of one body
+    kept = (round(horizon / dt) // save_every + 2 + (segment or 0)) * len(
+        getattr(sc, "bodies", (None,))
+    )
     if kept > max_states:
         need = kept * BYTES_PER_STATE / 2**30
         have = max_states * BYTES_PER_STATE / 2**30
         raise InputError(
             f"scenario {sc.name!r} at dt = {dt:g} s to t_end = {horizon:g} s keeps {kept:.3g} "
-            f"states (~{need:.3g} GiB), more than a quarter of this machine's memory per worker "
-            f"({have:.3g} GiB): keep fewer with --save-every N (one state in N), and add "
+            f"body states (~{need:.3g} GiB), more than a quarter of this machine's memory per "
+            f"worker ({have:.3g} GiB): keep fewer with --save-every N (one state in N), and add "
             "--segment M to still measure every step (memory O(M))"
         )
 

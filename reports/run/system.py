@@ -70,10 +70,12 @@ def _measure(row, spec, sc, output, out, fmt):
             row["reference_kind"] = ref.kind
             row["reference_accuracy"] = ref.accuracy
             if ref.horizon < traj.t[-1]:
+                why = ref.notes.get("horizon reason") or "chaotic motion"
+                rate = ref.notes.get("growth rate 1/s", math.nan)
                 row["message"] = (
                     f"trajectory errors judged up to the reference's trusted horizon "
-                    f"t = {ref.horizon:.4g} s (chaotic motion); invariants and joints over "
-                    "the whole run"
+                    f"t = {ref.horizon:.4g} s ({why}, growth rate {rate:.4g} 1/s); "
+                    "invariants and joints over the whole run"
                 )
         except Unsupported as exc:
             row["reference_kind"] = "none"

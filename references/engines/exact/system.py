@@ -108,7 +108,8 @@ def _param(scenario, key: str) -> float:
 
 def _closed_form(scenario):
     """The closed form of the scenario's kind, in the scenario's body order: (motion(t) ->
-    (x, R, v, W) in scenario order, accuracy(t) -> dict)."""
+    (x, R, v, W) in scenario order, the :class:`~references.exact.multibody.exact.ExactMotion`
+    itself)."""
     from references.exact._util import ReferenceNotApplicable
     from references.exact.multibody import exact as ex
     from references.exact.multibody import tree_from_world
@@ -134,6 +135,7 @@ def _closed_form(scenario):
                 (b1.mass, b2.mass), (tuple(b1.inertia), tuple(b2.inertia)),
                 (_param(scenario, "l1"), _param(scenario, "l2")), _param(scenario, "L1"),
                 -float(g[2]), _param(scenario, "rate"),
+                int(scenario.reference_params.get("branch", 1)),
             )  # fmt: skip
             names = [b1.name, b2.name]
         elif kind == "four_bar":
@@ -181,7 +183,7 @@ def _closed_form(scenario):
 
     x0, R0, v0, W0 = (a[0] for a in at(np.zeros(1)))
     _check_initial(scenario, x0, R0, v0, W0, f"reference {kind}")
-    return at, motion.accuracy
+    return at, motion
 
 
 #: the scenarios of the cache's keys (content hash -> scenario)
@@ -211,14 +213,52 @@ def _compute(scenario, t) -> SystemReference:
             "judge invariants and joint gaps, not trajectory errors"
         )
     if kind != "numerical":
-        at, accuracy = _closed_form(scenario)
-        x, R, v, W = at(t)
-        acc = accuracy(t)
-        traj = SystemTrajectory(t, x, v, R, W, scenario.body_names)
-        return SystemReference(traj, kind, float(acc["attitude"]), float(acc["position"]),
-                               float(t[-1]), f"closed form ({kind}), references.exact.multibody",
-                               time.perf_counter() - start)  # fmt: skip
+        return _exact(scenario, kind, t, start)
     return _numerical(scenario, t, start)
+
+
+def _exact(scenario, kind, t, start) -> SystemReference:
+    """A closed form with its linear stability (module docstring): on a linearly unstable
+    motion the engines' initial state, delta0 from the closed form's, departs from it at the
+    growth rate, so trajectory errors are judged only while delta0 exp(lambda t) stays within
+    :data:`HORIZON_ATTITUDE` (the tolerance / 10), and the accuracy claimed is that
+    distance at the horizon (or the closed form's round-off, whichever is larger)."""
+    from references.exact.multibody.stability import trusted_horizon
+
+    at, motion = _closed_form(scenario)
+    x, R, v, W = at(t)
+    acc = motion.accuracy(t)
+    traj = SystemTrajectory(t, x, v, R, W, scenario.body_names)
+    horizon, notes = float(t[-1]), {}
+    method = f"closed form ({kind}), references.exact.multibody"
+    stab = motion.stability()
+    if stab is None:
+        method += "; one degree of freedom: errors of the initial state grow linearly"
+    else:
+        top = float(abs(stab.multipliers[0]))
+        notes = {"growth rate 1/s": stab.growth_rate, "largest Floquet multiplier": top,
+                 "period (s)": stab.period}  # fmt: skip
+        if stab.unstable:
+            th = trusted_horizon(stab.growth_rate, motion.delta0, HORIZON_ATTITUDE, t[-1])
+            k = int(np.searchsorted(t, th * (1 + 1e-12), side="right")) - 1
+            horizon = float(t[max(k, 0)])
+            grown = motion.delta0 * float(np.exp(stab.growth_rate * horizon))
+            acc = {"attitude": max(acc["attitude"], grown),
+                   "position": max(acc["position"], grown * scenario.length_scale)}  # fmt: skip
+            method += (
+                f"; linearly unstable: Floquet multiplier {top:.4g} over {stab.period:.4g} s, "
+                f"growth rate {stab.growth_rate:.4g} 1/s; the engines' start, "
+                f"{motion.delta0:.2g} rad from the closed form's, grows to "
+                f"{HORIZON_ATTITUDE:g} rad at t = {th:.4g} s: trusted horizon {horizon:.4g} s "
+                f"of {t[-1]:.4g} s"
+            )
+        else:
+            method += f"; linearly stable (Floquet multipliers |mu| <= {top:.6g} over " + (
+                f"{stab.period:.4g} s)"
+            )
+    notes["horizon reason"] = "linearly unstable" if horizon < t[-1] else ""
+    return SystemReference(traj, kind, float(acc["attitude"]), float(acc["position"]), horizon,
+                           method, time.perf_counter() - start, notes)  # fmt: skip
 
 
 def _numerical(scenario, t, start) -> SystemReference:
@@ -253,7 +293,29 @@ def _numerical(scenario, t, start) -> SystemReference:
     )
     return SystemReference(traj, "numerical", acc, acc_x, float(hz.horizon), method,
                            time.perf_counter() - start,
-                           {"growth rate 1/s": hz.growth_rate})  # fmt: skip
+                           {"growth rate 1/s": hz.growth_rate,
+                            "horizon reason": "chaotic motion"})  # fmt: skip
+
+
+#: the runs of a numerical reference: the solution, its error estimate (10 rtol, halved steps
+#: counted twice, two probes) and the horizon's (one run, three probes)
+REFERENCE_RUNS = 10
+
+
+def estimate(scenario) -> tuple[float, str] | None:
+    """(seconds, how) the scenario's numerical reference would take (a pilot run,
+    :func:`references.exact.multibody.integrate.estimate_cost`), or None for a closed form
+    or no reference."""
+    if reference_kind(scenario) != "numerical":
+        return None
+    from references.exact.multibody.integrate import RTOL, _scales, estimate_cost
+    from references.exact.multibody.loops import rhs_function, system_from_world
+
+    system, q0, u0 = system_from_world(scenario.bodies, scenario.joints, scenario.gravity)
+    scale, wscale = _scales(system.tree, q0, u0)
+    f = rhs_function(system, alpha=wscale)
+    return estimate_cost(f, np.concatenate([q0, u0]), scenario.t_end, RTOL, scale,
+                         REFERENCE_RUNS)  # fmt: skip
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,

@@ -114,6 +114,11 @@ INITIAL_TOL = 1e-11
 
 _SETTINGS = ("solref", "solimp")
 
+#: the deepest nesting of bodies MuJoCo 4.0's MJCF reader takes (measured: a chain of 480
+#: bodies compiles, 500 raises XML_ELEMENT_DEPTH_EXCEEDED; the margin covers the wrapping
+#: elements)
+MJCF_MAX_DEPTH = 480
+
 
 class InconsistentSystem(EngineError):
     """The scenario's initial world states do not satisfy its joints (the residual is named):
@@ -271,10 +276,24 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
                 f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
             )
 
-    def body(c: int, depth: int) -> str:
+    # every body's element from its children's, leaves first (a chain of 2000 bodies nests
+    # 2000 deep: no recursion)
+    depth = {}
+    for c in pl.order:
+        parent = pl.tree[c].parent
+        depth[c] = 2 if parent < 0 else depth[parent] + 1
+    deepest = max(depth.values(), default=2) - 1
+    if deepest > MJCF_MAX_DEPTH:
+        raise Unsupported(
+            f"mujoco: the tree nests {deepest} bodies deep; MuJoCo's MJCF reader (tinyxml2) "
+            f"refuses elements nested deeper than about {MJCF_MAX_DEPTH} bodies "
+            "(XML_ELEMENT_DEPTH_EXCEEDED), and this builder writes MJCF"
+        )
+    text: dict[int, str] = {}
+    for c in reversed(pl.order):
         tj = pl.tree[c]
         b = pl.bodies[c]
-        pad = "  " * depth
+        pad = "  " * depth[c]
         if tj.kind == "free":
             pos, quat = np.asarray(b.position, float), cv.matrix_to_quat_wxyz(tj.R_ref)
             joint = f'<freejoint name="j{c}"/>'
@@ -293,15 +312,15 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
                 f'<inertial pos="0 0 0" quat="1 0 0 0" mass="{float(b.mass)!r}" '
                 f'diaginertia="{_num(b.inertia)}"/>',
                 *sites.get(c, []),
-                *(body(k, depth + 1) for k in children.get(c, [])),
+                *(text.pop(k) for k in children.get(c, [])),
             ]
         )
-        return (
+        text[c] = (
             f'{pad}<body name={quoteattr(str(b.name))} pos="{_num(pos)}" quat="{_num(quat)}" '
             f'gravcomp="0">\n{inner}\n{pad}</body>'
         )
 
-    world = "\n".join([*sites.get(-1, []), *(body(c, 2) for c in children.get(-1, []))])
+    world = "\n".join([*sites.get(-1, []), *(text.pop(c) for c in children.get(-1, []))])
     equality = f"<equality>\n{chr(10).join(eqs)}\n</equality>" if eqs else ""
     return f"""<mujoco model={quoteattr(str(scenario.name))}>
   <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>

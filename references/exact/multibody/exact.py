@@ -96,6 +96,29 @@ class ExactMotion:
         x, R, v, W = self.motion(np.zeros(1))
         return x[0], R[0], v[0], W[0]
 
+    #: the distance (rad) of an engine's initial state from this motion: the file's rounding
+    #: to 17 digits, a few eps (the conical pendulum adds its balance's residual)
+    @property
+    def delta0(self) -> float:
+        return 16.0 * EPS
+
+    def stability(self):
+        """The motion's :class:`~.stability.Floquet` multipliers, or None where errors grow
+        at most linearly (a motion with one degree of freedom: a periodic orbit of a
+        conservative system in the plane has the multipliers 1, 1)."""
+        return None
+
+    def _floquet_rotating(self, tree, rate: float):
+        """Floquet multipliers of a relative equilibrium rotating at ``rate`` (rad/s), over
+        two turns: after one turn a quaternion of the world attitude has changed sign (the
+        chart, not the motion), after two it is back."""
+        from references.exact.multibody.stability import floquet
+
+        if rate == 0:
+            return None
+        q0, u0 = tree.to_joint(*self.initial)
+        return floquet(tree, q0, u0, 4.0 * math.pi / abs(rate))
+
 
 def _rate_accuracy(rate: float, t, radius: float, xmax: float) -> dict:
     tmax = float(np.max(np.abs(t)))
@@ -164,6 +187,9 @@ class SpinningChain(ExactMotion):
         W[:, :, self.axis] = self.rate
         return x, R, v, W
 
+    def stability(self):
+        return self._floquet_rotating(self.tree, self.rate)
+
     def accuracy(self, t) -> dict:
         x, *_ = self.motion(np.atleast_1d(t)[-1:])
         radius = float(np.max(np.linalg.norm(self.r0, axis=1)))
@@ -202,9 +228,14 @@ class DoubleConicalPendulum(ExactMotion):
     along -e_z); ``rate`` Omega (rad/s). Attributes: ``phi`` (2,) the angles from the
     downward vertical (rad), ``residual`` (the balance equations' residual relative to their
     largest term), ``tree`` (the system as a :class:`Tree`), ``q0``, ``u0`` (its joint state).
+    ``branch`` +1: both links tilted to one side (0 < phi_i < pi/2); -1: link 2 tilted to the
+    other side of the vertical (phi_2 in (-pi/2, 0), its centre of mass across the axis).
     Raises :class:`ReferenceNotApplicable` when the rate is too slow for that branch."""
 
-    def __init__(self, m, J, l, L1, g, rate):
+    def __init__(self, m, J, l, L1, g, rate, branch: int = 1):
+        if branch not in (1, -1):
+            raise ValueError(f"double conical pendulum: branch {branch!r} must be 1 or -1")
+        self.branch = int(branch)
         self.m = np.asarray(m, dtype=float)
         self.J = np.asarray(J, dtype=float)
         self.l = np.asarray(l, dtype=float)
@@ -250,10 +281,36 @@ class DoubleConicalPendulum(ExactMotion):
             lambda p2: self._balance((phi1, p2))[1], 0.0, 0.5 * math.pi, xtol=1e-16, rtol=4 * EPS
         )
 
+    def _solve_opposite(self) -> np.ndarray:
+        """Branch -1: phi1 in (0, pi/2), phi2 in (-pi/2, 0). It exists above the frequency of
+        the double pendulum's second mode of small swings (8 rad/s on the library's links,
+        not 7): Newton (scipy's fsolve) from a grid over the quadrant, the root whose
+        balance residual is smallest."""
+        from scipy.optimize import fsolve
+
+        best, best_res = None, math.inf
+        for a in np.linspace(0.05, 1.5, 15):
+            for b in np.linspace(-1.5, -0.05, 15):
+                r, _, ier, _ = fsolve(self._balance, [a, b], full_output=True, xtol=1e-15)
+                if ier != 1 or not (0 < r[0] < 0.5 * math.pi and -0.5 * math.pi < r[1] < 0):
+                    continue
+                res = float(np.max(np.abs(self._balance(r))))
+                if res < best_res:
+                    best, best_res = r, res
+        if best is None:
+            raise ReferenceNotApplicable(
+                f"double conical pendulum: at rate {self.rate} rad/s there is no steady "
+                "rotation with the links on opposite sides of the vertical (it exists above "
+                "the frequency of the second mode of small swings)"
+            )
+        return np.asarray(best, dtype=float)
+
     def _solve(self) -> np.ndarray:
         """Both angles in (0, pi/2): the first balance equation with phi2 = phi2(phi1) is
         > 0 at phi1 = pi/2 (|g| (m1 l1 + m2 L1)) and < 0 just above 0 when the rate exceeds
         the lowest frequency of small swings; bracketed and solved by Brent's method."""
+        if self.branch == -1:
+            return self._solve_opposite()
         lo, hi = 1e-6, 0.5 * math.pi - 1e-9
         if self._balance((lo, self._phi2(lo)))[0] >= 0:
             raise ReferenceNotApplicable(
@@ -289,6 +346,13 @@ class DoubleConicalPendulum(ExactMotion):
         v = self.rate * np.cross(ez, x)
         W = np.broadcast_to(self.rate * np.einsum("bji,j->bi", self.R0, ez), x.shape).copy()
         return x, R, v, W
+
+    @property
+    def delta0(self) -> float:
+        return 16.0 * EPS + self.residual
+
+    def stability(self):
+        return self._floquet_rotating(self.tree, self.rate)
 
     def accuracy(self, t) -> dict:
         radius = float(np.max(np.linalg.norm(self.x0[:, :2], axis=1)))

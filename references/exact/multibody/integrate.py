@@ -152,6 +152,42 @@ def _run(f, y0, t, rtol, scale, max_step, max_steps, deadline, label):
     return out, nstep, solver.nfev
 
 
+#: the pilot that estimates a run's cost: at most this many steps and this wall time (s)
+PILOT_STEPS = 40
+PILOT_WALL = 3.0
+#: the fewest steps any run takes (a pilot that cannot finish one step assumes this many)
+MIN_STEPS = 100
+
+
+def estimate_cost(f, y0, t_end, rtol, scale, runs: int) -> tuple[float, str]:
+    """(seconds, how): the wall time of ``runs`` DOP853 runs of ``f`` from ``y0`` to
+    ``t_end``, extrapolated from a pilot run (at most :data:`PILOT_STEPS` steps or
+    :data:`PILOT_WALL` s): its wall time per unit of simulated time, times ``t_end``; a
+    pilot that cannot take one step in its wall time gives the cost of :data:`MIN_STEPS`
+    steps of 12 evaluations at the time of one."""
+    f(0.0, y0)  # compiled code is loaded (or compiled) by the first call
+    t1 = time.perf_counter()
+    f(0.0, y0)
+    t_eval = time.perf_counter() - t1
+    if t_eval * 12 > PILOT_WALL:
+        est = runs * MIN_STEPS * 12 * t_eval
+        return est, (f"{t_eval:.3g} s per evaluation of the equations of motion, at least "
+                     f"{MIN_STEPS} steps of 12 evaluations per run, {runs} runs")  # fmt: skip
+    solver = DOP853(f, 0.0, y0, float(t_end), rtol=rtol, atol=rtol * scale)
+    n = 0
+    start = time.perf_counter()
+    while solver.status == "running" and n < PILOT_STEPS:
+        solver.step()
+        n += 1
+        if time.perf_counter() - start > PILOT_WALL:
+            break
+    wall = time.perf_counter() - start
+    done = max(float(solver.t), 1e-300)
+    est = runs * wall * float(t_end) / done
+    return est, (f"a pilot of {n} steps reached t = {done:.3g} s in {wall:.3g} s; "
+                 f"{runs} runs to t = {float(t_end):.6g} s")  # fmt: skip
+
+
 def _world(tree, Y):
     """Per-body world states of the joint states Y (n, ny)."""
     n = len(Y)
@@ -226,6 +262,15 @@ def solve(
         f = loops.rhs_function(system, alpha=wscale)
     else:
         f = rhs_function(tree)
+    if math.isfinite(max_wall) and t[-1] > 0:
+        runs = 1 + (3 + probes if estimate else 0)
+        est, how = estimate_cost(f, y0, float(t[-1]), rtol, scale, runs)
+        if est > max_wall:
+            raise ReferenceCostExceeded(
+                f"multibody reference: estimated {est:.3g} s ({how}), beyond its bound "
+                f"max_wall = {max_wall:g} s: refused before running (shorten t_end, or a "
+                "system this large has no reference here)"
+            )
     Y, nstep, nfev = _run(f, y0, t, rtol, scale, np.inf, max_steps, deadline, "rtol")
     main = _world(tree, Y)
     acc_t: dict = {}

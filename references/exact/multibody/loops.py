@@ -537,6 +537,49 @@ def project_rates(system: LoopSystem, q, du) -> np.ndarray:
     return du - np.linalg.pinv(J, rcond=RANK_TOL) @ (J @ du)
 
 
+#: a configuration is singular when some direction the rows' rates allow violates their
+#: second-order condition (w . b(q, delta) for w in the left null space of J) by more than this
+#: relative to the rows' velocity-product accelerations along the allowed directions
+SECOND_ORDER_TOL = 1e-8
+
+
+def singular_at(system: LoopSystem, q, samples: int = 8, seed: int = 0) -> float:
+    """0 at a regular configuration of the loops, else the largest relative violation of the
+    rows' second-order condition over ``samples`` random directions of the null space of
+    J(q) (the rows' rates allow them): where the rows lose rank at a point of a smooth
+    family of configurations (redundant rows, Bricard's loop), every allowed direction keeps
+    w . b(q, delta) = 0 for w with w^T J = 0; where two branches meet (the four-bar with all
+    links on one line), most allowed directions do not, since only the branches' tangents
+    lead anywhere."""
+    if not system.nc:
+        return 0.0
+    tree = system.tree
+    q = np.ascontiguousarray(q, dtype=float)
+    _, _, R, x, v, S, a = _kin(system, q, np.zeros(tree.nu))
+    _, J, _ = _rows(system, R, x, v, S, a, tree.gravity)
+    U, s, Vt = np.linalg.svd(J)
+    if not s.size or not s[0] > 0:
+        return 0.0
+    rank = int(np.count_nonzero(s > RANK_TOL * s[0]))
+    left = U[:, rank:]  # w with w^T J = 0
+    null = Vt[rank:].T  # delta with J delta = 0
+    if not left.shape[1] or not null.shape[1]:
+        return 0.0
+    rng = np.random.default_rng(seed)
+    worst, size = 0.0, 0.0
+    for _ in range(samples):
+        d = null @ rng.standard_normal(null.shape[1])
+        d /= np.linalg.norm(d)
+        _, _, R, x, v, S, a = _kin(system, q, d)
+        _, _, b = _rows(system, R, x, v, S, a, tree.gravity, want_jac=False)
+        size = max(size, float(np.max(np.abs(b))))
+        worst = max(worst, float(np.max(np.abs(left.T @ b))))
+    if not size > 0:
+        return 0.0
+    rel = worst / size
+    return rel if rel > SECOND_ORDER_TOL else 0.0
+
+
 def constraint_residual_max(system: LoopSystem, Q) -> float:
     """The largest row residual over the joint states Q (n, nq) (m for point and line rows,
     the cosine of the axes' angle error for the others)."""
@@ -555,6 +598,7 @@ __all__ = [
     "project_rates",
     "residuals",
     "rhs_function",
+    "singular_at",
     "system_from_world",
     "velocity_residuals",
 ]
