@@ -141,8 +141,10 @@ def test_report_opens_with_the_verdict(folder):
     contents = md.split("## Scorecard")[0]
     assert "**Contents:**" in contents and "(#cone_top)" in contents
     assert "pinocchio + suite RKMK4" in md
-    # the divergence, with its time, and the configuration with its cost
-    assert re.search(r"💥 diverged at t = 0\.\d+ s — mujoco Euler \([\d.]+ µs\)", md)
+    # the divergence, with its time, and the configuration with its cost, in its scenario's
+    # table of verdicts
+    row = next(ln for ln in md.split("### cone_top")[1].splitlines() if "mujoco Euler" in ln)
+    assert re.search(r"💥 diverged at t = 0\.\d+ s \| - \| - \| [\d.]+ \|$", row), row
     # the energy-momentum scheme's note, where it runs
     assert "director-form energy" in md and "constraint_velocity_max" in md
     html = (folder / "report.html").read_text()
@@ -192,6 +194,51 @@ def _cells(line: str) -> int:
     return len(re.findall(r"(?<!\\)\|", line)) - 1
 
 
+#: GitHub's rendering of a Markdown file (github-markdown-css): a page of 1012 px less 2 x 32 px
+#: of padding, 16 px text, cells padded 13 px either side with a 1 px border
+GITHUB_WIDTH_PX, CELL_PAD_PX, CHAR_PX = 1012 - 64, 2 * 13 + 1, 9.0
+
+
+def _text_width(cell_html: str) -> float:
+    """An upper bound on the width of a rendered cell's text, 9 px per character (16 px
+    Helvetica/Arial averages about 7.5 px for lower case and digits, 10-11 px for capitals)."""
+    text = html.unescape(re.sub(r"<[^>]+>", "", cell_html))
+    return CHAR_PX * len(text)
+
+
+def test_report_md_opens_with_a_verdict_that_fits_on_github(folder, df):
+    """report.md as GitHub renders it (cmark-gfm): the first table is the verdict, before any
+    figure or collapsed part, at most six columns whose widest cells fit GitHub's page without
+    a line wrapping; everything after it but the section headings is collapsed (<details>)."""
+    cmarkgfm = pytest.importorskip("cmarkgfm", reason="pip install cmarkgfm (test extras)")
+    from cmarkgfm.cmark import Options
+
+    md = (folder / "report.md").read_text()
+    page = cmarkgfm.github_flavored_markdown_to_html(md, options=Options.CMARK_OPT_UNSAFE)
+    first = page.index("<table>")
+    assert "<img" not in page[:first] and "<details>" not in page[:first]
+    table = page[first : page.index("</table>") + 8]
+    rows = re.findall(r"<tr>(.*?)</tr>", table, flags=re.S)
+    cells = [re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", r, flags=re.S) for r in rows]
+    assert cells[0] == ["scenario", "pass", "fail", "diverged", "not judged", "not run"]
+    assert len(rows) == 1 + df["scenario"].nunique() + 1  # a row per scenario, the totals
+    widths = [max(_text_width(r[k]) for r in cells) + CELL_PAD_PX for k in range(len(cells[0]))]
+    assert sum(widths) <= GITHUB_WIDTH_PX, widths
+    # the counts add up: every configuration at each scenario's own step, reference aside
+    total = cells[-1][1:]
+    own = [
+        r
+        for _, r in df.iterrows()
+        if r["engine"] != "exact"
+        and r["dt"] == {"cone_top": 1e-3, "free_tumbling": 1e-3}[r["scenario"]]
+    ]
+    assert sum(int(re.sub(r"\D", "", c) or 0) for c in total) == len(own)
+    # after the verdict: headings, and collapsed parts
+    rest = re.sub(r"<details>.*?</details>", "", page[first + len(table) :], flags=re.S)
+    rest = re.sub(r"<h[23][^>]*>.*?</h[23]>", "", rest, flags=re.S)
+    assert "<table>" not in rest and "<img" not in rest, rest[:500]
+
+
 def test_markdown_tables_render_as_tables(folder):
     """GitHub's own parser (cmark-gfm) turns every table of report.md into a table: as many
     <table> elements as delimiter rows, and every row with as many cells as its header (an
@@ -199,7 +246,7 @@ def test_markdown_tables_render_as_tables(folder):
     cmarkgfm = pytest.importorskip("cmarkgfm", reason="pip install cmarkgfm (test extras)")
     md = (folder / "report.md").read_text()
     lines = md.splitlines()
-    delims = [i for i, ln in enumerate(lines) if re.fullmatch(r"\|(---\|)+", ln)]
+    delims = [i for i, ln in enumerate(lines) if re.fullmatch(r"\|((---|--:)\|)+", ln)]
     assert len(delims) >= 8
     for i in delims:
         n = _cells(lines[i - 1])
@@ -232,7 +279,7 @@ def test_scorecard_goes_to_the_ci_job_summary(folder, tmp_path, monkeypatch):
     build_report(folder)
     text = target.read_text()
     assert text.startswith("earlier step\n")  # appended, not overwritten
-    assert "## director-bench scorecard" in text and "| scenario |" in text
+    assert "## director-bench verdicts" in text and "| scenario | pass | fail |" in text
 
 
 def test_figures_are_reused_when_nothing_changed(folder):
@@ -367,11 +414,17 @@ def test_scorecard_names_every_configuration_with_its_cost(folder, df):
     and its time inside the engine per step (µs); the key to the figures (E among them) is
     above the table and in a tooltip; failing metrics are visible text, not only a title."""
     md = (folder / "report.md").read_text()
-    card = md.split("## Scorecard")[1].split("## Work precision")[0]
-    assert card.index("**E**:") < card.index("| scenario |")  # the key above the table
-    lie = [ln for ln in card.splitlines() if ln.startswith("| [cone_top]")][0]
-    for name in ("mujoco RK4", "pinocchio + suite RKMK4", "director rattle4", "mujoco Euler"):
-        assert re.search(re.escape(name) + r" \([\d.e-]+ µs\)", lie), name
+    cone = md.split("### cone_top")[1].split("### ")[0]
+    table = [ln for ln in cone.splitlines() if ln.startswith("| ")]
+    assert table[0] == (
+        "| family | configurations | verdict | attitude [rad] | energy | engine µs/step |"
+    )
+    lie = next(ln for ln in table if ln.startswith("| 4th-order Lie-group |"))
+    names, costs = lie.split(" | ")[1], lie.split(" | ")[-1].rstrip(" |")
+    assert names.split("<br>") == ["mujoco RK4", "pinocchio + suite RKMK4"]
+    assert all(re.fullmatch(r"[\d.e-]+", c) for c in costs.split("<br>")), costs
+    for name in ("director rattle4", "mujoco Euler"):
+        assert any(name in ln for ln in table), name
     html = (folder / "report.html").read_text()
     top = html.split("id='scorecard'")[1].split("id='work-precision'")[0]
     assert top.index("class='legend'") < top.index("<table class='scorecard")
@@ -623,15 +676,18 @@ def test_a_rates_figure_of_the_reference_alone_is_a_sentence_instead(folder, df,
 
 
 def test_report_html_shows_key_figures_with_hover_and_alt_text(folder):
-    """Without a click: the scorecard picture and, per scenario, its picture, errors and
-    work-precision figures (outside any <details>); every embedded image has an alt text that
-    describes it (not a file name) and the line figures carry their hover data."""
+    """Without a click: per scenario, its picture, errors and work-precision figures
+    (outside any <details>); the scorecard picture, whose text a narrow screen shrinks
+    beyond reading, one click away (the verdict table and the scorecard table are in view);
+    every embedded image has an alt text that describes it (not a file name) and the line
+    figures carry their hover data."""
     import html as htmlmod
 
     page = (folder / "report.html").read_text()
     visible = re.sub(r"<details.*?</details>", "", page, flags=re.S)
-    for kind in ("scorecard", "scenario", "errors", "work_precision"):
+    for kind in ("scenario", "errors", "work_precision"):
         assert f"class='fig k-{kind}'" in visible, kind
+    assert "class='fig k-scorecard'" not in visible and "class='fig k-scorecard'" in page
     alts = [htmlmod.unescape(a) for a in re.findall(r"<img alt='([^']*)'", page)]
     # the scorecard and 9 figures (free_tumbling's rates figure is a sentence instead)
     assert len(alts) == page.count("<img ") >= 10

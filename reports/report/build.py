@@ -28,6 +28,7 @@ environment variable ``GITHUB_STEP_SUMMARY`` names a file, appended to it.
 from __future__ import annotations
 
 import base64
+import contextlib
 import html
 import json
 import math
@@ -193,7 +194,11 @@ class Doc:
         cells = [[c if isinstance(c, Cell) else Cell(c) for c in r] for r in rows]
         md = [f"**{md_cell(title)}**", ""] if title else []
         md.append("| " + " | ".join(h.to_md() for h in heads) + " |")
-        md.append("|" + "|".join("---" for _ in heads) + "|")
+        # a column of numbers right-aligned, as in HTML
+        right = [
+            bool(cells) and all(r[k].num for r in cells if k < len(r)) for k in range(len(heads))
+        ]
+        md.append("|" + "|".join("--:" if a else "---" for a in right) + "|")
         md += ["| " + " | ".join(c.to_md() for c in r) + " |" for r in cells]
         self.md.append("\n".join(md) + "\n")
         head = "".join(f"<th>{h.to_html()}</th>" for h in heads)
@@ -243,6 +248,24 @@ class Doc:
 
     def raw_html(self, text: str) -> None:
         self.html.append(text)
+
+    def md_details(self, summary: str) -> None:
+        """A collapsible section of report.md only (GitHub renders ``<details>``): the
+        HTML report shows the same part open, or collapses it its own way."""
+        self.md.append(f"<details><summary>{html.escape(summary)}</summary>\n")
+
+    def md_end(self) -> None:
+        self.md.append("</details>\n")
+
+    @contextlib.contextmanager
+    def only(self, side: str):
+        """Write what the block writes to one side only: ``md`` (report.md) or ``html``."""
+        keep_md, keep_html = len(self.md), len(self.html)
+        yield self
+        if side == "md":
+            del self.html[keep_html:]
+        else:
+            del self.md[keep_md:]
 
 
 def figure_html(p: Path, alt: str = "") -> str:
@@ -461,6 +484,62 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
         doc.para("**energy_momentum:** " + ENERGY_MOMENTUM_NOTE, html.escape(ENERGY_MOMENTUM_NOTE))
 
 
+def verdict_section(doc: Doc, df, card, links: bool = True) -> None:
+    """The verdict first (reports.report.verdict): per scenario, its configurations by
+    outcome at its own step, and the totals; six columns of short cells."""
+    from reports.report.verdict import COLUMNS, LEGEND, totals, verdict_rows
+
+    rows = verdict_rows(df, card)
+    body = []
+    for r in rows:
+        name = scenario_link(r["scenario"]) if links else Cell(r["scenario"])
+        cells = [name]
+        for c in COLUMNS:
+            cls = {"pass": "v-pass", "fail": "v-fail", "diverged": "v-diverged"}.get(c, "")
+            cells.append(Cell(str(r[c]) if r[c] else "·", num=True, cls=cls if r[c] else ""))
+        body.append(cells)
+    tot = totals(rows)
+    body.append(
+        [Cell(f"all {len(rows)}", md=f"**all {len(rows)}**", html_=f"<b>all {len(rows)}</b>")]
+        + [Cell(str(tot[c]), md=f"**{tot[c]}**", num=True) for c in COLUMNS]
+    )
+    doc.table(
+        "Configurations by verdict at each scenario's own step (the other steps of each dt "
+        "sweep: in its section)", ["scenario", *COLUMNS], body, cls="verdict",
+    )  # fmt: skip
+    doc.para(LEGEND, re.sub(r"\*([^*]+)\*", r"<i>\1</i>", html.escape(LEGEND)), cls="hint")
+
+
+def scenario_verdicts(doc: Doc, s: dict) -> None:
+    """report.md's scorecard of one scenario (``s``, an entry of
+    :func:`reports.report.tables.scorecard`): a row per group of configurations that agree,
+    six columns (the HTML report has the scorecard of every scenario instead)."""
+    header = ["family", "configurations", "verdict", "attitude [rad]", "energy", "engine µs/step"]
+    body = []
+    for fam in sorted(s["cells"], key=family_key):
+        for g in s["cells"][fam]:
+            out, who, figs, failing = entry_texts(g)
+            verdict = f"{SYMBOL.get(out, '')} {out}" + (f": {failing}" if failing else "")
+            if out in ("pass", "fail"):
+                fr = g.figure_row()
+                att, energy = fmt_attitude(fr), fmt(fr["energy_drift_max"])
+            else:
+                verdict += figs[0].removeprefix("diverged") if out == "diverged" else ""
+                att = energy = "-"
+            body.append(
+                [
+                    fam,
+                    Cell(md="<br>".join(md_cell(n) for n, _ in who)),
+                    verdict,
+                    num(None, att),
+                    num(None, energy),
+                    Cell(md="<br>".join(md_cell(c.removesuffix(" µs")) for _, c in who), num=True),
+                ]
+            )
+    where = f"dt = {fmt_step(s['dt'])} s, t_end = {fmt_step(s['t_end'])} s"
+    doc.table(f"{s['scenario']}: verdicts at {where}", header, body)
+
+
 def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
     """The scorecard as one picture, with where its files are (to paste into a README or a
     pull request)."""
@@ -475,12 +554,14 @@ def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
         "error, the time inside the engine per step and the failing metrics."
     )
     names = " and ".join(f"`{p.relative_to(root).as_posix()}`" for p in paths)
+    doc.open_details("The scorecard as one picture, for a README or a pull request")
     text = (
-        f"The scorecard as one picture ({names} in this folder, for a README or a pull "
-        "request); the table below has every configuration's figures."
+        f"{names} in this folder; the table below has every configuration's figures, each "
+        "scenario's section below its tables and figures."
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)), cls="hint")
     doc.images(png, root, cls="plots card", alts={png[0]: card_alt})
+    doc.close_details()
 
 
 def wp_cell(entry, winner: bool) -> tuple[str, str]:
@@ -576,16 +657,9 @@ def _finer_sweep_note(df) -> str:
 
 def failures_section(doc: Doc, df) -> None:
     fails = failures(df)
-    header = [
-        "scenario",
-        "dt [s]",
-        "family",
-        "configurations",
-        "outcome",
-        "t diverged [s]",
-        "what failed",
-        "engines agree to",
-    ]
+    # five columns (the step under the scenario, the time of divergence in the outcome), so
+    # that the table reads on GitHub and on a narrow screen
+    header = ["scenario, step [s]", "configurations", "outcome", "what failed", "engines agree to"]
 
     def rows_of(items):
         out = []
@@ -593,19 +667,22 @@ def failures_section(doc: Doc, df) -> None:
             g = f["group"]
             r = g.first
             what = r["verdict_detail"] if r["status"] == "ok" else r["message"]
-            if r["status"] == "diverged":
-                what = r["message"]
             step = fmt_step(f["dt"])
             if not math.isnan(f["target_accuracy"]):
                 step += f" (tol {fmt_level(f['target_accuracy'])})"
+            a = anchor(f["scenario"])
+            name = html.escape(f["scenario"]).replace("_", "_<wbr>")
+            outcome = g.outcome
+            if outcome == "diverged":
+                outcome += f" at t = {fmt(g.value('t_diverged'))} s"
             out.append(
                 [
-                    scenario_link(f["scenario"]),
-                    num(None, step),
-                    r["family"],
+                    Cell(
+                        md=f"[{md_cell(f['scenario'])}](#{a})<br>dt {step}",
+                        html_=f"<a href='#{a}'>{name}</a><br><small>dt {html.escape(step)}</small>",
+                    ),
                     g.label,
-                    Cell(g.outcome, cls=f"v-{g.outcome}"),
-                    num(g.value("t_diverged")),
+                    Cell(outcome, cls=f"v-{g.outcome}"),
                     _readable_detail(what),
                     num(None, _agree(g)),
                 ]
@@ -784,25 +861,35 @@ def _kind(p: Path) -> str:
     return p.stem.rsplit("__", 1)[-1]
 
 
-def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
+def details_section(doc: Doc, df, plots: dict, root: Path, card=None) -> None:
     """Per scenario: its facts and key figures in view (:data:`KEY_FIGURES`), then, collapsed
-    in HTML, its tables and the other figures."""
+    in HTML, its tables and the other figures; in report.md the whole of it collapsed under
+    its heading, its verdicts first (:func:`scenario_verdicts`)."""
     doc.heading(2, "Details")
     cache = SeriesCache(root)
+    from reports.report.verdict import COLUMNS, verdict_rows
+
+    card = card or scorecard(df)
+    by_name = {s["scenario"]: s for s in card}
+    verdicts = {r["scenario"]: {c: r[c] for c in COLUMNS} for r in verdict_rows(df, card)}
     for scenario in scenarios_of(df):
         sub = df[df["scenario"] == scenario]
         info = scenario_info(sub)
         rows = at_scenario_dt(sub)
-        counts = rows[~rows["status"].isin(NOT_RUN)]
-        n_pass = int((counts["verdict"] == "pass").sum())
-        n_bad = int(((counts["verdict"] == "fail") | (counts["status"] == "error")).sum())
+        counts = ", ".join(f"{n} {c}" for c, n in verdicts[scenario].items() if n)
+        where = f"dt {fmt_step(info['dt'])} s, t_end {fmt_step(info['t_end'])} s"
         sid = anchor(scenario)
         doc.raw_html(
             f"<section class='scenario' id='{html.escape(sid)}'><h3>{html.escape(scenario)}</h3>"
-            f" <span class='counts'>{n_pass} pass, {n_bad} fail or error at dt "
-            f"{fmt_step(info['dt'])} s</span>"
+            f" <span class='counts'>{html.escape(counts)} at {where}</span>"
         )
         doc.md.append(f"### {scenario}\n")
+        doc.md_details(
+            f"{counts} at {where}: the verdict of each configuration, figures, the dt sweep, "
+            "the cheapest configuration per accuracy"
+        )
+        with doc.only("md"):
+            scenario_verdicts(doc, by_name[scenario])
         ref = (
             f"reference: {info['reference_kind']} (accuracy {fmt(info['reference_accuracy'])} rad)"
             if info["reference_kind"]
@@ -844,6 +931,7 @@ def details_section(doc: Doc, df, plots: dict, root: Path) -> None:
                 doc.para(note)
         doc.images(rest, root)
         doc.close_details(md=False)
+        doc.md_end()
         doc.raw_html("</section>")
 
 
@@ -921,6 +1009,8 @@ abbr{text-decoration:underline dotted;cursor:help}
 .v-error{background:#fef7e0} a.v-error{border-left-color:#b06000}
 .v-reference-inaccurate{background:#eceff1} a.v-reference-inaccurate{border-left-color:#607d8b}
 td.win{background:#eef6ee} small.win{font-weight:600}
+table.verdict{font-size:14px} table.verdict td.num{min-width:3.2em}
+table.verdict tr:last-child td{border-top:2px solid #8c959f}
 td.nums{text-align:right;font-variant-numeric:tabular-nums} td.nums span{white-space:nowrap}
 span[class^=v-]{padding:0 4px;border-radius:3px}
 details{margin:6px 0} details>summary{cursor:pointer;padding:4px 0;color:#0b57d0}
@@ -1016,22 +1106,30 @@ def document(
     doc.html.append(toc_html)
     if len(df):
         card = scorecard(df) if card is None else card
+        verdict_section(doc, df, card)  # the first screen, in both reports
         doc.heading(2, "Scorecard")
         scorecard_picture(doc, [Path(p) for p in card_figures], root, df)
-        scorecard_section(doc, df, card)
+        with doc.only("html"):  # report.md: each scenario's verdicts, in its section
+            scorecard_section(doc, df, card)
         contact_section(doc, df)
         doc.heading(2, "Work precision")
+        doc.md_details("The cheapest configuration of each engine per accuracy, per scenario")
         work_precision_section(doc, df)
+        doc.md_end()
         doc.heading(2, "Failures and divergences")
+        doc.md_details(_failures_summary(df))
         failures_section(doc, df)
-        details_section(doc, df, plots, root)
+        doc.md_end()
+        details_section(doc, df, plots, root, card)
     if edf is not None:
         ensemble_section(doc, edf, root)
     if has_settings:
         settings_section(doc, df)
     doc.heading(2, "Provenance")
     if prov:
+        doc.md_details("Versions, commit, date and machine of the runs")
         doc.table("Provenance of the runs", ["item", "value"], provenance_rows(prov))
+        doc.md_end()
     else:
         doc.para("This folder has no provenance.json (written by `director-bench run`).")
     md = "\n".join(doc.md)
@@ -1044,14 +1142,24 @@ def document(
     return md, page
 
 
+def _failures_summary(df) -> str:
+    fails = failures(df)
+    own = sum(1 for f in fails if f["own_dt"])
+    return (
+        f"{own} group(s) of configurations failing, diverging or in error at each "
+        f"scenario's own step, {len(fails) - own} at the other steps of the dt sweeps; the "
+        "runs that did not run"
+    )
+
+
 def step_summary(df, card=None) -> str:
-    """The scorecard as Markdown for a CI job summary (no links: the details are elsewhere);
+    """The verdicts as Markdown for a CI job summary (no links: the details are elsewhere);
     ``card`` as for :func:`document`."""
     doc = Doc()
-    doc.md.append("## director-bench scorecard\n")
+    doc.md.append("## director-bench verdicts\n")
     doc.para(count_line(df))
     if len(df):
-        scorecard_section(doc, df, scorecard(df) if card is None else card, links=False)
+        verdict_section(doc, df, scorecard(df) if card is None else card, links=False)
     return "\n".join(doc.md)
 
 
