@@ -191,8 +191,10 @@ def test_unknown_library_name_lists_the_library():
         ("dzhanibekow", "(did you mean 'dzhanibekov'?)"),
         ("Heavy_Top", "(did you mean 'heavy_top'?)"),
         ("four-bar", "(did you mean 'four_bar'?)"),
-        ("double_pendulum",
-         "(did you mean 'double_pendulum_3d' or 'conical_pendulum' or 'conical_pendulum_fast'?)"),
+        (
+            "double_pendulum",
+            "(did you mean 'double_pendulum_3d' or 'conical_pendulum' or 'conical_pendulum_fast'?)",
+        ),
         ("xyz", None),
     ],
 )

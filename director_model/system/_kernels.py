@@ -95,6 +95,17 @@ QUAT_SHRINK = 2.0**-64
 #: sigma ~ 1e-16 sigma_1; a configuration 1e-12 away from a singular one keeps its direction,
 #: so Newton still closes the constraints there)
 SOLVE_TOL = 1e-14
+#: the pivoted factorisations (complete-pivoting LU of the Newton matrix, diagonally pivoted
+#: L D L^T of the velocity stage's) reveal the rank by their pivots; where the last kept pivot
+#: falls below PIVOT_CHECK times the first (a configuration near a singular one, where rank
+#: and null space are no longer plain to see) the matrix is decomposed by SVD instead, as
+#: every matrix was before (about 1/7 of the cost of a 20 x 20 SVD on the four-bar)
+PIVOT_CHECK = 1e-8
+#: ``minnorm`` modes of the kernel: 0 block or banded, 1 pivoted with the SVD where a pivot
+#: ratio drops, 2 the SVD at every solve (the ``svd`` solver: the former minnorm, kept to
+#: compare)
+MODE_PIVOTED = 1
+MODE_SVD = 2
 
 OK = 0
 FAIL_NEWTON = 1  # the joint multipliers did not converge
@@ -518,6 +529,163 @@ def _svd_solve(U, s, Vt, rank, b, x):
 
 
 @njit(forceinline=True)
+def _copy2(A, B):
+    """B[:] = A for square arrays (loops: see the module docstring on slice stores)."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(n):
+            B[i, j] = A[i, j]
+
+
+@njit
+def _lucp_factor(A, pr, pc, rank_tol, out):
+    """In-place LU with complete pivoting of the square A: rows and columns permuted so that
+    each pivot is the largest remaining entry, A = P^T L U Q^T (pr[k], pc[k]: the original row
+    and column at position k; L unit lower, U upper, in A). Stops at the first pivot below
+    rank_tol times the first: returns that rank; out[0] = the last kept pivot over the first
+    (1 for rank 0), the rank-revealing ratio checked against PIVOT_CHECK. Returns -1 if A is
+    not finite."""
+    n = A.shape[0]
+    for i in range(n):
+        pr[i] = i
+        pc[i] = i
+        for j in range(n):
+            if not abs(A[i, j]) < math.inf:
+                return -1
+    first = 0.0
+    rank = n
+    out[0] = 1.0
+    for k in range(n):
+        best = -1.0
+        bi = k
+        bj = k
+        for i in range(k, n):
+            for j in range(k, n):
+                v = abs(A[i, j])
+                if v > best:
+                    best = v
+                    bi = i
+                    bj = j
+        if k == 0:
+            first = best
+        if not best > rank_tol * first or not first > 0.0:
+            rank = k
+            break
+        out[0] = best / first
+        if bi != k:
+            for j in range(n):
+                A[k, j], A[bi, j] = A[bi, j], A[k, j]
+            pr[k], pr[bi] = pr[bi], pr[k]
+        if bj != k:
+            for i in range(n):
+                A[i, k], A[i, bj] = A[i, bj], A[i, k]
+            pc[k], pc[bj] = pc[bj], pc[k]
+        p = A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] / p
+            A[i, k] = f
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+    return rank
+
+
+@njit
+def _lucp_solve(A, pr, pc, rank, b, x, y):
+    """A basic solution of A x = b from :func:`_lucp_factor` (rank ``rank``): the leading
+    rank x rank system, the other unknowns 0 (the rows beyond the rank are taken as
+    consistent: redundant joint rows). ``y`` (n,) is work space."""
+    n = x.shape[0]
+    for k in range(rank):
+        t = b[pr[k]]
+        for j in range(k):
+            t -= A[k, j] * y[j]
+        y[k] = t
+    for k in range(rank - 1, -1, -1):
+        t = y[k]
+        for j in range(k + 1, rank):
+            t -= A[k, j] * y[j]
+        y[k] = t / A[k, k]
+    for j in range(n):
+        x[j] = 0.0
+    for k in range(rank):
+        x[pc[k]] = y[k]
+
+
+@njit
+def _ldlp_factor(A, pr, rank_tol, out):
+    """In-place L D L^T with diagonal pivoting of the symmetric positive semi-definite A (the
+    velocity stage's G M^-1 G^T): at each step the largest remaining diagonal entry is the
+    pivot (a symmetric permutation, pr[k] the original index at position k); L unit lower
+    below the diagonal, D on it. Stops at the first pivot below rank_tol times the first:
+    returns that rank, out[0] the last kept pivot over the first; -1 if A is not finite."""
+    n = A.shape[0]
+    for i in range(n):
+        pr[i] = i
+        for j in range(n):
+            if not abs(A[i, j]) < math.inf:
+                return -1
+    first = 0.0
+    rank = n
+    out[0] = 1.0
+    for k in range(n):
+        best = -math.inf
+        bi = k
+        for i in range(k, n):
+            if A[i, i] > best:
+                best = A[i, i]
+                bi = i
+        if k == 0:
+            first = best
+        if not best > rank_tol * first or not first > 0.0:
+            rank = k
+            break
+        out[0] = best / first
+        if bi != k:
+            for j in range(n):
+                A[k, j], A[bi, j] = A[bi, j], A[k, j]
+            for i in range(n):
+                A[i, k], A[i, bi] = A[i, bi], A[i, k]
+            pr[k], pr[bi] = pr[bi], pr[k]
+        d = A[k, k]
+        for i in range(k + 1, n):
+            vi = A[i, k]
+            if vi != 0.0:
+                f = vi / d
+                for j in range(k + 1, i + 1):
+                    A[i, j] -= f * A[j, k]
+        for i in range(k + 1, n):
+            A[i, k] /= d
+        # keep the trailing block symmetric (its upper part is read by the pivot swaps)
+        for i in range(k + 1, n):
+            for j in range(k + 1, i):
+                A[j, i] = A[i, j]
+    return rank
+
+
+@njit
+def _ldlp_solve(A, pr, rank, b, x, y):
+    """A basic solution of A x = b from :func:`_ldlp_factor` (the leading rank block)."""
+    n = x.shape[0]
+    for k in range(rank):
+        t = b[pr[k]]
+        for j in range(k):
+            t -= A[k, j] * y[j]
+        y[k] = t
+    for k in range(rank):
+        y[k] /= A[k, k]
+    for k in range(rank - 1, -1, -1):
+        t = y[k]
+        for j in range(k + 1, rank):
+            t -= A[j, k] * y[j]
+        y[k] = t
+    for j in range(n):
+        x[j] = 0.0
+    for k in range(rank):
+        x[pr[k]] = y[k]
+
+
+@njit(forceinline=True)
 def _row9(A, i):
     return (A[i, 0], A[i, 1], A[i, 2], A[i, 3], A[i, 4], A[i, 5], A[i, 6], A[i, 7], A[i, 8])
 
@@ -680,7 +848,9 @@ def _run_system(
     (nr (1 + j) ...) and of the step before (nr (1 + ns + j) ...), and the number of steps
     in that history (0, 1, 2) in the last entry: the integrator state besides S.
 
-    The solver of the multiplier equations: ``minnorm`` the dense SVD, else ``banded`` (a
+    The solver of the multiplier equations: ``minnorm`` (an int) the dense pivoted
+    factorisations with the SVD where a pivot ratio drops (:data:`MODE_PIVOTED`) or the SVD
+    throughout (:data:`MODE_SVD`), else ``banded`` (a
     literal constant: numba drops the branches of the other value before typing them) the
     banded LU and L D L^T, else the 3x3 block elimination. Called by the entries
     :func:`run_system` and :func:`run_system_banded`."""
@@ -709,6 +879,12 @@ def _run_system(
     U = np.zeros((nd, nd))
     sv = np.zeros(nd)
     Vt = np.zeros((nd, nd))
+    Ad2 = np.zeros((nd, nd))
+    pr = np.zeros(nd, dtype=np.int64)
+    pc = np.zeros(nd, dtype=np.int64)
+    yv = np.zeros(nd)
+    pv = np.zeros(1)
+    psvd = False
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
     nK = 1 if banded or minnorm else nrow // 3
@@ -719,7 +895,7 @@ def _run_system(
     # _assemble for each combination): banded storage, and the upper band only (velocity stage)
     band = not minnorm
     upper = band
-    full = minnorm and band  # False
+    full = minnorm < 0  # False, a run-time value (a literal would type _assemble twice)
     ns = coef.shape[0]
     nhist = int(mu[nr * (1 + 2 * ns)])
     ks = 0
@@ -813,10 +989,21 @@ def _run_system(
                 if fresh:
                     if minnorm:
                         _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, band, bw, full)
-                        rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
-                        if rank < 0:
-                            _fail(info, n, h)
-                            return FAIL_SVD
+                        psvd = minnorm == MODE_SVD
+                        if not psvd:
+                            _copy2(Ad, Ad2)
+                            rank = _lucp_factor(Ad, pr, pc, SOLVE_TOL, pv)
+                            if rank < 0:
+                                _fail(info, n, h)
+                                return FAIL_SVD
+                            if rank > 0 and pv[0] < PIVOT_CHECK:
+                                psvd = True
+                                _copy2(Ad2, Ad)
+                        if psvd:
+                            rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                            if rank < 0:
+                                _fail(info, n, h)
+                                return FAIL_SVD
                     elif banded:
                         _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, band, bw, full)
                         if not _band_lu(Ab, bw):
@@ -828,7 +1015,10 @@ def _run_system(
                             _fail(info, n, h)
                             return FAIL_SINGULAR
                 if minnorm:
-                    _svd_solve(U, sv, Vt, rank, gv, dl)
+                    if psvd:
+                        _svd_solve(U, sv, Vt, rank, gv, dl)
+                    else:
+                        _lucp_solve(Ad, pr, pc, rank, gv, dl, yv)
                 elif banded:
                     _band_solve(Ab, bw, gv, dl)
                 else:
@@ -873,19 +1063,38 @@ def _run_system(
                     _put9(Mth, i, _mmt(DI, Dj))
                 if minnorm:
                     _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, band, bw, full)
-                    rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
-                    if rank < 0:
-                        _fail(info, n, h)
-                        return FAIL_SVD
-                    _svd_solve(U, sv, Vt, rank, r0, dl)
+                    vsvd = minnorm == MODE_SVD
+                    if not vsvd:
+                        _copy2(Ad, Ad2)
+                        rank = _ldlp_factor(Ad, pr, SOLVE_TOL, pv)
+                        if rank < 0:
+                            _fail(info, n, h)
+                            return FAIL_SVD
+                        if rank > 0 and pv[0] < PIVOT_CHECK:
+                            vsvd = True
+                            _copy2(Ad2, Ad)
+                    if vsvd:
+                        rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
+                        if rank < 0:
+                            _fail(info, n, h)
+                            return FAIL_SVD
+                        _svd_solve(U, sv, Vt, rank, r0, dl)
+                        for k in range(sv.shape[0]):
+                            yv[k] = sv[k]
+                    else:
+                        _ldlp_solve(Ad, pr, rank, r0, dl, yv)
+                        # the pivots stand for the singular values (the matrix is symmetric
+                        # positive semi-definite; the small ones are the SVD's, above)
+                        for k in range(nd):
+                            yv[k] = Ad[k, k] if k < rank else 0.0
                     nrank = 0
-                    for k in range(sv.shape[0]):
-                        if sv[k] > rank_tol * sv[0]:
+                    for k in range(nd):
+                        if yv[k] > rank_tol * yv[0]:
                             nrank += 1
                     if nrank < rank_nom:
                         diag[D_RANKDROP] += 1
-                    if rank_nom > 0 and sv[0] > 0.0:
-                        rel = sv[rank_nom - 1] / sv[0]
+                    if rank_nom > 0 and yv[0] > 0.0:
+                        rel = yv[rank_nom - 1] / yv[0]
                         if rel < diag[D_SMIN]:
                             diag[D_SMIN] = rel
                             diag[D_TSMIN] = n
@@ -968,8 +1177,9 @@ def run_system(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
     bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside,
 ):  # fmt: skip
-    """:func:`_run_system` with the minnorm solver (``minnorm`` True) or the block one
-    (False; the joint rows in 3x3 blocks, ``jptr``, ``jidx``, ``jside``)."""
+    """:func:`_run_system` with the minnorm solver (``minnorm`` :data:`MODE_PIVOTED` or
+    :data:`MODE_SVD`) or the block one (0; the joint rows in 3x3 blocks, ``jptr``, ``jidx``,
+    ``jside``)."""
     return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
                        V, D, W, minnorm, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
                        jidx, jside, False)  # fmt: skip
@@ -983,7 +1193,7 @@ def run_system_banded(
     """:func:`_run_system` with the banded solver (the arguments of :func:`run_system` less
     ``minnorm``)."""
     return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
-                       V, D, W, False, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
+                       V, D, W, 0, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
                        jidx, jside, True)  # fmt: skip
 
 

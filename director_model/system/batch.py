@@ -22,6 +22,7 @@ from director_model.errors import InvalidRunError, StepSizeError
 from director_model.simulate import step_plan
 from director_model.system import _kernels as K
 from director_model.system.simulate import (
+    _MODES,
     RANK_TOL,
     TOL_EPS,
     SystemStepper,
@@ -215,7 +216,7 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
         if banded:
             run_batch_banded(*args, *rest)
         else:
-            run_batch(*args, ref.solver == "minnorm", *rest)
+            run_batch(*args, _MODES.get(ref.solver, 0), *rest)
         wall = time.perf_counter() - t0
         cpu = time.process_time() - c0
     finally:

@@ -33,6 +33,8 @@ SYSTEM_SCHEMES = {
 TOL_EPS = 16.0
 #: relative singular value below which the minimum-norm solver drops a direction
 RANK_TOL = 1e-10
+#: the kernel's ``minnorm`` mode of each dense solver
+_MODES = {"minnorm": K.MODE_PIVOTED, "svd": K.MODE_SVD}
 
 
 @dataclass(eq=False)
@@ -60,7 +62,8 @@ class SystemTrajectory:
     Scalars: ``body_names``, ``joint_names`` (tuples), ``nstep`` (steps of this run or
     chunk), ``dt``, ``scheme``, ``wall_time_s``/``cpu_time_s`` (the compiled stepping
     alone), ``solver`` ("block": 3x3-block tridiagonal elimination, "banded": banded LU and
-    L D L^T, or "minnorm": dense SVD with the minimum-norm multipliers),
+    L D L^T, "minnorm": dense pivoted factorisations with the SVD near singular
+    configurations, or "svd": the SVD throughout),
     ``newton_iterations`` (chord-Newton iterations of the position multipliers over all
     sub-steps), ``max_iterations`` (most in one sub-step),
     ``rank_nominal`` (rank of the constraint Jacobian at t = 0), ``rank_drop_steps``
@@ -170,9 +173,15 @@ class SystemStepper:
         without pivoting of the multiplier matrices (rows ordered as the joints are given;
         bandwidth = the largest row distance between rows sharing a body, so a chain whose
         joints are listed along it has cost linear in its length); a singular configuration
-        stops it with StepSizeError. "minnorm": dense SVD of the multiplier matrices, the
-        minimum-norm multipliers (correct for rank-deficient Jacobians) and the singularity
-        diagnostics of :class:`SystemTrajectory`; cost cubic in the number of rows.
+        stops it with StepSizeError. "minnorm": dense rank-revealing factorisations of the
+        multiplier matrices (LU with complete pivoting of the Newton matrix, L D L^T with
+        diagonal pivoting of the symmetric velocity-stage one), a basic solution over the
+        rank (correct for rank-deficient Jacobians: the joint forces are the same), and the
+        SVD instead wherever the last kept pivot falls below PIVOT_CHECK = 1e-8 of the first
+        (near a singular configuration; the singularity diagnostics of
+        :class:`SystemTrajectory` then come from it); cost cubic in the number of rows.
+        "svd": the SVD at every solve, with the minimum-norm multipliers (the former
+        "minnorm", about 7x its cost on the four-bar; kept to compare).
 
     Raises InvalidBodyError, InvalidStateError, InvalidJointError, InvalidMechanismError,
     InvalidRunError at construction; StepSizeError from :meth:`advance` (a step whose
@@ -205,9 +214,9 @@ class SystemStepper:
         nrow = asm.rint.shape[0]
         if solver == "auto":
             solver = "minnorm" if rank < nrow else ("block" if asm.block3 else "banded")
-        if solver not in ("banded", "block", "minnorm"):
+        if solver not in ("banded", "block", "minnorm", "svd"):
             raise InvalidRunError(
-                f"solver = {solver!r}: expected 'auto', 'block', 'banded' or 'minnorm'"
+                f"solver = {solver!r}: expected 'auto', 'block', 'banded', 'minnorm' or 'svd'"
             )
         if solver == "block" and not asm.block3:
             raise InvalidRunError(
@@ -268,7 +277,7 @@ class SystemStepper:
         diag = np.zeros(K.NDIAG)
         diag[K.D_SMIN] = np.inf
         info = np.zeros(2)
-        minnorm = self.solver == "minnorm"
+        minnorm = _MODES.get(self.solver, 0)
         rint = asm.rint if asm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
         c0 = time.thread_time()
         t0 = time.perf_counter()

@@ -55,6 +55,14 @@ from references.engines.mujoco import system as ms
 from references.engines.reduced import check_settings
 from references.errors import Diverged, EngineError, Unsupported
 
+#: what differs from C MuJoCo on a closed loop, recorded in a loop's run settings
+LOOP_DIFFERENCE = (
+    "connect rows, solref, solimp, solver, iterations and tolerance equal C MuJoCo's (read "
+    "back), but MJX's reference acceleration aref = -B J v - K imp r omits the velocity-"
+    "product term Jdot v that C MuJoCo's mj_referenceConstraint subtracts for connect rows: "
+    "on a loop MJX's Euler is another constraint stabilisation than C MuJoCo's Euler"
+)
+
 #: the integrators MJX's JAX backend steps, and what each is
 INTEGRATORS = {
     "Euler": "MJX's Euler: MuJoCo's semi-implicit Euler",
@@ -191,4 +199,9 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         "compile time s": round(compile_s, 3),
         "compiled for this run": now,  # else the compile time is the first run's in the process
     }
+    if pl.loops:
+        # the one difference from C MuJoCo on a loop (module docstring), named in the run's
+        # configuration: the same rows, solref, solimp, solver, iterations and tolerance (read
+        # back above), another reference acceleration
+        rec["loop closure"] = LOOP_DIFFERENCE
     return ms._output(saves, dt, x, R, v, W, engine, rec)
