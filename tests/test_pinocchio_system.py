@@ -155,7 +155,7 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
 
 
 def test_unsupported_joints_and_closures_name_the_joint():
-    sb.assert_universal_unsupported(ps, RK)
+    sb.assert_cylindrical_unsupported(ps, RK)
 
 
 def test_bad_arguments_are_named():

@@ -118,6 +118,41 @@ def hinge_chain(n: int = 4, seed: int = 3):
     return bodies, joints
 
 
+def universal_chain(n: int = 3, seed: int = 5):
+    """(bodies, joints): n links hanging from the origin, joined by universal joints ``u0``..
+    (the first to the ground) with random perpendicular axis pairs and random attitudes; each
+    joint's relative rate lies on its two axes. Joint ``u<i>`` has ``body_a`` = link i-1 (the
+    parent); the same names of planted joint and body as :func:`hinge_chain` (``h1`` ..)
+    when ``names="h"``."""
+    from director_model.system import Body, Joint
+
+    rng = np.random.default_rng(seed)
+    bodies, joints = [], []
+    p, vp, wp, Rp = np.zeros(3), np.zeros(3), np.zeros(3), np.eye(3)
+    Y = np.array([0.0, 0.0, 0.5])
+    for i in range(n):
+        R = cv.rotvec_to_matrix(0.8 * rng.normal(size=3))
+        u1 = rng.normal(size=3)
+        u1 /= np.linalg.norm(u1)
+        u2 = np.cross(u1, rng.normal(size=3))
+        u2 /= np.linalg.norm(u2)  # perpendicular to u1 in the world at t = 0
+        x = p - R @ Y
+        w = wp + 1.3 * rng.normal() * u1 + 0.9 * rng.normal() * u2
+        v = vp + np.cross(w, x - p)
+        m = 1.0 + 0.2 * i
+        bodies.append(Body(f"link{i}", m, (m / 12 + 0.01, m / 12 + 0.012 + 0.001 * i, 0.02),
+                           x, R, v, R.T @ w))  # fmt: skip
+        # the parent's axis u1 (world) in the parent's frame, the child's u2 in the child's
+        if i == 0:
+            joints.append(Joint("universal", "link0", None, Y, p, R.T @ u2, u1, name="h0"))
+        else:
+            joints.append(Joint("universal", f"link{i - 1}", f"link{i}", -Y, Y, Rp.T @ u1,
+                                R.T @ u2, name=f"h{i}"))  # fmt: skip
+        tip = x - R @ Y
+        p, vp, wp, Rp = tip, v + np.cross(w, tip - x), w, R
+    return bodies, joints
+
+
 def rot_y(t: float) -> np.ndarray:
     c, s = np.cos(t), np.sin(t)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
@@ -320,13 +355,14 @@ def run(engine: str, sc=None) -> dict:
     return builder(engine).simulate_system(sc, integrator, dt, nstep, 1)
 
 
-def check_mistakes(engine: str, baseline: bool = True) -> list[Check]:
+def check_mistakes(engine: str, baseline: bool = True, sc=None) -> list[Check]:
     """One :class:`Check` per mistake (and one for the true builder when ``baseline``): the
-    planted run must raise :class:`EngineError` naming joint 'h1' or body 'link1'."""
+    planted run must raise :class:`EngineError` naming joint 'h1' or body 'link1'. ``sc``:
+    the system (default the hinge chain; :func:`universal_chain` for the universal joints)."""
     checks = []
     if baseline:
         try:
-            run(engine)
+            run(engine, sc)
             checks.append(Check("runs as built", True))
         except Exception as exc:  # noqa: BLE001 - reported, never raised
             checks.append(Check("runs as built", False, f"{type(exc).__name__}: {exc}"))
@@ -334,7 +370,7 @@ def check_mistakes(engine: str, baseline: bool = True) -> list[Check]:
         name = f"catches {mistake}"
         try:
             with planted(engine, mistake):
-                run(engine)
+                run(engine, sc)
         except EngineError as exc:
             msg = str(exc)
             named = f"'{PLANTED_JOINT}'" in msg or f"'{PLANTED_BODY}'" in msg
@@ -347,8 +383,8 @@ def check_mistakes(engine: str, baseline: bool = True) -> list[Check]:
     return checks
 
 
-def assert_conforms(engine: str, baseline: bool = True) -> None:
+def assert_conforms(engine: str, baseline: bool = True, sc=None) -> None:
     """Raise ``AssertionError`` listing every failed item of :func:`check_mistakes`."""
-    failed = [f"{c.name}: {c.message}" for c in check_mistakes(engine, baseline) if not c.ok]
+    failed = [f"{c.name}: {c.message}" for c in check_mistakes(engine, baseline, sc) if not c.ok]
     if failed:
         raise AssertionError(f"{engine} system builder: " + "; ".join(failed))

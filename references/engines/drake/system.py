@@ -26,6 +26,9 @@ revolute            ``RevoluteJoint`` (axis  angle 0; rate n . (W_c - R_rel^T W_
 prismatic           ``PrismaticJoint`` (axis translation = the anchors' offset along the
                     = the child's, in M)    axis, rate its rate
                                             (:func:`~references.engines.reduced.slide_state`)
+universal           ``UniversalJoint`` (F's  angles 0; rates: w_FM in F's x and y
+                    x the parent's axis, y  (:func:`universal_frames`: F and M turned so,
+                    the child's)            coinciding at t = 0)
 (floating root)     ``QuaternionFloatingJoint``  SetFreeBodyPose / SetFreeBodySpatialVelocity
 others              -                       unsupported (not built by this adapter)
 ==================  ======================  ================================================
@@ -98,6 +101,10 @@ CHART_SWITCH_COS = 0.4
 _SETTINGS = ()
 
 
+#: the tree joints this builder builds
+TREE_KINDS = (*reduced.SLIDING_KINDS, "universal")
+
+
 def _import():
     return import_engine("pydrake", "Drake (pydrake)", "drake")
 
@@ -119,14 +126,31 @@ class DrakeFrames:
     R_F: np.ndarray
     p_M: np.ndarray
     axis: np.ndarray | None
+    #: a universal joint's parent axis (in the parent's frame); its F and M frames are
+    #: turned from R_F by :func:`universal_frames`
+    axis_p: np.ndarray | None = None
 
 
 def engine_frames(pl: reduced.Plan, c: int) -> DrakeFrames:
-    """The builder's boundary: the frames of body c's joint (module docstring)."""
+    """The builder's boundary: the frames of body c's joint (module docstring). A universal
+    joint's frames F and M coincide at t = 0 with F's x axis the parent's axis and its y axis
+    the child's (Drake's UniversalJoint turns M about F's x, then about the turned y)."""
     tj = pl.tree[c]
     _, Rp, _, _ = reduced.world(pl, tj.parent)
     _, Rc, _, _ = reduced.world(pl, c)
-    return DrakeFrames(tj.kind, tj.X, Rp.T @ Rc, tj.Y, tj.axis_c)
+    Rrel = Rp.T @ Rc
+    if tj.kind == "universal":
+        return DrakeFrames(tj.kind, tj.X, Rrel, tj.Y, tj.axis_c, axis_p=tj.axis_p)
+    return DrakeFrames(tj.kind, tj.X, Rrel, tj.Y, tj.axis_c)
+
+
+def universal_frames(f: DrakeFrames) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation of F in the parent, of M in the child) of a universal joint from its frames
+    (R_F the relative rotation at t = 0, ``axis`` the child's axis, ``axis_p`` the parent's):
+    F's x axis the parent's axis, its y axis the child's, M = F at t = 0."""
+    ex, ey = f.axis_p, f.R_F @ f.axis
+    RF = np.column_stack([ex, ey, np.cross(ex, ey)])
+    return RF, f.R_F.T @ RF
 
 
 class _Model:
@@ -143,6 +167,7 @@ class _Model:
             RevoluteJoint,
             RotationalInertia,
             SpatialInertia,
+            UniversalJoint,
         )
 
         self.pl = pl
@@ -167,8 +192,9 @@ class _Model:
                 continue
             f = engine_frames(pl, c)
             parent = plant.world_body() if tj.parent < 0 else self.body[tj.parent]
-            X_F = RigidTransform(RotationMatrix(f.R_F), f.p_F)
-            X_M = RigidTransform(RotationMatrix(), f.p_M)
+            RF, RM = universal_frames(f) if tj.kind == "universal" else (f.R_F, np.eye(3))
+            X_F = RigidTransform(RotationMatrix(RF), f.p_F)
+            X_M = RigidTransform(RotationMatrix(RM), f.p_M)
             F = plant.AddFrame(FixedOffsetFrame(f"{pl.names[c]}_F", parent.body_frame(), X_F))
             Mf = plant.AddFrame(
                 FixedOffsetFrame(f"{pl.names[c]}_M", self.body[c].body_frame(), X_M)
@@ -177,6 +203,8 @@ class _Model:
                 joint = BallRpyJoint(f"{pl.names[c]}_joint", F, Mf, 0.0)
             elif tj.kind == "prismatic":
                 joint = PrismaticJoint(f"{pl.names[c]}_joint", F, Mf, f.axis)
+            elif tj.kind == "universal":
+                joint = UniversalJoint(f"{pl.names[c]}_joint", F, Mf, 0.0)
             else:
                 joint = RevoluteJoint(f"{pl.names[c]}_joint", F, Mf, f.axis, 0.0)
             self.joint[c] = plant.AddJoint(joint)
@@ -215,6 +243,12 @@ class _Model:
                 d0, rate = reduced.slide_state(pl, tj)
                 joint.set_translation(ctx, d0)
                 joint.set_translation_rate(ctx, rate)
+            elif tj.kind == "universal":
+                # at angles 0 the rates are w_FM in F's x and y (its z part is off the joint:
+                # the state check names it)
+                joint.set_angles(ctx, np.zeros(2))
+                RF = universal_frames(f)[0]
+                joint.set_angular_rates(ctx, (RF.T @ Rp.T @ (w - wp))[:2])
             else:
                 joint.set_angle(ctx, 0.0)
                 joint.set_angular_rate(ctx, float(tj.axis_c @ (R.T @ (w - wp))))
@@ -258,7 +292,7 @@ def read_back(dm: _Model, scenario) -> None:
     want = bad.want
 
     types = {"spherical": "ball_rpy", "revolute": "revolute", "prismatic": "prismatic",
-             "free": "quaternion_floating"}  # fmt: skip
+             "universal": "universal", "free": "quaternion_floating"}  # fmt: skip
     for c, body in dm.body.items():
         b, tj = pl.bodies[c], pl.tree[c]
         name = f"body {b.name!r} ({tj.label})"
@@ -295,10 +329,11 @@ def read_back(dm: _Model, scenario) -> None:
         f = dm.frames[c]
         XF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
         XM = joint.frame_on_child().GetFixedPoseInBodyFrame()
+        RF, RM = universal_frames(f) if tj.kind == "universal" else (f.R_F, np.eye(3))
         want(f"{name}: frame F position in the parent", XF.translation(), f.p_F)
-        want(f"{name}: frame F rotation in the parent", XF.rotation().matrix(), f.R_F)
+        want(f"{name}: frame F rotation in the parent", XF.rotation().matrix(), RF)
         want(f"{name}: frame M position in the child", XM.translation(), f.p_M)
-        want(f"{name}: frame M rotation in the child", XM.rotation().matrix(), np.eye(3))
+        want(f"{name}: frame M rotation in the child", XM.rotation().matrix(), RM)
         if tj.kind == "revolute":
             want(f"{name}: revolute axis", joint.revolute_axis(), f.axis)
         if tj.kind == "prismatic":
@@ -351,7 +386,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     reduced.check_settings("drake", settings, _SETTINGS)
     _import()
-    pl = reduced.plan(scenario, "drake", reduced.SLIDING_KINDS)
+    pl = reduced.plan(scenario, "drake", TREE_KINDS)
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "

@@ -27,6 +27,10 @@ revolute            ``JointModelRevoluteUnaligned``  R_p^T R_c at t = 0; q = 0,
 prismatic           ``JointModelPrismaticUnaligned`` R_p^T R_c at t = 0; q = the anchors'
                     (axis = the child's axis)     offset along the axis, v its rate
                                                   (the kit's ``slide_state``)
+universal           ``JointModelUniversal``       R_p^T R_c at t = 0; q = (0, 0), v the
+                    (R_ref^T u_p, then u_c:       relative angular velocity on the two axes
+                    :func:`universal_first_axis`) (least squares; the state check catches
+                                                  a rate off them)
 (floating root)     ``JointModelFreeFlyer``       q = [x, quaternion of R], v = [R^T v, W]
 others              -                             unsupported (not built by this adapter)
 ==================  ============================  ==========================================
@@ -93,6 +97,19 @@ def engine_frames(pl: reduced.Plan, c: int) -> reduced.EngineFrames:
     return reduced.engine_frames(pl, c)
 
 
+#: the tree joints this builder builds
+TREE_KINDS = (*reduced.SLIDING_KINDS, "universal")
+
+
+def universal_first_axis(tj) -> np.ndarray:
+    """A universal joint's first axis in its joint frame (parallel to the child's principal
+    frame at t = 0): the parent's axis u_p seen from there, R_ref^T u_p; the second is the
+    child's axis. Pinocchio's JointModelUniversal turns by Rot(a1, q1) Rot(a2, q2), so that
+    R_p^T R_c = Rot(u_p, q1) R_ref Rot(u_c, q2): a turn about the axis fixed in the parent,
+    then about the one fixed in the child."""
+    return tj.R_ref.T @ tj.axis_p
+
+
 class _Model:
     """Pinocchio's model and data, joint ids, the constraints and the state."""
 
@@ -110,6 +127,9 @@ class _Model:
                 jm = pin.JointModelSpherical()
             elif f.kind == "prismatic":
                 jm = pin.JointModelPrismaticUnaligned(*f.axis)
+            elif f.kind == "universal":
+                # about the parent's axis (in the joint frame, R_ref^T u_p) then the child's
+                jm = pin.JointModelUniversal(universal_first_axis(tj), np.asarray(f.axis, float))
             else:
                 jm = pin.JointModelRevoluteUnaligned(*f.axis)
             parent = 0 if tj.parent < 0 else self.jid[tj.parent]
@@ -162,6 +182,10 @@ class _Model:
             elif tj.kind == "prismatic":
                 d0, rate = reduced.slide_state(pl, tj)
                 qq, vv = [d0], [rate]
+            elif tj.kind == "universal":
+                _, Wrel = reduced.relative_state(pl, tj)
+                axes = np.column_stack([universal_first_axis(tj), np.asarray(jm.extract().axis2)])
+                qq, vv = [0.0, 0.0], list(np.linalg.lstsq(axes, Wrel, rcond=None)[0])
             else:
                 _, Wrel = reduced.relative_state(pl, tj)
                 qq, vv = [0.0], [float(tj.axis_c @ Wrel)]
@@ -244,7 +268,8 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
 
     kinds = {"free": "JointModelFreeFlyer", "spherical": "JointModelSpherical",
              "revolute": "JointModelRevoluteUnaligned",
-             "prismatic": "JointModelPrismaticUnaligned"}  # fmt: skip
+             "prismatic": "JointModelPrismaticUnaligned",
+             "universal": "JointModelUniversal"}  # fmt: skip
     want("number of joints", model.njoints, len(pl.order) + 1)
     for c, jid in pm.jid.items():
         b, tj = pl.bodies[c], pl.tree[c]
@@ -341,7 +366,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     initial state checked against Pinocchio's kinematics."""
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     pin = _import()
-    pl = reduced.plan(scenario, "pinocchio", reduced.SLIDING_KINDS)
+    pl = reduced.plan(scenario, "pinocchio", TREE_KINDS)
     gains, prox, gain_rule = _settings(settings, pl)
     pm = _Model(pin, pl, float(dt), gains, prox)
     read_back(pm, scenario, gains, prox)
