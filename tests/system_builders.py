@@ -208,8 +208,8 @@ def assert_prismatic_mistake_caught(monkeypatch, mod, mistake: str, integrator) 
 
 
 def assert_cylindrical_unsupported(mod, integrator) -> None:
-    """A cylindrical joint, which Pinocchio's and Drake's builders do not build (neither
-    engine has the joint; a composition is not built), is refused with the joint named."""
+    """A cylindrical joint, which the Pinocchio, Drake, DART and PyBullet builders do not
+    build, is refused with the joint named."""
     b, j = rod_chain(2, True, seed=0)
     bad = [j[0], dataclasses.replace(j[1], kind="cylindrical", axis_a=(1, 0, 0),
                                      axis_b=(0, 1, 0))]  # fmt: skip

@@ -125,7 +125,7 @@ def test_planted_defaults_are_caught(monkeypatch, default):
 
 
 def test_unsupported_and_bad_arguments():
-    sb.assert_universal_unsupported(bs, MB)
+    sb.assert_cylindrical_unsupported(bs, MB)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="maximal coordinates"):
         bs.simulate_system(sc, "maximal coordinates", 1e-3, 1, 1)

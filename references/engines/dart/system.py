@@ -16,6 +16,8 @@ spherical,          ``BallJoint``             rotation vector of R_p^T R_c; velo
 fixed_point                                   W_c - R_rel^T W_p (child axes)
 revolute            ``RevoluteJoint`` (axis   0; n . (W_c - R_rel^T W_p)
                     = the child's axis)
+prismatic           ``PrismaticJoint`` (axis  the anchors' offset along the axis; its rate
+                    = the child's axis)       (:func:`~references.engines.reduced.slide_state`)
 (floating root)     ``FreeJoint``             [rotation vector, x]; [w WORLD, v WORLD]
 others              -                         unsupported (not built by this adapter)
 ==================  ========================  ===========================================
@@ -130,6 +132,7 @@ class _Model:
             "free": skel.createFreeJointAndBodyNodePair,
             "spherical": skel.createBallJointAndBodyNodePair,
             "revolute": skel.createRevoluteJointAndBodyNodePair,
+            "prismatic": skel.createPrismaticJointAndBodyNodePair,
         }
         for c in pl.order:
             f = engine_frames(pl, c)
@@ -142,7 +145,7 @@ class _Model:
             body.setName(pl.names[c])
             joint.setTransformFromParentBodyNode(_iso(dart, f.R, f.p))
             joint.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
-            if f.kind == "revolute":
+            if f.kind in ("revolute", "prismatic"):
                 joint.setAxis(f.axis)
             b = pl.bodies[c]
             moments = np.diag(np.asarray(b.inertia, float))
@@ -162,13 +165,13 @@ class _Model:
         self.blocks, k = [], 0
         for c in pl.order:
             kind = pl.tree[c].kind
-            n = {"free": 6, "spherical": 3, "revolute": 1}[kind]
+            n = {"free": 6, "spherical": 3, "revolute": 1, "prismatic": 1}[kind]
             joint = self.joint[c]
             self.blocks.append((c, kind, slice(k, k + n), joint, joint.getIndexInSkeleton(0)))
             k += n
         # the rotational slices of u (ball joints and free roots), where dexpinv acts
         self.rot_slices = [
-            slice(b[2].start, b[2].start + 3) for b in self.blocks if b[1] != "revolute"
+            slice(b[2].start, b[2].start + 3) for b in self.blocks if b[1] in ("free", "spherical")
         ]
 
     # -- initial state -----------------------------------------------------------------------
@@ -181,6 +184,9 @@ class _Model:
                 pos, vel = cv.dart_free_from_state(x, vG, R, R.T @ w)
             elif tj.kind == "spherical":
                 pos, vel = cv.dart_ball_from_state(*reduced.relative_state(pl, tj))
+            elif tj.kind == "prismatic":
+                d0, rate = reduced.slide_state(pl, tj)
+                pos, vel = [d0], [rate]
             else:
                 pos, vel = [0.0], [float(tj.axis_c @ reduced.relative_state(pl, tj)[1])]
             joint.setPositions(np.asarray(pos, float))
@@ -235,6 +241,16 @@ class _Model:
             points[tj.name] = T.translation()
             if tj.kind == "revolute":
                 axes[tj.name] = T.rotation() @ joint.getAxis()
+            if tj.kind == "prismatic":
+                # the child's side moves along the axis; the parent's is the joint placement
+                parent = joint.getParentBodyNode()
+                P = joint.getTransformFromParentBodyNode()
+                fixed = P if parent is None else parent.getWorldTransform().multiply(P)
+                j = next(j for j in self.pl.joints if j.name == tj.name)
+                a_is_child = j.body_a == self.pl.names[c]
+                points[tj.name] = {("a" if a_is_child else "b"): T.translation(),
+                                   ("b" if a_is_child else "a"): fixed.translation()}  # fmt: skip
+                axes[tj.name] = T.rotation() @ joint.getAxis()
         return points, axes
 
     # -- RKMK4 on the product of the joints' groups (trees) ------------------------------------
@@ -262,7 +278,7 @@ class _Model:
         out = []
         for (_, kind, s, _, _), g in zip(self.blocks, q, strict=True):
             th = theta[s]
-            if kind == "revolute":
+            if kind in ("revolute", "prismatic"):
                 out.append((g[0] + float(th[0]),))
             elif kind == "spherical":
                 out.append((g[0] @ cv.rotvec_to_matrix(th),))
@@ -338,7 +354,8 @@ def read_back(dm: _Model, scenario, dt: float) -> None:
     bad = reduced.Mismatches()
     want = bad.want
 
-    kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint"}
+    kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint",
+             "prismatic": "PrismaticJoint"}  # fmt: skip
     want("number of bodies", skel.getNumBodyNodes(), len(pl.bodies))
     for c, body in dm.body.items():
         b, tj, joint = pl.bodies[c], pl.tree[c], dm.joint[c]
@@ -400,7 +417,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     if closure not in REVOLUTE_CLOSURES:
         raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
     dart = _import()
-    pl = reduced.plan(scenario, "dart")
+    pl = reduced.plan(scenario, "dart", reduced.SLIDING_KINDS)
     if pl.loops and integrator == "RKMK4":
         raise Unsupported(
             f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
