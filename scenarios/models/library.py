@@ -6,14 +6,15 @@
   e.g. ``ant``, ``pusher_v5``, ``reacher``), when gymnasium is installed;
 - ``example-robot-data:<name>``: example-robot-data's URDFs (:data:`EXAMPLE_ROBOT_DATA`
   names, or a path below its ``robots`` folder), from the installed package's share folder
-  or a checkout named by the environment variable ``EXAMPLE_ROBOT_DATA_DIR`` (the folder
-  holding ``robots/``).
+  (``cmeel.prefix/share`` in the wheel the package index serves) or a checkout named by the
+  environment variable ``EXAMPLE_ROBOT_DATA_DIR`` (the folder holding ``robots/``).
 
 The optional extra ``pip install director-bench[robots]`` installs both packages.
 """
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 import os
 import sys
@@ -46,6 +47,11 @@ def _erd_roots() -> list[Path]:
     if env:
         roots.append(Path(env) / "robots")
     roots.append(Path(sys.prefix) / "share" / "example-robot-data" / "robots")
+    try:  # the wheel on the package index (a cmeel wheel) keeps it under cmeel.prefix
+        dist = importlib.metadata.distribution("example-robot-data")
+        roots.append(Path(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
+    except importlib.metadata.PackageNotFoundError:
+        pass
     spec = importlib.util.find_spec("example_robot_data")
     if spec is not None and spec.origin:
         for a in Path(spec.origin).resolve().parents:
