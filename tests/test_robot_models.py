@@ -292,3 +292,31 @@ def test_reference_on_a_compound_pendulum_period(tmp_path):
     assert err <= sol.accuracy["position"]  # the estimate covers the true error
     # half a period: mirrored about the vertical
     np.testing.assert_allclose(sol.x[0, 0, 0], -conv.bodies[0].position[0], atol=1e-9)
+
+
+# -- the joint coordinate error, per joint ------------------------------------------------------
+
+
+def test_joint_coordinate_error_recovers_a_joint_turned_by_a_known_angle():
+    """Two states of arm3 placed by our conversion from joint coordinates (an independent
+    path: forward kinematics), one with the elbow turned 0.05 rad further: the metric, from
+    the bodies' attitudes alone, finds 0.05 rad on the elbow and nothing on the others."""
+    from references.trajectory import SystemTrajectory
+    from reports.metrics.system import joint_coordinate_error_by_joint, joint_coordinate_errors
+
+    sc = scenarios.load("arm3_swing")
+    q0 = {"shoulder": 0.9, "elbow": -1.1, "wrist": 0.7}
+
+    def traj(q):
+        conv = to_system(sc.model, q)
+        bs = conv.bodies
+        return SystemTrajectory([0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
+                                [[b.rotation for b in bs]], [[b.omega_body for b in bs]],
+                                [b.name for b in bs])  # fmt: skip
+
+    ref = traj(q0)
+    turned = traj({**q0, "elbow": -1.05})
+    per = joint_coordinate_error_by_joint(sc, turned, ref)
+    assert per["elbow"][0] == pytest.approx(0.05, abs=1e-12)
+    assert per["shoulder"][0] < 1e-12 and per["wrist"][0] < 1e-12
+    assert joint_coordinate_errors(sc, turned, ref)[0] == pytest.approx(0.05, abs=1e-12)

@@ -1,9 +1,11 @@
 """Each engine's own importer on a model file (issue 36): the part every engine shares.
 
 An engine's importer lives in its home, ``references/engines/<engine>/importer.py``, and
-provides ``readback(model, config) -> Readback``: the engine's own loader on the model file
-in one of the named configurations :data:`CONFIGS`, its loaded model read back at the zero
-configuration. This module holds what they share: the read-back (:class:`Readback`), our own
+provides ``readback(model, config, floating=False) -> Readback``: the engine's own loader on
+the model file in one of the named configurations :data:`CONFIGS` (a floating URDF root
+loaded floating, as the engine's user asks for it), its loaded model read back at the zero
+configuration; and, for the runs, ``INTEGRATORS`` and ``load`` (:func:`simulate`). This
+module holds what they share: the read-back (:class:`Readback`), our own
 reading of the file as one (:func:`our_readback`), the comparison (:func:`compare`,
 :class:`Difference`), the table over every engine and configuration (:func:`importer_table`)
 and the loaders' common chores (a URDF copy without geometry, C-level output captured).
@@ -38,6 +40,7 @@ import contextlib
 import importlib
 import math
 import os
+import re
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -332,7 +335,8 @@ def quiet_fd():
             os.close(saved[0])
             os.close(saved[1])
             tmp.seek(0)
-            out.append(tmp.read().decode("utf-8", "replace"))
+            text = tmp.read().decode("utf-8", "replace")
+            out.append(re.sub(r"\x1b\[[0-9;]*m", "", text))  # terminal colours dropped
 
 
 def rot_inertia(R, diag):
@@ -383,7 +387,7 @@ def importer_table(model, engines=None, configs=None, fixed_base=None) -> list:
         mod = importer(e)
         for c in configs or CONFIGS:
             try:
-                rb = mod.readback(model, c)
+                rb = mod.readback(model, c, floating=not fixed_base)
             except ImportError as exc:
                 rows.append(Difference(e, c, "engine", "not installed", "-", str(exc),
                                        float("nan"), ""))  # fmt: skip

@@ -26,7 +26,9 @@ one body where the meaning carries over (the largest over the bodies) and three 
 ``joint_coordinate_error_``  max over t <= the horizon and every joint (loop closures        rad
 ``max``                    included) of the angle between the run's relative rotation
                            R_a^T R_b of the joint's two bodies and the reference's (a
-                           slider's travel is in position_error_max)
+                           slider's travel is in position_error_max); for a hinge
+                           |q - q_ref|; per joint in a robot model's run file
+                           (``joint_coordinate_error.<joint>``)
 ``branch_error``           a mechanism through a singular configuration: for a            rad
                            parallelogram four-bar (a scenario tagged ``parallelogram``
                            with a body ``coupler``), the largest rotation of the coupler
@@ -172,12 +174,9 @@ def omega_errors(traj, ref) -> np.ndarray:
     return np.max(np.linalg.norm(traj.omega_body - ref.omega_body, axis=2), axis=1)
 
 
-@measures("joint_coordinate_error_max", on="system")
-def joint_coordinate_errors(scenario, traj, ref) -> np.ndarray | None:
-    """Largest error of a joint's relative rotation over the joints (rad), (n,), or None
-    without joints. The ground has R = 1."""
-    if not scenario.joints:
-        return None
+def joint_coordinate_error_by_joint(scenario, traj, ref) -> dict[str, np.ndarray]:
+    """{joint name: the error of its relative rotation (rad), (n,)} for every joint. The
+    ground has R = 1."""
     idx = {n: i for i, n in enumerate(scenario.body_names)}
     n = len(traj.t)
     eye = np.broadcast_to(np.eye(3), (n, 3, 3))
@@ -191,10 +190,18 @@ def joint_coordinate_errors(scenario, traj, ref) -> np.ndarray | None:
         def __init__(self, R):
             self.rotation = R
 
-    return np.max(
-        [attitude_error(_Flat(rel(traj, j)), _Flat(rel(ref, j))) for j in scenario.joints],
-        axis=0,
-    )
+    return {
+        j.name: attitude_error(_Flat(rel(traj, j)), _Flat(rel(ref, j))) for j in scenario.joints
+    }
+
+
+@measures("joint_coordinate_error_max", on="system")
+def joint_coordinate_errors(scenario, traj, ref) -> np.ndarray | None:
+    """Largest error of a joint's relative rotation over the joints (rad), (n,), or None
+    without joints."""
+    if not scenario.joints:
+        return None
+    return np.max(list(joint_coordinate_error_by_joint(scenario, traj, ref).values()), axis=0)
 
 
 @measures("branch_error", on="system")
@@ -267,8 +274,18 @@ def error_series(scenario, traj, ref=None, kept: dict | None = None) -> dict[str
     if lg is not None:
         cols["loop_gap"] = lg
     if ref is not None:
+        inside = traj.t <= ref.horizon * (1 + 1e-12)
         err = attitude_errors(traj, ref.trajectory)
-        cols["attitude_error"] = np.where(traj.t <= ref.horizon * (1 + 1e-12), err, np.nan)
+        cols["attitude_error"] = np.where(inside, err, np.nan)
+        # a robot model's figure reads them (reports.report.model_plots): its runs only
+        model = getattr(scenario, "model", None) is not None
+        per = joint_coordinate_error_by_joint(scenario, traj, ref.trajectory) if model else {}
+        if per:
+            cols["joint_coordinate_error"] = np.where(
+                inside, np.max(list(per.values()), axis=0), np.nan
+            )
+            for name, e in per.items():
+                cols[f"joint_coordinate_error.{name}"] = np.where(inside, e, np.nan)
     return cols
 
 

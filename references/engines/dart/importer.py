@@ -1,7 +1,7 @@
 """DART's own importers (``DartLoader`` for URDF, ``MjcfParser`` for MJCF) on a model file,
 read back (:mod:`references.engines.importers`): each body node's mass, centre of mass and
 inertia, revolute joints' axes, limits, damping and Coulomb friction, at the zero
-configuration. URDF roots are loaded fixed (``DartLoaderRootJointType.FIXED``)."""
+configuration. A URDF root is loaded FIXED, or FLOATING for a floating model."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from references.engines.importers import (
 )
 
 
-def readback(model, config: str) -> Readback:
+def readback(model, config: str, floating: bool = False) -> Readback:
     import dartpy as dp
 
     rb = Readback("dart", config)
@@ -31,7 +31,8 @@ def readback(model, config: str) -> Readback:
                 for k, v in packages(model).items():
                     loader.addPackageDirectory(k, str(v))
                 opts = dp.utils.DartLoaderOptions()
-                opts.mDefaultRootJointType = dp.utils.DartLoaderRootJointType.FIXED
+                kind = "FLOATING" if floating else "FIXED"
+                opts.mDefaultRootJointType = getattr(dp.utils.DartLoaderRootJointType, kind)
                 loader.setOptions(opts)
                 skels = [loader.parseSkeleton(str(path))]
             else:

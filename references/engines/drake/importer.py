@@ -13,7 +13,7 @@ import numpy as np
 from references.engines.importers import Readback, file_for, limit, packages, to_root
 
 
-def readback(model, config: str) -> Readback:
+def readback(model, config: str, floating: bool = False) -> Readback:
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import RevoluteJoint

@@ -10,11 +10,11 @@ from references.engines.importers import Readback
 from references.engines.mujoco.importer import mujoco_model, mujoco_readback
 
 
-def readback(model, config: str) -> Readback:
+def readback(model, config: str, floating: bool = False) -> Readback:
     """MuJoCo's model put on the device by ``mjx.put_model``, read from the MJX model's own
     arrays (float64)."""
     try:
-        m = mujoco_model(model, config)
+        m = mujoco_model(model, config, floating)
     except Exception as exc:
         return Readback("mjx", config, error=f"{type(exc).__name__}: {exc}".strip())
     import jax

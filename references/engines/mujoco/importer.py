@@ -14,12 +14,19 @@ import numpy as np
 from references.engines.importers import Readback, file_for, rot_inertia, to_root
 
 
-def mujoco_model(model, config: str):
+def mujoco_model(model, config: str, floating: bool = False):
+    """MuJoCo's model of ``model``'s file in ``config``; a floating URDF root gets a free
+    joint (MuJoCo's URDF import attaches the root to the world; a user adds one through
+    ``MjSpec``)."""
     import mujoco
 
     extra = '<mujoco><compiler fusestatic="false" discardvisual="true"/></mujoco>'
     path, tmp = file_for(model, config, extra)
     try:
+        if floating and model.format == "urdf":
+            spec = mujoco.MjSpec.from_file(str(path))
+            (spec.body(model.root) or spec.worldbody.first_body()).add_freejoint()
+            return spec.compile()
         return mujoco.MjModel.from_xml_path(str(path))
     finally:
         if tmp:
@@ -80,9 +87,9 @@ def mujoco_readback(m, model, engine, config, fields=None) -> Readback:
     return rb
 
 
-def readback(model, config: str) -> Readback:
+def readback(model, config: str, floating: bool = False) -> Readback:
     try:
-        m = mujoco_model(model, config)
+        m = mujoco_model(model, config, floating)
     except Exception as exc:  # the importer's refusal is the finding
         return Readback("mujoco", config, error=f"{type(exc).__name__}: {exc}".strip())
     return mujoco_readback(m, model, "mujoco", config)

@@ -12,13 +12,15 @@ import numpy as np
 from references.engines.importers import Readback, file_for, limit, to_root
 
 
-def readback(model, config: str) -> Readback:
+def readback(model, config: str, floating: bool = False) -> Readback:
     import pinocchio as pin
 
     rb = Readback("pinocchio", config)
     path, tmp = file_for(model, config)
     try:
-        if model.format == "urdf":
+        if model.format == "urdf" and floating:  # the root on a free flyer, as a user does
+            pm = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+        elif model.format == "urdf":
             pm = pin.buildModelFromUrdf(str(path))
         else:
             pm = pin.buildModelFromMJCF(str(path))

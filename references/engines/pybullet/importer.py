@@ -20,7 +20,7 @@ HINTS = {
 }
 
 
-def readback(model, config: str) -> Readback:
+def readback(model, config: str, floating: bool = False) -> Readback:
     import pybullet as p
 
     rb = Readback("pybullet", config)
@@ -31,7 +31,7 @@ def readback(model, config: str) -> Readback:
         rb.notes.append(f"flags {flags}")
         with quiet_fd() as out:
             if model.format == "urdf":
-                ids = [p.loadURDF(str(path), useFixedBase=True, flags=flags,
+                ids = [p.loadURDF(str(path), useFixedBase=not floating, flags=flags,
                                   physicsClientId=cid)]  # fmt: skip
             else:
                 ids = list(p.loadMJCF(str(path), physicsClientId=cid))
