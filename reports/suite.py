@@ -456,6 +456,10 @@ def run(
         p.unlink()
     df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
     path = junit.write(df, out / "junit.xml")  # first: the verdicts never wait on the report
+    if any(getattr(sc, "model", None) is not None for sc in scs):
+        from reports.run.importers import write_tables  # robot models: each importer's table
+
+        write_tables(scs, engines, out)
     rep = build_report(out, progress=progress) if report else {}
     return RunSummary(
         out, n_run, len(specs) - n_run, df, rep, path, unloadable, left_out, moved, removed

@@ -65,7 +65,9 @@ class Readback:
     """One loaded model, read back (module docstring). ``bodies`` {name: (mass, com (3,),
     inertia (3, 3))}; ``joints`` {name: {"axis", "point", "lower", "upper", "damping",
     "friction", "armature"}} (a missing key: the importer has no such quantity); ``notes``:
-    what the importer said or did (warnings, flags used); ``error``: why it failed to load."""
+    what the importer said or did (warnings, flags used); ``error``: why it failed to load;
+    ``joint_body`` {joint name: the body it moves}, where the importer names bodies its own
+    way (an unnamed MJCF body), so that :func:`compare` pairs them by their joint."""
 
     engine: str
     config: str
@@ -73,6 +75,7 @@ class Readback:
     joints: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     error: str | None = None
+    joint_body: dict = field(default_factory=dict)
 
 
 def to_root(T_root: np.ndarray, mass, com_world, I_world):
@@ -169,6 +172,14 @@ def compare(
         return rows
     grp = rigid_groups(model)
     known = set(grp)
+    # a body the importer named its own way, paired with our link by the joint that moves it
+    moved = {j.name: j.child for j in model.joints if j.kind != "fixed"}
+    rename = {b: moved[j] for j, b in theirs.joint_body.items()
+              if j in moved and b not in known and moved[j] not in theirs.bodies}  # fmt: skip
+    if rename:
+        theirs = Readback(theirs.engine, theirs.config,
+                          {rename.get(k, k): v for k, v in theirs.bodies.items()},
+                          theirs.joints, theirs.notes, theirs.error, theirs.joint_body)  # fmt: skip
     if fixed_base:
         grp = {k: ("world" if v == model.root else v) for k, v in grp.items()}
     sides = []

@@ -39,6 +39,7 @@ from pathlib import Path
 from reports.metrics import catalog
 from reports.report.contact import contact_rows, contact_section
 from reports.report.groups import group_rows, sweep_groups
+from reports.report.importers import importer_section
 from reports.report.labels import (
     METRIC_SHORT,
     NOT_RUN,
@@ -65,6 +66,7 @@ from reports.report.tables import (
     settings_table,
     work_precision,
 )
+from reports.run.importers import read_table
 from reports.store.atomic import write_text
 from reports.store.format import fmt, fmt_int, fmt_level, fmt_step, md_cell
 from reports.store.provenance import read_provenance
@@ -854,7 +856,7 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
 
 
 #: the figures of a scenario shown without a click (the others are in its collapsed part)
-KEY_FIGURES = ("scenario", "system", "errors", "work_precision")
+KEY_FIGURES = ("scenario", "system", "joint_angles", "importers", "errors", "work_precision")
 
 
 def _kind(p: Path) -> str:
@@ -908,6 +910,9 @@ def details_section(doc: Doc, df, plots: dict, root: Path, card=None) -> None:
             doc.raw_html(
                 "<p class='hint'>Point at a line in a figure to see which configuration it is.</p>"
             )
+        table = read_table(root, scenario)  # a robot model: each engine's importer
+        if table is not None:
+            importer_section(doc, table, Cell)
         doc.open_details(
             f"Tables and more figures of {html.escape(scenario)}: the verdicts at its dt, the "
             "dt sweep, the cheapest configuration per accuracy"

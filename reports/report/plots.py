@@ -1270,11 +1270,15 @@ def scenario_figures(names, out: Path, samples: int = 401) -> list[Path]:
 
 #: the figures of one scenario, in report order (``scenario`` and ``rates`` are a single
 #: body's, ``system`` a system of bodies': :func:`is_system`)
-KINDS = ("scenario", "errors", "rates", "system", "convergence", "work_precision")
+KINDS = (
+    "scenario", "errors", "rates", "system", "joint_angles", "importers", "convergence",
+    "work_precision",
+)  # fmt: skip
 
-#: the figures only a single body has, and the one only a system of bodies has
+#: the figures only a single body has, and those only a system of bodies has (a robot
+#: model's two: :mod:`reports.report.model_plots`)
 SINGLE_BODY_KINDS = ("scenario", "rates")
-SYSTEM_KINDS = ("system",)
+SYSTEM_KINDS = ("system", "joint_angles", "importers")
 
 
 def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles, failed=None):
@@ -1318,6 +1322,19 @@ def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Style
         return system_plot(
             rows, h, cache, out, scenario, _plt(), _save, styles, _new_figure, _legend
         )
+    if kind in ("joint_angles", "importers"):  # a robot model's, with its importer table
+        from reports.report import model_plots
+        from reports.run.importers import read_table
+
+        table = read_table(cache.root, scenario)
+        if table is None:
+            return None
+        if kind == "importers":
+            return model_plots.importer_plot(table, out, _plt(), _save, _new_figure)
+        rows, h = _plot_rows(df, scenario)
+        return model_plots.joint_angle_plot(
+            rows, h, cache, out, scenario, _plt(), _save, _new_figure, _legend
+        )
     if kind == "rates":
         return rates_plot(df, cache, out, scenario, styles)
     if kind == "convergence":
@@ -1358,6 +1375,8 @@ _FIGURE_CODE = (
     "reports.report.plots",
     "reports.report.system_plots",
     "reports.report.contact",
+    "reports.report.model_plots",
+    "reports.report.importers",
     "reports.report.agg_text",
     "reports.report.labels",
     "reports.report.groups",
@@ -1384,6 +1403,11 @@ def _scenario_key(df, scenario: str, styles: Styles, root: Path) -> str:
             p = root / rel  # once relative and once absolute is the same folder
             st = p.stat() if p.exists() else None
             h.update(repr((rel.as_posix(), st and (st.st_size, st.st_mtime_ns))).encode())
+    from reports.run.importers import FOLDER  # a robot model's importer table
+
+    table = root / FOLDER / f"{slug(scenario)}.json"
+    if table.is_file():
+        h.update(table.read_bytes())
     return h.hexdigest()
 
 

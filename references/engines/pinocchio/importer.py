@@ -60,6 +60,7 @@ def readback(model, config: str, floating: bool = False) -> Readback:
         R = oM.rotation
         com = oM.act(I.lever)
         rb.bodies[name] = to_root(T, I.mass, com, R @ I.inertia @ R.T)
+        rb.joint_body[pm.names[i]] = name
         jm = pm.joints[i]
         sname = jm.shortname()
         if not sname.startswith("JointModelR"):
