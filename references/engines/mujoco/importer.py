@@ -175,10 +175,16 @@ class _Sim:
                 bit = getattr(mujoco.mjtDisableBit, f, None)
                 if bit is not None:
                     m.opt.disableflags |= int(bit)
-            m.dof_armature[:] = 0.0
-            m.body_gravcomp[:] = 0.0
-            rec["switched off"] = "contact, limits, passive forces (damping, springs), "
-            rec["switched off"] += "friction loss, actuation (disable flags); armature 0"
+            # and the fields themselves: MJX does not honour every flag (measured: arm3's
+            # friction loss or damping stayed in MJX's Euler with the flags alone)
+            for f in ("dof_armature", "dof_damping", "dof_frictionloss", "jnt_stiffness",
+                      "body_gravcomp"):  # fmt: skip
+                getattr(m, f)[:] = 0.0
+            m.jnt_limited[:] = 0
+            m.geom_contype[:] = 0
+            m.geom_conaffinity[:] = 0
+            rec["switched off"] = "contact, limits, springs, damping, friction loss, "
+            rec["switched off"] += "actuation (disable flags and the fields); armature 0"
         else:
             off_contact = m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
             rec["as the file has it"] = (
