@@ -58,7 +58,7 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
         for word, st in KINDS:
             r = by.get(word if word == "our reading" else word.replace(" ", "-"))
             s = cache.get(r) if r is not None else None
-            if s is not None and "joint_angle_error" in s:
+            if s is not None and "joint_coordinate_error" in s:
                 lines.append((word, st, s))
         if lines:
             runs.append((f"{engine} {base}", lines))
@@ -67,7 +67,7 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
     fig, axes = new_figure(len(runs), 1.3)
     for ax, (title, lines) in zip(axes, runs, strict=True):
         for word, st, s in lines:
-            y = np.asarray(s["joint_angle_error"], dtype=float)
+            y = np.asarray(s["joint_coordinate_error"], dtype=float)
             y = np.where(np.isnan(y), np.nan, np.maximum(np.abs(y), FLOOR))
             every = max(1, len(y) // 6)
             (line,) = ax.plot(s["t"], y, lw=1.4, ms=4, markevery=every, label=word, **st)

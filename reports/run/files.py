@@ -40,7 +40,10 @@ SERIES = (
     "energy_change",
     "joint_gap",
     "loop_gap",
+    "joint_coordinate_error",
 )
+#: series kept under a name of their own per item (a robot model's per-joint errors)
+SERIES_PREFIXES = ("joint_coordinate_error.",)
 #: the columns of a single body's series file beside the series; the reference run adds
 #: :data:`POSE` (the scenario picture draws its motion)
 RATES = ("t", "wx", "wy", "wz")
@@ -104,11 +107,12 @@ def kept_less(row: dict, keep: str) -> bool:
 def series_table(columns: dict, reference: bool):
     """The Arrow table of a series file from a run's full set of ``columns`` (name -> array):
     :data:`RATES` (and :data:`POSE` for the reference run) and every :data:`SERIES` column
-    present, single precision except the time."""
+    present (and those named by :data:`SERIES_PREFIXES`), single precision except the time."""
     import numpy as np
     import pyarrow as pa
 
     names = [*RATES, *(POSE if reference else ()), *SERIES]
+    names += [c for c in columns if c.startswith(SERIES_PREFIXES)]
     return pa.table(
         {
             c: np.asarray(columns[c], dtype=float if c == "t" else np.float32)
