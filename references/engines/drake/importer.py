@@ -25,7 +25,9 @@ def readback(model, config: str, floating: bool = False) -> Readback:
         parser = Parser(plant)
         for k, v in packages(model).items():
             parser.package_map().Add(k, str(v))
-        parser.AddModels(str(path))
+        with _Said() as said:
+            parser.AddModels(str(path))
+        rb.notes += sorted({ln.split(": warning: ")[-1] for ln in said.lines})
         plant.Finalize()
     except Exception as exc:
         rb.error = f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
@@ -105,19 +107,18 @@ class _Sim:
         path, tmp = file_for(model, config)
         plant = MultibodyPlant(time_step=0.0)
         said = _Said()
-        logging.getLogger("drake").addHandler(said)
         try:
             parser = Parser(plant)
             for k, v in packages(model).items():
                 parser.package_map().Add(k, str(v))
-            parser.AddModels(str(path))
+            with said:
+                parser.AddModels(str(path))
         except Exception as exc:
             raise Unsupported(
                 f"drake: its importer cannot load {scenario.model_spec['file']} ({config}): "
                 f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
             ) from None
         finally:
-            logging.getLogger("drake").removeHandler(said)
             if tmp:
                 shutil.rmtree(tmp, ignore_errors=True)
         rec = {"importer": "Parser.AddModels", "configuration": config,
@@ -219,7 +220,8 @@ class _Sim:
 
 
 class _Said(logging.Handler):
-    """The lines Drake's parser logs (its warnings about what it ignores), kept."""
+    """The lines Drake's parser logs (its warnings about what it ignores), kept instead of
+    printed: inside ``with``, this is the ``drake`` logger's only handler."""
 
     def __init__(self):
         super().__init__(logging.WARNING)
@@ -227,6 +229,16 @@ class _Said(logging.Handler):
 
     def emit(self, record) -> None:
         self.lines.append(record.getMessage())
+
+    def __enter__(self):
+        log = logging.getLogger("drake")
+        self._saved = (log.handlers[:], log.propagate)
+        log.handlers, log.propagate = [self], False
+        return self
+
+    def __exit__(self, *exc):
+        log = logging.getLogger("drake")
+        log.handlers, log.propagate = self._saved
 
 
 def _ai(i):
