@@ -4,9 +4,10 @@ figure drawn before, in any folder, is copied from the user's cache instead of d
 A figure's inputs are the code that draws it, its kind and scenario, the scenario's rows
 without the columns no such figure shows (:data:`VOLATILE`: the timings, the time a run
 finished, a compilation's time in the settings), the styles of its configurations and the
-*contents* of the runs' series files. A second run of the same code on the same engines
-gives byte-identical series and metrics (the engines are deterministic; the timings are
-not), so its figures are copies; a change to any input is a new key, drawn anew. The
+*contents* of the runs' series files (and of a robot model's importer table). A second run of
+the same code on the same engines gives byte-identical series and metrics (the engines are
+deterministic; the timings are not), so its figures are copies; a change to any input is a
+new key, drawn anew. The
 work-precision figure shows the timings and is never reused (nor the scorecard picture).
 
 The cache lives in ``$DIRECTOR_BENCH_CACHE/figures`` (default ``~/.cache/director-bench``,
@@ -25,10 +26,10 @@ import shutil
 from pathlib import Path
 
 from reports import cache_root
-from reports.store.results import error_series_path
+from reports.store.results import error_series_path, slug
 
 #: the figures whose inputs hold no timing, reused across folders
-REUSED = ("scenario", "errors", "rates", "system", "convergence")
+REUSED = ("scenario", "errors", "rates", "system", "joint_angles", "importers", "convergence")
 
 #: columns of the results no reused figure shows: timings and clock times
 VOLATILE = frozenset(
@@ -90,6 +91,9 @@ def key(kind: str, scenario: str, sub, styles, root: Path, code: str) -> str:
         h.update(json.dumps(styles.of(r), default=str, sort_keys=True).encode())
         if r["trajectory"]:
             h.update(_digest(Path(root) / error_series_path(Path(r["trajectory"]))).encode())
+    table = Path(root) / "importers" / f"{slug(scenario)}.json"  # a robot model's
+    if table.is_file():
+        h.update(_digest(table).encode())
     return h.hexdigest()
 
 
