@@ -20,6 +20,8 @@ scenario kind       PyBullet joint         initial state
 spherical,          ``JOINT_SPHERICAL``    resetJointStateMultiDof: quaternion (x y z w) of
 fixed_point                                R_p^T R_c, rates W_c - R_rel^T W_p (child axes)
 revolute            ``JOINT_REVOLUTE``     resetJointState: 0, n . (W_c - R_rel^T W_p)
+prismatic           ``JOINT_PRISMATIC``    resetJointState: the anchors' offset along the
+                                           axis, its rate (reduced.slide_state)
 (floating root)     base of a multibody    resetBasePositionAndOrientation / resetBaseVelocity
                                            (COM, world v and world w)
 others              -                      unsupported (not built by this adapter)
@@ -127,7 +129,8 @@ class _Model:
     def _multibody(self, base, links) -> None:
         p, cid, pl = self.p, self.cid, self.pl
         index = {c: k for k, c in enumerate(links)}
-        kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE}
+        kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
+                 "prismatic": p.JOINT_PRISMATIC}  # fmt: skip
         f = [engine_frames(pl, c) for c in links]
         for c, fc in zip(links, f, strict=True):
             self.frames[c] = fc
@@ -217,6 +220,10 @@ class _Model:
                 q, W = cv.pybullet_spherical_from_state(Rr, Wr)
                 p.resetJointStateMultiDof(mb, k, targetValue=q, targetVelocity=W,
                                           physicsClientId=cid)  # fmt: skip
+            elif tj.kind == "prismatic":
+                d0, rate = reduced.slide_state(pl, tj)
+                u = rates if rates is not None else rate
+                p.resetJointState(mb, k, d0, u, physicsClientId=cid)
             else:
                 u = rates if rates is not None else float(tj.axis_c @ Wr)
                 p.resetJointState(mb, k, 0.0, u, physicsClientId=cid)
@@ -258,8 +265,19 @@ class _Model:
                 continue
             P, Rf = frames[c]
             points[tj.name] = P
-            if tj.kind == "revolute":
+            if tj.kind in ("revolute", "prismatic"):
                 axes[tj.name] = Rf @ np.asarray(p.getJointInfo(mb, k, physicsClientId=cid)[13])
+            if tj.kind == "prismatic":
+                # the child's side moves along the axis; the parent's is the joint placement
+                if tj.parent < 0:
+                    fixed = self.frames[c].p
+                else:
+                    Pp, Rp = frames[tj.parent]
+                    fixed = Pp + Rp @ self.frames[c].p
+                j = next(j for j in self.pl.joints if j.name == tj.name)
+                a_is_child = j.body_a == self.pl.names[c]
+                points[tj.name] = {("a" if a_is_child else "b"): P,
+                                   ("b" if a_is_child else "a"): fixed}  # fmt: skip
         return points, axes
 
     def kinetic_energy(self) -> float:
@@ -300,7 +318,8 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
     bad = reduced.Mismatches()
     want = bad.want
 
-    kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE}
+    kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
+             "prismatic": p.JOINT_PRISMATIC}  # fmt: skip
     inv = {v: c for c, v in bm.where.items()}
     for c, (mb, k) in bm.where.items():
         b, tj, f = pl.bodies[c], pl.tree[c], bm.frames[c]
@@ -330,7 +349,7 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
         off = np.zeros(3) if parent < 0 else np.asarray(
             p.getDynamicsInfo(mb, parent, physicsClientId=cid)[3])  # fmt: skip
         want(f"{name}: joint position in the parent", np.asarray(j[14]) + off, f.p)
-        if tj.kind == "revolute":
+        if tj.kind in ("revolute", "prismatic"):
             want(f"{name}: joint axis (child frame)", j[13], f.axis)
     params = p.getPhysicsEngineParameters(physicsClientId=cid)
     want("gravity", [params[f"gravityAcceleration{a}"] for a in "XYZ"], pl.gravity)
@@ -413,7 +432,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "of jointed bodies is not built there"
         )
     p = _import()
-    pl = reduced.plan(scenario, "pybullet")
+    pl = reduced.plan(scenario, "pybullet", reduced.SLIDING_KINDS)
     bm = _Model(p, pl, float(dt))
     try:
         read_back(bm, scenario, float(dt))
