@@ -1,5 +1,5 @@
 """Universal joints in the trees of the reduced-coordinate builders that have them (issue 32,
-item 4): Pinocchio's ``JointModelUniversal`` and Drake's ``UniversalJoint``.
+item 4): Pinocchio's ``JointModelUniversal``, Drake's and DART's ``UniversalJoint``.
 
 The kit's universal chain (three links on universal joints with random perpendicular axis
 pairs, random attitudes and rates; references.engines.system_conformance.universal_chain)
@@ -19,9 +19,9 @@ from references.exact.multibody import solve
 from references.exact.multibody.loops import system_from_world
 
 #: (engine, integrator, bound on the largest position and rotation-entry error over 0.5 s at
-#: dt = 1e-3): RKMK4 of order 4 (measured 6e-10), Drake's error-controlled RK5 at its default
-#: accuracy stepped at 1e-3 (measured 5e-13)
-CASES = [("pinocchio", "RKMK4", 1e-8), ("drake", "runge_kutta5", 1e-10)]
+#: dt = 1e-3): RKMK4 of order 4 (Pinocchio's and DART's, measured 6e-10), Drake's
+#: error-controlled RK5 at its default accuracy stepped at 1e-3 (measured 5e-13)
+CASES = [("pinocchio", "RKMK4", 1e-8), ("drake", "runge_kutta5", 1e-10), ("dart", "RKMK4", 1e-8)]
 
 
 def _available(engine):
@@ -45,7 +45,7 @@ def test_universal_chain_against_the_loop_reference(engine, integrator, bound):
     assert np.max(np.abs(out["R"] - sol.R[:, order])) < bound
 
 
-@pytest.mark.parametrize("engine", ["pinocchio", "drake"])
+@pytest.mark.parametrize("engine", ["pinocchio", "drake", "dart"])
 def test_planted_mistakes_on_a_universal_joint_are_caught(engine):
     _available(engine)
     sc = kit.scenario("kit-universal3", *kit.universal_chain())

@@ -18,6 +18,8 @@ revolute            ``RevoluteJoint`` (axis   0; n . (W_c - R_rel^T W_p)
                     = the child's axis)
 prismatic           ``PrismaticJoint`` (axis  the anchors' offset along the axis; its rate
                     = the child's axis)       (:func:`~references.engines.reduced.slide_state`)
+universal           ``UniversalJoint`` (axis1 (0, 0); the relative rate on the two axes
+                    R_ref^T u_p, axis2 u_c)
 (floating root)     ``FreeJoint``             [rotation vector, x]; [w WORLD, v WORLD]
 others              -                         unsupported (not built by this adapter)
 ==================  ========================  ===========================================
@@ -133,6 +135,7 @@ class _Model:
             "spherical": skel.createBallJointAndBodyNodePair,
             "revolute": skel.createRevoluteJointAndBodyNodePair,
             "prismatic": skel.createPrismaticJointAndBodyNodePair,
+            "universal": skel.createUniversalJointAndBodyNodePair,
         }
         for c in pl.order:
             f = engine_frames(pl, c)
@@ -147,6 +150,11 @@ class _Model:
             joint.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
             if f.kind in ("revolute", "prismatic"):
                 joint.setAxis(f.axis)
+            elif f.kind == "universal":
+                # about the parent's axis (R_ref^T u_p in the joint frame), then the child's:
+                # R_p^T R_c = Rot(u_p, q1) R_ref Rot(u_c, q2), as Pinocchio's
+                joint.setAxis1(tj.R_ref.T @ tj.axis_p)
+                joint.setAxis2(f.axis)
             b = pl.bodies[c]
             moments = np.diag(np.asarray(b.inertia, float))
             body.setInertia(dart.dynamics.Inertia(float(b.mass), f.body_offset, moments))
@@ -165,7 +173,7 @@ class _Model:
         self.blocks, k = [], 0
         for c in pl.order:
             kind = pl.tree[c].kind
-            n = {"free": 6, "spherical": 3, "revolute": 1, "prismatic": 1}[kind]
+            n = {"free": 6, "spherical": 3, "revolute": 1, "prismatic": 1, "universal": 2}[kind]
             joint = self.joint[c]
             self.blocks.append((c, kind, slice(k, k + n), joint, joint.getIndexInSkeleton(0)))
             k += n
@@ -187,6 +195,12 @@ class _Model:
             elif tj.kind == "prismatic":
                 d0, rate = reduced.slide_state(pl, tj)
                 pos, vel = [d0], [rate]
+            elif tj.kind == "universal":
+                # at (0, 0) the relative rate is q1' a1 + q2' a2 (least squares: the state
+                # check catches a rate off the two axes)
+                axes = np.column_stack([joint.getAxis1(), joint.getAxis2()])
+                Wrel = reduced.relative_state(pl, tj)[1]
+                pos, vel = [0.0, 0.0], list(np.linalg.lstsq(axes, Wrel, rcond=None)[0])
             else:
                 pos, vel = [0.0], [float(tj.axis_c @ reduced.relative_state(pl, tj)[1])]
             joint.setPositions(np.asarray(pos, float))
@@ -269,8 +283,8 @@ class _Model:
                 R, W = cv.dart_ball_to_state(p, v)
                 q.append((R,))
                 u.append(W)
-            else:
-                q.append((float(p[0]),))
+            else:  # revolute, prismatic, universal: coordinates in a vector space
+                q.append((np.array(p, float),))
                 u.append(np.array(v, float))
         return q, np.concatenate(u)
 
@@ -278,8 +292,8 @@ class _Model:
         out = []
         for (_, kind, s, _, _), g in zip(self.blocks, q, strict=True):
             th = theta[s]
-            if kind in ("revolute", "prismatic"):
-                out.append((g[0] + float(th[0]),))
+            if kind in ("revolute", "prismatic", "universal"):
+                out.append((g[0] + th,))
             elif kind == "spherical":
                 out.append((g[0] @ cv.rotvec_to_matrix(th),))
             else:
@@ -302,7 +316,7 @@ class _Model:
             elif kind == "spherical":
                 pos, vel = cv.dart_ball_from_state(g[0], u[s])
             else:
-                pos, vel = np.array([g[0]], float), u[s]
+                pos, vel = np.asarray(g[0], float), u[s]
             out.append((j, pos, vel))
         return out
 
@@ -355,7 +369,7 @@ def read_back(dm: _Model, scenario, dt: float) -> None:
     want = bad.want
 
     kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint",
-             "prismatic": "PrismaticJoint"}  # fmt: skip
+             "prismatic": "PrismaticJoint", "universal": "UniversalJoint"}  # fmt: skip
     want("number of bodies", skel.getNumBodyNodes(), len(pl.bodies))
     for c, body in dm.body.items():
         b, tj, joint = pl.bodies[c], pl.tree[c], dm.joint[c]
@@ -417,7 +431,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     if closure not in REVOLUTE_CLOSURES:
         raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
     dart = _import()
-    pl = reduced.plan(scenario, "dart", reduced.SLIDING_KINDS)
+    pl = reduced.plan(scenario, "dart", (*reduced.SLIDING_KINDS, "universal"))
     if pl.loops and integrator == "RKMK4":
         raise Unsupported(
             f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
