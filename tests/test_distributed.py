@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 import scenarios
-from reports.run.parallel import ClusterLost, dask_cluster
+from reports.run.parallel import ClusterLost, Mapper, dask_cluster
 from reports.run.runner import plan, run_suite
 from reports.store.results import RunSpec, read_results
 
@@ -120,14 +120,14 @@ def test_distributed_sweep_equals_serial(tmp_path, cluster, specs):
 def test_interrupted_distributed_sweep_resumes(tmp_path, cluster, specs):
     mapper = dask_cluster(cluster)
 
-    def interrupted(fn, todo):
+    def interrupted(fn, todo, keys=None):
         for i, row in enumerate(mapper(fn, todo)):
             if i == 4:
                 raise KeyboardInterrupt
             yield row
 
     with pytest.raises(KeyboardInterrupt):
-        run_suite(specs, tmp_path, progress=False, mapper=interrupted)
+        run_suite(specs, tmp_path, progress=False, mapper=Mapper(interrupted))
     assert len(read_results(tmp_path)) == 4
     df, n = run_suite(specs, tmp_path, progress=False, mapper=mapper)
     assert n == len(specs) - 4 and len(df) == len(specs)

@@ -14,6 +14,7 @@ import pytest
 
 import scenarios
 from reports.cli import main
+from reports.run.parallel import Mapper
 from reports.run.runner import execute, plan, run_suite
 from reports.store.results import RunSpec, read_results
 
@@ -178,23 +179,23 @@ def test_unknown_integrator_is_a_row(tmp_path, dzh):
 def test_interruption_keeps_finished_runs_and_resume_skips_them(tmp_path, dzh):
     specs = specs_for(dzh)
 
-    def interrupted(fn, todo):
+    def interrupted(fn, todo, keys=None):
         for i, spec in enumerate(todo):
             if i == 3:
                 raise KeyboardInterrupt
             yield fn(spec)
 
     with pytest.raises(KeyboardInterrupt):
-        run_suite(specs, tmp_path, progress=False, mapper=interrupted)
+        run_suite(specs, tmp_path, progress=False, mapper=Mapper(interrupted))
     assert len(read_results(tmp_path)) == 3
     seen = []
 
-    def recording(fn, todo):
+    def recording(fn, todo, keys=None):
         for spec in todo:
             seen.extend(s.key for s in spec)
             yield fn(spec)
 
-    df, n = run_suite(specs, tmp_path, progress=False, mapper=recording)
+    df, n = run_suite(specs, tmp_path, progress=False, mapper=Mapper(recording))
     assert n == len(specs) - 3 and len(seen) == n and len(df) == len(specs)
     # --redo runs everything again
     df, n = run_suite(specs, tmp_path, progress=False, redo=True)

@@ -1,7 +1,7 @@
 """Where runs execute: here, in a local process pool, or on a Dask cluster.
 
-Each executor is a *mapper*: ``mapper(fn, specs)`` yields ``fn(spec)`` results as they finish
-(in completion order). The runner commits each row as it arrives, so an interrupted sweep
+Each executor is a :class:`Mapper`: ``mapper(fn, specs)`` yields ``fn(spec)`` results as they
+finish (in completion order). The runner commits each row as it arrives, so an interrupted sweep
 keeps every finished run wherever it ran, and a rerun skips them.
 
 Runs are independent and deterministic (each engine adapter builds its model from the
@@ -41,7 +41,8 @@ from __future__ import annotations
 import contextlib
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from scenarios.schema import InputError
@@ -81,15 +82,30 @@ def working_directory(path: Path | None):
         os.chdir(old)
 
 
-def serial(out: Path | None = None) -> Callable:
+@dataclass(frozen=True)
+class Mapper:
+    """Where units of work run: ``mapper(fn, units, keys)`` yields ``fn(unit)`` for each unit
+    as it finishes, by ``run(fn, units, keys)``. ``keys(unit)``, optional, names the
+    compilations a unit goes through the first time in a process: a mapper that runs units
+    side by side uses it to keep two workers from compiling the same thing at once
+    (:func:`process_pool`); the others ignore it. ``in_process``: the units run here, one
+    after another in the order given (a run can then show its own progress while it runs)."""
+
+    run: Callable[..., Iterator]
+    in_process: bool = False
+
+    def __call__(self, fn, units, keys: Callable | None = None) -> Iterator:
+        return self.run(fn, units, keys)
+
+
+def serial(out: Path | None = None) -> Mapper:
     """Run each spec in this process, in order (engines' log files into ``out/logs``)."""
 
-    def mapper(fn, specs):
+    def mapper(fn, specs, keys=None):
         with working_directory(log_dir(out)):
             yield from map(fn, specs)
 
-    mapper.serial = True
-    return mapper
+    return Mapper(mapper, in_process=True)
 
 
 def _parent_of(pid: int) -> int | None:
@@ -178,7 +194,7 @@ def _context(preload: tuple[str, ...]):
 
 def process_pool(
     jobs: int | None = None, out: Path | None = None, preload: tuple[str, ...] = ()
-) -> Callable:
+) -> Mapper:
     """A mapper over a local pool of ``jobs`` processes (default: the number of cores).
 
     Making the mapper with more than one job starts the workers' fork server, which imports
@@ -242,8 +258,7 @@ def process_pool(
                 fut.cancel()
             pool.shutdown(wait=True, cancel_futures=True)
 
-    mapper.gated = True
-    return mapper
+    return Mapper(mapper)
 
 
 #: units of work in flight per local worker (running or queued): enough that a worker never
@@ -277,7 +292,7 @@ class _Gate:
         self.done |= keys
 
 
-def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None = None) -> Callable:
+def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None = None) -> Mapper:
     """A mapper over the Dask cluster whose scheduler listens at ``address``
     (e.g. ``tcp://127.0.0.1:8786``). Needs ``pip install director-bench[dask]``; the workers
     need the suite installed and must see the output folder (same machine or shared disk).
@@ -300,7 +315,7 @@ def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None 
 
     connect().close()  # an unreachable scheduler is bad input, said before anything runs
 
-    def mapper(fn, specs):
+    def mapper(fn, specs, keys=None):
         specs = list(specs)
         client = connect()
         try:
@@ -320,7 +335,7 @@ def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None 
             with contextlib.suppress(Exception):
                 client.close(timeout=10)
 
-    return mapper
+    return Mapper(mapper)
 
 
 def _watch(client, spec_of: dict, address: str, no_worker_s: float):
@@ -406,7 +421,7 @@ def make_mapper(
     scheduler: str | None = None,
     out: Path | None = None,
     preload: tuple[str, ...] = (),
-) -> Callable:
+) -> Mapper:
     """The mapper of a command's options: a Dask cluster (``scheduler``), this process
     (``jobs`` 1) or a local pool (:func:`process_pool`, whose workers' fork server also
     imports ``preload``)."""

@@ -668,10 +668,10 @@ def run_suite(
     returns (the current results DataFrame, number of runs executed).
 
     Runs whose identity is already in the store are skipped unless ``redo`` (except those
-    whose status is in ``RETRY_STATUSES``). ``mapper(fn, specs)`` may run specs elsewhere (a
-    process pool, a Dask cluster) and must yield rows as they finish; the default runs them
-    here in order. ``results.csv`` and ``results.parquet`` are exported at the end (also
-    after an interruption).
+    whose status is in ``RETRY_STATUSES``). ``mapper`` (a :class:`reports.run.parallel.Mapper`)
+    may run specs elsewhere (a process pool, a Dask cluster) and yields rows as they finish;
+    the default runs them here in order. ``results.csv`` and ``results.parquet`` are exported
+    at the end (also after an interruption).
     """
     out = Path(out)
     specs = list(specs)
@@ -695,7 +695,7 @@ def run_suite(
             from reports.run.parallel import serial
 
             mapper = serial(out)
-        if getattr(mapper, "serial", False):
+        if mapper.in_process:
             # in this process: a long run shows its own progress in the bar
 
             def fn(bundle):
@@ -704,8 +704,7 @@ def run_suite(
             fn = functools.partial(execute_bundle, out=out, fmt=fmt)
         try:
             units = bundles(todo)
-            gated = getattr(mapper, "gated", False)  # reports.run.parallel.process_pool
-            rows_of = mapper(fn, units, keys=unit_warm_ups) if gated else mapper(fn, units)
+            rows_of = mapper(fn, units, keys=unit_warm_ups)
             spec_of = {s.run_id: s for s in todo}
             for rows in rows_of:
                 for row in rows:
