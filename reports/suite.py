@@ -437,7 +437,7 @@ def run(
     warn_costs(scs, t_end)
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines, named)
-    unloadable = {e: why for e in engines if (why := getattr(get_engine(e), "broken", None))}
+    unloadable = {e: why for e in engines if (why := get_engine(e).broken)}
     limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.runner
     specs = plan(
         scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full

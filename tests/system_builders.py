@@ -58,10 +58,10 @@ def errors_vs_reference(mod, sc, integrator, dt, t_end=1.0):
     n = int(round(t_end / dt))
     out = mod.simulate_system(sc, integrator, dt, n, n // 10)
     tree, q0, u0 = tree_from_world(sc.bodies, sc.joints, sc.gravity)
-    ref = solve(tree, q0, u0, out["t"], estimate=False)
+    ref = solve(tree, q0, u0, out.t, estimate=False)
     order = [ref.names.index(b.name) for b in sc.bodies]
-    return (float(np.max(np.abs(out["x"] - ref.x[:, order]))),
-            float(np.max(np.abs(out["R"] - ref.R[:, order]))))  # fmt: skip
+    return (float(np.max(np.abs(out.x - ref.x[:, order]))),
+            float(np.max(np.abs(out.R - ref.R[:, order]))))  # fmt: skip
 
 
 def assert_chain_order(mod, system, integrator, dt, p) -> float:
@@ -79,11 +79,11 @@ def assert_chain_order(mod, system, integrator, dt, p) -> float:
 def momentum(sc, out):
     """Linear (kg m/s) and angular (about the world origin, kg m^2/s) momentum over a run."""
     m = np.array([b.mass for b in sc.bodies])
-    P = np.einsum("b,nbi->ni", m, out["v"])
+    P = np.einsum("b,nbi->ni", m, out.v)
     L = np.zeros_like(P)
     for k, b in enumerate(sc.bodies):
-        L += np.cross(out["x"][:, k], m[k] * out["v"][:, k])
-        L += np.einsum("nij,j,nj->ni", out["R"][:, k], np.asarray(b.inertia), out["W"][:, k])
+        L += np.cross(out.x[:, k], m[k] * out.v[:, k])
+        L += np.einsum("nij,j,nj->ni", out.R[:, k], np.asarray(b.inertia), out.W[:, k])
     return P, L
 
 
@@ -107,18 +107,18 @@ def four_bar_gap(sc, out):
     j = sc.joints[3]
     names = [b.name for b in sc.bodies]
     a, b = names.index(j.body_a), names.index(j.body_b)
-    pa = out["x"][:, a] + np.einsum("nij,j->ni", out["R"][:, a], j.anchor_a)
-    pb = out["x"][:, b] + np.einsum("nij,j->ni", out["R"][:, b], j.anchor_b)
-    ua = np.einsum("nij,j->ni", out["R"][:, a], j.axis_a)
-    ub = np.einsum("nij,j->ni", out["R"][:, b], j.axis_b)
+    pa = out.x[:, a] + np.einsum("nij,j->ni", out.R[:, a], j.anchor_a)
+    pb = out.x[:, b] + np.einsum("nij,j->ni", out.R[:, b], j.anchor_b)
+    ua = np.einsum("nij,j->ni", out.R[:, a], j.axis_a)
+    ub = np.einsum("nij,j->ni", out.R[:, b], j.axis_b)
     return np.linalg.norm(pa - pb, axis=1), np.linalg.norm(np.cross(ua, ub), axis=1)
 
 
 def four_bar_theta_error(out, I_eff, k):
-    R = out["R"][:, 0]
+    R = out.R[:, 0]
     th = np.arctan2(R[:, 0, 2], R[:, 2, 2])
     rhs = lambda t, y: [y[1], -9.81 * k / I_eff * np.sin(y[0])]  # noqa: E731
-    sol = solve_ivp(rhs, (0, out["t"][-1]), [0.0, 7.0], t_eval=out["t"], rtol=1e-12,
+    sol = solve_ivp(rhs, (0, out.t[-1]), [0.0, 7.0], t_eval=out.t, rtol=1e-12,
                     atol=1e-12, method="DOP853")  # fmt: skip
     return float(np.max(np.abs(np.angle(np.exp(1j * (th - sol.y[0]))))))
 
@@ -146,11 +146,11 @@ def two_ball_hinge_errors(mod, integrator, dt, t_end=2.0):
     n = int(round(t_end / dt))
     out = mod.simulate_system(sc, integrator, dt, n, n // 20)
     tree, q0, u0 = tree_from_world(hinge.bodies, hinge.joints, kit.G)
-    ref = solve(tree, q0, u0, out["t"], estimate=False)
+    ref = solve(tree, q0, u0, out.t, estimate=False)
     gap = max(float(np.max(np.linalg.norm(
-        out["x"][:, 0] + np.einsum("nij,j->ni", out["R"][:, 0], X) - P, axis=1)))
+        out.x[:, 0] + np.einsum("nij,j->ni", out.R[:, 0], X) - P, axis=1)))
         for X, P in ends)  # fmt: skip
-    return gap, float(np.max(np.abs(out["x"] - ref.x)))
+    return gap, float(np.max(np.abs(out.x - ref.x)))
 
 
 def slide_errors(mod, sc, integrator, h, nstep):
@@ -158,11 +158,11 @@ def slide_errors(mod, sc, integrator, h, nstep):
     removing semi-implicit Euler's known error (g . n) n h t / 2)."""
     _, _, exact = kit.inclined_slide()
     out = mod.simulate_system(sc, integrator, h, nstep, 10)
-    x, R = exact(out["t"])
+    x, R = exact(out.t)
     n = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
-    err = out["x"][:, 0] - x
-    euler = np.outer(out["t"], (kit.G @ n) * n) * h / 2
-    assert np.abs(out["R"][:, 0] - R).max() < 1e-14 and np.abs(out["W"]).max() < 1e-14
+    err = out.x[:, 0] - x
+    euler = np.outer(out.t, (kit.G @ n) * n) * h / 2
+    assert np.abs(out.R[:, 0] - R).max() < 1e-14 and np.abs(out.W).max() < 1e-14
     return out, float(np.abs(err).max()), float(np.abs(err - euler).max())
 
 
@@ -179,7 +179,7 @@ def slider_errors_vs_rattle6(mod, integrator, dts):
     e = []
     for h in dts:
         out = mod.simulate_system(sc, integrator, h, round(1 / h), round(0.1 / h))
-        e.append(max(np.abs(out["x"] - tr.position).max(), np.abs(out["R"] - tr.rotation).max()))
+        e.append(max(np.abs(out.x - tr.position).max(), np.abs(out.R - tr.rotation).max()))
     return e, out
 
 
@@ -221,8 +221,8 @@ def assert_saved_steps(mod, sc, integrator) -> None:
     """Five steps of 1 ms saved every second step come back at 0, 2, 4 and 5 ms (the last
     step always saved), with every body's state and time inside the engine."""
     out = mod.simulate_system(sc, integrator, 1e-3, 5, 2)
-    assert out["t"].tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
-    assert out["x"].shape == (4, len(sc.bodies), 3) and out["engine_time_s"] > 0
+    assert out.t.tolist() == pytest.approx([0, 2e-3, 4e-3, 5e-3])
+    assert out.x.shape == (4, len(sc.bodies), 3) and out.engine_time_s > 0
 
 
 def joint_rates(tree, q, u):

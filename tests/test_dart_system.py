@@ -54,12 +54,12 @@ def test_four_bar_closed_by_dart_joint_constraints():
     gap, axis = sb.four_bar_gap(sc, out)
     assert gap.max() < 1e-7 and axis.max() < 1e-12
     assert sb.four_bar_theta_error(out, I_eff, k) < 1e-4
-    s = out["settings"]
+    s = out.settings
     assert s["constraint solver"]["error reduction parameter (ERP)"] == ds.DEFAULT_ERP
     assert "RevoluteJointConstraint" in s["loop closures"][0]
     ball = ds.simulate_system(sc, EULER, 1e-3, 2000, 50, revolute_closure="ball")
     assert sb.four_bar_gap(sc, ball)[0].max() < 1e-10
-    assert "BallJointConstraint at the anchor" in ball["settings"]["loop closures"][0]
+    assert "BallJointConstraint at the anchor" in ball.settings["loop closures"][0]
     with pytest.raises(Diverged, match="non-finite"):
         ds.simulate_system(sc, EULER, 1e-3, 2000, 50, erp=0.1)
     with pytest.raises(Unsupported, match="World.step"):

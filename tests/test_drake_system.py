@@ -56,7 +56,7 @@ def test_four_bar_closed_by_ball_constraints_on_the_discrete_plant():
     sb.assert_order(
         sb.four_bar_theta_error(out, I_eff, k), sb.four_bar_theta_error(half, I_eff, k), 1
     )
-    assert "two AddBallConstraint" in out["settings"]["loop closures"][0]
+    assert "two AddBallConstraint" in out.settings["loop closures"][0]
 
 
 def test_a_loop_on_a_continuous_plant_is_refused_and_drake_refuses_it_too(monkeypatch):
@@ -86,13 +86,13 @@ def test_a_ball_joint_turning_through_its_chart_singularity_follows_the_exact_ro
     sc = scenario("tumble", b, j, gravity=(0, 0, 0))
     for integrator in (RK5, EULER, SAP):
         out = ds.simulate_system(sc, integrator, 1e-3, 2000, 100)
-        c, s = np.cos(3 * out["t"]), np.sin(3 * out["t"])
+        c, s = np.cos(3 * out.t), np.sin(3 * out.t)
         exact = np.zeros((len(c), 3, 3))
         exact[:, 0, 0], exact[:, 0, 2], exact[:, 1, 1] = c, s, 1.0
         exact[:, 2, 0], exact[:, 2, 2] = -s, c
-        assert np.max(np.abs(out["R"][:, 0] - exact)) < 1e-11, integrator
-        assert np.max(np.abs(out["W"][:, 0] - w)) < 1e-11, integrator
-        rec = out["settings"]
+        assert np.max(np.abs(out.R[:, 0] - exact)) < 1e-11, integrator
+        assert np.max(np.abs(out.W[:, 0] - w)) < 1e-11, integrator
+        rec = out.settings
         assert rec["RPY chart switches"] == 5
         assert rec["RPY chart switch times s"] == pytest.approx(0.387 * np.arange(1, 6), abs=1e-9)
         assert all("pivot" in lab for lab in rec["RPY chart switch joints"])
@@ -126,7 +126,7 @@ def test_a_double_spherical_pendulum_runs_through_chart_switches_at_order_5():
     sb.assert_order(eR1, eR2, 5)
     assert ex2 < 1e-10 and eR2 < 1e-10
     out = ds.simulate_system(sc, RK5, 3e-3, 300, 300)
-    joints = [lab.split("'")[1] for lab in out["settings"]["RPY chart switch joints"]]
+    joints = [lab.split("'")[1] for lab in out.settings["RPY chart switch joints"]]
     assert joints == ["elbow", "shoulder", "shoulder"]
 
 
@@ -156,8 +156,8 @@ def test_the_state_is_continuous_across_a_chart_switch(monkeypatch, mistake):
             ds.simulate_system(double_spherical_pendulum(), RK5, 3e-3, 300, 300)
         return
     out = ds.simulate_system(double_spherical_pendulum(), RK5, 3e-3, 300, 300)
-    assert len(seen) == out["settings"]["RPY chart switches"] == 3
-    assert [b[0] for b, _ in seen] == out["settings"]["RPY chart switch times s"]
+    assert len(seen) == out.settings["RPY chart switches"] == 3
+    assert [b[0] for b, _ in seen] == out.settings["RPY chart switch times s"]
     worst = 0.0
     for before, after in seen:
         assert after[0] == before[0]
@@ -181,7 +181,7 @@ def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form(integrator
     reproduced to round-off (measured 2.6e-15 and 1.0e-15 m). Bound: 1e-13 m."""
     b, j, _ = kit.inclined_slide()
     out, e, e_known = sb.slide_errors(ds, scenario("incline", b, j), integrator, 1e-2, 100)
-    assert out["settings"]["tree"] == {"s": "prismatic to ground"}
+    assert out.settings["tree"] == {"s": "prismatic to ground"}
     if integrator in (EULER, SAP):
         assert e > 0.02 and e_known < 1e-13
     else:
@@ -196,7 +196,7 @@ def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_5():
     e, out = sb.slider_errors_vs_rattle6(ds, RK5, (1e-2, 5e-3))
     assert 2**5 / 1.6 < e[0] / e[1] < 2**5 * 1.6 * 1.6, e
     assert e[1] < 1e-11
-    assert out["settings"]["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
+    assert out.settings["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
 
 
 @pytest.mark.parametrize("mistake", ["axis in the parent's frame", "offset along the axis lost"])

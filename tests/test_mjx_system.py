@@ -89,9 +89,9 @@ def test_mjx_float64_tree_euler_equals_c_mujoco_and_rk4_converges():
     sc = scenario("chain", bodies, joints)
     mjx = mjx_system.simulate_system(sc, "Euler", 1e-3, 1000, 100)
     c = ms.simulate_system(sc, "Euler", 1e-3, 1000, 100)
-    assert "float64" in mjx["settings"]["precision"]
+    assert "float64" in mjx.settings["precision"]
     for key in ("x", "R", "v", "W"):
-        assert np.abs(mjx[key] - c[key]).max() < 1e-12, key
+        assert np.abs(getattr(mjx, key) - getattr(c, key)).max() < 1e-12, key
     out = {dt: mjx_system.simulate_system(sc, "RK4", dt, round(1 / dt), round(0.1 / dt))
            for dt in (2e-3, 1e-3)}  # fmt: skip
     sol, perm = reference(bodies, joints, out[1e-3]["t"])
@@ -151,9 +151,9 @@ def test_mjx_slide_universal_and_cylindrical_joints_equal_c_mujoco():
         sc = scenario(name, bodies, joints)
         out = mjx_system.simulate_system(sc, "Euler", 1e-3, 500, 100)
         c = ms.simulate_system(sc, "Euler", 1e-3, 500, 100)
-        assert out["settings"]["tree"] == c["settings"]["tree"]
+        assert out.settings["tree"] == c.settings["tree"]
         for key in ("x", "R", "v", "W"):
-            assert np.abs(out[key] - c[key]).max() < 1e-12, (name, key)
+            assert np.abs(getattr(out, key) - getattr(c, key)).max() < 1e-12, (name, key)
 
 
 @pytest.mark.slow
@@ -171,7 +171,7 @@ def test_a_system_in_float64_leaves_a_single_body_in_float32_runnable():
 
     bodies, joints = rod_chain(2, hang=True)
     out = mjx_system.simulate_system(scenario("chain", bodies, joints), "RK4", 1e-3, 20, 10)
-    assert "float64" in out["settings"]["precision"]
+    assert "float64" in out.settings["precision"]
     sc = kit.free_scenario(t_end=0.1)
     f32 = get_engine("mjx")().run(sc, "RK4 (float32)", sc.dt, save_every=50)
     assert "float32" in str(f32.settings), f32.settings

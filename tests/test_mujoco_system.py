@@ -75,7 +75,7 @@ def reference(bodies, joints, t, gravity=G):
 
 
 def max_err(out, sol_x, sol_R):
-    return max(np.abs(out["x"] - sol_x).max(), np.abs(out["R"] - sol_R).max())
+    return max(np.abs(out.x - sol_x).max(), np.abs(out.R - sol_R).max())
 
 
 CASES = {
@@ -99,25 +99,25 @@ def test_rk4_agrees_with_the_reduced_reference_and_rattle6(case):
     sc = scenario(case, bodies, joints)
     out2 = ms.simulate_system(sc, "RK4", 2e-3, 1000, 50)
     out1 = ms.simulate_system(sc, "RK4", 1e-3, 2000, 100)
-    np.testing.assert_array_equal(out1["t"], out2["t"])
-    sol, perm = reference(bodies, joints, out1["t"])
+    np.testing.assert_array_equal(out1.t, out2.t)
+    sol, perm = reference(bodies, joints, out1.t)
     sx, sR = sol.x[:, perm], sol.R[:, perm]
     e2, e1 = max_err(out2, sx, sR), max_err(out1, sx, sR)
     order = np.log2(e2 / e1)
     assert 3.5 <= order <= 4.5, (e2, e1, order)
-    rich = max(np.abs(out1["x"] - out2["x"]).max(), np.abs(out1["R"] - out2["R"]).max()) / 15
+    rich = max(np.abs(out1.x - out2.x).max(), np.abs(out1.R - out2.R).max()) / 15
     ref_err = max(sol.accuracy["position"], sol.accuracy["attitude"])
     assert e1 <= 2 * rich + ref_err, (e1, rich, ref_err)
     assert (
-        np.abs(out1["W"] - sol.W[:, perm]).max()
-        <= 2 * np.abs(out1["W"] - out2["W"]).max() / 15 + sol.accuracy["omega"]
+        np.abs(out1.W - sol.W[:, perm]).max()
+        <= 2 * np.abs(out1.W - out2.W).max() / 15 + sol.accuracy["omega"]
     )
     tr = director_simulate(
         bodies, joints, gravity=G, scheme="rattle6", dt=1e-3, t_end=2.0, save_every=100
     )
     r6 = max(np.abs(tr.position - sx).max(), np.abs(tr.rotation - sR).max())
     assert r6 < 1e-11  # RATTLE6 is two orders more accurate than RK4 here (measured 3e-13)
-    d = max(np.abs(out1["x"] - tr.position).max(), np.abs(out1["R"] - tr.rotation).max())
+    d = max(np.abs(out1.x - tr.position).max(), np.abs(out1.R - tr.rotation).max())
     assert d <= 2 * rich + r6, (d, rich, r6)
 
 
@@ -135,10 +135,10 @@ def test_free_floating_chain_keeps_its_momentum():
     for dt in (2e-3, 1e-3):
         n = round(2.0 / dt)
         out = ms.simulate_system(sc, "RK4", dt, n, n // 20)
-        assert out["settings"]["tree"]["b0"] == "free to ground"
-        p = np.einsum("b,nbi->ni", m, out["v"])
-        L = np.einsum("b,nbi->ni", m, np.cross(out["x"], out["v"]))
-        L += np.einsum("nbij,nbj->ni", out["R"], inertia * out["W"])
+        assert out.settings["tree"]["b0"] == "free to ground"
+        p = np.einsum("b,nbi->ni", m, out.v)
+        L = np.einsum("b,nbi->ni", m, np.cross(out.x, out.v))
+        L += np.einsum("nbij,nbj->ni", out.R, inertia * out.W)
         drift[dt] = (
             np.abs(p - p[0]).max() / np.linalg.norm(p[0]),
             np.abs(L - L[0]).max() / np.linalg.norm(L[0]),
@@ -152,8 +152,8 @@ def loop_gap(out, bodies, joint):
     """The gap of a joint's anchors (m) over time from the returned states."""
     names = [b.name for b in bodies]
     a, b = names.index(joint.body_a), names.index(joint.body_b)
-    pa = out["x"][:, a] + np.einsum("nij,j->ni", out["R"][:, a], joint.anchor_a)
-    pb = out["x"][:, b] + np.einsum("nij,j->ni", out["R"][:, b], joint.anchor_b)
+    pa = out.x[:, a] + np.einsum("nij,j->ni", out.R[:, a], joint.anchor_a)
+    pb = out.x[:, b] + np.einsum("nij,j->ni", out.R[:, b], joint.anchor_b)
     return np.linalg.norm(pa - pb, axis=1)
 
 
@@ -190,7 +190,7 @@ def four_bar_solref_errors(mod, integrator, t_end):
     gaps, theta_err = {}, {}
     for solref in ((0.02, 1.0), (0.002, 1.0)):
         out = mod.simulate_system(sc, integrator, 1e-3, n, 10, solref=solref)
-        s = out["settings"]
+        s = out.settings
         assert s["solref"] == list(solref) and s["solref effective"] == list(solref)
         assert s["solimp"] == list(ms.DEFAULT_SOLIMP)
         assert (
@@ -198,7 +198,7 @@ def four_bar_solref_errors(mod, integrator, t_end):
         )
         gaps[solref] = loop_gap(out, bodies, joints[3])
         # with theta' > 0 about +y the crank's tip swings to -x
-        theta = np.arctan2(-out["x"][:, 0, 0], -out["x"][:, 0, 2])
+        theta = np.arctan2(-out.x[:, 0, 0], -out.x[:, 0, 2])
         theta_err[solref] = np.abs(theta - exact).max()
     g_def, g_stiff = gaps[(0.02, 1.0)].max(), gaps[(0.002, 1.0)].max()
     assert gaps[(0.02, 1.0)][0] < 1e-12 and 1e-6 < g_def < 1e-3, g_def
@@ -209,8 +209,8 @@ def four_bar_solref_errors(mod, integrator, t_end):
 def test_refsafe_raises_a_short_time_constant_and_says_so():
     bodies, joints, _, _ = parallelogram_four_bar()
     out = ms.simulate_system(scenario("fb", bodies, joints), "Euler", 2e-3, 5, 5, solref=(0.002, 1))
-    assert out["settings"]["solref effective"] == [0.004, 1.0]
-    assert "refsafe" in out["settings"]["solref note"]
+    assert out.settings["solref effective"] == [0.004, 1.0]
+    assert "refsafe" in out.settings["solref note"]
 
 
 @pytest.mark.parametrize("integrator", ["Euler", "implicit", "implicitfast", "RK4"])
@@ -218,11 +218,11 @@ def test_every_integrator_runs_the_closed_loop(integrator):
     """Each integrator builds and steps the four-bar; the first saved state is the scenario's."""
     bodies, joints, _, _ = parallelogram_four_bar()
     out = ms.simulate_system(scenario("fb", bodies, joints), integrator, 1e-3, 200, 50)
-    assert out["x"].shape == (5, 3, 3) and out["R"].shape == (5, 3, 3, 3)
-    np.testing.assert_allclose(out["t"], [0, 0.05, 0.1, 0.15, 0.2])
-    np.testing.assert_allclose(out["x"][0], [b.position for b in bodies], atol=1e-14)
-    np.testing.assert_allclose(out["W"][0], [b.omega_body for b in bodies], atol=1e-13)
-    assert out["settings"]["integrator"] == integrator and out["engine_time_s"] > 0
+    assert out.x.shape == (5, 3, 3) and out.R.shape == (5, 3, 3, 3)
+    np.testing.assert_allclose(out.t, [0, 0.05, 0.1, 0.15, 0.2])
+    np.testing.assert_allclose(out.x[0], [b.position for b in bodies], atol=1e-14)
+    np.testing.assert_allclose(out.W[0], [b.omega_body for b in bodies], atol=1e-13)
+    assert out.settings["integrator"] == integrator and out.engine_time_s > 0
     assert loop_gap(out, bodies, joints[3]).max() < 1e-3
 
 
@@ -405,22 +405,22 @@ def test_spherical_loop_closures_follow_rattle6():
     for (bodies, joints), closing in ((rope(), "'C'"), (gate, "'G1'")):
         sc = scenario("loop", bodies, joints)
         out = ms.simulate_system(sc, "RK4", 1e-3, 2000, 100, solref=(0.002, 1))
-        (closure,) = out["settings"]["loop closures"]
+        (closure,) = out.settings["loop closures"]
         assert closing in closure and "one site-to-site connect" in closure
         tr = director_simulate(bodies, joints, gravity=G, scheme="rattle6", dt=1e-3, t_end=2.0,
                                save_every=100)  # fmt: skip
         assert tr.constraint_position.max() < 1e-12
-        d = max(np.abs(out["x"] - tr.position).max(), np.abs(out["R"] - tr.rotation).max())
+        d = max(np.abs(out.x - tr.position).max(), np.abs(out.R - tr.rotation).max())
         assert d < 5e-5, d
         j = joints[2] if closing == "'C'" else joints[1]
         names = [b.name for b in bodies]
         a = names.index(j.body_a)
-        pa = out["x"][:, a] + np.einsum("nij,j->ni", out["R"][:, a], j.anchor_a)
+        pa = out.x[:, a] + np.einsum("nij,j->ni", out.R[:, a], j.anchor_a)
         if j.body_b is None:
             pb = np.asarray(j.anchor_b, float)
         else:
             b = names.index(j.body_b)
-            pb = out["x"][:, b] + np.einsum("nij,j->ni", out["R"][:, b], j.anchor_b)
+            pb = out.x[:, b] + np.einsum("nij,j->ni", out.R[:, b], j.anchor_b)
         assert np.linalg.norm(pa - pb, axis=1).max() < 1e-4
 
 
@@ -433,11 +433,11 @@ def test_slide_joint_agrees_with_rattle6():
     sc = scenario("slider", bodies, joints)
     o2 = ms.simulate_system(sc, "RK4", 2e-3, 500, 50)
     o1 = ms.simulate_system(sc, "RK4", 1e-3, 1000, 100)
-    assert o1["settings"]["tree"] == {"rod": "hinge to ground", "collar": "slide to 'rod'"}
+    assert o1.settings["tree"] == {"rod": "hinge to ground", "collar": "slide to 'rod'"}
     tr = director_simulate(bodies, joints, gravity=G, scheme="rattle6", dt=1e-3, t_end=1.0,
                            save_every=100)  # fmt: skip
-    rich = max(np.abs(o1["x"] - o2["x"]).max(), np.abs(o1["R"] - o2["R"]).max()) / 15
-    d = max(np.abs(o1["x"] - tr.position).max(), np.abs(o1["R"] - tr.rotation).max())
+    rich = max(np.abs(o1.x - o2.x).max(), np.abs(o1.R - o2.R).max()) / 15
+    d = max(np.abs(o1.x - tr.position).max(), np.abs(o1.R - tr.rotation).max())
     assert d <= 2 * rich + 1e-13, (d, rich)
 
 
@@ -486,14 +486,14 @@ def test_universal_and_cylindrical_joints_agree_with_rattle6():
     sc = scenario("cardan", bodies, joints)
     o2 = ms.simulate_system(sc, "RK4", 2e-3, 500, 50)
     o1 = ms.simulate_system(sc, "RK4", 1e-3, 1000, 100)
-    assert o1["settings"]["tree"] == {
+    assert o1.settings["tree"] == {
         "rod": "universal to ground",
         "sleeve": "cylindrical to 'rod'",
     }
     tr = director_simulate(bodies, joints, gravity=G, scheme="rattle6", dt=1e-3, t_end=1.0,
                            save_every=100)  # fmt: skip
-    rich = max(np.abs(o1["x"] - o2["x"]).max(), np.abs(o1["R"] - o2["R"]).max()) / 15
-    d = max(np.abs(o1["x"] - tr.position).max(), np.abs(o1["R"] - tr.rotation).max())
+    rich = max(np.abs(o1.x - o2.x).max(), np.abs(o1.R - o2.R).max()) / 15
+    d = max(np.abs(o1.x - tr.position).max(), np.abs(o1.R - tr.rotation).max())
     assert d <= 2 * rich + 1e-13, (d, rich)
     # a universal's axes must be perpendicular and turn so at t = 0: a rate along u_a x u_b
     bad = list(bodies)
@@ -511,5 +511,5 @@ def test_a_blow_up_is_reported_with_the_states_before_it():
     with pytest.raises(Diverged, match="MuJoCo flagged an unstable state") as info:
         ms.simulate_system(scenario("c", bodies, joints), "Euler", 0.2, 2000, 10)
     out = info.value.output
-    assert 0 < info.value.t_diverged <= 400 and out["t"][0] == 0.0
-    assert np.all(np.isfinite(out["x"])) and out["x"].shape[0] == len(out["t"])
+    assert 0 < info.value.t_diverged <= 400 and out.t[0] == 0.0
+    assert np.all(np.isfinite(out.x)) and out.x.shape[0] == len(out.t)

@@ -51,7 +51,7 @@ def test_four_bar_closed_by_point_to_point_constraints():
     assert sb.four_bar_theta_error(out, I_eff, k) < 1e-4
     half = bs.simulate_system(sc, MB, 5e-4, 4000, 100)
     assert sb.four_bar_gap(sc, half)[0].max() < gap.max() / 2
-    s = out["settings"]
+    s = out.settings
     assert "two JOINT_POINT2POINT" in s["loop closures"][0]
     assert [c["erp"] for c in s["constraints"]] == [bs.DEFAULT_ERP] * 2
     assert [c["maxAppliedForce (N)"] for c in s["constraints"]] == [bs.DEFAULT_MAX_FORCE] * 2
@@ -79,7 +79,7 @@ def test_default_erp_is_bullet_s(monkeypatch):
             monkeypatch.setattr(p, "setPhysicsEngineParameter", real)
 
     monkeypatch.setattr(bs._Model, "add_loops", defaults)
-    assert np.array_equal(bs.simulate_system(sc, MB, 1e-3, 300, 300)["x"], out["x"])
+    assert np.array_equal(bs.simulate_system(sc, MB, 1e-3, 300, 300).x, out.x)
 
 
 def test_a_loop_through_the_ground_is_the_hinge_it_makes():

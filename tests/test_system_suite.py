@@ -302,3 +302,33 @@ def test_engine_settings_reach_the_builder_and_bad_ones_are_named():
     with pytest.raises(EngineError, match="no-such-solver"):
         run_system("director", sc, "rattle", 1e-3)
     assert run_system("director", sc.replace(engine_settings={}), "rattle", 1e-3).nstep == 10
+
+
+def test_a_builders_divergence_is_a_diverged_row_with_its_states(tmp_path, monkeypatch):
+    """A builder that stops at a divergence raises Diverged with its result up to the last good
+    save: the run is a ``diverged`` row at that time, its metrics over the states before it
+    and its trajectory file written (a planted divergence halfway through a real run)."""
+    from references.engines.director import system as director_system
+    from references.engines.system import SystemResult
+    from references.errors import Diverged
+    from reports.run.runner import execute
+    from reports.store.results import RunSpec
+
+    real = director_system.simulate_system
+
+    def diverging(scenario, integrator, dt, nstep, save_every, **settings):
+        full = real(scenario, integrator, dt, nstep, save_every, **settings)
+        k = len(full.t) // 2
+        part = SystemResult(full.t[:k], full.x[:k], full.R[:k], full.v[:k], full.W[:k],
+                            full.engine_time_s, full.settings)  # fmt: skip
+        raise Diverged("planted: a non-finite state", float(full.t[k]), part)
+
+    monkeypatch.setattr(director_system, "simulate_system", diverging)
+    sc = scenarios.load("spinning_chain")
+    row = execute(RunSpec(sc, "director", "rattle", 1e-3, t_end=0.1, save_every=10), tmp_path)
+    assert row["status"] == "diverged" and "planted" in row["message"], row["message"]
+    # 11 saves (0, 10, ..., 100 steps): the first 5 kept, the divergence seen at the 6th
+    assert row["t_diverged"] == pytest.approx(0.05) and row["nstep"] == 40
+    assert row["joint_gap_max"] < 1e-12  # measured on the states before the divergence
+    tr = SystemTrajectory.read(tmp_path / row["trajectory"])
+    assert len(tr) == 5

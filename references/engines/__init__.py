@@ -14,7 +14,7 @@ import importlib
 
 from references.engines.context import BodyModel, ModelReadback, RunContext, RunOutput
 from references.engines.integrators import FAMILIES, Family, Integrator, register_family, slug
-from references.engines.interface import Engine, EngineBase
+from references.engines.interface import Engine, EngineBase, SceneBuilder
 from references.engines.native import import_engine
 from references.engines.recording import Recorder, block_trajectory
 from references.engines.stepping import CHUNK, DIVERGENCE_ENERGY, check_readback, step_plan
@@ -130,6 +130,7 @@ __all__ = [
     "Recorder",
     "RunContext",
     "RunOutput",
+    "SceneBuilder",
     "StepFailure",
     "UnknownEngine",
     "Unsupported",

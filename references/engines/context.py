@@ -160,3 +160,22 @@ class RunOutput:
     @property
     def glue_time_s(self) -> float:
         return max(self.wall_time_s - self.engine_time_s, 0.0)
+
+
+@dataclass
+class SystemResult:
+    """What a system builder returns (module docstring): the saved states ``t`` (n,), ``x``
+    (n, nb, 3), ``R`` (n, nb, 3, 3), ``v`` (n, nb, 3), ``W`` (n, nb, 3); ``engine_time_s``,
+    the time inside the engine's own calls (NaN: not measured, the run's wall time is used);
+    ``settings``, every setting that shapes the result; ``evals_per_step``, the dynamics
+    evaluations per step (NaN: not said); ``stats``, counts and figures the builder reports."""
+
+    t: np.ndarray
+    x: np.ndarray
+    R: np.ndarray
+    v: np.ndarray
+    W: np.ndarray
+    engine_time_s: float = math.nan
+    settings: dict = field(default_factory=dict)
+    evals_per_step: float = math.nan
+    stats: dict = field(default_factory=dict)

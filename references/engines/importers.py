@@ -510,7 +510,7 @@ def body_offsets(scenario) -> tuple[list, np.ndarray]:
 
 
 def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nstep: int,
-             save_every: int) -> dict:  # fmt: skip
+             save_every: int):  # fmt: skip
     """Run a robot-model ``scenario`` through ``engine``'s own importer in ``config`` (the
     system builders' contract, :mod:`references.engines.system`): the engine's importer
     module loads the file (``load(scenario, config, integrator, dt) -> sim``), sets the
@@ -521,6 +521,8 @@ def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nst
     change of the model shows in the motion of the links, never in our reading of the
     frames. Raises :class:`~references.errors.Unsupported` with the reason when the
     importer cannot load the file as a user would (the run's row says so)."""
+    from director_model import saved_steps
+    from references.engines.context import SystemResult
     from references.errors import Diverged, Unsupported
 
     if getattr(scenario, "model", None) is None:
@@ -536,9 +538,7 @@ def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nst
         )
     sim = mod.load(scenario, config, integrator, float(dt))
     links, off = body_offsets(scenario)
-    steps = np.arange(0, nstep + 1, save_every, dtype=np.int64)
-    if steps[-1] != nstep:
-        steps = np.append(steps, nstep)
+    steps = saved_steps(int(nstep), int(save_every))
     n, nb = len(steps), len(links)
     x, R = np.zeros((n, nb, 3)), np.zeros((n, nb, 3, 3))
     v, W = np.zeros((n, nb, 3)), np.zeros((n, nb, 3))
@@ -553,8 +553,8 @@ def simulate(engine: str, scenario, config: str, integrator: str, dt: float, nst
         W[k] = np.einsum("bji,bj->bi", R[k], w)
 
     def output(m):
-        return {"t": steps[:m] * float(dt), "x": x[:m], "R": R[:m], "v": v[:m], "W": W[:m],
-                "engine_time_s": float(sim.clock), "settings": dict(sim.settings)}  # fmt: skip
+        return SystemResult(steps[:m] * float(dt), x[:m], R[:m], v[:m], W[:m],
+                            float(sim.clock), dict(sim.settings))  # fmt: skip
 
     try:
         read(0)

@@ -20,8 +20,10 @@ result row with that status and the message, so messages say what happened and w
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -33,6 +35,35 @@ from references.engines.liegroup import unpack_state
 from references.engines.recording import Recorder
 from references.engines.stepping import run_loop
 from references.errors import EngineError, EngineUnavailable, Unsupported
+
+
+@dataclass(frozen=True)
+class SceneBuilder:
+    """An engine's builder of systems of bodies (a scene of several bodies joined by joints),
+    declared by its adapter (:attr:`EngineBase.scene_builder`).
+
+    ``target``: ``"module:function"``, imported only when a system runs (declaring it imports
+    nothing), of a function::
+
+        simulate_system(scenario, integrator, dt, nstep, save_every, **settings) -> SystemResult
+
+    (the contract and :class:`~references.engines.system.SystemResult` are in
+    :mod:`references.engines.system`); ``settings``: the names of the settings it takes (a
+    scenario file's ``[engine_settings.<engine>]``; any other name is refused before a run)."""
+
+    target: str
+    settings: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        module, _, func = self.target.partition(":")
+        if not module or not func.isidentifier():
+            raise ValueError(f"SceneBuilder target {self.target!r}: expected 'module:function'")
+        object.__setattr__(self, "settings", tuple(self.settings))
+
+    def load(self) -> Callable:
+        """The builder function (imports its module)."""
+        module, _, func = self.target.partition(":")
+        return getattr(importlib.import_module(module), func)
 
 
 class EngineBase(ABC):
@@ -61,6 +92,12 @@ class EngineBase(ABC):
     #: :meth:`run_batch` steps its members together in one call (an ensemble of one
     #: configuration is then one task), rather than the default's loop over :meth:`run`
     batched: ClassVar[bool] = False
+    #: the builder that runs this engine's systems of bodies, or None: the engine runs single
+    #: bodies only, and a system's runs on it are ``unsupported`` with that reason
+    scene_builder: ClassVar[SceneBuilder | None] = None
+    #: why this engine cannot be used at all, "" when it can: the reason of the stand-in that
+    #: replaces an adapter whose import failed (:func:`references.engines.get_engine`)
+    broken: ClassVar[str] = ""
 
     @classmethod
     @abstractmethod
@@ -219,6 +256,9 @@ class Engine(EngineBase):
     #: (plant(ctx), applied right after :meth:`build`; the kinds of body it applies to,
     #: "free" and/or "pivoted"), e.g. a default that distorts the experiment left on
     plantable: ClassVar[Mapping[str, tuple[Callable[[RunContext], None], tuple[str, ...]]]] = {}
+    #: the adapter implements :meth:`read_raw` and :meth:`states_from_raw`, with which the
+    #: default :meth:`advance_saving` copies state vectors and converts them once per block
+    saves_raw: ClassVar[bool] = False
 
     # -- what adapters implement -----------------------------------------------------------
     @abstractmethod
@@ -257,11 +297,12 @@ class Engine(EngineBase):
         """Advance by each count in ``steps`` in turn and return the block of states after
         each (a BodyState of stacked arrays, (k, 3), (k, 3), (k, 3, 3), (k, 3)). The default
         calls :meth:`advance`, copies the engine's state with :meth:`read_raw` and converts
-        the block at once with :meth:`states_from_raw` where the adapter has them (a copy of
-        a state vector costs a microsecond, its conversion tens: done once per block,
-        vectorised), else reads each state with :meth:`read_state`. An engine whose loop runs
-        in compiled code may save them all in one call (the director model does)."""
-        if type(self).states_from_raw is Engine.states_from_raw:
+        the block at once with :meth:`states_from_raw` where the adapter has them
+        (:attr:`saves_raw`; a copy of a state vector costs a microsecond, its conversion tens:
+        done once per block, vectorised), else reads each state with :meth:`read_state`. An
+        engine whose loop runs in compiled code may save them all in one call (the director
+        model does)."""
+        if not self.saves_raw:
             states = []
             for k in steps:
                 self.advance(ctx, k)
@@ -274,8 +315,8 @@ class Engine(EngineBase):
         return self.states_from_raw(ctx, np.array(rows))
 
     def read_raw(self, ctx: RunContext) -> np.ndarray:
-        """Optional: a copy of the engine's state vector (any layout the adapter's
-        :meth:`states_from_raw` reads)."""
+        """Optional (with :meth:`states_from_raw` and :attr:`saves_raw`): a copy of the
+        engine's state vector (any layout the adapter's :meth:`states_from_raw` reads)."""
         raise NotImplementedError
 
     def states_from_raw(self, ctx: RunContext, raw: np.ndarray) -> cv.BodyState:

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from references.engines.system import SystemResult
+from references.engines.system import check_settings as check_settings  # for the builders
 from references.errors import EngineError, Unsupported
 from scenarios.tree import spanning_tree
 
@@ -331,17 +333,18 @@ def saves(nstep: int, save_every: int) -> np.ndarray:
     return np.array(s)
 
 
-def output(steps, dt, x, R, v, W, engine_time, rec) -> dict:
-    return {
-        "t": np.asarray(steps, float) * float(dt),
-        "x": x,
-        "R": R,
-        "v": v,
-        "W": W,
-        "engine_time_s": float(engine_time),
-        "evals_per_step": 4.0 if rec.get("integrator") == "RKMK4" else 1.0,
-        "settings": rec,
-    }
+def output(steps, dt, x, R, v, W, engine_time, rec) -> SystemResult:
+    """The builder's result at the saved ``steps`` (``rec``: its settings record)."""
+    return SystemResult(
+        t=np.asarray(steps, float) * float(dt),
+        x=x,
+        R=R,
+        v=v,
+        W=W,
+        engine_time_s=float(engine_time),
+        settings=rec,
+        evals_per_step=4.0 if rec.get("integrator") == "RKMK4" else 1.0,
+    )
 
 
 def tree_record(pl: Plan, kind=lambda tj: tj.kind) -> dict:
@@ -352,15 +355,6 @@ def tree_record(pl: Plan, kind=lambda tj: tj.kind) -> dict:
         + ("ground" if pl.tree[c].parent < 0 else repr(pl.names[pl.tree[c].parent]))
         for c in pl.order
     }
-
-
-def check_settings(engine: str, settings, known) -> None:
-    """Refuse a setting the builder of ``engine`` does not know: ValueError naming the unknown
-    ones and the ``known`` ones."""
-    unknown = sorted(set(settings) - set(known))
-    if unknown:
-        raise ValueError(f"{engine} simulate_system: unknown settings {unknown}; known: "
-                         f"{list(known) or 'none'}")  # fmt: skip
 
 
 def check_run_args(integrator: str, dt, integrators) -> None:

@@ -1,23 +1,29 @@
 """Runs of systems of bodies: the suite's side of the contract with the engine builders.
 
-An engine runs a system scenario (:class:`scenarios.SystemScenario`) through a builder module
-``references/engines/<engine>/system.py`` (the engine's registry name, e.g.
-``director/system.py``, ``mujoco/system.py``) that provides::
+An engine runs a system scenario (:class:`scenarios.SystemScenario`) through the builder its
+adapter declares (:attr:`~references.engines.interface.EngineBase.scene_builder`, a
+:class:`~references.engines.interface.SceneBuilder`: where the function is and the settings
+it takes), a function::
 
     def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                        **settings) -> dict | object
+                        **settings) -> SystemResult
 
-returning ``t`` (n,) s, ``x`` (n, nb, 3) centres of mass (world, m), ``R`` (n, nb, 3, 3)
-body-to-world, ``v`` (n, nb, 3) m/s (world), ``W`` (n, nb, 3) rad/s (body axes), with the
-bodies in the order of ``scenario.bodies`` and the frames their principal frames at the
-centres of mass, saved at the steps 0, s, 2s, ..., nstep; ``engine_time_s`` (time inside the
-engine's own stepping calls) and ``settings`` (every setting that shapes the result). A joint
-or loop the engine cannot express raises :class:`~references.errors.Unsupported` with the
-reason. The suite (:func:`run_system`) checks the shape and the times of what comes back,
-stops it at a divergence (a non-finite state, or an energy error beyond DIVERGENCE_ENERGY
-times the scenario's energy scale, the rule of one body) and computes every metric itself.
+returning a :class:`SystemResult`: ``t`` (n,) s, ``x`` (n, nb, 3) centres of mass (world, m),
+``R`` (n, nb, 3, 3) body-to-world, ``v`` (n, nb, 3) m/s (world), ``W`` (n, nb, 3) rad/s (body
+axes), with the bodies in the order of ``scenario.bodies`` and the frames their principal
+frames at the centres of mass, saved at the steps 0, s, 2s, ..., nstep; ``engine_time_s``
+(time inside the engine's own stepping calls) and ``settings`` (every setting that shapes the
+result). A joint or loop the engine cannot express raises
+:class:`~references.errors.Unsupported` with the reason; a run that diverges raises
+:class:`~references.errors.Diverged` whose ``output`` is the :class:`SystemResult` up to the
+last good state. The suite (:func:`run_system`) checks the settings asked for against those
+declared, the shape and the times of what comes back, stops it at a divergence (a non-finite
+state, or an energy error beyond DIVERGENCE_ENERGY times the scenario's energy scale, the rule
+of one body) and computes every metric itself.
 
-An engine with no builder module is ``unsupported`` for systems, with that reason.
+An engine that declares no builder is ``unsupported`` for systems, with that reason. The
+builders of the built-in engines are ``references/engines/<engine>/system.py``; a plug-in's
+adapter declares its own (docs/extending.md).
 
 A robot-model scenario also runs through each engine's own importer: an integrator named
 for an importer configuration ("RK4 (as loaded)", "RK4 (faithful)":
@@ -28,7 +34,6 @@ engine's importer (``references/engines/<engine>/importer.py``) and returns the 
 
 from __future__ import annotations
 
-import importlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -36,12 +41,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from references.engines import importers
+from references.engines.context import SystemResult
 from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
 from references.trajectory import SystemTrajectory, system_energy
-
-#: the keys a builder's result must have
-RESULT_KEYS = ("t", "x", "R", "v", "W")
 
 
 @dataclass
@@ -63,30 +66,41 @@ class SystemRunOutput:
 
 
 def builder(engine: str):
-    """The builder module of ``engine`` (``references.engines.<engine>.system``), or raise
+    """The system builder function of ``engine`` (its adapter's
+    :attr:`~references.engines.interface.EngineBase.scene_builder`), or raise
     :class:`Unsupported` saying that the engine has none."""
-    name = f"references.engines.{engine}.system"
-    try:
-        return importlib.import_module(name)
-    except ModuleNotFoundError as exc:
-        if exc.name != name:
-            raise
-        raise Unsupported(
-            f"{engine}: this engine has no system builder (references/engines/"
-            f"{engine}/system.py), so it runs no system of bodies yet"
-        ) from None
+    return _declared(engine).load()
 
 
 def builder_settings(engine: str) -> tuple[str, ...] | None:
-    """The names of the settings ``engine``'s system builder takes (the ``_SETTINGS`` its
-    ``simulate_system`` checks the file's ``[engine_settings.<engine>]`` against), or None
-    when the engine has no builder or its builder declares none."""
-    try:
-        mod = builder(engine)
-    except Unsupported:
-        return None
-    known = getattr(mod, "_SETTINGS", None)
-    return None if known is None else tuple(known)
+    """The names of the settings ``engine``'s system builder takes (a file's
+    ``[engine_settings.<engine>]``), or None when the engine has no builder."""
+    from references.engines import get_engine
+
+    declared = get_engine(engine).scene_builder
+    return None if declared is None else declared.settings
+
+
+def check_settings(engine: str, settings) -> None:
+    """Refuse a setting the builder of ``engine`` does not take (those its adapter declares):
+    ValueError naming the unknown ones and the known ones."""
+    known = _declared(engine).settings
+    unknown = sorted(set(settings) - set(known))
+    if unknown:
+        raise ValueError(f"{engine} simulate_system: unknown settings {unknown}; known: "
+                         f"{list(known) or 'none'}")  # fmt: skip
+
+
+def _declared(engine: str):
+    from references.engines import get_engine
+
+    declared = get_engine(engine).scene_builder
+    if declared is None:
+        raise Unsupported(
+            f"{engine}: this engine's adapter declares no system builder (scene_builder), so "
+            "it runs no system of bodies"
+        )
+    return declared
 
 
 def run_system(
@@ -107,47 +121,30 @@ def run_system(
     save_every = scenario.save_every if save_every is None else int(save_every)
     nstep, saves = step_plan(dt, t_end, save_every)
     base, config = importers.split_variant(integrator)
+    if config is not None:  # through the engine's own importer (references.engines.importers)
+
+        def simulate(scenario, integrator, dt, nstep, save_every):
+            return importers.simulate(engine, scenario, config, base, dt, nstep, save_every)
+
+        settings = {}  # an importer configuration takes the model file as it is
+    else:
+        simulate = builder(engine)
+        settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
+        check_settings(engine, settings)
     t0 = time.perf_counter()
     try:
-        if config is not None:  # through the engine's own importer (references.engines.importers)
-            res = importers.simulate(engine, scenario, config, base, float(dt), int(nstep),
-                                     int(save_every))  # fmt: skip
-        else:
-            mod = builder(engine)
-            settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
-            res = mod.simulate_system(scenario, integrator, float(dt), int(nstep),
-                                      int(save_every), **settings)  # fmt: skip
-    except Diverged as exc:  # the builder's states up to the divergence, as an output
-        if isinstance(exc.output, dict):
-            exc.output = _output(engine, scenario, exc.output, integrator, dt,
-                                 time.perf_counter() - t0)  # fmt: skip
+        res = simulate(scenario, integrator, float(dt), int(nstep), int(save_every), **settings)
+    except Diverged as exc:
+        # the builder's own divergence: its states up to the last good save, in the form of
+        # a run's output
+        if isinstance(exc.output, SystemResult):
+            wall = time.perf_counter() - t0
+            part = _output(engine, scenario, integrator, dt, t_end, saves, exc.output, wall)
+            raise Diverged(str(exc), exc.t_diverged, part) from exc
         raise
     wall = time.perf_counter() - t0
-    get = res.get if isinstance(res, dict) else (lambda k, d=None: getattr(res, k, d))
-    missing = [k for k in RESULT_KEYS if get(k) is None]
-    if missing:
-        raise EngineError(f"{engine} system builder: its result lacks {missing}")
-    names = scenario.body_names
-    try:
-        traj = SystemTrajectory(get("t"), get("x"), get("v"), get("R"), get("W"), names)
-    except ValueError as exc:
-        raise EngineError(f"{engine} system builder: {exc}") from None
-    want = saves * float(dt)
-    n = len(traj)
-    if n > len(want) or not np.allclose(traj.t, want[:n], rtol=0, atol=1e-9 * max(t_end, 1)):
-        raise EngineError(
-            f"{engine} system builder: saved times {traj.t[:3].tolist()}... are not the "
-            f"steps 0, {save_every}, ... of dt = {dt:g} s"
-        )
-    out = SystemRunOutput(
-        trajectory=traj,
-        nstep=int(saves[n - 1]) if n else 0,
-        wall_time_s=wall,
-        engine_time_s=float(min(get("engine_time_s", wall) or wall, wall)),
-        settings={**dict(get("settings", {}) or {}), "integrator": integrator, "timestep": dt},
-        evals_per_step=float(get("evals_per_step", math.nan) or math.nan),
-        stats=dict(get("stats", {}) or {}),
-    )
+    out = _output(engine, scenario, integrator, dt, t_end, saves, res, wall)
+    traj, n, want = out.trajectory, len(out.trajectory), saves * float(dt)
     bad = _first_divergence(scenario, traj)
     if bad is not None:
         k, why = bad
@@ -165,21 +162,34 @@ def run_system(
     return out
 
 
-def _output(engine, scenario, res: dict, integrator, dt, wall) -> SystemRunOutput | None:
-    """The output of a builder's result dict that ended at a divergence (states up to the
-    last good save); None when it holds none."""
+def _output(engine, scenario, integrator, dt, t_end, saves, res, wall) -> SystemRunOutput:
+    """The run's output from a builder's result: its states checked against the contract
+    (shapes, the saved times of the step plan ``saves``)."""
+    if not isinstance(res, SystemResult):
+        raise EngineError(
+            f"{engine} system builder: it returned a {type(res).__name__}, not a SystemResult"
+        )
     try:
-        traj = SystemTrajectory(res["t"], res["x"], res["v"], res["R"], res["W"],
-                                scenario.body_names)  # fmt: skip
-    except (KeyError, ValueError):
-        return None
-    settings = {**dict(res.get("settings", {}) or {}), "integrator": integrator, "timestep": dt}
+        traj = SystemTrajectory(res.t, res.x, res.v, res.R, res.W, scenario.body_names)
+    except ValueError as exc:
+        raise EngineError(f"{engine} system builder: {exc}") from None
+    want = saves * float(dt)
+    n = len(traj)
+    if n > len(want) or not np.allclose(traj.t, want[:n], rtol=0, atol=1e-9 * max(t_end, 1)):
+        raise EngineError(
+            f"{engine} system builder: saved times {traj.t[:3].tolist()}... are not the "
+            f"steps {', '.join(str(int(k)) for k in saves[:3])}, ... of dt = {dt:g} s"
+        )
+    # 0 or NaN: not measured, the run's wall time stands for it
+    engine_time = min(res.engine_time_s, wall) if res.engine_time_s > 0 else wall
     return SystemRunOutput(
         trajectory=traj,
-        nstep=int(round(traj.t[-1] / dt)) if len(traj) else 0,
+        nstep=int(saves[n - 1]) if n else 0,
         wall_time_s=wall,
-        engine_time_s=float(min(res.get("engine_time_s", wall) or wall, wall)),
-        settings=settings,
+        engine_time_s=float(engine_time),
+        settings={**res.settings, "integrator": integrator, "timestep": dt},
+        evals_per_step=float(res.evals_per_step or math.nan),
+        stats=dict(res.stats),
     )
 
 

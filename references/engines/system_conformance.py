@@ -346,13 +346,13 @@ def planted(engine: str, mistake: str):
         setattr(mod, attr, orig)
 
 
-def run(engine: str, sc=None) -> dict:
+def run(engine: str, sc=None):
     """A short run of ``sc`` (default: the kit's hinge chain) on ``engine``'s builder."""
     from references.engines.system import builder
 
     sc = sc if sc is not None else scenario("kit-hinge4", *hinge_chain())
     integrator, dt, nstep = RUNS[engine]
-    return builder(engine).simulate_system(sc, integrator, dt, nstep, 1)
+    return builder(engine)(sc, integrator, dt, nstep, 1)
 
 
 def check_mistakes(engine: str, baseline: bool = True, sc=None) -> list[Check]:

@@ -29,7 +29,7 @@ from references import conventions as cv
 from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine
+from references.engines.interface import Engine, SceneBuilder
 from references.engines.liegroup import check_engine_vector, direct
 from references.engines.native import import_engine
 
@@ -56,6 +56,9 @@ class DartEngine(Engine):
 
     name = "dart"
     description = "DART: FreeJoint or BallJoint; World.step or our RKMK4 on DART's dynamics"
+    scene_builder = SceneBuilder(
+        "references.engines.dart.system:simulate_system", ("erp", "revolute_closure")
+    )
     integrators = (
         Integrator(
             "semi-implicit Euler",
@@ -82,6 +85,7 @@ class DartEngine(Engine):
     }
 
     packages = ("dartpy",)
+    saves_raw = True
 
     @classmethod
     def version(cls) -> str:

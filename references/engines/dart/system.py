@@ -60,12 +60,11 @@ from references import conventions as cv
 from references.engines import reduced
 from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
+from references.engines.system import SystemResult
 from references.errors import Diverged, Unsupported
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
-_SETTINGS = ("erp", "revolute_closure")
-
 #: how a closing revolute joint is expressed: DART's RevoluteJointConstraint (5 equations), or
 #: a BallJointConstraint at the anchor ("ball": 3 of the hinge's 5 equations; enough for a
 #: planar loop whose tree hinges are parallel, recorded as such, never chosen silently)
@@ -423,7 +422,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record) of ``scenario``: planned, built, read back, the initial state
     set and checked against DART's kinematics, the loops closed."""
     reduced.check_run_args(integrator, dt, INTEGRATORS)
-    reduced.check_settings("dart", settings, _SETTINGS)
+    reduced.check_settings("dart", settings)
     erp = settings.get("erp")
     if erp is not None and not (isinstance(erp, (int, float)) and 0 <= erp <= 1):
         raise ValueError(f"erp {erp!r}: DART's error reduction parameter, a number in [0, 1]")
@@ -478,20 +477,19 @@ def build(scenario, integrator: str, dt: float, **settings):
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` (module docstring) on DART.
 
     ``integrator``: "semi-implicit Euler" (World.step) or "RKMK4" (trees only); ``dt`` s;
     ``nstep`` steps saved at 0, s, 2s, ..., nstep; ``settings``: ``erp`` (DART's error reduction
     parameter of its joint constraints, a global of DART; default: DART's own).
 
-    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio.system.
-    simulate_system`), ``engine_time_s`` (inside World.step, or, for RKMK4, inside the joints'
-    state setters, computeForwardDynamics and getAccelerations, not the conversions to and from
-    DART's coordinates) and ``settings``. Raises :class:`Unsupported`,
-    :class:`EngineError` (read-back or initial-state mismatch) and :class:`Diverged`
-    (non-finite state, or one DART replaced).
-    """
+    Returns a :class:`~references.engines.system.SystemResult` with ``t, x, R, v, W`` (as
+    :func:`references.engines.pinocchio.system.simulate_system`), ``engine_time_s`` (inside
+    World.step, or, for RKMK4, inside the joints' state setters, computeForwardDynamics and
+    getAccelerations, not the conversions to and from DART's coordinates) and ``settings``.
+    Raises :class:`Unsupported`, :class:`EngineError` (read-back or initial-state mismatch) and
+    :class:`Diverged` (non-finite state, or one DART replaced)."""
     steps = reduced.saves(nstep, save_every)
     dm, rec = build(scenario, integrator, dt, **settings)
     nb, n = len(dm.pl.bodies), len(steps)

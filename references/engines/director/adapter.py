@@ -12,7 +12,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback, RunOutput
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine, installed
+from references.engines.interface import Engine, SceneBuilder, installed
 from references.engines.stepping import check_batch_members
 from references.errors import EngineError, EngineUnavailable, StepFailure, Unsupported
 
@@ -74,6 +74,7 @@ class DirectorEngine(Engine):
     #: single body's (reports.run.runner.warm_up)
     system_warm_up = "the system kernels (numba)"
     description = "director_model: RATTLE, energy-momentum and compositions in director form"
+    scene_builder = SceneBuilder("references.engines.director.system:simulate_system", ("solver",))
     integrators = _integrators()
 
     @classmethod

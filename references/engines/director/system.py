@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
 #: the director schemes that integrate systems
 SCHEMES = ("rattle", "rattle4", "rattle6")
-#: the [engine_settings.director] names taken (director_model.system.simulate's ``solver``)
-_SETTINGS = ("solver",)
 
 
 def model(scenario):
@@ -33,7 +32,7 @@ def model(scenario):
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` with the director scheme ``integrator`` (module docstring)."""
     import director_model
     from director_model.system import InvalidJointError, InvalidMechanismError
@@ -59,14 +58,14 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         )
     if tuple(tr.joint_names) != tuple(j.name for j in scenario.joints):
         raise EngineError(f"director_model.system built joints {tr.joint_names}")
-    return {
-        "t": tr.t,
-        "x": tr.position,
-        "R": tr.rotation,
-        "v": tr.velocity,
-        "W": tr.omega_body,
-        "engine_time_s": float(tr.wall_time_s),
-        "settings": {
+    return SystemResult(
+        t=tr.t,
+        x=tr.position,
+        R=tr.rotation,
+        v=tr.velocity,
+        W=tr.omega_body,
+        engine_time_s=float(tr.wall_time_s),
+        settings={
             "scheme": integrator,
             "constraint solver": tr.solver,
             "constraint rows (nominal rank)": int(tr.rank_nominal),
@@ -74,5 +73,5 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
             "smallest relative singular value": float(tr.min_singular_value),
             "Newton iterations": int(tr.newton_iterations),
         },
-        "stats": {"largest constraint row residual": float(np.max(tr.constraint_position))},
-    }
+        stats={"largest constraint row residual": float(np.max(tr.constraint_position))},
+    )

@@ -40,7 +40,7 @@ from references.engines.drake.plant import (
     model_checks,
     update_count,
 )
-from references.engines.interface import Engine
+from references.engines.interface import Engine, SceneBuilder
 from references.errors import EngineError, StepFailure, Unsupported
 
 #: an error-controlled run may make at most this many dynamics evaluations per fixed step of
@@ -61,6 +61,7 @@ class DrakeEngine(Engine):
         "Drake: QuaternionFloatingJoint or BallRpyJoint; Drake's Simulator with each of its "
         "integrators at a fixed step or error-controlled, or the discrete SAP plant"
     )
+    scene_builder = SceneBuilder("references.engines.drake.system:simulate_system")
     integrators = INTEGRATORS
 
     #: defaults that distort the experiment, planted back by the conformance kit
@@ -78,6 +79,7 @@ class DrakeEngine(Engine):
     }
 
     packages = ("drake",)
+    saves_raw = True
 
     @classmethod
     def version(cls) -> str:

@@ -75,6 +75,7 @@ import numpy as np
 
 from references.engines import reduced
 from references.engines.native import import_engine
+from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
 #: fixed-step continuous schemes (Drake's names) and the discrete plant
@@ -97,8 +98,6 @@ INTEGRATORS = (*CONTINUOUS, DISCRETE)
 #: from the bodies' world states (pitch 0 again): the chart's rate map (1 / cos pitch) never
 #: amplifies more than 2.5x; the single-body adapter's level (drake_engine.CHART_SWITCH_COS)
 CHART_SWITCH_COS = 0.4
-
-_SETTINGS = ()
 
 
 #: the tree joints this builder builds
@@ -384,7 +383,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "drake: cenic needs a Diagram with a SceneGraph, which this builder does not build"
         )
     reduced.check_run_args(integrator, dt, INTEGRATORS)
-    reduced.check_settings("drake", settings, _SETTINGS)
+    reduced.check_settings("drake", settings)
     _import()
     pl = reduced.plan(scenario, "drake", TREE_KINDS)
     if pl.loops and not loops_supported(integrator):
@@ -503,11 +502,11 @@ def switch(st: _Stepper, scenario, integrator: str, dt: float) -> _Stepper:
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` (module docstring) on Drake.
 
     ``integrator``: one of :data:`INTEGRATORS`; ``dt`` s; ``nstep`` steps saved at 0, s, 2s,
-    ..., nstep; no settings. Returns a dict with ``t, x, R, v, W`` (as
+    ..., nstep; no settings. Returns a SystemResult with ``t, x, R, v, W`` (as
     :func:`references.engines.pinocchio.system.simulate_system`), ``engine_time_s`` (inside
     Simulator.AdvanceTo, summed over the plants of every chart) and ``settings`` (with the
     number and times of the chart switches). Raises :class:`Unsupported` (a loop on a

@@ -8,7 +8,7 @@ import time
 
 from references.engines.context import RunOutput
 from references.engines.integrators import Integrator
-from references.engines.interface import EngineBase
+from references.engines.interface import EngineBase, SceneBuilder
 from references.engines.stepping import step_plan
 
 
@@ -18,6 +18,7 @@ class ExactEngine(EngineBase):
     name = "exact"
     is_reference = True
     description = "closed-form solutions (Jacobi elliptic, Lagrange top) or DOP853 at rtol 1e-13"
+    scene_builder = SceneBuilder("references.engines.exact.system:simulate_system")
     integrators = (
         Integrator(
             name="reference",

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from references.engines.system import SystemResult
 from references.errors import EngineError, Unsupported
 from references.trajectory import SystemTrajectory
 
@@ -43,8 +44,6 @@ INITIAL_TOL = 1e-12
 #: this fraction of the system's size in position
 HORIZON_ATTITUDE = 1e-2
 HORIZON_POSITION = 1e-2
-#: the [engine_settings.exact] names taken: none (the reference has no knobs)
-_SETTINGS = ()
 
 
 @dataclass
@@ -319,7 +318,7 @@ def estimate(scenario) -> tuple[float, str] | None:
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """The reference at the saved steps, as the ``exact`` engine's system run."""
     from scenarios.schema import step_plan
 
@@ -328,13 +327,13 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     _, saves = step_plan(dt, nstep * dt, save_every)
     ref = reference(scenario, saves * dt)
     tr = ref.trajectory
-    return {
-        "t": tr.t, "x": tr.position, "R": tr.rotation, "v": tr.velocity, "W": tr.omega_body,
-        "engine_time_s": ref.wall_time_s,
-        "settings": {"reference kind": ref.kind, "accuracy": ref.accuracy,
-                     "accuracy (position, m)": ref.accuracy_position,
-                     "trusted horizon (s)": ref.horizon, "method": ref.method},
-    }  # fmt: skip
+    return SystemResult(
+        t=tr.t, x=tr.position, R=tr.rotation, v=tr.velocity, W=tr.omega_body,
+        engine_time_s=ref.wall_time_s,
+        settings={"reference kind": ref.kind, "accuracy": ref.accuracy,
+                  "accuracy (position, m)": ref.accuracy_position,
+                  "trusted horizon (s)": ref.horizon, "method": ref.method},
+    )  # fmt: skip
 
 
 __all__ = ["SystemReference", "reference", "reference_kind", "simulate_system"]

@@ -10,7 +10,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import BodyModel, ModelReadback
 from references.engines.integrators import Family, Integrator, register_family
-from references.engines.interface import Engine
+from references.engines.interface import Engine, SceneBuilder
 from references.engines.mjx.batch import run_batch
 from references.engines.mjx.compile import (
     CHECKPOINTS,
@@ -218,6 +218,9 @@ class MjxEngine(Engine):
     name = "mjx"
     description = (
         "MJX, MuJoCo in JAX: free joint or ball joint, MJX's integrators in float64 and float32"
+    )
+    scene_builder = SceneBuilder(
+        "references.engines.mjx.system:simulate_system", MujocoEngine.scene_builder.settings
     )
     integrators = _configurations()
     bundle_runs = True  # compiled functions are cached per process: compile once per worker

@@ -53,6 +53,7 @@ import numpy as np
 
 from references.engines.mujoco import system as ms
 from references.engines.reduced import check_settings
+from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
 #: what differs from C MuJoCo on a closed loop, recorded in a loop's run settings
@@ -72,11 +73,6 @@ INTEGRATORS = {
 }
 
 _NOT_IN_MJX = ("implicit", "discrete")
-
-#: the settings ``simulate_system`` takes (``[engine_settings.mjx]``): the C builder's, since
-#: the loop-closing connects are its (read by :func:`references.engines.system.builder_settings`
-#: to refuse a misspelt one before any run)
-_SETTINGS = ms._SETTINGS
 
 
 def _base_name(integrator: str) -> str:
@@ -131,12 +127,12 @@ def read_back(m, mx, scenario) -> None:
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` on MJX in float64 (module docstring); arguments, settings (``solref``
     and ``solimp`` of the loop-closing connects) and result as
     :func:`references.engines.mujoco.system.simulate_system`. Raises :class:`Unsupported` for
     a joint or loop the C builder does not build, or an integrator MJX does not implement."""
-    check_settings("mjx", settings, _SETTINGS)
+    check_settings("mjx", settings)
     integrator = _base_name(integrator)
     if integrator in _NOT_IN_MJX:
         raise Unsupported(

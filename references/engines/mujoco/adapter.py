@@ -22,7 +22,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine
+from references.engines.interface import Engine, SceneBuilder
 from references.engines.native import import_engine
 from references.errors import EngineError, Unsupported
 
@@ -60,6 +60,9 @@ class MujocoEngine(Engine):
 
     name = "mujoco"
     description = "MuJoCo: free joint or ball joint, MuJoCo's own integrators via mj_step"
+    scene_builder = SceneBuilder(
+        "references.engines.mujoco.system:simulate_system", ("solref", "solimp")
+    )
     integrators = (
         Integrator(
             "Euler",
@@ -124,6 +127,7 @@ class MujocoEngine(Engine):
     }
 
     packages = ("mujoco",)
+    saves_raw = True
 
     @classmethod
     def version(cls) -> str:

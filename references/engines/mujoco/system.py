@@ -80,6 +80,7 @@ from references.engines.native import import_engine
 from references.engines.reduced import saves as _saves
 from references.engines.reduced import unit as _unit
 from references.engines.reduced import vec as _vec
+from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
 #: MuJoCo's integrators offered (``mjtIntegrator``); "discrete" only where MuJoCo has it
@@ -111,8 +112,6 @@ READBACK_TOL = 1e-12
 #: and cross products per joint from the root (measured at most 5.4e-15 on the seven library
 #: systems; the margin covers deeper chains, and every frame mistake is O(1))
 INITIAL_TOL = 1e-11
-
-_SETTINGS = ("solref", "solimp")
 
 #: the deepest nesting of bodies MuJoCo 4.0's MJCF reader takes (measured: a chain of 480
 #: bodies compiles, 500 raises XML_ELEMENT_DEPTH_EXCEEDED; the margin covers the wrapping
@@ -582,7 +581,7 @@ def check_initial(mujoco, m, d, scenario, pl: reduced.Plan, bid: dict) -> None:
 
 
 def _settings(kw: dict) -> tuple[tuple, tuple]:
-    reduced.check_settings("mujoco", kw, _SETTINGS)
+    reduced.check_settings("mujoco", kw)
     solref = tuple(float(s) for s in kw.get("solref", DEFAULT_SOLREF))
     solimp = tuple(float(s) for s in kw.get("solimp", DEFAULT_SOLIMP))
     if len(solref) != 2 or not all(math.isfinite(s) for s in solref) or solref[0] <= 0:
@@ -665,17 +664,18 @@ def build(scenario, integrator: str, dt: float, **settings):
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` (a system scenario, module docstring) on MuJoCo.
 
     ``integrator``: one of :data:`INTEGRATORS`; ``dt`` s; ``nstep`` steps, saved at steps 0,
     s, 2s, ..., nstep (always the last); ``settings``: ``solref`` (2,) and ``solimp`` (5,) of
     the loop-closing connects (MuJoCo's defaults otherwise).
 
-    Returns a dict: ``t`` (n,) s; ``x`` (n, nb, 3) COM world m; ``R`` (n, nb, 3, 3) body to
-    world; ``v`` (n, nb, 3) COM velocity world m/s; ``W`` (n, nb, 3) body angular velocity,
-    body axes rad/s (bodies in the order of ``scenario.bodies``); ``engine_time_s`` (time
-    inside ``mj_step``); ``settings`` (every setting that shapes the result).
+    Returns a :class:`~references.engines.system.SystemResult`: ``t`` (n,) s; ``x`` (n, nb, 3) COM
+    world m; ``R`` (n, nb, 3, 3) body to world; ``v`` (n, nb, 3) COM velocity world m/s; ``W`` (n,
+    nb, 3) body angular velocity, body axes rad/s (bodies in the order of ``scenario.bodies``);
+    ``engine_time_s`` (time inside ``mj_step``); ``settings`` (every setting that shapes the
+    result).
 
     Raises :class:`Unsupported` for a joint or loop MuJoCo is not built for here,
     :class:`InconsistentSystem` for initial states that violate a joint,
@@ -711,13 +711,13 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     return _output(saves, dt, x, R, v, W, engine, rec)
 
 
-def _output(saves, dt, x, R, v, W, engine, rec) -> dict:
-    return {
-        "t": np.asarray(saves, float) * float(dt),
-        "x": x,
-        "R": R,
-        "v": v,
-        "W": W,
-        "engine_time_s": float(engine),
-        "settings": rec,
-    }
+def _output(saves, dt, x, R, v, W, engine, rec) -> SystemResult:
+    return SystemResult(
+        t=np.asarray(saves, float) * float(dt),
+        x=x,
+        R=R,
+        v=v,
+        W=W,
+        engine_time_s=float(engine),
+        settings=rec,
+    )

@@ -26,7 +26,7 @@ from references import conventions as cv
 from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine
+from references.engines.interface import Engine, SceneBuilder
 from references.engines.liegroup import check_engine_vector, direct
 from references.engines.native import import_engine
 
@@ -40,6 +40,10 @@ class PinocchioEngine(Engine):
 
     name = "pinocchio"
     description = "Pinocchio: FreeFlyer or Spherical joint, ABA, our own time loops"
+    scene_builder = SceneBuilder(
+        "references.engines.pinocchio.system:simulate_system",
+        ("baumgarte", "baumgarte_omega", "prox"),
+    )
     integrators = (
         Integrator(
             "semi-implicit Euler",
@@ -61,6 +65,7 @@ class PinocchioEngine(Engine):
     )
 
     packages = ("pin",)
+    saves_raw = True
 
     @classmethod
     def version(cls) -> str:

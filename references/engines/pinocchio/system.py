@@ -72,6 +72,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines import reduced
 from references.engines.native import import_engine
+from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
@@ -81,8 +82,6 @@ BAUMGARTE_FACTOR = 10.0
 
 #: proximal settings of constraintDynamics: accuracy, mu (regularisation), iterations
 PROX = (1e-12, 1e-8, 10)
-
-_SETTINGS = ("baumgarte", "baumgarte_omega", "prox")
 
 
 def _import():
@@ -341,7 +340,7 @@ def frequency_scale(pl: reduced.Plan) -> float:
 
 
 def _settings(kw: dict, pl: reduced.Plan):
-    reduced.check_settings("pinocchio", kw, _SETTINGS)
+    reduced.check_settings("pinocchio", kw)
     fs = frequency_scale(pl)
     omega = float(kw.get("baumgarte_omega", BAUMGARTE_FACTOR * fs))
     if not (math.isfinite(omega) and omega >= 0):
@@ -408,7 +407,7 @@ def build(scenario, integrator: str, dt: float, **settings):
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` (module docstring) on Pinocchio.
 
     ``integrator``: "semi-implicit Euler" or "RKMK4"; ``dt`` s; ``nstep`` steps saved at 0, s,
@@ -416,10 +415,10 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     (rad/s, Kp = omega^2, Kd = 2 omega; default: module docstring), ``prox`` (accuracy, mu,
     max_iter) of constraintDynamics; used only when the scenario closes a loop.
 
-    Returns a dict: ``t`` (n,) s; ``x`` (n, nb, 3) COM world m; ``R`` (n, nb, 3, 3) body to
-    world; ``v`` (n, nb, 3) COM velocity world m/s; ``W`` (n, nb, 3) body angular velocity,
-    body axes rad/s (scenario order); ``engine_time_s`` (inside Pinocchio's calls:
-    aba/constraintDynamics, integrate, dIntegrate, normalize); ``settings``.
+    Returns a :class:`~references.engines.system.SystemResult`: ``t`` (n,) s; ``x`` (n, nb, 3) COM
+    world m; ``R`` (n, nb, 3, 3) body to world; ``v`` (n, nb, 3) COM velocity world m/s; ``W`` (n,
+    nb, 3) body angular velocity, body axes rad/s (scenario order); ``engine_time_s`` (inside
+    Pinocchio's calls: aba/constraintDynamics, integrate, dIntegrate, normalize); ``settings``.
 
     Raises :class:`Unsupported` for joints or loops not built here, :class:`EngineError` for a
     read-back or initial-state mismatch, :class:`Diverged` (states up to the last good save in

@@ -35,7 +35,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine
+from references.engines.interface import Engine, SceneBuilder
 from references.engines.native import import_engine
 from references.errors import Unsupported
 
@@ -114,6 +114,9 @@ class PybulletEngine(Engine):
 
     name = "pybullet"
     description = "PyBullet: multibody base/spherical link or a maximal-coordinates rigid body"
+    scene_builder = SceneBuilder(
+        "references.engines.pybullet.system:simulate_system", ("erp", "max_force")
+    )
     integrators = (
         Integrator(
             "multibody",
@@ -140,6 +143,7 @@ class PybulletEngine(Engine):
     }
 
     packages = ("pybullet",)
+    saves_raw = True
 
     @classmethod
     def version(cls) -> str:

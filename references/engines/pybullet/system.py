@@ -69,11 +69,10 @@ import numpy as np
 from references import conventions as cv
 from references.engines import reduced
 from references.engines.pybullet.adapter import MAX_JOINT_VELOCITY, _import
+from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
 INTEGRATORS = ("multibody", "maximal coordinates")
-_SETTINGS = ("erp", "max_force")
-
 #: error reduction parameter of the loop closures: Bullet's default global erp (shown in the
 #: tests by a run that leaves it unset)
 DEFAULT_ERP = 0.2
@@ -418,7 +417,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, settings record): planned, built, read back, probed, the initial state set and
     checked against PyBullet's kinematics, the loops closed and read back."""
     reduced.check_run_args(integrator, dt, INTEGRATORS)
-    reduced.check_settings("pybullet", settings, _SETTINGS)
+    reduced.check_settings("pybullet", settings)
     erp = float(settings.get("erp", DEFAULT_ERP))
     if not 0 <= erp <= 1:
         raise ValueError(f"erp {erp!r}: Bullet's error reduction parameter, a number in [0, 1]")
@@ -481,7 +480,7 @@ def build(scenario, integrator: str, dt: float, **settings):
 
 
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
-                    **settings) -> dict:  # fmt: skip
+                    **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` (module docstring) on PyBullet.
 
     ``integrator``: "multibody" (stepSimulation); ``dt`` s; ``nstep`` steps saved at 0, s, 2s,
@@ -489,11 +488,11 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     :data:`DEFAULT_ERP`), ``max_force`` (their force limit, N, default
     :data:`DEFAULT_MAX_FORCE`).
 
-    Returns a dict with ``t, x, R, v, W`` (as :func:`references.engines.pinocchio.system.
-    simulate_system`), ``engine_time_s`` (inside stepSimulation) and ``settings``. Raises
-    :class:`Unsupported`, :class:`EngineError` (read-back, probe or initial-state mismatch) and
-    :class:`Diverged` (non-finite state, or a speed near the raised velocity clamp).
-    """
+    Returns a :class:`~references.engines.system.SystemResult` with ``t, x, R, v, W`` (as
+    :func:`references.engines.pinocchio.system.simulate_system`), ``engine_time_s`` (inside
+    stepSimulation) and ``settings``. Raises :class:`Unsupported`, :class:`EngineError`
+    (read-back, probe or initial-state mismatch) and :class:`Diverged` (non-finite state, or a
+    speed near the raised velocity clamp)."""
     steps = reduced.saves(nstep, save_every)
     bm, rec = build(scenario, integrator, dt, **settings)
     p, cid = bm.p, bm.cid
