@@ -15,7 +15,8 @@ rejected, i.e. the explicit Runge-Kutta method of its tableau at step dt.
 It implements the director-bench adapter interface (``references.engines.Engine``): build and
 read back the model, set and read the state in the suite's convention, its own energy,
 momentum and rotation, native stepping, and a forward-dynamics call, which gives it the
-suite's RKMK4 as a third integrator.
+suite's RKMK4 as a third integrator. Its ``scene_builder`` declares the builder that runs
+systems of bodies with the two fixed-step methods (:mod:`solve_ivp_system`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from references.engines import (
     Family,
     Integrator,
     ModelReadback,
+    SceneBuilder,
     register_family,
 )
 
@@ -100,6 +102,8 @@ class SolveIvpEngine(Engine):
 
     name = "solve_ivp"
     description = "example plug-in: scipy solve_ivp on the Euler-Poisson equations, fixed step"
+    #: its systems of bodies: solve_ivp_system.simulate_system, imported when a system runs
+    scene_builder = SceneBuilder("solve_ivp_system:simulate_system", ("baumgarte",))
     integrators = (
         Integrator(
             "RK45 fixed step",
