@@ -42,6 +42,8 @@ class Metric:
 
     - ``name``: the column and the key of a ``[tolerances]`` table;
     - ``unit``: of the value ("1" for a ratio to ``scale``, "rad", "rad/s", "m");
+    - ``per``: for a ratio, the symbol of the scale it is measured in ("E_c"), shown as its
+      unit on axes and in tables; "" for a metric with a unit of its own;
     - ``scale``: what the value is measured against, the size of what it measures in the
       scenario, never a quantity that may vanish (text for the docs);
     - ``floor``: round-off floor, in the metric's unit: values below it are round-off and
@@ -69,6 +71,7 @@ class Metric:
     name: str
     unit: str
     scale: str
+    per: str = ""
     floor: float | None = None
     title: str | None = None
     short: str | None = None
@@ -98,34 +101,34 @@ METRICS: tuple[Metric, ...] = (
         "reach, never E0 nor energy that cannot change hands (a body on a level slider) "
         "(Scenario.energy_scale; SystemScenario.energy_scale: T0 + V0 - V_low over the "
         "configurations the joints allow, scenarios/energy.py)",
-        floor=1e-11, title="energy drift [E_c]", short="energy", tolerance=1e-2, system=True,
-        series="energy_drift", panel="|E − E₀| / E_c [1]", panel_top=10.0,
+        per="E_c", floor=1e-11, title="energy drift [E_c]", short="energy", tolerance=1e-2,
+        system=True, series="energy_drift", panel="|E − E₀| / E_c [1]", panel_top=10.0,
         scale_column="energy_scale", scale_unit="J",
     ),
     Metric(
         "energy_drift_rot_max", "1",
         "a free body's rotational energy 1/2 W.IW (Scenario.rotational_energy_scale)",
-        floor=1e-11, short="rotational energy", tolerance=1e-2,
+        per="E_rot,c", floor=1e-11, short="rotational energy", tolerance=1e-2,
     ),
     Metric(
         "energy_drift_trans_max", "1",
         "a free body's largest translational kinetic energy over the horizon "
         "(Scenario.translational_energy_scale)",
-        floor=1e-11, short="translational energy", tolerance=1e-2,
+        per="E_tr,c", floor=1e-11, short="translational energy", tolerance=1e-2,
     ),
     Metric(
         "momentum_drift_max", "1",
         "L_c = sqrt(2 E_rot I_max) (Scenario.momentum_scale); a floating system's linear "
         "momentum also over p_c",
-        floor=1e-11, title="momentum drift [L_c]", short="momentum", tolerance=1e-2,
-        system=True, series="momentum_drift", panel="|ΔL| / L_c [1]", panel_top=10.0,
-        scale_column="momentum_scale", scale_unit="kg m²/s",
+        per="L_c", floor=1e-11, title="momentum drift [L_c]", short="momentum",
+        tolerance=1e-2, system=True, series="momentum_drift", panel="|ΔL| / L_c [1]",
+        panel_top=10.0, scale_column="momentum_scale", scale_unit="kg m²/s",
     ),
     Metric(
         "linear_momentum_drift_max", "1",
         "p_c = sqrt(2 m E_tr,c), the momentum of a free body's largest translational kinetic "
         "energy over the horizon (Scenario.translational_energy_scale)",
-        floor=1e-11, title="linear momentum drift [p_c]", short="linear momentum",
+        per="p_c", floor=1e-11, title="linear momentum drift [p_c]", short="linear momentum",
         tolerance=1e-2,
     ),
     Metric(
@@ -135,7 +138,7 @@ METRICS: tuple[Metric, ...] = (
     ),
     Metric(
         "constraint_velocity_max", "1", "w_c, the rate scale (Scenario.rate_scale)",
-        floor=1e-11, title="velocity constraint [w_c]", short="velocity constraint",
+        per="w_c", floor=1e-11, title="velocity constraint [w_c]", short="velocity constraint",
     ),
     Metric(
         "attitude_error_max", "rad", "none: an angle", floor=1e-10,

@@ -106,7 +106,9 @@ def _rows(sc):
             row = blank_row(RunSpec(sc, "mujoco", integ, 1e-3, engine_version=v))
             row.update(status="ok", verdict="pass", finished_at=finish_time(), nstep=1000,
                        energy_drift_max=1e-4 * scale, attitude_error_max=att * scale,
-                       convergence_order=1.0 if integ == "Euler" else 4.0)  # fmt: skip
+                       convergence_order=1.0 if integ == "Euler" else 4.0,
+                       linear_momentum_drift_max=2e-5 * scale, joint_gap_max=1e-7 * scale,
+                       branch_error=1e-6 * scale)  # fmt: skip
             out.append(row)
     return out
 
@@ -139,6 +141,21 @@ def test_page_is_self_contained(page):
     # the threefold attitude error of both configurations, 1.0 -> 1.1, and nothing else
     assert {(m["x"], m["direction"]) for m in marks} == {(1, "worse")}
     assert len(marks) == 2
+
+
+def test_every_chart_names_its_unit(page):
+    """Each chart's unit: a ratio's scale (energy over E_c, linear momentum over p_c), an
+    angle's rad, a distance's m."""
+    _, data = page
+    (ver,) = [v for v in data["views"] if v["axis"] == "version"]
+    units = {c["metric"]: c["unit"] for c in ver["charts"]}
+    assert units == {
+        "energy_drift_max": "E_c",
+        "linear_momentum_drift_max": "p_c",
+        "attitude_error_max": "rad",
+        "joint_gap_max": "m",
+        "branch_error": "rad",
+    }
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")

@@ -20,8 +20,9 @@ every table the later stages use:
   ``compute_system_metrics``, the streamed maxima and the per-sample series;
 - the tables: :data:`METRIC_COLUMNS` (store), :data:`FLOORS`, :data:`HIGHER_IS_BETTER`,
   :data:`ORDER_SLACK` (gate, compare, report), :data:`DEFAULT_TOLERANCES` (verdicts),
-  :data:`METRIC_TITLES`, :data:`METRIC_SHORT` (report), :data:`ERROR_PANELS` and
-  :data:`PANEL_TOPS` (errors figure), :data:`SYSTEM_METRICS`, :data:`STREAMED`.
+  :data:`METRIC_TITLES`, :data:`METRIC_SHORT`, :data:`METRIC_UNITS` (report, history),
+  :data:`ERROR_PANELS` and :data:`PANEL_TOPS` (errors figure), :data:`SYSTEM_METRICS`,
+  :data:`STREAMED`.
 
 Adding a metric: its :class:`Metric` entry in :mod:`scenarios.metric_catalog`, its function
 with ``@measures(name)`` and its test (docs/extending.md).
@@ -50,6 +51,7 @@ __all__ = [
     "METRIC_COLUMNS",
     "METRIC_SHORT",
     "METRIC_TITLES",
+    "METRIC_UNITS",
     "OBSERVABLE",
     "ORDER_SLACK",
     "PANEL_TOPS",
@@ -171,6 +173,9 @@ DEFAULT_TOLERANCES = {
 
 #: column titles of the metrics in the report, with units, in the order shown
 METRIC_TITLES = {m.name: m.title for m in shown_order() if m.title is not None}
+
+#: the unit each metric is shown in: its own, or for a ratio the symbol of its scale ("E_c")
+METRIC_UNITS = {m.name: m.per or m.unit for m in METRICS}
 
 #: short names of the metrics in verdict texts (a metric without one is shown by its name)
 METRIC_SHORT = {m.name: m.short for m in shown_order() if m.short is not None}

@@ -29,27 +29,13 @@ import math
 from pathlib import Path
 
 from reports.gate.rule import classify
-from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, METRIC_UNITS
 from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
 from reports.versions.changes import COST_COLUMN, _name, load_table
 from scenarios.schema import InputError
 
-#: metrics drawn, in this order, with their units
-UNITS = {
-    "energy_drift_max": "E_c",
-    "energy_drift_rot_max": "E_rot,c",
-    "energy_drift_trans_max": "E_tr,c",
-    "momentum_drift_max": "L_c",
-    "orthonormality_max": "1",
-    "constraint_velocity_max": "w_c",
-    "attitude_error_max": "rad",
-    "omega_error_max": "rad/s",
-    "position_error_max": "m",
-    "flip_interval_error": "1",
-    "nutation_period_error": "1",
-    "convergence_order": "1",
-    COST_COLUMN: "ns",
-}
+#: the unit of each column drawn: the metric catalog's, and the cost column's
+UNITS = {**METRIC_UNITS, COST_COLUMN: "ns"}
 
 
 def _metrics() -> list[str]:
