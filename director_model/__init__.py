@@ -6,8 +6,9 @@ It imports nothing from the rest of the suite.
 
 Public API
 ----------
-simulate, simulate_batch, Trajectory, BatchTrajectory, step_plan
-    run one body / N bodies (see their docstrings for shapes and units)
+simulate, simulate_batch, Trajectory, BatchTrajectory, step_plan, saved_steps
+    run one body / N bodies (see their docstrings for shapes and units); the step plan and
+    the saved step indices every engine of the suite follows
 Stepper, StepperState
     one body advanced in chunks (``advance``), the integrator state kept between them
 SCHEMES
@@ -44,6 +45,7 @@ from director_model.simulate import (
     Stepper,
     StepperState,
     Trajectory,
+    saved_steps,
     simulate,
     simulate_batch,
     step_plan,
@@ -93,6 +95,7 @@ __all__ = [
     "project_velocities",
     "quat_wxyz_from_rotation",
     "rotation_from_quat_wxyz",
+    "saved_steps",
     "simulate",
     "simulate_batch",
     "simulate_system",

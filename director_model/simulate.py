@@ -189,10 +189,17 @@ def step_plan(dt: float, t_end: float, save_every: int) -> tuple[int, np.ndarray
             f"t_end = {t_end!r} is not a whole number of steps of dt = {dt!r} "
             f"(t_end/dt = {ratio!r}); choose dt dividing t_end"
         )
-    saves = np.arange(0, nstep + 1, int(save_every), dtype=np.int64)
-    if saves[-1] != nstep:
+    return nstep, saved_steps(nstep, int(save_every))
+
+
+def saved_steps(nstep: int, save_every: int, include_start: bool = True) -> np.ndarray:
+    """The step indices saved of a run (or a chunk) of ``nstep`` steps: s, 2s, ... and always
+    ``nstep``, after 0 with ``include_start`` (int64). The suite's one definition: the step
+    plan, the director steppers, the system batch and the builders of systems save these."""
+    saves = np.arange(0 if include_start else save_every, nstep + 1, save_every, dtype=np.int64)
+    if saves.size == 0 or saves[-1] != nstep:
         saves = np.append(saves, np.int64(nstep))
-    return nstep, saves
+    return saves
 
 
 def _scheme(name) -> type[Scheme]:
@@ -454,11 +461,7 @@ class Stepper:
         """
         nstep = _check_count("nstep", nstep)
         save_every = _check_count("save_every", save_every)
-        saves = np.arange(save_every, nstep + 1, save_every, dtype=np.int64)
-        if saves.size == 0 or saves[-1] != nstep:
-            saves = np.append(saves, np.int64(nstep))
-        if include_start:
-            saves = np.insert(saves, 0, np.int64(0))
+        saves = saved_steps(nstep, save_every, include_start)
         nsave = saves.shape[0]
         X = np.empty((nsave, 3))
         V = np.empty((nsave, 3))

@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit, prange
 
 from director_model.errors import InvalidRunError, StepSizeError
-from director_model.simulate import step_plan
+from director_model.simulate import saved_steps, step_plan
 from director_model.system import _kernels as K
 from director_model.system.simulate import (
     _MODES,
@@ -177,11 +177,7 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
             continue
         raise InvalidRunError(f"bodies_batch[{k}]: {what}; a batch needs one topology")
     nstep, _ = step_plan(ref.dt, t_end, save_every)
-    save_every = int(save_every)
-    saves = np.arange(save_every, nstep + 1, save_every, dtype=np.int64)
-    if saves.size == 0 or saves[-1] != nstep:
-        saves = np.append(saves, np.int64(nstep))
-    saves = np.insert(saves, 0, np.int64(0))
+    saves = saved_steps(nstep, int(save_every))
     asm = ref._asm
     nbatch, nb, ns = len(steppers), len(asm.names), saves.shape[0]
     X = np.full((nbatch, ns, nb, 3), np.nan)

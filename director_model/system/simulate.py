@@ -11,7 +11,7 @@ import numpy as np
 from director_model.errors import InvalidRunError, InvalidStateError, StepSizeError
 from director_model.schemes.composition import Rattle4, Rattle6
 from director_model.schemes.rattle import Rattle
-from director_model.simulate import step_plan
+from director_model.simulate import saved_steps, step_plan
 from director_model.system import _kernels as K
 from director_model.system.model import (
     Assembly,
@@ -262,11 +262,7 @@ class SystemStepper:
         with absolute times. Raises StepSizeError naming the time and the step."""
         nstep = _check_count("nstep", nstep)
         save_every = _check_count("save_every", save_every)
-        saves = np.arange(save_every, nstep + 1, save_every, dtype=np.int64)
-        if saves.size == 0 or saves[-1] != nstep:
-            saves = np.append(saves, np.int64(nstep))
-        if include_start:
-            saves = np.insert(saves, 0, np.int64(0))
+        saves = saved_steps(nstep, save_every, include_start)
         asm = self._asm
         nb = len(self._bodies)
         ns = saves.shape[0]

@@ -322,15 +322,15 @@ def state_arrays(*lead: int) -> tuple:
 
 
 def saves(nstep: int, save_every: int) -> np.ndarray:
-    """Saved step indices 0, s, 2s, ..., nstep (always the last)."""
+    """Saved step indices 0, s, 2s, ..., nstep (always the last): the director model's
+    :func:`~director_model.saved_steps`, for arguments checked here."""
+    from director_model import saved_steps
+
     if not (isinstance(nstep, (int, np.integer)) and nstep >= 0):
         raise ValueError(f"nstep {nstep!r}: must be an integer >= 0")
     if not (isinstance(save_every, (int, np.integer)) and save_every >= 1):
         raise ValueError(f"save_every {save_every!r}: must be an integer >= 1")
-    s = list(range(0, nstep + 1, save_every))
-    if s[-1] != nstep:
-        s.append(nstep)
-    return np.array(s)
+    return saved_steps(int(nstep), int(save_every))
 
 
 def output(steps, dt, x, R, v, W, engine_time, rec) -> SystemResult:
