@@ -361,13 +361,19 @@ def check_out(out) -> Path:
 
 def worker_preload(engines) -> tuple[str, ...]:
     """What local workers import before they start, beyond the suite's own modules
-    (reports.run.parallel.PRELOAD): JAX when MJX is among ``engines`` (None: every engine;
-    names in any case) (its import starts no thread and initialises no device; MJX imports
-    MuJoCo, an engine, so each worker imports it when it first runs MJX)."""
-    from references.engines import engine_names
+    (reports.run.parallel.PRELOAD): what the adapters of ``engines`` (None: every engine; names
+    in any case) declare safe to import before a fork (``preload``: JAX for MJX, whose import
+    starts no thread and initialises no device)."""
+    from references.engines import engine_names, get_engine
 
+    known = {n.lower(): n for n in engine_names()}
     asked = engine_names() if engines is None else engines
-    return ("jax",) if "mjx" in {str(e).lower() for e in asked} else ()
+    out: list[str] = []
+    for e in asked:
+        name = known.get(str(e).lower())
+        if name is not None:
+            out += [m for m in get_engine(name).preload if m not in out]
+    return tuple(out)
 
 
 def run(

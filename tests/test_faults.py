@@ -519,7 +519,7 @@ def test_report_needs_no_engine_registered_here(tmp_path, capsys):
     with Store(out, create=True) as st:
         row = dict(st.rows()[0])
         row.update(run_id="elsewhere", engine="elsewhere", integrator="magic",
-                   family="a family registered elsewhere")  # fmt: skip
+                   family="a family registered elsewhere", reference=0)  # fmt: skip
         st.put(row)
     assert main(["report", str(out)]) == 0, capsys.readouterr().err
     assert "elsewhere magic" in (out / "report.md").read_text()

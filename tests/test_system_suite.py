@@ -266,7 +266,10 @@ def test_a_numerical_reference_is_not_called_exact(tmp_path):
     assert ref["status"] == "ok" and ref["reference_kind"] == "numerical", ref["message"]
     assert config_label(ref) == "numerical reference"
     assert config_label({**ref, "reference_kind": "spinning_chain"}) == "exact reference"
-    assert config_label({**ref, "engine": "mujoco", "integrator": "RK4"}) == "mujoco RK4"
+    # a row under test: not flagged as a reference (the runner's reference column)
+    assert config_label({**ref, "engine": "mujoco", "integrator": "RK4", "reference": 0}) == (
+        "mujoco RK4"
+    )
     system_plot(pd.DataFrame([ref]), 1e-3, SeriesCache(tmp_path), tmp_path, sc.name, _plt(), save)
     assert "numerical reference" in legends["double-pendulum-3d__system.png"]
 

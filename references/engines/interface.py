@@ -95,6 +95,10 @@ class EngineBase(ABC):
     #: the builder that runs this engine's systems of bodies, or None: the engine runs single
     #: bodies only, and a system's runs on it are ``unsupported`` with that reason
     scene_builder: ClassVar[SceneBuilder | None] = None
+    #: modules a runner's local workers may import before they fork (their import starts no
+    #: thread and initialises no device), so that each worker starts with them imported
+    #: (reports.run.parallel); e.g. JAX for MJX
+    preload: ClassVar[tuple[str, ...]] = ()
     #: why this engine cannot be used at all, "" when it can: the reason of the stand-in that
     #: replaces an adapter whose import failed (:func:`references.engines.get_engine`)
     broken: ClassVar[str] = ""

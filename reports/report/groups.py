@@ -99,9 +99,12 @@ class Group:
 
 def _sorted_records(df) -> list[dict]:
     recs = records(df)
-    return sorted(
-        recs, key=lambda r: (family_key(r["family"]), engine_key(r["engine"]), r["integrator"])
-    )
+
+    def key(r):
+        ref = is_reference_record(r)
+        return (family_key(r["family"], ref), engine_key(r["engine"], ref), r["integrator"])
+
+    return sorted(recs, key=key)
 
 
 def group_rows(df, rtol: float = COLLAPSE_RTOL) -> list[Group]:

@@ -10,33 +10,49 @@ import math
 
 from reports.metrics.catalog import METRIC_SHORT  # noqa: F401  (short names in verdict texts)
 from reports.store.format import fmt, fmt_level, fmt_step, num, truthy
+from reports.store.results import is_reference_record, reference_rows
 
-#: integrator families in the order tables and the scorecard show them (others follow, sorted)
+#: integrator families in the order tables and the scorecard show them; the reference's
+#: family follows them, then the others, sorted
 FAMILY_ORDER = (
     "structure-preserving director",
     "4th-order Lie-group",
     "implicit gyroscopic",
     "semi-implicit Euler",
-    "exact",
 )
 
-#: engines in the order tables list them (others follow, sorted); plots colour them likewise
-ENGINE_ORDER = ("director", "mujoco", "pinocchio", "dart", "pybullet", "exact")
+#: engines in the order tables list them; the reference engine follows them, then the others,
+#: sorted; plots colour them likewise
+ENGINE_ORDER = ("director", "mujoco", "pinocchio", "dart", "pybullet")
 
 #: statuses that are not a result of the configuration (nothing ran, or could not)
 NOT_RUN = ("unsupported", "unavailable")
 
 
-def family_key(fam: str) -> tuple:
-    return (FAMILY_ORDER.index(fam), "") if fam in FAMILY_ORDER else (len(FAMILY_ORDER), fam)
+def family_key(fam: str, reference: bool = False) -> tuple:
+    """The sort key of an integrator family (``reference``: the reference's family)."""
+    return _order_key(FAMILY_ORDER, fam, reference)
 
 
-def engine_key(eng: str) -> tuple:
-    return (ENGINE_ORDER.index(eng), "") if eng in ENGINE_ORDER else (len(ENGINE_ORDER), eng)
+def engine_key(eng: str, reference: bool = False) -> tuple:
+    """The sort key of an engine (``reference``: a reference engine, :func:`reference_rows`)."""
+    return _order_key(ENGINE_ORDER, eng, reference)
+
+
+def _order_key(order: tuple, name: str, reference: bool) -> tuple:
+    if reference:
+        return (len(order), "")
+    return (order.index(name), "") if name in order else (len(order) + 1, name)
+
+
+def reference_engines(df) -> set:
+    """The engines of the reference rows of ``df`` (:func:`reference_rows`)."""
+    return set(df.loc[reference_rows(df), "engine"])
 
 
 def families_of(df) -> list[str]:
-    return sorted({f for f in df["family"] if f}, key=family_key)
+    refs = set(df.loc[reference_rows(df), "family"])
+    return sorted({f for f in df["family"] if f}, key=lambda f: family_key(f, f in refs))
 
 
 def reference_label(row) -> str:
@@ -53,7 +69,7 @@ def config_label(row, with_step: bool = False) -> str:
     the suite's reference run reads as :func:`reference_label` says.
     ``with_step``: the step (``dt 2e-3``) or, for an error-controlled integrator, its target
     accuracy (``tol 1e-8``)."""
-    if (row.get("engine"), row.get("integrator")) == ("exact", "reference"):
+    if is_reference_record(row):
         return reference_label(row)
     sep = " + suite " if truthy(row.get("suite_integrated")) else " "
     text = f"{row['engine']}{sep}{row['integrator']}"

@@ -100,8 +100,9 @@ FAMILY_STYLE = {
     "4th-order Lie-group": "--",
     "implicit gyroscopic": "-.",
     "semi-implicit Euler": ":",
-    "exact": "-",
 }
+#: the reference's line style
+REFERENCE_STYLE = "-"
 EXTRA_STYLES = (
     (0, (6, 1.5, 1, 1.5, 1, 1.5)),
     (0, (10, 3)),
@@ -173,7 +174,8 @@ class Styles:
     integrator family."""
 
     def __init__(self, df):
-        fams = sorted({f for f in df["family"] if f}, key=family_key)
+        under_test = df.loc[~reference_rows(df), "family"]
+        fams = sorted({f for f in under_test if f}, key=family_key)
         extra_s = iter(EXTRA_STYLES * 4)
         self.style = {f: FAMILY_STYLE.get(f) or next(extra_s) for f in fams}
         pairs = sorted(
@@ -195,7 +197,7 @@ class Styles:
         key = (row["engine"], row["integrator"])
         return {
             "color": self.colour.get(key, REFERENCE_COLOUR),
-            "linestyle": self.style.get(row["family"], "-"),
+            "linestyle": self.style.get(row["family"], REFERENCE_STYLE),
             "marker": self.marker.get(key, "o") if always_marker else None,
         }
 

@@ -13,15 +13,23 @@ import re
 import numpy as np
 
 from reports.report.groups import group_rows
-from reports.report.labels import NOT_RUN, config_label, engine_key, is_failure
+from reports.report.labels import (
+    NOT_RUN,
+    config_label,
+    engine_key,
+    is_failure,
+    reference_engines,
+)
 from reports.store.format import num, truthy
 from reports.store.results import default_dt, records, reference_rows
 
 #: max attitude error levels of the work-precision answers, rad
 ACCURACY_LEVELS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
 
-#: the integrator whose conserved energy is not the suite's (see ENERGY_MOMENTUM_NOTE)
+#: the integrator whose conserved energy is not the suite's (see ENERGY_MOMENTUM_NOTE), and
+#: its family: the director formulation's energy-momentum scheme
 ENERGY_MOMENTUM = "energy_momentum"
+DIRECTOR_FAMILY = "structure-preserving director"
 
 ENERGY_MOMENTUM_NOTE = (
     "The energy-momentum scheme conserves its own energy, the director-form energy written "
@@ -162,6 +170,7 @@ def not_run(df) -> list[dict]:
     configuration and message (the whole message: its reason and what to do), with the
     scenarios concerned."""
     rows = df[df["status"].isin(NOT_RUN)]
+    refs = reference_engines(df)
     out = {}
     for r in records(rows):
         key = (r["engine"], r["integrator"], r["status"], " ".join(str(r["message"]).split()))
@@ -174,7 +183,9 @@ def not_run(df) -> list[dict]:
             "message": m,
             "scenarios": sorted(scs),
         }
-        for (e, i, s, m), scs in sorted(out.items(), key=lambda kv: engine_key(kv[0][0]))
+        for (e, i, s, m), scs in sorted(
+            out.items(), key=lambda kv: engine_key(kv[0][0], kv[0][0] in refs)
+        )
     ]
 
 
@@ -209,7 +220,10 @@ def settings_table(df) -> list[dict]:
                     "scenarios": sorted(scens),
                 }
             )
-    out.sort(key=lambda e: (engine_key(e["engine"]), e["integrator"], e["setting"]))
+    refs = reference_engines(df)
+    out.sort(
+        key=lambda e: (engine_key(e["engine"], e["engine"] in refs), e["integrator"], e["setting"])
+    )
     return out
 
 
@@ -287,5 +301,5 @@ def _value_key(text: str):
 def energy_momentum_rows(df):
     """The runs of the director's energy-momentum scheme that ran (not unsupported or
     unavailable): what the report says of the scheme is said only where these exist."""
-    em = (df["integrator"] == ENERGY_MOMENTUM) & (df["engine"] == "director")
+    em = (df["integrator"] == ENERGY_MOMENTUM) & (df["family"] == DIRECTOR_FAMILY)
     return df[em & ~df["status"].isin(NOT_RUN)]

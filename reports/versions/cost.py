@@ -57,9 +57,9 @@ def _write_timings(folder: Path, data: dict) -> None:
 
 def _python(engine: str, version: str, root: Path | None) -> Path | None:
     from reports.versions.envs import MARKER, env_path
-    from reports.versions.requirements import ENGINE_PACKAGES, Target
+    from reports.versions.requirements import Target, engine_package
 
-    pkg = ENGINE_PACKAGES.get(engine, engine)
+    pkg = engine_package(engine) or engine
     target = Target(engine, pkg, f"{pkg}=={version}", version, version)
     path = env_path(target, root)
     return path / "bin" / "python" if (path / MARKER).exists() else None

@@ -24,16 +24,16 @@ from urllib.parse import urlparse
 
 from scenarios.schema import InputError
 
-#: the package on the index that provides each engine the suite knows; engines not listed
-#: (the director model, the exact references) are part of the suite and have no versions
-ENGINE_PACKAGES = {
-    "mujoco": "mujoco",
-    "mjx": "mujoco-mjx",
-    "drake": "drake",
-    "pinocchio": "pin",
-    "dart": "dartpy",
-    "pybullet": "pybullet",
-}
+
+def engine_package(engine: str) -> str | None:
+    """The package on the index that provides ``engine``: the first of its adapter's
+    ``packages`` (its own distribution; the others are what it runs on), or None for an
+    engine that is part of the suite (the director model, the exact references)."""
+    from references.engines import get_engine
+
+    packages = get_engine(engine).packages
+    return packages[0] if packages else None
+
 
 _ENGINE = re.compile(r"[A-Za-z][A-Za-z0-9_.-]*")
 _WHEEL_NAME = re.compile(r"^(?P<dist>[^-]+)-(?P<version>[^-]+)(-\d[^-]*)?-[^-]+-[^-]+-[^-]+\.whl$")
@@ -94,12 +94,13 @@ def parse_requirements(texts, known_engines=None) -> list[Target]:
             raise InputError(
                 f"{where}: unknown engine {engine!r}; known engines: {', '.join(known_engines)}"
             )
-        if engine not in ENGINE_PACKAGES:
+        package = engine_package(engine)
+        if package is None:
+            versioned = [e for e in known_engines if engine_package(e) is not None]
             raise InputError(
                 f"{where}: {engine!r} is part of director-bench and has no releases of its own; "
-                f"engines with versions: {', '.join(ENGINE_PACKAGES)}"
+                f"engines with versions: {', '.join(versioned)}"
             )
-        package = ENGINE_PACKAGES[engine]
         if op is None:
             raise InputError(
                 f"{where}: no version; write {engine}==V1,V2 (released versions) or "

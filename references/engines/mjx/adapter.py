@@ -224,6 +224,7 @@ class MjxEngine(Engine):
     )
     integrators = _configurations()
     bundle_runs = True  # compiled functions are cached per process: compile once per worker
+    preload = ("jax",)  # safe before a fork: no thread, no device (reports.run.parallel)
     warm_up = "MJX's step (JAX)"
     batched = True  # run_batch: the members in one vmapped, compiled call
 
