@@ -74,15 +74,15 @@ def test_the_consumers_read_the_catalog():
     """The store, the verdicts, the streaming recorder, the report and the figures hold the
     catalog's tables, not copies."""
     from reports.metrics import streaming, verdicts
-    from reports.report import build, labels, plots
-    from reports.store import results
+    from reports.report import canvas, labels, plots, sections
+    from reports.store import runs
 
-    assert results.METRIC_COLUMNS is C.METRIC_COLUMNS
+    assert runs.METRIC_COLUMNS is C.METRIC_COLUMNS
     assert verdicts.DEFAULT_TOLERANCES is C.DEFAULT_TOLERANCES
     assert labels.METRIC_SHORT is C.METRIC_SHORT
-    assert build.METRIC_TITLES is C.METRIC_TITLES
+    assert sections.METRIC_TITLES is C.METRIC_TITLES
     assert plots.ERROR_PANELS is C.ERROR_PANELS
-    assert plots.CAPS == {"energy_drift": 10.0, "momentum_drift": 10.0, "attitude_error": 4.0}
+    assert canvas.CAPS == {"energy_drift": 10.0, "momentum_drift": 10.0, "attitude_error": 4.0}
     assert [m.name for m, _ in streaming.streamed()] == list(C.STREAMED)
     assert system.SYSTEM_METRICS is C.SYSTEM_METRICS
 

@@ -72,7 +72,7 @@ def test_steps_are_written_with_the_short_exponent_of_every_other_number():
 def test_an_error_controlled_line_says_so_once_on_hover():
     """The hover text of an error-controlled work-precision line names it error-controlled
     once (Drake's integrator is called ``runge_kutta5 (error-controlled)`` already)."""
-    import reports.report.plots as plots
+    from reports.report import plots
 
     said = plots._adaptive_gid("drake runge_kutta5 (error-controlled)")
     assert said.count("error-controlled") == 1 and "target accuracies" in said
@@ -82,13 +82,13 @@ def test_an_error_controlled_line_says_so_once_on_hover():
 def test_a_note_under_a_figure_keeps_a_number_with_its_unit():
     """Wherever the wrap of a note under a figure falls, ``0.107 s`` and ``dt 0.001`` stay
     on one line (a line once ended in ``diverged at 0.107`` with ``s)`` alone below)."""
-    import reports.report.plots as plots
+    from reports.report import canvas
 
-    plt = plots._plt()
+    plt = canvas._plt()
     for k in range(90):
-        fig, _ = plots._new_figure(1)
+        fig, _ = canvas._new_figure(1)
         note = "x" * k + " semi_explicit_euler (dt 0.001: diverged at 0.107 s) " + "y " * 60
-        plots._fit(fig, note)
+        canvas._fit(fig, note)
         lines = fig.texts[-1].get_text().split("\n")
         plt.close(fig)
         assert not any(ln.rstrip().endswith(("0.107", " dt")) for ln in lines), (k, lines)
@@ -300,16 +300,16 @@ def test_figures_drawn_beside_a_worker_process_are_the_serial_ones(folder, tmp_p
     """With a worker process (two cores), this process draws the scorecard picture and takes
     scenarios as well: every figure is drawn once, into the same files, byte for byte, as
     when one process draws them all."""
-    import reports.report.plots as plots
+    from reports.report import figures
 
     made = {}
     for name, cores in (("serial", 1), ("pooled", 2)):
         dst = tmp_path / name
         shutil.copytree(folder, dst, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
         monkeypatch.setenv("DIRECTOR_BENCH_CACHE", str(tmp_path / f"cache-{name}"))  # drawn
-        monkeypatch.setattr(plots, "_cpus", lambda cores=cores: cores)
-        monkeypatch.setattr(plots, "PARALLEL_FROM", 2)  # the folder has two scenarios
-        made[name] = plots.report_figures(read_results(dst), dst)
+        monkeypatch.setattr(figures, "_cpus", lambda cores=cores: cores)
+        monkeypatch.setattr(figures, "PARALLEL_FROM", 2)  # the folder has two scenarios
+        made[name] = figures.report_figures(read_results(dst), dst)
     (serial, card), (pooled, pooled_card) = made["serial"], made["pooled"]
     names = {sc: [p.name for p in ps] for sc, ps in serial.items()}
     assert names == {sc: [p.name for p in ps] for sc, ps in pooled.items()}
@@ -333,26 +333,26 @@ def test_figures_without_timings_are_reused_from_another_folder(folder, tmp_path
     import pandas as pd
     import pyarrow.parquet as pq
 
-    import reports.report.plots as plots
+    from reports.report import figures
 
     monkeypatch.setenv("DIRECTOR_BENCH_CACHE", str(tmp_path / "cache"))
     first = tmp_path / "first"
     shutil.copytree(folder, first, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
-    made = plots.all_plots(read_results(first), first)
+    made = figures.all_plots(read_results(first), first)
     drawn = []
-    real = plots.scenario_plot
+    real = figures.scenario_plot
 
     def counting(kind, df, cache, out, scenario, styles, failed=None):
         drawn.append((scenario, kind))
         return real(kind, df, cache, out, scenario, styles, failed)
 
-    monkeypatch.setattr(plots, "scenario_plot", counting)
+    monkeypatch.setattr(figures, "scenario_plot", counting)
     second = tmp_path / "second"
     shutil.copytree(folder, second, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
     df = read_results(second)
     df["engine_time_s"] *= 3.0  # another run's timings
     df["finished_at"] = "2030-01-01T00:00:00+00:00"
-    again = plots.all_plots(df, second)
+    again = figures.all_plots(df, second)
     assert sorted(drawn) == [("cone_top", "work_precision"), ("free_tumbling", "work_precision")]
     for sc, paths in made.items():
         assert [p.name for p in paths] == [p.name for p in again[sc]]
@@ -369,7 +369,7 @@ def test_figures_without_timings_are_reused_from_another_folder(folder, tmp_path
     drawn.clear()
     third = tmp_path / "third"
     shutil.copytree(second, third, ignore=shutil.ignore_patterns("plots", "scorecard.*"))
-    plots.all_plots(df, third)
+    figures.all_plots(df, third)
     assert ("cone_top", "errors") in drawn and ("free_tumbling", "errors") not in drawn
     assert isinstance(df, pd.DataFrame)
 
@@ -471,18 +471,20 @@ def test_did_not_run_reasons_are_whole():
 
 
 def _capture_figures(monkeypatch):
-    """Keep each figure the plot functions save (instead of closing it) for inspection."""
-    import reports.report.plots as plots
+    """Keep each figure the plot functions save (instead of closing it) for inspection: in
+    every figure module that writes or closes figures."""
+    from reports.report import canvas, pictures, scorecard_plot
 
     kept = []
-    real = plots._write_png
+    real = canvas._write_png
 
     def keep(fig, path, **kw):
         real(fig, path, **kw)
         kept.append((path, fig))
 
-    monkeypatch.setattr(plots, "_write_png", keep)
-    monkeypatch.setattr(plots, "_plt", _no_close(plots._plt))
+    for mod in (canvas, pictures, scorecard_plot):
+        monkeypatch.setattr(mod, "_write_png", keep)
+        monkeypatch.setattr(mod, "_plt", _no_close(canvas._plt))
     return kept
 
 
@@ -540,15 +542,15 @@ def test_every_legend_and_label_lies_inside_its_figure(folder, df, tmp_path, mon
     the long configuration."""
     import json
 
-    import reports.report.plots as plots
+    from reports.report import canvas, figures, scorecard_plot
 
     df = df.copy()
     df.loc[(df["engine"] == "mujoco") & (df["integrator"] == "RK4"), "integrator"] = LONG
     kept = _capture_figures(monkeypatch)
-    styles, cache = plots.Styles(df), plots.SeriesCache(folder)
-    for kind in plots.KINDS:
-        plots.scenario_plot(kind, df, cache, tmp_path, "cone_top", styles)
-    plots.scorecard_figure(df, tmp_path)
+    styles, cache = canvas.Styles(df), canvas.SeriesCache(folder)
+    for kind in figures.KINDS:
+        figures.scenario_plot(kind, df, cache, tmp_path, "cone_top", styles)
+    scorecard_plot.scorecard_figure(df, tmp_path)
     assert len(kept) == 6
     for path, fig in kept:
         assert _outside(fig, path) == []
@@ -564,14 +566,14 @@ def test_every_legend_and_label_lies_inside_its_figure(folder, df, tmp_path, mon
 def test_the_legend_check_catches_a_cut_legend(folder, df, tmp_path, monkeypatch):
     """The check above fails on a figure that is not fitted around its legend (the figure
     left at its first size): the long label reaches beyond the image."""
-    import reports.report.plots as plots
+    from reports.report import canvas, plots
 
     df = df.copy()
     df.loc[(df["engine"] == "mujoco") & (df["integrator"] == "RK4"), "integrator"] = LONG
     kept = _capture_figures(monkeypatch)
-    monkeypatch.setattr(plots, "_new_figure", _narrow(plots._new_figure))
-    monkeypatch.setattr(plots, "_fit", lambda fig, notes="": None)
-    plots.work_precision_plot(df, tmp_path, "cone_top", plots.Styles(df))
+    monkeypatch.setattr(plots, "_new_figure", _narrow(canvas._new_figure))
+    monkeypatch.setattr(canvas, "_fit", lambda fig, notes="": None)
+    plots.work_precision_plot(df, tmp_path, "cone_top", canvas.Styles(df))
     ((path, fig),) = kept
     assert any(what == "legend" for _, what, _ in _outside(fig, path))
 
@@ -610,7 +612,7 @@ def test_each_diverged_configuration_is_told_apart_on_the_errors_figure(tmp_path
     """heavy_top at dt = 1e-3 s, where MuJoCo's Euler diverges at 2.58 s and Drake's
     semi-explicit Euler at 1.64 s (the default suite's numbers): the figure's texts do not
     overlap, and each configuration's legend entry carries its own divergence time."""
-    import reports.report.plots as plots
+    from reports.report import canvas, plots
 
     sc = scenarios.load("heavy_top").replace(dt_sweep=(1e-3,))
     specs = plan([sc], ("exact", "mujoco", "drake"), ("reference", "Euler", "semi_explicit_euler"))
@@ -619,7 +621,7 @@ def test_each_diverged_configuration_is_told_apart_on_the_errors_figure(tmp_path
     diverged = df[df["status"] == "diverged"]
     assert len(diverged) == 2 and diverged["t_diverged"].nunique() == 2
     kept = _capture_figures(monkeypatch)
-    plots.errors_plot(df, plots.SeriesCache(tmp_path), tmp_path, "heavy_top", plots.Styles(df))
+    plots.errors_plot(df, canvas.SeriesCache(tmp_path), tmp_path, "heavy_top", canvas.Styles(df))
     ((path, fig),) = kept
     assert _overlapping_texts(fig) == []
     assert _outside(fig, path) == []
@@ -632,10 +634,10 @@ def test_each_diverged_configuration_is_told_apart_on_the_errors_figure(tmp_path
 def test_figures_name_what_they_leave_out(folder, df, tmp_path):
     """A configuration not drawn (never within 0.1 rad, no run finished) or cut off at a
     panel's top is named under the figure, not counted."""
-    import reports.report.plots as plots
+    from reports.report import canvas, plots
 
-    plots.work_precision_plot(df, tmp_path, "cone_top", plots.Styles(df))
-    meta = plots.figure_meta(tmp_path / "cone-top__work_precision.png")
+    plots.work_precision_plot(df, tmp_path, "cone_top", canvas.Styles(df))
+    meta = canvas.figure_meta(tmp_path / "cone-top__work_precision.png")
     # semi-implicit Euler diverges on cone_top at both steps: no finished run to draw
     euler = df[(df["scenario"] == "cone_top") & (df["integrator"] == "Euler")]
     assert set(euler["status"]) == {"diverged"}
@@ -651,16 +653,16 @@ def test_a_rates_figure_of_the_reference_alone_is_a_sentence_instead(folder, df,
 
     import numpy as np
 
-    import reports.report.plots as plots
+    from reports.report import canvas, plots
     from reports.store.results import reference_rows
 
-    cache = plots.SeriesCache(folder)
+    cache = canvas.SeriesCache(folder)
     free = df[df["scenario"] == "free_tumbling"]
     ref = cache.get(free[reference_rows(free)].iloc[0])
     wmax = float(np.max(np.abs(np.column_stack([ref["wx"], ref["wy"], ref["wz"]]))))
     runs = free[~reference_rows(free)]
     assert len(runs) >= 3 and (runs["omega_error_max"] <= 0.01 * wmax).all()
-    styles = plots.Styles(df)
+    styles = canvas.Styles(df)
     assert plots.rates_plot(df, cache, tmp_path, "free_tumbling", styles) is None
     assert plots.rates_plot(df, cache, tmp_path, "cone_top", styles) is not None
     assert not (folder / "plots" / "free-tumbling__rates.png").exists()
@@ -776,7 +778,7 @@ def test_scenario_box_has_the_scenario_s_moments():
     1/40^2 = 6e-4), matches the scenario's moments to 1e-3."""
     import numpy as np
 
-    from reports.report.plots import body_box
+    from reports.report.pictures import body_box
 
     for name in ("dzhanibekov", "heavy_top", "gazebo_boxes_complex", "pendulum_through_vertical"):
         sc = scenarios.load(name)
@@ -794,9 +796,9 @@ def test_scenario_box_has_the_scenario_s_moments():
 
 
 def test_scenario_figures_for_the_docs(tmp_path):
-    """``python -m reports.report.plots --scenario-figures DIR NAME`` writes a small PNG per
+    """``python -m reports.report.pictures --scenario-figures DIR NAME`` writes a small PNG per
     scenario; an unknown name is an error naming it."""
-    from reports.report.plots import main
+    from reports.report.pictures import main
 
     assert main(["--scenario-figures", str(tmp_path), "cone_top"]) == 0
     png = tmp_path / "scenario_cone_top.png"
@@ -807,9 +809,9 @@ def test_scenario_figures_for_the_docs(tmp_path):
 def test_every_configuration_has_a_colour_of_its_own(df):
     """No two configurations of a folder share a colour (the director's four schemes were
     once all one blue)."""
-    import reports.report.plots as plots
+    from reports.report import canvas
 
-    styles = plots.Styles(df)
+    styles = canvas.Styles(df)
     configs = {(e, i) for e, i in zip(df["engine"], df["integrator"], strict=True)} - {
         ("exact", "reference")
     }
@@ -824,12 +826,12 @@ def test_configurations_whose_colours_look_alike_have_different_markers():
     No two of 40 configurations share both colour and marker."""
     import pandas as pd
 
-    import reports.report.plots as plots
+    from reports.report import canvas
 
     df = pd.DataFrame(
         {"engine": [f"e{k:02d}" for k in range(40)], "integrator": "x", "family": "f"}
     )
-    styles = plots.Styles(df)
+    styles = canvas.Styles(df)
     looks = [
         (s["color"], s["marker"])
         for s in (styles.of(r, always_marker=True) for r in df.to_dict("records"))
@@ -890,7 +892,8 @@ def test_scorecard_figure_is_as_wide_as_its_content(df, tmp_path):
     (8.8 in before); more scenarios make it wider."""
     from PIL import Image
 
-    from reports.report.plots import DPI, scorecard_figure
+    from reports.report.canvas import DPI
+    from reports.report.scorecard_plot import scorecard_figure
 
     widths = {}
     for n, names in ((1, ["free_tumbling"]), (2, ["free_tumbling", "cone_top"])):
@@ -908,18 +911,18 @@ def test_scenario_picture_draws_the_body_stored_in_the_folder(folder, df, tmp_pa
     all the same, and the stored body is the scenario file's."""
     import numpy as np
 
-    import reports.report.plots as plots
+    from reports.report import canvas, pictures
 
     sc = scenarios.load("cone_top")
-    monkeypatch.setattr(plots, "library_scenario", lambda row: None)
-    cache = plots.SeriesCache(folder)
+    monkeypatch.setattr(pictures, "library_scenario", lambda row: None)
+    cache = canvas.SeriesCache(folder)
     exact = df[(df["scenario"] == "cone_top") & (df["engine"] == "exact")]
     row = exact.to_dict("records")[0]
     body = cache.body(row)
     assert body.name == sc.name and body.mass == sc.mass
     assert np.array_equal(body.inertia, sc.inertia) and np.array_equal(body.pivot, sc.pivot)
     assert np.array_equal(body.omega_body, sc.omega_body)
-    path = plots.scenario_plot_from_results(df, cache, tmp_path, "cone_top")
+    path = pictures.scenario_plot_from_results(df, cache, tmp_path, "cone_top")
     assert path is not None and path.exists()
 
 

@@ -60,11 +60,11 @@ def test_a_system_gets_its_own_figure_in_view_and_no_error(built, capfd):
 
 
 def test_the_system_figure_names_every_line_with_its_closure_settings(built, df, tmp_path):
-    import reports.report.plots as plots
+    from reports.report import canvas, figures
 
-    styles, cache = plots.Styles(df), plots.SeriesCache(built)
-    png = plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
-    meta = plots.figure_meta(png)
+    styles, cache = canvas.Styles(df), canvas.SeriesCache(built)
+    png = figures.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    meta = canvas.figure_meta(png)
     labels = [ln["label"] for ln in meta["lines"]]
     # MuJoCo's default solref is (0.02, 1) (MuJoCo documentation, "solref"); the row ran it
     assert any(lab.startswith("mujoco RK4") and "solref (0.02, 1)" in lab for lab in labels)
@@ -90,11 +90,11 @@ def _unnamed_lines(fig) -> list[str]:
 
 
 def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monkeypatch):
-    import reports.report.plots as plots
+    from reports.report import canvas, figures
 
     kept = _capture_figures(monkeypatch)  # (path, figure) of each saved figure
-    styles, cache = plots.Styles(df), plots.SeriesCache(built)
-    plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    styles, cache = canvas.Styles(df), canvas.SeriesCache(built)
+    figures.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
     ((_, fig),) = kept
     assert _unnamed_lines(fig) == []
     # planted: one configuration's name lost, or hidden from the legend (matplotlib leaves
@@ -107,7 +107,7 @@ def test_an_unnamed_line_in_a_system_figure_is_caught(built, df, tmp_path, monke
             labels, "config_label", lambda row, planted=planted, **kw: planted
             if row["engine"] == "mujoco" else real_label(row, **kw),
         )  # fmt: skip
-        plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+        figures.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
         # the one MuJoCo line of each panel
         fig = kept[-1][1]
         assert len(_unnamed_lines(fig)) == len(fig.axes), planted
@@ -137,15 +137,17 @@ def test_system_rows_show_their_closure_settings_and_rank_by_cost(built, df):
 def test_a_system_without_series_files_gets_no_single_body_figure(built, df, tmp_path, capfd):
     """A system whose runs left no series file (rows only): no figure of a single body is
     attempted (nothing on the standard error), and no system figure either."""
-    import reports.report.plots as plots
+    from reports.report import canvas, figures
 
     rows = df.copy()
     rows.loc[rows["scenario"] == "four_bar", "trajectory"] = ""
-    styles, cache = plots.Styles(rows), plots.SeriesCache(built)
-    assert plots.is_system(rows, cache, "four_bar") and not plots.is_system(
+    styles, cache = canvas.Styles(rows), canvas.SeriesCache(built)
+    assert canvas.is_system(rows, cache, "four_bar") and not canvas.is_system(
         rows, cache, "free_tumbling"
     )
-    made = [plots.scenario_plot(k, rows, cache, tmp_path, "four_bar", styles) for k in plots.KINDS]
+    made = [
+        figures.scenario_plot(k, rows, cache, tmp_path, "four_bar", styles) for k in figures.KINDS
+    ]
     assert all(p is None or p.stem.endswith(("work_precision", "convergence")) for p in made)
     assert capfd.readouterr().err == ""
 
@@ -167,12 +169,12 @@ def test_the_system_figure_draws_each_configuration_as_the_errors_figure_does(
     """A configuration looks the same in the system figure as in the errors figure beside it:
     colour, line style and marker (the marker is what tells apart two colours that look
     alike, mujoco Euler's and mjx Euler's purples; the system figure once drew no marker)."""
-    import reports.report.plots as plots
+    from reports.report import canvas, figures
 
     kept = _capture_figures(monkeypatch)
-    styles, cache = plots.Styles(df), plots.SeriesCache(built)
-    plots.scenario_plot("errors", df, cache, tmp_path, "four_bar", styles)
-    plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    styles, cache = canvas.Styles(df), canvas.SeriesCache(built)
+    figures.scenario_plot("errors", df, cache, tmp_path, "four_bar", styles)
+    figures.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
     (errors, system) = (_lines_by_name(fig) for _, fig in kept)
     names = set(system) - {"exact reference"}
     assert {"director rattle", "mujoco RK4", "pinocchio + suite RKMK4"} <= names <= set(errors)
@@ -186,12 +188,12 @@ def test_the_system_figure_draws_each_configuration_as_the_errors_figure_does(
 def test_the_system_figure_s_drift_axes_name_their_scale(built, df, tmp_path, monkeypatch):
     """The energy drift's axis says what E_c is, as the errors figure's does: the scenario's
     energy scale in J (loaded from the scenario, not from the results)."""
-    import reports.report.plots as plots
+    from reports.report import canvas, figures
     from reports.store.format import fmt
 
     kept = _capture_figures(monkeypatch)
-    styles, cache = plots.Styles(df), plots.SeriesCache(built)
-    plots.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
+    styles, cache = canvas.Styles(df), canvas.SeriesCache(built)
+    figures.scenario_plot("system", df, cache, tmp_path, "four_bar", styles)
     ((_, fig),) = kept
     labels = [ax.get_ylabel() for ax in fig.axes]
     e_c = scenarios.load("four_bar").energy_scale
@@ -207,11 +209,11 @@ def test_figures_are_drawn_again_when_the_system_figure_s_code_changes(
     import importlib.util
     from pathlib import Path
 
-    import reports.report.plots as plots
     import reports.report.system_plots as system_plots
+    from reports.report import canvas, figures
 
-    styles = plots.Styles(df)
-    before = plots._scenario_key(df, "four_bar", styles, built)
+    styles = canvas.Styles(df)
+    before = figures._scenario_key(df, "four_bar", styles, built)
     changed = tmp_path / "system_plots.py"
     changed.write_text(Path(system_plots.__file__).read_text() + "\n# another line\n")
     real = importlib.util.find_spec
@@ -222,6 +224,6 @@ def test_figures_are_drawn_again_when_the_system_figure_s_code_changes(
         return real(name, *args, **kw)
 
     monkeypatch.setattr(importlib.util, "find_spec", find_spec)
-    assert plots._scenario_key(df, "four_bar", styles, built) != before
+    assert figures._scenario_key(df, "four_bar", styles, built) != before
     monkeypatch.setattr(importlib.util, "find_spec", real)
-    assert plots._scenario_key(df, "four_bar", styles, built) == before
+    assert figures._scenario_key(df, "four_bar", styles, built) == before

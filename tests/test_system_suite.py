@@ -162,7 +162,7 @@ def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
     # the system figure is drawn from the files the runs wrote
     import pandas as pd
 
-    from reports.report.plots import SeriesCache, _plt, _save
+    from reports.report.canvas import SeriesCache, _plt, _save
     from reports.report.system_plots import system_plot
 
     first = execute(RunSpec(sc, "director", "rattle", 1e-3, t_end=0.5), tmp_path)
@@ -210,7 +210,7 @@ def test_the_system_figure_titles_only_the_panels_it_draws(tmp_path):
     must not announce one; a floating chain has all three."""
     import pandas as pd
 
-    from reports.report.plots import SeriesCache, _plt
+    from reports.report.canvas import SeriesCache, _plt
     from reports.report.system_plots import system_plot
     from reports.run.runner import execute
     from reports.store.results import RunSpec
@@ -247,8 +247,8 @@ def test_a_numerical_reference_is_not_called_exact(tmp_path):
     exact reference."""
     import pandas as pd
 
+    from reports.report.canvas import SeriesCache, _plt
     from reports.report.labels import config_label
-    from reports.report.plots import SeriesCache, _plt
     from reports.report.system_plots import system_plot
     from reports.run.runner import execute
     from reports.store.results import RunSpec

@@ -4,7 +4,7 @@ The report draws dozens of figures whose texts repeat (tick labels, axis labels,
 entries of the same configurations); matplotlib's Agg renderer lays out every string with
 FreeType again in each figure and renders every glyph again at each place (text is about half
 of a figure's drawing time). This backend (``matplotlib.use("module://reports.report.agg_text")``,
-done by reports.report.plots) is Agg whose renderer remembers, for the life of the process:
+done by reports.report.canvas) is Agg whose renderer remembers, for the life of the process:
 
 - the width, height and descent of a string in a font at a dpi;
 - the glyphs (font file, glyph index, offset) a string is laid out into;

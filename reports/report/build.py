@@ -3,7 +3,7 @@
 ``report.md`` and ``report.html`` are pure functions of the folder (the results store,
 ``provenance.json``, the per-run series files and, if present, the ensemble store); what they
 say comes from reports.report.tables (grouped by reports.report.groups, named by
-reports.report.labels), the figures from reports.report.plots. In order:
+reports.report.labels), the figures from reports.report.figures. In order:
 
 1. a line of provenance and counts, and a table of contents;
 2. the **scorecard**: scenario x integrator family, each cell the verdicts at the scenario's
@@ -37,6 +37,7 @@ import re
 from pathlib import Path
 
 from reports.metrics import catalog
+from reports.report.canvas import SeriesCache, figure_meta
 from reports.report.contact import contact_rows, contact_section
 from reports.report.groups import group_rows, sweep_groups
 from reports.report.importers import importer_section
@@ -50,7 +51,7 @@ from reports.report.labels import (
     fmt_attitude,
     fmt_order,
 )
-from reports.report.plots import SeriesCache, figure_meta, rates_left_out
+from reports.report.plots import rates_left_out
 from reports.report.summary_json import write_summary
 from reports.report.tables import (
     ACCURACY_LEVELS,
@@ -237,7 +238,7 @@ class Doc:
         self, paths: list[Path], root: Path, cls: str = "plots", md: bool = True, alts=None
     ) -> None:
         """Figures: in Markdown as links to the files, in HTML embedded (base64), each with
-        its alt text and, where :func:`reports.report.plots.figure_meta` has them, the lines a
+        its alt text and, where :func:`reports.report.canvas.figure_meta` has them, the lines a
         pointer over the figure names (``data-lines``, read by :data:`SCRIPT`)."""
         if not paths:
             return
@@ -352,7 +353,7 @@ def provenance_rows(prov: dict) -> list[list[str]]:
 
 def fmt_cost(ns) -> str:
     """The time inside the engine per step, ``11.0 µs`` (``-`` when unknown)."""
-    from reports.report.plots import fmt_cost as _fmt_cost
+    from reports.report.scorecard_plot import fmt_cost as _fmt_cost
 
     return _fmt_cost(ns)
 
@@ -961,7 +962,7 @@ def settings_section(doc: Doc, df) -> None:
 
 
 def ensemble_section(doc: Doc, edf, root: Path) -> None:
-    from reports.report.plots import ensemble_plot
+    from reports.report.scorecard_plot import ensemble_plot
     from reports.store.ensemble import summary as ens_summary
 
     doc.heading(2, "Ensembles")
@@ -1095,8 +1096,9 @@ def document(
     df, prov: dict, plots: dict, root: Path, edf=None, card_figures=(), card=None
 ) -> tuple[str, str]:
     """(report.md, report.html) of a results table; ``card_figures``: the scorecard picture
-    (reports.report.plots.scorecard_figure: its PNG is shown, its SVG linked); ``card``: the
-    table's :func:`reports.report.tables.scorecard` if the caller has it already."""
+    (reports.report.scorecard_plot.scorecard_figure: its PNG is shown, its SVG linked);
+    ``card``: the table's :func:`reports.report.tables.scorecard` if the caller has it
+    already."""
     doc = Doc()
     doc.md.append("# director-bench report\n")
     doc.html.append("<h1 id='director-bench-report'>director-bench report</h1>")
@@ -1185,8 +1187,8 @@ def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
     """Write the figures, report.md, report.html and summary.json for the results folder
     ``root``; with ``GITHUB_STEP_SUMMARY`` set, append the scorecard to that file.
     ``progress``: a progress bar while figures are drawn (figures whose inputs did not
-    change since the last report are reused, reports.report.plots)."""
-    from reports.report.plots import report_figures
+    change since the last report are reused, reports.report.figures)."""
+    from reports.report.figures import report_figures
     from reports.store.ensemble import read_ensemble
     from reports.store.results import STORE_NAME, frame, read_results
 

@@ -79,7 +79,7 @@ def _digest(path: Path) -> str:
 def key(kind: str, scenario: str, sub, styles, root: Path, code: str) -> str:
     """The key of the ``kind`` figure of ``scenario`` drawn from ``sub`` (its rows) with
     ``styles`` from the series files under ``root``; ``code``: the digest of the drawing
-    code (reports.report.plots)."""
+    code (reports.report.canvas._hash_code)."""
     h = hashlib.sha256()
     h.update(f"{code}\0{kind}\0{scenario}\0".encode())
     sub = sub.sort_values("run_id")

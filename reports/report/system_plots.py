@@ -1,6 +1,6 @@
 """Figures of systems of bodies, drawn from the per-sample series written beside each run's
 trajectory (:func:`reports.metrics.system.error_series`): pure functions of the results
-folder, like every figure of :mod:`reports.report.plots`, and drawn with the helpers it passes
+folder, like every figure of :mod:`reports.report.figures`, and drawn with the helpers it passes
 (the same colour per configuration, the legend beside the axes, hover text, alt text).
 
 :func:`system_plot`: per group of coinciding configurations at the scenario's own dt, over
@@ -51,10 +51,10 @@ def system_plot(
 ):  # fmt: skip
     """The figure of a system scenario (module docstring) as ``<slug>__system.png`` in
     ``out``, or None when no run has samples. ``rows``: the results to draw (the scenario
-    at its dt ``h``); ``cache``: a :class:`reports.report.plots.SeriesCache` of the folder;
+    at its dt ``h``); ``cache``: a :class:`reports.report.canvas.SeriesCache` of the folder;
     ``plt``: matplotlib's pyplot; ``save(fig, path, alt=...)`` writes the figure. The
     caller's helpers, so that every figure of a report looks alike (this module imports
-    nothing of :mod:`reports.report.plots`, which calls it): ``styles``, an object whose
+    nothing of :mod:`reports.report.figures`, which calls it): ``styles``, an object whose
     ``of(row, always_marker=True)`` gives a configuration's colour, line style and marker
     (default: a colour per line);
     ``new_figure(n)``, (figure, n axes sharing t); ``legend(ax)``, the legend of the figure
