@@ -852,7 +852,8 @@ def test_scorecard_picture_is_written_as_png_and_svg_with_text(folder):
 def test_energy_momentum_note_only_where_the_scheme_ran(df):
     """The scorecard's paragraph on the energy-momentum scheme is printed when the scheme ran
     and not when every one of its runs is unsupported (it then explains nothing shown)."""
-    from reports.report.build import Doc, scorecard_section
+    from reports.report.doc import Doc
+    from reports.report.sections import scorecard_section
     from reports.report.tables import scorecard
 
     def note(rows) -> bool:
@@ -991,7 +992,8 @@ def test_cheapest_per_accuracy_table_does_not_print_digits_the_reference_lacks(d
     """The "its error" column of a scenario's cheapest-per-accuracy table says "< a" for an
     error below the reference's accuracy a, as every other table does: the error of a run
     better than its reference is not measured."""
-    from reports.report.build import Doc, wp_table
+    from reports.report.doc import Doc
+    from reports.report.sections import wp_table
 
     sub = df[df["scenario"] == "free_tumbling"].copy()
     # the cheapest run within the loosest level; a reference accuracy twice its error, still

@@ -22,7 +22,7 @@ from reports.report.canvas import (
 )
 from reports.report.labels import NOT_RUN, config_label, engine_key
 from reports.report.tables import at_scenario_dt
-from reports.store.format import fmt
+from reports.store.format import fmt, fmt_cost
 from reports.store.results import records, reference_rows, slug
 
 #: cell colours of the scorecard figure, per outcome (the HTML report's colours)
@@ -47,17 +47,6 @@ OUTCOME_MARKS = {
     "unsupported": "",
     "unavailable": "",
 }
-
-
-def fmt_cost(ns: float) -> str:
-    """A cost per step, ``1.23 µs`` (``-`` when unknown)."""
-    try:
-        v = float(ns)
-    except (TypeError, ValueError):
-        return "-"
-    if not v > 0:
-        return "-"
-    return f"{fmt(v / 1e3)} µs"
 
 
 def scorecard_cells(df) -> tuple[list, list, dict]:

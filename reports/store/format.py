@@ -64,6 +64,17 @@ def fmt_step(dt: float) -> str:
     return f"{mant}e{int(exp)}" if e else mant
 
 
+def fmt_cost(ns: float) -> str:
+    """A cost per step given in ns, as ``1.23 µs`` (``-`` when unknown)."""
+    try:
+        v = float(ns)
+    except (TypeError, ValueError):
+        return "-"
+    if not v > 0:
+        return "-"
+    return f"{fmt(v / 1e3)} µs"
+
+
 def num(v) -> float:
     """A stored value as a float: NaN when it is missing or not a number."""
     try:
