@@ -22,10 +22,11 @@ from pathlib import Path
 def one_suite(engines: list[str], budget: float) -> tuple[float, collections.Counter]:
     import scenarios
     from reports.run import runner
+    from reports.run.plan import plan
 
     runner.TIMING_BUDGET_S = budget
     suite = [scenarios.load(n) for n in scenarios.default_suite()]
-    specs = runner.plan(suite, engines)
+    specs = plan(suite, engines)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         df, _ = runner.run_suite(specs, Path(tmp), progress=False)

@@ -284,7 +284,7 @@ def _contact_lines(sc, vec) -> list[str]:
 
 
 def cmd_show(args) -> int:
-    from reports.run.runner import check_families
+    from reports.run.plan import check_families
     from reports.suite import check_engine_settings, resolve_scenarios
 
     scs = resolve_scenarios(args.scenarios)

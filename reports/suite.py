@@ -410,7 +410,8 @@ def run(
     from reports.report.build import build_report
     from reports.run.files import MODES, assign
     from reports.run.parallel import make_mapper
-    from reports.run.runner import max_states, plan, run_suite
+    from reports.run.plan import max_states, plan
+    from reports.run.runner import run_suite
     from reports.store.exports import keep_edited
     from reports.store.provenance import write_provenance
     from reports.store.results import STORE_NAME
@@ -444,7 +445,7 @@ def run(
     engines = check_engines(engines)
     integrators = check_integrators(integrators, engines, named)
     unloadable = {e: why for e in engines if (why := get_engine(e).broken)}
-    limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.runner
+    limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.plan
     specs = plan(
         scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
     )

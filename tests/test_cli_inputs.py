@@ -220,7 +220,7 @@ def test_a_tolerance_for_a_family_of_an_engine_not_selected_is_valid(tmp_path):
     )
     code = (
         "import sys, scenarios\n"
-        "from reports.run.runner import plan, InputError\n"
+        "from reports.run.plan import plan, InputError\n"
         "sc = scenarios.load(sys.argv[1])\n"
         "assert len(plan([sc], engines=['exact'], sweep=False)) == 1\n"
         "try:\n"

@@ -12,7 +12,8 @@ import scenarios
 from reports.cli import main
 from reports.gate.compare import compare_folders
 from reports.gate.rule import classify, classify_cost, cost_range
-from reports.run.runner import plan, run_suite
+from reports.run.plan import plan
+from reports.run.runner import run_suite
 from reports.store.results import RunSpec, Store, read_results
 
 

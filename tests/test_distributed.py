@@ -15,7 +15,8 @@ import pytest
 
 import scenarios
 from reports.run.parallel import ClusterLost, Mapper, dask_cluster
-from reports.run.runner import plan, run_suite
+from reports.run.plan import plan
+from reports.run.runner import run_suite
 from reports.store.results import RunSpec, read_results
 
 pytest.importorskip(

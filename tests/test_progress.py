@@ -52,7 +52,8 @@ def test_compiling_is_named_until_the_first_run_of_each_warm_up_and_has_no_estim
 
 def test_the_first_run_of_each_warm_up_goes_first():
     import scenarios
-    from reports.run.runner import bundles, plan, warm_up
+    from reports.run.plan import plan
+    from reports.run.runner import bundles, warm_up
 
     specs = plan([scenarios.load("dzhanibekov")], ["director", "mujoco", "pinocchio", "mjx"])
     order = bundles(specs)
@@ -91,7 +92,8 @@ def test_nothing_to_show_shows_nothing_and_a_terminal_line_fits(monkeypatch):
 
 def test_warm_ups_of_bundled_runs_are_named_at_the_start_and_do_not_hold_the_estimate(capsys):
     import scenarios
-    from reports.run.runner import _bar, plan
+    from reports.run.plan import plan
+    from reports.run.runner import _bar
 
     bar = _bar(plan([scenarios.load("dzhanibekov")], ["director", "mjx"]))
     assert list(bar.warming) == ["director"]  # MJX's rows arrive with their bundle's end
@@ -104,7 +106,8 @@ def test_warm_ups_of_bundled_runs_are_named_at_the_start_and_do_not_hold_the_est
 
 def test_a_system_of_bodies_names_its_kernels_and_its_reference():
     import scenarios
-    from reports.run.runner import _bar, bundles, plan, unit_warm_ups, warm_ups
+    from reports.run.plan import plan
+    from reports.run.runner import _bar, bundles, unit_warm_ups, warm_ups
 
     specs = plan([scenarios.load("four_bar"), scenarios.load("dzhanibekov")], ["director"])
     system = next(s for s in specs if s.scenario.name == "four_bar")
@@ -147,7 +150,8 @@ def test_the_pool_hands_out_no_unit_whose_compilation_is_under_way():
 
 def test_a_bundle_holds_only_its_engines_warm_up_and_runs_its_systems_last():
     import scenarios
-    from reports.run.runner import bundles, plan, unit_warm_ups
+    from reports.run.plan import plan
+    from reports.run.runner import bundles, unit_warm_ups
 
     scs = [scenarios.load("four_bar"), scenarios.load("dzhanibekov")]
     specs = plan(scs, ["mjx", "mujoco"])

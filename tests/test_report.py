@@ -12,7 +12,8 @@ import pytest
 
 import scenarios
 from reports.report.tables import failures, scorecard, work_precision
-from reports.run.runner import plan, run_suite
+from reports.run.plan import plan
+from reports.run.runner import run_suite
 from reports.store.format import fmt
 from reports.store.results import read_results
 

@@ -15,7 +15,8 @@ import pytest
 import scenarios
 from reports.cli import main
 from reports.run.parallel import Mapper
-from reports.run.runner import execute, plan, run_suite
+from reports.run.plan import plan
+from reports.run.runner import execute, run_suite
 from reports.store.results import RunSpec, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -467,7 +468,7 @@ def test_planning_imports_no_engine_and_files_each_runs_under_its_own_version():
     code = (
         "import sys, json\n"
         "from reports.suite import resolve_scenarios\n"
-        "from reports.run.runner import plan\n"
+        "from reports.run.plan import plan\n"
         "specs = plan(resolve_scenarios(()), None)\n"
         "versions = {s.engine: s.engine_version for s in specs}\n"
         "engines = ['mujoco', 'pinocchio', 'dartpy', 'pybullet', 'pydrake', 'jax', 'jaxlib']\n"

@@ -12,7 +12,8 @@ import json
 import pytest
 
 import scenarios
-from reports.run.runner import plan, run_suite
+from reports.run.plan import plan
+from reports.run.runner import run_suite
 from reports.store.results import read_results
 from tests.test_report import _capture_figures
 

@@ -51,12 +51,12 @@ def check_ensemble(scenario, n: int, dt: float, t_end: float, jobs: int | None =
     """Every input of an ensemble, checked before anything runs or is written
     (:class:`~scenarios.schema.InputError` naming the value and the rule): the size, the step
     (a whole number of steps, at most 2^53), the magnitudes over the horizon, and memory by
-    run's rule (:func:`reports.run.runner.max_states`), here for the ``n`` members a batched
+    run's rule (:func:`reports.run.plan.max_states`), here for the ``n`` members a batched
     engine (director_model, MJX) holds at once in one process."""
     import os
 
     from references.engines import step_plan
-    from reports.run.runner import BYTES_PER_STATE, max_states
+    from reports.run.plan import BYTES_PER_STATE, max_states
     from scenarios.schema import magnitude_problems, step_count_problem
 
     members(scenario, 1)  # the size and the rotational energy the members keep

@@ -137,7 +137,7 @@ def _run_in_env(env: Env, scenarios, opts: dict, out: Path) -> EnvRun:
 
 def _specs(scenarios, target: Target, opts: dict, engine_version: str) -> list:
     """The runs one environment is asked for, with the identities they have there."""
-    from reports.run.runner import plan
+    from reports.run.plan import plan
 
     specs = plan(
         scenarios, [target.engine], opts.get("integrators"), opts.get("dts"), opts.get("t_end"),
