@@ -22,7 +22,7 @@ from pathlib import Path
 from scenarios.model import REFERENCE_KINDS, Scenario
 from scenarios.schema import ScenarioError
 from scenarios.system import SystemBody, SystemJoint, SystemScenario
-from scenarios.system import validate as _validate_body_or_system
+from scenarios.system_file import validate as _validate_body_or_system
 
 
 def validate(data: dict, path: str | None = None):

@@ -331,7 +331,7 @@ def validate(data: dict, path: str | None = None) -> Scenario:
     """Validate parsed TOML ``data`` into a :class:`Scenario`; raise :class:`ScenarioError`
     listing every problem. ``path`` is used in messages and stored on the scenario. A file
     with ``[[bodies]]`` describes a system of bodies, read by :func:`scenarios.load` and
-    :func:`scenarios.system.validate_system`."""
+    :func:`scenarios.system_file.validate_system`."""
     probs: list[tuple] = []
     where = path if path is not None else "<scenario data>"
 

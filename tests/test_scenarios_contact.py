@@ -14,7 +14,7 @@ import scenarios
 from references.exact.contact_scene import contact_motion
 from scenarios.contact import Plane, Shape, body_distance, lowest_point, plane_distance
 from scenarios.schema import ScenarioError, rotation_from_vector
-from scenarios.system import validate
+from scenarios.system_file import validate
 
 RNG = np.random.default_rng(35)
 

@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from scenarios.schema import ScenarioError
-from scenarios.system import load_file, validate_system
+from scenarios.system_file import load_file, validate_system
 
 ROOT = Path(__file__).resolve().parents[1]
 SYSTEMS = ROOT / "scenarios" / "systems"

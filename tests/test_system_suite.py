@@ -16,7 +16,7 @@ from references.engines.exact.system import reference
 from references.trajectory import SystemTrajectory
 from reports.metrics.system import compute_system_metrics
 from scenarios import ScenarioError
-from scenarios.system import validate_system
+from scenarios.system_file import validate_system
 
 LIBRARY = ["bricard", "conical_pendulum", "conical_pendulum_fast",
            "conical_pendulum_unstable", "double_pendulum_3d", "four_bar",

@@ -167,7 +167,7 @@ def validate_model(data: dict, path: str | None = None) -> ModelScenario:
     :class:`~scenarios.schema.ScenarioError` listing every problem, a problem of the model
     file naming that file, its element and the rule."""
     from scenarios import schema as sch
-    from scenarios import system as sy
+    from scenarios import system_file as sy
     from scenarios.models import read_model
     from scenarios.models.model import to_system
 
