@@ -41,7 +41,7 @@ over time, with the state to start a simulation from and a round-off accuracy es
    T = (I_A + I_B + m_C L^2) theta'^2/2, V = -|g| cos(theta) (m_A L_A + m_B L_B + m_C L)
    (I_A, I_B about the ground pivots; L_A, L_B pivot to centre of mass): a planar pendulum
    with w_p^2 = |g| (m_A L_A + m_B L_B + m_C L)/(I_A + I_B + m_C L^2), solved by the suite's
-   closed form of the planar pendulum (:class:`references.exact.lagrange_top.PlanarPendulum`:
+   closed form of the planar pendulum (:class:`references.exact.pendulum.PlanarPendulum`:
    Jacobi functions with accurate argument reduction, oscillating and rotating through the
    vertical). Bodies: crank and rocker have e1 along the link (pivot to tip), e3 = -e_y (the
    rotation axis, so that theta > 0 moves the tip towards +x), e2 = e3 x e1; the coupler has
@@ -75,9 +75,9 @@ from scipy.optimize import brentq
 
 from references.conventions import matrix_to_quat_wxyz
 from references.exact._util import EPS, ReferenceNotApplicable, rot_axis
-from references.exact.lagrange_top import PlanarPendulum
 from references.exact.multibody.dynamics import body_states
 from references.exact.multibody.tree import Body, Joint, Tree
+from references.exact.pendulum import PlanarPendulum
 
 
 class ExactMotion:
