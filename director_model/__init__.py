@@ -41,10 +41,8 @@ from director_model.errors import (
 )
 from director_model.schemes import SCHEMES
 from director_model.simulate import (
-    BatchTrajectory,
     Stepper,
     StepperState,
-    Trajectory,
     saved_steps,
     simulate,
     simulate_batch,
@@ -69,6 +67,7 @@ from director_model.system import (
     project_velocities,
     simulate_system,
 )
+from director_model.trajectory import BatchTrajectory, Trajectory
 
 __all__ = [
     "SCHEMES",
