@@ -51,7 +51,8 @@ def sizes(folder: Path) -> None:
 
 
 def same_results(a: Path, b: Path) -> bool:
-    from reports.store.results import RESULT_COLUMNS, read_results
+    from reports.store.results import read_results
+    from reports.store.runs import RESULT_COLUMNS
 
     da, db = read_results(a), read_results(b)
     key = ["scenario", "engine", "integrator", "dt", "target_accuracy"]

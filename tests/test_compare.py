@@ -14,7 +14,8 @@ from reports.gate.compare import compare_folders
 from reports.gate.rule import classify, classify_cost, cost_range
 from reports.run.plan import plan
 from reports.run.runner import run_suite
-from reports.store.results import RunSpec, Store, read_results
+from reports.store.results import Store, read_results
+from reports.store.runs import RunSpec
 
 
 @pytest.fixture(scope="module")

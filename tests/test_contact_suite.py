@@ -15,7 +15,7 @@ import pytest
 
 import scenarios
 from reports.run.runner import execute, plan
-from reports.store.results import RunSpec
+from reports.store.runs import RunSpec
 from scenarios.schema import InputError
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"

@@ -17,7 +17,8 @@ import scenarios
 from reports.run.parallel import ClusterLost, Mapper, dask_cluster
 from reports.run.plan import plan
 from reports.run.runner import run_suite
-from reports.store.results import RunSpec, read_results
+from reports.store.results import read_results
+from reports.store.runs import RunSpec
 
 pytest.importorskip(
     "distributed", reason="Dask's distributed is not installed (pip install 'director-bench[dask]')"

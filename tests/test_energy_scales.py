@@ -186,7 +186,7 @@ def test_a_row_carries_the_energy_scale_of_its_own_horizon():
     of the run's horizon, the one its energy metrics were divided by: a fall of 2 s has
     m g^2 (2 s)^2/2 in play, not the 5 s of the file."""
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     row = execute(RunSpec(FALL, "director", "rattle", FALL.dt, t_end=2.0))
     assert row["status"] == "ok", row["message"]

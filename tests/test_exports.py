@@ -11,7 +11,8 @@ from reports.cli import main
 from reports.gate.check import write_baseline
 from reports.run.runner import run_suite
 from reports.store.exports import csv_text, edited
-from reports.store.results import RunSpec, read_results
+from reports.store.results import read_results
+from reports.store.runs import RunSpec
 
 RUN = ["free_tumbling", "--engines", "director", "--integrators", "rattle", "--dt", "1e-3",
        "--t-end", "0.01", "--no-sweep", "--quiet", "--jobs", "1"]  # fmt: skip

@@ -22,13 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from reports.store.results import (
-    NUMERIC_COLUMNS,
-    RESULT_COLUMNS,
-    Store,
-    StoreDamaged,
-    read_results,
-)
+from reports.store.results import Store, StoreDamaged, read_results
+from reports.store.runs import NUMERIC_COLUMNS, RESULT_COLUMNS
 
 #: columns that may differ between two runs of the same configuration (timings, the time of
 #: day); every other column is deterministic and must be equal
@@ -134,7 +129,8 @@ def test_kill_9_at_random_points_of_a_run(tmp_path, clean, seed):
 
 WRITER = """
 import sys
-from reports.store.results import RESULT_COLUMNS, Store
+from reports.store.results import Store
+from reports.store.runs import RESULT_COLUMNS
 folder, tag, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 with Store(folder, create=True) as st:
     print("open", flush=True)
@@ -415,7 +411,7 @@ def test_a_reference_over_its_bound_is_said_in_the_rows(monkeypatch):
 
     import scenarios
     from reports.run.runner import _reference_cached, execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     monkeypatch.setenv("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", "50")
     _reference_cached.cache_clear()

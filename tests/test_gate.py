@@ -11,7 +11,8 @@ import pytest
 
 from reports.cli import main
 from reports.gate import check as gate
-from reports.store.results import NUMERIC_COLUMNS, RESULT_COLUMNS, Store, suite_version
+from reports.store.results import Store
+from reports.store.runs import NUMERIC_COLUMNS, RESULT_COLUMNS, suite_version
 
 
 def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, status="ok", **m):

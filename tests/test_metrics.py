@@ -459,7 +459,7 @@ def test_linear_momentum_drift_of_a_run_saved_and_streamed():
     equals the one at the saved samples (the same states: every step is saved)."""
     import scenarios
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     box = scenarios.load("gazebo_boxes_simple").replace(
         gravity=(0.0, 0.0, -9.81), t_end=1.0, dt_sweep=(), save_every=1

@@ -11,7 +11,8 @@ import pytest
 
 from reports.cli import main
 from reports.run.files import POSE, RATES, SERIES
-from reports.store.results import RESULT_COLUMNS, read_results
+from reports.store.results import read_results
+from reports.store.runs import RESULT_COLUMNS
 
 #: two steps of free_tumbling (the scenario's own, 1e-3 s, and 2e-3 s) on the director's RATTLE
 #: and MuJoCo's RK4, over 0.2 s, and the exact reference at the smaller: 5 runs

@@ -17,7 +17,8 @@ from reports.cli import main
 from reports.run.parallel import Mapper
 from reports.run.plan import plan
 from reports.run.runner import execute, run_suite
-from reports.store.results import RunSpec, read_results
+from reports.store.results import read_results
+from reports.store.runs import RunSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = 1.0  # s: long enough for every metric, short enough for a unit test

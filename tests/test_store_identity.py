@@ -14,9 +14,6 @@ from reports.cli import main
 from reports.run import runner
 from reports.store.results import (
     APPLICATION_ID,
-    NUMERIC_COLUMNS,
-    RESULT_COLUMNS,
-    RunSpec,
     Store,
     StoreDamaged,
     StoreForeign,
@@ -24,6 +21,7 @@ from reports.store.results import (
     frame,
     read_results,
 )
+from reports.store.runs import NUMERIC_COLUMNS, RESULT_COLUMNS, RunSpec
 
 
 def digest(path) -> str:

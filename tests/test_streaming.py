@@ -9,7 +9,8 @@ import scenarios
 from reports.cli import main
 from reports.metrics.catalog import STREAMED
 from reports.run.runner import execute
-from reports.store.results import RunSpec, read_results
+from reports.store.results import read_results
+from reports.store.runs import RunSpec
 
 #: every metric the recorder streams: the catalog's pointwise single-body metrics
 POINTWISE = list(STREAMED)

@@ -143,7 +143,7 @@ def test_metrics_catch_planted_joint_and_momentum_mistakes():
 
 def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     sc = scenarios.load("spinning_chain")
     row = execute(RunSpec(sc, "director", "rattle4", 1e-3, t_end=0.5), tmp_path)
@@ -192,7 +192,7 @@ def test_trajectory_errors_are_judged_only_inside_the_trusted_horizon():
 
 def test_a_system_without_reference_is_judged_on_its_invariants_and_joints(tmp_path):
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     sc = scenarios.load("four_bar").replace(reference="none", t_end=0.02)
     row = execute(RunSpec(sc, "director", "rattle", 2e-3), tmp_path)
@@ -213,7 +213,7 @@ def test_the_system_figure_titles_only_the_panels_it_draws(tmp_path):
     from reports.report.canvas import SeriesCache, _plt
     from reports.report.system_plots import system_plot
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     titles, alts = {}, {}
 
@@ -251,7 +251,7 @@ def test_a_numerical_reference_is_not_called_exact(tmp_path):
     from reports.report.labels import config_label
     from reports.report.system_plots import system_plot
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     legends = {}
 
@@ -315,7 +315,7 @@ def test_a_builders_divergence_is_a_diverged_row_with_its_states(tmp_path, monke
     from references.engines.system import SystemResult
     from references.errors import Diverged
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     real = director_system.simulate_system
 

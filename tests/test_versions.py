@@ -15,7 +15,8 @@ import pytest
 
 import scenarios
 from reports.metrics.body import FLOORS
-from reports.store.results import RunSpec, Store, blank_row, finish_time
+from reports.store.results import Store
+from reports.store.runs import RunSpec, blank_row, finish_time
 from reports.versions.changes import check, energy_behaviour, load_table, sort_versions
 from reports.versions.requirements import parse_requirements
 

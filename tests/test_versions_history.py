@@ -15,7 +15,8 @@ import time
 import pytest
 
 import scenarios
-from reports.store.results import RunSpec, Store, blank_row, finish_time
+from reports.store.results import Store
+from reports.store.runs import RunSpec, blank_row, finish_time
 from reports.versions.history import build_history, write_history
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

@@ -1,7 +1,7 @@
 """The CI regression gate: baselines of a run's metrics and the comparison against them.
 
 A baseline is a JSON file with one entry per run holding its configuration (scenario, engine,
-integrator, dt, target accuracy), its identity (:data:`reports.store.results.IDENTITY_COLUMNS`:
+integrator, dt, target accuracy), its identity (:data:`reports.store.runs.IDENTITY_COLUMNS`:
 scenario content hash, horizon, save_every, segmenting, engine and suite versions), its
 status, verdict and reason, and its metrics. :func:`compare` matches the runs of a results
 folder to the baseline on the configuration and reports, by the comparison rule of
@@ -47,16 +47,10 @@ from reports.gate.rule import (
     status_change,
     verdict_change,
 )
-from reports.metrics.catalog import HIGHER_IS_BETTER, ORDER_SLACK
+from reports.metrics.catalog import HIGHER_IS_BETTER, METRIC_COLUMNS, ORDER_SLACK
 from reports.report.junit import SKIPPED, case_name
 from reports.store.atomic import write_text
-from reports.store.results import (
-    IDENTITY_COLUMNS,
-    METRIC_COLUMNS,
-    STATUSES,
-    config_key,
-    identity_differences,
-)
+from reports.store.runs import IDENTITY_COLUMNS, STATUSES, config_key, identity_differences
 from scenarios.model import RELATIVE_EQUILIBRIA
 from scenarios.schema import InputError
 

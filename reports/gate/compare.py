@@ -1,8 +1,8 @@
 """Compare two result folders, run by run: ``director-bench compare A B``.
 
 The runs of A and B are matched on their configuration (scenario, engine, integrator, dt,
-target accuracy: :data:`reports.store.results.CONFIG_KEY`) and must be the same run: a pair whose
-identity differs (:data:`reports.store.results.RUN_IDENTITY`: scenario content, horizon,
+target accuracy: :data:`reports.store.runs.CONFIG_KEY`) and must be the same run: a pair whose
+identity differs (:data:`reports.store.runs.RUN_IDENTITY`: scenario content, horizon,
 save_every, segmenting, suite version) is a ``mismatch`` naming each field (``t_end 30 vs
 10``), never compared as if it were the same run. Two releases of an engine are the same run
 on another release: compared as usual, each release change reported with the number of runs
@@ -53,15 +53,10 @@ from reports.gate.rule import (
     status_change,
     verdict_change,
 )
+from reports.metrics.catalog import METRIC_COLUMNS
 from reports.store.format import fmt, fmt_level, fmt_step, num
-from reports.store.results import (
-    IDENTITY_COLUMNS,
-    METRIC_COLUMNS,
-    config_key,
-    identity_differences,
-    read_results,
-    records,
-)
+from reports.store.results import read_results, records
+from reports.store.runs import IDENTITY_COLUMNS, config_key, identity_differences
 from scenarios.schema import InputError
 
 

@@ -67,7 +67,7 @@ class NothingComparable(RuntimeError):
 
 @dataclass
 class Change:
-    """One comparison of a configuration ``key`` (:func:`reports.store.results.config_key`)
+    """One comparison of a configuration ``key`` (:func:`reports.store.runs.config_key`)
     between A and B.
 
     ``column``: the metric or cost column, ``status``, ``verdict``, ``failed checks``,

@@ -53,7 +53,7 @@ from reports.report.tables import (
 from reports.store.atomic import write_text
 from reports.store.format import md_cell
 from reports.store.provenance import read_provenance
-from reports.store.results import STATUSES
+from reports.store.runs import STATUSES
 
 
 def count_line(df) -> str:

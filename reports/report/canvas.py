@@ -29,7 +29,8 @@ from reports.metrics import catalog
 from reports.report.labels import config_label, engine_key, family_key
 from reports.report.tables import at_scenario_dt, scenario_dt
 from reports.store.format import fmt
-from reports.store.results import error_series_path, reference_rows
+from reports.store.results import reference_rows
+from reports.store.runs import error_series_path
 
 #: colours of the configurations, given out in engine and integrator order so that every
 #: configuration of a results folder has its own (tab10, then darker tones of tab20b/c); a

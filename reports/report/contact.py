@@ -123,7 +123,8 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
     """The figure of a contact scene (module docstring) as ``<slug>__system.png``, or None."""
     from reports.report.groups import group_rows
     from reports.report.labels import config_label
-    from reports.store.results import is_reference_record, slug
+    from reports.store.results import is_reference_record
+    from reports.store.runs import slug
 
     runs = []
     for g in group_rows(rows):

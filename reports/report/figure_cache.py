@@ -26,7 +26,7 @@ import shutil
 from pathlib import Path
 
 from reports import cache_root
-from reports.store.results import error_series_path, slug
+from reports.store.runs import error_series_path, slug
 
 #: the figures whose inputs hold no timing, reused across folders
 REUSED = ("scenario", "errors", "rates", "system", "joint_angles", "importers", "convergence")

@@ -31,7 +31,8 @@ from reports.report.pictures import scenario_plot_from_results
 from reports.report.plots import convergence_plot, errors_plot, rates_plot, work_precision_plot
 from reports.report.scorecard_plot import scorecard_figure_cached
 from reports.store.atomic import write_text
-from reports.store.results import error_series_path, records, slug
+from reports.store.results import records
+from reports.store.runs import error_series_path, slug
 
 #: the figures of one scenario, in report order (``scenario`` and ``rates`` are a single
 #: body's, ``system`` a system of bodies': :func:`is_system`)

@@ -13,10 +13,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, METRIC_COLUMNS
 from reports.report.labels import config_label, engine_key, family_key, outcome
 from reports.store.format import num
-from reports.store.results import METRIC_COLUMNS, is_reference_record, records, reference_rows
+from reports.store.results import is_reference_record, records, reference_rows
 
 #: rows whose every metric agrees to this relative difference are one group: their figures
 #: printed to three significant digits would differ by at most one unit in the last digit

@@ -90,10 +90,10 @@ def write(
     """Write the JUnit XML of the results ``df`` (one row per run) to ``path``.
 
     With a baseline (see the module docstring): ``notes`` maps a run's configuration key
-    (:func:`reports.store.results.config_key`) to ("known", reason) or ("regression", message);
+    (:func:`reports.store.runs.config_key`) to ("known", reason) or ("regression", message);
     ``missing`` lists (key, message) of the baseline's runs absent from ``df`` (each a
     failing case); ``baseline`` names the baseline file."""
-    from reports.store.results import config_key
+    from reports.store.runs import config_key
 
     notes = notes or {}
     cases, counts = [], {"failure": 0, "error": 0, "skipped": 0, "pass": 0}

@@ -43,7 +43,7 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
     importer's two configurations, at the integrator the importer runs; None when no run has
     the series."""
     from references.engines.importers import split_variant
-    from reports.store.results import slug
+    from reports.store.runs import slug
 
     panels: dict = {}
     for r in rows.to_dict("records"):
@@ -118,7 +118,7 @@ def importer_plot(table: dict, out: Path, plt, save, new_figure):
     from matplotlib.colors import LogNorm
 
     from reports.report.importers import COLUMNS, CONFIG_WORDS
-    from reports.store.results import slug
+    from reports.store.runs import slug
 
     by: dict = {}
     for r in table["rows"]:

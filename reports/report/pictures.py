@@ -13,7 +13,8 @@ import numpy as np
 
 from reports.report.canvas import SeriesCache, _plt, _write_png
 from reports.store.format import fmt
-from reports.store.results import reference_rows, slug
+from reports.store.results import reference_rows
+from reports.store.runs import slug
 
 #: the poses of the strip in a scenario picture (equally spaced over the horizon, both ends)
 POSES = 5

@@ -58,7 +58,8 @@ from reports.report.labels import (
     scaled_label,
 )
 from reports.store.format import fmt, fmt_step, truthy
-from reports.store.results import records, reference_rows, slug
+from reports.store.results import records, reference_rows
+from reports.store.runs import slug
 
 #: the rates plot shows a configuration only if its W error exceeds this fraction of max |W|
 RATES_VISIBLE = 0.01

@@ -23,7 +23,8 @@ from reports.report.canvas import (
 from reports.report.labels import NOT_RUN, config_label, engine_key
 from reports.report.tables import at_scenario_dt
 from reports.store.format import fmt, fmt_cost
-from reports.store.results import records, reference_rows, slug
+from reports.store.results import records, reference_rows
+from reports.store.runs import slug
 
 #: cell colours of the scorecard figure, per outcome (the HTML report's colours)
 OUTCOME_COLOURS = {

@@ -8,11 +8,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from reports.metrics.catalog import METRIC_COLUMNS
 from reports.report.groups import Group
 from reports.report.tables import scenarios_of, scorecard, work_precision
 from reports.store.atomic import write_text
 from reports.store.format import json_value, truthy
-from reports.store.results import METRIC_COLUMNS, records
+from reports.store.results import records
 
 #: version of the layout of summary.json
 SUMMARY_FORMAT = 1

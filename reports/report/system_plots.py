@@ -64,7 +64,7 @@ def system_plot(
     from reports.report.groups import group_rows
     from reports.report.labels import config_label, scaled_label
     from reports.report.tables import closure_settings
-    from reports.store.results import slug
+    from reports.store.runs import slug
 
     runs = []
     for g in group_rows(rows):

@@ -23,7 +23,7 @@ import numpy as np
 
 from reports.run.runner import execute
 from reports.store.ensemble import ENSEMBLE_STORE, ensemble_frame
-from reports.store.results import RunSpec
+from reports.store.runs import RunSpec
 from scenarios.schema import InputError
 
 
@@ -116,7 +116,7 @@ def _batch(cls, specs) -> list[dict]:
 
 
 def _start_row(spec, integ) -> dict:
-    from reports.store.results import blank_row, finish_time
+    from reports.store.runs import blank_row, finish_time
 
     row = blank_row(spec)
     row.update(family=integ.family, order=integ.order, suite_integrated=integ.suite_integrated)

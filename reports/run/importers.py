@@ -69,7 +69,7 @@ def write_tables(scenarios, engines, out: Path) -> list[Path]:
     for sc in scenarios:
         if getattr(sc, "model", None) is None:
             continue
-        from reports.store.results import slug
+        from reports.store.runs import slug
 
         path = Path(out) / FOLDER / f"{slug(sc.name)}.json"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -82,7 +82,7 @@ def write_tables(scenarios, engines, out: Path) -> list[Path]:
 
 def read_table(root: Path, scenario: str) -> dict | None:
     """The table of ``scenario`` written into the results folder ``root``, or None."""
-    from reports.store.results import slug
+    from reports.store.runs import slug
 
     path = Path(root) / FOLDER / f"{slug(scenario)}.json"
     if not path.is_file():

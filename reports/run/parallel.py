@@ -406,7 +406,7 @@ def _lost(message: str) -> ClusterLost:
 def _error_rows(unit, message: str):
     """The ``error`` rows of a unit of work (a RunSpec, or a bundle of them) that could not
     run, shaped like what the mapped function returns for it."""
-    from reports.store.results import blank_row, finish_time
+    from reports.store.runs import blank_row, finish_time
 
     def row(spec):
         r = blank_row(spec)

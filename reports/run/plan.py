@@ -1,6 +1,6 @@
 """The plan of a command's runs: scenarios x engines x integrators x step sizes (the
 scenario's dt and its sweep, a target-accuracy sweep for error-controlled integrators, a robot
-model's importer configurations) -> one :class:`~reports.store.results.RunSpec` per run, every
+model's importer configurations) -> one :class:`~reports.store.runs.RunSpec` per run, every
 input checked before anything runs (engines and integrators known, ``[tolerances]`` families
 registered, horizons a whole number of steps, no run holding more saved states than memory
 allows: :func:`max_states`). Planning never imports an engine: each adapter's version is read
@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from reports.metrics import verdicts
-from reports.store.results import RunSpec
+from reports.store.runs import RunSpec
 from scenarios.schema import InputError, magnitude_problems, step_count_problem
 
 #: target accuracies of error-controlled integrators when neither the command line nor the

@@ -1,6 +1,6 @@
 """The scenario runner: scenarios x engines x integrators x dt -> one row per run.
 
-Data flow: a :class:`~reports.store.results.RunSpec` names one run; :func:`execute` runs it
+Data flow: a :class:`~reports.store.runs.RunSpec` names one run; :func:`execute` runs it
 (engine adapter -> trajectory in the suite's schema -> metrics against the reference ->
 status and verdict) and returns its row, never raising for a failure of the run itself: a
 missing engine, a diverged run, an unsupported scenario or a fault of the suite become a row
@@ -29,17 +29,8 @@ from reports.run.files import SERIES_FORMAT, SERIES_NOTE, kept_less, series_tabl
 from reports.run.plan import UNAVAILABLE, offered
 from reports.store.atomic import replacing
 from reports.store.exports import export
-from reports.store.results import (
-    RunSpec,
-    Store,
-    StoreUnwritable,
-    blank_row,
-    finish_time,
-    output_columns,
-    read_results,
-    trajectory_path,
-    write_parquet_table,
-)
+from reports.store.results import Store, StoreUnwritable, read_results, write_parquet_table
+from reports.store.runs import RunSpec, blank_row, finish_time, output_columns, trajectory_path
 
 # -- references, cached per process ------------------------------------------------------------
 
@@ -183,7 +174,7 @@ def body_of(sc) -> dict:
 
 
 def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progress=None) -> dict:
-    """Run one spec and return its result row (see ``reports.store.results.RESULT_COLUMNS``).
+    """Run one spec and return its result row (see ``reports.store.runs.RESULT_COLUMNS``).
 
     With ``spec.segment`` the pointwise metrics are streamed over every step
     (:mod:`reports.metrics.streaming`); otherwise they are taken at the saved samples. Writes the

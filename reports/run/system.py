@@ -16,12 +16,8 @@ from pathlib import Path
 
 from reports.metrics import verdicts
 from reports.metrics.body import roundoff_floor
-from reports.store.results import (
-    StoreUnwritable,
-    output_columns,
-    trajectory_path,
-    write_parquet_table,
-)
+from reports.store.results import StoreUnwritable, write_parquet_table
+from reports.store.runs import output_columns, trajectory_path
 
 
 def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:

@@ -21,7 +21,8 @@ import math
 from pathlib import Path
 
 from reports.store.atomic import replacing
-from reports.store.results import RESULT_COLUMNS, Store, read_results
+from reports.store.results import Store, read_results
+from reports.store.runs import RESULT_COLUMNS
 
 #: the exports, written by reports.store.results.export
 EXPORTS = ("results.csv", "results.parquet")

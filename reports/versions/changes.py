@@ -38,9 +38,10 @@ from pathlib import Path
 import numpy as np
 
 from reports.gate.rule import at_every_dt, classify, ratio_change, status_change
-from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, METRIC_COLUMNS
 from reports.store.format import num
-from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
+from reports.store.results import read_results
+from reports.store.runs import CONFIG_KEY, config_key
 from scenarios.schema import InputError
 
 #: the cost column compared (time inside the engine's own calls, per step)

@@ -29,8 +29,9 @@ import math
 from pathlib import Path
 
 from reports.gate.rule import classify
-from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, METRIC_UNITS
-from reports.store.results import CONFIG_KEY, METRIC_COLUMNS, config_key, read_results
+from reports.metrics.catalog import FLOORS, HIGHER_IS_BETTER, METRIC_COLUMNS, METRIC_UNITS
+from reports.store.results import read_results
+from reports.store.runs import CONFIG_KEY, config_key
 from reports.versions.changes import COST_COLUMN, _name, load_table
 from scenarios.schema import InputError
 

@@ -97,7 +97,7 @@ def _relabel(row: dict, target: Target) -> dict:
 
 
 def _unavailable_rows(scenarios, target: Target, reason: str, opts: dict) -> list[dict]:
-    from reports.store.results import blank_row, finish_time
+    from reports.store.runs import blank_row, finish_time
 
     specs = _specs(scenarios, target, opts, target.label)
     rows = []
@@ -193,7 +193,8 @@ def _isolate(env: Env, scenarios, opts: dict, run: EnvRun) -> int:
     process until one takes its process down too (it becomes an ``error`` row with the end of
     its output), then the rest together in one process, and so on until every run has a row.
     Each round records at least one row, so it ends. Returns the number of error rows."""
-    from reports.store.results import Store, blank_row, finish_time
+    from reports.store.results import Store
+    from reports.store.runs import blank_row, finish_time
 
     out = run.folder.parent.parent
     log = run.folder / "isolated.log"

@@ -22,7 +22,7 @@ def time_one(argv: list[str]) -> int:
     import scenarios
     from references.engines import get_engine
     from reports.run.runner import execute
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     name, engine, integrator, dt = argv[0], argv[1], argv[2], float(argv[3])
     spec = RunSpec(scenarios.load(name), engine, integrator, dt,
@@ -39,7 +39,7 @@ def main(argv: list[str]) -> int:
     from references.engines import get_engine
     from reports.run.parallel import serial
     from reports.run.runner import run_suite
-    from reports.store.results import RunSpec
+    from reports.store.runs import RunSpec
 
     folder, spec_file = Path(argv[0]), Path(argv[1])
     items = json.loads(spec_file.read_text())

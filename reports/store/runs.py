@@ -1,0 +1,325 @@
+"""A run and its row: the columns of the results table (:data:`RESULT_COLUMNS`, documented
+column by column in ``docs/results.md``), what a run is (:class:`RunSpec`) and its identity,
+the blank row it starts from and the columns of its output, and where its files go in the
+output folder.
+
+A run's identity (:attr:`RunSpec.run_id`) is a hash of everything that determines its
+result: the scenario's content hash, the engine and its version, the integrator, dt, the
+horizon, save_every, the segmenting and the suite's version. The gate and ``compare`` match
+runs on the configuration (:data:`CONFIG_KEY`), refuse a pair that is not the same run
+(:data:`RUN_IDENTITY`, every column that differs named by :func:`identity_differences`) and
+compare the metrics of a pair that differs only in the engine's release
+(:data:`VERSION_COLUMNS`). The rows live in the store of :mod:`reports.store.results`.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import math
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from reports.metrics.catalog import METRIC_COLUMNS
+
+#: every column of a run's row; the metric columns are the catalog's
+#: (:data:`reports.metrics.catalog.METRIC_COLUMNS`), in its order
+RESULT_COLUMNS = (
+    "run_id",
+    "scenario",
+    "scenario_hash",
+    "engine",
+    "engine_version",
+    "integrator",
+    "family",
+    "order",
+    "suite_integrated",
+    "reference",
+    "dt",
+    "target_accuracy",
+    "t_end",
+    "save_every",
+    "segment",
+    "status",
+    "verdict",
+    "verdict_detail",
+    "message",
+    "t_diverged",
+    "nstep",
+    "wall_time_s",
+    "engine_time_s",
+    "glue_time_s",
+    "wall_time_max_s",
+    "engine_time_max_s",
+    "timing_repeats",
+    "cpu_time_s",
+    "ns_per_step",
+    "engine_ns_per_step",
+    "evals_per_step",
+    "steps_taken",
+    "steps_rejected",
+    *METRIC_COLUMNS,
+    "accuracy_ratio",
+    "convergence_points",
+    "energy_scale",
+    "momentum_scale",
+    "reference_kind",
+    "reference_accuracy",
+    "roundoff_floor",
+    "settings",
+    "trajectory",
+    "suite_version",
+    "finished_at",
+)
+
+
+#: columns holding text; every other column holds a number
+TEXT_COLUMNS = frozenset(
+    {
+        "run_id",
+        "scenario",
+        "scenario_hash",
+        "engine",
+        "engine_version",
+        "integrator",
+        "family",
+        "suite_integrated",
+        "status",
+        "verdict",
+        "verdict_detail",
+        "message",
+        "reference_kind",
+        "settings",
+        "trajectory",
+        "suite_version",
+        "finished_at",
+    }
+)
+
+
+NUMERIC_COLUMNS = frozenset(RESULT_COLUMNS) - TEXT_COLUMNS
+
+
+#: statuses, in the order reports list them
+STATUSES = ("ok", "reference-inaccurate", "diverged", "error", "unsupported", "unavailable")
+
+
+#: statuses a rerun tries again: the engine may have been installed since, or the fault of
+#: the suite that made the error may have been fixed
+RETRY_STATUSES = frozenset({"unavailable", "error"})
+
+
+#: the columns that name one configuration in tables (several identities may share them);
+#: target_accuracy is NaN for fixed-step integrators
+CONFIG_KEY = ("scenario", "engine", "integrator", "dt", "target_accuracy")
+
+
+#: the columns of a run's identity (:attr:`RunSpec.run_id`) beyond its configuration: two
+#: rows of one configuration that differ in any of them are different runs
+IDENTITY_COLUMNS = (
+    "scenario_hash",
+    "t_end",
+    "save_every",
+    "segment",
+    "engine_version",
+    "suite_version",
+)
+
+
+#: the identity columns that name an engine's release: two runs of one configuration that
+#: differ only in them did the same thing on another release, so the gate and ``compare``
+#: compare their metrics and report the release change (:class:`reports.gate.rule.VersionChange`)
+#: instead of refusing the pair
+VERSION_COLUMNS = ("engine_version",)
+
+
+#: the identity columns that make two runs of one configuration different runs (another
+#: scenario content, horizon, save_every, segmenting or suite version): never compared
+RUN_IDENTITY = tuple(c for c in IDENTITY_COLUMNS if c not in VERSION_COLUMNS)
+
+
+#: the identity columns shared by every run of a scenario in one invocation (the engine's
+#: version is per engine, save_every per integrator: an error-controlled one saves at its
+#: checkpoints)
+SCENARIO_IDENTITY = ("scenario_hash", "t_end", "segment", "suite_version")
+
+
+def suite_version() -> str:
+    from reports import __version__
+
+    return __version__
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run: a scenario, an engine, one of its integrators and a step size, with the
+    horizon and decimation (None: the scenario's) and, for long horizons, ``segment``: the
+    number of steps between streaming-metric updates (None: metrics at the saved samples).
+    ``keep``: what the run keeps on disk beside its row (reports.run.files: ``full``, its
+    trajectory; ``series``, the series the report draws; ``none``), no part of its identity:
+    the metrics are computed before anything is kept."""
+
+    scenario: object  # scenarios.Scenario
+    engine: str
+    integrator: str
+    dt: float
+    t_end: float | None = None
+    save_every: int | None = None
+    segment: int | None = None
+    engine_version: str = ""
+    accuracy: float | None = None
+    keep: str = "full"
+
+    @property
+    def horizon(self) -> float:
+        return self.scenario.t_end if self.t_end is None else float(self.t_end)
+
+    @property
+    def saving(self) -> int:
+        return self.scenario.save_every if self.save_every is None else int(self.save_every)
+
+    @property
+    def run_id(self) -> str:
+        """Identity of the run: a hash of everything that determines its result."""
+        ident = {
+            "scenario_hash": self.scenario.scenario_hash,
+            "engine": self.engine,
+            "engine_version": self.engine_version,
+            "integrator": self.integrator,
+            "dt": repr(float(self.dt)),
+            "t_end": repr(self.horizon),
+            "save_every": self.saving,
+            "segment": self.segment,
+            "accuracy": None if self.accuracy is None else repr(float(self.accuracy)),
+            "suite_version": suite_version(),
+        }
+        blob = json.dumps(ident, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:20]
+
+    @property
+    def key(self) -> tuple:
+        """The configuration this run belongs to (see :data:`CONFIG_KEY`)."""
+        return config_key(self.scenario.name, self.engine, self.integrator, self.dt, self.accuracy)
+
+
+def config_key(scenario: str, engine: str, integrator: str, dt: float, accuracy=None) -> tuple:
+    """A hashable configuration key; an absent or NaN target accuracy is None."""
+    acc = None if accuracy is None or accuracy != accuracy else float(f"{float(accuracy):.12g}")
+    return (str(scenario), str(engine), str(integrator), float(f"{float(dt):.12g}"), acc)
+
+
+def _ident_value(col: str, v):
+    """An identity value in comparable form: numbers as floats (NaN and empty: None), text
+    as text."""
+    if col in NUMERIC_COLUMNS:
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            return None
+        return None if math.isnan(f) else float(f"{f:.12g}")
+    return "" if v is None else str(v)
+
+
+def _show(col: str, v) -> str:
+    if v is None or v == "":
+        return "none"
+    if col == "scenario_hash":
+        return str(v)[:12]
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def identity_differences(a, b, vary: Iterable[str] = ()) -> list[str]:
+    """The run-identity columns (:data:`RUN_IDENTITY`) in which rows ``a`` and ``b`` (of one
+    configuration) differ, each as ``"<column> <a> vs <b>"`` (e.g. ``"t_end 30 vs 10"``);
+    columns named in ``vary`` are allowed to differ. An empty list: the same run, possibly on
+    another engine release (:data:`VERSION_COLUMNS`, compared by :func:`same_version`)."""
+    out = []
+    for col in RUN_IDENTITY:
+        if col in vary:
+            continue
+        x, y = _ident_value(col, a.get(col)), _ident_value(col, b.get(col))
+        if x != y:
+            what = "scenario content (scenario_hash)" if col == "scenario_hash" else col
+            out.append(f"{what} {_show(col, x)} vs {_show(col, y)}")
+    return out
+
+
+def same_version(a, b) -> bool:
+    """Whether rows ``a`` and ``b`` ran on the same engine release (:data:`VERSION_COLUMNS`)."""
+    return all(_ident_value(c, a.get(c)) == _ident_value(c, b.get(c)) for c in VERSION_COLUMNS)
+
+
+def blank_row(spec: RunSpec) -> dict:
+    """The row of ``spec`` before it runs: identity filled, every result empty (NaN)."""
+    row = dict.fromkeys(RESULT_COLUMNS, "")
+    for col in NUMERIC_COLUMNS:
+        row[col] = math.nan
+    row.update(
+        run_id=spec.run_id,
+        scenario=spec.scenario.name,
+        scenario_hash=spec.scenario.scenario_hash,
+        engine=spec.engine,
+        engine_version=spec.engine_version,
+        integrator=spec.integrator,
+        dt=float(spec.dt),
+        target_accuracy=math.nan if spec.accuracy is None else float(spec.accuracy),
+        t_end=spec.horizon,
+        save_every=spec.saving,
+        segment=math.nan if spec.segment is None else int(spec.segment),
+        energy_scale=spec.scenario.energy_scale,
+        momentum_scale=spec.scenario.momentum_scale,
+        suite_version=suite_version(),
+    )
+    return row
+
+
+def output_columns(output, timings=(), cpu_time: bool = True) -> dict:
+    """The columns a run's output fills (a ``RunOutput`` of references.engines): its steps,
+    its timings (the fastest of the ``timings`` repeats, each (wall, engine, CPU) s, with the
+    slowest kept beside it; without repeats the output's own, timed once), the evaluations
+    per step and the settings. ``cpu_time=False``: the output measured no CPU time (a system
+    of bodies, whose builder's call includes the model's construction), left empty."""
+    n = max(output.nstep, 1)
+    cols = dict(
+        nstep=output.nstep,
+        wall_time_s=output.wall_time_s,
+        engine_time_s=output.engine_time_s,
+        glue_time_s=output.glue_time_s,
+        ns_per_step=1e9 * output.wall_time_s / n,
+        engine_ns_per_step=1e9 * output.engine_time_s / n,
+        wall_time_max_s=max((t[0] for t in timings), default=output.wall_time_s),
+        engine_time_max_s=max((t[1] for t in timings), default=output.engine_time_s),
+        timing_repeats=max(len(timings), 1),
+        evals_per_step=output.evals_per_step,
+        settings=json.dumps(output.settings, sort_keys=True, default=str),
+    )
+    if cpu_time:
+        cols["cpu_time_s"] = output.cpu_time_s
+    return cols
+
+
+def finish_time() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+def slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.]+", "-", str(text)).strip("-")
+
+
+def trajectory_path(spec: RunSpec, fmt: str = "parquet") -> Path:
+    """Relative path of a run's trajectory file inside the output folder."""
+    name = f"{slug(spec.engine)}__{slug(spec.integrator)}__dt{spec.dt:.6g}.{fmt}"
+    return Path("trajectories") / slug(spec.scenario.name) / name
+
+
+def error_series_path(traj_rel: Path) -> Path:
+    """The file holding a run's per-sample metric series (for the time plots): the
+    trajectory's own Parquet file, whose extra columns they are, or a ``.series.parquet``
+    file beside a CSV trajectory."""
+    traj_rel = Path(traj_rel)
+    if traj_rel.suffix == ".parquet":
+        return traj_rel
+    return traj_rel.with_name(traj_rel.stem + ".series.parquet")
