@@ -133,13 +133,14 @@ def test_mujoco_builds_a_300_body_chain_and_names_its_limit_at_2000(n):
     raised RecursionError). MuJoCo compiles 300; its MJCF reader refuses nesting beyond about
     500 elements, so 2000 is unsupported with that reason."""
     mujoco = pytest.importorskip("mujoco")
+    from references.engines.mujoco import mjcf
     from references.engines.mujoco import system as ms
     from references.errors import Unsupported
 
     sc = validate_system(chain(n))
     pl = ms.plan(sc)
     args = (sc, pl, "RK4", 1e-3, (0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0))
-    if n > ms.MJCF_MAX_DEPTH:
+    if n > mjcf.MJCF_MAX_DEPTH:
         with pytest.raises(Unsupported, match="nests 2000 bodies deep.*XML_ELEMENT_DEPTH"):
             ms.model_xml(*args)
         return

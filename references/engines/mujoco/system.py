@@ -70,12 +70,12 @@ from __future__ import annotations
 
 import math
 import time
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from references import conventions as cv
 from references.engines import reduced
+from references.engines.mujoco.mjcf import mj_type, model_xml, parts
 from references.engines.native import import_engine
 from references.engines.reduced import saves as _saves
 from references.engines.reduced import unit as _unit
@@ -113,11 +113,6 @@ READBACK_TOL = 1e-12
 #: systems; the margin covers deeper chains, and every frame mistake is O(1))
 INITIAL_TOL = 1e-11
 
-#: the deepest nesting of bodies MuJoCo 4.0's MJCF reader takes (measured: a chain of 480
-#: bodies compiles, 500 raises XML_ELEMENT_DEPTH_EXCEEDED; the margin covers the wrapping
-#: elements)
-MJCF_MAX_DEPTH = 480
-
 
 class InconsistentSystem(EngineError):
     """The scenario's initial world states do not satisfy its joints (the residual is named):
@@ -132,18 +127,10 @@ def _import():
     return mujoco
 
 
-def _num(a) -> str:
-    return " ".join(repr(float(x)) for x in np.ravel(a))
-
-
 # -- the plan: spanning tree, reference configuration, loops -------------------------------------
 
 #: every joint kind MuJoCo builds in a tree
 TREE_KINDS = ("spherical", "fixed_point", "revolute", "prismatic", "universal", "cylindrical")
-
-#: the MuJoCo joint type (or pair of types) of each plan kind
-_MJ = {"free": "free", "spherical": "ball", "revolute": "hinge", "prismatic": "slide",
-       "universal": "universal", "cylindrical": "cylindrical"}  # fmt: skip
 
 
 def plan(scenario) -> reduced.Plan:
@@ -152,26 +139,6 @@ def plan(scenario) -> reduced.Plan:
     with every kind of :data:`TREE_KINDS` in the tree. Raises ``ValueError`` for malformed
     joints, :class:`Unsupported` for a closure this builder cannot express."""
     return reduced.plan(scenario, "mujoco", TREE_KINDS)
-
-
-def mj_type(tj: reduced.TreeJoint) -> str:
-    """MuJoCo's name of the tree joint's type (module docstring's table)."""
-    return _MJ[tj.kind]
-
-
-def parts(tj: reduced.TreeJoint) -> list:
-    """The MuJoCo joints of the body ``tj`` attaches, in order: (type, axis in the child's
-    frame or None); a universal joint is a hinge about the parent-fixed axis then one about
-    the child-fixed axis, a cylindrical one a hinge and a slide on the axis."""
-    return {
-        "free": [("free", None)],
-        "spherical": [("ball", None)],
-        "revolute": [("hinge", tj.axis_c)],
-        "prismatic": [("slide", tj.axis_c)],
-        "universal": [("hinge", None if tj.axis_p is None else tj.R_ref.T @ tj.axis_p),
-                      ("hinge", tj.axis_c)],
-        "cylindrical": [("hinge", tj.axis_c), ("slide", tj.axis_c)],
-    }[tj.kind]  # fmt: skip
 
 
 # -- consistency of the initial world states -----------------------------------------------------
@@ -252,86 +219,6 @@ def check_consistent(scenario, pl: reduced.Plan | None = None) -> None:
             if rel > STATE_TOL * pl.rate / pl.length:
                 refuse("relative angular velocity", rel, STATE_TOL * pl.rate / pl.length,
                        "rad/s")  # fmt: skip
-
-
-# -- MJCF --------------------------------------------------------------------------------------
-
-
-def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, solimp) -> str:
-    """The MJCF of a plan (public so that tests can inspect, and plant mistakes in, what is
-    built)."""
-    children: dict[int, list[int]] = {}
-    for c in pl.order:
-        children.setdefault(pl.tree[c].parent, []).append(c)
-    sites: dict[int, list[str]] = {}
-    eqs = []
-    for li, lp in enumerate(pl.loops):
-        for pi, (pa, pb) in enumerate(lp.pairs):
-            sa, sb = f"loop{li}_{pi}_a", f"loop{li}_{pi}_b"
-            sites.setdefault(lp.a, []).append(f'<site name="{sa}" pos="{_num(pa)}"/>')
-            sites.setdefault(lp.b, []).append(f'<site name="{sb}" pos="{_num(pb)}"/>')
-            eqs.append(
-                f'<connect name="loop{li}_{pi}" site1="{sa}" site2="{sb}" '
-                f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
-            )
-
-    # every body's element from its children's, leaves first (a chain of 2000 bodies nests
-    # 2000 deep: no recursion)
-    depth = {}
-    for c in pl.order:
-        parent = pl.tree[c].parent
-        depth[c] = 2 if parent < 0 else depth[parent] + 1
-    deepest = max(depth.values(), default=2) - 1
-    if deepest > MJCF_MAX_DEPTH:
-        raise Unsupported(
-            f"mujoco: the tree nests {deepest} bodies deep; MuJoCo's MJCF reader (tinyxml2) "
-            f"refuses elements nested deeper than about {MJCF_MAX_DEPTH} bodies "
-            "(XML_ELEMENT_DEPTH_EXCEEDED), and this builder writes MJCF"
-        )
-    text: dict[int, str] = {}
-    for c in reversed(pl.order):
-        tj = pl.tree[c]
-        b = pl.bodies[c]
-        pad = "  " * depth[c]
-        if tj.kind == "free":
-            pos, quat = np.asarray(b.position, float), cv.matrix_to_quat_wxyz(tj.R_ref)
-            joint = f'<freejoint name="j{c}"/>'
-        else:
-            pos = tj.X - tj.R_ref @ tj.Y
-            quat = cv.matrix_to_quat_wxyz(tj.R_ref)
-            joint = "\n".join(
-                f'<joint name="j{c}_{i}" type="{typ}" pos="{_num(tj.Y)}"'
-                + ("" if ax is None else f' axis="{_num(ax)}"')
-                + ' limited="false" damping="0" armature="0" frictionloss="0" stiffness="0"/>'
-                for i, (typ, ax) in enumerate(parts(tj))
-            )
-        inner = "\n".join(
-            [
-                joint,
-                f'<inertial pos="0 0 0" quat="1 0 0 0" mass="{float(b.mass)!r}" '
-                f'diaginertia="{_num(b.inertia)}"/>',
-                *sites.get(c, []),
-                *(text.pop(k) for k in children.get(c, [])),
-            ]
-        )
-        text[c] = (
-            f'{pad}<body name={quoteattr(str(b.name))} pos="{_num(pos)}" quat="{_num(quat)}" '
-            f'gravcomp="0">\n{inner}\n{pad}</body>'
-        )
-
-    world = "\n".join([*sites.get(-1, []), *(text.pop(c) for c in children.get(-1, []))])
-    equality = f"<equality>\n{chr(10).join(eqs)}\n</equality>" if eqs else ""
-    return f"""<mujoco model={quoteattr(str(scenario.name))}>
-  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>
-  <option timestep="{dt!r}" gravity="{_num(pl.gravity)}" integrator="{integrator}"
-          density="0" viscosity="0" wind="0 0 0">
-    <flag contact="disable" autoreset="disable"/>
-  </option>
-  <worldbody>
-{world}
-  </worldbody>
-  {equality}
-</mujoco>"""
 
 
 # -- read-back ---------------------------------------------------------------------------------

@@ -1,0 +1,126 @@
+"""The MJCF document MuJoCo's system builder hands to MuJoCo: a body per body of the plan
+(its principal frame at its centre of mass, parented as the spanning tree says), each tree
+joint as MuJoCo's joints of its kind (:func:`parts`: a universal joint two hinges, a
+cylindrical one a hinge and a slide), each loop closure an ``equality connect`` with the
+builder's solref and solimp, and the integrator and step (:func:`model_xml`). The frames and
+the kinds are described in :mod:`references.engines.mujoco.system`."""
+
+from __future__ import annotations
+
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from references import conventions as cv
+from references.engines import reduced
+from references.errors import Unsupported
+
+#: the MuJoCo joint type (or pair of types) of each plan kind
+_MJ = {"free": "free", "spherical": "ball", "revolute": "hinge", "prismatic": "slide",
+       "universal": "universal", "cylindrical": "cylindrical"}  # fmt: skip
+
+#: the deepest nesting of bodies MuJoCo 4.0's MJCF reader takes (measured: a chain of 480
+#: bodies compiles, 500 raises XML_ELEMENT_DEPTH_EXCEEDED; the margin covers the wrapping
+#: elements)
+MJCF_MAX_DEPTH = 480
+
+
+def _num(a) -> str:
+    return " ".join(repr(float(x)) for x in np.ravel(a))
+
+
+def mj_type(tj: reduced.TreeJoint) -> str:
+    """MuJoCo's name of the tree joint's type (module docstring's table)."""
+    return _MJ[tj.kind]
+
+
+def parts(tj: reduced.TreeJoint) -> list:
+    """The MuJoCo joints of the body ``tj`` attaches, in order: (type, axis in the child's
+    frame or None); a universal joint is a hinge about the parent-fixed axis then one about
+    the child-fixed axis, a cylindrical one a hinge and a slide on the axis."""
+    return {
+        "free": [("free", None)],
+        "spherical": [("ball", None)],
+        "revolute": [("hinge", tj.axis_c)],
+        "prismatic": [("slide", tj.axis_c)],
+        "universal": [("hinge", None if tj.axis_p is None else tj.R_ref.T @ tj.axis_p),
+                      ("hinge", tj.axis_c)],
+        "cylindrical": [("hinge", tj.axis_c), ("slide", tj.axis_c)],
+    }[tj.kind]  # fmt: skip
+
+
+def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, solimp) -> str:
+    """The MJCF of a plan (public so that tests can inspect, and plant mistakes in, what is
+    built)."""
+    children: dict[int, list[int]] = {}
+    for c in pl.order:
+        children.setdefault(pl.tree[c].parent, []).append(c)
+    sites: dict[int, list[str]] = {}
+    eqs = []
+    for li, lp in enumerate(pl.loops):
+        for pi, (pa, pb) in enumerate(lp.pairs):
+            sa, sb = f"loop{li}_{pi}_a", f"loop{li}_{pi}_b"
+            sites.setdefault(lp.a, []).append(f'<site name="{sa}" pos="{_num(pa)}"/>')
+            sites.setdefault(lp.b, []).append(f'<site name="{sb}" pos="{_num(pb)}"/>')
+            eqs.append(
+                f'<connect name="loop{li}_{pi}" site1="{sa}" site2="{sb}" '
+                f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
+            )
+
+    # every body's element from its children's, leaves first (a chain of 2000 bodies nests
+    # 2000 deep: no recursion)
+    depth = {}
+    for c in pl.order:
+        parent = pl.tree[c].parent
+        depth[c] = 2 if parent < 0 else depth[parent] + 1
+    deepest = max(depth.values(), default=2) - 1
+    if deepest > MJCF_MAX_DEPTH:
+        raise Unsupported(
+            f"mujoco: the tree nests {deepest} bodies deep; MuJoCo's MJCF reader (tinyxml2) "
+            f"refuses elements nested deeper than about {MJCF_MAX_DEPTH} bodies "
+            "(XML_ELEMENT_DEPTH_EXCEEDED), and this builder writes MJCF"
+        )
+    text: dict[int, str] = {}
+    for c in reversed(pl.order):
+        tj = pl.tree[c]
+        b = pl.bodies[c]
+        pad = "  " * depth[c]
+        if tj.kind == "free":
+            pos, quat = np.asarray(b.position, float), cv.matrix_to_quat_wxyz(tj.R_ref)
+            joint = f'<freejoint name="j{c}"/>'
+        else:
+            pos = tj.X - tj.R_ref @ tj.Y
+            quat = cv.matrix_to_quat_wxyz(tj.R_ref)
+            joint = "\n".join(
+                f'<joint name="j{c}_{i}" type="{typ}" pos="{_num(tj.Y)}"'
+                + ("" if ax is None else f' axis="{_num(ax)}"')
+                + ' limited="false" damping="0" armature="0" frictionloss="0" stiffness="0"/>'
+                for i, (typ, ax) in enumerate(parts(tj))
+            )
+        inner = "\n".join(
+            [
+                joint,
+                f'<inertial pos="0 0 0" quat="1 0 0 0" mass="{float(b.mass)!r}" '
+                f'diaginertia="{_num(b.inertia)}"/>',
+                *sites.get(c, []),
+                *(text.pop(k) for k in children.get(c, [])),
+            ]
+        )
+        text[c] = (
+            f'{pad}<body name={quoteattr(str(b.name))} pos="{_num(pos)}" quat="{_num(quat)}" '
+            f'gravcomp="0">\n{inner}\n{pad}</body>'
+        )
+
+    world = "\n".join([*sites.get(-1, []), *(text.pop(c) for c in children.get(-1, []))])
+    equality = f"<equality>\n{chr(10).join(eqs)}\n</equality>" if eqs else ""
+    return f"""<mujoco model={quoteattr(str(scenario.name))}>
+  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>
+  <option timestep="{dt!r}" gravity="{_num(pl.gravity)}" integrator="{integrator}"
+          density="0" viscosity="0" wind="0 0 0">
+    <flag contact="disable" autoreset="disable"/>
+  </option>
+  <worldbody>
+{world}
+  </worldbody>
+  {equality}
+</mujoco>"""
