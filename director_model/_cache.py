@@ -8,14 +8,14 @@ function it calls from another module is compiled into the cached code but is no
 the key, so an edit to ``director_model/_primitives.py`` alone would leave every kernel that
 inlines it running the old machine code from the cache, silently.
 
-:func:`tie` closes that gap: called at the end of a kernel module, it extends the stamp of
-each cached function of the module with a hash of the files it depends on (by default
-``_primitives.py``; the system and contact kernels also name the single-body kernels they
-import from). An edit to any of them changes the stamp, so numba discards the index and
-recompiles. The stamp is an attribute of numba's cache object, not a public API: if a numba
-release renames it, :func:`tie` turns the disk cache of that function off (it compiles at
-every start; never stale) and warns once. tests/test_director_cache.py edits a primitive in
-a copy of a kernel module and checks that the next process computes with the edit.
+:func:`tie` closes that gap: called at the end of a kernel module, it extends the stamp of each
+cached function of the module with a hash of the files it depends on (by default ``_primitives.py``;
+the system and contact kernels also name the single-body kernels they import from). An edit to any
+of them changes the stamp, so numba discards the index and recompiles. The stamp is an attribute of
+numba's cache object, not a public API: if a numba release renames it, :func:`tie` turns the disk
+cache of that function off (it compiles at every start; never stale) and warns once.
+tests/director_model/test_director_cache.py edits a primitive in a copy of a kernel module and
+checks that the next process computes with the edit.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ rotation vector ``theta`` (axis times angle) is the exponential coordinate R = e
 (DART's ball and free joints).
 
 Engine state layouts (measured, see docs/engines.md; each one is tested with a non-identity
-rotation and a generic angular velocity in tests/test_conventions.py):
+rotation and a generic angular velocity in tests/references/test_conventions.py):
 
 =========================  ===============================  =============================
 engine, joint              positions                        velocities
@@ -549,7 +549,8 @@ def check_initial_state(
 
 # -- Drake (pydrake): layouts and frames ---------------------------------------------------
 #
-# Measured with drake 1.51.1 (tests/test_engine_drake.py checks each against Drake itself):
+# Measured with drake 1.51.1 (tests/references/engines/test_engine_drake.py checks each against
+# Drake itself):
 #
 # ===========================  =================================  ===========================
 # joint                        positions                          velocities

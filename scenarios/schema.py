@@ -49,7 +49,7 @@ MAX_DEPTH = 8
 #: file each is first written to, ``.<file>.<pid>.tmp`` (13 more bytes with a 7-digit
 #: process id); an ensemble member is ``<name>#<k>``. 128 leaves half of the 255 bytes a
 #: file name may have on Linux, macOS and Windows file systems (NAME_MAX) for these
-#: suffixes; tests/test_scenarios.py writes every file of a run with a name this long.
+#: suffixes; tests/scenarios/test_scenarios.py writes every file of a run with a name this long.
 MAX_NAME_BYTES = 128
 
 #: Largest angle of a rotation vector (rad): rounding shifts an angle x by about eps x, so

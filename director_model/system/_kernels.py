@@ -62,7 +62,7 @@ Compile time (a cold numba cache) decides how the helpers are joined to it:
   from the block and minnorm solvers (:func:`run_system`): a run compiles the solvers of its
   entry only.
 
-tests/test_director_system.py checks that every kernel compiles a single signature.
+tests/director_model/test_director_system.py checks that every kernel compiles a single signature.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The conformance kit: what every engine adapter must pass, ours and a user's.
 
-:func:`check_adapter` runs the checks below on an adapter class and returns one
-:class:`Check` per item (``ok`` and a message); :func:`assert_conforms` raises with every
-failed item. ``tests/test_conformance.py`` runs the kit on every registered adapter, and an
+:func:`check_adapter` runs the checks below on an adapter class and returns one :class:`Check` per
+item (``ok`` and a message); :func:`assert_conforms` raises with every failed item.
+``tests/references/engines/test_conformance.py`` runs the kit on every registered adapter, and an
 adapter in another package can do the same in its own tests::
 
     from references.engines.conformance import assert_conforms

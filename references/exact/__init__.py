@@ -35,17 +35,17 @@ reason when it was asked for explicitly (argument or file); ``auto`` never raise
 hands over to ``numerical``. Invalid input (times, unknown kind names) raises ``ValueError``.
 ``ReferenceTrajectory.reason`` says which kind was used and why, including any hand-over.
 
-``accuracy`` is the estimated maximum error of the attitude over the returned times, in rad
-(the angle of R_ref^T R_true); ``omega_accuracy`` that of the body rates, rad/s. Both are
-finite. For the closed forms they are round-off estimates (16 eps per radian turned, see
-:meth:`FreeBody.accuracy`; for an asymmetric free body also what the rounding of its modulus
-costs over the horizon, :meth:`FreeBody.modulus_error`, which near the separatrix is where
-the digits go, and pi when it cannot be told: ``auto`` then hands over); for the numerical
-reference twice the largest difference between its runs (see
-:mod:`references.exact.numerical`). tests/test_exact_accuracy.py and
-tests/test_exact_separatrix.py check each estimate against independent solutions, from both
-sides: it covers the actual error and exceeds it by at most a stated factor. Energy and
-angular momentum are computed by :meth:`Trajectory.from_states`, exactly as for every engine.
+``accuracy`` is the estimated maximum error of the attitude over the returned times, in rad (the
+angle of R_ref^T R_true); ``omega_accuracy`` that of the body rates, rad/s. Both are finite. For the
+closed forms they are round-off estimates (16 eps per radian turned, see :meth:`FreeBody.accuracy`;
+for an asymmetric free body also what the rounding of its modulus costs over the horizon,
+:meth:`FreeBody.modulus_error`, which near the separatrix is where the digits go, and pi when it
+cannot be told: ``auto`` then hands over); for the numerical reference twice the largest difference
+between its runs (see :mod:`references.exact.numerical`).
+tests/references/exact/test_exact_accuracy.py and tests/references/exact/test_exact_separatrix.py
+check each estimate against independent solutions, from both sides: it covers the actual error and
+exceeds it by at most a stated factor. Energy and angular momentum are computed by
+:meth:`Trajectory.from_states`, exactly as for every engine.
 """
 
 from __future__ import annotations

@@ -65,14 +65,14 @@ def _landen(v: np.ndarray, m: float, m1: float, K: float):
     """sn, cn, dn of v (best for |v| <= K/2) and parameter m = 1 - m1, by descending Landen
     transformations (DLMF 22.7.1-2) fed with the complementary modulus k' = sqrt(m1) itself.
 
-    k_{n+1} = (1 - k'_n)/(1 + k'_n) (= k_n^2/(1 + k'_n)^2 once k'_n > 1/2, to keep it
-    accurate), k'_{n+1} = 2 sqrt(k'_n)/(1 + k'_n), until k_N < 1e-9 (k_N^2 below the rounding),
-    where sn = sin, cn = cos of w = v pi/(2K) (the product of the (1 + k_n) is 2K/pi); back up,
-    sn_n = (1 + k_{n+1}) s/(1 + k_{n+1} s^2), cn_n = c d/(1 + k_{n+1} s^2), and
-    dn_n = sqrt(k'_n^2 + k_n^2 cn_n^2), all products and sums of positive terms. Unlike
-    scipy's ellipj, which takes m alone and so loses ~eps/sqrt(m1) near m = 1 (1e-12 relative
-    at m1 = 3e-9), this keeps sn, cn, dn within 3.8e-15 relative and sn^2 + cn^2 = 1 within
-    3.1e-15 for m1 from 0.5 to 1e-20 (measured against mpmath, tests/test_exact_accuracy.py)."""
+    k_{n+1} = (1 - k'_n)/(1 + k'_n) (= k_n^2/(1 + k'_n)^2 once k'_n > 1/2, to keep it accurate),
+    k'_{n+1} = 2 sqrt(k'_n)/(1 + k'_n), until k_N < 1e-9 (k_N^2 below the rounding), where sn = sin,
+    cn = cos of w = v pi/(2K) (the product of the (1 + k_n) is 2K/pi); back up, sn_n = (1 + k_{n+1})
+    s/(1 + k_{n+1} s^2), cn_n = c d/(1 + k_{n+1} s^2), and dn_n = sqrt(k'_n^2 + k_n^2 cn_n^2), all
+    products and sums of positive terms. Unlike scipy's ellipj, which takes m alone and so loses
+    ~eps/sqrt(m1) near m = 1 (1e-12 relative at m1 = 3e-9), this keeps sn, cn, dn within 3.8e-15
+    relative and sn^2 + cn^2 = 1 within 3.1e-15 for m1 from 0.5 to 1e-20 (measured against mpmath,
+    tests/references/exact/test_exact_accuracy.py)."""
     k, kp = math.sqrt(m), math.sqrt(m1)
     levels = [(k, kp)]
     while k > 1e-9:
@@ -201,12 +201,12 @@ def carlson_rj(x, y, z, p) -> np.ndarray:
     R_J(x, y, z, p) = 3/2 int_0^inf dt / ((t + p) sqrt((t + x)(t + y)(t + z))), for x, y, z >= 0
     (at most one zero) and p > 0; vectorised.
 
-    Duplication algorithm of B. C. Carlson, Numer. Algorithms 10 (1995) 13-26, section 2, with
-    1 + e_m = 2 sqrt(p_m)(p_m + lambda_m)/d_m formed without cancellation, so that p << x, y, z
-    (where R_J ~ p^(-1/2) and e_m -> -1) keeps full relative accuracy, and R_C(1, 1 + e) for
-    e < 0 is formed with log1p. Measured against mpmath (40 digits) on random arguments with
-    p from 1e-30 to 1e2 and x, y down to 1e-113 (tests/test_exact_accuracy.py): relative error
-    <= 7.8e-16; scipy.special.elliprj reached 1.2e-13 on the same kind of arguments.
+    Duplication algorithm of B. C. Carlson, Numer. Algorithms 10 (1995) 13-26, section 2, with 1 +
+    e_m = 2 sqrt(p_m)(p_m + lambda_m)/d_m formed without cancellation, so that p << x, y, z (where
+    R_J ~ p^(-1/2) and e_m -> -1) keeps full relative accuracy, and R_C(1, 1 + e) for e < 0 is
+    formed with log1p. Measured against mpmath (40 digits) on random arguments with p from 1e-30 to
+    1e2 and x, y down to 1e-113 (tests/references/exact/test_exact_accuracy.py): relative error <=
+    7.8e-16; scipy.special.elliprj reached 1.2e-13 on the same kind of arguments.
     """
     x, y, z, p = (a.astype(float) for a in np.broadcast_arrays(*map(np.asarray, (x, y, z, p))))
     a0 = (x + y + z + 2.0 * p) / 5.0

@@ -646,9 +646,10 @@ class LagrangeTop:
     def accuracy(self, t) -> float:
         """Estimated maximum attitude error (rad) over the times ``t``: 16 eps (1 + |W|max t),
         the round-off of the phases, which grows with the angle turned (as for
-        :meth:`references.exact.free_body.FreeBody.accuracy`; the closed form has no
-        quadrature or truncation error). Measured against 30-40 digit solutions
-        (tests/test_exact_accuracy.py): the actual error is 0.015 .. 0.16 of it on the library
+        :meth:`references.exact.free_body.FreeBody.accuracy`; the closed form has no quadrature or
+        truncation error). Measured against 30-40 digit solutions
+        (tests/references/exact/test_exact_accuracy.py): the actual error is 0.015 .. 0.16 of it on
+        the library
         tops, the pendulum, the top passing 1e-6 rad from the vertical and 30 random tops."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         tmax = float(np.max(np.abs(t))) if len(t) else 0.0

@@ -14,25 +14,24 @@ pivoted body's follows from the rotation, x_G = -R c.
 Integrator: DOP853 (scipy.integrate.solve_ivp, Dormand-Prince 8(5,3)) with dense output at the
 requested times, rtol = 1e-13 and atol = rtol times the scale of each component.
 
-Error estimate: the problem is solved six times, at rtol (the solution returned), at 10 rtol,
-at rtol with every step at most half the first run's mean step (step halving), and three times
-at rtol from initial rates perturbed along each body axis by delta = sqrt(nstep) eps |W| (the
-size of the round-off accumulated over nstep steps). ``accuracy`` is twice the largest
-difference between the first run and the others (and between the 10 rtol and halved runs), as
-the angle of R_a^T R_b in rad over the saved times; ``omega_accuracy`` likewise for the body
-rates. Why each run: where truncation dominates, the error scales about linearly with rtol and
-the 10 rtol run bounds the others. On slow motions taken in a few long steps the dense output
-(the interpolant between steps) is less accurate than the steps themselves and all tolerances
-share that error; the halved run's interpolant is ~2^7 times better, so its difference is the
-first run's error. Near an unstable motion (the Dzhanibekov separatrix) every run's error is
-amplified round-off, of a size and direction that differ from run to run and are nearly
-independent of rtol (measured: 4e-11 rad in the rtol, 10 rtol and halved runs alike, while
-their mutual differences were 2e-11); the perturbed runs are three more such realisations (a
-single perturbation along (1, -1, 1) was measured to be nearly normal to the growing direction
-there and to give half the error: hence three axes, and the factor 2). Measured
+Error estimate: the problem is solved six times, at rtol (the solution returned), at 10 rtol, at
+rtol with every step at most half the first run's mean step (step halving), and three times at rtol
+from initial rates perturbed along each body axis by delta = sqrt(nstep) eps |W| (the size of the
+round-off accumulated over nstep steps). ``accuracy`` is twice the largest difference between the
+first run and the others (and between the 10 rtol and halved runs), as the angle of R_a^T R_b in rad
+over the saved times; ``omega_accuracy`` likewise for the body rates. Why each run: where truncation
+dominates, the error scales about linearly with rtol and the 10 rtol run bounds the others. On slow
+motions taken in a few long steps the dense output (the interpolant between steps) is less accurate
+than the steps themselves and all tolerances share that error; the halved run's interpolant is ~2^7
+times better, so its difference is the first run's error. Near an unstable motion (the Dzhanibekov
+separatrix) every run's error is amplified round-off, of a size and direction that differ from run
+to run and are nearly independent of rtol (measured: 4e-11 rad in the rtol, 10 rtol and halved runs
+alike, while their mutual differences were 2e-11); the perturbed runs are three more such
+realisations (a single perturbation along (1, -1, 1) was measured to be nearly normal to the growing
+direction there and to give half the error: hence three axes, and the factor 2). Measured
 estimate/error: 2.8 .. 35 (attitude and rates) on the library and 60 random bodies and tops;
-tests/test_exact_accuracy.py checks it from both sides against the closed forms. It is an
-estimate, not a bound.
+tests/references/exact/test_exact_accuracy.py checks it from both sides against the closed forms. It
+is an estimate, not a bound.
 
 Cost bound: the six solutions together take at most ``max_steps`` steps and ``max_seconds`` of
 wall time (defaults :data:`MAX_STEPS` and :data:`MAX_SECONDS`, or the environment variables

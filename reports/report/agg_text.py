@@ -12,10 +12,10 @@ done by reports.report.canvas) is Agg whose renderer remembers, for the life of 
   whole pixels: FreeType hints the glyph, then transforms and translates its outline, and
   rasterizes it in its own bounding box), drawn where Agg would draw it.
 
-It calls the same FreeType functions as Agg's renderer with the same arguments, so it writes
-the same pixels (tests/test_report.py compares a figure drawn both ways). Mathtext, TeX,
-rotated text and text drawn without antialiasing go through Agg's own code. With a
-matplotlib whose FreeType wrapper lacks the entry points used here, this is plain Agg.
+It calls the same FreeType functions as Agg's renderer with the same arguments, so it writes the
+same pixels (tests/reports/report/test_report.py compares a figure drawn both ways). Mathtext, TeX,
+rotated text and text drawn without antialiasing go through Agg's own code. With a matplotlib whose
+FreeType wrapper lacks the entry points used here, this is plain Agg.
 """
 
 from __future__ import annotations

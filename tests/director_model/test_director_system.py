@@ -244,7 +244,7 @@ def test_block_and_minnorm_runs_leave_the_banded_entry_alone():
         "assert simulate_system(b, j, dt=1e-3, t_end=3e-3).solver == 'minnorm'\n"
         "print(len(K.run_system.overloads), len(K.run_system_banded.overloads))\n"
     )
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
                          text=True, check=True, timeout=600)  # fmt: skip
     assert out.stdout.split() == ["1", "0"], out.stdout + out.stderr

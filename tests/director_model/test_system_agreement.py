@@ -36,7 +36,7 @@ from references.exact.multibody.exact import (
     SpinningChain,
     straight_chain,
 )
-from tests.test_multibody_exact import FOURBAR
+from tests.references.exact.test_multibody_exact import FOURBAR
 
 system = pytest.importorskip(
     "director_model.system", reason="director_model.system (the director multibody API) absent"
@@ -237,7 +237,8 @@ def four_bar():
     joints to the ground, the coupler on revolute joints to both: 20 constraint rows for 17
     degrees of freedom removed, a redundant loop), started to rotate through the singular
     configurations (all links collinear when the crank is horizontal)."""
-    # the rotating four-bar of tests/test_multibody_exact.py, whose closed form is checked there
+    # the rotating four-bar of tests/references/exact/test_multibody_exact.py, whose closed form is
+    # checked there
     fb = ParallelogramFourBar(theta0=-0.3, thetadot0=-12.0, **FOURBAR)
     x0, R0, v0, W0 = fb.initial
     e3 = (0.0, 0.0, 1.0)

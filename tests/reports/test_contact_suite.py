@@ -14,11 +14,12 @@ import pandas as pd
 import pytest
 
 import scenarios
-from reports.run.runner import execute, plan
+from reports.run.plan import plan
+from reports.run.runner import execute
 from reports.store.runs import RunSpec
 from scenarios.schema import InputError
 
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "scenarios.md"
 
 
 def test_plan_offers_the_contact_configurations():

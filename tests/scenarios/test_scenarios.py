@@ -379,7 +379,7 @@ def test_the_message_shows_the_value(tmp_path):
 
 
 def test_the_documented_example_loads(tmp_path):
-    doc = (Path(__file__).parents[1] / "docs" / "scenarios.md").read_text()
+    doc = (Path(__file__).parents[2] / "docs" / "scenarios.md").read_text()
     example = doc.split("## Example")[1].split("```toml\n")[1].split("```")[0]
     sc = scenarios.load(_write(tmp_path, example, name="my_top.toml"))
     assert sc.name == "my_top" and sc.pivoted and sc.dt_sweep == (4e-3, 2e-3, 1e-3)

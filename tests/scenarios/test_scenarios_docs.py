@@ -12,7 +12,7 @@ import pytest
 import scenarios
 from reports.suite import resolve_scenarios
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "scenarios.md"
 
 
 def _blocks(text: str) -> list[str]:

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from scenarios.schema import ScenarioError
 from scenarios.system_file import load_file, validate_system
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SYSTEMS = ROOT / "scenarios" / "systems"
 
 # Round-off bound: states of order 1 (m, rad/s, m/s) built by two or three rotations and

@@ -37,7 +37,7 @@ Integrators (MJX's JAX backend, ``mujoco.mjx._src.forward.step``; MuJoCo documen
 Feature Parity"):
 
 - ``Euler``: MuJoCo's semi-implicit Euler; reproduces C MuJoCo's ``Euler`` (float64: to
-  round-off, tests/test_engine_mjx.py).
+  round-off, tests/references/engines/test_engine_mjx.py).
 - ``RK4``: the classical four stages in the velocities, but the positions are advanced once,
   by the exponential map of the stage-weighted mean velocity, without the dexp correction: order
   2 in the attitude (*measured*). That is C MuJoCo 3.17.0's RK4 (*measured*: equal to 1e-15

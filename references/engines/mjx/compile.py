@@ -438,13 +438,13 @@ def _as_float(tree) -> dict:
 U32 = 2.0**-24
 
 #: Tolerance of the check of a float32 run's rounded initial state (relative, on the scales of
-#: :func:`references.conventions.initial_state_errors`). Rounding each of the state's numbers
-#: to float32 moves it by at most U32 relative, and MJX's float32 evaluation of its energy,
-#: momentum and frames (forward kinematics, the mass matrix, the subtree sums) chains about a
-#: dozen roundings each of at most U32 of a term no larger than the scale: 64 U32 (3.8e-6)
-#: bounds that with margin (measured: at most 1.2 U32 on the conformance kit's bodies;
-#: tests/test_engine_mjx.py asserts 8 U32 on three scenarios). Every mistake the check exists
-#: for moves a quantity by more than 1e-3 of its scale (the kit's planted mistakes).
+#: :func:`references.conventions.initial_state_errors`). Rounding each of the state's numbers to
+#: float32 moves it by at most U32 relative, and MJX's float32 evaluation of its energy, momentum
+#: and frames (forward kinematics, the mass matrix, the subtree sums) chains about a dozen roundings
+#: each of at most U32 of a term no larger than the scale: 64 U32 (3.8e-6) bounds that with margin
+#: (measured: at most 1.2 U32 on the conformance kit's bodies;
+#: tests/references/engines/test_engine_mjx.py asserts 8 U32 on three scenarios). Every mistake the
+#: check exists for moves a quantity by more than 1e-3 of its scale (the kit's planted mistakes).
 FLOAT32_INITIAL_RTOL = 64 * U32
 
 

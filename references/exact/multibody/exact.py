@@ -26,13 +26,12 @@ over time, with the state to start a simulation from and a round-off accuracy es
        |g| (m1 l1 + m2 L1) s1 = Omega^2 ((m1 l1^2 + Jb1 - Ja1) s1 c1 + m2 L1 c1 (L1 s1 + l2 s2))
        |g| m2 l2 s2          = Omega^2 ((Jb2 - Ja2) s2 c2 + m2 l2 c2 (L1 s1 + l2 s2)).
 
-   (For one link this is the physical conical pendulum Omega^2 cos phi = m g l/(I_perp - Ja),
-   I_perp = m l^2 + Jb about the pivot.)
-   The angles are solved for the given rate on the branch with both links tilted to one
-   side, 0 < phi_i < pi/2 (bracketed: see :meth:`DoubleConicalPendulum._solve`). Motion:
-   R_i(t) = Rot(e_z, Omega t) R_i(0), x_i(t) = Rot(e_z, Omega t) x_i(0). tests/
-   test_multibody_exact.py checks that the reduced-coordinate dynamics keeps this state with
-   zero joint accelerations, tests/test_system_agreement.py that the angles equal those of
+   (For one link this is the physical conical pendulum Omega^2 cos phi = m g l/(I_perp - Ja), I_perp
+   = m l^2 + Jb about the pivot.) The angles are solved for the given rate on the branch with both
+   links tilted to one side, 0 < phi_i < pi/2 (bracketed: see :meth:`DoubleConicalPendulum._solve`).
+   Motion: R_i(t) = Rot(e_z, Omega t) R_i(0), x_i(t) = Rot(e_z, Omega t) x_i(0). tests/
+   test_multibody_exact.py checks that the reduced-coordinate dynamics keeps this state with zero
+   joint accelerations, tests/director_model/test_system_agreement.py that the angles equal those of
    the Newton-Euler balance of each link written independently in director_model.system.
 3. :class:`ParallelogramFourBar`: crank A (ground pivot at the origin) and rocker B (ground
    pivot at (D, 0, 0)) of equal joint-to-joint length L, joined by a coupler C as long as the

@@ -10,18 +10,18 @@ equation q' = q (0, w)/2 keeps |q| constant, so their norm drifts only by the in
 error; they are normalised wherever they are turned into rotations (in the right-hand side and
 for output), never fed back into the state.
 
-Error estimate (the same construction as the single-body reference, references/exact/
-numerical.py): the problem is solved at rtol (the solution returned), at 10 rtol, at rtol with
-every step at most half the first run's mean step (its dense output is ~2^8 times more
-accurate), and ``probes`` more times at rtol from joint rates perturbed in a random direction
-(fixed seed) by sqrt(nstep) eps times the rate scale, the round-off accumulated over the run,
-which near an unstable or chaotic motion is what the error is made of. Each quantity's
-estimate is ``SAFETY`` (2) times the largest difference between the first run and the
-others (and between the 10 rtol and halved runs), per saved time (``accuracy_t``) and over all
-times (``accuracy``): position (m, the largest |x_G| difference over bodies), attitude (rad,
-the largest angle of R_a^T R_b over bodies), velocity (m/s), omega (rad/s). It is an estimate,
-not a bound; tests/test_multibody_reference.py checks it from both sides (it covers the error
-of a looser run measured against this one and exceeds it by a bounded factor).
+Error estimate (the same construction as the single-body reference, references/exact/ numerical.py):
+the problem is solved at rtol (the solution returned), at 10 rtol, at rtol with every step at most
+half the first run's mean step (its dense output is ~2^8 times more accurate), and ``probes`` more
+times at rtol from joint rates perturbed in a random direction (fixed seed) by sqrt(nstep) eps times
+the rate scale, the round-off accumulated over the run, which near an unstable or chaotic motion is
+what the error is made of. Each quantity's estimate is ``SAFETY`` (2) times the largest difference
+between the first run and the others (and between the 10 rtol and halved runs), per saved time
+(``accuracy_t``) and over all times (``accuracy``): position (m, the largest |x_G| difference over
+bodies), attitude (rad, the largest angle of R_a^T R_b over bodies), velocity (m/s), omega (rad/s).
+It is an estimate, not a bound; tests/references/exact/test_multibody_reference.py checks it from
+both sides (it covers the error of a looser run measured against this one and exceeds it by a
+bounded factor).
 
 Cost bound: ``max_steps`` accepted steps per run and ``max_wall`` seconds over all runs; beyond
 either, :class:`ReferenceCostExceeded` says which bound, at which time of which run.

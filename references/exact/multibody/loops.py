@@ -43,7 +43,7 @@ run (``constraint_residual``, m and rad) is reported and is a lower bound of its
 error, added to the estimate. The error estimate is that of :mod:`.integrate` (a run at
 10 rtol, one with halved steps, round-off probes with joint rates perturbed within the
 velocity constraints), checked against the exact motion of the parallelogram four-bar in
-tests/test_multibody_loops.py.
+tests/references/exact/test_multibody_loops.py.
 """
 
 from __future__ import annotations
@@ -64,12 +64,12 @@ POINT_KINDS = ("spherical", "fixed_point", "revolute", "universal")
 #: are redundant directions (~1e-16 s_1), dropped over the whole run (:func:`accelerations`);
 #: a singular configuration stops the reference long before, at SINGULAR_TOL
 RANK_TOL = 1e-11
-#: the motion approaches a singular configuration when the smallest of the singular values
-#: kept at t = 0 (the rank of the rows there) falls below SINGULAR_TOL s_1: there the rows'
-#: rank drops, the branches of the loop meet, and a state a round-off away from the motion's
-#: branch is as near another; the reference then stops (:class:`LoopSingular`) rather than
-#: follow a branch it cannot tell apart (tests/test_multibody_loops.py: through the four-bar's
-#: collinear configuration it takes the crossed branch)
+#: the motion approaches a singular configuration when the smallest of the singular values kept at t
+#: = 0 (the rank of the rows there) falls below SINGULAR_TOL s_1: there the rows' rank drops, the
+#: branches of the loop meet, and a state a round-off away from the motion's branch is as near
+#: another; the reference then stops (:class:`LoopSingular`) rather than follow a branch it cannot
+#: tell apart (tests/references/exact/test_multibody_loops.py: through the four-bar's collinear
+#: configuration it takes the crossed branch)
 SINGULAR_TOL = 1e-5
 
 

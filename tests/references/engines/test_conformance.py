@@ -14,8 +14,9 @@ import pytest
 from references.engines import conformance as kit
 from references.engines import get_engine
 
-# MJX passes the same kit in tests/test_engine_mjx.py (test_assert_conforms), which shares its
-# compiled steppers with the MJX tests instead of compiling them a second time here.
+# MJX passes the same kit in tests/references/engines/test_engine_mjx.py (test_assert_conforms),
+# which shares its compiled steppers with the MJX tests instead of compiling them a second time
+# here.
 ADAPTERS = ("mujoco", "pinocchio", "dart", "pybullet", "director", "drake")
 
 

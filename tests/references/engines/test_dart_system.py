@@ -5,7 +5,7 @@ reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulu
 parallelogram four-bar (scipy DOP853 on one ODE) and the conservation of momentum. Tolerances
 come from the integrators' orders (halving dt divides the error by about 2^p, accepted within a
 factor 1.6; the stand-in systems and checks shared with the other builders' tests:
-tests/system_builders.py).
+tests/references/engines/system_builders.py).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from director_model.system.examples import parallelogram_four_bar, rod_chain  # 
 from references.engines.dart import system as ds  # noqa: E402
 from references.engines.system_conformance import hinge_chain, scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from tests import system_builders as sb  # noqa: E402
+from tests.references.engines import system_builders as sb  # noqa: E402
 
 EULER, RK = "semi-implicit Euler", "RKMK4"
 
@@ -86,7 +86,7 @@ def test_default_erp_is_dart_s():
     assert float(got.stdout.split()[-1]) == ds.DEFAULT_ERP
 
 
-# The planted joint mistakes of every builder: tests/test_system_conformance.py.
+# The planted joint mistakes of every builder: tests/references/engines/test_system_conformance.py.
 
 
 def test_planted_default_is_caught(monkeypatch):

@@ -5,7 +5,7 @@ reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulu
 parallelogram four-bar (scipy DOP853 on one ODE). Tolerances are orders: halving dt divides the
 error by about 2^p (p = 1 for semi_explicit_euler and discrete SAP, 5 for runge_kutta5),
 accepted within a factor 1.6; the stand-in systems and checks shared with the other builders'
-tests: tests/system_builders.py.
+tests: tests/references/engines/system_builders.py.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from references.engines import system_conformance as kit  # noqa: E402
 from references.engines.drake import system as ds  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import Diverged, EngineError, Unsupported  # noqa: E402
-from tests import system_builders as sb  # noqa: E402
+from tests.references.engines import system_builders as sb  # noqa: E402
 
 EULER, RK5, SAP = "semi_explicit_euler", "runge_kutta5", "discrete SAP"
 
@@ -166,7 +166,7 @@ def test_the_state_is_continuous_across_a_chart_switch(monkeypatch, mistake):
     assert worst < 1e-12
 
 
-# The planted joint mistakes of every builder: tests/test_system_conformance.py.
+# The planted joint mistakes of every builder: tests/references/engines/test_system_conformance.py.
 
 
 # -- prismatic joints ------------------------------------------------------------------------

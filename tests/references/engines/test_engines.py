@@ -3,7 +3,7 @@
 Layers: the initial state read back (non-identity R0, generic W), the model read back, the
 traps of docs/engines.md neutralised and each shown to be real, failures reported as statuses.
 The planted mistakes and declared orders of every adapter are the conformance kit's
-(tests/test_conformance.py).
+(tests/references/engines/test_conformance.py).
 
 A missing engine is skipped with the reason its adapter gives (never faked).
 """

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 import scenarios
 from references.conventions import hat
 from references.engines import Diverged
-from tests.test_engines import (
+from tests.references.engines.test_engines import (
     ENGINES,
     FOURTH_ORDER,
     engine_or_skip,

@@ -29,7 +29,7 @@ from references.engines import (
 )
 from references.engines.interface import Engine, EngineBase
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "engines.md"
+DOC = Path(__file__).resolve().parents[3] / "docs" / "engines.md"
 
 
 def engine_or_skip(name: str):

@@ -20,7 +20,7 @@ from references.engines.mjx import system as mjx_system  # noqa: E402
 from references.engines.mujoco import system as ms  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
-from tests.test_mujoco_system import four_bar_solref_errors, max_err, reference  # noqa: E402
+from tests.references.engines.test_mujoco_system import four_bar_solref_errors, max_err, reference  # noqa: E402
 
 
 def test_mjx_refuses_the_integrators_it_lacks_and_float32():
@@ -145,7 +145,7 @@ def test_mjx_slide_universal_and_cylindrical_joints_equal_c_mujoco():
     stepped by MJX's Euler equal C MuJoCo's Euler over 500 steps to round-off (measured 2.2e-15
     and 1.2e-15; bound 1e-12 as for the spherical chain)."""
     from references.engines.system_conformance import slider
-    from tests.test_mujoco_system import cardan
+    from tests.references.engines.test_mujoco_system import cardan
 
     for name, (bodies, joints) in (("slider", slider()), ("cardan", cardan())):
         sc = scenario(name, bodies, joints)

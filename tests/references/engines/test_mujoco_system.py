@@ -265,8 +265,9 @@ def test_planted_loop_closure_violation_is_refused():
         ms.simulate_system(scenario("fb", bodies, bad), "RK4", 1e-3, 10, 10)
 
 
-# The planted joint mistakes (axis in the parent's frame, anchor from the body origin, parent
-# and child swapped) of every builder, MuJoCo's included: tests/test_system_conformance.py.
+# The planted joint mistakes (axis in the parent's frame, anchor from the body origin, parent and
+# child swapped) of every builder, MuJoCo's included:
+# tests/references/engines/test_system_conformance.py.
 PLANTS = {
     "COM off the body frame": (
         lambda x: x.replace('<inertial pos="0 0 0"', '<inertial pos="0 0 0.01"', 1),
@@ -441,7 +442,7 @@ def test_slide_joint_agrees_with_rattle6():
     assert d <= 2 * rich + 1e-13, (d, rich)
 
 
-# MJX (float64, trees and loops): tests/test_mjx_system.py.
+# MJX (float64, trees and loops): tests/references/engines/test_mjx_system.py.
 
 
 def rot_x(t: float) -> np.ndarray:

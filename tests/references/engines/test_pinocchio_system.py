@@ -7,7 +7,7 @@ on one ODE) and the conservation of momentum. Tolerances come from the integrato
 halving dt must divide the error by about 2^p (p = 1 for semi-implicit Euler, 4 for RKMK4),
 accepted within a factor 1.6 of that (the error constants of a short run move a little with
 dt). The stand-in systems and the solutions they are measured against are shared with the
-other builders' tests: tests/system_builders.py.
+other builders' tests: tests/references/engines/system_builders.py.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from references.engines import system_conformance as kit  # noqa: E402
 from references.engines.pinocchio import system as ps  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError  # noqa: E402
-from tests import system_builders as sb  # noqa: E402
+from tests.references.engines import system_builders as sb  # noqa: E402
 
 EULER, RK = "semi-implicit Euler", "RKMK4"
 
@@ -112,7 +112,7 @@ def test_a_breadth_first_joint_order_is_caught(monkeypatch):
 
 
 # The planted joint mistakes (axis in the parent's frame, anchor from the body origin, parent
-# and child swapped) of every builder: tests/test_system_conformance.py.
+# and child swapped) of every builder: tests/references/engines/test_system_conformance.py.
 
 
 # -- prismatic joints ------------------------------------------------------------------------

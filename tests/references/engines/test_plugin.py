@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "solve_ivp_engine"
+EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "solve_ivp_engine"
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ reference (references/exact/multibody, DOP853 at rtol 1e-13), the planar pendulu
 parallelogram four-bar (scipy DOP853 on one ODE) and the conservation of momentum. Bullet's
 multibody stepper is first order, so the tolerances are orders (halving dt divides the error by
 about 2, accepted within a factor 1.6; the stand-in systems and checks shared with the other
-builders' tests: tests/system_builders.py).
+builders' tests: tests/references/engines/system_builders.py).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from director_model.system.examples import parallelogram_four_bar, rod_chain  # 
 from references.engines.pybullet import system as bs  # noqa: E402
 from references.engines.system_conformance import scenario  # noqa: E402
 from references.errors import EngineError, Unsupported  # noqa: E402
-from tests import system_builders as sb  # noqa: E402
+from tests.references.engines import system_builders as sb  # noqa: E402
 
 MB = "multibody"
 
@@ -91,7 +91,7 @@ def test_a_loop_through_the_ground_is_the_hinge_it_makes():
     assert max(g1, g2) < 1e-4 and e2 < 1e-2
 
 
-# The planted joint mistakes of every builder: tests/test_system_conformance.py.
+# The planted joint mistakes of every builder: tests/references/engines/test_system_conformance.py.
 
 
 @pytest.mark.parametrize("system", sb.CHAINS, ids=["spherical joints", "revolute joints"])

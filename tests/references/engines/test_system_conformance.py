@@ -86,7 +86,8 @@ def test_planted_joint_mistake_is_caught(engine, mistake):
 def test_the_kit_passes_every_builder_as_built(engine):
     """Every item of the kit on the true builder (the chain runs) and with each mistake
     (caught, naming the joint or its child body). MJX's as-built run compiles JAX steps
-    (tests/test_mjx_system.py runs MJX); its mistakes are caught before any compilation."""
+    (tests/references/engines/test_mjx_system.py runs MJX); its mistakes are caught before any
+    compilation."""
     _need(engine)
     checks = kit.check_mistakes(engine)
     assert [c.name for c in checks] == ["runs as built"] + [f"catches {m}" for m in kit.MISTAKES]

@@ -3,7 +3,7 @@ sides: the estimate covers the actual error, and exceeds it by at most TIGHT tim
 max(actual error, FLOOR). If an estimate were inflated 1000-fold, or deflated below the error,
 a test here would fail.
 
-Independent solutions (written here, or in tests/test_exact_free_body.py):
+Independent solutions (written here, or in tests/references/exact/test_exact_free_body.py):
 
 - Lagrange tops (also the steady precession, and the top passing 1e-6 rad from the vertical):
   :func:`mp_lagrange`, 30-40 digits with mpmath, in the classical form: Euler angles about the
@@ -14,20 +14,20 @@ Independent solutions (written here, or in tests/test_exact_free_body.py):
 - the planar pendulum: :func:`mp_pendulum`, Lawden's sin(theta/2) = k sn(w_p t + v0 | k^2)
   with mpmath's elliptic functions (the closed form under test uses its own Landen-based
   Jacobi functions).
-- free bodies: ``_mp_free_body`` of tests/test_exact_free_body.py (20 digits).
+- free bodies: ``_mp_free_body`` of tests/references/exact/test_exact_free_body.py (20 digits).
 - the numerical reference: the closed forms, whose estimated errors are 0.006-0.13 of the
   numerical ones on the horizons used (checked in each test).
 
 Tightness factor TIGHT = 100 and floors, from measurements (python -m pytest
-tests/test_exact_accuracy.py and the slow random ones): closed forms' estimate/actual 12.8
-(the near-vertical top) to 68.6 (Simo-Wong) here, 3.6 to 20 on 30 random tops; the numerical
-reference's 2.8 (Dzhanibekov, where its error is amplified round-off) to 26 here and 4.6 to 30
-on 68 library and random bodies and tops. The estimates are deliberately pessimistic (16 eps
-per radian turned for the closed forms; twice the largest spread of six runs for the
-numerical one), but not by more than 100. FLOOR = 16 eps = 3.6e-15 rad for the closed forms:
-the estimate's own value at t = 0 and the rounding of a rotation matrix assembled from O(1)
-angles (an actual error below it is round-off luck, not a tighter solution). For the
-numerical reference the actual errors measured here are >= 3e-13, far above any floor.
+tests/references/exact/test_exact_accuracy.py and the slow random ones): closed forms'
+estimate/actual 12.8 (the near-vertical top) to 68.6 (Simo-Wong) here, 3.6 to 20 on 30 random tops;
+the numerical reference's 2.8 (Dzhanibekov, where its error is amplified round-off) to 26 here and
+4.6 to 30 on 68 library and random bodies and tops. The estimates are deliberately pessimistic (16
+eps per radian turned for the closed forms; twice the largest spread of six runs for the numerical
+one), but not by more than 100. FLOOR = 16 eps = 3.6e-15 rad for the closed forms: the estimate's
+own value at t = 0 and the rounding of a rotation matrix assembled from O(1) angles (an actual error
+below it is round-off luck, not a tighter solution). For the numerical reference the actual errors
+measured here are >= 3e-13, far above any floor.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ import scenarios
 from references.exact import LagrangeTop, reference_trajectory
 from references.exact._util import EPS, carlson_rj, jacobi, jacobi_inverse, rotation_angle
 from scenarios.model import Scenario
-from tests.test_exact_free_body import _mp_free_body
+from tests.references.exact.test_exact_free_body import _mp_free_body
 
 TIGHT = 100.0
 FLOOR = 16 * EPS
@@ -362,8 +362,8 @@ def test_numerical_estimate(name, t_end, n):
 
 @pytest.mark.slow
 def test_random_lagrange_top_estimates():
-    # 30 random symmetric tops (the distribution of tests/test_exact_reference.py), six random
-    # times in 3 s each; measured estimate/error 3.6 .. 20 (and error/estimate <= 0.16)
+    # 30 random symmetric tops (the distribution of tests/references/exact/test_exact_reference.py),
+    # six random times in 3 s each; measured estimate/error 3.6 .. 20 (and error/estimate <= 0.16)
     rng = np.random.default_rng(5)
     ratios = []
     for n in range(30):

@@ -1,6 +1,6 @@
 """The planar physical pendulum (a symmetric top without spin and without angular momentum
 about the vertical) against an independent integration of the pendulum equation, and against
-the 3-D rigid-body integration of tests/test_exact_near_vertical.py.
+the 3-D rigid-body integration of tests/references/exact/test_exact_near_vertical.py.
 
 The defect this guards against: Euler angles about the vertical are singular at the pole, and
 with phi' = (a - b u)/(1 - u^2) = 0 the old reference kept the azimuth of the swinging axis
@@ -20,7 +20,7 @@ import scenarios
 from references.exact import reference_trajectory
 from references.exact._util import rotation_angle
 from scenarios.model import Scenario
-from tests.test_exact_near_vertical import rigid_body_dop853
+from tests.references.exact.test_exact_near_vertical import rigid_body_dop853
 
 
 def pendulum_dop853(omega2, theta0, thetadot0, t):

@@ -8,11 +8,11 @@ accuracy estimate claimed 5e-13 rad. The reference computes the distance exactly
 doubles it is given and accounts for the rounding of the modulus in its estimate
 (:meth:`FreeBody.modulus_error`).
 
-Independent solution: ``_mp_free_body`` of tests/test_exact_free_body.py, the case-A
-formulas with mpmath's elliptic functions and a quadrature of phi', from the exact binary
-values of the inputs (at 30 digits the separatrix distance of these bodies, 1e-17 of L^2, keeps
-13 digits). A case-B body is handed to it relabelled: axes (-e3, -e2, -e1), a right-handed
-frame in which L circulates about the third axis.
+Independent solution: ``_mp_free_body`` of tests/references/exact/test_exact_free_body.py, the
+case-A formulas with mpmath's elliptic functions and a quadrature of phi', from the exact binary
+values of the inputs (at 30 digits the separatrix distance of these bodies, 1e-17 of L^2, keeps 13
+digits). A case-B body is handed to it relabelled: axes (-e3, -e2, -e1), a right-handed frame in
+which L circulates about the third axis.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from references.exact import FreeBody, expected_observables, reference_trajector
 from references.exact._util import EPS, rotation_angle
 from references.exact.free_body import MODULUS_RTOL, separatrix_distance
 from scenarios.model import Scenario
-from tests.test_exact_free_body import _mp_free_body
+from tests.references.exact.test_exact_free_body import _mp_free_body
 
 I123 = (1.0, 2.0, 3.0)
 #: (inertia, rates, times): W1^2 = 3 W3^2 is the separatrix of I = (1, 2, 3); these rates are
@@ -37,7 +37,7 @@ FEW_ULP_B = (I123, (-0.8798818102449897, 1.0, 0.508), [10.0, 45.0, 60.0])  # -7.
 REL_39_B = (I123, (-0.8660254038000271, 1.0, 0.5), [10.0, 37.0, 60.0])  # -3.86e-12 of L^2
 #: a body of the Gazebo box (moments 97/120, 82/120, 17/120) set 2e-15 of L^2 off its separatrix
 GAZEBO = ((0.8083333333333333, 0.6833333333333333, 0.14166666666666666), None, [5.0, 20.0])
-TIGHT, FLOOR = 100.0, 16 * EPS  # as tests/test_exact_accuracy.py
+TIGHT, FLOOR = 100.0, 16 * EPS  # as tests/references/exact/test_exact_accuracy.py
 
 
 def _float_distance(I, W) -> float:

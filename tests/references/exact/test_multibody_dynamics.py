@@ -9,7 +9,7 @@ import pytest
 import scenarios
 from references.exact.multibody import tree_from_world
 from references.exact.multibody.dynamics import mass_matrix_and_bias, rhs
-from tests import system_builders as sb
+from tests.references.engines import system_builders as sb
 
 
 @pytest.mark.parametrize("name", ["double_pendulum_3d", "free_chain_5", "planar_chain_4"])

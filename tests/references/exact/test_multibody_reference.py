@@ -31,7 +31,7 @@ from references.exact.multibody import (
     mass_matrix_and_bias,
     solve,
 )
-from tests import system_builders as sb
+from tests.references.engines import system_builders as sb
 
 G = (0.0, 0.0, -9.81)
 

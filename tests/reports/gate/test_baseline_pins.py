@@ -9,7 +9,7 @@ from pathlib import Path
 
 from references.engines import get_engine
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 PINS = ROOT / "reports" / "baselines" / "engines.txt"
 BASELINE = ROOT / "reports" / "baselines" / "default.json"
 

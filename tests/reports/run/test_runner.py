@@ -20,7 +20,7 @@ from reports.run.runner import execute, run_suite
 from reports.store.results import read_results
 from reports.store.runs import RunSpec
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 SHORT = 1.0  # s: long enough for every metric, short enough for a unit test
 
 
