@@ -34,9 +34,9 @@ freely: it adds the translational kinetic energy gravity can give its centre of 
 the horizon, 1/2 m max(|v_c|^2, |v_c + g t_end|^2), as for a floating system. Without gravity
 E_c = T0; 1 J if that is 0.
 
-tests/test_energy_in_play.py holds E_c between the largest kinetic energy along the reference
-and a small multiple of it, and shows that a heavy body on a level slider adds nothing but its
-own kinetic energy.
+tests/scenarios/test_energy_in_play.py holds E_c between the largest kinetic energy along the
+reference and a small multiple of it, and shows that a heavy body on a level slider adds nothing but
+its own kinetic energy.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from references.exact.multibody import ReferenceCostExceeded, solve
 from references.exact.multibody.loops import system_from_world
 from reports.suite import check_singular, warn_costs
 from scenarios.schema import ScenarioError
-from scenarios.system import validate_system
+from scenarios.system_file import validate_system
 
 
 def chain(n: int, angle: float = 1.0, rate: float = 0.5, t_end: float = 1.0) -> dict:
