@@ -115,7 +115,7 @@ def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form():
     sc = scenario("incline", b, j)
     out, e_rk, _ = sb.slide_errors(ds, sc, RK, 1e-2, 100)
     assert e_rk < 1e-13
-    assert out["settings"]["tree"] == {"s": "prismatic to ground"}
+    assert out.settings["tree"] == {"s": "prismatic to ground"}
     _, e_eu, e_eu_known = sb.slide_errors(ds, sc, EULER, 1e-2, 100)
     assert e_eu > 0.02 and e_eu_known < 1e-13
 
@@ -126,7 +126,7 @@ def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_4():
     e, out = sb.slider_errors_vs_rattle6(ds, RK, (2e-3, 1e-3))
     sb.assert_order(e[0], e[1], 4)
     assert e[1] < 1e-11
-    assert out["settings"]["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
+    assert out.settings["tree"] == {"rod": "revolute to ground", "collar": "prismatic to 'rod'"}
 
 
 @pytest.mark.parametrize("mistake", ["axis in the parent's frame", "offset along the axis lost"])
