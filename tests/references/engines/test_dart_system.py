@@ -106,7 +106,8 @@ def test_planted_default_is_caught(monkeypatch):
 
 
 def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form():
-    """kit.inclined_slide as for Pinocchio (tests/test_pinocchio_system.py): RKMK4 integrates
+    """kit.inclined_slide as for Pinocchio (tests/references/engines/test_pinocchio_system.py):
+    RKMK4 integrates
     the constant acceleration (g . n) n exactly (measured 1.1e-15 m over 1 s), semi-implicit
     Euler is off by exactly a h t / 2 (0.0245 m; after it, measured 1.2e-15 m)."""
     from references.engines.system_conformance import inclined_slide
