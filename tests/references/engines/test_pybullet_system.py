@@ -137,7 +137,7 @@ def test_prismatic_joint_on_an_inclined_slide_follows_the_closed_form():
     sc = scenario("incline", b, j)
     out, e, e_known = sb.slide_errors(bs, sc, MB, 1e-3, 1000)
     assert e > 2e-3 and e_known < 1e-12
-    assert out["settings"]["tree"] == {"s": "prismatic to ground"}
+    assert out.settings["tree"] == {"s": "prismatic to ground"}
 
 
 def test_prismatic_joint_in_a_chain_agrees_with_rattle6_at_order_1():
