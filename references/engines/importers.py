@@ -452,10 +452,10 @@ def variants(engine: str, selected) -> list[str]:
 @dataclass
 class Start:
     """The initial state of a model scenario as an importer run sets it: joint coordinates
-    ``q`` and rates ``qd`` by joint name (radians; a joint the file names and the scenario
-    does not: its zero, MJCF: its ``ref``), ``floating``, the root link's world pose ``T``
-    (4, 4), its origin's velocity ``v`` and angular velocity ``w`` (world axes), ``gravity``,
-    ``held`` (the joints the scenario holds)."""
+    ``q`` and rates ``qd`` by joint name, every joint of one coordinate (radians; a joint the
+    scenario does not name: its zero, MJCF: its ``ref``; rate 0), ``floating``, the root
+    link's world pose ``T`` (4, 4), its origin's velocity ``v`` and angular velocity ``w``
+    (world axes), ``gravity``, ``held`` (the joints the scenario holds)."""
 
     q: dict
     qd: dict
@@ -472,9 +472,15 @@ def start_of(scenario) -> Start:
     twist of its root link that our conversion placed)."""
     spec = scenario.model_spec
     init = spec.get("initial", {})
-    q = {k[7:]: v for k, v in init.items() if k.startswith("joints.")}
-    qd = {k[6:]: v for k, v in init.items() if k.startswith("rates.")}
     model, conv = scenario.model, scenario.conversion
+    # every joint of one coordinate at the scenario's value, else at its zero (MJCF: its
+    # ref, as our reading places it): an importer's own initial value (DART clamps a joint
+    # into its limits) never sets the start
+    one = ("revolute", "continuous", "prismatic", "hinge", "slide")
+    q = {j.name: float(j.ref) for j in model.joints if j.kind in one}
+    qd = {j.name: 0.0 for j in model.joints if j.kind in one}
+    q.update({k[7:]: v for k, v in init.items() if k.startswith("joints.")})
+    qd.update({k[6:]: v for k, v in init.items() if k.startswith("rates.")})
     root = model.root
     T = np.asarray(conv.link_pose[root], dtype=float)
     v = w = np.zeros(3)

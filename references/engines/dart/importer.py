@@ -53,10 +53,17 @@ def readback(model, config: str, floating: bool = False) -> Readback:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
     nodes = {}
+    refs = {j.name: float(j.ref) for j in model.joints}
     for s in skels:
         for k in range(s.getNumBodyNodes()):
             bn = s.getBodyNode(k)
             nodes[bn.getName()] = bn
+        # the zero configuration (MJCF: each joint at its ref): DART's loader starts a joint
+        # whose limits exclude 0 inside them (go2's calves, panda's joint 4), not at 0
+        for k in range(s.getNumJoints()):
+            jt = s.getJoint(k)
+            if jt.getNumDofs() == 1:
+                jt.setPosition(0, refs.get(jt.getName(), 0.0))
     if model.root not in nodes:
         rb.error = f"no body node named after the root link {model.root!r}"
         return rb
