@@ -157,3 +157,30 @@ def test_a_run_writes_the_importer_table_and_the_report_shows_it(tmp_path):
     assert "director-bench show --importers arm3_swing --engines mujoco,pybullet" in md
     assert (out / "plots" / "arm3-swing__importers.png").is_file()
     assert (out / "plots" / "arm3-swing__joint_angles.png").is_file()
+
+
+def test_an_importers_own_initial_joint_values_never_set_the_zero_configuration(tmp_path):
+    """DART's URDF loader starts a joint whose limits exclude 0 inside them: arm3 with its
+    elbow limited to [0.5, 1.0] rad still reads back as our reading at the zero
+    configuration, and its importer run starts where the scenario says (the elbow at the
+    scenario's -1.1, outside the limits DART would clamp it into)."""
+    pytest.importorskip("dartpy")
+    from scenarios.models import read_model
+
+    sc = scenarios.load("arm3_swing")
+    text = (
+        open(sc.model.path)
+        .read()
+        .replace('<limit lower="-2.8" upper="2.8"', '<limit lower="0.5" upper="1.0"')
+    )
+    assert 'lower="0.5"' in text
+    (tmp_path / "arm3.urdf").write_text(text)
+    rows = imp.importer_table(read_model(tmp_path / "arm3.urdf"), engines=["dart"])
+    assert {r.quantity for r in rows} == {"agree"}, [r.line() for r in rows]
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "arm3.urdf").write_text(text)
+    toml = open(sc.path).read()
+    (tmp_path / "arm.toml").write_text(toml)
+    limited = scenarios.load(str(tmp_path / "arm.toml"))
+    first = imp.simulate("dart", limited, "faithful", "semi-implicit Euler", 1e-3, 10, 10)
+    np.testing.assert_allclose(first.x[0], [b.position for b in limited.bodies], atol=1e-12)
