@@ -455,7 +455,9 @@ class Start:
     ``q`` and rates ``qd`` by joint name, every joint of one coordinate (radians; a joint the
     scenario does not name: its zero, MJCF: its ``ref``; rate 0), ``floating``, the root
     link's world pose ``T`` (4, 4), its origin's velocity ``v`` and angular velocity ``w``
-    (world axes), ``gravity``, ``held`` (the joints the scenario holds)."""
+    (world axes), ``gravity``, ``held`` (the joints the scenario holds), ``given`` (the joints
+    the scenario names a value or rate for: an importer run that cannot set one of them
+    refuses; one the scenario leaves at rest is left at the importer's zero)."""
 
     q: dict
     qd: dict
@@ -465,6 +467,7 @@ class Start:
     w: np.ndarray
     gravity: np.ndarray
     held: list
+    given: frozenset = frozenset()
 
 
 def start_of(scenario) -> Start:
@@ -479,6 +482,7 @@ def start_of(scenario) -> Start:
     one = ("revolute", "continuous", "prismatic", "hinge", "slide")
     q = {j.name: float(j.ref) for j in model.joints if j.kind in one}
     qd = {j.name: 0.0 for j in model.joints if j.kind in one}
+    given = {k.split(".", 1)[1] for k in init if k.startswith(("joints.", "rates."))}
     q.update({k[7:]: v for k, v in init.items() if k.startswith("joints.")})
     qd.update({k[6:]: v for k, v in init.items() if k.startswith("rates.")})
     root = model.root
@@ -490,7 +494,7 @@ def start_of(scenario) -> Start:
         w = np.asarray(b.rotation, float) @ np.asarray(b.omega_body, float)
         v = np.asarray(b.velocity, float) + np.cross(w, T[:3, 3] - np.asarray(b.position, float))
     return Start(q, qd, floating, T, v, w, np.asarray(scenario.gravity, float),
-                 list(spec.get("lock", ())))  # fmt: skip
+                 list(spec.get("lock", ())), frozenset(given))  # fmt: skip
 
 
 def body_offsets(scenario) -> tuple[list, np.ndarray]:

@@ -184,12 +184,18 @@ class _Sim:
     def _start(self, st, model) -> None:
         import dartpy as dp
 
+        from references.errors import Unsupported
+
         for name in set(st.q) | set(st.qd):
             jt = self.joints.get(name)
             if jt is None:
                 continue
             if jt.getNumDofs() != 1:
-                raise ValueError(f"dart: joint {name!r} ({jt.getType()}): start not set here")
+                if name in st.given:
+                    raise Unsupported(f"dart: joint {name!r} is a {jt.getType()} in "
+                                      "DART's model: the scenario's start for it is not "
+                                      "set here")  # fmt: skip
+                continue
             if name in st.q:
                 jt.setPosition(0, float(st.q[name]))
             if name in st.qd:

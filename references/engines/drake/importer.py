@@ -128,9 +128,12 @@ class _Sim:
         if said.lines:  # what the parser ignored, in its words (file name dropped)
             rec["importer warnings"] = sorted({ln.split(": warning: ")[-1] for ln in said.lines})
         root = plant.GetBodyByName(model.root)
-        if model.format == "urdf" and not st.floating:
+        welded = {j.child for j in model.joints if j.parent is None and j.kind == "fixed"}
+        if model.format == "urdf" and not st.floating and model.root not in welded:
             plant.WeldFrames(plant.world_frame(), root.body_frame(), RigidTransform(st.T))
             rec["root"] = "welded to the world at the scenario's base pose"
+        elif model.format == "urdf" and not st.floating:
+            rec["root"] = "welded by the file (a joint from its link 'world')"
         joints = [plant.get_joint(_ji(i)) for i in range(plant.num_joints())]
         if config == "faithful":
             for jt in joints:
@@ -146,6 +149,12 @@ class _Sim:
         plant.mutable_gravity_field().set_gravity_vector(st.gravity)
         plant.Finalize()
         self.plant = plant
+        if plant.num_constraints():  # e.g. a URDF <mimic> joint: a coupler constraint
+            raise Unsupported(
+                f"drake: its importer's plant holds {plant.num_constraints()} constraint(s) (a "
+                "<mimic> joint becomes a coupler), which a continuous plant does not run "
+                "(Drake: 'Continuous time does not support constraints')"
+            )
         sim = Simulator(plant)
         ctx = sim.get_mutable_context()
         if plant.num_actuated_dofs():
@@ -170,13 +179,19 @@ class _Sim:
         from pydrake.math import RigidTransform
         from pydrake.multibody.math import SpatialVelocity
 
+        from references.errors import Unsupported
+
         plant = self.plant
         for name in set(st.q) | set(st.qd):
             if not plant.HasJointNamed(name):
                 continue
             jt = plant.GetJointByName(name)
             if jt.num_positions() != 1:
-                raise ValueError(f"drake: joint {name!r} ({jt.type_name()}): start not set here")
+                if name in st.given:
+                    raise Unsupported(f"drake: joint {name!r} is a {jt.type_name()} in "
+                                      "Drake's plant: the scenario's start for it is not "
+                                      "set here")  # fmt: skip
+                continue
             if name in st.q:
                 q = plant.GetPositions(ctx)
                 q[jt.position_start()] = float(st.q[name])

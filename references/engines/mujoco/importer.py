@@ -226,7 +226,7 @@ class _Sim:
                     d.qpos[qa] = float(st.q[name])
                 if name in st.qd:
                     d.qvel[va] = float(st.qd[name])
-            elif name in st.q or name in st.qd:
+            elif name in st.given:
                 raise ValueError(f"joint {name!r}: a ball joint's start is not set here")
         mj.mj_forward(m, d)
 

@@ -172,7 +172,7 @@ class _Sim:
                 a = float(st.q.get(name, 0.0))
                 q[iq : iq + 2] = [np.cos(a), np.sin(a)]
                 v[iv] = float(st.qd.get(name, 0.0))
-            elif name in st.q or name in st.qd:
+            elif name in st.given:
                 raise ValueError(f"pinocchio: joint {name!r} ({kind}): its start is not set here")
         return q, v
 

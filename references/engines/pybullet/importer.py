@@ -191,19 +191,26 @@ class _Sim:
         p, cid = self.p, self.cid
         for name, (b, j, kind) in self.joint_of.items():
             if kind not in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
-                if name in st.q or name in st.qd:
+                if name in st.given:
                     raise ValueError(f"pybullet: joint {name!r} (type {kind}): start not set here")
                 continue
             if name in st.q or name in st.qd:
                 p.resetJointState(b, j, float(st.q.get(name, 0.0)),
                                   float(st.qd.get(name, 0.0)), physicsClientId=cid)  # fmt: skip
+        T = st.T
         if model.root not in self.where or self.where[model.root][1] != -1:
-            if model.format == "urdf":
+            if model.format != "urdf":
+                return  # an MJCF root below a base: placed by the file
+            # a URDF whose root hangs from a link named 'world' by a fixed joint: PyBullet's
+            # base is that link, placed so that the root lands where the scenario puts it
+            fixed = [j for j in model.joints if j.child == model.root and j.parent is None]
+            if st.floating or not fixed or len(ids) != 1:
                 raise ValueError(f"pybullet: the root link {model.root!r} is not a base")
-            return  # an MJCF root below a base: placed by the file
-        b = self.where[model.root][0]
+            b, T = ids[0], st.T @ np.linalg.inv(fixed[0].origin)
+        else:
+            b = self.where[model.root][0]
         dyn = p.getDynamicsInfo(b, -1, physicsClientId=cid)
-        Tc = st.T @ _T(dyn[3], dyn[4], p)  # the base's inertial frame
+        Tc = T @ _T(dyn[3], dyn[4], p)  # the base's inertial frame
         p.resetBasePositionAndOrientation(b, Tc[:3, 3].tolist(), _quat(Tc[:3, :3]),
                                           physicsClientId=cid)  # fmt: skip
         if st.floating:
