@@ -173,9 +173,12 @@ def axis_rotation(axis, angle: float) -> np.ndarray:
 
 def joint_transform(j: ModelJoint, q) -> np.ndarray:
     """The child's frame in the parent's at the joint coordinate ``q`` (an angle for a
-    revolute joint, a rotation vector for a ball joint, ignored for fixed joints)."""
+    revolute joint, a distance along the axis for a prismatic one, a rotation vector for a
+    ball joint, ignored for fixed joints)."""
     if j.kind in ("fixed", "free", "floating"):
         return j.origin
+    if j.kind == "prismatic":  # a slide along the axis (held joints only)
+        return j.origin @ pose(np.asarray(j.axis, dtype=float) * (float(q) - j.ref))
     if j.kind == "ball":
         R = rotation_from_vector(q)
     else:

@@ -320,3 +320,19 @@ def test_joint_coordinate_error_recovers_a_joint_turned_by_a_known_angle():
     assert per["elbow"][0] == pytest.approx(0.05, abs=1e-12)
     assert per["shoulder"][0] < 1e-12 and per["wrist"][0] < 1e-12
     assert joint_coordinate_errors(sc, turned, ref)[0] == pytest.approx(0.05, abs=1e-12)
+
+
+def test_a_held_prismatic_joint_slides_its_link(tmp_path):
+    """A prismatic joint held at 0.05 m moves its child 0.05 m along its axis (by hand: the
+    origin's offset plus 0.05 times the axis), never turns it by 0.05 rad (which the panda's
+    fingers were, caught by the importer runs: the hand's inertia 7.4e-4 off Pinocchio's and
+    MuJoCo's)."""
+    p = write(tmp_path, "s.urdf", robot(
+        link("a"), link("b", mass=0.5, xyz="0 0 0.1", I=(1, 2, 3)),
+        revolute("hinge", "a", "b", xyz="0 0 0.3", axis="0 1 0", kind="prismatic")
+        .replace("<axis", '<limit lower="-1" upper="1" effort="1" velocity="1"/><axis'),
+    ))  # fmt: skip
+    conv = to_system(read_model(p), {"hinge": 0.05}, lock=["hinge"])
+    T = conv.link_pose["b"]
+    np.testing.assert_allclose(T[:3, 3], [0.0, 0.05, 0.3], atol=1e-15)
+    np.testing.assert_allclose(T[:3, :3], np.eye(3), atol=1e-15)

@@ -126,13 +126,15 @@ def _compile(scenario, config: str, st):
         spec = mujoco.MjSpec.from_file(str(path))
         root = spec.body(model.root) or spec.worldbody.first_body()
         if config == "faithful":  # held joints welded where the scenario holds them
+            held = set(st.held)
+            for eq in list(spec.equalities):  # a coupling of a held joint (URDF <mimic>)
+                if {eq.name1, eq.name2} & held:
+                    spec.delete(eq)
             for name in st.held:
                 j = spec.joint(name)
                 if j is None:
                     continue
-                q = float(st.q.get(name, j.ref))
-                if q != j.ref:
-                    raise ValueError(f"held joint {name!r} at {q}, not at its ref {j.ref}")
+                _weld_at(j, float(st.q.get(name, j.ref)) - float(j.ref), mujoco)
                 spec.delete(j)
         if model.format == "urdf" and st.floating:
             root.add_freejoint()
@@ -143,6 +145,35 @@ def _compile(scenario, config: str, st):
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _weld_at(j, d: float, mujoco) -> None:
+    """Move the body of the joint ``j`` (an ``MjsJoint``) as the joint would at ``d`` from
+    its ref, so that deleting the joint welds the body there: a slide translates it along
+    the axis, a hinge turns it about the axis through the joint's point (body frame)."""
+    from references import conventions as cv
+    from scenarios.models.model import axis_rotation
+
+    if d == 0.0:
+        return
+    b = j.parent
+    a = np.asarray(j.axis, float) / np.linalg.norm(j.axis)
+    M = np.eye(4)
+    if int(j.type) == int(mujoco.mjtJoint.mjJNT_SLIDE):
+        M[:3, 3] = a * d
+    elif int(j.type) == int(mujoco.mjtJoint.mjJNT_HINGE):
+        c = np.asarray(j.pos, float)
+        M[:3, :3] = axis_rotation(a, d)
+        M[:3, 3] = c - M[:3, :3] @ c
+    else:
+        raise ValueError(f"held joint {j.name!r}: a {j.type} joint is not welded here")
+    q = np.asarray(b.quat, float)
+    T = np.eye(4)
+    T[:3, :3] = cv.quat_wxyz_to_matrix(q / np.linalg.norm(q))
+    T[:3, 3] = b.pos
+    T = T @ M
+    b.pos = T[:3, 3]
+    b.quat = cv.matrix_to_quat_wxyz(T[:3, :3])
 
 
 class _Sim:
