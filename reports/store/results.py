@@ -31,7 +31,8 @@ import json
 import math
 import os
 import sqlite3
-from collections.abc import Iterable
+import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from reports.store.atomic import replacing
@@ -75,6 +76,28 @@ class StoreLocked(StoreUnwritable):
 
 #: how long a writer waits for another process's write lock on the store (s)
 BUSY_TIMEOUT_S = 60.0
+
+
+def _is_busy(exc: sqlite3.Error) -> bool:
+    text = str(exc)
+    return "locked" in text or "busy" in text
+
+
+def _retry_busy(attempt: Callable, deadline: float):
+    """``attempt()``, tried again while SQLite answers "database is locked" and ``deadline``
+    (time.monotonic) is ahead. SQLite's busy handler (``busy_timeout``) waits for most
+    locks, but not all: switching a new database file to WAL while another process opens
+    it, or the last connection's cleanup of the WAL, answer busy at once. Those locks last
+    milliseconds; this waits them out (at most until the deadline) instead of failing."""
+    pause = 0.01
+    while True:
+        try:
+            return attempt()
+        except sqlite3.OperationalError as exc:
+            if not _is_busy(exc) or time.monotonic() + pause > deadline:
+                raise
+        time.sleep(pause)
+        pause = min(2 * pause, 0.5)
 
 
 def lock_holders(path: Path) -> list[str]:
@@ -153,6 +176,7 @@ class Store:
         self._con = self._open(create)
 
     def _open(self, create: bool) -> sqlite3.Connection:
+        self._since = time.monotonic()
         try:
             writable = os.access(self.path.parent, os.W_OK) and os.access(self.path, os.W_OK)
             if not create and not writable:
@@ -163,7 +187,16 @@ class Store:
                 self._refuse_foreign(con)
                 self._check(con)
                 return con
-            con = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+            return _retry_busy(lambda: self._connect(create), self._since + BUSY_TIMEOUT_S)
+        except sqlite3.DatabaseError as exc:
+            raise self._damaged(exc) from None
+        except sqlite3.Error as exc:  # pragma: no cover - other sqlite failures
+            raise StoreUnwritable(f"{self.path}: cannot open the results store: {exc}") from None
+
+    def _connect(self, create: bool) -> sqlite3.Connection:
+        """A writable connection to the store, set up (one attempt; closed if it fails)."""
+        con = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+        try:
             con.execute(f"PRAGMA busy_timeout = {int(1000 * BUSY_TIMEOUT_S)}")
             self._refuse_foreign(con)
             if create:
@@ -175,11 +208,10 @@ class Store:
                 con.execute("PRAGMA synchronous = NORMAL")
                 self._create_schema(con)
             self._check(con)
-            return con
-        except sqlite3.DatabaseError as exc:
-            raise self._damaged(exc) from None
-        except sqlite3.Error as exc:  # pragma: no cover - other sqlite failures
-            raise StoreUnwritable(f"{self.path}: cannot open the results store: {exc}") from None
+        except BaseException:
+            con.close()
+            raise
+        return con
 
     def _refuse_foreign(self, con) -> None:
         """Raise :class:`StoreForeign` when the file is another application's database (an
@@ -253,13 +285,14 @@ class Store:
 
     def _damaged(self, exc) -> Exception:
         text = str(exc)
-        if "locked" in text or "busy" in text:
+        if _is_busy(exc):
             who = ", ".join(lock_holders(self.path)) or "another process"
+            waited = time.monotonic() - getattr(self, "_since", time.monotonic())
             return StoreLocked(
-                f"results store {self.path} is locked by {who}, which held its write lock "
-                f"for more than {BUSY_TIMEOUT_S:g} s ({text}); the store is not damaged: wait "
-                "for that process to finish (or stop it) and run the same command again; "
-                "finished runs are kept"
+                f"results store {self.path} stayed locked for the {waited:.1f} s this process "
+                f"waited (at most {BUSY_TIMEOUT_S:g} s; SQLite: {text}); processes that have "
+                f"it open: {who}. The store is not damaged: wait for the other process to "
+                "finish (or stop it) and run the same command again; finished runs are kept"
             )
         if "readonly" in text or "unable to open" in text:
             return StoreUnwritable(f"{self.path}: cannot write the results store: {text}")
@@ -281,6 +314,26 @@ class Store:
         self.close()
 
     # -- writing --------------------------------------------------------------------------
+    def _write(self, statements: Callable[[sqlite3.Connection], None]) -> None:
+        """``statements(con)`` in one write transaction, waiting out a busy store (at most
+        :data:`BUSY_TIMEOUT_S`); any failure rolls it back and raises a store error."""
+        self._since = time.monotonic()
+
+        def attempt():
+            try:
+                self._con.execute("BEGIN IMMEDIATE")
+                statements(self._con)
+                self._con.execute("COMMIT")
+            except sqlite3.Error:
+                with contextlib.suppress(sqlite3.Error):
+                    self._con.execute("ROLLBACK")
+                raise
+
+        try:
+            _retry_busy(attempt, self._since + BUSY_TIMEOUT_S)
+        except sqlite3.Error as exc:
+            raise self._damaged(exc) from None
+
     def put(self, row: dict) -> None:
         """Insert (or replace) one row in its own transaction."""
         text = canonical(row)
@@ -295,32 +348,24 @@ class Store:
             text,
             checksum(text),
         )
-        try:
-            self._con.execute("BEGIN IMMEDIATE")
-            self._con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?)", vals)
-            self._con.execute("COMMIT")
-        except sqlite3.Error as exc:
-            with contextlib.suppress(sqlite3.Error):
-                self._con.execute("ROLLBACK")
-            raise self._damaged(exc) from None
+        self._write(
+            lambda con: con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?)", vals)
+        )
 
     def touch(self, run_ids: Iterable[str]) -> None:
         """Make the stored rows ``run_ids`` the newest, in this order, unchanged: a rerun that
         skips runs the store holds asks for them again, so they are what :func:`current`
         shows, whatever another invocation wrote since (one transaction)."""
         ids = list(run_ids)
-        try:
-            self._con.execute("BEGIN IMMEDIATE")
+
+        def statements(con):
             for i in ids:
-                self._con.execute(
+                con.execute(
                     "UPDATE runs SET rowid = (SELECT MAX(rowid) + 1 FROM runs) WHERE run_id = ?",
                     (i,),
                 )
-            self._con.execute("COMMIT")
-        except sqlite3.Error as exc:
-            with contextlib.suppress(sqlite3.Error):
-                self._con.execute("ROLLBACK")
-            raise self._damaged(exc) from None
+
+        self._write(statements)
 
     def get_meta(self, key: str) -> str | None:
         if self._empty:
@@ -332,21 +377,15 @@ class Store:
         return None if got is None else got[0]
 
     def set_meta(self, key: str, value: str) -> None:
-        try:
-            self._con.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (key, value))
-        except sqlite3.Error as exc:
-            raise self._damaged(exc) from None
+        self._write(
+            lambda con: con.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (key, value))
+        )
 
     def delete(self, run_ids: Iterable[str]) -> None:
         ids = list(run_ids)
-        try:
-            self._con.execute("BEGIN IMMEDIATE")
-            self._con.executemany("DELETE FROM runs WHERE run_id = ?", [(i,) for i in ids])
-            self._con.execute("COMMIT")
-        except sqlite3.Error as exc:
-            with contextlib.suppress(sqlite3.Error):
-                self._con.execute("ROLLBACK")
-            raise self._damaged(exc) from None
+        self._write(
+            lambda con: con.executemany("DELETE FROM runs WHERE run_id = ?", [(i,) for i in ids])
+        )
 
     # -- reading --------------------------------------------------------------------------
     def done_ids(self) -> set[str]:

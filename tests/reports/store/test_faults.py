@@ -11,9 +11,11 @@ from __future__ import annotations
 import math
 import os
 import random
+import re
 import resource
 import shutil
 import signal
+import sqlite3
 import subprocess
 import sys
 import time
@@ -203,6 +205,83 @@ def test_two_run_commands_into_one_folder(tmp_path, clean):
     assert b.wait(timeout=600) == 0, b.stderr.read().decode()
     lost, wrong = count_lost_and_wrong(rows_by_id(out), clean)
     assert (lost, wrong) == (0, 0)
+
+
+def test_a_lock_sqlite_answers_at_once_is_waited_out(monkeypatch):
+    """SQLite answers some lock contention "database is locked" at once, without calling
+    its busy handler (two connections both switching a new file to WAL: one is refused to
+    avoid a deadlock). A store write waits that out within its bound and fails only once the
+    bound is spent; another error is not retried."""
+    import reports.store.results as results
+
+    calls = []
+
+    def locked_twice():
+        calls.append(1)
+        if len(calls) <= 2:
+            raise sqlite3.OperationalError("database is locked")
+        return "written"
+
+    assert results._retry_busy(locked_twice, time.monotonic() + 5) == "written"
+    assert len(calls) == 3
+    calls.clear()
+    with pytest.raises(sqlite3.OperationalError, match="locked"):
+        results._retry_busy(lambda: locked_twice() and locked_twice(), time.monotonic() - 1)
+    assert len(calls) == 1  # the bound is spent: one attempt
+    calls.clear()
+
+    def malformed():
+        calls.append(1)
+        raise sqlite3.OperationalError("disk I/O error")
+
+    with pytest.raises(sqlite3.OperationalError, match="disk"):
+        results._retry_busy(malformed, time.monotonic() + 5)
+    assert len(calls) == 1
+
+
+class _LockedOnce:
+    """A connection whose first statement matching ``word`` answers "database is locked",
+    as SQLite does at once (without its busy handler) to a writer that would deadlock."""
+
+    refused: list  # one entry per refusal, shared by the connections of one test
+
+    def __init__(self, con, word, refused):
+        self.con, self.word, self.refused = con, word, refused
+
+    def execute(self, sql, *args):
+        if self.word in sql and not self.refused:
+            self.refused.append(sql)
+            raise sqlite3.OperationalError("database is locked")
+        return self.con.execute(sql, *args)
+
+    def __getattr__(self, name):
+        return getattr(self.con, name)
+
+
+def test_a_store_waits_out_an_immediate_lock_on_open_and_on_write(tmp_path, monkeypatch):
+    """Opening a new store and writing a row each meet one immediate "database is locked"
+    (the answer two `run` commands starting into one folder got from SQLite, 1 trial in
+    ~60 of three writers opening a new store at once): both wait it out and the row is
+    stored."""
+    import reports.store.results as results
+
+    real_connect = sqlite3.connect
+    opened, on_open, on_write = [], [], []
+
+    def connect(*args, **kw):
+        opened.append(1)
+        return _LockedOnce(real_connect(*args, **kw), "journal_mode", on_open)
+
+    monkeypatch.setattr(results.sqlite3, "connect", connect)
+    with Store(tmp_path, create=True) as st:
+        assert len(on_open) == 1 and len(opened) == 2  # refused once, opened at the 2nd try
+        st._con = _LockedOnce(st._con, "BEGIN IMMEDIATE", on_write)
+        row = dict.fromkeys(RESULT_COLUMNS, "")
+        st.put({**row, "run_id": "r", "scenario": "s", "engine": "e", "integrator": "i", "dt": 0.1})
+        assert len(on_write) == 1
+    monkeypatch.undo()
+    with Store(tmp_path) as st:
+        assert [r["run_id"] for r in st.rows()] == ["r"]
 
 
 # -- damaged stores -----------------------------------------------------------------------------
@@ -451,7 +530,8 @@ def test_a_write_lock_held_too_long_is_a_locked_store_not_a_damaged_one(
         holder.wait()
     assert code == 1
     err = capsys.readouterr().err
-    assert f"locked by process {holder.pid}" in err and "wait" in err, err
+    assert f"have it open: process {holder.pid}" in err and "wait" in err, err
+    assert re.search(r"stayed locked for the \d+\.\d s this process waited \(at most 0.5 s", err)
     assert "damaged" not in err.replace("not damaged", "") and "mv " not in err
     assert read_results(tmp_path, all_rows=True).empty
 
