@@ -1,12 +1,12 @@
 """What one run works on and returns: the body an adapter builds (:class:`BodyModel`), what
 the built model holds read back (:class:`ModelReadback`), the run's working state passed to
-every adapter method (:class:`RunContext`, with the :class:`Clock` of the time inside the
-engine's calls) and the result (:class:`RunOutput`)."""
+every adapter method (:class:`RunContext`, with the
+:class:`~references.engines.timing.Stopwatch` of the time inside the engine's calls) and the
+result (:class:`RunOutput`)."""
 
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -14,6 +14,7 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines.integrators import Integrator
+from references.engines.timing import Stopwatch, Timing
 from references.trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -86,24 +87,6 @@ class ModelReadback:
     extra: dict[str, tuple] = field(default_factory=dict)
 
 
-class Clock:
-    """Accumulates the wall time spent inside an engine's own calls (``with ctx.clock:``)."""
-
-    __slots__ = ("elapsed", "_t0")
-
-    def __init__(self):
-        self.elapsed = 0.0
-        self._t0 = 0.0
-
-    def __enter__(self):
-        self._t0 = time.perf_counter()
-        return self
-
-    def __exit__(self, *exc):
-        self.elapsed += time.perf_counter() - self._t0
-        return False
-
-
 @dataclass
 class RunContext:
     """One run's working state, passed to every adapter method. Adapters keep whatever their
@@ -115,9 +98,8 @@ class RunContext:
     dt: float
     #: the run's horizon, s
     t_end: float = 0.0
-    clock: Clock = field(default_factory=Clock)
-    #: the process's CPU time over the stepping so far, s (beside the wall time the loop sums)
-    cpu_time: float = 0.0
+    #: the time inside the engine's calls, and per block of the loop its wall and CPU time
+    clock: Stopwatch = field(default_factory=Stopwatch)
     handle: Any = None
     #: dynamics evaluations so far (adapters with a varying count add to it)
     nevals: float = 0.0
@@ -153,9 +135,12 @@ class RunOutput:
     stats: dict[str, float] = field(default_factory=dict)
     #: the integrator family of the algorithm that ran (see RunContext.family)
     family: str = ""
-    #: the process's CPU time over the stepping (all its threads): on a busy machine less than
-    #: the wall time, by the time the process waited for a CPU
+    #: the CPU time of the stepping (the running thread's; the process's for a threaded
+    #: engine): on a busy machine less than the wall time, by the time it waited for a CPU
     cpu_time_s: float = math.nan
+    #: the stepping's timing (references.engines.timing): the engine calls' CPU time and its
+    #: uncertainty; None where it was not measured
+    timing: Timing | None = None
 
     @property
     def glue_time_s(self) -> float:

@@ -89,6 +89,10 @@ class EngineBase(ABC):
     #: exact or high-accuracy solution), not a configuration under test: tables and figures
     #: show it as the floor of the measurement and comparisons between engines leave it out
     is_reference: ClassVar[bool] = False
+    #: the engine computes on threads of its own (XLA's), not only on the calling thread: a
+    #: run's CPU time is read from the process's clock rather than the thread's
+    #: (references.engines.timing)
+    threaded: ClassVar[bool] = False
     #: :meth:`run_batch` steps its members together in one call (an ensemble of one
     #: configuration is then one task), rather than the default's loop over :meth:`run`
     batched: ClassVar[bool] = False

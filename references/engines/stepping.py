@@ -11,7 +11,6 @@ does not import it, the interface imports this one.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -22,6 +21,7 @@ from references.engines.context import BodyModel, ModelReadback, RunContext, Run
 from references.engines.liegroup import CompiledRKMK4Stepper
 from references.engines.native import NativeStderr
 from references.engines.recording import Recorder, sorted_unique
+from references.engines.timing import cpu_clock
 from references.errors import Diverged, EngineError, StepFailure, Unsupported
 from references.trajectory import energy_parts
 from scenarios.schema import step_plan
@@ -252,16 +252,17 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
     wall = 0.0
     done = 0
     dt = ctx.dt
+    watch = ctx.clock
+    watch.cpu_now = cpu_clock(engine.threaded)
     for block in _blocks(nstep, saves, rec.every_step):
         steps = np.diff([done, *block]).tolist()
         try:
             with ctx.stderr:  # set by Engine.run, the only caller
-                t0 = time.perf_counter()  # after the redirection is in place
-                c0 = time.process_time()
+                watch.resume()  # after the redirection is in place
                 states = stepper.run(steps)
         except StepFailure as exc:
-            wall += time.perf_counter() - t0
-            ctx.cpu_time += time.process_time() - c0
+            watch.pause()
+            wall = watch.wall
             t_div, span = _failed_step(exc, done, block[-1], dt)
             kept = exc.states  # the checkpoints completed before it
             if kept is not None and len(kept[0]):
@@ -270,8 +271,8 @@ def _loop(engine, ctx, stepper, nstep, saves, rec, progress) -> tuple[float, int
             raise _diverged(
                 engine, ctx, rec, done, wall, t_div, f"{span} could not be taken: {exc}"
             ) from exc
-        wall += time.perf_counter() - t0
-        ctx.cpu_time += time.process_time() - c0
+        watch.pause()
+        wall = watch.wall
         _record_checked(engine, ctx, rec, block, states, done, wall, check)
         done = block[-1]
         if progress is not None:
@@ -328,7 +329,8 @@ def _output(ctx, rec, steps_done, wall, settings) -> RunOutput:
         nstep=int(steps_done),
         wall_time_s=float(wall),
         engine_time_s=float(min(ctx.clock.elapsed, wall)),
-        cpu_time_s=float(ctx.cpu_time),
+        cpu_time_s=float(ctx.clock.cpu),
+        timing=ctx.clock.timing(),
         evals_per_step=float(per),
         settings=settings,
         stats=dict(ctx.stats),

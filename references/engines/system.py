@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.engines import importers
+from references.engines import importers, timing
 from references.engines.context import SystemResult
 from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
@@ -59,6 +59,9 @@ class SystemRunOutput:
     evals_per_step: float = math.nan
     stats: dict = field(default_factory=dict)
     family: str = ""
+    #: the stepping's timing (references.engines.timing), when the builder timed its engine
+    #: calls on the run's stopwatch; None: its wall time stands
+    timing: object = None
 
     @property
     def glue_time_s(self) -> float:
@@ -131,19 +134,23 @@ def run_system(
         simulate = builder(engine)
         settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
         check_settings(engine, settings)
+    watch = timing.Stopwatch(timing.cpu_clock(_threaded(engine)))
     t0 = time.perf_counter()
     try:
-        res = simulate(scenario, integrator, float(dt), int(nstep), int(save_every), **settings)
+        with timing.running(watch):  # the builder times its engine calls on it
+            res = simulate(scenario, integrator, float(dt), int(nstep), int(save_every), **settings)
     except Diverged as exc:
         # the builder's own divergence: its states up to the last good save, in the form of
         # a run's output
         if isinstance(exc.output, SystemResult):
             wall = time.perf_counter() - t0
             part = _output(engine, scenario, integrator, dt, t_end, saves, exc.output, wall)
+            part.timing = _timing(watch)
             raise Diverged(str(exc), exc.t_diverged, part) from exc
         raise
     wall = time.perf_counter() - t0
     out = _output(engine, scenario, integrator, dt, t_end, saves, res, wall)
+    out.timing = _timing(watch)
     traj, n, want = out.trajectory, len(out.trajectory), saves * float(dt)
     bad = _first_divergence(scenario, traj)
     if bad is not None:
@@ -160,6 +167,21 @@ def run_system(
             f"{engine} system builder: {n} saved states, the step plan has {len(want)}"
         )
     return out
+
+
+def _timing(watch: timing.Stopwatch) -> timing.Timing | None:
+    """The run's timing, when its builder timed its engine calls on ``watch``
+    (:func:`references.engines.timing.lap`); else None (its wall time stands)."""
+    return watch.timing() if watch.elapsed > 0 else None
+
+
+def _threaded(engine: str) -> bool:
+    from references.engines import EngineError, get_engine
+
+    try:
+        return bool(get_engine(engine).threaded)
+    except EngineError:
+        return False
 
 
 def _output(engine, scenario, integrator, dt, t_end, saves, res, wall) -> SystemRunOutput:

@@ -17,11 +17,13 @@ less than A / ``factor``, ``same`` otherwise; the fitted convergence order by di
 status that got worse (ok to diverged or error), a verdict that went from pass to fail or a
 failing run that fails one more check (:func:`reports.gate.rule.verdict_change`) is
 ``worse`` whatever the numbers (``unsupported`` and ``unavailable`` are the environment, not
-a result). A cost (ns per step inside the engine and wall) is a range measured with the run
-(reports.run.runner); a cost change is significant only beyond the factor AND the measured
-spread, and only when every dt of the configuration's sweep moved the same way
+a result). A cost (ns per step inside the engine and of the whole step) is a range measured
+with the run (reports.run.runner); a cost change is significant only beyond the factor AND
+the measured spread, and only when every dt of the configuration's sweep moved the same way
 (:func:`reports.gate.rule.classify_cost`, :func:`reports.gate.rule.corroborate_costs`);
-otherwise it is ``not significant``.
+otherwise it is ``not significant``, or ``starved`` where a side's engine time was measured
+starved (reports.gate.rule.starved). The costs are CPU times (references.engines.timing):
+the time a run waited for a CPU on a busy machine is not in them.
 
 Exit code of the command: 1 when some run got worse in a metric, its status or its verdict,
 when a pair of runs is a mismatch, or when nothing is comparable (an empty folder, no run in
@@ -169,12 +171,13 @@ def _counts(cmp: Comparison) -> dict:
         "better": len(better),
         "same": len(cmp.compared) - len(worse) - len(better),
         "cost_not_significant": sum(1 for c in cmp.changes if c.change == "not significant"),
+        "cost_starved": sum(1 for c in cmp.changes if c.change == "starved"),
         "only_a": len(cmp.only_a),
         "only_b": len(cmp.only_b),
     }
 
 
-_ORDER = {"mismatch": 0, "worse": 1, "better": 2, "not significant": 3, "same": 4}
+_ORDER = {"mismatch": 0, "worse": 1, "better": 2, "not significant": 3, "starved": 3, "same": 4}
 
 
 def _shown(cmp: Comparison, show_all: bool) -> list[Change]:
@@ -211,8 +214,9 @@ def _summary_line(cmp: Comparison) -> str:
         f"{n['in_both']} runs in both: {n['mismatch']} identity mismatch(es), {n['worse']} worse, "
         f"{n['better']} better, {n['same']} the same within a factor {cmp.factor:g} (above "
         f"round-off floors; {cost_note}; {n['cost_not_significant']} cost change(s) beyond the "
-        f"factor but within the measured spread: not significant{vary}); {n['only_a']} only "
-        f"in A, {n['only_b']} only in B."
+        f"factor but within the measured spread: not significant; {n['cost_starved']} beyond "
+        "it where a side was timed starved (no repeat ran clean enough to know the engine's "
+        f"CPU time): starved{vary}); {n['only_a']} only in A, {n['only_b']} only in B."
     )
 
 

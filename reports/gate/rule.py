@@ -50,10 +50,12 @@ UNKNOWN_RANK = 5
 #: the statuses of a run that ran (the others say what the environment could not do)
 RAN = ("ok", "reference-inaccurate", "diverged", "error")
 
-#: cost columns compared (ns per step: inside the engine's calls, and wall), each with the
-#: column of the slowest repeat's time that bounds its range
+#: cost columns compared (ns per step: the CPU time inside the engine's calls, and of the
+#: whole step), each with the column of the slowest repeat's time that bounds its range
 COST_COLUMNS = ("engine_ns_per_step", "ns_per_step")
-COST_MAX = {"engine_ns_per_step": "engine_time_max_s", "ns_per_step": "wall_time_max_s"}
+COST_MAX = {"engine_ns_per_step": "engine_time_max_s", "ns_per_step": "cpu_time_max_s"}
+#: the same for rows written before the costs were CPU times (ns_per_step was the wall's)
+COST_MAX_WALL = {"engine_ns_per_step": "engine_time_max_s", "ns_per_step": "wall_time_max_s"}
 
 #: words of a change that count against B (with ``worse``: a run that is not the same run, a
 #: run of A that B lacks, a run of B the baseline lacks)
@@ -246,49 +248,74 @@ def status_change(a: str, b: str) -> str:
     return "worse" if rb > ra else "better" if rb < ra else "changed"
 
 
-def cost_range(row, column: str) -> tuple[float, float, float]:
-    """The cost of a run in ``column`` (ns per step): (fastest repeat, the range's low end,
-    its high end). The high end is the slowest repeat; the low end is the fastest repeat
-    scaled by the process's CPU time over its wall time during the stepping (``cpu_time_s``
-    / ``wall_time_s``, at most 1): on a busy machine the process waited for a CPU part of
-    the wall time, so the engine's own cost may be that much lower than the clock says.
-    Without a CPU time and with a single timing (a row written before they were measured,
-    a run path that does not measure them) the spread is unknown: low and high are NaN."""
+def starved(row) -> bool:
+    """Whether a run's engine time was measured starved: no timing of it ran clean enough
+    that the engine's CPU time is known within :data:`references.engines.timing.STARVED` of
+    itself (``engine_time_spread_s`` beyond that share of ``engine_time_s``)."""
+    from references.engines.timing import STARVED
+
+    spread, engine = num(row.get("engine_time_spread_s")), num(row.get("engine_time_s"))
+    return spread > STARVED * engine if not math.isnan(spread) else False
+
+
+def cost_range(row, column: str) -> tuple[float, float, float, bool]:
+    """The cost of a run in ``column`` (ns per step): (kept timing, the range's low end,
+    its high end, whether it was measured starved). The kept timing is the least engine time
+    among the repeats that ran clean (reports.store.results.timing_columns); the range runs
+    from it less its uncertainty (``engine_time_spread_s``, the engine's CPU time only) to
+    the slowest repeat. Rows written before the costs were CPU times: the low end is the
+    fastest repeat scaled by the process's CPU time over its wall time (the engine's own
+    cost may be that much lower than the clock says). Without a CPU time and with a single
+    timing the spread is unknown: low and high are NaN."""
     fastest = num(row.get(column))
     n = num(row.get("nstep"))
+    per = 1e9 / n if n and n > 0 else math.nan
+    spread = num(row.get("engine_time_spread_s"))
+    if not math.isnan(spread):  # CPU times (references.engines.timing)
+        width = spread * per if column == "engine_ns_per_step" else 0.0
+        hi = num(row.get(COST_MAX[column])) * per
+        hi = max(fastest + width, fastest if math.isnan(hi) else hi)
+        return fastest, max(fastest - width, 0.0), hi, starved(row)
     wall, cpu = num(row.get("wall_time_s")), num(row.get("cpu_time_s"))
     repeats = num(row.get("timing_repeats"))
     if math.isnan(cpu) and not repeats >= 2:
-        return fastest, math.nan, math.nan
-    hi = 1e9 * num(row.get(COST_MAX[column])) / n if n and n > 0 else math.nan
+        return fastest, math.nan, math.nan, False
+    hi = num(row.get(COST_MAX_WALL[column])) * per
     hi = fastest if math.isnan(hi) else max(hi, fastest)
     share = cpu / wall if wall > 0 else math.nan
     lo = fastest * share if 0.0 <= share < 1.0 else fastest
-    return fastest, lo, hi
+    return fastest, lo, hi, False
 
 
 def classify_cost(a, b, factor: float) -> tuple[float, str] | None:
-    """(ratio of the fastest times B/A, word) of a cost measured on each side as
-    (fastest, low, high) (:func:`cost_range`; low and high NaN: the spread was not
-    measured). After asv's rule (a change beyond the factor whose ranges do not overlap),
-    taken at the ranges' nearest ends: ``worse`` only when the ratio of the fastest times
-    exceeds ``factor`` AND so does B's low end over A's high end (``better``: B's high end
-    below A's low end over the factor); ``not significant`` when the fastest times differ
+    """(ratio of the kept timings B/A, word) of a cost measured on each side as (kept, low,
+    high[, starved]) (:func:`cost_range`; low and high NaN: the spread was not measured).
+    After asv's rule (a change beyond the factor whose ranges do not overlap), taken at the
+    ranges' nearest ends: ``worse`` only when the ratio exceeds ``factor`` AND so does B's
+    low end over A's high end (``better``: B's high end below A's low end over the factor);
+    ``starved`` when the ratio is beyond the factor and a side was measured starved (its
+    engine time is not known well enough to tell); ``not significant`` when the ratio is
     beyond the factor but the ranges allow less, or a side's spread was not measured (a
     change cannot be told from noise that was not measured); ``same`` within the factor."""
-    (a_fast, a_lo, a_hi), (b_fast, b_lo, b_hi) = (tuple(num(v) for v in side) for side in (a, b))
+    a_starved = bool(a[3]) if len(a) > 3 else False
+    b_starved = bool(b[3]) if len(b) > 3 else False
+    (a_fast, a_lo, a_hi), (b_fast, b_lo, b_hi) = (
+        tuple(num(v) for v in side[:3]) for side in (a, b)
+    )
     if math.isnan(a_fast) and math.isnan(b_fast):
         return None
     if math.isnan(a_fast) or math.isnan(b_fast) or a_fast <= 0:
         return math.nan, "same"
     ratio = b_fast / a_fast
-    if not 1.0 / factor <= ratio <= factor and any(math.isnan(v) for v in (a_lo, a_hi, b_lo, b_hi)):
+    if 1.0 / factor <= ratio <= factor:
+        return ratio, "same"
+    if a_starved or b_starved:
+        return ratio, "starved"
+    if any(math.isnan(v) for v in (a_lo, a_hi, b_lo, b_hi)):
         return ratio, "not significant"
     if ratio > factor:
         return ratio, ("worse" if b_lo > factor * a_hi else "not significant")
-    if ratio < 1.0 / factor:
-        return ratio, ("better" if factor * b_hi < a_lo else "not significant")
-    return ratio, "same"
+    return ratio, ("better" if factor * b_hi < a_lo else "not significant")
 
 
 def at_every_dt(words) -> str | None:

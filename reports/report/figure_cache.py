@@ -26,27 +26,14 @@ import shutil
 from pathlib import Path
 
 from reports import cache_root
-from reports.store.runs import error_series_path, slug
+from reports.store.runs import TIMING_COLUMNS, error_series_path, slug
 
 #: the figures whose inputs hold no timing, reused across folders
 REUSED = ("scenario", "errors", "rates", "system", "joint_angles", "importers", "convergence")
 
-#: columns of the results no reused figure shows: timings and clock times
-VOLATILE = frozenset(
-    {
-        "wall_time_s",
-        "engine_time_s",
-        "glue_time_s",
-        "wall_time_max_s",
-        "engine_time_max_s",
-        "timing_repeats",
-        "cpu_time_s",
-        "ns_per_step",
-        "engine_ns_per_step",
-        "finished_at",
-        "settings",  # below, without its compilation times
-    }
-)
+#: columns of the results no reused figure shows: timings and clock times, and the settings
+#: (compared without their compilation times)
+VOLATILE = TIMING_COLUMNS | {"settings"}
 
 #: most figures kept in the cache (a default folder has about 50 reusable ones)
 MAX_ENTRIES = 2000
@@ -76,12 +63,12 @@ def _digest(path: Path) -> str:
         return ""
 
 
-def key(kind: str, scenario: str, sub, styles, root: Path, code: str) -> str:
-    """The key of the ``kind`` figure of ``scenario`` drawn from ``sub`` (its rows) with
-    ``styles`` from the series files under ``root``; ``code``: the digest of the drawing
-    code (reports.report.canvas._hash_code)."""
+def inputs(scenario: str, sub, styles, root: Path) -> str:
+    """The digest of what a scenario's reused figures are drawn from: ``sub`` (its rows,
+    without :data:`VOLATILE`), their ``styles`` and the contents of the series files under
+    ``root`` (and a robot model's importers table); computed once per scenario."""
     h = hashlib.sha256()
-    h.update(f"{code}\0{kind}\0{scenario}\0".encode())
+    h.update(f"{scenario}\0".encode())
     sub = sub.sort_values("run_id")
     cols = [c for c in sub.columns if c not in VOLATILE]
     h.update(sub[cols].to_json(orient="values", double_precision=15).encode())
@@ -95,6 +82,12 @@ def key(kind: str, scenario: str, sub, styles, root: Path, code: str) -> str:
     if table.is_file():
         h.update(_digest(table).encode())
     return h.hexdigest()
+
+
+def key(kind: str, inputs_digest: str, code: str) -> str:
+    """The key of the ``kind`` figure drawn from ``inputs_digest`` (:func:`inputs`) by the
+    code whose digest is ``code`` (reports.report.canvas._hash_code)."""
+    return hashlib.sha256(f"{code}\0{kind}\0{inputs_digest}".encode()).hexdigest()
 
 
 #: the file of an entry that records a scenario without such a figure

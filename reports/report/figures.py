@@ -331,10 +331,13 @@ def all_plots(
             continue
         made_from[scenario] = {"key": key, "files": []}
         names[scenario] = {}
-        sub = df[df["scenario"] == scenario] if reuse_figures else None
+        digest = None  # of the scenario's inputs, once (figure_cache.inputs)
         for kind in KINDS:
             if reuse_figures and kind in figure_cache.REUSED:
-                k = figure_cache.key(kind, scenario, sub, styles, root, code)
+                if digest is None:
+                    sub = df[df["scenario"] == scenario]
+                    digest = figure_cache.inputs(scenario, sub, styles, root)
+                k = figure_cache.key(kind, digest, code)
                 got = figure_cache.fetch(k, out)
                 if got is not None:  # "" : the scenario has no such figure
                     names[scenario][kind] = got or None

@@ -59,7 +59,7 @@ def _measure(row, spec, sc, output, out, is_reference):
     if output is None:
         return None
     traj = output.trajectory
-    row.update(output_columns(output, cpu_time=False))
+    row.update(output_columns(output))
     ref = None
     if len(traj):
         try:

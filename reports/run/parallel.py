@@ -84,28 +84,36 @@ def working_directory(path: Path | None):
 
 @dataclass(frozen=True)
 class Mapper:
-    """Where units of work run: ``mapper(fn, units, keys)`` yields ``fn(unit)`` for each unit
-    as it finishes, by ``run(fn, units, keys)``. ``keys(unit)``, optional, names the
-    compilations a unit goes through the first time in a process: a mapper that runs units
-    side by side uses it to keep two workers from compiling the same thing at once
-    (:func:`process_pool`); the others ignore it. ``in_process``: the units run here, one
-    after another in the order given (a run can then show its own progress while it runs)."""
+    """Where units of work run: ``mapper(fn, units, keys, needs, provides)`` yields
+    ``fn(unit)`` for each unit as it finishes, by ``run(fn, units, keys, needs, provides)``.
+    ``keys(unit)``, optional, names the compilations a unit goes through the first time in a
+    process: a mapper that runs units side by side uses it to keep two workers from compiling
+    the same thing at once (:func:`process_pool`); the others ignore it. ``needs(unit)`` and
+    ``provides(unit)``, optional: names of work a unit must wait for and names it provides
+    when it finishes (a scenario's timing pass waits for its runs, reports.run.timing).
+    ``in_process``: the units run here, one after another in the order given (a run can then
+    show its own progress while it runs); ``waits``: the mapper honours ``needs`` (in order,
+    or by holding a unit back), so units that need others may be given to it."""
 
     run: Callable[..., Iterator]
     in_process: bool = False
+    waits: bool = False
 
-    def __call__(self, fn, units, keys: Callable | None = None) -> Iterator:
-        return self.run(fn, units, keys)
+    def __call__(self, fn, units, keys=None, needs=None, provides=None) -> Iterator:
+        if needs is None and provides is None:  # a mapper that knows no needs
+            return self.run(fn, units, keys)
+        return self.run(fn, units, keys, needs, provides)
 
 
 def serial(out: Path | None = None) -> Mapper:
     """Run each spec in this process, in order (engines' log files into ``out/logs``)."""
 
-    def mapper(fn, specs, keys=None):
+    def mapper(fn, specs, keys=None, needs=None, provides=None):
+        # in the order given: a unit placed after the units it needs waits for them
         with working_directory(log_dir(out)):
             yield from map(fn, specs)
 
-    return Mapper(mapper, in_process=True)
+    return Mapper(mapper, in_process=True, waits=True)
 
 
 def _parent_of(pid: int) -> int | None:
@@ -213,7 +221,7 @@ def process_pool(
     jobs = jobs or os.cpu_count() or 1
     ctx = _context((*PRELOAD, *preload)) if jobs > 1 else None
 
-    def mapper(fn, specs, keys: Callable | None = None):
+    def mapper(fn, specs, keys: Callable | None = None, needs=None, provides=None):
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
@@ -229,8 +237,8 @@ def process_pool(
             initializer=_die_with_parent,
             initargs=(os.getpid(), str(logs) if logs else None),
         )
-        gate = _Gate(specs, keys)
-        running: dict = {}  # future -> the keys it compiles
+        gate = _Gate(specs, keys, needs, provides)
+        running: dict = {}  # future -> (the keys it compiles, its unit)
         try:
             n_done = 0
             while gate.pending or running:
@@ -238,10 +246,13 @@ def process_pool(
                     unit, compiles = gate.next()
                     if unit is None:
                         break
-                    running[pool.submit(fn, unit)] = compiles
+                    running[pool.submit(fn, unit)] = (compiles, unit)
+                if not running:  # every unit left waits for one that never ran
+                    raise RuntimeError(f"{len(gate.pending)} unit(s) wait for work never given")
                 finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
                 for fut in finished:
-                    gate.compiled(running.pop(fut))
+                    compiles, unit = running.pop(fut)
+                    gate.compiled(compiles, unit)
                     try:
                         result = fut.result()
                     except BrokenProcessPool:
@@ -258,7 +269,7 @@ def process_pool(
                 fut.cancel()
             pool.shutdown(wait=True, cancel_futures=True)
 
-    return Mapper(mapper)
+    return Mapper(mapper, waits=True)
 
 
 #: units of work in flight per local worker (running or queued): enough that a worker never
@@ -269,27 +280,36 @@ IN_FLIGHT_PER_WORKER = 4
 
 class _Gate:
     """Which unit to hand out next (see :func:`process_pool`): ``next()`` gives the first
-    pending unit none of whose keys is being compiled by a unit in flight, with the keys it
-    will compile (None when every pending unit must wait); ``compiled(keys)`` marks them
-    done when that unit finishes."""
+    pending unit none of whose keys is being compiled by a unit in flight and whose
+    ``needs`` (names of work, e.g. run ids) have all been ``provided`` by finished units,
+    with the keys it will compile (None when every pending unit must wait);
+    ``compiled(keys, unit)`` marks them done when that unit finishes, and what it
+    provides."""
 
-    def __init__(self, units: list, keys: Callable | None):
-        self.pending = [(u, frozenset(keys(u) if keys else ())) for u in units]
+    def __init__(self, units: list, keys: Callable | None, needs=None, provides=None):
+        self.pending = [
+            (u, frozenset(keys(u) if keys else ()), frozenset(needs(u) if needs else ()))
+            for u in units
+        ]
         self.done: set[str] = set()
         self.compiling: set[str] = set()
+        self.provides = provides
+        self.provided: set = set()
 
     def next(self) -> tuple:
-        for i, (unit, keys) in enumerate(self.pending):
+        for i, (unit, keys, need) in enumerate(self.pending):
             todo = keys - self.done
-            if not todo & self.compiling:
+            if not todo & self.compiling and need <= self.provided:
                 del self.pending[i]
                 self.compiling |= todo
                 return unit, todo
         return None, set()
 
-    def compiled(self, keys: set) -> None:
+    def compiled(self, keys: set, unit=None) -> None:
         self.compiling -= keys
         self.done |= keys
+        if self.provides is not None and unit is not None:
+            self.provided |= set(self.provides(unit))
 
 
 def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None = None) -> Mapper:
@@ -315,7 +335,7 @@ def dask_cluster(address: str, timeout: float = 20.0, no_worker_s: float | None 
 
     connect().close()  # an unreachable scheduler is bad input, said before anything runs
 
-    def mapper(fn, specs, keys=None):
+    def mapper(fn, specs, keys=None, needs=None, provides=None):
         specs = list(specs)
         client = connect()
         try:

@@ -27,6 +27,7 @@ from reports.metrics import verdicts
 from reports.metrics.body import metrics_and_series, roundoff_floor
 from reports.run.files import SERIES_FORMAT, SERIES_NOTE, kept_less, series_table
 from reports.run.plan import UNAVAILABLE, offered
+from reports.run.timing import TimingResult, TimingUnit, time_unit
 from reports.store.atomic import replacing
 from reports.store.exports import export
 from reports.store.results import Store, StoreUnwritable, read_results, write_parquet_table
@@ -287,9 +288,7 @@ def _run_body(spec: RunSpec, row: dict, cls, integ, sc, out, fmt, progress) -> N
     from references.engines import Diverged
 
     recorder = _recorder(spec, sc)
-    timings = ()
     try:
-        t0 = time.perf_counter()
         output = cls().run(
             sc,
             integ.name,
@@ -301,53 +300,13 @@ def _run_body(spec: RunSpec, row: dict, cls, integ, sc, out, fmt, progress) -> N
             accuracy=spec.accuracy,
         )
         diverged = None
-        if recorder is None:
-            call = time.perf_counter() - t0
-            output, timings = _timed_again(cls, sc, integ.name, spec, output, call)
     except Diverged as exc:
         output, diverged = exc.output, exc
     if output is not None and output.family and output.family != integ.family:
         row["family"] = output.family  # the algorithm this model ran (see RunOutput)
         integ = dataclasses.replace(integ, family=output.family)
-    _measure(row, spec, sc, output, recorder, out, fmt, timings)
+    _measure(row, spec, sc, output, recorder, out, fmt)
     _judge(row, sc, integ, diverged)
-
-
-#: a cheap run is run again for its timing: repeated while the calls so far and one more of
-#: the fastest stay within TIMING_BUDGET_S, at most TIMING_REPEATS runs in all; the row keeps
-#: the fastest stepping (wall_time_s, engine_time_s, cpu_time_s) and the slowest (the *_max_s
-#: columns)
-TIMING_BUDGET_S = 0.05
-TIMING_REPEATS = 5
-
-
-def _timed_again(cls, sc, integrator: str, spec: RunSpec, output, call_s: float) -> tuple:
-    """(``output`` with its stepping times the minimum over repeated runs of the same spec,
-    every run's (wall, engine, CPU) stepping times). A repeat is a fresh engine's whole run,
-    so no adapter state carries over; only cheap runs repeat (``call_s``, the first run's
-    whole call, counts against TIMING_BUDGET_S); a repeat that fails or takes another number
-    of steps ends them."""
-    times = [(output.wall_time_s, output.engine_time_s, output.cpu_time_s)]
-    spent = fastest = call_s
-    while len(times) < TIMING_REPEATS and spent + fastest <= TIMING_BUDGET_S:
-        t0 = time.perf_counter()
-        try:
-            again = cls().run(
-                sc, integrator, spec.dt, spec.horizon, spec.saving, accuracy=spec.accuracy
-            )
-        except Exception:  # noqa: BLE001 - a repeat that fails is not a timing; the run stands
-            break
-        took = time.perf_counter() - t0
-        spent += took
-        fastest = min(fastest, took)
-        if again.nstep != output.nstep:
-            break
-        times.append((again.wall_time_s, again.engine_time_s, again.cpu_time_s))
-    walls, engines, cpus = zip(*times, strict=True)
-    fast = dataclasses.replace(
-        output, wall_time_s=min(walls), engine_time_s=min(engines), cpu_time_s=min(cpus)
-    )
-    return fast, tuple(times)
 
 
 @functools.cache
@@ -379,14 +338,14 @@ def _recorder(spec: RunSpec, sc):
     return StreamingRecorder(saves, sc, spec.dt, spec.segment, ref)
 
 
-def _measure(row, spec, sc, output, recorder, out, fmt, timings=()) -> None:
-    """Timings, settings and metrics of a run's output (also of a diverged run's part);
-    ``timings``: the repeats' (wall, engine, CPU) stepping times (see _timed_again)."""
+def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
+    """Timings, settings and metrics of a run's output (also of a diverged run's part); the
+    timing pass (reports.run.timing) times it again."""
     if output is None:
         return
     traj = output.trajectory
     row.update(
-        output_columns(output, timings),
+        output_columns(output),
         roundoff_floor=roundoff_floor(sc, output.nstep),
         steps_taken=output.stats.get("steps taken", math.nan),
         steps_rejected=output.stats.get("steps rejected", math.nan),
@@ -488,26 +447,46 @@ def run_suite(
         # which decides what the tables show (reports.store.results.current)
         store.touch(s.run_id for s in specs if s.run_id in done)
         n_run = 0
-        bar = _bar(todo) if progress and todo else None
         if mapper is None:
             from reports.run.parallel import serial
 
             mapper = serial(out)
+        units = bundles(todo)
+        passes = {}  # scenario -> its timing pass (a mapper that lets a unit wait for others)
+        if mapper.waits:
+            units, passes = with_timing_passes(units)
+        bar = _bar(todo, passes) if progress and todo else None
         if mapper.in_process:
             # in this process: a long run shows its own progress in the bar
 
-            def fn(bundle):
-                return [execute(s, out, fmt, progress=_inner(bar, s)) for s in bundle]
+            def fn(unit):
+                if isinstance(unit, TimingUnit):
+                    return time_unit(unit)
+                return [execute(s, out, fmt, progress=_inner(bar, s)) for s in unit]
         else:
-            fn = functools.partial(execute_bundle, out=out, fmt=fmt)
+            fn = functools.partial(execute_unit, out=out, fmt=fmt)
         try:
-            units = bundles(todo)
-            rows_of = mapper(fn, units, keys=unit_warm_ups)
+            if passes:
+                rows_of = mapper(fn, units, unit_warm_ups, _needs, _provides)
+            else:
+                rows_of = mapper(fn, units, keys=unit_warm_ups)
             spec_of = {s.run_id: s for s in todo}
+            stored = {}  # run_id -> its row, until its scenario's timing pass is back
             for rows in rows_of:
+                if isinstance(rows, TimingResult):  # a scenario's timing pass is back
+                    for run_id, cols in rows.columns.items():
+                        store.put({**stored.pop(run_id), **cols})
+                    if bar is not None:
+                        key = ("timing", rows.scenario)
+                        bar.update(0, item=key, seconds=rows.seconds, label="timing")
+                    continue
                 for row in rows:
                     store.put(row)
                     n_run += 1
+                    unit = passes.get(row["scenario"])
+                    if unit is not None and row["run_id"] in unit.needs:
+                        stored[row["run_id"]] = row
+                        unit.rows[row["run_id"]] = row  # what the pass sees when handed out
                     if bar is not None:
                         label = f"{row['scenario']}/{row['engine']}/{row['integrator']}"
                         spec = spec_of.get(row["run_id"])
@@ -529,6 +508,43 @@ def run_suite(
 def execute_bundle(specs, out: Path | None = None, fmt: str = "parquet") -> list[dict]:
     """The rows of a bundle of specs executed one after another (see :func:`bundles`)."""
     return [execute(s, out, fmt) for s in specs]
+
+
+def execute_unit(unit, out: Path | None = None, fmt: str = "parquet"):
+    """A unit of work of :func:`run_suite`: a bundle's rows, or a timing pass's new cost
+    columns ({run_id: columns}, :func:`reports.run.timing.time_unit`)."""
+    if isinstance(unit, TimingUnit):
+        return time_unit(unit)
+    return execute_bundle(unit, out, fmt)
+
+
+def with_timing_passes(units: list) -> tuple[list, dict]:
+    """(``units`` with the timing pass of each scenario right after the last unit holding
+    one of its runs, {scenario: its :class:`TimingUnit`}); the exact reference's runs are
+    not timed again."""
+    last, specs = {}, {}
+    for i, unit in enumerate(units):
+        for s in unit:
+            if _is_reference(s.engine):
+                continue
+            last[s.scenario.name] = i
+            specs.setdefault(s.scenario.name, []).append(s)
+    passes = {name: TimingUnit(name, specs[name]) for name in specs}
+    after: dict[int, list] = {}
+    for name, i in last.items():
+        after.setdefault(i, []).append(passes[name])
+    out = []
+    for i, unit in enumerate(units):
+        out += [unit, *after.get(i, ())]
+    return out, passes
+
+
+def _needs(unit) -> set[str]:
+    return unit.needs if isinstance(unit, TimingUnit) else set()
+
+
+def _provides(unit) -> set[str]:
+    return set() if isinstance(unit, TimingUnit) else {s.run_id for s in unit}
 
 
 @functools.cache
@@ -578,6 +594,8 @@ def unit_warm_ups(unit: list[RunSpec]) -> set[str]:
     (reports.run.parallel.process_pool). A bundle of several runs counts only its engine's
     own warm-ups: it would hold a shared one (a system of bodies' reference) for the whole
     bundle; its systems run last (:func:`bundles`), when that one is cached."""
+    if isinstance(unit, TimingUnit):  # it follows its scenario's runs: nothing to compile
+        return set()
     if len(unit) > 1:
         return {k for s in unit if (w := warm_up(s.engine, s.integrator)) for k in (w[0],)}
     return {k for s in unit for k in warm_ups(s)}
@@ -666,17 +684,21 @@ def _export_quietly(out: Path):
     return df
 
 
-def _bar(todo: list[RunSpec]):
+def _bar(todo: list[RunSpec], passes=None):
     """The progress display of ``todo`` (reports.run.progress), told which warm-ups its first
-    runs go through (those of bundled runs apart: their rows arrive with the bundle's end)."""
-    from reports.run.progress import Progress
+    runs go through (those of bundled runs apart: their rows arrive with the bundle's end)
+    and the timing ``passes`` ({scenario: TimingUnit}) that end their scenarios."""
+    from reports.run.progress import Item, Progress
 
     warming, bundled = {}, {}
     for s in todo:
         for key, what in warm_ups(s).items():
             bundle_key = _bundled(s.engine) and key.startswith(f"{s.engine}/")
             (bundled if bundle_key else warming)[key] = what
-    return Progress(len(todo), warming=warming, bundled=bundled, items=progress_items(todo))
+    items = progress_items(todo)
+    for name, unit in (passes or {}).items():
+        items["timing", name] = Item(name, ("timing",), sum(_size(s) for s in unit.specs))
+    return Progress(len(todo), warming=warming, bundled=bundled, items=items)
 
 
 def progress_items(todo: list[RunSpec]) -> dict:

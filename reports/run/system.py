@@ -52,8 +52,7 @@ def _measure(row, spec, sc, output, out, fmt):
         return None
     traj = output.trajectory
     row.update(
-        # timed once, with no CPU time: its cost spread is not measured
-        output_columns(output, cpu_time=False),
+        output_columns(output),
         roundoff_floor=roundoff_floor(sc, output.nstep),
     )
     ref = None

@@ -56,6 +56,9 @@ RESULT_COLUMNS = (
     "engine_time_max_s",
     "timing_repeats",
     "cpu_time_s",
+    "cpu_time_max_s",
+    "engine_time_spread_s",
+    "cpu_share",
     "ns_per_step",
     "engine_ns_per_step",
     "evals_per_step",
@@ -75,6 +78,26 @@ RESULT_COLUMNS = (
     "finished_at",
 )
 
+
+#: the columns that differ between two runs of the same configuration: the timings and the
+#: time of day (every other column is deterministic)
+TIMING_COLUMNS = frozenset(
+    {
+        "wall_time_s",
+        "engine_time_s",
+        "glue_time_s",
+        "wall_time_max_s",
+        "engine_time_max_s",
+        "timing_repeats",
+        "cpu_time_s",
+        "cpu_time_max_s",
+        "engine_time_spread_s",
+        "cpu_share",
+        "ns_per_step",
+        "engine_ns_per_step",
+        "finished_at",
+    }
+)
 
 #: columns holding text; every other column holds a number
 TEXT_COLUMNS = frozenset(
@@ -276,29 +299,65 @@ def blank_row(spec: RunSpec) -> dict:
     return row
 
 
-def output_columns(output, timings=(), cpu_time: bool = True) -> dict:
+def output_columns(output, timings=()) -> dict:
     """The columns a run's output fills (a ``RunOutput`` of references.engines): its steps,
-    its timings (the fastest of the ``timings`` repeats, each (wall, engine, CPU) s, with the
-    slowest kept beside it; without repeats the output's own, timed once), the evaluations
-    per step and the settings. ``cpu_time=False``: the output measured no CPU time (a system
-    of bodies, whose builder's call includes the model's construction), left empty."""
-    n = max(output.nstep, 1)
-    cols = dict(
+    its timings (:func:`timing_columns` of ``timings``, the timings of the run and its
+    repeats; without them the output's own), the evaluations per step and the settings."""
+    timings = [t for t in (timings or (getattr(output, "timing", None),)) if t is not None]
+    if timings:
+        cols = timing_columns(output.nstep, timings)
+    else:  # an output that measured no timing (a builder's): its wall and engine times
+        n = max(output.nstep, 1)
+        cols = dict(
+            wall_time_s=output.wall_time_s,
+            engine_time_s=output.engine_time_s,
+            glue_time_s=output.glue_time_s,
+            ns_per_step=1e9 * output.wall_time_s / n,
+            engine_ns_per_step=1e9 * output.engine_time_s / n,
+            wall_time_max_s=output.wall_time_s,
+            engine_time_max_s=output.engine_time_s,
+            timing_repeats=1,
+        )
+    return dict(
         nstep=output.nstep,
-        wall_time_s=output.wall_time_s,
-        engine_time_s=output.engine_time_s,
-        glue_time_s=output.glue_time_s,
-        ns_per_step=1e9 * output.wall_time_s / n,
-        engine_ns_per_step=1e9 * output.engine_time_s / n,
-        wall_time_max_s=max((t[0] for t in timings), default=output.wall_time_s),
-        engine_time_max_s=max((t[1] for t in timings), default=output.engine_time_s),
-        timing_repeats=max(len(timings), 1),
+        **cols,
         evals_per_step=output.evals_per_step,
         settings=json.dumps(output.settings, sort_keys=True, default=str),
     )
-    if cpu_time:
-        cols["cpu_time_s"] = output.cpu_time_s
-    return cols
+
+
+def timing_columns(nstep: int, timings) -> dict:
+    """The cost columns of a run from its ``timings`` (references.engines.timing.Timing,
+    the run's and its repeats'): the engine time of the one kept
+    (:func:`references.engines.timing.best`: the least among those not starved), the least
+    CPU and wall time of all (read, not priced), and the largest of each over all.
+    ``engine_time_s``: the engine calls' CPU time (``engine_time_spread_s``: its
+    uncertainty); ``cpu_time_s``: the whole stepping's CPU time, the suite's glue included
+    (``glue_time_s`` the difference); ``wall_time_s``: its wall time; ``cpu_share``: CPU over
+    wall (below 1: the run waited for a CPU); per step: ``engine_ns_per_step`` (the
+    engine's) and ``ns_per_step`` (the whole step's CPU time)."""
+    from references.engines.timing import best
+
+    timings = list(timings)
+    kept, _ = best(timings)
+    n = max(int(nstep), 1)
+    # the whole step's CPU time is read, not priced: the least of all timings (a first run
+    # that compiled code inside its stepping, a director system's, is not the step's cost)
+    cpu = max(min(t.cpu for t in timings), kept.engine)
+    return dict(
+        wall_time_s=min(t.wall for t in timings),
+        engine_time_s=kept.engine,
+        engine_time_spread_s=kept.spread,
+        cpu_time_s=cpu,
+        glue_time_s=max(cpu - kept.engine, 0.0),
+        cpu_share=kept.share,
+        ns_per_step=1e9 * cpu / n,
+        engine_ns_per_step=1e9 * kept.engine / n,
+        wall_time_max_s=max(t.wall for t in timings),
+        engine_time_max_s=max(t.engine for t in timings),
+        cpu_time_max_s=max(t.cpu for t in timings),
+        timing_repeats=len(timings),
+    )
 
 
 def finish_time() -> str:

@@ -171,11 +171,11 @@ class PinocchioEngine(Engine):
         for _ in range(k):
             t0 = now()  # the stopwatch around the two Pinocchio calls only
             a = aba(model, data, q, v, tau)
-            clock.elapsed += now() - t0
+            clock.lap(t0)
             v = v + dt * a
             t0 = now()
             q = integrate(model, q, dt * v)
-            clock.elapsed += now() - t0
+            clock.lap(t0)
             quat = q[-4:]
             q[-4:] = quat / sqrt(quat @ quat)
         h.q, h.v = q, v
@@ -211,7 +211,7 @@ class PinocchioEngine(Engine):
             pack(z, piv, qbuf, vbuf)
             t0 = now()
             a = aba(model, data, qbuf, vbuf, tau)
-            clock.elapsed += now() - t0
+            clock.lap(t0)
             if not checked:
                 check_engine_vector(a, len(vbuf), "Pinocchio's aba")
                 checked = True

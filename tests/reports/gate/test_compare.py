@@ -180,27 +180,44 @@ def test_cost_changes_count_only_beyond_the_measured_spread():
 
 
 def test_cost_range_of_a_row():
+    # a row written before the costs were CPU times: ns_per_step is the wall's
     r = {"ns_per_step": 100.0, "nstep": 1000, "wall_time_s": 1e-4, "wall_time_max_s": 2e-4}
     r["cpu_time_s"] = 0.5e-4  # the process ran half of the stepping's wall time
-    assert cost_range(r, "ns_per_step") == (100.0, 50.0, pytest.approx(200.0))
+    assert cost_range(r, "ns_per_step") == (100.0, 50.0, pytest.approx(200.0), False)
     r["cpu_time_s"] = 1.2e-4  # other threads of the process: no lower than the fastest
     assert cost_range(r, "ns_per_step")[1] == 100.0
     del r["cpu_time_s"]  # timed once, no CPU time: the spread is unknown
     assert cost_range(r, "ns_per_step")[0] == 100.0
-    assert all(math.isnan(v) for v in cost_range(r, "ns_per_step")[1:])
+    assert all(math.isnan(v) for v in cost_range(r, "ns_per_step")[1:3])
+    # CPU times (references.engines.timing): the engine's range is its uncertainty up to the
+    # slowest repeat; the whole step's CPU time is exact, up to its slowest repeat
+    r = {"nstep": 1000, "engine_ns_per_step": 40.0, "engine_time_s": 4e-5,
+         "engine_time_spread_s": 2e-6, "engine_time_max_s": 5e-5, "ns_per_step": 100.0,
+         "cpu_time_s": 1e-4, "cpu_time_max_s": 1.5e-4}  # fmt: skip
+    assert cost_range(r, "engine_ns_per_step") == (40.0, 38.0, pytest.approx(50.0), False)
+    assert cost_range(r, "ns_per_step") == (100.0, 100.0, pytest.approx(150.0), False)
+    r["engine_time_spread_s"] = 1e-5  # a quarter of it: starved
+    assert cost_range(r, "engine_ns_per_step") == (40.0, 30.0, pytest.approx(50.0), True)
+
+
+def test_a_cost_change_where_a_side_was_starved_is_called_starved():
+    # 3x apart with no overlap, but A's engine time was measured starved: not a change
+    assert classify_cost((1.0, 0.9, 1.1, True), (3.0, 3.0, 3.3, False), 2.0)[1] == "starved"
+    assert classify_cost((1.0, 0.9, 1.1, False), (3.0, 3.0, 3.3, True), 2.0)[1] == "starved"
+    assert classify_cost((1.0, 0.9, 1.1, False), (3.0, 3.0, 3.3, False), 2.0)[1] == "worse"
+    assert classify_cost((1.0, 0.9, 1.1, True), (1.5, 1.5, 1.6, True), 2.0)[1] == "same"
 
 
 def _scale_wall(src, dst, lo: float, hi: float) -> None:
-    """Copy folder ``src`` to ``dst`` with the RK4 run's wall time range set to ``lo`` and
-    ``hi`` times its fastest stepping in ``src``, timed on an idle machine (CPU share 1)."""
+    """Copy folder ``src`` to ``dst`` with the RK4 run's whole-step CPU time range set to
+    ``lo`` and ``hi`` times its fastest stepping in ``src``."""
     shutil.copytree(src, dst)
     with Store(dst) as st:
         for r in st.rows():
             if r["integrator"] == "RK4":
-                wall = r["wall_time_s"]
-                r.update(wall_time_s=lo * wall, wall_time_max_s=hi * wall)
-                r["cpu_time_s"] = r["wall_time_s"]
-                r["ns_per_step"] = 1e9 * r["wall_time_s"] / r["nstep"]
+                cpu = r["cpu_time_s"]
+                r.update(cpu_time_s=lo * cpu, cpu_time_max_s=hi * cpu)
+                r["ns_per_step"] = 1e9 * r["cpu_time_s"] / r["nstep"]
                 st.put(r)
 
 

@@ -216,3 +216,36 @@ def test_the_estimate_prices_what_is_left_per_configuration():
     est.finished("s1", 100.0, measured=False, counts=True)
     assert abs(est.left_s(2.6) - (2.0 + 0.7 + 1.65) / 0.5) < 1e-9
     assert Estimate(items).left_s(10.0) is None  # nothing measured yet
+
+
+def test_a_unit_that_needs_other_work_waits_until_it_is_back():
+    from reports.run.parallel import _Gate
+
+    units = ["r1", "r2", "t", "r3"]
+    needs = {"t": {"r1", "r2"}}
+    gate = _Gate(units, None, lambda u: needs.get(u, ()), lambda u: {u})
+    assert [gate.next()[0] for _ in range(3)] == ["r1", "r2", "r3"]
+    assert gate.next() == (None, set())  # t waits for r1 and r2
+    gate.compiled(set(), "r1")
+    assert gate.next() == (None, set())
+    gate.compiled(set(), "r2")
+    assert gate.next()[0] == "t" and not gate.pending
+
+
+def test_each_scenarios_timing_pass_follows_its_last_run():
+    import scenarios
+    from reports.run.plan import plan
+    from reports.run.runner import bundles, with_timing_passes
+    from reports.run.timing import TimingUnit
+
+    specs = plan([scenarios.load("cone_top"), scenarios.load("four_bar")], ["mujoco", "exact"])
+    units, passes = with_timing_passes(bundles(specs))
+    assert sorted(passes) == ["cone_top", "four_bar"]  # bodies and systems alike
+    for name, unit in passes.items():
+        (i,) = [k for k, u in enumerate(units) if u is unit]
+        before = {s.run_id for u in units[:i] if not isinstance(u, TimingUnit) for s in u}
+        # the scenario's runs but the exact reference's, every one handed out before it
+        timed = {s.run_id for s in specs if s.scenario.name == name and s.engine == "mujoco"}
+        assert unit.needs == timed <= before
+        after = [s for u in units[i + 1 :] if not isinstance(u, TimingUnit) for s in u]
+        assert not any(s.scenario.name == name and s.engine != "exact" for s in after)

@@ -25,24 +25,11 @@ from pathlib import Path
 import pytest
 
 from reports.store.results import Store, StoreDamaged, read_results
-from reports.store.runs import NUMERIC_COLUMNS, RESULT_COLUMNS
+from reports.store.runs import NUMERIC_COLUMNS, RESULT_COLUMNS, TIMING_COLUMNS
 
 #: columns that may differ between two runs of the same configuration (timings, the time of
 #: day); every other column is deterministic and must be equal
-VOLATILE = {
-    "wall_time_s",
-    "engine_time_s",
-    "glue_time_s",
-    "wall_time_max_s",
-    "engine_time_max_s",
-    "timing_repeats",
-    "cpu_time_s",
-    "ns_per_step",
-    "engine_ns_per_step",
-    "finished_at",
-    "convergence_order",
-    "convergence_points",
-}
+VOLATILE = TIMING_COLUMNS | {"convergence_order", "convergence_points"}
 
 RUN_ARGS = [
     "run", "free_tumbling", "heavy_top", "--engines", "mujoco,pybullet,exact",

@@ -1,0 +1,184 @@
+"""The timing pass: once every run of a scenario is stored, its configurations are run again
+in one process, in alternation (A B C, then B C A, ...), and each run keeps the best of its
+timings (references.engines.timing.best: the least engine CPU time among those that ran
+clean). Timing a configuration right after itself would favour it (its code and data still
+in the caches) and a burst of load on the machine would hit it alone; alternating, each
+configuration meets the others' traces and every burst is spread over them.
+
+What is timed again (:func:`wanted`): every run that finished ok, once more; a cheap run
+(its stepping under :data:`CHEAP_S` of CPU) up to :data:`CHEAP_TIMINGS` timings in all;
+a run whose every timing was starved up to :data:`STARVED_TIMINGS`; in each round the
+starved runs first, then the cheapest. The pass stops at its budget: :data:`BUDGET_FACTOR`
+times the CPU time the scenario's runs spent stepping, plus :data:`BUDGET_FLOOR_S` (a run
+whose stepping takes longer than the budget keeps its own timing: its thousands of slices
+price its engine time within a few per cent, references.engines.timing). A run with no
+timing that ran clean keeps its best and is starved (reports.gate.rule.starved), marked in
+the report and in ``compare``.
+
+The rows are updated in the results store by the runner (reports.run.runner.run_suite),
+which builds one :class:`TimingUnit` per scenario and hands it out once the scenario's runs
+are all back (reports.run.parallel: a unit's ``needs``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+from reports.store.runs import RunSpec, timing_columns
+
+#: a run whose stepping took less CPU time than this (s) is cheap: timed up to
+#: CHEAP_TIMINGS times in all (its own run included)
+CHEAP_S = 0.02
+CHEAP_TIMINGS = 3
+#: a run whose every timing was starved is timed up to this many times in all
+STARVED_TIMINGS = 3
+#: the pass spends at most this many times the CPU time its runs spent stepping, plus the
+#: floor (s)
+BUDGET_FACTOR = 0.5
+BUDGET_FLOOR_S = 0.05
+#: a run's own call costs its stepping plus about this much (s: the model's construction)
+CALL_OVERHEAD_S = 0.003
+
+
+@dataclass
+class TimingResult:
+    """What a timing pass gives back: its ``scenario``, ``columns`` (run_id -> the row's new
+    cost columns) and the ``seconds`` it took."""
+
+    scenario: str
+    columns: dict
+    seconds: float
+
+
+@dataclass
+class TimingUnit:
+    """The timing pass of one scenario: its ``specs``, and (filled by the runner as the rows
+    arrive, before the unit is handed out) ``rows``: run_id -> the row's timing columns."""
+
+    scenario: str
+    specs: list[RunSpec]
+    rows: dict = field(default_factory=dict)
+
+    @property
+    def needs(self) -> set[str]:
+        """The runs that must be back before this unit is handed out."""
+        return {s.run_id for s in self.specs}
+
+
+def timed(row) -> bool:
+    """Whether a stored row is timed in the pass: a run that finished ok with a measured
+    engine CPU time (the exact reference, a system of bodies' builder without a CPU
+    timing, and failed runs are not)."""
+    spread = row.get("engine_time_spread_s")
+    return (
+        row.get("status") in ("ok", "reference-inaccurate")
+        and not row.get("reference")
+        and spread is not None
+        and isinstance(spread, float)
+        and not math.isnan(spread)
+    )
+
+
+def _from_row(row):
+    """The kept timing of a stored row as a Timing (its slowest repeats apart)."""
+    from references.engines.timing import Timing
+
+    return Timing(
+        float(row["engine_time_s"]),
+        float(row["engine_time_spread_s"]),
+        float(row["cpu_time_s"]),
+        float(row["wall_time_s"]),
+        math.nan,
+    )
+
+
+def wanted(timings: list, cheap: bool) -> bool:
+    """Whether a run with these ``timings`` (its own included) is timed once more."""
+    clean = sum(1 for t in timings if not t.starved)
+    if clean == 0:
+        return len(timings) < STARVED_TIMINGS
+    if cheap:
+        return len(timings) < CHEAP_TIMINGS
+    return len(timings) < 2
+
+
+def time_unit(unit: TimingUnit) -> TimingResult:
+    """Run the timing pass of ``unit`` here."""
+    t0 = time.perf_counter()
+    cols = _time(unit)
+    return TimingResult(unit.scenario, cols, time.perf_counter() - t0)
+
+
+def _time(unit: TimingUnit) -> dict[str, dict]:
+    from references.engines import get_engine
+
+    specs = [s for s in unit.specs if s.run_id in unit.rows and timed(unit.rows[s.run_id])]
+    if not specs:
+        return {}
+    rows = unit.rows
+    timings = {s.run_id: [_from_row(rows[s.run_id])] for s in specs}
+    extra = {s.run_id: [] for s in specs}
+    stepping = sum(float(rows[s.run_id]["cpu_time_s"]) for s in specs)
+    budget = BUDGET_FACTOR * stepping + BUDGET_FLOOR_S
+    spent, failed = 0.0, set()
+    while True:  # each round times a run at most once; wanted() bounds each run's timings
+        # the starved first, then the cheapest: the budget goes where a timing tells most
+        order = sorted(
+            specs,
+            key=lambda s: (
+                any(not t.starved for t in timings[s.run_id]),
+                float(rows[s.run_id]["cpu_time_s"]),
+            ),
+        )
+        ran = False
+        for s in order:
+            row = rows[s.run_id]
+            cost = float(row["cpu_time_s"]) + CALL_OVERHEAD_S
+            if s.run_id in failed or spent + cost > budget:
+                continue
+            if not wanted(timings[s.run_id], float(row["cpu_time_s"]) < CHEAP_S):
+                continue
+            c0 = time.process_time()
+            got = _run_again(get_engine(s.engine), s, int(row["nstep"]))
+            spent += time.process_time() - c0
+            if got is None:  # it failed or took another number of steps: no timing
+                failed.add(s.run_id)
+                continue
+            timings[s.run_id].append(got)
+            extra[s.run_id].append(got)
+            ran = True
+        if not ran:
+            break
+    out = {}
+    for s in specs:
+        if not extra[s.run_id]:
+            continue
+        row = rows[s.run_id]
+        cols = timing_columns(int(row["nstep"]), timings[s.run_id])
+        for col in ("wall_time_max_s", "engine_time_max_s", "cpu_time_max_s"):
+            cols[col] = max(cols[col], float(row.get(col, 0.0) or 0.0))
+        cols["timing_repeats"] = int(row.get("timing_repeats") or 1) + len(extra[s.run_id])
+        out[s.run_id] = cols
+    return out
+
+
+def _run_again(cls, spec: RunSpec, nstep: int):
+    """The timing of a fresh engine's run of ``spec``, or None when it fails or takes
+    another number of steps than ``nstep``."""
+    sc = spec.scenario
+    if spec.t_end is not None and spec.horizon != sc.t_end:
+        sc = sc.replace(t_end=spec.horizon)
+    try:
+        if getattr(sc, "is_system", False):
+            from references.engines.system import run_system
+
+            out = run_system(spec.engine, sc, spec.integrator, spec.dt, spec.horizon, spec.saving)
+        else:
+            out = cls().run(
+                sc, spec.integrator, spec.dt, spec.horizon, spec.saving, accuracy=spec.accuracy
+            )
+    except Exception:  # noqa: BLE001 - a repeat that fails is no timing; the run stands
+        return None
+    return out.timing if out.nstep == nstep else None
