@@ -54,6 +54,7 @@ CONTACT_FAMILIES = {
     "Delassus NCP + suite": (
         "Pinocchio's ADMM and PGS on its Delassus operator, in the suite's Moreau-Jean loop"
     ),
+    "exact-cone hard contact": "the director model's nonsmooth RATTLE with the exact Coulomb cone",
     "exact contact": "the closed form of the scene",
 }
 for _name, _text in CONTACT_FAMILIES.items():
@@ -150,13 +151,14 @@ class ContactLog:
         self.current: list[tuple] = []
 
     def add(self, pair: int, point, normal, force, depth=math.nan) -> None:
-        """One contact of the current step: ``normal`` into the pair's body a, ``force`` on a."""
+        """One contact of the current step: ``normal`` into the pair's body a, ``force`` on a.
+        Copies: an engine's arrays (MuJoCo's contact frames) are views of memory it reuses."""
         self.current.append(
             (
                 int(pair),
-                np.asarray(point, dtype=float),
-                np.asarray(normal, dtype=float),
-                np.asarray(force, dtype=float),
+                np.array(point, dtype=float),
+                np.array(normal, dtype=float),
+                np.array(force, dtype=float),
                 float(depth),
             )
         )

@@ -395,11 +395,16 @@ def convergence_order(dts, errors, floors=0.0, saturation: float = SATURATION):
 
 def add_convergence_orders(df):
     """Fill ``convergence_order`` and ``convergence_points`` per (scenario, engine,
-    integrator) from the attitude errors of its ok runs over the dt values present."""
+    integrator) from the attitude errors of its ok runs over the dt values present. A contact
+    scene whose exact motion is rest (a stick case: its runs have a ``creep_speed``) gets no
+    order: its errors are the configuration's artefacts (creep, settling into a soft contact),
+    not a discretisation error that shrinks with dt."""
     df = df.copy()
     orders = np.full(len(df), math.nan)
     points = np.full(len(df), math.nan)
     ok = (df["status"] == "ok").to_numpy()
+    if "creep_speed" in df:
+        ok = ok & df["creep_speed"].isna().to_numpy()
     at = np.flatnonzero(ok)  # positions in df of the ok rows
     dt = df["dt"].to_numpy(dtype=float)
     error = df["attitude_error_max"].to_numpy(dtype=float)

@@ -35,6 +35,8 @@ def fmt(v) -> str:
     if v == 0:
         return "0"
     r = float(f"{v:.3g}")
+    if math.isinf(r):  # v within rounding of the largest double: its 3 digits overflow
+        r = v
     if 1e-3 <= abs(r) < 1e4:
         e = math.floor(math.log10(abs(r)))
         return f"{r:.{max(0, 2 - e)}f}"

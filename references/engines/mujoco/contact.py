@@ -329,6 +329,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         t[k] = step * dt
         for c in range(d.ncon):
             con = d.contact[c]
+            if con.efc_address < 0:  # found but not in the constraint problem: no force
+                continue
             g1, g2 = int(con.geom1), int(con.geom2)
             pi = pidx.get(frozenset((names[g1], names[g2])))
             if pi is None:

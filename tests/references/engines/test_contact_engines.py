@@ -111,6 +111,20 @@ def test_contact_forces_are_the_applied_impulses(engine, conf, scene):
     assert err < tol, (engine, conf, scene, err)
 
 
+@pytest.mark.parametrize("engine, conf", _cases())
+def test_every_row_is_a_unit_normal_on_the_ground(engine, conf):
+    """A box pushed along the ground (0.5 s, saved every 10 steps): every contact row of every
+    saved step has the ground's normal, as a unit vector (a builder that keeps a view of the
+    engine's reused memory logs stale or zero normals: MuJoCo's contact frames were so)."""
+    _available(engine)
+    sc = scenarios.load("push_axis_slide")
+    out = run_contact(engine, sc, conf, 1e-3, t_end=0.5, save_every=10)
+    C = out.contacts
+    rows = C["pair"] >= 0
+    assert rows.sum() > 0
+    assert np.allclose(C["normal"][rows], [0.0, 0.0, 1.0], atol=1e-6), engine
+
+
 @pytest.mark.parametrize("engine", _engines())
 @pytest.mark.parametrize("flip", [False, True])
 def test_stack_support_forces(engine, flip):
