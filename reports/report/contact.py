@@ -169,3 +169,31 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
     alt = (f"{scenario}: per configuration{dt}, the distance its bodies moved (the closed form "
            "in grey) and the deepest penetration (log axis) over time")  # fmt: skip
     return save(fig, Path(out) / f"{slug(scenario)}__system.png", alt=alt)
+
+
+def _markdown(head, body) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in body]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    """``python -m reports.report.contact RESULTS_DIR``: the creep table and the stick/slide
+    matrix of a results folder as Markdown (the report's contact section, on its own)."""
+    import argparse
+
+    from reports.store.results import read_results
+
+    p = argparse.ArgumentParser(prog="python -m reports.report.contact", description=main.__doc__)
+    p.add_argument("results", help="a results folder (director-bench run --out DIR)")
+    args = p.parse_args(argv)
+    df = read_results(args.results)
+    print("Creep speed in stick scenes, um/s\n")
+    print(_markdown(*creep_table(df)))
+    print("\nStick or slide, against Coulomb's law\n")
+    print(_markdown(*stick_slide_matrix(df)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -207,3 +207,14 @@ def test_unsupported_says_why():
     with pytest.raises(Unsupported, match="no restitution coefficient"):
         run_contact("drake", scenarios.load("drop_e05"), "SAP, point contact", 1e-3,
                     t_end=0.01, save_every=10)  # fmt: skip
+
+
+def test_director_contact_through_its_api():
+    """The director's contact scheme (director_model.contact, issue 34), where installed: its
+    scene read back (mu, e, shapes), a block below the friction angle held to round-off."""
+    pytest.importorskip("director_model.contact", reason="director_model.contact not here yet")
+    sc = scenarios.load("block_incline_stick")
+    out = run_contact("director", sc, "nonsmooth RATTLE", 1e-3, t_end=0.5, save_every=10)
+    assert out.readback["pairs"][0] == {"mu": 0.4, "e": 0.0}
+    moved = np.max(np.linalg.norm(out.trajectory.position - out.trajectory.position[0], axis=2))
+    assert moved < 1e-12

@@ -1,0 +1,170 @@
+"""The director model's contact scheme (``director_model.contact``, issue 34): a nonsmooth
+RATTLE in director coordinates with the exact Coulomb cone and Newton's impact law, the
+suite's hard-contact reference integrator, run through its public API.
+
+The scene maps one to one: each body a ``director_model.system.Body`` (the same fields), its
+shape a ``Sphere``, ``Box``, ``Capsule`` or ``Cylinder`` (centred at the centre of mass with
+the body's axes: a shape offset or rotation is unsupported, with that reason), each plane
+``Plane.through(normal, point)``, each pair ``Pair(a, b, mu, e)``, each force
+``PointForce(body, force, point)``. Pairs the scheme does not treat exactly it refuses with
+the reason (``InvalidContactError``: an ``unsupported`` row), and a run that meets one stops
+with ``ContactSolveError`` (an ``error`` row with the time and the pair).
+
+Contacts: the scheme reports one resultant per pair (``pair_force``: the force on the pair's
+body a in the step ending at the saved time), not per point. Each is logged as one row at the
+pair's witness point: the shape's point nearest the plane for a plane pair, the midpoint of
+the two centres of mass for a body pair, with the normal of the plane (from the second
+body's centre towards the first's for a body pair), moved back by h v_G to where it stood
+when the step began (the rows' convention, references.engines.contact). The scheme's own
+law residuals (Signorini, Coulomb, maximum dissipation, each the largest since the last save)
+and its solver diagnostics are recorded with the run.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from references.engines.contact import ContactLog
+from references.engines.integrators import Integrator
+from references.errors import EngineError, Unsupported
+
+CONFIGURATIONS = (
+    Integrator("nonsmooth RATTLE", "exact-cone hard contact", 2,
+               "the director model's contact scheme: RATTLE with the exact Coulomb cone, "
+               "Newton's impact law, non-penetration at the end of each step (order 2 in "
+               "smooth phases, 1 through events)"),
+)  # fmt: skip
+
+SETTINGS = ()
+
+
+def _api():
+    try:
+        import director_model.contact as dc
+    except ImportError as exc:
+        raise Unsupported(
+            f"director_model.contact is not in this installation ({exc}): the director's "
+            "contact scheme (issue 34) runs no contact scene here"
+        ) from None
+    return dc
+
+
+def _shape(dc, b):
+    s = b.shape
+    if np.any(s.position != 0) or np.any(s.rotation != np.eye(3)):
+        raise Unsupported(
+            f"director: body {b.name!r}'s shape is offset or turned in the body; the director's "
+            "shapes sit at the centre of mass with the body's axes"
+        )
+    if s.kind == "sphere":
+        return dc.Sphere(s.radius)
+    if s.kind == "box":
+        return dc.Box(tuple(s.half_extents))
+    if s.kind == "capsule":
+        return dc.Capsule(s.radius, s.half_length)
+    return dc.Cylinder(s.radius, s.half_length)
+
+
+def scene_of(dc, sc):
+    """The ``director_model.contact.ContactScene`` of the suite's scene ``sc``."""
+    if sc.joints:
+        raise Unsupported("director contact builder: joints with contact are not built here yet")
+    bodies = [dc.Body(b.name, b.mass, tuple(b.inertia), position=tuple(b.position),
+                      rotation=np.asarray(b.rotation), velocity=tuple(b.velocity),
+                      omega_body=tuple(b.omega_body)) for b in sc.bodies]  # fmt: skip
+    shapes = {b.name: _shape(dc, b) for b in sc.bodies if b.shape is not None}
+    planes = {p.name: dc.Plane.through(tuple(p.normal), tuple(p.point)) for p in sc.planes}
+    pairs = [dc.Pair(c.a, c.b, mu=c.mu, e=c.e) for c in sc.contacts]
+    forces = [dc.PointForce(f.body, tuple(f.force), point=tuple(f.point)) for f in sc.forces]
+    try:
+        return dc.ContactScene(bodies, shapes=shapes, planes=planes, pairs=pairs,
+                               forces=forces, gravity=tuple(sc.gravity))  # fmt: skip
+    except dc.InvalidContactError as exc:
+        raise Unsupported(f"director: {exc}") from None
+
+
+def readback(scene, sc) -> dict:
+    """What the director's scene holds: each pair's mu and e, each shape's kind and sizes."""
+    pairs = {}
+    for i, c in enumerate(sc.contacts):
+        for j, names in enumerate(scene.pair_names):
+            if set(names) == {c.a, c.b}:
+                mu, e = scene.PV[j, 0], scene.PV[j, 1]  # the kernel's pair table: mu, e, ...
+                pairs[i] = {"mu": float(mu), "e": float(e)}
+    shapes = {}
+    for name, s in scene.shapes.items():
+        kind = type(s).__name__.lower()
+        if kind == "box":
+            size = tuple(float(x) for x in s.half_extents)
+        elif kind == "sphere":
+            size = (float(s.radius),)
+        else:
+            size = (float(s.radius), float(s.half_length))
+        shapes[name] = {"kind": kind, "size": size, "offset": (0.0, 0.0, 0.0)}
+    return {"pairs": pairs, "shapes": shapes}
+
+
+def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None, **settings):
+    """Run the scene on the director's scheme; the contract of
+    :mod:`references.engines.contact`."""
+    from scenarios.contact import lowest_point
+
+    dc = _api()
+    scene = scene_of(dc, scenario)
+    t0 = time.perf_counter()
+    try:
+        tr = dc.simulate_contact(scene, dt=float(dt), t_end=nstep * float(dt),
+                                 save_every=int(save_every))  # fmt: skip
+    except dc.ContactSolveError as exc:
+        raise EngineError(f"director: {exc}") from None
+    wall = time.perf_counter() - t0
+    idx = {b.name: i for i, b in enumerate(scenario.bodies)}
+    planes = {p.name: p for p in scenario.planes}
+    log = ContactLog()
+    F = np.asarray(tr.pair_force)
+    order = [next(j for j, n in enumerate(tr.pair_names) if set(_names(n)) == {c.a, c.b})
+             for c in scenario.contacts]  # fmt: skip
+    for k in range(len(tr.t)):
+        for i, c in enumerate(scenario.contacts):
+            f = F[k, order[i]]
+            if k == 0 or not np.any(f):
+                continue
+            a = idx[c.a]
+            x, R = tr.position[k, a][None], tr.rotation[k, a][None]
+            if c.b_is_plane:
+                n = planes[c.b].normal
+                p = lowest_point(scenario.bodies[a].shape, planes[c.b], x, R)[0]
+            else:
+                xb = tr.position[k, idx[c.b]]
+                n = (x[0] - xb) / np.linalg.norm(x[0] - xb)
+                p = 0.5 * (x[0] + xb)
+            # rows stand where the contact was when the step began (the contract): the
+            # witness point at the saved state, moved back by the step's h v_G
+            log.add(i, p - float(dt) * tr.velocity[k, a], n, f, float(tr.penetration[k]))
+        log.save()
+    record = {
+        "scheme": "nonsmooth RATTLE (director_model.contact)",
+        "friction": "exact Coulomb cone, semi-smooth Newton to a certified residual",
+        "largest law residuals": {k: float(np.max(getattr(tr, k)))
+                                  for k in ("signorini", "coulomb", "dissipation")},
+        "largest contact work in a step (J)": float(np.max(tr.contact_work)),
+        "most solver iterations": int(np.max(tr.iterations)),
+        "contact rows": "one resultant per pair at a witness point",
+    }  # fmt: skip
+    return {
+        "t": tr.t, "x": tr.position, "R": tr.rotation, "v": tr.velocity, "W": tr.omega_body,
+        "contacts": log.arrays(), "engine_time_s": min(float(tr.wall_time_s), wall),
+        "settings": record, "readback": readback(scene, scenario),
+    }  # fmt: skip
+
+
+def _names(pair_name) -> tuple:
+    """The two names of one of the scheme's ``pair_names`` entries (a pair or "a-b")."""
+    if isinstance(pair_name, tuple | list):
+        return tuple(pair_name)
+    return tuple(str(pair_name).split("-", 1))
+
+
+PLANTABLE = {}
