@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-#: the smallest value shown on the penetration's log axis (no overlap is drawn here)
+#: the smallest value shown on the log axes (no overlap, no motion are drawn here)
 FLOOR = 1e-12
 
 
@@ -137,6 +137,10 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
         fig, axes = new_figure(2)
     else:
         fig, axes = plt.subplots(2, 1, figsize=(7.5, 4.6), sharex=True)
+    # a stick scene (the closed form does not move): the distance on a log axis, where creep
+    # of 1e-11 m and of 1e-3 m both show
+    still = all(np.nanmax(np.abs(np.asarray(s.get("moved_exact", [np.nan]), float)),
+                          initial=0.0) == 0.0 for _, _, s in runs)  # fmt: skip
     exact_drawn = False
     for k, (row, name, s) in enumerate(runs):
         if is_reference_record(row):
@@ -145,7 +149,9 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
         st.pop("lw", None)
         every = max(1, len(s["t"]) // 6)
         st.setdefault("markevery", (k % every, every))
-        axes[0].plot(s["t"], np.asarray(s["moved"], float), lw=1.3, label=name, **st)
+        moved = np.asarray(s["moved"], float)
+        axes[0].plot(s["t"], np.maximum(moved, FLOOR) if still else moved, lw=1.3, label=name,
+                     **st)  # fmt: skip
         pen = np.maximum(np.asarray(s["penetration"], float), FLOOR)
         axes[1].plot(s["t"], pen, lw=1.3, label=name, **st)
         ex = np.asarray(s.get("moved_exact", []), float)
@@ -154,6 +160,9 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
                          zorder=0)  # fmt: skip
             exact_drawn = True
     axes[0].set_ylabel("distance moved [m]")
+    if still:
+        axes[0].set_yscale("log")
+        axes[0].set_ylabel("distance moved [m]\n(closed form: 0)")
     axes[1].set_ylabel("penetration [m]")
     axes[1].set_yscale("log")
     for ax in axes:
