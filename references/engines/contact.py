@@ -142,6 +142,12 @@ class ContactRunOutput:
         return max(self.wall_time_s - self.engine_time_s, 0.0)
 
 
+#: How far from 1 a logged normal's length may be: the engines give unit normals to rounding
+#: (a few 1e-16); 1e-9 leaves room for a normal averaged over a surface and renormalised, and
+#: catches a zero, NaN or unnormalised normal (an error of order 1).
+NORMAL_UNIT_TOL = 1e-9
+
+
 class ContactLog:
     """The contact rows of a run, one list per saved step (:meth:`add` then :meth:`save`),
     turned into the padded arrays of the module docstring by :meth:`arrays`."""
@@ -152,16 +158,28 @@ class ContactLog:
 
     def add(self, pair: int, point, normal, force, depth=math.nan) -> None:
         """One contact of the current step: ``normal`` into the pair's body a, ``force`` on a.
-        Copies: an engine's arrays (MuJoCo's contact frames) are views of memory it reuses."""
-        self.current.append(
-            (
-                int(pair),
-                np.array(point, dtype=float),
-                np.array(normal, dtype=float),
-                np.array(force, dtype=float),
-                float(depth),
-            )
+        Copies: an engine's arrays (MuJoCo's contact frames) are views of memory it reuses.
+        A row that is not finite, or whose normal is not a unit vector (to
+        :data:`NORMAL_UNIT_TOL`), is refused naming the pair and the value: the law residuals
+        are computed from these rows, and a NaN among them would pass silently."""
+        row = (
+            int(pair),
+            np.array(point, dtype=float),
+            np.array(normal, dtype=float),
+            np.array(force, dtype=float),
+            float(depth),
         )
+        for name, value in zip(("point", "normal", "force"), row[1:4], strict=True):
+            if value.shape != (3,) or not np.all(np.isfinite(value)):
+                raise ValueError(
+                    f"contact row of pair {row[0]}: {name} {value.tolist()} (rule: 3 finite values)"
+                )
+        if abs(float(np.linalg.norm(row[2])) - 1.0) > NORMAL_UNIT_TOL:
+            raise ValueError(
+                f"contact row of pair {row[0]}: normal {row[2].tolist()} has length "
+                f"{float(np.linalg.norm(row[2])):.3g} (rule: a unit vector to {NORMAL_UNIT_TOL:g})"
+            )
+        self.current.append(row)
 
     def clear(self) -> None:
         """Forget the current step's rows (the engine's contacts are read after each step; only

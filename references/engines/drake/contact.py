@@ -25,7 +25,8 @@ applied-force port (constant in world axes; the point turns with the body).
 Contacts at the saved steps from the contact results port (its sampled value: the step that
 ended there): point pairs (``contact_point``, ``contact_force`` on B, ``nhat_BA_W`` from B into
 A, ``depth``); hydroelastic surfaces as one row each at the surface's centroid with the
-resultant force on A (``F_Ac_W``) and the mean of the surface's face normals.
+resultant force on A (``F_Ac_W``) and the area-weighted mean of the surface's face normals
+(a surface of no area that carries nothing is no row).
 """
 
 from __future__ import annotations
@@ -273,6 +274,26 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     return out
 
 
+def _surface_normal(surf, force, moment, pair):
+    """The area-weighted mean of a hydroelastic surface's face normals (from N into M), or
+    None for a surface of no area that carries nothing (Drake reports such degenerate
+    surfaces, e.g. a sphere's first touch: four faces of area 0, zero normals, zero force).
+    A surface of no area carrying a force has no normal to log: refused, naming the pair."""
+    areas = np.array([surf.area(q) for q in range(surf.num_faces())])
+    normals = np.array([surf.face_normal(q) for q in range(surf.num_faces())]).reshape(-1, 3)
+    summed = areas @ normals if len(areas) else np.zeros(3)
+    size = float(np.linalg.norm(summed))
+    if size > 0.0 and np.isfinite(size):
+        return summed / size
+    if not (np.any(force) or np.any(moment)):
+        return None
+    raise RuntimeError(
+        f"drake: hydroelastic surface of pair {pair[0]!r}-{pair[1]!r} has {surf.num_faces()} "
+        f"faces, total area {surf.total_area():.3g} m^2 and no normal, but carries a force "
+        f"{force.tolist()} N: no contact row can be logged for it"
+    )
+
+
 class _Said:
     """A logging handler keeping the messages (duck-typed: ``handle`` is what loggers call)."""
 
@@ -341,9 +362,9 @@ def _run(sc, scenario, conf, dt, nstep, save_every):
                     continue
                 F = info.F_Ac_W()
                 f = np.asarray(F.translational())  # on A: the body of geometry M
-                normals = np.array([surf.face_normal(q) for q in range(surf.num_faces())])
-                nrm = normals.mean(axis=0)  # from N into M
-                nrm /= np.linalg.norm(nrm)
+                nrm = _surface_normal(surf, f, np.asarray(F.rotational()), (na, nb_))
+                if nrm is None:
+                    continue
                 if na != scenario.contacts[pi].a:
                     f, nrm = -f, -nrm
                 log.add(pi, np.asarray(surf.centroid()), nrm, f)
