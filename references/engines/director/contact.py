@@ -85,24 +85,46 @@ def scene_of(dc, sc):
         raise Unsupported(f"director: {exc}") from None
 
 
+#: the kernel's shape codes (``ContactScene.SH[:, 0]``)
+_KINDS = {1: "sphere", 2: "box", 3: "capsule", 4: "cylinder"}
+
+
 def readback(scene, sc) -> dict:
-    """What the director's scene holds: each pair's mu and e, each shape's kind and sizes."""
+    """What the director's kernel steps with, from its own tables: each pair's mu and e
+    (``PV``), each shape's kind and sizes (``SH``), and where each shape sits in its body,
+    from the plane features the kernel tests (a box's eight vertices: their mean is the
+    box's centre, their half range its half extents; a capsule's end spheres or a cylinder's
+    rims at s e3: their mean s is the shift along e3; a sphere's feature is its centre, the
+    centre of mass by the kernel's construction)."""
+    from director_model.contact import _geometry as G
+
     pairs = {}
     for i, c in enumerate(sc.contacts):
         for j, names in enumerate(scene.pair_names):
-            if set(names) == {c.a, c.b}:
-                mu, e = scene.PV[j, 0], scene.PV[j, 1]  # the kernel's pair table: mu, e, ...
-                pairs[i] = {"mu": float(mu), "e": float(e)}
+            if set(_names(names)) == {c.a, c.b}:
+                pairs[i] = {"mu": float(scene.PV[j, 0]), "e": float(scene.PV[j, 1])}
+    names = [b.name for b in scene.bodies]
+    FI, FV = np.asarray(scene.FI), np.asarray(scene.FV)
     shapes = {}
-    for name, s in scene.shapes.items():
-        kind = type(s).__name__.lower()
-        if kind == "box":
-            size = tuple(float(x) for x in s.half_extents)
-        elif kind == "sphere":
-            size = (float(s.radius),)
-        else:
-            size = (float(s.radius), float(s.half_length))
-        shapes[name] = {"kind": kind, "size": size, "offset": (0.0, 0.0, 0.0)}
+    for i, name in enumerate(names):
+        code = int(scene.SH[i, 0])
+        if code == 0:
+            continue
+        kind = _KINDS[code]
+        size = {"box": scene.SH[i, 1:4], "sphere": scene.SH[i, 1:2]}.get(kind, scene.SH[i, 1:3])
+        offset = np.zeros(3)
+        mine = FI[:, 1] == i if len(FI) else np.zeros(0, bool)
+        verts = FV[mine & (FI[:, 0] == G.K_PLANE_VERTEX), 4:7] if len(FI) else np.zeros((0, 3))
+        ends = (
+            FV[mine & np.isin(FI[:, 0], (G.K_PLANE_CAPSULE, G.K_PLANE_RIM)), 6] if len(FI) else ()
+        )
+        if kind == "box" and len(verts):
+            offset = verts.mean(axis=0)
+            size = 0.5 * (verts.max(axis=0) - verts.min(axis=0))
+        elif kind in ("capsule", "cylinder") and len(ends):
+            offset = np.array([0.0, 0.0, float(np.mean(ends))])
+        shapes[name] = {"kind": kind, "size": tuple(float(x) for x in size),
+                        "offset": tuple(float(x) for x in offset)}  # fmt: skip
     return {"pairs": pairs, "shapes": shapes}
 
 
@@ -113,6 +135,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
 
     dc = _api()
     scene = scene_of(dc, scenario)
+    if _plant is not None:
+        PLANTABLE[_plant](scene)
     t0 = time.perf_counter()
     try:
         tr = dc.simulate_contact(scene, dt=float(dt), t_end=nstep * float(dt),
@@ -167,4 +191,21 @@ def _names(pair_name) -> tuple:
     return tuple(str(pair_name).split("-", 1))
 
 
-PLANTABLE = {}
+def _plant_mu(scene):
+    """The pair table's friction coefficients set to 0 after the scene is built."""
+    scene.PV[:, 0] = 0.0
+
+
+def _plant_offset(scene):
+    """The first body's plane features (a box's vertices, a capsule's or cylinder's ends)
+    moved 0.01 m along its axis 3 after the scene is built: the kernel then steps a shape
+    that is not where the scene puts it."""
+    from director_model.contact import _geometry as G
+
+    rows = np.asarray(scene.FI)[:, 1] == 0
+    kinds = np.asarray(scene.FI)[:, 0]
+    scene.FV[rows & (kinds == G.K_PLANE_VERTEX), 6] += 0.01
+    scene.FV[rows & np.isin(kinds, (G.K_PLANE_CAPSULE, G.K_PLANE_RIM)), 6] += 0.01
+
+
+PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}

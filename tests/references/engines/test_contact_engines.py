@@ -20,8 +20,8 @@ pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
 
 G = 9.81
 #: engines with a contact builder tested here (MJX: its compile takes ~10 s per configuration,
-#: so one configuration)
-ENGINES = ("mujoco", "pinocchio", "dart", "pybullet", "drake", "mjx")
+#: so one configuration; the director where director_model.contact, issue 34, is installed)
+ENGINES = ("mujoco", "pinocchio", "dart", "pybullet", "drake", "mjx", "director")
 #: the mean normal force over the second half of a 0.3 s rest must carry the weight to this:
 #: soft contacts settle within ~0.05 s (MuJoCo's time constant 0.02 s, Drake's penetration
 #: allowance 1e-3 m at sqrt(g/1e-3) ~ 100 rad/s), and the static balance is then exact
@@ -34,6 +34,8 @@ def _available(engine):
     why = get_engine(engine).availability()
     if why:
         pytest.skip(why)
+    if engine == "director":
+        pytest.importorskip("director_model.contact", reason="director_model.contact not here")
 
 
 def _confs(engine):
