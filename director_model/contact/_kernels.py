@@ -1,0 +1,1169 @@
+"""Compiled time loop of the contact integrator: RATTLE with frictional contact impulses.
+
+The state of each body (``S`` rows, as in director_model.system): x (0:3) and its Kahan
+compensation (3:6), v (6:9) and (9:12), the unnormalised attitude quaternion p (12:16) with
+D = D_0 R(p/|p|) and (16:20), the body momentum Pi = I W (20:23) and (23:26).
+
+One step of size h (hh = h/2) from (q_n, v_n), a nonsmooth RATTLE in two stages, each a
+frictional contact problem (director_model.contact._solver) on the contacts and joint rows:
+
+1. position stage, at q_n. The half-step velocities
+       v_half = v_n + hh (g + F/m) + (impulses)/m,  pi = Pi_n + hh tau_n + D_n^T (angular impulses)
+   give x_{n+1} = x_n + h v_half and D_{n+1} = D_n Q, Q from the discrete Moser-Veselov
+   equation with pi (director_model._primitives.dmv_solve). The rows' rates are those of
+   the linear velocities (v_half, w_half = D_n I^-1 pi); their targets make the step exact
+   at position level: a contact's normal row asks gap(q_{n+1}) >= 0 complementary to its
+   impulse, a joint row g(q_{n+1}) = 0, where gap(q_{n+1}) = gap_n + h u_n + c and c, the
+   part of the gap's change that the rotation's curvature adds (O(h^2)), is taken from the
+   last iterate of this stage until it no longer changes (the outer loop, at most
+   OUTER_MAX passes; one pass when no row depends on a rotation). Tangent rows: Coulomb's
+   law with the slip velocity of the contact point.
+2. velocity stage, at q_{n+1}. v_{n+1} = v_half + hh (g + F/m) + impulses/m, Pi_{n+1} = Q^T pi
+   + hh tau_{n+1} + angular impulses, on the contacts closed at q_{n+1} (an impulse in the
+   position stage, or a gap below the length tolerance): Newton's impact law
+   u_n >= -e min(u_n^-, 0) complementary to the normal impulse (u_n^- the normal velocity of
+   the contact point at the start of the step: 0 for a resting contact, the approach speed at
+   an impact), Coulomb on the tangent rows, joint rows at velocity level.
+
+Without contacts and joints both stages are empty and the step is the single-body RATTLE step
+(the same primitives and the same sums, director_model._kernels), so the attitude and the
+angular velocity of a body that touches nothing are bit for bit those of
+director_model.simulate; its centre of mass is stepped (that path evaluates free flight in
+closed form), equal to round-off.
+
+Candidates: the features of a pair whose bounding spheres come within a margin of the motion
+over the step (2 h x the speeds of the shapes' points, plus h^2 |g| and the length
+tolerance), and whose own distance is below it. After the position stage every feature of a
+near pair is checked at q_{n+1}: one that would overlap without being a candidate is added
+and the step redone (at most REDO_MAX times).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from director_model import _cache
+from director_model._primitives import OK as DMV_OK
+from director_model._primitives import dmv_solve, kahan, quat_increment, quat_matrix
+from director_model.contact import _geometry as G
+from director_model.contact._solver import RES_TOL, ac_residual, lu_apply, pattern, scale_of
+from director_model.contact._solver import solve as ac_solve
+from director_model.system._kernels import _rows
+
+NS = 26
+EPS = 2.220446049250313e-16
+OUTER_MAX = 30
+REDO_MAX = 3
+#: chord Newton steps with a kept factorisation before the full solver
+CHORD = 3
+#: length tolerance: max(|x|, L) x LEN_TOL (m), for gaps (a closed contact), the outer loop
+#: and the penetration check
+LEN_TOL = 16.0 * EPS
+
+OK = 0
+FAIL_SOLVE = 1
+FAIL_OUTER = 2
+FAIL_INEXACT = 3
+FAIL_PENETRATION = 4
+FAIL_DMV = 5
+FAIL_NONFINITE = 6
+
+STATUS_TEXT = {
+    FAIL_SOLVE: "the frictional contact problem did not converge to its certified residual "
+    "within the iteration cap",
+    FAIL_OUTER: "the position stage's gaps did not settle (rotation curvature correction) "
+    "within the iteration cap",
+    FAIL_INEXACT: "a contact configuration that the scheme does not treat exactly",
+    FAIL_PENETRATION: "a contact that was not a candidate would overlap after the step, even "
+    "after redoing it",
+    FAIL_DMV: "a body's rotation equation (discrete Moser-Veselov) has no admissible solution "
+    "(a rotation of 90 degrees or more in one step)",
+    FAIL_NONFINITE: "a non-finite number appeared in the state",
+}
+
+# per-save diagnostics (Q columns)
+Q_PEN = 0  # largest penetration max(-gap) of a closed contact over the steps since the last save
+Q_SIG = 1  # largest Signorini residual
+Q_COUL = 2  # largest Coulomb (cone) residual
+Q_DISS = 3  # largest maximum-dissipation residual
+Q_WORK = 4  # largest work of the contact impulses in one step (J; > 0 is energy gained)
+Q_ITER = 5  # largest number of Newton iterations of one stage
+Q_RES = 6  # largest certified residual of a stage (relative to its impulse scale)
+Q_NCON = 7  # contacts closed at the saved step
+Q_OUTER = 8  # largest number of position-stage passes
+NQ = 9
+
+# info slots on failure
+I_STEPS = 0
+I_PAIR = 1
+I_FEATURE = 2
+I_RES = 3
+NINFO = 4
+
+
+@njit(forceinline=True)
+def _dmv(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2):
+    """director_model._primitives.dmv_solve, compiled once (its IR-level inlining happens
+    here, not at the kernel's call site: numba types an inlined body again at each site)."""
+    return dmv_solve(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2)
+
+
+@njit(forceinline=True)
+def _onb(n0, n1, n2):
+    """Two unit tangents completing the unit normal n (Duff et al., JCGT 6(1), 2017)."""
+    s = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (s + n2)
+    b = n0 * n1 * a
+    return (1.0 + s * n0 * n0 * a, s * b, -s * n0), (b, s + n1 * n1 * a, -n1)
+
+
+@njit(forceinline=True)
+def _directors(D0, S, i):
+    R = quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
+    return (
+        D0[i, 0] * R[0] + D0[i, 1] * R[3] + D0[i, 2] * R[6],
+        D0[i, 0] * R[1] + D0[i, 1] * R[4] + D0[i, 2] * R[7],
+        D0[i, 0] * R[2] + D0[i, 1] * R[5] + D0[i, 2] * R[8],
+        D0[i, 3] * R[0] + D0[i, 4] * R[3] + D0[i, 5] * R[6],
+        D0[i, 3] * R[1] + D0[i, 4] * R[4] + D0[i, 5] * R[7],
+        D0[i, 3] * R[2] + D0[i, 4] * R[5] + D0[i, 5] * R[8],
+        D0[i, 6] * R[0] + D0[i, 7] * R[3] + D0[i, 8] * R[6],
+        D0[i, 6] * R[1] + D0[i, 7] * R[4] + D0[i, 8] * R[7],
+        D0[i, 6] * R[2] + D0[i, 7] * R[5] + D0[i, 8] * R[8],
+    )
+
+
+@njit(forceinline=True)
+def _set_directors(D0, S, Dm):
+    for i in range(S.shape[0]):
+        R = _directors(D0, S, i)
+        for c in range(9):
+            Dm[i, c] = R[c]
+
+
+@njit(forceinline=True)
+def _loads(B, fb, fv, Dm, Fs, Tb):
+    """Total external force Fs (world) and body torque Tb of the constant point forces."""
+    for i in range(Fs.shape[0]):
+        for c in range(3):
+            Fs[i, c] = 0.0
+            Tb[i, c] = 0.0
+    for j in range(fb.shape[0]):
+        i = fb[j]
+        f0, f1, f2 = fv[j, 0], fv[j, 1], fv[j, 2]
+        Fs[i, 0] += f0
+        Fs[i, 1] += f1
+        Fs[i, 2] += f2
+        y0, y1, y2 = G.to_body(Dm, i, f0, f1, f2)
+        x0, x1, x2 = fv[j, 3], fv[j, 4], fv[j, 5]
+        Tb[i, 0] += x1 * y2 - x2 * y1
+        Tb[i, 1] += x2 * y0 - x0 * y2
+        Tb[i, 2] += x0 * y1 - x1 * y0
+
+
+@njit(forceinline=True)
+def _world_omega(B, Dm, i, P0, P1, P2):
+    """w = D I^-1 P (world angular velocity of body momentum P in body axes)."""
+    return G.body_point(Dm, Dm, i, P0 * B[i, 4], P1 * B[i, 5], P2 * B[i, 6])
+
+
+@njit(forceinline=True)
+def _omega_half(B, Dm, PIH, i):
+    """|w| of the body momentum PIH[i] (body axes): the angular speed of the step."""
+    w0 = PIH[i, 0] * B[i, 4]
+    w1 = PIH[i, 1] * B[i, 5]
+    w2 = PIH[i, 2] * B[i, 6]
+    return math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+
+
+@njit(forceinline=True)
+def _contact_rows(ncand, cb, cg, Jr, rb_):
+    """Rows 3c, 3c+1, 3c+2 of candidate c: directions n, t1, t2 (cg[c, 1:10]) at the points
+    ra (cg[c, 10:13]) of body a and rb (cg[c, 13:16]) of body b; Jr (rows, 12) as the
+    joints': (d, ra x d) for a and -(d, rb x d) for b; rb_ (rows, 2) the bodies."""
+    for c in range(ncand):
+        a = cb[c, 0]
+        b = cb[c, 1]
+        ra0, ra1, ra2 = cg[c, 10], cg[c, 11], cg[c, 12]
+        rb0, rb1, rb2 = cg[c, 13], cg[c, 14], cg[c, 15]
+        for k in range(3):
+            r = 3 * c + k
+            d0, d1, d2 = cg[c, 1 + 3 * k], cg[c, 2 + 3 * k], cg[c, 3 + 3 * k]
+            Jr[r, 0] = d0
+            Jr[r, 1] = d1
+            Jr[r, 2] = d2
+            Jr[r, 3] = ra1 * d2 - ra2 * d1
+            Jr[r, 4] = ra2 * d0 - ra0 * d2
+            Jr[r, 5] = ra0 * d1 - ra1 * d0
+            Jr[r, 6] = -d0
+            Jr[r, 7] = -d1
+            Jr[r, 8] = -d2
+            Jr[r, 9] = -(rb1 * d2 - rb2 * d1)
+            Jr[r, 10] = -(rb2 * d0 - rb0 * d2)
+            Jr[r, 11] = -(rb0 * d1 - rb1 * d0)
+            rb_[r, 0] = a
+            rb_[r, 1] = b
+
+
+@njit(forceinline=True)
+def _mobility(N, B, Dm, Jr, rb_, Y):
+    """Y = M^-1 J^T per row and side: (J_v / m, D I^-1 D^T J_w)."""
+    for r in range(N):
+        for s in range(2):
+            i = rb_[r, s]
+            o = 6 * s
+            if i < 0:
+                for c in range(6):
+                    Y[r, o + c] = 0.0
+                continue
+            im = 1.0 / B[i, 0]
+            Y[r, o] = Jr[r, o] * im
+            Y[r, o + 1] = Jr[r, o + 1] * im
+            Y[r, o + 2] = Jr[r, o + 2] * im
+            t0, t1, t2 = G.to_body(Dm, i, Jr[r, o + 3], Jr[r, o + 4], Jr[r, o + 5])
+            y0, y1, y2 = G.body_point(Dm, Dm, i, t0 * B[i, 4], t1 * B[i, 5], t2 * B[i, 6])
+            Y[r, o + 3] = y0
+            Y[r, o + 4] = y1
+            Y[r, o + 5] = y2
+
+
+@njit(forceinline=True)
+def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
+    """The rows of a stage at (X, Dm): m contacts (cb, cg), then the nj joint rows (their
+    values into gvj); their mobilities Y and rho (3 / trace of a contact's diagonal block,
+    1 / W_jj for a joint row)."""
+    N = 3 * m + nj
+    _contact_rows(m, cb, cg, Jr, rb_)
+    if nj > 0:
+        _rows(rint, rvec, X, Dm, gvj, Jj)
+        for r in range(nj):
+            for c in range(12):
+                Jr[3 * m + r, c] = Jj[r, c]
+            rb_[3 * m + r, 0] = rint[r, 1]
+            rb_[3 * m + r, 1] = rint[r, 2]
+    _mobility(N, B, Dm, Jr, rb_, Y)
+    for c in range(m):
+        t = 0.0
+        for r in range(3 * c, 3 * c + 3):
+            for sd in range(2):
+                if rb_[r, sd] >= 0:
+                    o = 6 * sd
+                    for q in range(6):
+                        t += Jr[r, o + q] * Y[r, o + q]
+        rho[c] = 3.0 / t
+    for j in range(nj):
+        r = 3 * m + j
+        t = 0.0
+        for sd in range(2):
+            if rb_[r, sd] >= 0:
+                o = 6 * sd
+                for q in range(6):
+                    t += Jr[r, o + q] * Y[r, o + q]
+        rho[m + j] = 1.0 / t
+
+
+@njit(forceinline=True)
+def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
+    """Make the gaps of redundant contacts those of a rigid face: the contacts of one pair
+    with one normal (a face on a plane or on a face; at least 4 points) have gaps that are
+    an affine function of their points (a plane evaluated on a plane), but each is rounded
+    on its own, and the four rounded gaps of a resting box are not those of any rigid
+    motion (a twist of a few ulps, over h in the position stage's targets: no impulse meets
+    them all, and Newton's method stalls). Replaced here by their least-squares affine fit
+    over the points' coordinates in the contact plane, which differs from them by that
+    rounding only. grp: (m,) scratch."""
+    for c in range(m):
+        grp[c] = -1
+    for c in range(m):
+        if grp[c] >= 0:
+            continue
+        p = FI[cand[c], 3]
+        n0, n1, n2 = cg[c, 1], cg[c, 2], cg[c, 3]
+        cnt = 0
+        for d in range(c, m):
+            if grp[d] < 0 and FI[cand[d], 3] == p:
+                if cg[d, 1] * n0 + cg[d, 2] * n1 + cg[d, 3] * n2 > 1.0 - 1e-12:
+                    grp[d] = c
+                    cnt += 1
+        if cnt < 4:
+            continue
+        # normal equations of gap = alpha + beta1 s + beta2 t over the group's points
+        # (s, t: coordinates along the tangents of c, about the group's mean point)
+        t10, t11, t12 = cg[c, 4], cg[c, 5], cg[c, 6]
+        t20, t21, t22 = cg[c, 7], cg[c, 8], cg[c, 9]
+        ms = 0.0
+        mt = 0.0
+        for d in range(c, m):
+            if grp[d] == c:
+                a = cb[d, 0]
+                q0, q1, q2 = X[a, 0] + cg[d, 10], X[a, 1] + cg[d, 11], X[a, 2] + cg[d, 12]
+                ms += q0 * t10 + q1 * t11 + q2 * t12
+                mt += q0 * t20 + q1 * t21 + q2 * t22
+        ms /= cnt
+        mt /= cnt
+        S11 = 0.0
+        S12 = 0.0
+        S22 = 0.0
+        Sg = 0.0
+        Sgs = 0.0
+        Sgt = 0.0
+        for d in range(c, m):
+            if grp[d] == c:
+                a = cb[d, 0]
+                q0, q1, q2 = X[a, 0] + cg[d, 10], X[a, 1] + cg[d, 11], X[a, 2] + cg[d, 12]
+                sd = (q0 * t10 + q1 * t11 + q2 * t12) - ms
+                td = (q0 * t20 + q1 * t21 + q2 * t22) - mt
+                S11 += sd * sd
+                S12 += sd * td
+                S22 += td * td
+                Sg += g0[3 * d]
+                Sgs += g0[3 * d] * sd
+                Sgt += g0[3 * d] * td
+        det = S11 * S22 - S12 * S12
+        if not det > 1e-12 * (S11 + S22) ** 2:
+            continue  # the points are (nearly) collinear: no redundancy to remove this way
+        alpha = Sg / cnt
+        b1 = (S22 * Sgs - S12 * Sgt) / det
+        b2 = (S11 * Sgt - S12 * Sgs) / det
+        for d in range(c, m):
+            if grp[d] == c:
+                a = cb[d, 0]
+                q0, q1, q2 = X[a, 0] + cg[d, 10], X[a, 1] + cg[d, 11], X[a, 2] + cg[d, 12]
+                sd = (q0 * t10 + q1 * t11 + q2 * t12) - ms
+                td = (q0 * t20 + q1 * t21 + q2 * t22) - mt
+                g0[3 * d] = alpha + b1 * sd + b2 * td
+
+
+@njit(forceinline=True)
+def _delassus(N, Jr, rb_, Y, W):
+    for r in range(N):
+        for s in range(r, N):
+            w = 0.0
+            for sr in range(2):
+                i = rb_[r, sr]
+                if i < 0:
+                    continue
+                for ss in range(2):
+                    if rb_[s, ss] == i:
+                        o = 6 * sr
+                        p = 6 * ss
+                        w += (Jr[r, o] * Y[s, p] + Jr[r, o + 1] * Y[s, p + 1]
+                              + Jr[r, o + 2] * Y[s, p + 2] + Jr[r, o + 3] * Y[s, p + 3]
+                              + Jr[r, o + 4] * Y[s, p + 4] + Jr[r, o + 5] * Y[s, p + 5])  # fmt: skip
+            W[r, s] = w
+            W[s, r] = w
+
+
+@njit(forceinline=True)
+def _rate(Jr, rb_, r, V, Om):
+    """Row r's rate J_r . (v, w) for body velocities V (nb, 3) and world omegas Om (nb, 3)."""
+    s = 0.0
+    for sd in range(2):
+        i = rb_[r, sd]
+        if i < 0:
+            continue
+        o = 6 * sd
+        s += (Jr[r, o] * V[i, 0] + Jr[r, o + 1] * V[i, 1] + Jr[r, o + 2] * V[i, 2]
+              + Jr[r, o + 3] * Om[i, 0] + Jr[r, o + 4] * Om[i, 1] + Jr[r, o + 5] * Om[i, 2])  # fmt: skip
+    return s
+
+
+@njit(forceinline=True)
+def _impulse_response(N, nb, rb_, Y, z, BA):
+    """The bodies' velocity changes of the row impulses z: BA (nb, 12) = (dv (3), dw (3),
+    sum |terms of dv| (3), sum |terms of dw| (3)), world axes."""
+    for i in range(nb):
+        for c in range(12):
+            BA[i, c] = 0.0
+    for r in range(N):
+        zr = z[r]
+        if zr == 0.0:
+            continue
+        for sd in range(2):
+            i = rb_[r, sd]
+            if i < 0:
+                continue
+            o = 6 * sd
+            for c in range(6):
+                d = zr * Y[r, o + c]
+                BA[i, c] += d
+                BA[i, 6 + c] += abs(d)
+
+
+@njit(forceinline=True)
+def _angular_impulse(N, nb, Jr, rb_, z, DL):
+    """World angular impulses DL (nb, 3) of the row impulses z."""
+    for i in range(nb):
+        for c in range(3):
+            DL[i, c] = 0.0
+    for r in range(N):
+        zr = z[r]
+        if zr == 0.0:
+            continue
+        for sd in range(2):
+            i = rb_[r, sd]
+            if i < 0:
+                continue
+            o = 6 * sd + 3
+            DL[i, 0] += zr * Jr[r, o]
+            DL[i, 1] += zr * Jr[r, o + 1]
+            DL[i, 2] += zr * Jr[r, o + 2]
+
+
+@njit(forceinline=True)
+def _same_list(m, cand, lst, meta):
+    """Whether the stage has the contacts of its last call (cand[0:m] == lst[0:meta[2]]);
+    records them, and drops the kept factorisation if not."""
+    same = meta[2] == m
+    if same:
+        for c in range(m):
+            same = same and lst[c] == cand[c]
+    if not same:
+        meta[0] = 0
+        for c in range(m):
+            lst[c] = cand[c]
+        meta[2] = m
+    return same
+
+
+@njit(forceinline=True)
+def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
+    """u = b + J M^-1 J^T z through the bodies (no W; the size of its terms into ts), the
+    Alart-Curnier function F and the residual. Returns (residual, impulse scale)."""
+    _impulse_response(N, nb, rb_, Y, z, BA)
+    for r in range(N):
+        s = b[r]
+        t = abs(b[r])
+        for sd in range(2):
+            i = rb_[r, sd]
+            if i < 0:
+                continue
+            o = 6 * sd
+            for c in range(6):
+                s += Jr[r, o + c] * BA[i, c]
+                t += abs(Jr[r, o + c]) * BA[i, 6 + c]
+        u[r] = s
+        ts[r] = t
+    sc = scale_of(N, m, nj, rho, b, z)
+    if sc == 0.0:
+        return 0.0, sc
+    return ac_residual(m, nj, mu, rho, z, u, F, 0.0, ts, sc), sc
+
+
+@njit(forceinline=True)
+def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV, DW,
+                 DL, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same,
+                 luflag):  # fmt: skip
+    """Solve one stage from the start value z. First its residual through the bodies (no
+    W); if not converged, chord Newton steps with the factors this stage kept from an
+    earlier step (``LUc``, ``pivc``: valid if ``same``, the same rows as then, and the
+    contacts in the same cases ``patc``; at most CHORD steps, each at least halving the
+    residual); only then W and the full solver (director_model.contact._solver.solve),
+    whose last factors are kept. Returns (status, iterations, residual, Wbuilt); the
+    bodies' velocity changes DV, DW and angular impulses DL of the solution."""
+    N = 3 * m + nj
+    st, it, rr, Wbuilt = _stage_core(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut,
+                                     Ft, piv, nb, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc,
+                                     patc, pat, meta, same, luflag)  # fmt: skip
+    _impulse_response(N, nb, rb_, Y, z, BA)
+    for i in range(nb):
+        for c in range(3):
+            DV[i, c] = BA[i, c]
+            DW[i, c] = BA[i, 3 + c]
+    _angular_impulse(N, nb, Jr, rb_, z, DL)
+    return st, it, rr, Wbuilt
+
+
+@njit(forceinline=True)
+def _stage_core(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, Wbuilt,
+                ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same, luflag):  # fmt: skip
+    """The solve of :func:`_stage_solve`."""
+    N = 3 * m + nj
+    if N == 0:
+        return OK, 0, 0.0, Wbuilt
+    res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+    if res <= RES_TOL:
+        return OK, 0, res, Wbuilt
+    it = 0
+    if same and meta[0] == 1 and meta[1] == N:
+        pattern(m, mu, rho, z, u, pat)
+        ok = True
+        for k in range(m):
+            ok = ok and pat[k] == patc[k]
+        while ok and it < CHORD:
+            it += 1
+            for r in range(N):
+                dz[r] = -F[r]
+                zt[r] = z[r]
+            lu_apply(LUc, N, pivc, dz)
+            for r in range(N):
+                z[r] += dz[r]
+            rn, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+            if rn <= RES_TOL:
+                return OK, it, rn, Wbuilt
+            if not rn <= 0.5 * res:
+                # not contracting: back to the start value, the full solver from there
+                for r in range(N):
+                    z[r] = zt[r]
+                res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+                break
+            res = rn
+    if not Wbuilt:
+        _delassus(N, Jr, rb_, Y, W)
+        Wbuilt = True
+    st, k, rr = ac_solve(
+        m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, 0.0, ts, tst, zb, zbar, luflag
+    )
+    it += k
+    meta[0] = 0
+    if st == 0 and luflag[0] == 1:
+        # keep the last factors (of the Jacobian at the last Newton iterate) for the next steps
+        for r in range(N):
+            pivc[r] = piv[r]
+            for c in range(N):
+                LUc[r, c] = A[r, c]
+        for r in range(N):
+            zt[r] = z[r]
+        pattern(m, mu, rho, z, u, patc)
+        meta[0] = 1
+        meta[1] = N
+    return (OK if st == 0 else FAIL_SOLVE), it, rr, Wbuilt
+
+
+@njit(forceinline=True)
+def _laws(m, mu, rho, z, u, vs, Qs):
+    """Dimensionless law residuals of a solved stage into Qs[0:3] (max with what is there),
+    with Z the stage's largest contact impulse and u the rows' rates including their targets
+    (the gap at the end of the step over h in the position stage): Signorini
+    |min(z_n / Z, u_n / vs)| (vs: L/h in the position stage, so that u_n / vs is the end gap
+    over the scene's length scale L; the largest free rate in the velocity stage); Coulomb
+    (|z_t| - mu z_n)+ / (mu z_n) (over Z if mu z_n = 0); maximum dissipation
+    rho |z_t . u_t + mu z_n |u_t|| / Z^2, zero for stick and for z_t opposite to u_t on the
+    cone's edge."""
+    Z = 0.0
+    for r in range(3 * m):
+        Z = max(Z, abs(z[r]))
+    if Z == 0.0:
+        return
+    for k in range(m):
+        i = 3 * k
+        zn = z[i]
+        Qs[0] = max(Qs[0], abs(min(zn / Z, u[i] / vs)))
+        zt = math.sqrt(z[i + 1] ** 2 + z[i + 2] ** 2)
+        cap = mu[k] * zn
+        Qs[1] = max(Qs[1], max(zt - cap, 0.0) / (cap if cap > 0.0 else Z))
+        ut = math.sqrt(u[i + 1] ** 2 + u[i + 2] ** 2)
+        md = abs(z[i + 1] * u[i + 1] + z[i + 2] * u[i + 2] + cap * ut)
+        Qs[2] = max(Qs[2], rho[k] * md / (Z * Z))
+
+
+@njit(forceinline=True)
+def _store(B, D0, S, X, V, D, W, k):
+    for i in range(S.shape[0]):
+        for c in range(3):
+            X[k, i, c] = S[i, c]
+            V[k, i, c] = S[i, 6 + c]
+            W[k, i, c] = S[i, 20 + c] * B[i, 4 + c]
+        R = _directors(D0, S, i)
+        for c in range(9):
+            D[k, i, c // 3, c % 3] = R[c]
+
+
+@njit(forceinline=True)
+def _candidates(FI, FV, PI, PV, SH, X, Dm, marg, cand, cb, cg, P8, fidx, FO):
+    """Candidate features at (X, Dm): near pairs (bounding spheres within the pair's margin
+    marg[p]), box-box pairs checked for exactness, each valid feature with distance <= margin
+    added (cand: feature index; cb: bodies; cg: gap, n, t1, t2, ra, rb). Returns (status,
+    count, failing pair, failing feature). fidx, FO: scratch."""
+    nq = 0
+    for p in range(PI.shape[0]):
+        kind = PI[p, 0]
+        a = PI[p, 1]
+        b = PI[p, 2]
+        mg = marg[p]
+        if b >= 0 and kind != 0:
+            d0, d1, d2 = X[a, 0] - X[b, 0], X[a, 1] - X[b, 1], X[a, 2] - X[b, 2]
+            if math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - PV[p, 2] - PV[p, 3] > mg:
+                continue
+        if kind == 2:  # box-box
+            ha = (SH[a, 1], SH[a, 2], SH[a, 3])
+            hb = (SH[b, 1], SH[b, 2], SH[b, 3])
+            near, exact = G.box_pair_check(X, Dm, a, b, ha, hb, mg, P8)
+            if not near:
+                continue
+            if not exact:
+                return FAIL_INEXACT, 0, p, -1
+        for f in range(PI[p, 3], PI[p, 3] + PI[p, 4]):
+            fidx[nq] = f
+            nq += 1
+    G.eval_features(FI, FV, fidx, nq, X, Dm, FO)
+    nc = 0
+    for q in range(nq):
+        f = fidx[q]
+        if FO[q, 0] == 0.0 or FO[q, 12] > marg[FI[f, 3]]:
+            continue
+        if FO[q, 1] != 0.0:
+            return FAIL_INEXACT, nc, FI[f, 3], f
+        t, s = _onb(FO[q, 3], FO[q, 4], FO[q, 5])
+        cand[nc] = f
+        cb[nc, 0] = FI[f, 1]
+        cb[nc, 1] = FI[f, 2] if PI[FI[f, 3], 0] != 0 else -1
+        cg[nc, 0] = FO[q, 2]
+        cg[nc, 1], cg[nc, 2], cg[nc, 3] = FO[q, 3], FO[q, 4], FO[q, 5]
+        cg[nc, 4], cg[nc, 5], cg[nc, 6] = t[0], t[1], t[2]
+        cg[nc, 7], cg[nc, 8], cg[nc, 9] = s[0], s[1], s[2]
+        for k in range(6):
+            cg[nc, 10 + k] = FO[q, 6 + k]
+        nc += 1
+    return OK, nc, -1, -1
+
+
+@njit
+def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep, saves,
+                 X, V, D, W, Q, PF, info):  # fmt: skip
+    """Advance nstep steps of dt; store the states at the step indices ``saves`` (0 = the
+    start) into X, V (nsave, nb, 3), D (nsave, nb, 3, 3), W (nsave, nb, 3) (body axes), the
+    diagnostics since the previous save into Q (nsave, NQ) and the contact force on body a of
+    each pair in the saved step into PF (nsave, npair, 3). WS (nfeat, 6) and WJ (nrow, 2)
+    hold the last impulses of each feature and joint row (position stage, velocity stage):
+    the start values of the next step, part of the integrator state. Returns a status; on a
+    failure S, WS, WJ keep the last completed step and info says where it failed."""
+    nb = S.shape[0]
+    nf = FI.shape[0]
+    nj = rint.shape[0]
+    npair = PI.shape[0]
+    Nmax = 3 * nf + nj
+    Nm = max(Nmax, 1)
+    h = dt
+    hh = 0.5 * h
+    rh = 4.0 / h
+    # work arrays
+    Dm = np.empty((nb, 9))
+    DN = np.empty((nb, 9))
+    Fs = np.zeros((nb, 3))
+    Tb = np.zeros((nb, 3))
+    Tb1 = np.zeros((nb, 3))
+    VF = np.empty((nb, 3))
+    PIF = np.empty((nb, 3))
+    OF = np.empty((nb, 3))
+    ON = np.empty((nb, 3))
+    VH = np.empty((nb, 3))
+    PIH = np.empty((nb, 3))
+    XN = np.empty((nb, 3))
+    XL = np.empty((nb, 3))
+    PN = np.empty((nb, 4))
+    PL = np.empty((nb, 4))
+    WQ = np.empty((nb, 5))  # w (3), q, 4/(q h)
+    CQ = np.empty((nb, 3))  # c = w x I w
+    DV = np.zeros((nb, 3))
+    BA = np.zeros((nb, 12))
+    DW = np.zeros((nb, 3))
+    DL = np.zeros((nb, 3))
+    DV1 = np.zeros((nb, 3))
+    DL1 = np.zeros((nb, 3))
+    VF1 = np.empty((nb, 3))
+    OF1 = np.empty((nb, 3))
+    marg = np.zeros(npair)
+    cand = np.zeros(max(nf, 1), dtype=np.int64)
+    cb = np.zeros((max(nf, 1), 2), dtype=np.int64)
+    cg = np.zeros((max(nf, 1), 16))
+    cand2 = np.zeros(max(nf, 1), dtype=np.int64)
+    cb2 = np.zeros((max(nf, 1), 2), dtype=np.int64)
+    cg2 = np.zeros((max(nf, 1), 16))
+    cgN = np.zeros((max(nf, 1), 16))
+    inexN = np.zeros(max(nf, 1), dtype=np.bool_)
+    isc = np.zeros(max(nf, 1), dtype=np.bool_)
+    fidx = np.zeros(max(nf, 1), dtype=np.int64)
+    FO = np.zeros((max(nf, 1), 13))
+    grp = np.zeros(max(nf, 1), dtype=np.int64)
+    # the kept factorisations of the two stages (see _stage_solve)
+    LUP = np.zeros((Nm, Nm))
+    LUV = np.zeros((Nm, Nm))
+    pivP = np.zeros(Nm, dtype=np.int64)
+    pivV = np.zeros(Nm, dtype=np.int64)
+    patP = np.zeros(max(nf, 1), dtype=np.int64)
+    patV = np.zeros(max(nf, 1), dtype=np.int64)
+    pat = np.zeros(max(nf, 1), dtype=np.int64)
+    listP = np.full(max(nf, 1), -1, dtype=np.int64)
+    listV = np.full(max(nf, 1), -1, dtype=np.int64)
+    metaP = np.zeros(3, dtype=np.int64)
+    metaV = np.zeros(3, dtype=np.int64)
+    luflag = np.zeros(1, dtype=np.int64)
+    Jr = np.zeros((Nm, 12))
+    rb_ = np.zeros((Nm, 2), dtype=np.int64)
+    Y = np.zeros((Nm, 12))
+    Wd = np.zeros((Nm, Nm))
+    JrV = np.zeros((Nm, 12))
+    rbV = np.zeros((Nm, 2), dtype=np.int64)
+    YV = np.zeros((Nm, 12))
+    WV = np.zeros((Nm, Nm))
+    rhoV = np.zeros(Nm)
+    WVbuilt = False
+    m2 = -1
+    P8 = np.zeros((8, 4))
+    A = np.zeros((Nm, Nm))
+    b = np.zeros(Nm)
+    u0 = np.zeros(Nm)
+    off = np.zeros(Nm)
+    corr = np.zeros(Nm)
+    g0 = np.zeros(Nm)
+    z = np.zeros(Nm)
+    z1 = np.zeros(Nm)
+    u = np.zeros(Nm)
+    F = np.zeros(Nm)
+    dz = np.zeros(Nm)
+    zt = np.zeros(Nm)
+    ut = np.zeros(Nm)
+    Ft = np.zeros(Nm)
+    ts = np.zeros(Nm)
+    tst = np.zeros(Nm)
+    zb = np.zeros(Nm)
+    zbar = np.zeros(Nm)
+    piv = np.zeros(Nm, dtype=np.int64)
+    mu = np.zeros(max(nf, 1))
+    rho = np.zeros(Nm)
+    gvj = np.zeros(max(nj, 1))
+    Jj = np.zeros((max(nj, 1), 12))
+    Qs = np.zeros(NQ)
+    Ls = np.zeros(3)
+    PFs = np.zeros((npair, 3))
+    gn = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+    Lsc = 1.0
+    for p in range(npair):
+        Lsc = max(Lsc, PV[p, 2], PV[p, 3])
+    ks = 0
+    if saves.shape[0] > 0 and saves[0] == 0:
+        _store(B, D0, S, X, V, D, W, 0)
+        ks = 1
+    for n in range(1, nstep + 1):
+        _set_directors(D0, S, Dm)
+        _loads(B, fb, fv, Dm, Fs, Tb)
+        xmax = Lsc
+        for i in range(nb):
+            im = 1.0 / B[i, 0]
+            for c in range(3):
+                VF[i, c] = S[i, 6 + c] + hh * (g[c] + Fs[i, c] * im)
+                PIF[i, c] = S[i, 20 + c] + hh * Tb[i, c]
+                xmax = max(xmax, abs(S[i, c]))
+            o = _world_omega(B, Dm, i, PIF[i, 0], PIF[i, 1], PIF[i, 2])
+            OF[i, 0], OF[i, 1], OF[i, 2] = o
+            o = _world_omega(B, Dm, i, S[i, 20], S[i, 21], S[i, 22])
+            ON[i, 0], ON[i, 1], ON[i, 2] = o
+        ltol = LEN_TOL * xmax
+        mfac = 1.0
+        st = OK
+        for redo in range(REDO_MAX + 1):  # noqa: B007
+            # candidates and their margins
+            for p in range(npair):
+                a = PI[p, 1]
+                bb = PI[p, 2]
+                sa = math.sqrt(VF[a, 0] ** 2 + VF[a, 1] ** 2 + VF[a, 2] ** 2) + PV[
+                    p, 2
+                ] * math.sqrt(OF[a, 0] ** 2 + OF[a, 1] ** 2 + OF[a, 2] ** 2)
+                sb = 0.0
+                if PI[p, 0] != 0:
+                    sb = math.sqrt(VF[bb, 0] ** 2 + VF[bb, 1] ** 2 + VF[bb, 2] ** 2) + PV[
+                        p, 3
+                    ] * math.sqrt(OF[bb, 0] ** 2 + OF[bb, 1] ** 2 + OF[bb, 2] ** 2)
+                marg[p] = mfac * (2.0 * h * (sa + sb) + 2.0 * h * h * gn) + ltol
+            st, nc, fp, ff = _candidates(
+                FI, FV, PI, PV, SH, S, Dm, marg, cand, cb, cg, P8, fidx, FO
+            )
+            if st != OK:
+                info[I_PAIR] = fp
+                info[I_FEATURE] = ff
+                break
+            for f in range(nf):
+                isc[f] = False
+            for c in range(nc):
+                isc[cand[c]] = True
+            m = nc
+            N = 3 * m + nj
+            # the rows at q_n: those of the last velocity stage if it had the same contacts
+            # (the same state q_n, the same features: the same numbers), else computed
+            reuse = m2 == m and redo == 0
+            for c in range(m):
+                reuse = reuse and cand2[c] == cand[c]
+            if reuse:
+                Jr, JrV = JrV, Jr
+                rb_, rbV = rbV, rb_
+                Y, YV = YV, Y
+                Wd, WV = WV, Wd
+                rho, rhoV = rhoV, rho
+                Wbuilt = WVbuilt
+                if nj > 0:
+                    _rows(rint, rvec, S, Dm, gvj, Jj)
+            else:
+                _setup_rows(m, nj, cb, cg, rint, rvec, S, Dm, B, gvj, Jj, Jr, rb_, Y, rho)
+                Wbuilt = False
+            for c in range(m):
+                f = cand[c]
+                mu[c] = PV[FI[f, 3], 0]
+                g0[3 * c] = cg[c, 0]
+                g0[3 * c + 1] = 0.0
+                g0[3 * c + 2] = 0.0
+            for r in range(N):
+                u0[r] = _rate(Jr, rb_, r, VF, OF)
+                corr[r] = 0.0
+            for r in range(nj):
+                g0[3 * m + r] = gvj[r]
+            _fit_gaps(m, cand, cb, cg, FI, S, g0, grp)
+            # start values
+            for c in range(m):
+                f = cand[c]
+                z[3 * c] = WS[f, 0]
+                z[3 * c + 1] = WS[f, 1]
+                z[3 * c + 2] = WS[f, 2]
+            for r in range(nj):
+                z[3 * m + r] = WJ[r, 0]
+            passes = 0
+            converged = False
+            for it_o in range(OUTER_MAX):
+                passes += 1
+                for r in range(N):
+                    off[r] = 0.0
+                for c in range(m):
+                    off[3 * c] = (g0[3 * c] + corr[3 * c]) / h
+                for r in range(nj):
+                    off[3 * m + r] = (g0[3 * m + r] + corr[3 * m + r]) / h
+                for r in range(N):
+                    b[r] = u0[r] + off[r]
+                same = _same_list(m, cand, listP, metaP)
+                st, it, rr, Wbuilt = _stage_solve(
+                    m, nj, mu, rho, Jr, rb_, Y, Wd, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV,
+                    DW, DL, Wbuilt, ts, tst, zb, zbar, BA, LUP, pivP, patP, pat, metaP, same,
+                    luflag,
+                )  # fmt: skip
+                Qs[Q_ITER] = max(Qs[Q_ITER], it)
+                Qs[Q_RES] = max(Qs[Q_RES], rr)
+                if st != OK:
+                    info[I_RES] = rr
+                    break
+                # the step's positions for these impulses
+                dmv_fail = False
+                for i in range(nb):
+                    I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
+                    a0, a1, a2 = B[i, 4], B[i, 5], B[i, 6]
+                    lb0, lb1, lb2 = G.to_body(Dm, i, DL[i, 0], DL[i, 1], DL[i, 2])
+                    PIH[i, 0] = PIF[i, 0] + lb0
+                    PIH[i, 1] = PIF[i, 1] + lb1
+                    PIH[i, 2] = PIF[i, 2] + lb2
+                    sd_, w0, w1, w2, c0, c1, c2, q = _dmv(
+                        I0, I1, I2, a0, a1, a2,
+                        (I2 - I1) * a0, (I0 - I2) * a1, (I1 - I0) * a2,
+                        hh * PIH[i, 0], hh * PIH[i, 1], hh * PIH[i, 2],
+                    )  # fmt: skip
+                    if sd_ != DMV_OK:
+                        dmv_fail = True
+                        break
+                    WQ[i, 0], WQ[i, 1], WQ[i, 2], WQ[i, 3] = w0, w1, w2, q
+                    CQ[i, 0], CQ[i, 1], CQ[i, 2] = c0, c1, c2
+                    for c in range(3):
+                        VH[i, c] = VF[i, c] + DV[i, c]
+                        XN[i, c], XL[i, c] = kahan(S[i, c], S[i, 3 + c], h * VH[i, c], True)
+                    pp = (S[i, 12], S[i, 13], S[i, 14], S[i, 15])
+                    pn, pln = _kahan4(pp, (S[i, 16], S[i, 17], S[i, 18], S[i, 19]),
+                                      quat_increment(pp, (w0, w1, w2)))  # fmt: skip
+                    for c in range(4):
+                        PN[i, c] = pn[c]
+                        PL[i, c] = pln[c]
+                    R = quat_matrix(pn)
+                    for c in range(9):
+                        rr3 = c // 3
+                        cc3 = c % 3
+                        DN[i, c] = (D0[i, 3 * rr3] * R[cc3] + D0[i, 3 * rr3 + 1] * R[3 + cc3]) + D0[
+                            i, 3 * rr3 + 2
+                        ] * R[6 + cc3]
+                if dmv_fail:
+                    st = FAIL_DMV
+                    break
+                # actual gaps and joint rows at q_{n+1} against the linear prediction h u
+                dmax = 0.0
+                G.eval_features(FI, FV, cand, m, XN, DN, FO)
+                for c in range(m):
+                    gap = FO[c, 2]
+                    d = gap - h * u[3 * c]
+                    corr[3 * c] += d
+                    if z[3 * c] > 0.0 or gap < 0.0:
+                        dmax = max(dmax, abs(d))
+                    # the geometry at q_{n+1}, for the velocity stage
+                    t_, s_ = _onb(FO[c, 3], FO[c, 4], FO[c, 5])
+                    cgN[c, 0] = gap
+                    cgN[c, 1], cgN[c, 2], cgN[c, 3] = FO[c, 3], FO[c, 4], FO[c, 5]
+                    cgN[c, 4], cgN[c, 5], cgN[c, 6] = t_[0], t_[1], t_[2]
+                    cgN[c, 7], cgN[c, 8], cgN[c, 9] = s_[0], s_[1], s_[2]
+                    for k in range(6):
+                        cgN[c, 10 + k] = FO[c, 6 + k]
+                    inexN[c] = FO[c, 1] != 0.0
+                if nj > 0:
+                    _rows(rint, rvec, XN, DN, gvj, Jj)
+                    for r in range(nj):
+                        d = gvj[r] - h * u[3 * m + r]
+                        corr[3 * m + r] += d
+                        dmax = max(dmax, abs(d))
+                if not dmax <= ltol:
+                    if not dmax < math.inf:
+                        st = FAIL_NONFINITE
+                        break
+                    continue
+                converged = True
+                break
+            if st != OK:
+                break
+            if not converged:
+                st = FAIL_OUTER
+                break
+            Qs[Q_OUTER] = max(Qs[Q_OUTER], passes)
+            # a feature that is not a candidate must not overlap at q_{n+1}
+            missed = False
+            nq = 0
+            for p in range(npair):
+                a = PI[p, 1]
+                bb = PI[p, 2]
+                # the motion of the pair's points over the step: if below the margin, no
+                # feature that was farther than the margin can have closed
+                mv = h * (math.sqrt(VH[a, 0] ** 2 + VH[a, 1] ** 2 + VH[a, 2] ** 2)
+                          + PV[p, 2] * _omega_half(B, Dm, PIH, a))  # fmt: skip
+                if PI[p, 0] != 0:
+                    mv += h * (math.sqrt(VH[bb, 0] ** 2 + VH[bb, 1] ** 2 + VH[bb, 2] ** 2)
+                               + PV[p, 3] * _omega_half(B, Dm, PIH, bb))  # fmt: skip
+                if 2.0 * mv < marg[p] - ltol:
+                    continue
+                if PI[p, 0] != 0:
+                    d0, d1, d2 = XN[a, 0] - XN[bb, 0], XN[a, 1] - XN[bb, 1], XN[a, 2] - XN[bb, 2]
+                    if math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > PV[p, 2] + PV[p, 3]:
+                        continue  # the bounding spheres do not overlap at q_{n+1}
+                for f in range(PI[p, 3], PI[p, 3] + PI[p, 4]):
+                    if not isc[f]:
+                        fidx[nq] = f
+                        nq += 1
+            G.eval_features(FI, FV, fidx, nq, XN, DN, FO)
+            for q in range(nq):
+                if FO[q, 0] != 0.0 and FO[q, 2] < -ltol:
+                    missed = True
+                    info[I_PAIR] = FI[fidx[q], 3]
+                    info[I_FEATURE] = fidx[q]
+            if not missed:
+                break
+            mfac *= 8.0
+            st = FAIL_PENETRATION
+        if st != OK:
+            info[I_STEPS] = n - 1
+            return st
+        # work of the position stage's contact impulses
+        work = 0.0
+        for r in range(3 * m):
+            work += z[r] * (u0[r] + 0.5 * (u[r] - off[r] - u0[r]))
+        _laws(m, mu, rho, z, u, Lsc / h, Ls)
+        for k in range(3):
+            Qs[Q_SIG + k] = max(Qs[Q_SIG + k], Ls[k])
+            Ls[k] = 0.0
+        for p in range(npair):
+            PFs[p, 0] = 0.0
+            PFs[p, 1] = 0.0
+            PFs[p, 2] = 0.0
+        for c in range(m):
+            p = FI[cand[c], 3]
+            for k in range(3):
+                PFs[p, k] += (z[3 * c] * cg[c, 1 + k] + z[3 * c + 1] * cg[c, 4 + k]
+                              + z[3 * c + 2] * cg[c, 7 + k]) / h  # fmt: skip
+        # -------------------------------------------------------------- velocity stage
+        _loads(B, fb, fv, DN, Fs, Tb1)
+        m2 = 0
+        for c in range(m):
+            if z[3 * c] > 0.0 or cgN[c, 0] <= ltol:
+                if inexN[c]:
+                    info[I_STEPS] = n - 1
+                    info[I_FEATURE] = cand[c]
+                    return FAIL_INEXACT
+                cand2[m2] = cand[c]
+                cb2[m2, 0] = cb[c, 0]
+                cb2[m2, 1] = cb[c, 1]
+                for k in range(16):
+                    cg2[m2, k] = cgN[c, k]
+                m2 += 1
+        pen = 0.0
+        for c in range(m2):
+            pen = max(pen, -cg2[c, 0])
+        Qs[Q_PEN] = max(Qs[Q_PEN], pen)
+        N2 = 3 * m2 + nj
+        _setup_rows(m2, nj, cb2, cg2, rint, rvec, XN, DN, B, gvj, Jj, JrV, rbV, YV, rhoV)
+        for i in range(nb):
+            im = 1.0 / B[i, 0]
+            rq = rh * (1.0 / WQ[i, 3])
+            P0 = PIH[i, 0] - rq * CQ[i, 0] + hh * Tb1[i, 0]
+            P1 = PIH[i, 1] - rq * CQ[i, 1] + hh * Tb1[i, 1]
+            P2 = PIH[i, 2] - rq * CQ[i, 2] + hh * Tb1[i, 2]
+            o = _world_omega(B, DN, i, P0, P1, P2)
+            OF1[i, 0], OF1[i, 1], OF1[i, 2] = o
+            for c in range(3):
+                VF1[i, c] = VH[i, c] + hh * (g[c] + Fs[i, c] * im)
+        for c in range(m2):
+            f = cand2[c]
+            mu[c] = PV[FI[f, 3], 0]
+            upre = _rate(JrV, rbV, 3 * c, S[:, 6:9], ON)
+            off[3 * c] = PV[FI[f, 3], 1] * min(upre, 0.0)
+            off[3 * c + 1] = 0.0
+            off[3 * c + 2] = 0.0
+            z1[3 * c] = WS[f, 3]
+            z1[3 * c + 1] = WS[f, 4]
+            z1[3 * c + 2] = WS[f, 5]
+        for r in range(nj):
+            off[3 * m2 + r] = 0.0
+            z1[3 * m2 + r] = WJ[r, 1]
+        for r in range(N2):
+            u0[r] = _rate(JrV, rbV, r, VF1, OF1)
+            b[r] = u0[r] + off[r]
+        same = _same_list(m2, cand2, listV, metaV)
+        st, it, rr, WVbuilt = _stage_solve(
+            m2, nj, mu, rhoV, JrV, rbV, YV, WV, b, z1, u, F, A, dz, zt, ut, Ft, piv, nb, DV1, DW,
+            DL1, False, ts, tst, zb, zbar, BA, LUV, pivV, patV, pat, metaV, same, luflag,
+        )  # fmt: skip
+        Qs[Q_ITER] = max(Qs[Q_ITER], it)
+        Qs[Q_RES] = max(Qs[Q_RES], rr)
+        if st != OK:
+            info[I_STEPS] = n - 1
+            info[I_RES] = rr
+            return st
+        for r in range(3 * m2):
+            work += z1[r] * (u0[r] + 0.5 * (u[r] - off[r] - u0[r]))
+        Qs[Q_WORK] = max(Qs[Q_WORK], work) if n > 1 or ks > 0 else work
+        vs = gn * h
+        for r in range(N2):
+            vs = max(vs, abs(u0[r]))
+        _laws(m2, mu, rhoV, z1, u, vs if vs > 0.0 else 1.0, Ls)
+        for k in range(3):
+            Qs[Q_SIG + k] = max(Qs[Q_SIG + k], Ls[k])
+            Ls[k] = 0.0
+        for c in range(m2):
+            p = FI[cand2[c], 3]
+            for k in range(3):
+                PFs[p, k] += (z1[3 * c] * cg2[c, 1 + k] + z1[3 * c + 1] * cg2[c, 4 + k]
+                              + z1[3 * c + 2] * cg2[c, 7 + k]) / h  # fmt: skip
+        # -------------------------------------------------------------- commit
+        for i in range(nb):
+            im = 1.0 / B[i, 0]
+            rq = rh * (1.0 / WQ[i, 3])
+            lp0, lp1, lp2 = G.to_body(Dm, i, DL[i, 0], DL[i, 1], DL[i, 2])
+            lv0, lv1, lv2 = G.to_body(DN, i, DL1[i, 0], DL1[i, 1], DL1[i, 2])
+            dP0 = ((hh * (Tb[i, 0] + Tb1[i, 0]) - rq * CQ[i, 0]) + lp0) + lv0
+            dP1 = ((hh * (Tb[i, 1] + Tb1[i, 1]) - rq * CQ[i, 1]) + lp1) + lv1
+            dP2 = ((hh * (Tb[i, 2] + Tb1[i, 2]) - rq * CQ[i, 2]) + lp2) + lv2
+            S[i, 20], S[i, 23] = kahan(S[i, 20], S[i, 23], dP0, True)
+            S[i, 21], S[i, 24] = kahan(S[i, 21], S[i, 24], dP1, True)
+            S[i, 22], S[i, 25] = kahan(S[i, 22], S[i, 25], dP2, True)
+            for c in range(3):
+                a_ = hh * (g[c] + Fs[i, c] * im)
+                dv = (a_ + DV[i, c]) + (a_ + DV1[i, c])
+                S[i, 6 + c], S[i, 9 + c] = kahan(S[i, 6 + c], S[i, 9 + c], dv, True)
+                S[i, c] = XN[i, c]
+                S[i, 3 + c] = XL[i, c]
+            for c in range(4):
+                S[i, 12 + c] = PN[i, c]
+                S[i, 16 + c] = PL[i, c]
+            nn = (S[i, 12] ** 2 + S[i, 13] ** 2) + (S[i, 14] ** 2 + S[i, 15] ** 2)
+            if nn > 2.0**128:
+                for c in range(12, 20):
+                    S[i, c] *= 2.0**-64
+            for c in range(NS):
+                if not abs(S[i, c]) < math.inf:
+                    info[I_STEPS] = n - 1
+                    return FAIL_NONFINITE
+        for f in range(nf):
+            for k in range(6):
+                WS[f, k] = 0.0
+        for c in range(m):
+            f = cand[c]
+            WS[f, 0] = z[3 * c]
+            WS[f, 1] = z[3 * c + 1]
+            WS[f, 2] = z[3 * c + 2]
+        for c in range(m2):
+            f = cand2[c]
+            WS[f, 3] = z1[3 * c]
+            WS[f, 4] = z1[3 * c + 1]
+            WS[f, 5] = z1[3 * c + 2]
+        for r in range(nj):
+            WJ[r, 0] = z[3 * m + r]
+            WJ[r, 1] = z1[3 * m2 + r]
+        if ks < saves.shape[0] and saves[ks] == n:
+            _store(B, D0, S, X, V, D, W, ks)
+            Qs[Q_NCON] = m2
+            for k in range(NQ):
+                Q[ks, k] = Qs[k]
+                Qs[k] = 0.0
+            for p in range(npair):
+                for k in range(3):
+                    PF[ks, p, k] = PFs[p, k]
+            ks += 1
+    return OK
+
+
+@njit(forceinline=True)
+def _kahan4(hi, lo, d):
+    t0, e0 = kahan(hi[0], lo[0], d[0], True)
+    t1, e1 = kahan(hi[1], lo[1], d[1], True)
+    t2, e2 = kahan(hi[2], lo[2], d[2], True)
+    t3, e3 = kahan(hi[3], lo[3], d[3], True)
+    return (t0, t1, t2, t3), (e0, e1, e2, e3)
+
+
+@njit(cache=True)
+def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep, saves,
+                X, V, D, W, Q, PF, info):  # fmt: skip
+    """The compiled entry of one scene (see :func:`_run_contact`)."""
+    return _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep,
+                        saves, X, V, D, W, Q, PF, info)  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def run_contact_batch(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep,
+                      saves, X, V, D, W, Q, PF, info, status):  # fmt: skip
+    """N scenes of one structure (arrays with a leading batch axis: D0, S, WS, WJ, X, V, D,
+    W, Q, PF, info), each its own :func:`_run_contact`, in parallel over numba's threads."""
+    for k in prange(S.shape[0]):
+        status[k] = _run_contact(B, SH, D0[k], S[k], WS[k], WJ[k], FI, FV, PI, PV, rint, rvec,
+                                 fb, fv, g, dt, nstep, saves, X[k], V[k], D[k], W[k], Q[k], PF[k],
+                                 info[k])  # fmt: skip
+
+
+@njit(cache=True)
+def features_at(FI, FV, PI, PV, SH, X, Dm, margin, out, status):
+    """Every feature at the state (X, Dm) (for the checks of the initial state): out (nfeat,
+    4) = valid, inexact, gap, distance; status (npair,) 1 where a box-box pair within
+    ``margin`` is not treated exactly."""
+    P8 = np.zeros((8, 4))
+    for p in range(PI.shape[0]):
+        status[p] = 0
+        if PI[p, 0] == 2:
+            a = PI[p, 1]
+            b = PI[p, 2]
+            near, exact = G.box_pair_check(X, Dm, a, b, (SH[a, 1], SH[a, 2], SH[a, 3]),
+                                           (SH[b, 1], SH[b, 2], SH[b, 3]), margin, P8)  # fmt: skip
+            if near and not exact:
+                status[p] = 1
+    nf = FI.shape[0]
+    idx = np.arange(nf)
+    FO = np.zeros((nf, 13))
+    G.eval_features(FI, FV, idx, nf, X, Dm, FO)
+    for f in range(nf):
+        out[f, 0] = FO[f, 0]
+        out[f, 1] = FO[f, 1]
+        out[f, 2] = FO[f, 2]
+        out[f, 3] = FO[f, 12]
+
+
+_cache.tie(
+    globals(),
+    *[
+        __import__("pathlib").Path(__file__).parent.parent / rel
+        for rel in (
+            "_primitives.py",
+            "system/_kernels.py",
+            "contact/_geometry.py",
+            "contact/_solver.py",
+        )
+    ],
+)
