@@ -18,10 +18,12 @@ import tempfile
 os.environ["DIRECTOR_BENCH_CACHE"] = tempfile.mkdtemp(prefix="director-bench-test-cache-")
 
 #: test files that take longest (seconds of one worker, measured in a two-worker run of the
-#: default tests: the fault injection ~100 s, the report folders, the CLI's subprocess runs, the
-#: Dask clusters, the import-layering check, the plug-in's pip install, then the runner's)
+#: default tests: the fault injection ~100 s, the contact integrator's first compilation on a
+#: fresh clone ~120 s of CPU, the report folders, the CLI's subprocess runs, the Dask clusters,
+#: the import-layering check, the plug-in's pip install, then the runner's)
 LONGEST_FIRST = (
     "test_faults.py",
+    "test_contact.py",
     "test_report.py",
     "test_cli_inputs.py",
     "test_distributed.py",

@@ -33,7 +33,8 @@ Layout (float64 / int64 arrays built by director_model.contact.scene):
     K_SPHERE_SPHERE  r_a, r_b
     K_SPHERE_BOX     r_a, half extents of b (3)
     K_CAPSULE_SPHERE r_a, half_length of a, r_b
-    K_BOX_VERTEX     vertex xi of a (3), half extents of b (3)
+    K_BOX_VERTEX     vertex xi of a (3), half extents of b (3), 1 if a is the pair's second
+                     box (its vertices on a corner of the first box are left to the first's)
 """
 
 from __future__ import annotations
@@ -187,11 +188,33 @@ def feature(FI, FV, k, X, D):
     if s2 > sj:
         j = 2
         sj = s2
+    tol = EXTENT_TOL * (h0 + h1 + h2)
+    ties = (
+        (1 if s0 >= sj - tol else 0) + (1 if s1 >= sj - tol else 0) + (1 if s2 >= sj - tol else 0)
+    )
+    if ties > 1:
+        # the vertex is on an edge or a corner of b (two equal boxes stacked face on face
+        # put every vertex there): the face of b that faces a's centre, the axis along which
+        # a's centre lies farthest beyond b's extent
+        c0, c1, c2 = to_body(D, b, X[a, 0] - X[b, 0], X[a, 1] - X[b, 1], X[a, 2] - X[b, 2])
+        best = -math.inf
+        for q in range(3):
+            sk = s0 if q == 0 else (s1 if q == 1 else s2)
+            if sk >= sj - tol:
+                ck = c0 if q == 0 else (c1 if q == 1 else c2)
+                hk = h0 if q == 0 else (h1 if q == 1 else h2)
+                if abs(ck) - hk > best:
+                    best = abs(ck) - hk
+                    j = q
+        sj = s0 if j == 0 else (s1 if j == 1 else s2)
     o0 = max(s0, 0.0) if j != 0 else 0.0
     o1 = max(s1, 0.0) if j != 1 else 0.0
     o2 = max(s2, 0.0) if j != 2 else 0.0
-    tol = EXTENT_TOL * (h0 + h1 + h2)
     valid = o0 <= tol and o1 <= tol and o2 <= tol
+    if ties == 3 and FV[k, 6] != 0.0:
+        # a vertex of the pair's second box on a corner of the first: the same point as
+        # that corner's own feature against the second box's face (kept); one row per point
+        valid = False
     yj = y0 if j == 0 else (y1 if j == 1 else y2)
     sg = 1.0 if yj >= 0.0 else -1.0
     n0, n1, n2 = D[b, j] * sg, D[b, 3 + j] * sg, D[b, 6 + j] * sg

@@ -47,578 +47,48 @@ from numba import njit, prange
 
 from director_model import _cache
 from director_model._primitives import OK as DMV_OK
-from director_model._primitives import dmv_solve, kahan, quat_increment, quat_matrix
+from director_model._primitives import kahan, quat_increment, quat_matrix
 from director_model.contact import _geometry as G
-from director_model.contact._solver import RES_TOL, ac_residual, lu_apply, pattern, scale_of
-from director_model.contact._solver import solve as ac_solve
+from director_model.contact._parts import (
+    FAIL_DMV,
+    FAIL_INEXACT,
+    FAIL_NONFINITE,
+    FAIL_OUTER,
+    FAIL_PENETRATION,
+    I_FEATURE,
+    I_PAIR,
+    I_RES,
+    I_STEPS,
+    LEN_TOL,
+    NQ,
+    NS,
+    OK,
+    OUTER_MAX,
+    Q_ITER,
+    Q_NCON,
+    Q_OUTER,
+    Q_PEN,
+    Q_RES,
+    Q_SIG,
+    Q_WORK,
+    REDO_MAX,
+    _candidates,
+    _dmv,
+    _fit_gaps,
+    _kahan4,
+    _laws,
+    _loads,
+    _omega_half,
+    _onb,
+    _rate,
+    _same_list,
+    _set_directors,
+    _setup_rows,
+    _stage_solve,
+    _store,
+    _world_omega,
+)  # fmt: skip
 from director_model.system._kernels import _rows
-
-NS = 26
-EPS = 2.220446049250313e-16
-OUTER_MAX = 30
-REDO_MAX = 3
-#: chord Newton steps with a kept factorisation before the full solver
-CHORD = 3
-#: length tolerance: max(|x|, L) x LEN_TOL (m), for gaps (a closed contact), the outer loop
-#: and the penetration check
-LEN_TOL = 16.0 * EPS
-
-OK = 0
-FAIL_SOLVE = 1
-FAIL_OUTER = 2
-FAIL_INEXACT = 3
-FAIL_PENETRATION = 4
-FAIL_DMV = 5
-FAIL_NONFINITE = 6
-
-STATUS_TEXT = {
-    FAIL_SOLVE: "the frictional contact problem did not converge to its certified residual "
-    "within the iteration cap",
-    FAIL_OUTER: "the position stage's gaps did not settle (rotation curvature correction) "
-    "within the iteration cap",
-    FAIL_INEXACT: "a contact configuration that the scheme does not treat exactly",
-    FAIL_PENETRATION: "a contact that was not a candidate would overlap after the step, even "
-    "after redoing it",
-    FAIL_DMV: "a body's rotation equation (discrete Moser-Veselov) has no admissible solution "
-    "(a rotation of 90 degrees or more in one step)",
-    FAIL_NONFINITE: "a non-finite number appeared in the state",
-}
-
-# per-save diagnostics (Q columns)
-Q_PEN = 0  # largest penetration max(-gap) of a closed contact over the steps since the last save
-Q_SIG = 1  # largest Signorini residual
-Q_COUL = 2  # largest Coulomb (cone) residual
-Q_DISS = 3  # largest maximum-dissipation residual
-Q_WORK = 4  # largest work of the contact impulses in one step (J; > 0 is energy gained)
-Q_ITER = 5  # largest number of Newton iterations of one stage
-Q_RES = 6  # largest certified residual of a stage (relative to its impulse scale)
-Q_NCON = 7  # contacts closed at the saved step
-Q_OUTER = 8  # largest number of position-stage passes
-NQ = 9
-
-# info slots on failure
-I_STEPS = 0
-I_PAIR = 1
-I_FEATURE = 2
-I_RES = 3
-NINFO = 4
-
-
-@njit(forceinline=True)
-def _dmv(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2):
-    """director_model._primitives.dmv_solve, compiled once (its IR-level inlining happens
-    here, not at the kernel's call site: numba types an inlined body again at each site)."""
-    return dmv_solve(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2)
-
-
-@njit(forceinline=True)
-def _onb(n0, n1, n2):
-    """Two unit tangents completing the unit normal n (Duff et al., JCGT 6(1), 2017)."""
-    s = 1.0 if n2 >= 0.0 else -1.0
-    a = -1.0 / (s + n2)
-    b = n0 * n1 * a
-    return (1.0 + s * n0 * n0 * a, s * b, -s * n0), (b, s + n1 * n1 * a, -n1)
-
-
-@njit(forceinline=True)
-def _directors(D0, S, i):
-    R = quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
-    return (
-        D0[i, 0] * R[0] + D0[i, 1] * R[3] + D0[i, 2] * R[6],
-        D0[i, 0] * R[1] + D0[i, 1] * R[4] + D0[i, 2] * R[7],
-        D0[i, 0] * R[2] + D0[i, 1] * R[5] + D0[i, 2] * R[8],
-        D0[i, 3] * R[0] + D0[i, 4] * R[3] + D0[i, 5] * R[6],
-        D0[i, 3] * R[1] + D0[i, 4] * R[4] + D0[i, 5] * R[7],
-        D0[i, 3] * R[2] + D0[i, 4] * R[5] + D0[i, 5] * R[8],
-        D0[i, 6] * R[0] + D0[i, 7] * R[3] + D0[i, 8] * R[6],
-        D0[i, 6] * R[1] + D0[i, 7] * R[4] + D0[i, 8] * R[7],
-        D0[i, 6] * R[2] + D0[i, 7] * R[5] + D0[i, 8] * R[8],
-    )
-
-
-@njit(forceinline=True)
-def _set_directors(D0, S, Dm):
-    for i in range(S.shape[0]):
-        R = _directors(D0, S, i)
-        for c in range(9):
-            Dm[i, c] = R[c]
-
-
-@njit(forceinline=True)
-def _loads(B, fb, fv, Dm, Fs, Tb):
-    """Total external force Fs (world) and body torque Tb of the constant point forces."""
-    for i in range(Fs.shape[0]):
-        for c in range(3):
-            Fs[i, c] = 0.0
-            Tb[i, c] = 0.0
-    for j in range(fb.shape[0]):
-        i = fb[j]
-        f0, f1, f2 = fv[j, 0], fv[j, 1], fv[j, 2]
-        Fs[i, 0] += f0
-        Fs[i, 1] += f1
-        Fs[i, 2] += f2
-        y0, y1, y2 = G.to_body(Dm, i, f0, f1, f2)
-        x0, x1, x2 = fv[j, 3], fv[j, 4], fv[j, 5]
-        Tb[i, 0] += x1 * y2 - x2 * y1
-        Tb[i, 1] += x2 * y0 - x0 * y2
-        Tb[i, 2] += x0 * y1 - x1 * y0
-
-
-@njit(forceinline=True)
-def _world_omega(B, Dm, i, P0, P1, P2):
-    """w = D I^-1 P (world angular velocity of body momentum P in body axes)."""
-    return G.body_point(Dm, Dm, i, P0 * B[i, 4], P1 * B[i, 5], P2 * B[i, 6])
-
-
-@njit(forceinline=True)
-def _omega_half(B, Dm, PIH, i):
-    """|w| of the body momentum PIH[i] (body axes): the angular speed of the step."""
-    w0 = PIH[i, 0] * B[i, 4]
-    w1 = PIH[i, 1] * B[i, 5]
-    w2 = PIH[i, 2] * B[i, 6]
-    return math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-
-
-@njit(forceinline=True)
-def _contact_rows(ncand, cb, cg, Jr, rb_):
-    """Rows 3c, 3c+1, 3c+2 of candidate c: directions n, t1, t2 (cg[c, 1:10]) at the points
-    ra (cg[c, 10:13]) of body a and rb (cg[c, 13:16]) of body b; Jr (rows, 12) as the
-    joints': (d, ra x d) for a and -(d, rb x d) for b; rb_ (rows, 2) the bodies."""
-    for c in range(ncand):
-        a = cb[c, 0]
-        b = cb[c, 1]
-        ra0, ra1, ra2 = cg[c, 10], cg[c, 11], cg[c, 12]
-        rb0, rb1, rb2 = cg[c, 13], cg[c, 14], cg[c, 15]
-        for k in range(3):
-            r = 3 * c + k
-            d0, d1, d2 = cg[c, 1 + 3 * k], cg[c, 2 + 3 * k], cg[c, 3 + 3 * k]
-            Jr[r, 0] = d0
-            Jr[r, 1] = d1
-            Jr[r, 2] = d2
-            Jr[r, 3] = ra1 * d2 - ra2 * d1
-            Jr[r, 4] = ra2 * d0 - ra0 * d2
-            Jr[r, 5] = ra0 * d1 - ra1 * d0
-            Jr[r, 6] = -d0
-            Jr[r, 7] = -d1
-            Jr[r, 8] = -d2
-            Jr[r, 9] = -(rb1 * d2 - rb2 * d1)
-            Jr[r, 10] = -(rb2 * d0 - rb0 * d2)
-            Jr[r, 11] = -(rb0 * d1 - rb1 * d0)
-            rb_[r, 0] = a
-            rb_[r, 1] = b
-
-
-@njit(forceinline=True)
-def _mobility(N, B, Dm, Jr, rb_, Y):
-    """Y = M^-1 J^T per row and side: (J_v / m, D I^-1 D^T J_w)."""
-    for r in range(N):
-        for s in range(2):
-            i = rb_[r, s]
-            o = 6 * s
-            if i < 0:
-                for c in range(6):
-                    Y[r, o + c] = 0.0
-                continue
-            im = 1.0 / B[i, 0]
-            Y[r, o] = Jr[r, o] * im
-            Y[r, o + 1] = Jr[r, o + 1] * im
-            Y[r, o + 2] = Jr[r, o + 2] * im
-            t0, t1, t2 = G.to_body(Dm, i, Jr[r, o + 3], Jr[r, o + 4], Jr[r, o + 5])
-            y0, y1, y2 = G.body_point(Dm, Dm, i, t0 * B[i, 4], t1 * B[i, 5], t2 * B[i, 6])
-            Y[r, o + 3] = y0
-            Y[r, o + 4] = y1
-            Y[r, o + 5] = y2
-
-
-@njit(forceinline=True)
-def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
-    """The rows of a stage at (X, Dm): m contacts (cb, cg), then the nj joint rows (their
-    values into gvj); their mobilities Y and rho (3 / trace of a contact's diagonal block,
-    1 / W_jj for a joint row)."""
-    N = 3 * m + nj
-    _contact_rows(m, cb, cg, Jr, rb_)
-    if nj > 0:
-        _rows(rint, rvec, X, Dm, gvj, Jj)
-        for r in range(nj):
-            for c in range(12):
-                Jr[3 * m + r, c] = Jj[r, c]
-            rb_[3 * m + r, 0] = rint[r, 1]
-            rb_[3 * m + r, 1] = rint[r, 2]
-    _mobility(N, B, Dm, Jr, rb_, Y)
-    for c in range(m):
-        t = 0.0
-        for r in range(3 * c, 3 * c + 3):
-            for sd in range(2):
-                if rb_[r, sd] >= 0:
-                    o = 6 * sd
-                    for q in range(6):
-                        t += Jr[r, o + q] * Y[r, o + q]
-        rho[c] = 3.0 / t
-    for j in range(nj):
-        r = 3 * m + j
-        t = 0.0
-        for sd in range(2):
-            if rb_[r, sd] >= 0:
-                o = 6 * sd
-                for q in range(6):
-                    t += Jr[r, o + q] * Y[r, o + q]
-        rho[m + j] = 1.0 / t
-
-
-@njit(forceinline=True)
-def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
-    """Make the gaps of redundant contacts those of a rigid face: the contacts of one pair
-    with one normal (a face on a plane or on a face; at least 4 points) have gaps that are
-    an affine function of their points (a plane evaluated on a plane), but each is rounded
-    on its own, and the four rounded gaps of a resting box are not those of any rigid
-    motion (a twist of a few ulps, over h in the position stage's targets: no impulse meets
-    them all, and Newton's method stalls). Replaced here by their least-squares affine fit
-    over the points' coordinates in the contact plane, which differs from them by that
-    rounding only. grp: (m,) scratch."""
-    for c in range(m):
-        grp[c] = -1
-    for c in range(m):
-        if grp[c] >= 0:
-            continue
-        p = FI[cand[c], 3]
-        n0, n1, n2 = cg[c, 1], cg[c, 2], cg[c, 3]
-        cnt = 0
-        for d in range(c, m):
-            if grp[d] < 0 and FI[cand[d], 3] == p:
-                if cg[d, 1] * n0 + cg[d, 2] * n1 + cg[d, 3] * n2 > 1.0 - 1e-12:
-                    grp[d] = c
-                    cnt += 1
-        if cnt < 4:
-            continue
-        # normal equations of gap = alpha + beta1 s + beta2 t over the group's points
-        # (s, t: coordinates along the tangents of c, about the group's mean point)
-        t10, t11, t12 = cg[c, 4], cg[c, 5], cg[c, 6]
-        t20, t21, t22 = cg[c, 7], cg[c, 8], cg[c, 9]
-        ms = 0.0
-        mt = 0.0
-        for d in range(c, m):
-            if grp[d] == c:
-                a = cb[d, 0]
-                q0, q1, q2 = X[a, 0] + cg[d, 10], X[a, 1] + cg[d, 11], X[a, 2] + cg[d, 12]
-                ms += q0 * t10 + q1 * t11 + q2 * t12
-                mt += q0 * t20 + q1 * t21 + q2 * t22
-        ms /= cnt
-        mt /= cnt
-        S11 = 0.0
-        S12 = 0.0
-        S22 = 0.0
-        Sg = 0.0
-        Sgs = 0.0
-        Sgt = 0.0
-        for d in range(c, m):
-            if grp[d] == c:
-                a = cb[d, 0]
-                q0, q1, q2 = X[a, 0] + cg[d, 10], X[a, 1] + cg[d, 11], X[a, 2] + cg[d, 12]
-                sd = (q0 * t10 + q1 * t11 + q2 * t12) - ms
-                td = (q0 * t20 + q1 * t21 + q2 * t22) - mt
-                S11 += sd * sd
-                S12 += sd * td
-                S22 += td * td
-                Sg += g0[3 * d]
-                Sgs += g0[3 * d] * sd
-                Sgt += g0[3 * d] * td
-        det = S11 * S22 - S12 * S12
-        if not det > 1e-12 * (S11 + S22) ** 2:
-            continue  # the points are (nearly) collinear: no redundancy to remove this way
-        alpha = Sg / cnt
-        b1 = (S22 * Sgs - S12 * Sgt) / det
-        b2 = (S11 * Sgt - S12 * Sgs) / det
-        for d in range(c, m):
-            if grp[d] == c:
-                a = cb[d, 0]
-                q0, q1, q2 = X[a, 0] + cg[d, 10], X[a, 1] + cg[d, 11], X[a, 2] + cg[d, 12]
-                sd = (q0 * t10 + q1 * t11 + q2 * t12) - ms
-                td = (q0 * t20 + q1 * t21 + q2 * t22) - mt
-                g0[3 * d] = alpha + b1 * sd + b2 * td
-
-
-@njit(forceinline=True)
-def _delassus(N, Jr, rb_, Y, W):
-    for r in range(N):
-        for s in range(r, N):
-            w = 0.0
-            for sr in range(2):
-                i = rb_[r, sr]
-                if i < 0:
-                    continue
-                for ss in range(2):
-                    if rb_[s, ss] == i:
-                        o = 6 * sr
-                        p = 6 * ss
-                        w += (Jr[r, o] * Y[s, p] + Jr[r, o + 1] * Y[s, p + 1]
-                              + Jr[r, o + 2] * Y[s, p + 2] + Jr[r, o + 3] * Y[s, p + 3]
-                              + Jr[r, o + 4] * Y[s, p + 4] + Jr[r, o + 5] * Y[s, p + 5])  # fmt: skip
-            W[r, s] = w
-            W[s, r] = w
-
-
-@njit(forceinline=True)
-def _rate(Jr, rb_, r, V, Om):
-    """Row r's rate J_r . (v, w) for body velocities V (nb, 3) and world omegas Om (nb, 3)."""
-    s = 0.0
-    for sd in range(2):
-        i = rb_[r, sd]
-        if i < 0:
-            continue
-        o = 6 * sd
-        s += (Jr[r, o] * V[i, 0] + Jr[r, o + 1] * V[i, 1] + Jr[r, o + 2] * V[i, 2]
-              + Jr[r, o + 3] * Om[i, 0] + Jr[r, o + 4] * Om[i, 1] + Jr[r, o + 5] * Om[i, 2])  # fmt: skip
-    return s
-
-
-@njit(forceinline=True)
-def _impulse_response(N, nb, rb_, Y, z, BA):
-    """The bodies' velocity changes of the row impulses z: BA (nb, 12) = (dv (3), dw (3),
-    sum |terms of dv| (3), sum |terms of dw| (3)), world axes."""
-    for i in range(nb):
-        for c in range(12):
-            BA[i, c] = 0.0
-    for r in range(N):
-        zr = z[r]
-        if zr == 0.0:
-            continue
-        for sd in range(2):
-            i = rb_[r, sd]
-            if i < 0:
-                continue
-            o = 6 * sd
-            for c in range(6):
-                d = zr * Y[r, o + c]
-                BA[i, c] += d
-                BA[i, 6 + c] += abs(d)
-
-
-@njit(forceinline=True)
-def _angular_impulse(N, nb, Jr, rb_, z, DL):
-    """World angular impulses DL (nb, 3) of the row impulses z."""
-    for i in range(nb):
-        for c in range(3):
-            DL[i, c] = 0.0
-    for r in range(N):
-        zr = z[r]
-        if zr == 0.0:
-            continue
-        for sd in range(2):
-            i = rb_[r, sd]
-            if i < 0:
-                continue
-            o = 6 * sd + 3
-            DL[i, 0] += zr * Jr[r, o]
-            DL[i, 1] += zr * Jr[r, o + 1]
-            DL[i, 2] += zr * Jr[r, o + 2]
-
-
-@njit(forceinline=True)
-def _same_list(m, cand, lst, meta):
-    """Whether the stage has the contacts of its last call (cand[0:m] == lst[0:meta[2]]);
-    records them, and drops the kept factorisation if not."""
-    same = meta[2] == m
-    if same:
-        for c in range(m):
-            same = same and lst[c] == cand[c]
-    if not same:
-        meta[0] = 0
-        for c in range(m):
-            lst[c] = cand[c]
-        meta[2] = m
-    return same
-
-
-@njit(forceinline=True)
-def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
-    """u = b + J M^-1 J^T z through the bodies (no W; the size of its terms into ts), the
-    Alart-Curnier function F and the residual. Returns (residual, impulse scale)."""
-    _impulse_response(N, nb, rb_, Y, z, BA)
-    for r in range(N):
-        s = b[r]
-        t = abs(b[r])
-        for sd in range(2):
-            i = rb_[r, sd]
-            if i < 0:
-                continue
-            o = 6 * sd
-            for c in range(6):
-                s += Jr[r, o + c] * BA[i, c]
-                t += abs(Jr[r, o + c]) * BA[i, 6 + c]
-        u[r] = s
-        ts[r] = t
-    sc = scale_of(N, m, nj, rho, b, z)
-    if sc == 0.0:
-        return 0.0, sc
-    return ac_residual(m, nj, mu, rho, z, u, F, 0.0, ts, sc), sc
-
-
-@njit(forceinline=True)
-def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV, DW,
-                 DL, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same,
-                 luflag):  # fmt: skip
-    """Solve one stage from the start value z. First its residual through the bodies (no
-    W); if not converged, chord Newton steps with the factors this stage kept from an
-    earlier step (``LUc``, ``pivc``: valid if ``same``, the same rows as then, and the
-    contacts in the same cases ``patc``; at most CHORD steps, each at least halving the
-    residual); only then W and the full solver (director_model.contact._solver.solve),
-    whose last factors are kept. Returns (status, iterations, residual, Wbuilt); the
-    bodies' velocity changes DV, DW and angular impulses DL of the solution."""
-    N = 3 * m + nj
-    st, it, rr, Wbuilt = _stage_core(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut,
-                                     Ft, piv, nb, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc,
-                                     patc, pat, meta, same, luflag)  # fmt: skip
-    _impulse_response(N, nb, rb_, Y, z, BA)
-    for i in range(nb):
-        for c in range(3):
-            DV[i, c] = BA[i, c]
-            DW[i, c] = BA[i, 3 + c]
-    _angular_impulse(N, nb, Jr, rb_, z, DL)
-    return st, it, rr, Wbuilt
-
-
-@njit(forceinline=True)
-def _stage_core(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, Wbuilt,
-                ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same, luflag):  # fmt: skip
-    """The solve of :func:`_stage_solve`."""
-    N = 3 * m + nj
-    if N == 0:
-        return OK, 0, 0.0, Wbuilt
-    res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
-    if res <= RES_TOL:
-        return OK, 0, res, Wbuilt
-    it = 0
-    if same and meta[0] == 1 and meta[1] == N:
-        pattern(m, mu, rho, z, u, pat)
-        ok = True
-        for k in range(m):
-            ok = ok and pat[k] == patc[k]
-        while ok and it < CHORD:
-            it += 1
-            for r in range(N):
-                dz[r] = -F[r]
-                zt[r] = z[r]
-            lu_apply(LUc, N, pivc, dz)
-            for r in range(N):
-                z[r] += dz[r]
-            rn, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
-            if rn <= RES_TOL:
-                return OK, it, rn, Wbuilt
-            if not rn <= 0.5 * res:
-                # not contracting: back to the start value, the full solver from there
-                for r in range(N):
-                    z[r] = zt[r]
-                res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
-                break
-            res = rn
-    if not Wbuilt:
-        _delassus(N, Jr, rb_, Y, W)
-        Wbuilt = True
-    st, k, rr = ac_solve(
-        m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, 0.0, ts, tst, zb, zbar, luflag
-    )
-    it += k
-    meta[0] = 0
-    if st == 0 and luflag[0] == 1:
-        # keep the last factors (of the Jacobian at the last Newton iterate) for the next steps
-        for r in range(N):
-            pivc[r] = piv[r]
-            for c in range(N):
-                LUc[r, c] = A[r, c]
-        for r in range(N):
-            zt[r] = z[r]
-        pattern(m, mu, rho, z, u, patc)
-        meta[0] = 1
-        meta[1] = N
-    return (OK if st == 0 else FAIL_SOLVE), it, rr, Wbuilt
-
-
-@njit(forceinline=True)
-def _laws(m, mu, rho, z, u, vs, Qs):
-    """Dimensionless law residuals of a solved stage into Qs[0:3] (max with what is there),
-    with Z the stage's largest contact impulse and u the rows' rates including their targets
-    (the gap at the end of the step over h in the position stage): Signorini
-    |min(z_n / Z, u_n / vs)| (vs: L/h in the position stage, so that u_n / vs is the end gap
-    over the scene's length scale L; the largest free rate in the velocity stage); Coulomb
-    (|z_t| - mu z_n)+ / (mu z_n) (over Z if mu z_n = 0); maximum dissipation
-    rho |z_t . u_t + mu z_n |u_t|| / Z^2, zero for stick and for z_t opposite to u_t on the
-    cone's edge."""
-    Z = 0.0
-    for r in range(3 * m):
-        Z = max(Z, abs(z[r]))
-    if Z == 0.0:
-        return
-    for k in range(m):
-        i = 3 * k
-        zn = z[i]
-        Qs[0] = max(Qs[0], abs(min(zn / Z, u[i] / vs)))
-        zt = math.sqrt(z[i + 1] ** 2 + z[i + 2] ** 2)
-        cap = mu[k] * zn
-        Qs[1] = max(Qs[1], max(zt - cap, 0.0) / (cap if cap > 0.0 else Z))
-        ut = math.sqrt(u[i + 1] ** 2 + u[i + 2] ** 2)
-        md = abs(z[i + 1] * u[i + 1] + z[i + 2] * u[i + 2] + cap * ut)
-        Qs[2] = max(Qs[2], rho[k] * md / (Z * Z))
-
-
-@njit(forceinline=True)
-def _store(B, D0, S, X, V, D, W, k):
-    for i in range(S.shape[0]):
-        for c in range(3):
-            X[k, i, c] = S[i, c]
-            V[k, i, c] = S[i, 6 + c]
-            W[k, i, c] = S[i, 20 + c] * B[i, 4 + c]
-        R = _directors(D0, S, i)
-        for c in range(9):
-            D[k, i, c // 3, c % 3] = R[c]
-
-
-@njit(forceinline=True)
-def _candidates(FI, FV, PI, PV, SH, X, Dm, marg, cand, cb, cg, P8, fidx, FO):
-    """Candidate features at (X, Dm): near pairs (bounding spheres within the pair's margin
-    marg[p]), box-box pairs checked for exactness, each valid feature with distance <= margin
-    added (cand: feature index; cb: bodies; cg: gap, n, t1, t2, ra, rb). Returns (status,
-    count, failing pair, failing feature). fidx, FO: scratch."""
-    nq = 0
-    for p in range(PI.shape[0]):
-        kind = PI[p, 0]
-        a = PI[p, 1]
-        b = PI[p, 2]
-        mg = marg[p]
-        if b >= 0 and kind != 0:
-            d0, d1, d2 = X[a, 0] - X[b, 0], X[a, 1] - X[b, 1], X[a, 2] - X[b, 2]
-            if math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - PV[p, 2] - PV[p, 3] > mg:
-                continue
-        if kind == 2:  # box-box
-            ha = (SH[a, 1], SH[a, 2], SH[a, 3])
-            hb = (SH[b, 1], SH[b, 2], SH[b, 3])
-            near, exact = G.box_pair_check(X, Dm, a, b, ha, hb, mg, P8)
-            if not near:
-                continue
-            if not exact:
-                return FAIL_INEXACT, 0, p, -1
-        for f in range(PI[p, 3], PI[p, 3] + PI[p, 4]):
-            fidx[nq] = f
-            nq += 1
-    G.eval_features(FI, FV, fidx, nq, X, Dm, FO)
-    nc = 0
-    for q in range(nq):
-        f = fidx[q]
-        if FO[q, 0] == 0.0 or FO[q, 12] > marg[FI[f, 3]]:
-            continue
-        if FO[q, 1] != 0.0:
-            return FAIL_INEXACT, nc, FI[f, 3], f
-        t, s = _onb(FO[q, 3], FO[q, 4], FO[q, 5])
-        cand[nc] = f
-        cb[nc, 0] = FI[f, 1]
-        cb[nc, 1] = FI[f, 2] if PI[FI[f, 3], 0] != 0 else -1
-        cg[nc, 0] = FO[q, 2]
-        cg[nc, 1], cg[nc, 2], cg[nc, 3] = FO[q, 3], FO[q, 4], FO[q, 5]
-        cg[nc, 4], cg[nc, 5], cg[nc, 6] = t[0], t[1], t[2]
-        cg[nc, 7], cg[nc, 8], cg[nc, 9] = s[0], s[1], s[2]
-        for k in range(6):
-            cg[nc, 10 + k] = FO[q, 6 + k]
-        nc += 1
-    return OK, nc, -1, -1
 
 
 @njit
@@ -821,7 +291,7 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
                 z[3 * m + r] = WJ[r, 0]
             passes = 0
             converged = False
-            for it_o in range(OUTER_MAX):
+            for _ in range(OUTER_MAX):
                 passes += 1
                 for r in range(N):
                     off[r] = 0.0
@@ -1101,15 +571,6 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
     return OK
 
 
-@njit(forceinline=True)
-def _kahan4(hi, lo, d):
-    t0, e0 = kahan(hi[0], lo[0], d[0], True)
-    t1, e1 = kahan(hi[1], lo[1], d[1], True)
-    t2, e2 = kahan(hi[2], lo[2], d[2], True)
-    t3, e3 = kahan(hi[3], lo[3], d[3], True)
-    return (t0, t1, t2, t3), (e0, e1, e2, e3)
-
-
 @njit(cache=True)
 def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep, saves,
                 X, V, D, W, Q, PF, info):  # fmt: skip
@@ -1163,6 +624,7 @@ _cache.tie(
             "_primitives.py",
             "system/_kernels.py",
             "contact/_geometry.py",
+            "contact/_parts.py",
             "contact/_solver.py",
         )
     ],

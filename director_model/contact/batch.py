@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from director_model.contact import _kernels as K
+from director_model.contact import _parts as P
 from director_model.contact.scene import ContactScene
 from director_model.contact.simulate import (
     ContactTrajectory,
@@ -78,7 +79,7 @@ def simulate_contact_batch(scenes, *, dt: float, t_end: float,
     nstep, saves = step_plan(dt, t_end, save_every)
     nbt, nb, ns, npair = len(scenes), len(ref.bodies), saves.shape[0], ref.PI.shape[0]
     D0 = np.empty((nbt, nb, 9))
-    S = np.empty((nbt, nb, K.NS))
+    S = np.empty((nbt, nb, P.NS))
     for k, s in enumerate(scenes):
         D0[k], S[k] = _initial_state(s)
     WS = np.zeros((nbt, max(ref.FI.shape[0], 1), 6))
@@ -87,9 +88,9 @@ def simulate_contact_batch(scenes, *, dt: float, t_end: float,
     V = np.zeros((nbt, ns, nb, 3))
     D = np.zeros((nbt, ns, nb, 3, 3))
     W = np.zeros((nbt, ns, nb, 3))
-    Q = np.zeros((nbt, ns, K.NQ))
+    Q = np.zeros((nbt, ns, P.NQ))
     PF = np.zeros((nbt, ns, npair, 3))
-    info = np.full((nbt, K.NINFO), -1.0)
+    info = np.full((nbt, P.NINFO), -1.0)
     status = np.zeros(nbt, dtype=np.int64)
     rint = ref.asm.rint if ref.asm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
     c0 = time.process_time()
@@ -101,11 +102,11 @@ def simulate_contact_batch(scenes, *, dt: float, t_end: float,
     )  # fmt: skip
     wall = time.perf_counter() - t0
     cpu = time.process_time() - c0
-    ok = status == K.OK
+    ok = status == P.OK
     msgs = [
         ""
         if ok[k]
-        else str(_failure(scenes[k], status[k], info[k], int(info[k, K.I_STEPS]), dt, k))
+        else str(_failure(scenes[k], status[k], info[k], int(info[k, P.I_STEPS]), dt, k))
         for k in range(nbt)
     ]
     return ContactBatchTrajectory(

@@ -253,11 +253,11 @@ class ContactScene:
             FV.append([sa.radius, sa.half_length, sb.radius] + [0.0] * 7)
             self.feature_text.append(tag)
         else:  # box-box: the vertices of each against the faces of the other
-            for (i, j, si, sj, ni, nj) in ((a, b, sa, sb, a_name, b_name),
-                                          (b, a, sb, sa, b_name, a_name)):  # fmt: skip
+            for (i, j, si, sj, ni, nj, rev) in ((a, b, sa, sb, a_name, b_name, 0.0),
+                                               (b, a, sb, sa, b_name, a_name, 1.0)):  # fmt: skip
                 for k, v in enumerate(si.vertices()):
                     FI.append((G.K_BOX_VERTEX, i, j, p))
-                    FV.append(list(v) + list(sj.half_extents) + [0.0] * 4)
+                    FV.append(list(v) + list(sj.half_extents) + [rev] + [0.0] * 3)
                     self.feature_text.append(
                         f"vertex {k} {tuple(v.tolist())} of box {ni!r} against box {nj!r}"
                     )

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from director_model.contact import _kernels as K
+from director_model.contact import _parts as P
 from director_model.contact.scene import ContactScene
 from director_model.errors import InvalidRunError
 from director_model.simulate import step_plan
@@ -127,7 +128,7 @@ def _dt(dt) -> float:
 
 def _initial_state(scene: ContactScene):
     nb = len(scene.bodies)
-    S = np.zeros((nb, K.NS))
+    S = np.zeros((nb, P.NS))
     for i, b in enumerate(scene.bodies):
         S[i, 0:3] = b.position
         S[i, 6:9] = b.velocity
@@ -148,10 +149,10 @@ def _saves(nstep: int, save_every: int, include_start: bool) -> np.ndarray:
 
 def _failure(scene, status, info, done, dt, member=None) -> ContactSolveError:
     t = done * dt
-    p = int(info[K.I_PAIR])
-    f = int(info[K.I_FEATURE])
+    p = int(info[P.I_PAIR])
+    f = int(info[P.I_FEATURE])
     pair = None
-    what = K.STATUS_TEXT.get(int(status), "unknown failure")
+    what = P.STATUS_TEXT.get(int(status), "unknown failure")
     if 0 <= p < len(scene.pair_names):
         pair = scene.pair_names[p]
         what += f" (pair {pair[0]!r}-{pair[1]!r}"
@@ -159,8 +160,8 @@ def _failure(scene, status, info, done, dt, member=None) -> ContactSolveError:
     elif 0 <= f < len(scene.feature_text):
         pair = scene.pair_names[int(scene.FI[f, 3])]
         what += f" ({scene.feature_text[f]})"
-    if status == K.FAIL_SOLVE:
-        what += f"; residual reached {info[K.I_RES]:.3g} of the impulse scale"
+    if status == P.FAIL_SOLVE:
+        what += f"; residual reached {info[P.I_RES]:.3g} of the impulse scale"
     who = "" if member is None else f"member {member}: "
     return ContactSolveError(
         f"{who}contact step {done + 1} starting at t = {t:.9g} s failed: {what}",
@@ -172,10 +173,10 @@ def _trajectory(scene, t, X, V, D, W, Q, PF, nstep, dt, wall, cpu):
     E, _, _ = energy_momentum(scene.asm.bodies, scene.gravity, X, V, D, W)
     return ContactTrajectory(
         t=t, position=X, velocity=V, rotation=D, omega_body=W, energy=E, pair_force=PF,
-        penetration=Q[:, K.Q_PEN], signorini=Q[:, K.Q_SIG], coulomb=Q[:, K.Q_COUL],
-        dissipation=Q[:, K.Q_DISS], contact_work=Q[:, K.Q_WORK],
-        iterations=Q[:, K.Q_ITER].astype(np.int64), residual=Q[:, K.Q_RES],
-        contacts=Q[:, K.Q_NCON].astype(np.int64), passes=Q[:, K.Q_OUTER].astype(np.int64),
+        penetration=Q[:, P.Q_PEN], signorini=Q[:, P.Q_SIG], coulomb=Q[:, P.Q_COUL],
+        dissipation=Q[:, P.Q_DISS], contact_work=Q[:, P.Q_WORK],
+        iterations=Q[:, P.Q_ITER].astype(np.int64), residual=Q[:, P.Q_RES],
+        contacts=Q[:, P.Q_NCON].astype(np.int64), passes=Q[:, P.Q_OUTER].astype(np.int64),
         body_names=scene.asm.names, pair_names=tuple(scene.pair_names), nstep=nstep, dt=dt,
         wall_time_s=wall, cpu_time_s=cpu,
     )  # fmt: skip
@@ -245,9 +246,9 @@ class ContactStepper:
         V = np.zeros((ns, nb, 3))
         D = np.zeros((ns, nb, 3, 3))
         W = np.zeros((ns, nb, 3))
-        Q = np.zeros((ns, K.NQ))
+        Q = np.zeros((ns, P.NQ))
         PF = np.zeros((ns, npair, 3))
-        info = np.full(K.NINFO, -1.0)
+        info = np.full(P.NINFO, -1.0)
         rint = sc.asm.rint if sc.asm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
         c0 = time.thread_time()
         t0 = time.perf_counter()
@@ -259,8 +260,8 @@ class ContactStepper:
         wall = time.perf_counter() - t0
         cpu = time.thread_time() - c0
         step0 = self.nstep_done
-        if status != K.OK:
-            self.nstep_done = step0 + int(info[K.I_STEPS])
+        if status != P.OK:
+            self.nstep_done = step0 + int(info[P.I_STEPS])
             raise _failure(sc, status, info, self.nstep_done, self.dt)
         self.nstep_done = step0 + nstep
         return _trajectory(sc, (step0 + saves) * self.dt, X, V, D, W, Q, PF, nstep, self.dt,

@@ -1,5 +1,5 @@
-"""Cost per step of director_model.contact against MuJoCo's mj_step on the same contact scenes,
-and MuJoCo's creep where the director holds still.
+"""Cost per step of director_model.contact against MuJoCo's mj_step and PyBullet's
+stepSimulation on the same contact scenes, and MuJoCo's creep where the director holds still.
 
 Scenes (SI, dt = 1e-3 s, gravity 9.81 m/s^2, solid shapes of uniform density, the same masses,
 moments, sizes, friction and initial states in both):
@@ -16,16 +16,19 @@ moments, sizes, friction and initial states in both):
 MuJoCo (the installed release): the same bodies with a ``freejoint``, geoms of the same shape
 and mass, ``friction="mu 0 0"`` (condim 3), its default contact parameters, solver Newton,
 once with ``cone="elliptic"`` and once with its default ``cone="pyramidal"``; the C loop
-``mujoco.mj_step(m, d, nstep)``. Director: ``ContactStepper.advance(nstep, save_every=nstep)``.
+``mujoco.mj_step(m, d, nstep)``. PyBullet (the installed release): the same shapes and masses
+in a DIRECT client, its default solver, ``stepSimulation`` called from a Python loop (the
+loop's own cost is in PyBullet's figure). Director:
+``ContactStepper.advance(nstep, save_every=nstep)``.
 Each figure: thread CPU time of ``--steps`` steps after ``--warm`` steps of warm-up (both
-engines in their steady state), the three configurations alternated ``--repeats`` times in
+engines in their steady state), the four configurations alternated ``--repeats`` times in
 one run and the best kept; ns per step and the ratio MuJoCo / director from that run.
 
 Creep: the displacement of the incline box's centre of mass after 10 s in each, and its speed
 over the last second (the exact values are 0).
 
-    python benchmarks/bench_contact_vs_mujoco.py            # table
-    python benchmarks/bench_contact_vs_mujoco.py --quick    # smoke run
+    python benchmarks/bench_contact_vs_engines.py            # table
+    python benchmarks/bench_contact_vs_engines.py --quick    # smoke run
 """
 
 from __future__ import annotations
@@ -137,6 +140,41 @@ def mujoco_model(name, geoms, cone):
     return m, d
 
 
+def pybullet_world(name, geoms):
+    """The same scene in PyBullet (DIRECT, its default solver settings; restitution 0; the
+    plane's friction 1 so that each body-plane pair's combined coefficient, the product, is
+    the body's; box-on-box pairs of the stack get 0.5 x 0.5 = 0.25, which a resting stack
+    without tangential load does not feel). Returns (client, step function)."""
+    import pybullet as pb
+
+    cid = pb.connect(pb.DIRECT)
+    pb.setGravity(0, 0, -G, physicsClientId=cid)
+    pb.setTimeStep(1e-3, physicsClientId=cid)
+    q = (0.0, 0.0, 0.0, 1.0)
+    if name == "incline":
+        q = (0.0, math.sin(THETA / 2), 0.0, math.cos(THETA / 2))  # xyzw, about y
+    plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
+    ground = pb.createMultiBody(0, plane, baseOrientation=q, physicsClientId=cid)
+    pb.changeDynamics(ground, -1, lateralFriction=1.0, restitution=0.0, physicsClientId=cid)
+    for kind, size, mass, mu, pos, quat, vel in geoms:
+        if kind == "sphere":
+            shp = pb.createCollisionShape(pb.GEOM_SPHERE, radius=size[0], physicsClientId=cid)
+        else:
+            shp = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=size, physicsClientId=cid)
+        w, x, y, z = quat
+        b = pb.createMultiBody(mass, shp, basePosition=pos, baseOrientation=(x, y, z, w),
+                               physicsClientId=cid)  # fmt: skip
+        pb.changeDynamics(b, -1, lateralFriction=mu, restitution=0.0, linearDamping=0.0,
+                          angularDamping=0.0, physicsClientId=cid)  # fmt: skip
+        pb.resetBaseVelocity(b, vel, (0, 0, 0), physicsClientId=cid)
+
+    def step(n):
+        for _ in range(n):
+            pb.stepSimulation(physicsClientId=cid)
+
+    return cid, step
+
+
 def _f(a) -> str:
     return " ".join(repr(float(x)) for x in a)
 
@@ -161,24 +199,33 @@ def bench(args):
             m, d = mujoco_model(name, geoms, cone)
             mujoco.mj_step(m, d, nstep=args.warm)
             mjs[cone] = (m, d)
-        best = {"director": math.inf, "elliptic": math.inf, "pyramidal": math.inf}
+        cid, pstep = pybullet_world(name, geoms)
+        pstep(args.warm)
+        best = {"director": math.inf, "elliptic": math.inf, "pyramidal": math.inf,
+                "pybullet": math.inf}  # fmt: skip
         for _ in range(args.repeats):
             best["director"] = min(best["director"], timed(
-                lambda n: st.advance(n, save_every=n), args.steps))  # fmt: skip
+                lambda n, st=st: st.advance(n, save_every=n), args.steps))  # fmt: skip
             for cone, (m, d) in mjs.items():
                 best[cone] = min(best[cone], timed(
                     lambda n, m=m, d=d: mujoco.mj_step(m, d, nstep=n), args.steps))  # fmt: skip
+            best["pybullet"] = min(best["pybullet"], timed(pstep, args.steps))
+        import pybullet as pb
+
+        pb.disconnect(cid)
         rows.append((name, best, int(mjs["elliptic"][1].ncon)))
     print(f"\n# load at the end {os.getloadavg()[0]:.2f}")
     print(
         "\n| scene | contacts (MuJoCo) | director ns/step | MuJoCo elliptic+Newton | "
-        "MuJoCo pyramidal+Newton | elliptic/director | pyramidal/director |"
+        "MuJoCo pyramidal+Newton | PyBullet | elliptic/director | pyramidal/director | "
+        "PyBullet/director |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name, b, ncon in rows:
         print(f"| {name} | {ncon} | {b['director']:.0f} | {b['elliptic']:.0f} | "
-              f"{b['pyramidal']:.0f} | {b['elliptic'] / b['director']:.2f} | "
-              f"{b['pyramidal'] / b['director']:.2f} |")  # fmt: skip
+              f"{b['pyramidal']:.0f} | {b['pybullet']:.0f} | "
+              f"{b['elliptic'] / b['director']:.2f} | {b['pyramidal'] / b['director']:.2f} | "
+              f"{b['pybullet'] / b['director']:.2f} |")  # fmt: skip
 
 
 def creep(args):
