@@ -30,12 +30,12 @@ def test_plan_offers_the_contact_configurations():
     assert sorted(s.integrator for s in specs if s.engine == "pinocchio") == ["ADMM + suite"]
     full = plan([sc], ["pinocchio"], sweep=False, full=True)
     assert sorted(s.integrator for s in full) == ["ADMM + suite", "PGS + suite"]
-    # the director's contact scheme runs through its builder once director_model.contact is
-    # installed; until then its row says why
+    # the director's contact scheme runs through its builder (director_model.contact) and
+    # holds the block exactly
     (d,) = [s for s in specs if s.engine == "director"]
     row = execute(d)
-    assert row["status"] == "unsupported", row["message"]
-    assert "director_model.contact" in row["message"] or "nonsmooth" in row["integrator"]
+    assert row["status"] == "ok", row["message"]
+    assert "nonsmooth" in row["integrator"] and row["verdict"] == "pass"
 
 
 def test_a_contact_scene_runs_end_to_end(tmp_path):
