@@ -40,8 +40,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from references.engines import timing
 from references.engines.integrators import Family, register_family
 from references.engines.stepping import step_plan
+from references.engines.system import _threaded
 from references.errors import Diverged, EngineError, Unsupported
 from references.trajectory import SystemTrajectory
 
@@ -136,6 +138,9 @@ class ContactRunOutput:
     evals_per_step: float = math.nan
     stats: dict = field(default_factory=dict)
     family: str = ""
+    #: the stepping's timing (references.engines.timing), when the builder timed its engine
+    #: calls on the run's stopwatch; None: its wall time stands
+    timing: object = None
 
     @property
     def glue_time_s(self) -> float:
@@ -390,10 +395,12 @@ def run_contact(
     check_settings(engine, settings, mod.SETTINGS)
     if plant is not None:
         settings["_plant"] = plant
+    watch = timing.Stopwatch(timing.cpu_clock(_threaded(engine)))
     t0 = time.perf_counter()
-    res = mod.simulate_contact(
-        scenario, conf.name, float(dt), int(nstep), int(save_every), **settings
-    )
+    with timing.running(watch):  # the builder times its engine calls on it
+        res = mod.simulate_contact(
+            scenario, conf.name, float(dt), int(nstep), int(save_every), **settings
+        )
     wall = time.perf_counter() - t0
     missing = [k for k in ("t", "x", "R", "v", "W", "contacts") if res.get(k) is None]
     if missing:
@@ -429,6 +436,7 @@ def run_contact(
         readback=readback,
         stats=dict(res.get("stats", {}) or {}),
         family=conf.family,
+        timing=watch.timing() if watch.elapsed > 0 else None,
     )
     bad = _first_divergence(scenario, traj)
     if bad is not None:

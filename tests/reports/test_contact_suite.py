@@ -122,3 +122,25 @@ def test_the_docs_refusal_text_is_the_suites():
     assert said in str(err.value)
     page = " ".join(DOCS.read_text().split())
     assert "body 'block' penetrates plane 'ground' by 0.003 m at t = 0" in page
+
+
+def test_a_contact_run_is_timed_in_cpu_time_and_again_by_its_builder(monkeypatch):
+    """A contact builder times its engine calls on the run's stopwatch (the engine's CPU
+    time and its spread, as systems), and the timing pass runs a contact spec again through
+    the contact builder: a system builder would step the bodies without their contacts,
+    with the same number of steps, and its time would be taken for the contact run's."""
+    from references.engines import contact, get_engine
+    from reports.run import timing
+
+    sc = scenarios.load("block_incline_stick").replace(t_end=0.05)
+    spec = RunSpec(sc, "mujoco", "pyramidal", 1e-3)
+    r = execute(spec)
+    assert r["status"] == "ok", r["message"]
+    assert 0 < r["engine_time_s"] <= r["cpu_time_s"] <= r["wall_time_s"] + 1e-9, r
+    assert r["engine_time_spread_s"] >= 0 and 0 < r["cpu_share"] <= 1
+    calls = []
+    real = contact.run_contact
+    monkeypatch.setattr(contact, "run_contact", lambda *a, **k: calls.append(a) or real(*a, **k))
+    got = timing._run_again(get_engine("mujoco"), spec, int(r["nstep"]))
+    assert got is not None and got.engine > 0
+    assert [c[:3] for c in calls] == [("mujoco", sc, "pyramidal")]
