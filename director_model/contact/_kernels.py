@@ -297,6 +297,8 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
                     off[r] = 0.0
                 for c in range(m):
                     off[3 * c] = (g0[3 * c] + corr[3 * c]) / h
+                    off[3 * c + 1] = corr[3 * c + 1] / h
+                    off[3 * c + 2] = corr[3 * c + 2] / h
                 for r in range(nj):
                     off[3 * m + r] = (g0[3 * m + r] + corr[3 * m + r]) / h
                 for r in range(N):
@@ -368,6 +370,15 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
                     for k in range(6):
                         cgN[c, 10 + k] = FO[c, 6 + k]
                     inexN[c] = FO[c, 1] != 0.0
+                    if FI[cand[c], 0] == G.K_PLANE_VERTEX or FI[cand[c], 0] == G.K_BOX_VERTEX:
+                        # a vertex is a material point: its tangential displacement over the
+                        # step against the linear prediction h u_t (the rotation's curvature,
+                        # O(h^2)), so that a sticking vertex stays exactly in place
+                        for q in range(1, 3):
+                            d = _vertex_slip(c, q, cb, cg, Dm, DN, VH, h) - h * u[3 * c + q]
+                            corr[3 * c + q] += d
+                            if z[3 * c] > 0.0:
+                                dmax = max(dmax, abs(d))
                 if nj > 0:
                     _rows(rint, rvec, XN, DN, gvj, Jj)
                     for r in range(nj):
@@ -569,6 +580,27 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
                     PF[ks, p, k] = PFs[p, k]
             ks += 1
     return OK
+
+
+@njit(forceinline=True)
+def _vertex_slip(c, q, cb, cg, Dm, DN, VH, h):
+    """Displacement over the step, along the tangent q (1, 2) of contact c, of the material
+    point of body a at the contact relative to that of body b (none for a plane): h v_half
+    plus the directors' change applied to the point's body-frame offset."""
+    o = 1 + 3 * q
+    t0, t1, t2 = cg[c, o], cg[c, o + 1], cg[c, o + 2]
+    s = 0.0
+    for side in range(2):
+        i = cb[c, side]
+        if i < 0:
+            continue
+        r0, r1, r2 = cg[c, 10 + 3 * side], cg[c, 11 + 3 * side], cg[c, 12 + 3 * side]
+        x0, x1, x2 = G.to_body(Dm, i, r0, r1, r2)
+        p0, p1, p2 = G.body_point(VH, DN, i, x0, x1, x2)
+        d = (t0 * (h * VH[i, 0] + p0 - r0) + t1 * (h * VH[i, 1] + p1 - r1)
+             + t2 * (h * VH[i, 2] + p2 - r2))  # fmt: skip
+        s += d if side == 0 else -d
+    return s
 
 
 @njit(cache=True)
