@@ -45,9 +45,10 @@ def resolve_scenarios(names, all_: bool = False) -> list:
 
     if all_:
         names = scenarios.list_scenarios() + scenarios.list_systems() + scenarios.list_contact()
+        names += scenarios.default_robots()
     elif not names:
         names = scenarios.default_suite() + scenarios.default_systems()
-        names += scenarios.default_contact()
+        names += scenarios.default_contact() + scenarios.default_robots()
     out, seen = [], {}
     for n in names:
         sc = scenarios.load(n)
@@ -534,8 +535,10 @@ def catalog() -> dict:
 
     scs = []
     default = set(scenarios.default_suite()) | set(scenarios.default_systems())
-    default |= set(scenarios.default_contact())
-    for name in scenarios.list_scenarios() + scenarios.list_systems() + scenarios.list_contact():
+    default |= set(scenarios.default_contact()) | set(scenarios.default_robots())
+    every = scenarios.list_scenarios() + scenarios.list_systems() + scenarios.list_contact()
+    # the robot models shipped with the suite (the others need the optional extra `robots`)
+    for name in every + scenarios.default_robots():
         sc = scenarios.load(name)
         scs.append(
             {

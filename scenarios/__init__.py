@@ -10,6 +10,7 @@ The library is one TOML file per scenario in this package's directory (see
     scenarios.default_suite()           # names of the files tagged "default"
     scenarios.list_systems()            # systems of bodies (files in systems/)
     scenarios.list_contact()            # bodies in contact (files in contact/)
+    scenarios.list_robots()             # robot models (files in robots/, ``[model]``)
 
 Invalid files raise :class:`ScenarioError` (a ``ValueError``) naming the file, the field, the
 value and the rule.
@@ -51,6 +52,7 @@ __all__ = [
     "SystemScenario",
     "contact_path",
     "default_contact",
+    "default_robots",
     "default_suite",
     "default_systems",
     "is_library_file",
@@ -108,6 +110,12 @@ def robots_path() -> Path:
 def list_robots() -> list[str]:
     """Names of the library's robot-model scenarios (file stems), sorted."""
     return sorted(p.stem for p in robots_path().glob("*.toml"))
+
+
+def default_robots() -> list[str]:
+    """Names of the library's robot-model scenarios tagged ``"default"`` (those whose model
+    ships with the suite), sorted."""
+    return [name for name in list_robots() if "default" in load(name).tags]
 
 
 def default_systems() -> list[str]:

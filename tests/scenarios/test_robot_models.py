@@ -336,3 +336,21 @@ def test_a_held_prismatic_joint_slides_its_link(tmp_path):
     T = conv.link_pose["b"]
     np.testing.assert_allclose(T[:3, 3], [0.0, 0.05, 0.3], atol=1e-15)
     np.testing.assert_allclose(T[:3, :3], np.eye(3), atol=1e-15)
+
+
+# -- the default suite --------------------------------------------------------------------------
+
+
+def test_the_default_suite_runs_a_shipped_robot_model():
+    # a robot scenario in the default suite needs no optional package: its model ships with the
+    # suite (scenarios/robots/models), and its runs fit the default suite's budget (test_scenarios:
+    # each run <= ~3e4 steps)
+    from reports.suite import catalog, resolve_scenarios
+
+    assert scenarios.default_robots() == ["arm3_swing"]
+    sc = scenarios.load("arm3_swing")
+    assert Path(sc.model.path).resolve().parent == MODELS.resolve()
+    assert round(sc.t_end / sc.dt) <= 30_000 and not sc.dt_sweep
+    assert "arm3_swing" in [s.name for s in resolve_scenarios([])]
+    entry = next(s for s in catalog()["scenarios"] if s["name"] == "arm3_swing")
+    assert entry["default"]
