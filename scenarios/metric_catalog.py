@@ -258,9 +258,13 @@ METRICS: tuple[Metric, ...] = (
         title="max-dissipation residual", short="max dissipation", tolerance=1e-2,
         body=False, contact=True,
     ),
+    # floor: the engines' contact solvers stop at a relative tolerance (MuJoCo's default
+    # tolerance 1e-8, the loosest here): a support force is determined to that, and below it
+    # a change is where the solver stopped (MuJoCo 3.3.7 -> 4.0.0 moved box_resting's from
+    # 6e-12 to 2e-10, flagged as x33 worse by `versions` with a floor of 1e-12)
     Metric(
         "force_sum_error", "1", "the weight each support carries (resting cases): the "
-        "normal forces through it summed, mean over the second half", floor=1e-12,
+        "normal forces through it summed, mean over the second half", floor=1e-8,
         title="support force error [rel.]", short="support force", tolerance=1e-2,
         body=False, contact=True, reference=True,
     ),
