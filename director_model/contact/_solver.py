@@ -311,8 +311,8 @@ def _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst
 
 
 @njit
-def solve(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
-          luflag):  # fmt: skip
+def _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
+                luflag):  # fmt: skip
     """Solve the problem from the start value z (overwritten by the solution; u its
     velocities). Returns (status, Newton iterations, certified residual).
 
@@ -353,6 +353,27 @@ def solve(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, 
     sc = scale_of(N, m, nj, rho, b, z)
     res = ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc)
     return (OK if res <= RES_TOL else FAIL), it, res
+
+
+@njit
+def solve(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
+          luflag):  # fmt: skip
+    """Solve the problem from the start value z (overwritten by the solution; u its
+    velocities). Returns (status, Newton iterations, certified residual): see
+    :func:`_solve_from`. A warm start (the last step's impulses) can leave Newton and the
+    proximal sequence stalled where the contacts' forces are indeterminate (a face resting
+    between stick and slip: a box coming to rest with four corners); the problem is then
+    solved again from z = 0 (measured: a tumbling box's velocity stage, 2575 iterations to
+    4.3e-8 from the warm start, 23 iterations to 8e-17 from 0)."""
+    st, it, res = _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
+                              tst, zb, zbar, luflag)  # fmt: skip
+    if st == OK:
+        return st, it, res
+    for r in range(3 * m + nj):
+        z[r] = 0.0
+    st, k, res = _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
+                             tst, zb, zbar, luflag)  # fmt: skip
+    return st, it + k, res
 
 
 @njit(forceinline=True)
