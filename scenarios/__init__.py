@@ -114,8 +114,24 @@ def list_robots() -> list[str]:
 
 def default_robots() -> list[str]:
     """Names of the library's robot-model scenarios tagged ``"default"`` (those whose model
-    ships with the suite), sorted."""
-    return [name for name in list_robots() if "default" in load(name).tags]
+    ships with the suite), sorted. The tags are read from each file as written, without
+    reading its model: a model from an optional package that is not installed (the
+    ``robots`` extra) keeps neither the default suite nor the catalog from loading."""
+    return [
+        name for name in list_robots() if "default" in _written_tags(robots_path() / f"{name}.toml")
+    ]
+
+
+def _written_tags(path: Path) -> list:
+    """The ``tags`` a scenario file declares, read from the TOML alone; a file that cannot
+    be read that way is loaded in full, so that its error is the loader's."""
+    import tomllib
+
+    try:
+        tags = tomllib.loads(path.read_text(encoding="utf-8-sig")).get("tags", [])
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return list(load_file(path).tags)
+    return tags if isinstance(tags, list) else list(load_file(path).tags)
 
 
 def default_systems() -> list[str]:

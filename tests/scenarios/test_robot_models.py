@@ -341,6 +341,22 @@ def test_a_held_prismatic_joint_slides_its_link(tmp_path):
 # -- the default suite --------------------------------------------------------------------------
 
 
+def test_the_default_suite_and_catalog_load_without_the_robots_extra(monkeypatch):
+    """No model package installed (the README's quickstart installs the engines only): the
+    default suite, --all and the catalog still load; the library's scenarios of optional
+    models are not read for them."""
+    from reports.suite import catalog, resolve_scenarios
+    from scenarios.models import library
+
+    monkeypatch.delenv("EXAMPLE_ROBOT_DATA_DIR", raising=False)
+    monkeypatch.setattr(library, "_erd_roots", lambda: [])
+    with pytest.raises(Exception, match="not found in example-robot-data"):
+        scenarios.load("go2_float")  # the package is out of reach
+    assert "arm3_swing" in [s.name for s in resolve_scenarios([])]
+    assert "arm3_swing" in [s.name for s in resolve_scenarios([], all_=True)]
+    assert any(s["name"] == "arm3_swing" for s in catalog()["scenarios"])
+
+
 def test_the_default_suite_runs_a_shipped_robot_model():
     # a robot scenario in the default suite needs no optional package: its model ships with the
     # suite (scenarios/robots/models), and its runs fit the default suite's budget (test_scenarios:
