@@ -96,10 +96,6 @@ class Integrator:
     ``default``: part of the default suite; an engine with many configurations keeps the
     ones that answer the suite's questions at a cost that fits, the rest run on request
     (``director-bench run --full`` or ``--integrators``).
-    ``sweep_halvings``: halvings of the smallest step of a scenario's dt sweep run beyond the
-    sweep in a suite (not with explicit steps or without the sweep): for an integrator cheap
-    enough to follow its error down to the round-off floor (the director model's high-order
-    compositions), whose work-precision curve would otherwise stop above it.
     ``family_on_a_ball``: the family of the algorithm the engine actually runs on a pivoted
     body (a ball joint), where it differs from ``family`` (MuJoCo's implicitfast drops the
     gyroscopic derivative on a ball joint, which leaves its Euler step); the run records it
@@ -117,7 +113,6 @@ class Integrator:
     tolerances: Mapping[str, float] = field(default_factory=dict)
     adaptive: bool = False
     default: bool = True
-    sweep_halvings: int = 0
     family_on_a_ball: str | None = None
 
     def __post_init__(self):

@@ -73,12 +73,22 @@ def config_label(row, with_step: bool = False) -> str:
         return reference_label(row)
     sep = " + suite " if truthy(row.get("suite_integrated")) else " "
     text = f"{row['engine']}{sep}{row['integrator']}"
+    if on_cpu_alone(row):
+        text += " (one instance, CPU)"
     acc = num(row.get("target_accuracy"))
     if not math.isnan(acc):
         text += f" tol {fmt_level(acc)}"
     elif with_step:
         text += f" dt {fmt_step(row['dt'])} s"
     return text
+
+
+def on_cpu_alone(row) -> bool:
+    """Whether the run stepped one instance of a batched accelerator engine on the CPU (MJX
+    records its JAX device in its settings): not how such an engine is meant to run, which
+    its label says."""
+    text = row.get("settings")
+    return isinstance(text, str) and '"device": "cpu"' in text
 
 
 def scaled_label(label: str, rows, scale_col: str | None, unit: str) -> str:

@@ -54,9 +54,11 @@ from reports.report.labels import (
     config_label,
     engine_key,
     family_key,
+    on_cpu_alone,
     reference_label,
     scaled_label,
 )
+from reports.report.precision import cost_of, outlook
 from reports.store.format import fmt, fmt_step, truthy
 from reports.store.results import records, reference_rows
 from reports.store.runs import slug
@@ -508,16 +510,18 @@ WP_RELEVANT = 0.1
 
 
 def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
-    """Max attitude error against the time spent inside the engine (the suite's glue left out,
-    so a suite-integrated configuration's cost is its engine's dynamics), one line per
-    configuration in dt order; error-controlled runs in target-accuracy order, open markers.
-    Configurations never within WP_RELEVANT rad, or with no finished run, are named under the
-    figure, not drawn."""
+    """Max attitude error against the cost a user pays (reports.report.precision.cost_of:
+    the CPU time inside the engine's calls, the suite's glue left out; for a ``+ suite``
+    configuration the whole step's CPU time), one line per configuration in dt order (every
+    configuration ran the scenario's sweep); error-controlled runs in target-accuracy order,
+    open markers. Configurations never within WP_RELEVANT rad, or with no finished run, are
+    named under the figure, not drawn; those still converging at the smallest step are named
+    too (a smaller step was not tried)."""
     every = df[(df["scenario"] == scenario) & ~reference_rows(df)]
     every = every[~every["status"].isin(NOT_RUN)]
     sub = every[(every["status"] == "ok")]
     sub = sub[np.isfinite(sub["attitude_error_max"])]
-    cost = sub["engine_time_s"].where(sub["engine_time_s"] > 0, sub["wall_time_s"])
+    cost = [cost_of(r) for r in records(sub)]
     sub = sub.assign(cost=cost)
     sub = sub[sub["cost"] > 0]
     if sub.empty:
@@ -534,10 +538,9 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     )
     bottom = max(FLOOR, float(sub["attitude_error_max"].clip(lower=FLOOR).min()) / 3.0)
     drawn = []
-    for (eng, integ), g in configs:
+    for _config, g in configs:
         first = g.iloc[0]
-        sep = " + suite " if truthy(first["suite_integrated"]) else " "
-        name = f"{eng}{sep}{integ}"
+        name = _wp_name(first)
         if not (g["attitude_error_max"] <= WP_RELEVANT).any():
             left_out.append(f"{name} (best {fmt(g['attitude_error_max'].min())} rad)")
             continue
@@ -567,9 +570,9 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     ax.set_ylim(bottom, CAPS["attitude_error"])
     _log_axes(ax, x=True)
     ax.set(
-        xlabel="time inside the engine's calls [s] (suite glue excluded)",
+        xlabel="CPU time inside the engine's calls [s] (+ suite: of the whole step)",
         ylabel="max attitude error [rad]",
-        title=f"{scenario}: work-precision (points: the dt sweep)",
+        title=f"{scenario}: work-precision (points: the dt sweep, the same for all)",
     )
     ax.grid(True, which="major", alpha=0.3)
     _legend(ax)
@@ -580,6 +583,12 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         parts.append(f"Not drawn, never within {WP_RELEVANT:g} rad: " + name_list(left_out))
     if unfinished:
         parts.append("Not drawn, no run finished: " + name_list(unfinished))
+    falling = _still_falling(every, drawn)
+    if falling:
+        parts.append(
+            "Still converging at the sweep's smallest step (a smaller one not tried): "
+            + name_list(falling)
+        )
     alt = (
         f"{scenario}: max attitude error against the time spent inside the engine, log-log, "
         f"for {len(drawn)} configuration(s)"
@@ -589,6 +598,28 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     return _save(
         fig, out / f"{slug(scenario)}__work_precision.png", alt=alt, notes="\n".join(parts)
     )
+
+
+def _wp_name(row) -> str:
+    """A configuration's name in the work-precision figure: ``engine [+ suite] integrator``,
+    and MJX stepped alone on a CPU says so (reports.report.labels.on_cpu_alone)."""
+    sep = " + suite " if truthy(row["suite_integrated"]) else " "
+    alone = " (one instance, CPU)" if on_cpu_alone(row) else ""
+    return f"{row['engine']}{sep}{row['integrator']}{alone}"
+
+
+def _still_falling(every, drawn: list[str]) -> list[str]:
+    """The drawn fixed-step configurations whose error was still falling at the smallest
+    step they ran (reports.report.precision.outlook at a level below all their errors)."""
+    out = []
+    for _config, g in every.groupby(["engine", "integrator"]):
+        rows = records(g)
+        if rows[0]["target_accuracy"] == rows[0]["target_accuracy"]:  # error-controlled
+            continue
+        name = _wp_name(rows[0])
+        if name in drawn and outlook(rows, 0.0)[0] == "not tried":
+            out.append(name)
+    return out
 
 
 def _adaptive_gid(name: str) -> str:

@@ -59,9 +59,9 @@ def readme_block(df, level: float = 1e-8, scenarios=None, families=None, command
         "",
         md_table(header, rows),
         f"Work precision: the cheapest configuration reaching a max attitude error of "
-        f"{fmt_level(level)} rad, ranked by the time inside the engine (the cost ratios of the "
-        "next ones by the same measure; `+ suite`: the time loop is the suite's Python around "
-        "the engine's dynamics):",
+        f"{fmt_level(level)} rad, ranked by the CPU time inside the engine (the cost ratios of "
+        "the next ones by the same measure; `+ suite`: the time loop is the suite's Python "
+        "around the engine's dynamics, ranked by its whole step's CPU time):",
         "",
     ]
     for scenario in scenarios_of(df):
@@ -74,7 +74,9 @@ def readme_block(df, level: float = 1e-8, scenarios=None, families=None, command
         nxt = ", ".join(f"{e['configuration']} x{fmt(e['cost_ratio'])}" for e in ranked[1:4])
         out.append(
             f"- {scenario}: {first['configuration']} "
-            f"({fmt(first['engine_time_s'])} s in the engine, {fmt(first['wall_time_s'])} s wall)"
+            f"({fmt(first['cost_s'])} s CPU"
+            + (" for the whole step" if first["suite_integrated"] else " in the engine")
+            + ")"
             + (f"; then {nxt}" if nxt else "")
         )
     return "\n".join(out) + "\n"

@@ -285,19 +285,38 @@ def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
     doc.close_details()
 
 
-def wp_cell(entry, winner: bool) -> tuple[str, str]:
+def wp_cost(entry) -> str:
+    """The cost of a work-precision answer: the engine's CPU time, or for a ``+ suite``
+    configuration the whole step's with the engine's beside it."""
+    if entry["suite_integrated"]:
+        return f"{fmt(entry['cost_s'])} s whole step ({fmt(entry['engine_time_s'])} s engine)"
+    return f"{fmt(entry['cost_s'])} s"
+
+
+def wp_cell(entry, winner: bool, missed=None) -> tuple[str, str]:
     """(Markdown, HTML) of one engine's answer at one accuracy: its cheapest configuration
-    (the engine named in the row), the time inside the engine and the ratio to the cheapest
-    of all engines (the overall winner in bold)."""
+    (the engine named in the row), its cost (:func:`wp_cost`) and the ratio to the cheapest
+    of all engines (the overall winner in bold); without one, ``missed`` ({answer, why} of
+    the engine's configurations that did not reach it): *not tried* (still converging at
+    the smallest step run, with where it stood) or *does not reach*."""
     if entry is None:
-        return "-", "<span class='none'>-</span>"
+        if not missed:
+            return "-", "<span class='none'>-</span>"
+        tried = [m for m in missed if m["answer"] == "not tried"]
+        pick = tried[0] if tried else missed[0]
+        conf = pick["configuration"][len(pick["engine"]) :].strip()
+        word = "not tried" if tried else "does not reach"
+        # the word in the cell (the table fits 800 px), where it stood in its title and in
+        # the scenario's own table
+        title = html.escape(f"{conf}: {pick['why']}", quote=True)
+        return f"*{word}*", f"<span class='none' title='{title}'>{word}</span>"
     conf = entry["configuration"][len(entry["engine"]) :].strip()
     # semi_explicit_euler may break at its underscores, "dt 0.002 s" nowhere
     conf_html = re.sub(r"dt (\S+) s$", "dt&nbsp;\\1&nbsp;s", html.escape(conf)).replace(
         "_", "_<wbr>"
     )
     ratio = "cheapest" if winner else f"x{fmt(entry['cost_ratio'])}"
-    cost = f"{fmt(entry['engine_time_s'])} s, {ratio}"
+    cost = f"{wp_cost(entry)}, {ratio}"
     if winner:
         return (
             f"**{md_cell(conf)}**<br>{cost}",
@@ -311,8 +330,8 @@ def wp_cell(entry, winner: bool) -> tuple[str, str]:
 
 def work_precision_section(doc: Doc, df) -> None:
     """Per scenario and engine, the cheapest configuration of that engine reaching each level
-    of max attitude error, with its time inside the engine and its ratio to the cheapest of
-    all engines."""
+    of max attitude error, with its cost and its ratio to the cheapest of all engines; where
+    none reaches it, whether the engine was not tried there or does not reach it."""
     levels = ACCURACY_LEVELS
     header = ["scenario", "engine", *(f"≤ {fmt_level(lv)} rad" for lv in levels)]
     rows = []
@@ -328,51 +347,30 @@ def work_precision_section(doc: Doc, df) -> None:
             for lv in wp:
                 mine = [e for e in lv["ranked"] if e["engine"] == eng]
                 winner = bool(mine) and lv["ranked"][0] is mine[0]
-                m, h = wp_cell(mine[0] if mine else None, winner)
+                missed = [m for m in lv["not_reached"] if m["engine"] == eng]
+                m, h = wp_cell(mine[0] if mine else None, winner, missed)
                 row.append(Cell(md=m, html_=h, cls="win" if winner else ""))
             rows.append(row)
     text = (
         "For each engine, its cheapest configuration reaching each max attitude error (fixed "
-        "steps and error-controlled runs alike), with the time spent inside the engine's own "
-        "calls (`engine_time_s`) and its ratio to the cheapest of all engines (in bold, "
-        "`cheapest`); `-`: no configuration of that engine reaches the level. `+ suite` "
-        "marks a configuration whose time loop is the suite's own Python around the engine's "
-        "dynamics: its wall time measures our code, so no ratio here uses it. An error below "
-        "the reference's accuracy reaches no level below that accuracy. For a system of "
-        "bodies the attitude error is the largest over its bodies." + _finer_sweep_note(df)
+        "steps and error-controlled runs alike) and its cost: the CPU time spent inside the "
+        "engine's own calls (`engine_time_s`: the time the run waited for a CPU on a busy "
+        "machine is not in it), and its ratio to the cheapest of all engines (in bold, "
+        "`cheapest`). `+ suite` marks a configuration whose time loop is the suite's own "
+        "Python around the engine's dynamics: it is ranked by the CPU time of the whole step "
+        "(`cpu_time_s`), what its user pays, with the engine's beside it. Every "
+        "configuration of a scenario ran the same steps (the scenario's sweep) or targets; "
+        "where none of an engine's reaches a level, *not tried* says that its error was still "
+        "falling at the smallest step (and about what step would reach it), *does not reach* "
+        "that no run finished or its error stopped falling. An error below the reference's "
+        "accuracy reaches no level below that accuracy. For a system of bodies the attitude "
+        "error is the largest over its bodies."
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
     # seven columns of configurations and times (names break at underscores) fit 800 px;
     # cards on a narrower screen
     doc.table(
         "Cheapest configuration of each engine per accuracy", header, rows, cls="wp narrow-stack"
-    )
-
-
-def _finer_sweep_note(df) -> str:
-    """The sentence naming the configurations that ran steps below the shared dt sweep, read
-    from the rows: a scenario's sweep ends at the smallest step most of its configurations
-    ran, and a configuration's halvings are its distinct steps below that."""
-    finer = []
-    halvings: dict[tuple[str, str], int] = {}
-    for _, sc in df.groupby("scenario"):
-        smallest = sc.groupby(["engine", "integrator"])["dt"].min()
-        if smallest.empty:
-            continue
-        sweep_end = smallest.mode().max()
-        for key, g in sc.groupby(["engine", "integrator"]):
-            n = int((g["dt"].drop_duplicates() < sweep_end * (1 - 1e-9)).sum())
-            halvings[key] = max(halvings.get(key, 0), n)
-    for (engine, name), n in sorted(halvings.items()):
-        if n:
-            finer.append(f"{engine} {name} ({n} halvings)")
-    if not finer:
-        return ""
-    return (
-        " Every configuration ran each scenario's dt sweep; " + ", ".join(finer) + " also "
-        "ran halvings of the smallest step (milliseconds of stepping, so that their "
-        "curves reach the round-off floor); the others were not run there, where each would "
-        "cost more than at its smallest swept step."
     )
 
 
@@ -549,15 +547,22 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
         "attitude error ≤",
         "cheapest",
         "its error [rad]",
-        "engine time [s]",
+        "cost [s]",
         "wall time [s]",
-        "next cheapest (engine-time ratio)",
+        "next cheapest (cost ratio)",
     ]
     body = []
     for lv in wp:
         r = lv["ranked"]
         if not r:
-            body.append([num(None, fmt_level(lv["level"])), "none of the runs", "", "", "", ""])
+            tried = [m for m in lv["not_reached"] if m["answer"] == "not tried"]
+            why = (
+                "none reaches it; not tried: "
+                + ", ".join(f"{m['configuration']} ({m['why']})" for m in tried[:3])
+                if tried
+                else "none of the runs"
+            )
+            body.append([num(None, fmt_level(lv["level"])), why, "", "", "", ""])
             continue
         first = r[0]
         nxt = ", ".join(f"{e['configuration']} x{fmt(e['cost_ratio'])}" for e in r[1:5])
@@ -566,7 +571,7 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
                 num(None, fmt_level(lv["level"])),
                 first["configuration"],
                 num(None, fmt_attitude(first)),
-                num(first["engine_time_s"]),
+                num(None, wp_cost(first)),
                 num(first["wall_time_s"]),
                 nxt or "-",
             ]

@@ -98,6 +98,7 @@ def summary(df, prov: dict | None = None, card: list | None = None) -> dict:
             {
                 "level": lv["level"],
                 "ranked": [{k: json_value(v) for k, v in e.items()} for e in lv["ranked"]],
+                "not_reached": lv["not_reached"],
             }
             for lv in work_precision(df[df["scenario"] == scenario])
         ]

@@ -20,6 +20,7 @@ from reports.report.labels import (
     is_failure,
     reference_engines,
 )
+from reports.report.precision import cost_of, outlook
 from reports.store.format import num, truthy
 from reports.store.results import default_dt, records, reference_rows
 
@@ -94,52 +95,57 @@ def scorecard(df) -> list[dict]:
     return out
 
 
-def cost_of(row) -> float:
-    """The cost ranked by: the time spent inside the engine's own calls (engine_time_s), so
-    that no ratio measures the suite's glue; the wall time where an engine reports none."""
-    t = num(row.get("engine_time_s"))
-    return t if t > 0 else num(row.get("wall_time_s"))
-
-
 def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
     """For each level of max attitude error: every configuration (engine, integrator) that
     reaches it with its cheapest such run (fixed steps and error-controlled points alike),
-    cheapest first, with the cost ratio to the cheapest (by engine time; wall times given as
-    figures). An error below the reference's accuracy does not reach a level below that
-    accuracy: it is not a measurement."""
-    ok = records(sub[(sub["status"] == "ok") & ~reference_rows(sub)])
+    cheapest first by the cost a user pays (:func:`reports.report.precision.cost_of`: the
+    engine's CPU time; for a ``+ suite`` configuration the whole step's), with the cost
+    ratio to the cheapest; and every other configuration that ran, with why not
+    (``not tried``: still converging at the smallest step run; ``does not reach``:
+    :func:`reports.report.precision.outlook`). An error below the reference's accuracy does
+    not reach a level below that accuracy: it is not a measurement."""
+    rows = records(sub[~reference_rows(sub) & ~sub["status"].isin(NOT_RUN)])
+    configs: dict[tuple, list] = {}
+    for r in rows:
+        configs.setdefault((r["engine"], r["integrator"]), []).append(r)
     out = []
     for level in levels:
-        best = {}
-        for r in ok:
-            err = num(r["attitude_error_max"])
-            acc = num(r["reference_accuracy"])
-            reached = max(err, 0.0 if math.isnan(acc) else acc)
-            cost = cost_of(r)
-            if not (reached <= level) or not (cost > 0):
-                continue
-            key = (r["engine"], r["integrator"])
-            if key not in best or cost < cost_of(best[key]):
-                best[key] = r
-        ranked = sorted(best.values(), key=cost_of)
-        entries = []
-        for r in ranked:
-            entries.append(
-                {
-                    "configuration": config_label(r, with_step=True),
-                    "engine": r["engine"],
-                    "integrator": r["integrator"],
-                    "suite_integrated": truthy(r["suite_integrated"]),
-                    "dt": float(r["dt"]),
-                    "target_accuracy": num(r["target_accuracy"]),
-                    "attitude_error_max": num(r["attitude_error_max"]),
-                    "reference_accuracy": num(r["reference_accuracy"]),
-                    "engine_time_s": num(r["engine_time_s"]),
-                    "wall_time_s": num(r["wall_time_s"]),
-                    "cost_ratio": cost_of(r) / cost_of(ranked[0]),
-                }
-            )
-        out.append({"level": level, "ranked": entries})
+        reached, missed = [], []
+        for (eng, integ), runs in configs.items():
+            word, what = outlook(runs, level)
+            if word == "reached":
+                reached.append(what)
+            else:
+                label = config_label(runs[0])
+                missed.append(
+                    {
+                        "configuration": label,
+                        "engine": eng,
+                        "integrator": integ,
+                        "answer": word,
+                        "why": what,
+                    }  # fmt: skip
+                )
+        ranked = sorted(reached, key=cost_of)
+        entries = [
+            {
+                "configuration": config_label(r, with_step=True),
+                "engine": r["engine"],
+                "integrator": r["integrator"],
+                "suite_integrated": truthy(r["suite_integrated"]),
+                "dt": float(r["dt"]),
+                "target_accuracy": num(r["target_accuracy"]),
+                "attitude_error_max": num(r["attitude_error_max"]),
+                "reference_accuracy": num(r["reference_accuracy"]),
+                "cost_s": cost_of(r),
+                "engine_time_s": num(r["engine_time_s"]),
+                "cpu_time_s": num(r.get("cpu_time_s")),
+                "wall_time_s": num(r["wall_time_s"]),
+                "cost_ratio": cost_of(r) / cost_of(ranked[0]),
+            }
+            for r in ranked
+        ]
+        out.append({"level": level, "ranked": entries, "not_reached": missed})
     return out
 
 

@@ -46,8 +46,8 @@ def plan(
     else :data:`DEFAULT_ACCURACIES` (:data:`FULL_ACCURACIES` with ``full``); they run at the
     scenario's own ``dt`` with about :data:`ADAPTIVE_CHECKPOINTS` checkpoints).
 
-    ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep`` and, for an
-    integrator with ``sweep_halvings``, that many halvings of the smallest.
+    ``dts`` None: each scenario's ``dt`` plus, with ``sweep``, its ``dt_sweep``: the same
+    steps for every configuration.
     ``integrators`` None: each engine's default-suite integrators (every one with ``full``);
     else only those named (an engine offering none of them contributes nothing).
     ``save_every`` overrides the scenarios' decimation; ``segment`` streams the metrics over
@@ -100,15 +100,8 @@ def plan(
                     every = save_every or max(keep, round(horizon / h) // ADAPTIVE_CHECKPOINTS)
                     common = (t_end, every, segment, versions[name])
                     specs += [RunSpec(sc, name, integ, h, *common, float(a)) for a in accs]
-                else:
-                    # a system's sweep is its file's (the halvings serve the fast tops)
-                    swept = sweep and not dts and not getattr(sc, "is_system", False)
-                    run_at = steps_e + _halvings(
-                        offers.get(integ) or cls.integrator(integ), steps, swept
-                    )
-                    for h in run_at[len(steps_e) :]:
-                        _check_states(sc, h, horizon, keep, segment, max_states)
-                    specs += [RunSpec(sc, name, integ, h, *common) for h in run_at]
+                else:  # every configuration of a scenario runs the same steps
+                    specs += [RunSpec(sc, name, integ, h, *common) for h in steps_e]
     return specs
 
 
@@ -150,14 +143,6 @@ def _check_input(sc, steps: list[float], horizon: float) -> None:
     problems += [f"{f} = {v:.3g}: {rule}" for f, v, rule in magnitude_problems(sc, horizon)]
     if problems:
         raise InputError(f"scenario {sc.name!r}: {problems[0]}")
-
-
-def _halvings(integ, steps: list[float], swept: bool) -> list[float]:
-    """The steps an integrator runs below a scenario's sweep (``Integrator.sweep_halvings``
-    halvings of the smallest), only in a sweep the user did not set."""
-    if not swept or not integ.sweep_halvings:
-        return []
-    return [steps[-1] / 2**k for k in range(1, integ.sweep_halvings + 1)]
 
 
 #: bytes of memory a run needs per state it keeps (the trajectory, its reference and the

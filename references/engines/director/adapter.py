@@ -55,10 +55,6 @@ def _integrators() -> tuple[Integrator, ...]:
             description=(scheme.__doc__ or "").strip().splitlines()[0],
             evals_per_step=_evals_per_step(scheme),
             tolerances=_promises(dm, scheme),
-            # two halvings below a scenario's smallest swept step for the compositions of
-            # order 4 and 6: milliseconds of stepping, and rattle6 then reaches 1e-10 rad on
-            # the library's fast tops (cone_top, heavy_top, simo_wong_top)
-            sweep_halvings=2 if scheme.order >= 4 else 0,
         )
         for name, scheme in dm.SCHEMES.items()
     )
