@@ -32,6 +32,7 @@ from director_model.contact import (
     ContactScene,
     Cylinder,
     InvalidContactError,
+    Joint,
     Pair,
     Plane,
     Sphere,
@@ -351,3 +352,28 @@ def test_tumbling_box_1e5_steps_within_the_laws():
     _check_long_run(tr)
     disp = np.abs(tr.position[-1] - tr.position[len(tr.t) // 2]).max()
     assert disp <= 1e-12  # at rest for the second half: exact stick, no drift
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_hinged_body_resting_on_the_ground_obeys_the_moment_balance(mu):
+    # a sphere (r 0.1, 1 kg) hinged (revolute about y) to the ground at its centre's height,
+    # 0.5 m from its centre, resting on the ground under its centre: no motion; the ground's
+    # force (f_x, 0, N) at (0.5, 0, 0) and gravity at the centre balance about the hinge's
+    # axis: 0.5 m g - 0.1 f_x - 0.5 N = 0, i.e. N + f_x / 5 = m g (f_x, shared with the
+    # hinge, is statically indeterminate when mu > 0; without friction N = m g)
+    sph = Sphere(0.1)
+    ball = Body("ball", 1.0, sph.inertia(1.0), position=(0.5, 0.0, 0.1))
+    hinge = Joint("revolute", "ball", None, anchor_a=(-0.5, 0.0, 0.0), anchor_b=(0.0, 0.0, 0.1),
+                  axis_a=(0.0, 1.0, 0.0), axis_b=(0.0, 1.0, 0.0))  # fmt: skip
+    scene = ContactScene([ball], {"ball": sph}, {"ground": Plane((0.0, 0.0, 1.0), 0.0)},
+                         [Pair("ball", "ground", mu=mu)], joints=[hinge],
+                         gravity=(0.0, 0.0, -G))  # fmt: skip
+    tr = _run(scene, dt=1e-3, t_end=2.0, save_every=100)
+    assert np.abs(tr.position - tr.position[0]).max() <= 1e-12
+    f = tr.pair_force[1:, 0]
+    np.testing.assert_allclose(f[:, 2] + f[:, 0] / 5, G, rtol=0, atol=1e-11 * G)
+    assert np.abs(f[:, 1]).max() <= 1e-11 * G
+    assert np.all(np.hypot(f[:, 0], f[:, 1]) <= mu * f[:, 2] + 1e-11 * G)  # inside the cone
+    if mu == 0.0:
+        np.testing.assert_allclose(f[:, 2], G, rtol=0, atol=1e-11 * G)
+    assert tr.penetration.max() <= 1e-12
