@@ -249,13 +249,11 @@ def status_change(a: str, b: str) -> str:
 
 
 def starved(row) -> bool:
-    """Whether a run's engine time was measured starved: no timing of it ran clean enough
-    that the engine's CPU time is known within :data:`references.engines.timing.STARVED` of
-    itself (``engine_time_spread_s`` beyond that share of ``engine_time_s``)."""
-    from references.engines.timing import STARVED
+    """Whether a run's engine time was measured starved (:func:`reports.store.runs.starved`):
+    its cost changes are ``starved``, never worse."""
+    from reports.store.runs import starved as measured_starved
 
-    spread, engine = num(row.get("engine_time_spread_s")), num(row.get("engine_time_s"))
-    return spread > STARVED * engine if not math.isnan(spread) else False
+    return measured_starved(row)
 
 
 def cost_range(row, column: str) -> tuple[float, float, float, bool]:

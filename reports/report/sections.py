@@ -287,10 +287,13 @@ def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
 
 def wp_cost(entry) -> str:
     """The cost of a work-precision answer: the engine's CPU time, or for a ``+ suite``
-    configuration the whole step's with the engine's beside it."""
+    configuration the whole step's with the engine's beside it; "starved" where no timing of
+    the run ran clean (reports.store.runs.starved: an estimate, not a measurement)."""
+    mark = " (starved)" if entry.get("starved") else ""
     if entry["suite_integrated"]:
-        return f"{fmt(entry['cost_s'])} s whole step ({fmt(entry['engine_time_s'])} s engine)"
-    return f"{fmt(entry['cost_s'])} s"
+        whole = f"{fmt(entry['cost_s'])} s whole step ({fmt(entry['engine_time_s'])} s engine)"
+        return whole + mark
+    return f"{fmt(entry['cost_s'])} s{mark}"
 
 
 def wp_cell(entry, winner: bool, missed=None) -> tuple[str, str]:
@@ -364,7 +367,9 @@ def work_precision_section(doc: Doc, df) -> None:
         "falling at the smallest step (and about what step would reach it), *does not reach* "
         "that no run finished or its error stopped falling. An error below the reference's "
         "accuracy reaches no level below that accuracy. For a system of bodies the attitude "
-        "error is the largest over its bodies."
+        "error is the largest over its bodies. `(starved)`: no timing of that run ran clean "
+        "(the machine was too busy to measure the engine's CPU time within 10 %): its cost is "
+        "an estimate, and `compare` never counts a change of it as significant."
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
     # seven columns of configurations and times (names break at underscores) fit 800 px;

@@ -23,6 +23,7 @@ from reports.report.labels import (
 from reports.report.precision import cost_of, outlook
 from reports.store.format import num, truthy
 from reports.store.results import default_dt, records, reference_rows
+from reports.store.runs import starved
 
 #: max attitude error levels of the work-precision answers, rad
 ACCURACY_LEVELS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
@@ -141,6 +142,7 @@ def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
                 "engine_time_s": num(r["engine_time_s"]),
                 "cpu_time_s": num(r.get("cpu_time_s")),
                 "wall_time_s": num(r["wall_time_s"]),
+                "starved": starved(r),
                 "cost_ratio": cost_of(r) / cost_of(ranked[0]),
             }
             for r in ranked

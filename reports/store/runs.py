@@ -326,6 +326,23 @@ def output_columns(output, timings=()) -> dict:
     )
 
 
+def starved(row) -> bool:
+    """Whether a stored run's engine time was measured *starved*: no timing of it ran clean
+    enough that the engine's CPU time is known within
+    :data:`references.engines.timing.STARVED` of itself (``engine_time_spread_s`` beyond
+    that share of ``engine_time_s``; a row without a spread never is)."""
+    from references.engines.timing import STARVED
+
+    def value(col):
+        try:
+            return float(row.get(col))
+        except (TypeError, ValueError):
+            return math.nan
+
+    spread, engine = value("engine_time_spread_s"), value("engine_time_s")
+    return spread > STARVED * engine if not math.isnan(spread) else False
+
+
 def timing_columns(nstep: int, timings) -> dict:
     """The cost columns of a run from its ``timings`` (references.engines.timing.Timing,
     the run's and its repeats'): the engine time of the one kept

@@ -61,3 +61,19 @@ def test_a_configuration_whose_time_loop_is_the_suites_is_ranked_by_its_whole_st
     assert cost_of(row) == 1e-3
     assert cost_of({**row, "suite_integrated": True}) == 8e-3
     assert cost_of({"wall_time_s": 9e-3}) == 9e-3  # a folder written before
+
+
+def test_a_cost_measured_starved_says_so():
+    # an engine time known within 5 % is a measurement; within 30 %, starved (the rule:
+    # references.engines.timing.STARVED, 10 %)
+    from reports.report.sections import wp_cost
+    from reports.store.format import fmt
+    from reports.store.runs import starved
+
+    row = {"engine_time_s": 1e-3, "engine_time_spread_s": 5e-5}
+    assert not starved(row)
+    assert starved({**row, "engine_time_spread_s": 3e-4})
+    assert not starved({"engine_time_s": 1e-3})  # a row without a spread: not measured so
+    entry = {"suite_integrated": False, "cost_s": 1e-3, "engine_time_s": 1e-3}
+    assert wp_cost({**entry, "starved": False}) == f"{fmt(1e-3)} s"
+    assert wp_cost({**entry, "starved": True}) == f"{fmt(1e-3)} s (starved)"
