@@ -2,13 +2,16 @@
 no compiled code cached anywhere) and again with the caches warm.
 
 Each round clones the repository afresh (``git clone``: no ``__pycache__``, so no numba cache
-either), points JAX's persistent compilation cache at a new empty folder (the user's own
-cache, ``~/.cache/director-bench/jax``, is left alone), and runs the README's command
+either), points JAX's persistent compilation cache and the suite's own cache (figures reused
+across results folders, reports.report.figure_cache) at new empty folders (the user's own
+caches under ``~/.cache/director-bench`` are left alone), and runs the README's command
 ``director-bench run --out results`` inside the clone as ``python -m reports.cli run --out
 results``, so that the clone's code is the code run (checked: the script asks the clone which
 ``reports`` it imports). Then the same command again in the same clone into a new output
 folder: the compiled code is cached now (numba's files beside the clone's sources, JAX's in
-its folder), the results and figures are not. Installation is not timed.
+its folder) and so are the figures whose inputs do not change from run to run (all but the
+work-precision figures and the scorecard picture, which show the timings); the results are
+not. Installation is not timed.
 
 Printed per run: wall time, CPU time (user + sys of the whole process tree: the command, its
 worker processes, their fork server and the report's drawing processes, from the operating
@@ -181,7 +184,12 @@ def main(argv=None) -> int:
         for k in range(1, args.rounds + 1):
             where = base / f"round{k}"
             where.mkdir()
-            env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"))
+            # JAX's compilation cache and the suite's (reused figures) start empty
+            env = dict(
+                os.environ,
+                JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"),
+                DIRECTOR_BENCH_CACHE=str(where / "suite-cache"),
+            )
             env.pop("NUMBA_CACHE_DIR", None)  # numba's cache beside the clone's sources
             env.pop("NUMBA_DISABLE_JIT", None)
             clone = fresh_clone(args.repo, where)

@@ -468,7 +468,7 @@ def run(
         from reports.run.importers import write_tables  # robot models: each importer's table
 
         write_tables(scs, engines, out)
-    rep = build_report(out, progress=progress) if report else {}
+    rep = build_report(out, progress=progress, results=df) if report else {}
     return RunSummary(
         out, n_run, len(specs) - n_run, df, rep, path, unloadable, left_out, moved, removed
     )

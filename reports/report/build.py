@@ -222,18 +222,22 @@ def python_strings(df):
     return df.astype(text).copy()  # the copy consolidates the blocks
 
 
-def build_report(root: str | Path, progress: bool = False) -> dict[str, Path]:
+def build_report(root: str | Path, progress: bool = False, results=None) -> dict[str, Path]:
     """Write the figures, report.md, report.html and summary.json for the results folder
     ``root``; with ``GITHUB_STEP_SUMMARY`` set, append the scorecard to that file.
     ``progress``: a progress bar while figures are drawn (figures whose inputs did not
-    change since the last report are reused, reports.report.figures)."""
+    change since the last report are reused, reports.report.figures). ``results``: the
+    folder's current results as the caller just read them (reports.store.results.
+    read_results), not read again."""
     from reports.report.figures import report_figures
     from reports.store.ensemble import read_ensemble
     from reports.store.results import STORE_NAME, frame, read_results
 
     root = Path(root)
     edf = read_ensemble(root)
-    if (root / STORE_NAME).exists() or edf is None:
+    if results is not None:
+        df = results
+    elif (root / STORE_NAME).exists() or edf is None:
         df = read_results(root)
     else:  # a folder holding only an ensemble
         df = frame([])
