@@ -66,11 +66,13 @@ def _python(engine: str, version: str, root: Path | None) -> Path | None:
 
 
 def _probe(python: Path, change, dt: float) -> float | None:
+    from reports.versions.envs import checkout_env
+
     args = [str(python), "-m", "reports.versions.worker", "--time", change.scenario,
             change.engine, change.integrator, repr(dt)]  # fmt: skip
     try:
         p = subprocess.run(args, capture_output=True, text=True, timeout=PROBE_TIMEOUT_S,
-                           check=False)  # fmt: skip
+                           check=False, env=checkout_env())  # fmt: skip
         out = json.loads(p.stdout.strip().splitlines()[-1])
         return float(out["engine_ns_per_step"]) if out["status"] in ("ok", "diverged") else None
     except (subprocess.TimeoutExpired, ValueError, IndexError, KeyError, TypeError):

@@ -4,8 +4,10 @@ An environment holds the engine at one version, binary wheels only, and the suit
 dependencies pinned to the versions of the environment running the matrix (so that a
 difference between two engine versions is the engine's, not numpy's); if the engine cannot
 live with those pins, the dependencies are resolved afresh and the environment's record says
-so. The suite itself is not installed: a ``.pth`` file points at this checkout, so every
-environment runs the same code the command was started from.
+so. The suite itself is not installed: a ``.pth`` file points at the checkout that made the
+environment, and every command run in it puts the checkout it was started from first on
+``PYTHONPATH`` (:func:`checkout_env`), so that a cached environment made from another clone
+runs this one's code.
 
 Environments live in ``$DIRECTOR_BENCH_CACHE/envs`` (default ``~/.cache/director-bench/envs``),
 one folder per engine, version and Python (``mujoco-3.3.0-py311``). A folder is made under a
@@ -136,6 +138,17 @@ def _uv(args: list[str], timeout: float = UV_TIMEOUT_S) -> subprocess.CompletedP
         return subprocess.CompletedProcess(args, 124, "", f"timed out after {timeout:g} s")
 
 
+def checkout_env() -> dict:
+    """The process environment every command in an engine environment runs with: this
+    checkout first on ``PYTHONPATH``. The ``.pth`` file of a cached environment names the
+    checkout that made it, which may be another one (a second clone or worktree sharing the
+    cache) with other code; ``PYTHONPATH`` comes before it on ``sys.path``, so the suite
+    imported is always the one the command was started from."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(CHECKOUT), env.get("PYTHONPATH")) if p)
+    return env
+
+
 def _site_packages(env: Path) -> Path:
     v = sys.version_info
     return env / "lib" / f"python{v.major}.{v.minor}" / "site-packages"
@@ -196,6 +209,7 @@ def make_env(target: Target, root: Path | None = None, uv: str | None = None) ->
         timeout=600,
         check=False,
         cwd=tmp,
+        env=checkout_env(),
     )
     if probe.returncode:
         return fail(f"the suite does not start in the environment: {probe.stderr[-600:]}")

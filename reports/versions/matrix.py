@@ -20,7 +20,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from reports.versions.envs import Env, make_env
+from reports.versions.envs import Env, checkout_env, make_env
 from reports.versions.requirements import Target, parse_requirements
 
 #: longest one environment's runs may take
@@ -123,7 +123,7 @@ def _run_in_env(env: Env, scenarios, opts: dict, out: Path) -> EnvRun:
         with log.open("w") as fh:
             p = subprocess.run(
                 cmd, stdout=fh, stderr=subprocess.STDOUT, cwd=folder, timeout=RUN_TIMEOUT_S,
-                check=False,
+                check=False, env=checkout_env(),
             )  # fmt: skip
         res.returncode = p.returncode
         if p.returncode not in (0,):
@@ -180,7 +180,7 @@ def _launch(env: Env, specs: list, folder: Path, opts: dict, log: Path):
             p = subprocess.run(
                 [str(env.python), "-m", "reports.versions.worker", str(folder), str(spec_file)],
                 stdout=fh, stderr=subprocess.STDOUT, cwd=folder, timeout=RUN_TIMEOUT_S,
-                check=False,
+                check=False, env=checkout_env(),
             )  # fmt: skip
             return p.returncode
         except subprocess.TimeoutExpired:

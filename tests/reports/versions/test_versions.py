@@ -460,3 +460,29 @@ def test_worker_records_the_planned_identity(tmp_path, free):
     assert code == 0, (tmp_path / "log").read_text()
     with Store(tmp_path) as st:
         assert {r["run_id"] for r in st.rows()} == {spec.run_id}
+
+
+def test_a_reused_environment_runs_this_checkouts_code(tmp_path):
+    """A cached environment's .pth names the checkout that made it, which may be another
+    clone sharing the cache: every command in it runs with this checkout first on
+    PYTHONPATH (envs.checkout_env), so it imports this checkout's suite. Found when a
+    `versions` run in one worktree reported the law residuals of another's older code."""
+    import subprocess
+    import sys
+
+    from reports.versions.envs import CHECKOUT, _site_packages, checkout_env
+
+    env = tmp_path / "env"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env)], check=True)
+    other = tmp_path / "other-checkout"
+    (other / "reports").mkdir(parents=True)
+    (other / "reports" / "__init__.py").write_text("")
+    (_site_packages(env) / "director_bench_checkout.pth").write_text(f"{other}\n")
+    probe = [str(env / "bin" / "python"), "-c", "import reports; print(reports.__file__)"]
+
+    def imported(**kw):
+        out = subprocess.run(probe, capture_output=True, text=True, cwd=tmp_path, check=True, **kw)
+        return Path(out.stdout.strip()).resolve()
+
+    assert imported().is_relative_to(other.resolve())  # the .pth alone: the other's code
+    assert imported(env=checkout_env()) == (CHECKOUT / "reports" / "__init__.py").resolve()
