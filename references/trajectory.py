@@ -346,13 +346,18 @@ class SystemTrajectory:
 
 def system_energy(scenario, traj: SystemTrajectory) -> np.ndarray:
     """E = sum_b 1/2 m_b |v_b|^2 + 1/2 W_b . I_b W_b - m_b g . x_b of a system's states, (n,),
-    J (the bodies' masses and principal moments from ``scenario.bodies``)."""
+    J (the bodies' masses and principal moments from ``scenario.bodies``), plus the force
+    elements' potential (:func:`scenarios.force_elements.potential`: the springs' 1/2 k
+    (l - l0)^2 less the torques' work, the states in time order from t = 0)."""
+    from scenarios.force_elements import potential
+
     m = np.array([b.mass for b in scenario.bodies])
     inertia = np.array([b.inertia for b in scenario.bodies])
     v, W, x = traj.velocity, traj.omega_body, traj.position
     t_trans = 0.5 * np.einsum("b,nbi,nbi->n", m, v, v)
     t_rot = 0.5 * np.einsum("nbi,bi,nbi->n", W, inertia, W)
-    return (t_trans + t_rot) - np.einsum("b,nbi,i->n", m, x, np.asarray(scenario.gravity))
+    V = -np.einsum("b,nbi,i->n", m, x, np.asarray(scenario.gravity))
+    return (t_trans + t_rot) + V + potential(scenario, x, traj.rotation)
 
 
 def system_momenta(scenario, traj: SystemTrajectory, about) -> tuple[np.ndarray, np.ndarray]:

@@ -127,6 +127,9 @@ class SystemScenario(RunFields):
     planes: tuple = ()
     contacts: tuple = ()
     forces: tuple = ()
+    #: force elements (:mod:`scenarios.force_elements`): constant joint torques, springs
+    torques: tuple = ()
+    springs: tuple = ()
     source: str = ""
     tags: tuple[str, ...] = ()
     path: str | None = None
@@ -142,7 +145,7 @@ class SystemScenario(RunFields):
         object.__setattr__(self, "joints", tuple(self.joints))
         object.__setattr__(self, "gravity", frozen(self.gravity))
         object.__setattr__(self, "reference_params", dict(self.reference_params))
-        for k in ("planes", "contacts", "forces"):
+        for k in ("planes", "contacts", "forces", "torques", "springs"):
             object.__setattr__(self, k, tuple(getattr(self, k)))
         self._normalise_run()
         st = spanning_tree(self.bodies, self.joints)
@@ -301,6 +304,9 @@ class SystemScenario(RunFields):
             out["planes"] = [p.to_dict() for p in self.planes]
             out["contacts"] = [c.to_dict() for c in self.contacts]
             out["forces"] = [f.to_dict() for f in self.forces]
+        if self.torques or self.springs:  # only then: the hashes of other scenes stay
+            out["torques"] = [t.to_dict() for t in self.torques]
+            out["springs"] = [s.to_dict() for s in self.springs]
         return out
 
     def magnitude_problems(self, t_end: float | None = None) -> list[tuple]:

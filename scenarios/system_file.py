@@ -112,6 +112,8 @@ _TOP_KEYS = (
     "planes",
     "contacts",
     "forces",
+    "torques",
+    "springs",
 )
 
 
@@ -184,6 +186,15 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
     if not probs and joints:
         _initial_gaps(bodies, joints, bad)
     planes, contacts, forces = ct.read_contact_parts(data, bodies, bad)
+    torques, springs = (), ()
+    if not probs:
+        from scenarios.force_elements import read_force_elements
+
+        torques, springs = read_force_elements(data, bodies, joints, bad, _typed)
+        if (torques or springs) and kind not in ("auto", "numerical", "none"):
+            bad("reference.kind", kind, "a system with force elements ([[torques]], "
+                "[[springs]]) takes the numerical reference (auto) or none: the closed forms "
+                "know no force elements")  # fmt: skip
     if contacts and kind not in (*CONTACT_CLOSED_FORMS, "none", "auto"):
         bad("reference.kind", kind, "a scene with [[contacts]] takes a contact closed form ("
             f"{', '.join(CONTACT_CLOSED_FORMS)}) or none")  # fmt: skip
@@ -218,6 +229,8 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         planes=planes,
         contacts=contacts,
         forces=forces,
+        torques=torques,
+        springs=springs,
         source=data.get("source", ""),
         tags=tuple(data.get("tags", ())),
         path=path,

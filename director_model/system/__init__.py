@@ -9,6 +9,8 @@ Public API
 ----------
 Body, Joint, JOINT_KINDS
     a body (name, mass, principal moments, initial pose and velocity) and a joint
+Spring, Torque
+    force elements: a linear spring-damper between body points, a constant joint torque
 simulate_system, SystemStepper, SystemTrajectory, SYSTEM_SCHEMES
     one run / a run in chunks with bitwise restart / the saved states
 simulate_system_batch, SystemBatchTrajectory
@@ -27,6 +29,8 @@ from director_model.system.model import (
     InvalidJointError,
     InvalidMechanismError,
     Joint,
+    Spring,
+    Torque,
     project_velocities,
 )
 from director_model.system.simulate import (
@@ -46,6 +50,8 @@ __all__ = [
     "Joint",
     "SystemStepper",
     "SystemTrajectory",
+    "Spring",
+    "Torque",
     "project_velocities",
     "simulate_system",
     "simulate_system_batch",

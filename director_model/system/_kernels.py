@@ -113,6 +113,7 @@ FAIL_DMV = 2  # a body's rotation equation has no admissible solution (step too 
 FAIL_SINGULAR = 3  # singular multiplier matrix (banded solver)
 FAIL_NONFINITE = 4
 FAIL_SVD = 5  # the SVD of the multiplier matrix failed (minnorm solver)
+FAIL_DAMP = 6  # the dampers' implicit half step did not converge
 
 STATUS_TEXT = {
     FAIL_NEWTON: "the Newton iteration for the joint multipliers did not converge",
@@ -123,6 +124,8 @@ STATUS_TEXT = {
     FAIL_NONFINITE: "a non-finite state",
     FAIL_SVD: "the singular value decomposition of the multiplier matrix failed (non-finite "
     "entries, or LAPACK's dgesdd did not converge)",
+    FAIL_DAMP: "the dampers' implicit half step did not converge (a damping time m/c near the "
+    "step or shorter)",
 }
 
 #: diagnostics slots
@@ -360,6 +363,69 @@ def _forces(rint, Jc, lam, F, T):
             for c in range(3):
                 F[b, c] -= Jc[r, 6 + c] * lr
                 T[b, c] -= Jc[r, 9 + c] * lr
+
+
+@njit(forceinline=True)
+def _ext(fint, fvec, X, D, V, Wd, FE, TE):
+    """The force elements' forces FE (nb, 3) and world torques TE (nb, 3) at positions X
+    (nb, 3), directors D (nb, 9), centre-of-mass velocities V and world angular velocities Wd
+    (nb, 3) (model.py, "Force elements"). Row e of ``fint`` (kind, body a, body b (-1: the
+    ground)), of ``fvec``: a spring (kind 0) anchor_a (0:3), anchor_b (3:6; world for the
+    ground), k, c, l0 (6:9), pulling point a by -(k (l - l0) + c l') e, e = (p_a - p_b) / l,
+    and b by the opposite; a torque (kind 1) the unit axis in a (0:3) and tau (6): tau u on
+    a, u = D_a axis, and -tau u on b."""
+    _zero2(FE)
+    _zero2(TE)
+    for e in range(fint.shape[0]):
+        a = fint[e, 1]
+        b = fint[e, 2]
+        if fint[e, 0] == 1:
+            u0, u1, u2 = _mul(_row9(D, a), fvec[e, 0], fvec[e, 1], fvec[e, 2])
+            tau = fvec[e, 6]
+            TE[a, 0] += tau * u0
+            TE[a, 1] += tau * u1
+            TE[a, 2] += tau * u2
+            if b >= 0:
+                TE[b, 0] -= tau * u0
+                TE[b, 1] -= tau * u1
+                TE[b, 2] -= tau * u2
+            continue
+        ra0, ra1, ra2 = _mul(_row9(D, a), fvec[e, 0], fvec[e, 1], fvec[e, 2])
+        va0 = V[a, 0] + (Wd[a, 1] * ra2 - Wd[a, 2] * ra1)
+        va1 = V[a, 1] + (Wd[a, 2] * ra0 - Wd[a, 0] * ra2)
+        va2 = V[a, 2] + (Wd[a, 0] * ra1 - Wd[a, 1] * ra0)
+        if b >= 0:
+            rb0, rb1, rb2 = _mul(_row9(D, b), fvec[e, 3], fvec[e, 4], fvec[e, 5])
+            d0 = (X[a, 0] + ra0) - (X[b, 0] + rb0)
+            d1 = (X[a, 1] + ra1) - (X[b, 1] + rb1)
+            d2 = (X[a, 2] + ra2) - (X[b, 2] + rb2)
+            vb0 = V[b, 0] + (Wd[b, 1] * rb2 - Wd[b, 2] * rb1)
+            vb1 = V[b, 1] + (Wd[b, 2] * rb0 - Wd[b, 0] * rb2)
+            vb2 = V[b, 2] + (Wd[b, 0] * rb1 - Wd[b, 1] * rb0)
+        else:
+            rb0, rb1, rb2 = 0.0, 0.0, 0.0
+            d0 = (X[a, 0] + ra0) - fvec[e, 3]
+            d1 = (X[a, 1] + ra1) - fvec[e, 4]
+            d2 = (X[a, 2] + ra2) - fvec[e, 5]
+            vb0, vb1, vb2 = 0.0, 0.0, 0.0
+        ln = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        e0, e1, e2 = d0 / ln, d1 / ln, d2 / ln
+        rate = e0 * (va0 - vb0) + e1 * (va1 - vb1) + e2 * (va2 - vb2)
+        f = -(fvec[e, 6] * (ln - fvec[e, 8]) + fvec[e, 7] * rate)
+        f0, f1, f2 = f * e0, f * e1, f * e2
+        FE[a, 0] += f0
+        FE[a, 1] += f1
+        FE[a, 2] += f2
+        TE[a, 0] += ra1 * f2 - ra2 * f1
+        TE[a, 1] += ra2 * f0 - ra0 * f2
+        TE[a, 2] += ra0 * f1 - ra1 * f0
+        if b >= 0:
+            FE[b, 0] -= f0
+            FE[b, 1] -= f1
+            FE[b, 2] -= f2
+            TE[b, 0] -= rb1 * f2 - rb2 * f1
+            TE[b, 1] -= rb2 * f0 - rb0 * f2
+            TE[b, 2] -= rb0 * f1 - rb1 * f0
 
 
 @njit(forceinline=True)
@@ -836,7 +902,7 @@ def _blk_solve(Dg, Up, Lo, b, x):
 @njit
 def _run_system(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, banded,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, fint, fvec, banded,
 ):  # fmt: skip
     """Advance the system nstep steps of dt (each step the composition ``coef`` of RATTLE
     sub-steps), storing the states at the step indices ``saves`` (increasing, 0 = the start)
@@ -887,6 +953,26 @@ def _run_system(
     psvd = False
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
+    # force elements: their forces at the start (FE, TE) and the end (FE2, TE2) of a sub-step,
+    # the world angular velocities of the start state (WD) and of the velocity stage's u0
+    # (TW), u0 with the elements' second half kick (VC, TC) and the velocities the dampers are
+    # evaluated at (VG, TG)
+    nfe = fint.shape[0]
+    damped = False
+    for e in range(nfe):
+        if fint[e, 0] == 0 and fvec[e, 7] != 0.0:
+            damped = True
+    FE = np.zeros((nb, 3))
+    TE = np.zeros((nb, 3))
+    FE2 = np.zeros((nb, 3))
+    TE2 = np.zeros((nb, 3))
+    WD = np.zeros((nb, 3))
+    TW = np.zeros((nb, 3))
+    VC = np.zeros((nb, 3))
+    TC = np.zeros((nb, 3))
+    VG = np.zeros((nb, 3))
+    TG = np.zeros((nb, 3))
+    pvt = np.zeros(nd)
     nK = 1 if banded or minnorm else nrow // 3
     Dg = np.zeros((nK, 9))
     Up = np.zeros((nK, 9))
@@ -915,6 +1001,14 @@ def _run_system(
             tol = tol_rel * xmax
             if nrow > 0:
                 _rows(rint, rvec, S, Dn, gv, Jold)
+            if nfe > 0:
+                for i in range(nb):
+                    WD[i, 0], WD[i, 1], WD[i, 2] = _mul(
+                        _row9(Dn, i), S[i, 20] * B[i, 4], S[i, 21] * B[i, 5], S[i, 22] * B[i, 6]
+                    )
+                    for c in range(3):
+                        VC[i, c] = S[i, 6 + c]
+                _ext(fint, fvec, S, Dn, VC, WD, FE, TE)
             # start value: in the banded solver the position multipliers of this sub-step
             # extrapolated linearly from the same sub-step of the two previous steps
             # (history in mu, see _run_system); else the last velocity multipliers
@@ -935,6 +1029,14 @@ def _run_system(
                 fresh = it == 0 or it >= 3
                 if nrow > 0:
                     _forces(rint, Jold, lam, F, T)
+                if nfe > 0:
+                    if nrow == 0:
+                        _zero2(F)
+                        _zero2(T)
+                    for i in range(nb):
+                        for c in range(3):
+                            F[i, c] += FE[i, c]
+                            T[i, c] += TE[i, c]
                 for i in range(nb):
                     m = B[i, 0]
                     Di = _row9(Dn, i)
@@ -1030,7 +1132,7 @@ def _run_system(
             diag[D_ITER] += it
             diag[D_MAXIT] = max(diag[D_MAXIT], it)
             # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h);
-            # Tn holds the world angular velocity of u0, VH its velocity
+            # TW holds the world angular velocity of u0, VH its velocity
             for i in range(nb):
                 w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
                 I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
@@ -1041,19 +1143,10 @@ def _run_system(
                 W0 = (PI[i, 0] - rq * c0) * B[i, 4]
                 W1 = (PI[i, 1] - rq * c1) * B[i, 5]
                 W2 = (PI[i, 2] - rq * c2) * B[i, 6]
-                Tn[i, 0], Tn[i, 1], Tn[i, 2] = _mul(_row9(Dnew, i), W0, W1, W2)
+                TW[i, 0], TW[i, 1], TW[i, 2] = _mul(_row9(Dnew, i), W0, W1, W2)
                 for c in range(3):
                     VH[i, c] = VH[i, c] + hh * g[c]
-            if nrow > 0:
-                for r in range(nrow):
-                    a = rint[r, 1]
-                    b = rint[r, 2]
-                    s = Jnew[r, 0] * VH[a, 0] + Jnew[r, 1] * VH[a, 1] + Jnew[r, 2] * VH[a, 2]
-                    s += Jnew[r, 3] * Tn[a, 0] + Jnew[r, 4] * Tn[a, 1] + Jnew[r, 5] * Tn[a, 2]
-                    if b >= 0:
-                        s += Jnew[r, 6] * VH[b, 0] + Jnew[r, 7] * VH[b, 1] + Jnew[r, 8] * VH[b, 2]
-                        s += Jnew[r, 9] * Tn[b, 0] + Jnew[r, 10] * Tn[b, 1] + Jnew[r, 11] * Tn[b, 2]
-                    r0[r] = s
+            if nrow > 0 or nfe > 0:
                 for i in range(nb):
                     Mx[i] = 1.0 / B[i, 0]
                     Dj = _row9(Dnew, i)
@@ -1061,6 +1154,9 @@ def _run_system(
                           Dj[3] * B[i, 4], Dj[4] * B[i, 5], Dj[5] * B[i, 6],
                           Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
                     _put9(Mth, i, _mmt(DI, Dj))
+            # the velocity stage's matrix G M^-1 G^T at q_{n+1}, factorised once
+            vsvd = False
+            if nrow > 0:
                 if minnorm:
                     _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, band, bw, full)
                     vsvd = minnorm == MODE_SVD
@@ -1078,23 +1174,21 @@ def _run_system(
                         if rank < 0:
                             _fail(info, n, h)
                             return FAIL_SVD
-                        _svd_solve(U, sv, Vt, rank, r0, dl)
                         for k in range(sv.shape[0]):
-                            yv[k] = sv[k]
+                            pvt[k] = sv[k]
                     else:
-                        _ldlp_solve(Ad, pr, rank, r0, dl, yv)
                         # the pivots stand for the singular values (the matrix is symmetric
                         # positive semi-definite; the small ones are the SVD's, above)
                         for k in range(nd):
-                            yv[k] = Ad[k, k] if k < rank else 0.0
+                            pvt[k] = Ad[k, k] if k < rank else 0.0
                     nrank = 0
                     for k in range(nd):
-                        if yv[k] > rank_tol * yv[0]:
+                        if pvt[k] > rank_tol * pvt[0]:
                             nrank += 1
                     if nrank < rank_nom:
                         diag[D_RANKDROP] += 1
-                    if rank_nom > 0 and yv[0] > 0.0:
-                        rel = yv[rank_nom - 1] / yv[0]
+                    if rank_nom > 0 and pvt[0] > 0.0:
+                        rel = pvt[rank_nom - 1] / pvt[0]
                         if rel < diag[D_SMIN]:
                             diag[D_SMIN] = rel
                             diag[D_TSMIN] = n
@@ -1103,19 +1197,88 @@ def _run_system(
                     if not _band_ldl(Ab, bw):
                         _fail(info, n, h)
                         return FAIL_SINGULAR
-                    _band_ldl_solve(Ab, bw, r0, dl)
                 else:
                     _blk_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Dg, Up, Lo)
                     if not _blk_lu(Dg, Up, Lo):
                         _fail(info, n, h)
                         return FAIL_SINGULAR
-                    _blk_solve(Dg, Up, Lo, r0, dl)
-
-            if nrow > 0:
-                _forces(rint, Jnew, dl, Fn, Tn)
-            else:
-                _zero2(Fn)
-                _zero2(Tn)
+            # the second half kick of the force elements at q_{n+1}: with dampers implicit in
+            # the velocities (the trapezoidal rule on them, so the step stays symmetric), by a
+            # fixed-point iteration from u0 that reuses the factorisation
+            if nfe > 0:
+                for i in range(nb):
+                    for c in range(3):
+                        VG[i, c] = VH[i, c]
+                        TG[i, c] = TW[i, c]
+            itd = 0
+            dprev = math.inf
+            while True:
+                if nfe > 0:
+                    _ext(fint, fvec, XN, Dnew, VG, TG, FE2, TE2)
+                    for i in range(nb):
+                        t0, t1, t2 = TE2[i, 0] * hh, TE2[i, 1] * hh, TE2[i, 2] * hh
+                        for c in range(3):
+                            VC[i, c] = VH[i, c] + hh * FE2[i, c] * Mx[i]
+                            TC[i, c] = TW[i, c] + (
+                                Mth[i, 3 * c] * t0 + Mth[i, 3 * c + 1] * t1 + Mth[i, 3 * c + 2] * t2
+                            )
+                    vel, om = VC, TC
+                else:
+                    vel, om = VH, TW
+                if nrow > 0:
+                    for r in range(nrow):
+                        a = rint[r, 1]
+                        b = rint[r, 2]
+                        s = Jnew[r, 0] * vel[a, 0] + Jnew[r, 1] * vel[a, 1] + Jnew[r, 2] * vel[a, 2]
+                        s += Jnew[r, 3] * om[a, 0] + Jnew[r, 4] * om[a, 1] + Jnew[r, 5] * om[a, 2]
+                        if b >= 0:
+                            s += (Jnew[r, 6] * vel[b, 0] + Jnew[r, 7] * vel[b, 1]
+                                  + Jnew[r, 8] * vel[b, 2])  # fmt: skip
+                            s += (Jnew[r, 9] * om[b, 0] + Jnew[r, 10] * om[b, 1]
+                                  + Jnew[r, 11] * om[b, 2])  # fmt: skip
+                        r0[r] = s
+                    if minnorm:
+                        if vsvd:
+                            _svd_solve(U, sv, Vt, rank, r0, dl)
+                        else:
+                            _ldlp_solve(Ad, pr, rank, r0, dl, yv)
+                    elif banded:
+                        _band_ldl_solve(Ab, bw, r0, dl)
+                    else:
+                        _blk_solve(Dg, Up, Lo, r0, dl)
+                    _forces(rint, Jnew, dl, Fn, Tn)
+                else:
+                    _zero2(Fn)
+                    _zero2(Tn)
+                if not damped:
+                    break
+                # the candidate velocities at n+1 against those the dampers were evaluated at
+                dn = 0.0
+                vn = 1e-300
+                for i in range(nb):
+                    t0, t1, t2 = Tn[i, 0], Tn[i, 1], Tn[i, 2]
+                    for c in range(3):
+                        v1 = vel[i, c] + Fn[i, c] * Mx[i]
+                        w1 = om[i, c] + (
+                            Mth[i, 3 * c] * t0 + Mth[i, 3 * c + 1] * t1 + Mth[i, 3 * c + 2] * t2
+                        )
+                        dn = max(dn, abs(v1 - VG[i, c]) + abs(w1 - TG[i, c]) * Lsc)
+                        vn = max(vn, abs(v1) + abs(w1) * Lsc)
+                        VG[i, c] = v1
+                        TG[i, c] = w1
+                if dn <= 4.0 * EPS * vn or (dn >= dprev and dn <= 64.0 * EPS * vn):
+                    break
+                dprev = dn
+                itd += 1
+                if itd >= MAXIT:
+                    _fail(info, n, h)
+                    return FAIL_DAMP
+            if nfe > 0:
+                # the force elements' second half kick joins the velocity impulse
+                for i in range(nb):
+                    for c in range(3):
+                        Fn[i, c] += hh * FE2[i, c]
+                        Tn[i, c] += hh * TE2[i, c]
             for r in range(nrow):
                 mu[r] = 2.0 * dl[r] / h
                 mu[ho2 + r] = mu[ho1 + r]
@@ -1175,26 +1338,26 @@ def _run_system(
 @njit(cache=True)
 def run_system(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, fint, fvec,
 ):  # fmt: skip
     """:func:`_run_system` with the minnorm solver (``minnorm`` :data:`MODE_PIVOTED` or
     :data:`MODE_SVD`) or the block one (0; the joint rows in 3x3 blocks, ``jptr``, ``jidx``,
     ``jside``)."""
     return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
                        V, D, W, minnorm, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
-                       jidx, jside, False)  # fmt: skip
+                       jidx, jside, fint, fvec, False)  # fmt: skip
 
 
 @njit(cache=True)
 def run_system_banded(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, fint, fvec,
 ):  # fmt: skip
     """:func:`_run_system` with the banded solver (the arguments of :func:`run_system` less
     ``minnorm``)."""
     return _run_system(B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X,
                        V, D, W, 0, bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr,
-                       jidx, jside, True)  # fmt: skip
+                       jidx, jside, fint, fvec, True)  # fmt: skip
 
 
 _cache.tie(globals())

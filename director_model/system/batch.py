@@ -34,7 +34,7 @@ from director_model.system.simulate import (
 @njit(parallel=True, cache=True)
 def run_batch(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W, minnorm,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, status,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, fint, fvec, status,
 ):  # fmt: skip
     """:func:`run_system` (the block or minnorm solver) for each member k of a batch (leading
     axis of D0, S, mu, X, V, D, W, diag, info; status (nbatch,) receives each member's
@@ -43,21 +43,21 @@ def run_batch(
         status[k] = K.run_system(
             B, D0[k], rint, rvec, ptr, idx, side, g, S[k], mu[k], coef, dt, nstep, saves,
             X[k], V[k], D[k], W[k], minnorm, bw, rank_nom, rank_tol, tol_rel, Lsc, diag[k],
-            info[k], jptr, jidx, jside,
+            info[k], jptr, jidx, jside, fint, fvec,
         )  # fmt: skip
 
 
 @njit(parallel=True, cache=True)
 def run_batch_banded(
     B, D0, rint, rvec, ptr, idx, side, g, S, mu, coef, dt, nstep, saves, X, V, D, W,
-    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, status,
+    bw, rank_nom, rank_tol, tol_rel, Lsc, diag, info, jptr, jidx, jside, fint, fvec, status,
 ):  # fmt: skip
     """:func:`run_batch` with the banded solver (:func:`run_system_banded`)."""
     for k in prange(S.shape[0]):
         status[k] = K.run_system_banded(
             B, D0[k], rint, rvec, ptr, idx, side, g, S[k], mu[k], coef, dt, nstep, saves,
             X[k], V[k], D[k], W[k], bw, rank_nom, rank_tol, tol_rel, Lsc, diag[k], info[k],
-            jptr, jidx, jside,
+            jptr, jidx, jside, fint, fvec,
         )  # fmt: skip
 
 
@@ -207,7 +207,7 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
         )  # fmt: skip
         rest = (
             asm.bandwidth, ref.rank_nominal, RANK_TOL, TOL_EPS * K.EPS, asm.length_scale,
-            diag, info, asm.jptr, asm.jidx, asm.jside, status,
+            diag, info, asm.jptr, asm.jidx, asm.jside, ref._fint, ref._fvec, status,
         )  # fmt: skip
         if banded:
             run_batch_banded(*args, *rest)

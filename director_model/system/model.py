@@ -13,7 +13,11 @@ most quadratic in the director coordinates q = (x, d_1, d_2, d_3) of the two bod
 ``DOT``                  (R_a u) . (R_b v) - c
 ``LINE``                 (x_b + R_b Y - x_a - R_a X) . (R_a p)
 
-with the ground's x = 0, R = 1. Joints (u_a = R_a axis_a, u_b = R_b axis_b):
+with the ground's x = 0, R = 1. Force elements (:class:`Spring`, :class:`Torque`) add their
+forces to both half kicks of a RATTLE sub-step, at the start and at the end state; a
+damper's force at the end depends on the end velocities, solved with them by a fixed-point
+iteration (the trapezoidal rule on the damping, which keeps the step symmetric, so the
+compositions keep their order). Joints (u_a = R_a axis_a, u_b = R_b axis_b):
 
 ==============  ====  ==================================================================
 kind            rows  rows
@@ -54,6 +58,34 @@ _NEEDS_AXES = ("revolute", "universal", "cylindrical", "prismatic")
 #: of unit axes), and the initial velocities to this tolerance times the largest body speed
 #: scale (m/s); larger gaps are errors, smaller ones are closed by the first step
 INIT_TOL = 1e-10
+
+
+@dataclass(frozen=True, eq=False)
+class Spring:
+    """A linear spring-damper between the point ``anchor_a`` of body ``body_a`` and the point
+    ``anchor_b`` of body ``body_b`` (None: the ground, ``anchor_b`` a world point): stiffness
+    k (N/m), damping c (N s/m), rest length l0 (m). It pulls point a by
+    -(k (l - l0) + c l') e, e = (p_a - p_b) / l, and point b by the opposite; it stores
+    1/2 k (l - l0)^2 (module docstring, "Force elements")."""
+
+    body_a: str
+    body_b: str | None
+    anchor_a: tuple
+    anchor_b: tuple
+    stiffness: float
+    damping: float = 0.0
+    rest_length: float = 0.0
+    name: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Torque:
+    """A constant torque ``torque`` (N m) about the axis of the revolute joint named
+    ``joint``: tau R_a axis_a on its body a, the opposite on its body b (module docstring,
+    "Force elements")."""
+
+    joint: str
+    torque: float
 
 
 class InvalidJointError(ValueError):
@@ -312,6 +344,106 @@ def assemble(bodies, joints) -> Assembly:
         jidx=np.array(jidx, dtype=np.int64),
         jside=np.array(jside, dtype=np.int64),
     )
+
+
+def assemble_forces(bodies, joints, springs=(), torques=()) -> tuple[np.ndarray, np.ndarray]:
+    """(fint (ne, 3) int64, fvec (ne, 10)): the force elements for the kernel (row e: kind 0
+    spring / 1 torque, body a, body b (-1 the ground); a spring's anchor_a, anchor_b, k, c,
+    l0, a torque's unit axis in a and tau at 6). Raises InvalidJointError naming the element
+    for an unknown body or joint, a torque on a joint that is not revolute, a negative or
+    non-finite k, c, a rest length <= 0, a spring from a body to itself, or a spring of length
+    0 at t = 0."""
+    index = {b.name: i for i, b in enumerate(bodies)}
+    jby = {}
+    for k, jt in enumerate(joints):
+        jby[jt.name if jt.name is not None else f"joint{k}"] = jt
+    fint, fvec = [], []
+    for e, sp in enumerate(springs):
+        nm = sp.name if sp.name is not None else f"spring{e}"
+        where = f"spring {nm!r}"
+        if not isinstance(sp, Spring):
+            raise InvalidJointError(
+                f"springs[{e}] = {sp!r}: expected a director_model.system.Spring"
+            )
+        for side, bn in (("body_a", sp.body_a), ("body_b", sp.body_b)):
+            if side == "body_b" and bn is None:
+                continue
+            if bn not in index:
+                raise InvalidJointError(f"{where}: {side} = {bn!r}: unknown body")
+        if sp.body_a == sp.body_b:
+            raise InvalidJointError(f"{where}: a spring joins two different bodies")
+        X = _vec3(where + ": anchor_a", sp.anchor_a, InvalidJointError)
+        Y = _vec3(where + ": anchor_b", sp.anchor_b, InvalidJointError)
+        k, c, l0 = float(sp.stiffness), float(sp.damping), float(sp.rest_length)
+        if not (k >= 0 and c >= 0 and math.isfinite(k) and math.isfinite(c)):
+            raise InvalidJointError(f"{where}: stiffness {k!r}, damping {c!r}: finite and >= 0")
+        if not (l0 > 0 and math.isfinite(l0)):
+            raise InvalidJointError(f"{where}: rest_length = {l0!r}: must be > 0")
+        a = bodies[index[sp.body_a]]
+        pa = a.position + a.rotation @ X
+        if sp.body_b is None:
+            pb = Y
+        else:
+            b = bodies[index[sp.body_b]]
+            pb = b.position + b.rotation @ Y
+        if not np.linalg.norm(pa - pb) > 0:
+            raise InvalidJointError(f"{where}: length 0 at t = 0 (its direction is undefined)")
+        fint.append((0, index[sp.body_a], -1 if sp.body_b is None else index[sp.body_b]))
+        fvec.append([*X, *Y, k, c, l0, 0.0])
+    for e, tq in enumerate(torques):
+        if not isinstance(tq, Torque):
+            raise InvalidJointError(
+                f"torques[{e}] = {tq!r}: expected a director_model.system.Torque"
+            )
+        jt = jby.get(tq.joint)
+        if jt is None or jt.kind != "revolute":
+            raise InvalidJointError(
+                f"torques[{e}]: joint = {tq.joint!r}: "
+                + ("unknown joint" if jt is None else f"a {jt.kind} joint; a torque acts about "
+                   "a revolute joint's axis")
+            )  # fmt: skip
+        tau = float(tq.torque)
+        if not math.isfinite(tau):
+            raise InvalidJointError(f"torques[{e}]: torque = {tau!r}: must be finite")
+        ax = _vec3(f"torques[{e}]: axis_a", jt.axis_a, InvalidJointError)
+        ax = ax / np.linalg.norm(ax)
+        fint.append((1, index[jt.body_a], -1 if jt.body_b is None else index[jt.body_b]))
+        fvec.append([*ax, 0.0, 0.0, 0.0, tau, 0.0, 0.0, 0.0])
+    return (np.array(fint, dtype=np.int64).reshape(-1, 3),
+            np.array(fvec, dtype=float).reshape(-1, 10))  # fmt: skip
+
+
+def force_potential(fint, fvec, X, R, R0, theta_prev=None):
+    """(V (n,) J, theta (ne,)): the force elements' potential at states X (n, nb, 3),
+    R (n, nb, 3, 3) of one run in time order, sum 1/2 k (l - l0)^2 less sum tau theta, theta
+    the rotation of a torqued joint's body a relative to its body b about the axis since the
+    attitudes R0 (nb, 3, 3) of t = 0, unwrapped along the states from ``theta_prev`` (the
+    elements' angles at the state before these, 0 by default); and the angles of the last
+    state (to continue from)."""
+    X = np.asarray(X)
+    R = np.asarray(R)
+    V = np.zeros(X.shape[0])
+    last = np.zeros(len(fint))
+    for e, ((kind, a, b), f) in enumerate(zip(fint, fvec, strict=True)):
+        Ra = R[:, a]
+        Rb = np.broadcast_to(np.eye(3), Ra.shape) if b < 0 else R[:, b]
+        if kind == 0:
+            pa = X[:, a] + Ra @ f[0:3]
+            pb = np.broadcast_to(f[3:6], pa.shape) if b < 0 else X[:, b] + Rb @ f[3:6]
+            V += 0.5 * f[6] * (np.linalg.norm(pa - pb, axis=1) - f[8]) ** 2
+            continue
+        u = Ra @ f[0:3]
+        m1, _ = _perp_pair(f[0:3])
+        Rb0 = np.eye(3) if b < 0 else R0[b]
+        pb = Rb @ (Rb0.T @ (R0[a] @ m1))  # the b vector that coincided with m1 at t = 0
+        pa = Ra @ m1
+        th = np.arctan2(np.einsum("ni,ni->n", u, np.cross(pb, pa)), np.einsum("ni,ni->n", pb, pa))
+        prev = 0.0 if theta_prev is None else float(theta_prev[e])
+        th = np.unwrap(np.concatenate([[prev], th]))[1:]
+        if th.size:
+            last[e] = th[-1]
+        V -= f[6] * th
+    return V, last
 
 
 # --------------------------------------------------------------------------------------------

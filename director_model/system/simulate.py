@@ -16,8 +16,10 @@ from director_model.system import _kernels as K
 from director_model.system.model import (
     Assembly,
     assemble,
+    assemble_forces,
     check_initial,
     energy_momentum,
+    force_potential,
     rows_numpy,
 )
 
@@ -50,7 +52,8 @@ class SystemTrajectory:
     ``velocity``             (n, nb, 3)       v, m/s
     ``rotation``             (n, nb, 3, 3)    R body-to-world (columns: directors)
     ``omega_body``           (n, nb, 3)       W, body axes, rad/s
-    ``energy``               (n,)             sum 1/2 m|v|^2 + 1/2 W.I W - m g.x, J
+    ``energy``               (n,)             sum 1/2 m|v|^2 + 1/2 W.I W - m g.x, J, plus the
+                                              force elements' potential
     ``linear_momentum``      (n, 3)           sum m v, kg m/s
     ``angular_momentum``     (n, 3)           about the world origin: sum x x m v + R I W
     ``constraint_position``  (n,)             max |g_r| over the joint rows (m; axis rows:
@@ -190,11 +193,14 @@ class SystemStepper:
     """
 
     def __init__(self, bodies, joints, *, gravity=(0.0, 0.0, 0.0), scheme: str = "rattle",
-                 dt: float, solver: str = "auto", _warm: bool = True):  # fmt: skip
+                 dt: float, solver: str = "auto", springs=(), torques=(),
+                 _warm: bool = True):  # fmt: skip
         bodies = list(bodies)
         joints = list(joints)
         asm = assemble(bodies, joints)
         rank, dof = check_initial(asm, bodies)
+        self._fint, self._fvec = assemble_forces(bodies, joints, list(springs), list(torques))
+        self._theta = np.zeros(self._fint.shape[0])
         if scheme not in SYSTEM_SCHEMES:
             raise InvalidRunError(
                 f"scheme = {scheme!r}: unknown; available: {', '.join(SYSTEM_SCHEMES)}"
@@ -283,7 +289,7 @@ class SystemStepper:
         )  # fmt: skip
         rest = (
             asm.bandwidth, self.rank_nominal, RANK_TOL, TOL_EPS * K.EPS, asm.length_scale, diag,
-            info, asm.jptr, asm.jidx, asm.jside,
+            info, asm.jptr, asm.jidx, asm.jside, self._fint, self._fvec,
         )  # fmt: skip
         if self.solver == "banded":
             status = K.run_system_banded(*args, *rest)
@@ -311,6 +317,10 @@ class SystemStepper:
     def _trajectory(self, t, X, V, D, W, nstep, wall, cpu, diag):
         asm = self._asm
         E, p, L = energy_momentum(asm.bodies, self._g, X, V, D, W)
+        if self._fint.shape[0]:
+            R0 = self._D0.reshape(-1, 3, 3)
+            Vf, self._theta = force_potential(self._fint, self._fvec, X, D, R0, self._theta)
+            E = E + Vf
         if asm.rint.shape[0]:
             gp, gv = rows_numpy(asm, X, D, V, W)
             cp = np.max(np.abs(gp), axis=-1)
@@ -337,17 +347,19 @@ class SystemStepper:
 
 
 def simulate_system(bodies, joints, *, gravity=(0.0, 0.0, 0.0), scheme: str = "rattle",
-                    dt: float, t_end: float, save_every: int = 1,
-                    solver: str = "auto") -> SystemTrajectory:  # fmt: skip
+                    dt: float, t_end: float, save_every: int = 1, solver: str = "auto",
+                    springs=(), torques=()) -> SystemTrajectory:  # fmt: skip
     """Integrate a system of rigid bodies connected by joints and return the saved states.
 
-    ``bodies`` (list of :class:`Body`), ``joints`` (list of :class:`Joint`), ``gravity``
+    ``bodies`` (list of :class:`Body`), ``joints`` (list of :class:`Joint`), ``springs``
+    and ``torques`` (lists of :class:`Spring`, :class:`Torque`: force elements), ``gravity``
     (3,) m/s^2, ``scheme`` ("rattle", "rattle4", "rattle6"), ``solver`` as in
     :class:`SystemStepper`; ``dt``, ``t_end`` (s) and ``save_every`` follow the step plan of
     :func:`director_model.step_plan` (t_end a whole number of steps; steps 0, s, 2s, ... and
     the last saved). Memory O(saved states). Equals
     ``SystemStepper(...).advance(round(t_end/dt), save_every, include_start=True)``.
     """
-    st = SystemStepper(bodies, joints, gravity=gravity, scheme=scheme, dt=dt, solver=solver)
+    st = SystemStepper(bodies, joints, gravity=gravity, scheme=scheme, dt=dt, solver=solver,
+                       springs=springs, torques=torques)  # fmt: skip
     nstep, _ = step_plan(dt, t_end, save_every)
     return st.advance(nstep, int(save_every), include_start=True)

@@ -49,10 +49,14 @@ class SceneBuilder:
 
     (the contract and :class:`~references.engines.system.SystemResult` are in
     :mod:`references.engines.system`); ``settings``: the names of the settings it takes (a
-    scenario file's ``[engine_settings.<engine>]``; any other name is refused before a run)."""
+    scenario file's ``[engine_settings.<engine>]``; any other name is refused before a run);
+    ``force_elements``: the builder applies a scenario's force elements (``[[torques]]``,
+    ``[[springs]]``, :mod:`scenarios.force_elements`); a builder that does not declare it is
+    ``unsupported`` on such a scenario, never run without them."""
 
     target: str
     settings: tuple[str, ...] = ()
+    force_elements: bool = False
 
     def __post_init__(self):
         module, _, func = self.target.partition(":")

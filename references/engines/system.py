@@ -19,7 +19,7 @@ result). A joint or loop the engine cannot express raises
 last good state. The suite (:func:`run_system`) checks the settings asked for against those
 declared, the shape and the times of what comes back, stops it at a divergence (a non-finite
 state, or an energy error beyond DIVERGENCE_ENERGY times the scenario's energy scale, the rule
-of one body) and computes every metric itself.
+of one body; with a damper, an energy rise) and computes every metric itself.
 
 An engine that declares no builder is ``unsupported`` for systems, with that reason. The
 builders of the built-in engines are ``references/engines/<engine>/system.py``; a plug-in's
@@ -45,6 +45,7 @@ from references.engines.context import SystemResult
 from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
 from references.trajectory import SystemTrajectory, system_energy
+from scenarios.force_elements import dissipative, has_elements
 
 
 @dataclass
@@ -106,6 +107,19 @@ def _declared(engine: str):
     return declared
 
 
+def _check_force_elements(engine: str, scenario) -> None:
+    """:class:`Unsupported` when ``scenario`` has force elements and ``engine``'s builder does
+    not declare that it applies them (a run without them would be another motion)."""
+    if not has_elements(scenario) or _declared(engine).force_elements:
+        return
+    what = [f"torque on {t.joint!r}" for t in getattr(scenario, "torques", ())]
+    what += [f"spring {s.name!r}" for s in getattr(scenario, "springs", ())]
+    raise Unsupported(
+        f"{engine}: force elements ({', '.join(what)}) are not built in this engine's system "
+        "builder; only builders declaring force_elements run them (director, exact)"
+    )
+
+
 def run_system(
     engine: str,
     scenario,
@@ -131,6 +145,7 @@ def run_system(
 
         settings = {}  # an importer configuration takes the model file as it is
     else:
+        _check_force_elements(engine, scenario)
         simulate = builder(engine)
         settings = {**getattr(scenario, "engine_settings", {}).get(engine, {}), **settings}
         check_settings(engine, settings)
@@ -224,6 +239,8 @@ def _first_divergence(scenario, traj) -> tuple[int, str] | None:
     with np.errstate(all="ignore"):
         E = system_energy(scenario, traj)
         drift = np.abs(E - E[0]) / scenario.energy_scale
+        if dissipative(scenario):  # a damper takes energy out: only a rise is divergence
+            drift = np.maximum(E - E[0], 0.0) / scenario.energy_scale
     bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
     if not bad.any():
         return None

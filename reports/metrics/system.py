@@ -5,13 +5,14 @@ one body where the meaning carries over (the largest over the bodies) and three 
 
 =========================  ============================================================  =====
 ``energy_drift_max``       max_t |E(t) - E0| / E_c, E0 of the scenario's initial state,   1
-                           E_c :attr:`SystemScenario.energy_scale` (never E0)
+                           E_c :attr:`SystemScenario.energy_scale` (never E0); E with
+                           the force elements' potential; NaN with a damper
 ``momentum_drift_max``     the conserved momenta's largest drift: floating, |L_G - L_G0|   1
                            / L_c (about the moving centre of mass) and |p - p0 - m g t|
                            / p_c; hanging from one point joint, the angular momentum
                            about that point along g (every component without gravity)
                            / L_c; NaN when no momentum is conserved (a closed loop, a
-                           hinge not along g)
+                           hinge not along g, a force element to the ground)
 ``orthonormality_max``     max over t and bodies of ||R^T R - 1||_F                       1
 ``attitude_error_max``     max over t <= the reference's trusted horizon and bodies of    rad
                            the geodesic angle to the reference (as for one body)
@@ -48,6 +49,7 @@ import numpy as np
 from references.trajectory import system_energy, system_momenta
 from reports.metrics.body import _max, attitude_error, gram, nearest_rotation
 from reports.metrics.catalog import SYSTEM_METRICS, check_attached, computed, measures
+from scenarios import force_elements as fe
 from scenarios.system import joint_residuals
 
 __all__ = ["SYSTEM_METRICS", "compute_system_metrics", "error_series"]
@@ -65,10 +67,23 @@ def _initial(scenario):
 
 
 @measures("energy_drift_max", on="system")
-def energy_drift(scenario, traj) -> np.ndarray:
-    """|E(t) - E0| / E_c, (n,)."""
+def energy_drift(scenario, traj) -> np.ndarray | None:
+    """|E(t) - E0| / E_c, (n,); None where no energy is conserved (a damper dissipates it) or
+    the saved states are too far apart to count a torqued joint's turns (its work, tau
+    theta, would be miscounted)."""
+    if fe.dissipative(scenario) or not _turns_counted(scenario, traj):
+        return None
     E0 = float(system_energy(scenario, _initial(scenario))[0])
     return np.abs(system_energy(scenario, traj) - E0) / scenario.energy_scale
+
+
+def _turns_counted(scenario, traj) -> bool:
+    """Every torqued joint turns less than pi/2 between two saved states."""
+    by = {j.name: j for j in scenario.joints}
+    return all(
+        fe.angle_steps_ok(fe.joint_angle(scenario.bodies, by[t.joint], traj.rotation))
+        for t in getattr(scenario, "torques", ())
+    )
 
 
 def energy(scenario, traj) -> np.ndarray:
@@ -82,6 +97,8 @@ def momentum_drift(scenario, traj) -> np.ndarray | None:
     """The drift of the conserved momenta over their scales, (n,), or None (module
     docstring)."""
     init = _initial(scenario)
+    if fe.grounded(scenario):
+        return None
     if scenario.floating:
         m = scenario.total_mass
         p0, L0 = system_momenta(scenario, init, np.zeros(3))
@@ -261,9 +278,11 @@ def error_series(scenario, traj, ref=None, kept: dict | None = None) -> dict[str
 
     cols = {
         "energy_change": energy(scenario, traj),
-        "energy_drift": series("energy_drift_max", energy_drift, scenario, traj),
         "orthonormality": series("orthonormality_max", orthonormality, traj),
     }
+    ed = series("energy_drift_max", energy_drift, scenario, traj)
+    if ed is not None:  # none where no energy is conserved (a damper)
+        cols["energy_drift"] = ed
     md = series("momentum_drift_max", momentum_drift, scenario, traj)
     if md is not None:
         cols["momentum_drift"] = md

@@ -70,7 +70,9 @@ class DirectorEngine(Engine):
     #: single body's (reports.run.runner.warm_up)
     system_warm_up = "the system kernels (numba)"
     description = "director_model: RATTLE, energy-momentum and compositions in director form"
-    scene_builder = SceneBuilder("references.engines.director.system:simulate_system", ("solver",))
+    scene_builder = SceneBuilder(
+        "references.engines.director.system:simulate_system", ("solver",), force_elements=True
+    )
     integrators = _integrators()
 
     @classmethod

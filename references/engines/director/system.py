@@ -32,6 +32,20 @@ def model(scenario):
     return bodies, joints
 
 
+def force_elements(scenario):
+    """(springs, torques) of ``director_model.system`` for a system scenario's force elements
+    (the same fields)."""
+    from director_model.system import Spring, Torque
+
+    springs = [
+        Spring(s.body_a, s.body_b, s.anchor_a, s.anchor_b, s.stiffness, s.damping,
+               s.rest_length, name=s.name)
+        for s in getattr(scenario, "springs", ())
+    ]  # fmt: skip
+    torques = [Torque(t.joint, t.torque) for t in getattr(scenario, "torques", ())]
+    return springs, torques
+
+
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
                     **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` with the director scheme ``integrator`` (module docstring)."""
@@ -45,9 +59,11 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
             f"systems with {', '.join(SCHEMES)})"
         )
     bodies, joints = model(scenario)
+    springs, torques = force_elements(scenario)
     try:
         tr = simulate(bodies, joints, gravity=tuple(scenario.gravity), scheme=integrator,
-                      dt=dt, t_end=nstep * dt, save_every=save_every, **settings)  # fmt: skip
+                      dt=dt, t_end=nstep * dt, save_every=save_every, springs=springs,
+                      torques=torques, **settings)  # fmt: skip
     except director_model.StepSizeError as exc:
         raise Diverged(f"director {integrator}: {exc}", float(exc.time)) from exc
     except (InvalidJointError, InvalidMechanismError, ValueError) as exc:

@@ -19,7 +19,9 @@ class ExactEngine(EngineBase):
     name = "exact"
     is_reference = True
     description = "closed-form solutions (Jacobi elliptic, Lagrange top) or DOP853 at rtol 1e-13"
-    scene_builder = SceneBuilder("references.engines.exact.system:simulate_system")
+    scene_builder = SceneBuilder(
+        "references.engines.exact.system:simulate_system", force_elements=True
+    )
     integrators = (
         Integrator(
             name="reference",

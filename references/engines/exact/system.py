@@ -260,12 +260,21 @@ def _exact(scenario, kind, t, start) -> SystemReference:
                            method, time.perf_counter() - start, notes)  # fmt: skip
 
 
-def _numerical(scenario, t, start) -> SystemReference:
-    from references.exact.multibody import ReferenceCostExceeded, solve, trajectory_horizon
+def _system(scenario):
+    """(:class:`~references.exact.multibody.loops.LoopSystem`, q0, u0) of a scenario: its
+    bodies, joints, gravity and force elements."""
     from references.exact.multibody.loops import system_from_world
 
+    return system_from_world(scenario.bodies, scenario.joints, scenario.gravity,
+                             springs=getattr(scenario, "springs", ()),
+                             torques=getattr(scenario, "torques", ()))  # fmt: skip
+
+
+def _numerical(scenario, t, start) -> SystemReference:
+    from references.exact.multibody import ReferenceCostExceeded, solve, trajectory_horizon
+
     try:
-        system, q0, u0 = system_from_world(scenario.bodies, scenario.joints, scenario.gravity)
+        system, q0, u0 = _system(scenario)
         tree = system.tree
         sol = solve(tree, q0, u0, t, system=system)
         size = scenario.length_scale
@@ -308,9 +317,9 @@ def estimate(scenario) -> tuple[float, str] | None:
     if reference_kind(scenario) != "numerical":
         return None
     from references.exact.multibody.integrate import RTOL, _scales, estimate_cost
-    from references.exact.multibody.loops import rhs_function, system_from_world
+    from references.exact.multibody.loops import rhs_function
 
-    system, q0, u0 = system_from_world(scenario.bodies, scenario.joints, scenario.gravity)
+    system, q0, u0 = _system(scenario)
     scale, wscale = _scales(system.tree, q0, u0)
     f = rhs_function(system, alpha=wscale)
     return estimate_cost(f, np.concatenate([q0, u0]), scenario.t_end, RTOL, scale,

@@ -83,7 +83,7 @@ def trajectory_horizon(
     q0, u0 = tree.initial_from_joint(q0, u0)
     y0 = np.concatenate([q0, u0])
     scale, wscale = _scales(tree, q0, u0)
-    loop = system is not None and system.nc > 0
+    loop = system is not None and system.active
     if loop:
         from references.exact.multibody import loops
 

@@ -254,7 +254,7 @@ def solve(
     deadline = start + max_wall
     y0 = np.concatenate([q0, u0])
     scale, wscale = _scales(tree, q0, u0)
-    loop = system is not None and system.nc > 0
+    loop = system is not None and system.active
     if loop:
         from references.exact.multibody import loops
 

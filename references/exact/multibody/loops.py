@@ -122,9 +122,13 @@ class LoopSystem:
     tree_joints: list
     closure_joints: list
     chains: list
+    #: force elements packed for :func:`_force_kernel` (:func:`_pack_forces`)
+    forces: tuple = ()
 
     def __post_init__(self):
         self.packed = _pack(self.closures)
+        if not self.forces:
+            self.forces = _pack_forces([], [], {}, {})
         lens = [len(c) for c in self.chains]
         self.cptr = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
         self.cidx = (np.concatenate(self.chains) if self.chains else np.zeros(0)).astype(np.int64)
@@ -134,6 +138,16 @@ class LoopSystem:
     @property
     def nc(self) -> int:
         return sum(c.nrows for c in self.closures)
+
+    @property
+    def has_forces(self) -> bool:
+        """Force elements act (springs, joint torques)."""
+        return bool(len(self.forces[0]) or len(self.forces[7]))
+
+    @property
+    def active(self) -> bool:
+        """The tree alone does not give the motion: constraint rows or force elements."""
+        return self.nc > 0 or self.has_forces
 
 
 def _spanning(bodies, joints):
@@ -149,12 +163,13 @@ def _spanning(bodies, joints):
     return tree, [j for j in joints if id(j) not in chosen]
 
 
-def system_from_world(bodies, joints, gravity=(0.0, 0.0, 0.0)):
+def system_from_world(bodies, joints, gravity=(0.0, 0.0, 0.0), springs=(), torques=()):
     """(:class:`LoopSystem`, q0, u0) of bodies in their world state joined by ``joints``
-    (objects with the fields of :class:`scenarios.system.SystemJoint`); the state must
-    satisfy every joint (the tree's joints to :data:`~.tree.STATE_TOL`, the closures are
-    checked by the caller). Raises ``ValueError`` naming the joint for a joint of an unknown
-    kind or body."""
+    (objects with the fields of :class:`scenarios.system.SystemJoint`), with the force
+    elements ``springs`` and ``torques`` (the fields of :class:`scenarios.force_elements.Spring`
+    and :class:`~scenarios.force_elements.JointTorque`); the state must satisfy every joint
+    (the tree's joints to :data:`~.tree.STATE_TOL`, the closures are checked by the caller).
+    Raises ``ValueError`` naming the joint for a joint of an unknown kind or body."""
     bodies = list(bodies)
     names = [b.name for b in bodies]
     for j in joints:
@@ -204,7 +219,9 @@ def system_from_world(bodies, joints, gravity=(0.0, 0.0, 0.0)):
             dofs.extend(range(tree.uofs[k], tree.uofs[k] + n))
             k = tree.parent[k]
         chains.append(np.array(sorted(dofs), dtype=np.int64))
-    system = LoopSystem(tree, closures, [j.name for j in tj], [j.name for j in rest], chains)
+    forces = _pack_forces(springs, torques, idx, {j.name: j for j in joints})
+    system = LoopSystem(tree, closures, [j.name for j in tj], [j.name for j in rest], chains,
+                        forces)  # fmt: skip
     if system.nc:
         s = accelerations(system, q0, u0)[1]
         system.rank0 = int(np.count_nonzero(s > RANK_TOL * s[0])) if s.size and s[0] > 0 else 0
@@ -481,7 +498,10 @@ def accelerations(system: LoopSystem, q, u, alpha: float = 0.0, rank: int | None
     u = np.ascontiguousarray(u, dtype=float)
     M, C, R, x, v, S, a = _kin(system, q, u)
     L = _cholesky(M)
-    a0 = _ltsolve(L, _lsolve(L, -C.reshape(-1, 1))[:, 0])
+    rhs = -C
+    if system.has_forces:
+        rhs = rhs + generalized_forces(system, R, x, v, S)
+    a0 = _ltsolve(L, _lsolve(L, rhs.reshape(-1, 1))[:, 0])
     if not system.nc:
         return a0, np.zeros(0)
     phi, J, bias = _rows(system, R, x, v, S, a, tree.gravity)
@@ -501,7 +521,7 @@ def rhs_function(system: LoopSystem, alpha: float = 0.0):
     tree = system.tree
     nq = tree.nq
     args = _args(tree)
-    if not system.nc:
+    if not system.active:
 
         def f_tree(_t, y):
             return _rhs(y, nq, *args)
@@ -523,6 +543,96 @@ def rhs_function(system: LoopSystem, alpha: float = 0.0):
         return out
 
     return f
+
+
+def _pack_forces(springs, torques, idx, joints_by_name):
+    """The force elements as arrays for :func:`_force_kernel`: springs (body a, body b (-1:
+    ground), anchor a, anchor b (a world point for the ground), k, c, l0) and torques
+    (body a, body b, the axis in a's frame, tau), bodies in tree order."""
+    sa = np.array([idx[s.body_a] for s in springs], dtype=np.int64)
+    sb = np.array([-1 if s.body_b is None else idx[s.body_b] for s in springs], dtype=np.int64)
+    spa = np.array([s.anchor_a for s in springs], dtype=float).reshape(-1, 3)
+    spb = np.array([s.anchor_b for s in springs], dtype=float).reshape(-1, 3)
+    k = np.array([s.stiffness for s in springs], dtype=float)
+    c = np.array([s.damping for s in springs], dtype=float)
+    l0 = np.array([s.rest_length for s in springs], dtype=float)
+    js = [joints_by_name[t.joint] for t in torques]
+    ta = np.array([idx[j.body_a] for j in js], dtype=np.int64)
+    tb = np.array([-1 if j.body_b is None else idx[j.body_b] for j in js], dtype=np.int64)
+    tax = np.array([np.asarray(j.axis_a, float) / np.linalg.norm(j.axis_a) for j in js],
+                   dtype=float).reshape(-1, 3)  # fmt: skip
+    tau = np.array([t.torque for t in torques], dtype=float)
+    return sa, sb, spa, spb, k, c, l0, ta, tb, tax, tau
+
+
+@njit(cache=True)
+def _force_kernel(R, x, v, S, cptr, cidx, sa, sb, spa, spb, k, c, l0, ta, tb, tax, tau):
+    """Q (nu,): the generalized forces of the force elements, sum over bodies of S_c . f_b
+    for the columns c of each body's chain, f_b = (moment about the origin, force) of the
+    elements on body b (module :mod:`scenarios.force_elements`: a spring pulls point a by
+    -(k (l - l0) + c l') e, e = (p_a - p_b)/l, point b by the opposite; a torque is tau u on
+    a, u = R_a axis_a, and -tau u on b)."""
+    nb = x.shape[0]
+    f = np.zeros((nb, 6))
+    pa = np.empty(3)
+    pb = np.empty(3)
+    va = np.empty(3)
+    vb = np.empty(3)
+    for i in range(len(sa)):
+        a, b = sa[i], sb[i]
+        for r in range(3):
+            pa[r] = (x[a, r] + R[a, r, 0] * spa[i, 0] + R[a, r, 1] * spa[i, 1]
+                     + R[a, r, 2] * spa[i, 2])  # fmt: skip
+        wxp = np.cross(v[a, :3], pa)
+        for r in range(3):
+            va[r] = v[a, 3 + r] + wxp[r]
+        if b >= 0:
+            for r in range(3):
+                pb[r] = (x[b, r] + R[b, r, 0] * spb[i, 0] + R[b, r, 1] * spb[i, 1]
+                         + R[b, r, 2] * spb[i, 2])  # fmt: skip
+            wxp = np.cross(v[b, :3], pb)
+            for r in range(3):
+                vb[r] = v[b, 3 + r] + wxp[r]
+        else:
+            for r in range(3):
+                pb[r] = spb[i, r]
+                vb[r] = 0.0
+        d = pa - pb
+        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        e = d / length
+        rate = e[0] * (va[0] - vb[0]) + e[1] * (va[1] - vb[1]) + e[2] * (va[2] - vb[2])
+        F = -(k[i] * (length - l0[i]) + c[i] * rate) * e
+        m = np.cross(pa, F)
+        for r in range(3):
+            f[a, r] += m[r]
+            f[a, 3 + r] += F[r]
+        if b >= 0:
+            m = np.cross(pb, F)
+            for r in range(3):
+                f[b, r] -= m[r]
+                f[b, 3 + r] -= F[r]
+    for i in range(len(ta)):
+        a, b = ta[i], tb[i]
+        for r in range(3):
+            u = R[a, r, 0] * tax[i, 0] + R[a, r, 1] * tax[i, 1] + R[a, r, 2] * tax[i, 2]
+            f[a, r] += tau[i] * u
+            if b >= 0:
+                f[b, r] -= tau[i] * u
+    Q = np.zeros(S.shape[0])
+    for bb in range(nb):
+        for kk in range(cptr[bb], cptr[bb + 1]):
+            col = cidx[kk]
+            s = 0.0
+            for r in range(6):
+                s += S[col, r] * f[bb, r]
+            Q[col] += s
+    return Q
+
+
+def generalized_forces(system: LoopSystem, R, x, v, S) -> np.ndarray:
+    """Q (nu,) of the system's force elements at the tree's kinematics (R, x, spatial
+    velocities v, motion subspace S of :func:`_kin`)."""
+    return _force_kernel(R, x, v, S, system.cptr, system.cidx, *system.forces)
 
 
 def project_rates(system: LoopSystem, q, du) -> np.ndarray:
