@@ -320,7 +320,7 @@ def estimate(scenario) -> tuple[float, str] | None:
     from references.exact.multibody.loops import rhs_function
 
     system, q0, u0 = _system(scenario)
-    scale, wscale = _scales(system.tree, q0, u0)
+    scale, wscale = _scales(system.tree, q0, u0, system)
     f = rhs_function(system, alpha=wscale)
     return estimate_cost(f, np.concatenate([q0, u0]), scenario.t_end, RTOL, scale,
                          REFERENCE_RUNS)  # fmt: skip

@@ -82,7 +82,7 @@ def trajectory_horizon(
     main = (ref.x, ref.R, ref.v, ref.W)
     q0, u0 = tree.initial_from_joint(q0, u0)
     y0 = np.concatenate([q0, u0])
-    scale, wscale = _scales(tree, q0, u0)
+    scale, wscale = _scales(tree, q0, u0, system)
     loop = system is not None and system.active
     if loop:
         from references.exact.multibody import loops

@@ -90,11 +90,21 @@ class MultibodySolution:
     constraint_residual: float = 0.0
 
 
-def _scales(tree: Tree, q0, u0) -> tuple[np.ndarray, float]:
+def _scales(tree: Tree, q0, u0, system=None) -> tuple[np.ndarray, float]:
     """Per-component scales of y = (q, u) for atol, and the rate scale (rad/s): the largest
-    initial joint rate plus sqrt(|g|/length), the rate gravity can build up."""
+    initial joint rate plus sqrt(|g|/length), the rate gravity can build up, and with the
+    force elements of ``system`` (a :class:`~.loops.LoopSystem`) their own rates: a spring's
+    sqrt(k / m) on the lighter of its bodies, a torque's sqrt(|tau| / I) on its body's
+    smallest principal moment (a system started at rest without gravity has no other)."""
     L = tree.length
     wscale = math.sqrt(float(np.linalg.norm(tree.gravity)) / L)
+    if system is not None and system.has_forces:
+        sa, sb, _, _, k, _, _, ta, _, _, tau = system.forces
+        for a, b, ki in zip(sa, sb, k, strict=True):
+            m = tree.mass[a] if b < 0 else min(tree.mass[a], tree.mass[b])
+            wscale = max(wscale, math.sqrt(ki / m))
+        for a, ti in zip(ta, tau, strict=True):
+            wscale = max(wscale, math.sqrt(abs(ti) / float(np.min(tree.inertia[a]))))
     vmax = 0.0
     for b in range(tree.nb):
         uo = tree.uofs[b]
@@ -253,7 +263,7 @@ def solve(
     start = time.perf_counter()
     deadline = start + max_wall
     y0 = np.concatenate([q0, u0])
-    scale, wscale = _scales(tree, q0, u0)
+    scale, wscale = _scales(tree, q0, u0, system)
     loop = system is not None and system.active
     if loop:
         from references.exact.multibody import loops
