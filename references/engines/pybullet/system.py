@@ -22,10 +22,24 @@ fixed_point                                R_p^T R_c, rates W_c - R_rel^T W_p (c
 revolute            ``JOINT_REVOLUTE``     resetJointState: 0, n . (W_c - R_rel^T W_p)
 prismatic           ``JOINT_PRISMATIC``    resetJointState: the anchors' offset along the
                                            axis, its rate (reduced.slide_state)
+universal           two ``JOINT_REVOLUTE``  both 0; the relative rate on the two axes (least
+                    through a massless     squares; the state check catches a rate off them)
+                    cross link
 (floating root)     base of a multibody    resetBasePositionAndOrientation / resetBaseVelocity
                                            (COM, world v and world w)
 others              -                      unsupported (not built by this adapter)
 ==================  =====================  ==================================================
+
+Universal joints: PyBullet has none (its joint types are revolute, prismatic, spherical,
+planar, fixed, point-to-point, gear), so a universal joint is built as the composition it is:
+a massless link, the joint's *cross* (named ``<joint>_cross`` in the settings record: mass 0,
+moments 0, no collision shape), hinged to the parent at the joint point about the parent's axis
+(R_ref^T u_p in the cross's frame, placed at (R_ref, X - Y_p) as any link), and the body hinged
+to the cross at the same point about its own axis u_c: R_p^T R_c = Rot(u_p, q1) R_ref
+Rot(u_c, q2), DART's and Pinocchio's parametrisation. Both hinges are read back (type, parent,
+axis, placement, the cross's zero mass and moments). The cross adds no inertia, so the motion is
+the universal joint's; its two coordinates are the engine's, the bodies' states are read as
+for any link.
 
 Loop closures: a closing spherical joint is one ``JOINT_POINT2POINT`` constraint between the two
 anchors (pivots relative to each link's COM frame, world point for the ground); a closing
@@ -105,6 +119,8 @@ class _Model:
         self.cid = p.connect(p.DIRECT)
         self.clock = 0.0
         self.where: dict[int, tuple[int, int]] = {}  # body -> (multibody id, link index)
+        #: body of a universal joint -> (multibody id, link index of its massless cross)
+        self.cross: dict[int, tuple[int, int]] = {}
         self.frames: dict[int, reduced.EngineFrames] = {}
         self.constraints: list = []
         p.setGravity(*pl.gravity.tolist(), physicsClientId=self.cid)
@@ -127,18 +143,34 @@ class _Model:
 
     def _multibody(self, base, links) -> None:
         p, cid, pl = self.p, self.cid, self.pl
-        index = {c: k for k, c in enumerate(links)}
         kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
-                 "prismatic": p.JOINT_PRISMATIC}  # fmt: skip
-        f = [engine_frames(pl, c) for c in links]
-        for c, fc in zip(links, f, strict=True):
+                 "prismatic": p.JOINT_PRISMATIC, "universal": p.JOINT_REVOLUTE}  # fmt: skip
+        # the multibody's links: each body's, preceded by its massless cross for a universal
+        # joint (module docstring); rows (body, is_cross, position, orientation, inertial
+        # offset, axis, mass)
+        rows, index, cross = [], {}, {}
+        for c in links:
+            fc = engine_frames(pl, c)
             self.frames[c] = fc
-        parents = [
-            0
-            if pl.tree[c].parent < 0 or pl.tree[c].parent == base
-            else index[pl.tree[c].parent] + 1
-            for c in links
-        ]
+            tj = pl.tree[c]
+            if fc.kind == "universal":
+                cross[c] = len(rows)
+                rows.append((c, True, fc.p, fc.R, np.zeros(3), tj.R_ref.T @ tj.axis_p, 0.0))
+                index[c] = len(rows)
+                rows.append((c, False, np.zeros(3), np.eye(3), fc.body_offset, fc.axis,
+                             float(pl.bodies[c].mass)))  # fmt: skip
+            else:
+                index[c] = len(rows)
+                axis = fc.axis if fc.axis is not None else np.array([0, 0, 1.0])
+                rows.append((c, False, fc.p, fc.R, fc.body_offset, axis,
+                             float(pl.bodies[c].mass)))  # fmt: skip
+
+        def parent(c, is_cross):
+            if c in cross and not is_cross:
+                return cross[c] + 1
+            tp = pl.tree[c].parent
+            return 0 if tp < 0 or tp == base else index[tp] + 1
+
         mb = p.createMultiBody(
             baseMass=0.0 if base is None else float(pl.bodies[base].mass),
             baseCollisionShapeIndex=-1,
@@ -147,18 +179,16 @@ class _Model:
             baseOrientation=[0.0, 0.0, 0.0, 1.0],
             baseInertialFramePosition=[0.0, 0.0, 0.0],
             baseInertialFrameOrientation=[0.0, 0.0, 0.0, 1.0],
-            linkMasses=[float(pl.bodies[c].mass) for c in links],
-            linkCollisionShapeIndices=[-1] * len(links),
-            linkVisualShapeIndices=[-1] * len(links),
-            linkPositions=[fc.p.tolist() for fc in f],
-            linkOrientations=[cv.matrix_to_quat_xyzw(fc.R).tolist() for fc in f],
-            linkInertialFramePositions=[fc.body_offset.tolist() for fc in f],
-            linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * len(links),
-            linkParentIndices=parents,
-            linkJointTypes=[kinds[fc.kind] for fc in f],
-            linkJointAxis=[
-                (fc.axis if fc.axis is not None else np.array([0, 0, 1.0])).tolist() for fc in f
-            ],  # fmt: skip
+            linkMasses=[r[6] for r in rows],
+            linkCollisionShapeIndices=[-1] * len(rows),
+            linkVisualShapeIndices=[-1] * len(rows),
+            linkPositions=[np.asarray(r[2]).tolist() for r in rows],
+            linkOrientations=[cv.matrix_to_quat_xyzw(r[3]).tolist() for r in rows],
+            linkInertialFramePositions=[np.asarray(r[4]).tolist() for r in rows],
+            linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * len(rows),
+            linkParentIndices=[parent(r[0], r[1]) for r in rows],
+            linkJointTypes=[kinds[pl.tree[r[0]].kind] for r in rows],
+            linkJointAxis=[np.asarray(r[5]).tolist() for r in rows],
             useMaximalCoordinates=False,
             physicsClientId=cid,
         )
@@ -167,6 +197,8 @@ class _Model:
             self.frames[base] = engine_frames(pl, base)
         for c in links:
             self.where[c] = (mb, index[c])
+        for c, k in cross.items():
+            self.cross[c] = (mb, k)
         # body-wide options and the inertia in SEPARATE calls, no mass on a link
         # (pybullet_engine's docstring: either distorts the link)
         for link in [-1, *range(len(links))]:
@@ -182,7 +214,11 @@ class _Model:
             p.changeDynamics(mb, k, jointDamping=0.0, physicsClientId=cid)
             p.changeDynamics(mb, k, localInertiaDiagonal=list(map(float, pl.bodies[c].inertia)),
                              physicsClientId=cid)  # fmt: skip
-        self.motors_off(mb, [index[c] for c in links], [pl.tree[c].kind for c in links])
+        for k in cross.values():
+            p.changeDynamics(mb, k, jointDamping=0.0, physicsClientId=cid)
+            p.changeDynamics(mb, k, localInertiaDiagonal=[0.0, 0.0, 0.0], physicsClientId=cid)
+        ks = [index[c] for c in links] + list(cross.values())
+        self.motors_off(mb, ks, [pl.tree[c].kind for c in links] + ["revolute"] * len(cross))
 
     def motors_off(self, mb, links, kinds) -> None:
         """Every joint's default motor off: a zero force limit (zero gains alone do not)."""
@@ -223,6 +259,14 @@ class _Model:
                 d0, rate = reduced.slide_state(pl, tj)
                 u = rates if rates is not None else rate
                 p.resetJointState(mb, k, d0, u, physicsClientId=cid)
+            elif tj.kind == "universal":
+                # at (0, 0) the relative rate (child axes) is q1' R_ref^T u_p + q2' u_c
+                axes = np.column_stack([tj.R_ref.T @ tj.axis_p, tj.axis_c])
+                q12 = np.linalg.lstsq(axes, Wr, rcond=None)[0]
+                if rates is not None:
+                    q12 = [rates, rates]
+                p.resetJointState(mb, self.cross[c][1], 0.0, float(q12[0]), physicsClientId=cid)
+                p.resetJointState(mb, k, 0.0, float(q12[1]), physicsClientId=cid)
             else:
                 u = rates if rates is not None else float(tj.axis_c @ Wr)
                 p.resetJointState(mb, k, 0.0, u, physicsClientId=cid)
@@ -287,7 +331,7 @@ class _Model:
         for c, (mb, k) in self.where.items():
             info = p.getDynamicsInfo(mb, k, physicsClientId=cid)
             E += 0.5 * info[0] * v[c] @ v[c] + 0.5 * W[c] @ (np.asarray(info[2]) * W[c])
-        return float(E)
+        return float(E)  # a universal joint's cross has no mass (read back)
 
     def add_loops(self, erp: float, max_force: float) -> None:
         p, cid, pl = self.p, self.cid, self.pl
@@ -318,7 +362,7 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
     want = bad.want
 
     kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
-             "prismatic": p.JOINT_PRISMATIC}  # fmt: skip
+             "prismatic": p.JOINT_PRISMATIC, "universal": p.JOINT_REVOLUTE}  # fmt: skip
     inv = {v: c for c, v in bm.where.items()}
     for c, (mb, k) in bm.where.items():
         b, tj, f = pl.bodies[c], pl.tree[c], bm.frames[c]
@@ -338,16 +382,36 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
         want(f"{name}: joint damping", j[6], 0.0)
         want(f"{name}: joint friction", j[7], 0.0)
         parent = j[16]
+        exp_parent = "ground" if tj.parent < 0 else pl.names[tj.parent]
+        place = f.p
+        if tj.kind == "universal":
+            # the body hangs from its cross at the joint point, about its own axis; the cross
+            # from the parent, about the parent's axis (module docstring)
+            kc = bm.cross[c][1]
+            if parent != kc:
+                bad.append(f"{name}: parent link {parent}, needs its cross (link {kc})")
+            want(f"{name}: joint position in its cross", j[14], np.zeros(3))
+            want(f"{name}: joint frame orientation in its cross", j[15], [0, 0, 0, 1])
+            want(f"{name}: joint axis (child frame)", j[13], f.axis)
+            name = f"{tj.name}_cross"
+            ci = p.getDynamicsInfo(mb, kc, physicsClientId=cid)
+            want(f"{name}: mass", ci[0], 0.0)
+            want(f"{name}: moments", ci[2], np.zeros(3))
+            j = p.getJointInfo(mb, kc, physicsClientId=cid)
+            if j[2] != p.JOINT_REVOLUTE:
+                bad.append(f"{name}: joint type {j[2]}, needs revolute")
+            want(f"{name}: joint damping", j[6], 0.0)
+            want(f"{name}: joint axis (its frame)", j[13], tj.R_ref.T @ tj.axis_p)
+            parent = j[16]
         got_parent = inv.get((mb, parent))
         got_parent = "ground" if got_parent is None else pl.names[got_parent]
-        exp_parent = "ground" if tj.parent < 0 else pl.names[tj.parent]
         if got_parent != exp_parent:
             bad.append(f"{name}: parent {got_parent!r}, needs {exp_parent!r}")
         # joint frame in the parent's link frame, as stored (pybullet reports it relative to
         # the parent's inertial frame: back to the link frame by the parent's inertial offset)
         off = np.zeros(3) if parent < 0 else np.asarray(
             p.getDynamicsInfo(mb, parent, physicsClientId=cid)[3])  # fmt: skip
-        want(f"{name}: joint position in the parent", np.asarray(j[14]) + off, f.p)
+        want(f"{name}: joint position in the parent", np.asarray(j[14]) + off, place)
         if tj.kind in ("revolute", "prismatic"):
             want(f"{name}: joint axis (child frame)", j[13], f.axis)
     params = p.getPhysicsEngineParameters(physicsClientId=cid)
@@ -431,7 +495,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "of jointed bodies is not built there"
         )
     p = _import()
-    pl = reduced.plan(scenario, "pybullet", reduced.SLIDING_KINDS)
+    pl = reduced.plan(scenario, "pybullet", (*reduced.SLIDING_KINDS, "universal"))
     bm = _Model(p, pl, float(dt))
     try:
         read_back(bm, scenario, float(dt))
@@ -461,6 +525,17 @@ def build(scenario, integrator: str, dt: float, **settings):
         "maxJointVelocity": MAX_JOINT_VELOCITY,
         "activationState": "ACTIVATION_STATE_DISABLE_SLEEPING",
         "collision": "none (no collision shapes)",
+        **(
+            {
+                "universal joints": [
+                    f"{pl.tree[c].name}: two JOINT_REVOLUTE through the massless link "
+                    f"'{pl.tree[c].name}_cross' (mass 0, moments 0)"
+                    for c in bm.cross
+                ]
+            }
+            if bm.cross
+            else {}
+        ),  # fmt: skip
         "probes (rate rad/s, step s, relative kinetic-energy change)": [
             (r, h, e) for (r, h, _), e in zip(PROBES, rel, strict=True)
         ],
