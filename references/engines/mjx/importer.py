@@ -68,10 +68,15 @@ def load(scenario, config: str, integrator: str, dt: float):
                 with x64_mode(True), contextlib.redirect_stderr(io.StringIO()):
                     mx = mjx.put_model(self.m, impl="jax")
                     dx = mjx.put_data(self.m, self.d, impl="jax")
+                    # put_data's integer fields (the contact's geom ids) are int32, step's
+                    # int64 under x64: the loop's carry keeps the types step gives (a model
+                    # loaded with its contacts: ant, pusher as loaded)
+                    shapes = jax.eval_shape(mjx.step, mx, dx)
+                    dx = jax.tree_util.tree_map(lambda a, s: a.astype(s.dtype), dx, shapes)
             except Exception as exc:  # MJX's refusal of the loaded model is the finding
                 raise Unsupported(
-                    f"mjx: put_model refuses the model MuJoCo's importer loaded ({config}): "
-                    f"{type(exc).__name__}: {str(exc).strip()[:300]}"
+                    f"mjx: put_model or mjx.step refuses the model MuJoCo's importer loaded "
+                    f"({config}): {type(exc).__name__}: {str(exc).strip()[:300]}"
                 ) from None
             comp, secs, _ = _compiled(f"importer-step-{base}", step, (mx, dx),
                                       (np.int32(1),), True)  # fmt: skip
