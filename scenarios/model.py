@@ -86,10 +86,13 @@ class RunFields:
         """First 12 hex digits of the SHA-256 of the content that determines a result: every
         field of :meth:`to_dict` but the description (for one body: name, body, initial state,
         environment, run settings, reference kind, tolerances; a system adds its joints, the
-        reference's parameters and the engine settings). Text fields other than the name do
-        not count."""
+        reference's parameters and the engine settings; a robot model its file's content,
+        ``model.sha256``, not where the file lies). Text fields other than the name do not
+        count: the same scenario has the same hash in every checkout and on every machine."""
         d = self.to_dict()
         d.pop("description")
+        if isinstance(d.get("model"), dict):
+            d["model"] = {k: v for k, v in d["model"].items() if k != "file"}
         blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
         return hashlib.sha256(blob).hexdigest()[:12]
 

@@ -370,3 +370,21 @@ def test_the_default_suite_runs_a_shipped_robot_model():
     assert "arm3_swing" in [s.name for s in resolve_scenarios([])]
     entry = next(s for s in catalog()["scenarios"] if s["name"] == "arm3_swing")
     assert entry["default"]
+
+
+def test_a_robot_scenario_has_one_hash_wherever_its_files_lie(tmp_path):
+    """The same robot scenario read from another checkout (a CI machine's fresh clone) has
+    the baseline's identity: its hash counts the model file's content, not its path; a
+    changed model file changes it."""
+    import shutil
+
+    here = scenarios.load("arm3_swing")
+    (tmp_path / "models").mkdir()
+    shutil.copy(scenarios.robots_path() / "arm3_swing.toml", tmp_path)
+    shutil.copy(MODELS / "arm3.urdf", tmp_path / "models")
+    there = scenarios.load(tmp_path / "arm3_swing.toml")
+    assert there.model.path != here.model.path
+    assert there.scenario_hash == here.scenario_hash
+    urdf = tmp_path / "models" / "arm3.urdf"
+    urdf.write_text(urdf.read_text().replace('mass value="', 'mass value="1', 1))
+    assert scenarios.load(tmp_path / "arm3_swing.toml").scenario_hash != here.scenario_hash
