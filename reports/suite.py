@@ -75,7 +75,7 @@ def check_singular(scs) -> None:
     from scenarios.schema import file_error
 
     for sc in scs:
-        if not getattr(sc, "is_system", False) or not sc.loop_joints:
+        if not sc.loop_joints:
             continue
         from references.exact.multibody import loops
 
@@ -111,7 +111,7 @@ def warn_costs(scs, t_end=None) -> list[str]:
 
     lines = []
     for sc in scs:
-        if not getattr(sc, "is_system", False):
+        if sc.kind == "body":
             continue
         sc2 = sc if t_end is None else sc.replace(t_end=float(t_end))
         try:
@@ -149,12 +149,13 @@ def check_references(scs) -> None:
     from scenarios.schema import file_error
     from scenarios.system import CONTACT_CLOSED_FORMS, SYSTEM_CLOSED_FORMS
 
+    closed_forms = {
+        "body": CLOSED_FORMS,
+        "system": SYSTEM_CLOSED_FORMS,
+        "contact": CONTACT_CLOSED_FORMS,
+    }
     for sc in scs:
-        system = getattr(sc, "is_system", False)
-        kinds = SYSTEM_CLOSED_FORMS if system else CLOSED_FORMS
-        if getattr(sc, "has_contact", False):
-            kinds = CONTACT_CLOSED_FORMS
-        if sc.reference not in kinds or scenarios.is_library_file(sc):
+        if sc.reference not in closed_forms[sc.kind] or scenarios.is_library_file(sc):
             continue
         why = reference_problem(sc)
         if why is not None:
@@ -166,7 +167,7 @@ def check_references(scs) -> None:
 def reference_problem(sc) -> str | None:
     """Why the closed-form reference ``sc`` asks for does not apply to it, or None (see
     :func:`check_references`): the reference's own refusal, set up at t = 0."""
-    if getattr(sc, "has_contact", False):
+    if sc.kind == "contact":
         from references.exact._util import ReferenceNotApplicable
         from references.exact.contact_scene import contact_motion
 
@@ -175,7 +176,7 @@ def reference_problem(sc) -> str | None:
         except ReferenceNotApplicable as exc:
             return str(exc)
         return None
-    if getattr(sc, "is_system", False):
+    if sc.kind == "system":
         import numpy as np
 
         from references.engines.exact import system as exact_system
@@ -264,8 +265,7 @@ def check_engine_settings(scs) -> None:
                     f"not a registered engine{_did_you_mean(engine, known_engines)}; known: "
                     f"{', '.join(known_engines)}"
                 )
-            contact = getattr(sc, "has_contact", False)
-            if contact:
+            if sc.kind == "contact":
                 from references.engines.contact import builder_settings as contact_settings
 
                 known, what = contact_settings(engine), "contact builder"
@@ -499,7 +499,7 @@ def ensemble(
     from reports.store.provenance import write_provenance
 
     (sc,) = resolve_scenarios([name])
-    if getattr(sc, "is_system", False):
+    if sc.kind != "body":
         raise InputError(f"ensemble: {name!r} is a system of bodies; ensembles perturb one body")
     named = engines is not None
     engines = check_engines(engines)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenarios.model import REFERENCE_KINDS, Scenario
+from scenarios.model import REFERENCE_KINDS, SCENE_KINDS, Scenario
 from scenarios.schema import ScenarioError
 from scenarios.system import SystemBody, SystemJoint, SystemScenario
 from scenarios.system_file import validate as _validate_body_or_system
@@ -45,6 +45,7 @@ def load_file(path):
 
 __all__ = [
     "REFERENCE_KINDS",
+    "SCENE_KINDS",
     "Scenario",
     "ScenarioError",
     "SystemBody",

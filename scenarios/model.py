@@ -28,6 +28,12 @@ import numpy as np
 
 from scenarios.metric_catalog import BOUNDED
 
+#: The kinds of scene, each declared by its scenario as ``sc.kind``: what steps a run of it,
+#: which references measure it, which metrics and figures it has. ``body``: one rigid body
+#: (:class:`Scenario`); ``system``: bodies tied by joints; ``contact``: bodies whose listed
+#: pairs may touch (both :class:`scenarios.system.SystemScenario`).
+SCENE_KINDS = ("body", "system", "contact")
+
 #: Reference kinds a scenario may request; "auto" lets the suite pick (see references).
 REFERENCE_KINDS = ("auto", "free_body", "lagrange_top", "steady_precession", "numerical")
 
@@ -134,6 +140,11 @@ class Scenario(RunFields):
     source: str = ""
     tags: tuple[str, ...] = ()
     path: str | None = None
+
+    #: the scene's kind (:data:`SCENE_KINDS`)
+    kind = "body"
+    #: a single body has no joints, so no loop closures
+    loop_joints = ()
 
     def __post_init__(self):
         # Normalise containers so that code building a Scenario by hand gets the same object a

@@ -399,7 +399,7 @@ def magnitude_problems(sc: Scenario, t_end: float | None = None) -> list[tuple]:
     x0 + v0 t + g t^2/2; a pivoted body's kinetic energy stays below its initial one plus the
     largest potential drop, 2 m |g| |c|. A system of bodies checks its own
     (:meth:`scenarios.system.SystemScenario.magnitude_problems`)."""
-    if getattr(sc, "is_system", False):
+    if sc.kind != "body":
         return sc.magnitude_problems(t_end)
     t = sc.t_end if t_end is None else float(t_end)
     lim = MAX_MAGNITUDE

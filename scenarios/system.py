@@ -134,8 +134,6 @@ class SystemScenario(RunFields):
     tags: tuple[str, ...] = ()
     path: str | None = None
 
-    #: single-body code paths test this attribute
-    is_system = True
     #: the single-body field (a system is tied to the ground by joints instead)
     pivot = None
     pivoted = False
@@ -161,6 +159,12 @@ class SystemScenario(RunFields):
     def has_contact(self) -> bool:
         """The scene lists pairs that may touch (``[[contacts]]``)."""
         return bool(self.contacts)
+
+    @property
+    def kind(self) -> str:
+        """The scene's kind (:data:`scenarios.model.SCENE_KINDS`): ``contact`` when pairs may
+        touch, else ``system``."""
+        return "contact" if self.contacts else "system"
 
     @property
     def is_tree(self) -> bool:

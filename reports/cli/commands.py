@@ -89,7 +89,7 @@ def _show_lines(sc) -> list[str]:
         return "[" + ", ".join(f"{float(x):.6g}" for x in a) + "]"
 
     lines = [f"{sc.name} ({sc.path}): valid"]
-    if getattr(sc, "is_system", False):
+    if sc.kind != "body":
         loops = sc.loop_joints
         lines.append(
             f"  a system of {len(sc.bodies)} bodies, {len(sc.joints)} joints"
@@ -103,7 +103,7 @@ def _show_lines(sc) -> list[str]:
             )
         for j in sc.joints:
             lines.append(f"    joint {j.name}: {j.kind} {j.body_a} - {j.body_b or 'ground'}")
-        if getattr(sc, "has_contact", False):
+        if sc.kind == "contact":
             lines += _contact_lines(sc, vec)
         if getattr(sc, "model", None) is not None:
             from scenarios.models.scenario import describe
@@ -127,7 +127,7 @@ def _show_lines(sc) -> list[str]:
     )
     asked = "" if sc.reference == kind else f" (asked: {sc.reference})"
     lines.append(f"  reference: {kind}{asked}")
-    if getattr(sc, "has_contact", False):
+    if sc.kind == "contact":
         from reports.metrics import contact as mc
 
         lines.append(

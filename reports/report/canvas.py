@@ -443,7 +443,7 @@ class SeriesCache:
         return self._data[rel]
 
     def body(self, row):
-        """The scenario's body stored beside the run's series (reports.run.runner.body_of):
+        """The scenario's body stored beside the run's series (reports.run.body.body_of):
         an object with ``name``, ``mass``, ``inertia``, ``pivot`` (None: free) and
         ``omega_body``, or None (a folder written before the body was stored)."""
         if self.get(row) is None:

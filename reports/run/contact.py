@@ -1,6 +1,7 @@
-"""One run of a contact scene, from its spec to its result row: the contact counterpart of
-:func:`reports.run.system.run_system_spec`, called by :func:`reports.run.runner.execute` for a
-scene with ``[[contacts]]``.
+"""One run of a contact scene, from its spec to its result row: the stepper of the ``contact``
+scene kind (a scene with ``[[contacts]]``; :data:`reports.run.runner.STEPPERS`), called by
+:func:`reports.run.runner.execute`, which prepares the row and turns a failure into the row's
+status.
 
 Flow: the engine's contact builder (:func:`references.engines.contact.run_contact`) -> the
 states and the engine's contact forces -> the scene's closed form at the saved times
@@ -20,9 +21,10 @@ from reports.store.results import StoreUnwritable, write_parquet_table
 from reports.store.runs import output_columns, trajectory_path
 
 
-def run_contact_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:
+def run_contact_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str, progress=None) -> None:
     """Run the contact spec ``spec`` (its configuration ``integ``, its scene at the run's
-    horizon ``sc``) and fill ``row``; a failure raises (the caller makes it the row)."""
+    horizon ``sc``) and fill ``row`` (``progress`` is not told: a builder steps the whole run
+    in one call); a failure raises (the caller makes it the row)."""
     from references.engines import Diverged, Unsupported, get_engine
     from references.engines.contact import run_contact
 

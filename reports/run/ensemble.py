@@ -90,7 +90,7 @@ def _batch(cls, specs) -> list[dict]:
     vmapped, compiled call); the rows are built like every other run's (reports.run.runner),
     a diverged member's from its output up to the divergence."""
     from references.engines import Diverged, EngineError, Unsupported
-    from reports.run.runner import _judge, _measure
+    from reports.run.body import _judge, _measure
 
     spec0 = specs[0]
     integ = cls.integrator(spec0.integrator)

@@ -112,7 +112,7 @@ def offered(engine: str, sc) -> dict:
     engine has no contact builder)."""
     from references.engines import get_engine
 
-    if getattr(sc, "has_contact", False):
+    if sc.kind == "contact":
         from references.engines.contact import configurations
 
         confs = configurations(engine)

@@ -13,165 +13,39 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import dataclasses
 import functools
-import math
+import importlib
 import time
 import traceback
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-import numpy as np
-
-from reports.metrics import verdicts
-from reports.metrics.body import metrics_and_series, roundoff_floor
-from reports.run.files import SERIES_FORMAT, SERIES_NOTE, kept_less, series_table
+from reports.run.body import is_reference
+from reports.run.files import kept_less
 from reports.run.plan import UNAVAILABLE, offered
 from reports.run.timing import TimingResult, TimingUnit, time_unit
-from reports.store.atomic import replacing
 from reports.store.exports import export
-from reports.store.results import Store, StoreUnwritable, read_results, write_parquet_table
-from reports.store.runs import RunSpec, blank_row, finish_time, output_columns, trajectory_path
-
-# -- references, cached per process ------------------------------------------------------------
-
-
-class _Content:
-    """A scenario as a cache key: equal to any scenario of the same content
-    (``scenario_hash``: every field a reference depends on), since a worker process receives
-    a new copy of the scenario with each unit of work and a scenario object compares by
-    identity."""
-
-    __slots__ = ("hash", "scenario")
-
-    def __init__(self, scenario):
-        self.scenario = scenario
-        self.hash = scenario.scenario_hash
-
-    def __hash__(self) -> int:
-        return hash(self.hash)
-
-    def __eq__(self, other) -> bool:
-        return isinstance(other, _Content) and other.hash == self.hash
-
-
-@functools.lru_cache(maxsize=64)
-def _reference_cached(key: _Content, t_bytes: bytes):
-    from references.exact import reference_trajectory
-
-    ref = reference_trajectory(key.scenario, np.frombuffer(t_bytes, dtype=float))
-    for f in dataclasses.fields(ref):  # shared by the runs on this grid: nobody may change it
-        value = getattr(ref, f.name)
-        if isinstance(value, np.ndarray):
-            value.setflags(write=False)
-    return ref
-
-
-def reference_for(scenario, t):
-    """The scenario's reference at times ``t``, cached per process by the scenario's content
-    and the times (the engines of a scenario share a grid); its arrays are read-only."""
-    t_bytes = np.ascontiguousarray(t, dtype=float).tobytes()
-    return _reference_cached(_Content(scenario), t_bytes)
-
-
-@functools.lru_cache(maxsize=64)
-def _expected_cached(key: _Content) -> dict:
-    from references.exact import expected_observables
-
-    return dict(expected_observables(key.scenario))
-
-
-def expected_for(scenario) -> dict:
-    """The scenario's exact observables (references.exact.expected_observables), cached per
-    process by the scenario's content."""
-    return _expected_cached(_Content(scenario))
-
-
-def write_run_files(
-    traj,
-    series: dict,
-    path: Path,
-    fmt: str,
-    identity: dict,
-    body: dict | None = None,
-    keep: str = "full",
-) -> None:
-    """Write a run's trajectory, atomically: Parquet with the per-sample error series as
-    extra columns and units, frames, the run's identity and the scenario's ``body``
-    (:func:`body_of`, what the report's scenario picture draws) in the schema metadata; or
-    CSV with the series, and the body in its metadata, in a Parquet file beside it. With
-    ``keep == "series"``: the series file the report draws (reports.run.files) at ``path``."""
-    import pyarrow as pa
-
-    from references.trajectory import COLUMNS, UNITS
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if keep == "series":
-        cols = dict(zip(COLUMNS, _columns_of(traj).T, strict=True)) | series
-        table = series_table(cols, bool(identity.get("reference")))
-        meta = {
-            "director_bench.units": {
-                c: UNITS.get(c, "1 (see docs/results.md)") for c in table.column_names
-            },  # fmt: skip
-            "director_bench.kept": SERIES_NOTE,
-            "director_bench.run": {k: v for k, v in identity.items() if k != "reference"},
-        }
-        if body:
-            meta["director_bench.body"] = body
-        write_parquet_table(table, path, meta)
-        return
-    if fmt != "parquet":
-        with replacing(path) as tmp:
-            traj.write(tmp, "csv")
-        series = {"t": traj.t, "wx": traj.omega_body[:, 0], "wy": traj.omega_body[:, 1],
-                  "wz": traj.omega_body[:, 2], **series}  # fmt: skip
-        meta = {"director_bench.body": body} if body else {}
-        write_parquet_table(pa.table(series), path.with_name(path.stem + ".series.parquet"), meta)
-        return
-    data = _columns_of(traj)
-    table = pa.table({c: data[:, i] for i, c in enumerate(COLUMNS)} | series)
-    meta = {
-        "director_bench.units": {**UNITS, **dict.fromkeys(series, "1 (see docs/results.md)")},
-        "director_bench.frames": {
-            "position, velocity, angular momentum": "world axes",
-            "R": "body-to-world rotation, row-major R00..R22; columns are the directors",
-            "wx, wy, wz": "body axes",
-            "angular momentum about": "the centre of mass (free body) or the pivot",
-        },
-        "director_bench.run": identity,
-    }
-    if body:
-        meta["director_bench.body"] = body
-    write_parquet_table(table, path, meta)
-
-
-def _columns_of(traj):
-    """The trajectory as an (n, len(COLUMNS)) array, columns in references.trajectory's
-    order."""
-    n = len(traj)
-    return np.column_stack(
-        [
-            traj.t, traj.position, traj.velocity, traj.rotation.reshape(n, 9),
-            traj.omega_body, traj.energy, traj.angular_momentum, traj.constraint_velocity,
-        ]
-    )  # fmt: skip
-
-
-def body_of(sc) -> dict:
-    """A single body's scenario as the results folder keeps it beside its trajectories (the
-    report draws the body from it, never from the scenario library): name, mass [kg],
-    principal moments [kg m^2], pivot in body axes [m] (None: a free body) and initial
-    angular velocity W in body axes [rad/s]."""
-    return {
-        "name": sc.name,
-        "mass": float(sc.mass),
-        "inertia": [float(v) for v in sc.inertia],
-        "pivot": None if sc.pivot is None else [float(v) for v in sc.pivot],
-        "omega_body": [float(v) for v in sc.omega_body],
-    }
-
+from reports.store.results import Store, StoreUnwritable, read_results
+from reports.store.runs import RunSpec, blank_row, finish_time, trajectory_path
 
 # -- one run -----------------------------------------------------------------------------------
+
+#: the stepper of each scene kind (scenarios.SCENE_KINDS, declared by the scenario as
+#: ``sc.kind``), as "module:function": it runs one spec of that kind and fills its row
+#: (timings, metrics, status and verdict), with the signature of
+#: :func:`reports.run.body.run_body_spec`, and raises for a failure, which :func:`execute`
+#: makes the row's status
+STEPPERS = {
+    "body": "reports.run.body:run_body_spec",
+    "system": "reports.run.system:run_system_spec",
+    "contact": "reports.run.contact:run_contact_spec",
+}
+
+
+def stepper(kind: str) -> Callable:
+    """The stepper of the scene kind ``kind`` (:data:`STEPPERS`), imported on first use."""
+    module, name = STEPPERS[kind].split(":")
+    return getattr(importlib.import_module(module), name)
 
 
 def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progress=None) -> dict:
@@ -187,17 +61,8 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     started = time.perf_counter()
     row = blank_row(spec)
     try:
-        cls, integ, sc = _prepare(row, spec)
-        if getattr(sc, "has_contact", False):  # bodies in contact: reports.run.contact
-            from reports.run.contact import run_contact_spec
-
-            run_contact_spec(spec, row, integ, sc, out, fmt)
-        elif getattr(sc, "is_system", False):  # a system of bodies: reports.run.system
-            from reports.run.system import run_system_spec
-
-            run_system_spec(spec, row, integ, sc, out, fmt)
-        else:
-            _run_body(spec, row, cls, integ, sc, out, fmt, progress)
+        integ, sc = _prepare(row, spec)
+        stepper(sc.kind)(spec, row, integ, sc, out, fmt, progress)
     except EngineError as exc:
         row["status"] = exc.status
         row["message"] = failure_message(str(exc), "", exc, spec, out)
@@ -248,7 +113,7 @@ def failure_message(text: str, where: str, exc: BaseException, spec: RunSpec, ou
 
 
 def _prepare(row: dict, spec: RunSpec):
-    """(engine class, integrator, scenario at the run's horizon) of ``spec``, with the row's
+    """(integrator, scenario at the run's horizon) of ``spec``, with the row's
     engine version, integrator facts and, for a horizon other than the file's, its scales.
 
     The version is the engine's own (``version()``, which imports it): a spec planned under
@@ -279,34 +144,7 @@ def _prepare(row: dict, spec: RunSpec):
         sc = sc.replace(t_end=spec.horizon)
         # the scales of the horizon run (a free fall's energy in play grows with it)
         row.update(energy_scale=sc.energy_scale, momentum_scale=sc.momentum_scale)
-    return cls, integ, sc
-
-
-def _run_body(spec: RunSpec, row: dict, cls, integ, sc, out, fmt, progress) -> None:
-    """Run a single body's spec through its engine and fill ``row``: timings, metrics,
-    status and verdict (raises for a failure, which :func:`execute` makes a row)."""
-    from references.engines import Diverged
-
-    recorder = _recorder(spec, sc)
-    try:
-        output = cls().run(
-            sc,
-            integ.name,
-            spec.dt,
-            spec.horizon,
-            spec.saving,
-            progress,
-            recorder,
-            accuracy=spec.accuracy,
-        )
-        diverged = None
-    except Diverged as exc:
-        output, diverged = exc.output, exc
-    if output is not None and output.family and output.family != integ.family:
-        row["family"] = output.family  # the algorithm this model ran (see RunOutput)
-        integ = dataclasses.replace(integ, family=output.family)
-    _measure(row, spec, sc, output, recorder, out, fmt)
-    _judge(row, sc, integ, diverged)
+    return integ, sc
 
 
 @functools.cache
@@ -317,97 +155,6 @@ def _running_version(engine: str) -> str:
     from references.engines import get_engine
 
     return get_engine(engine).version()
-
-
-def _is_reference(engine: str) -> bool:
-    """Whether ``engine``'s rows are the reference the others are measured against (its
-    adapter's ``is_reference``: the exact reference), not a configuration under test."""
-    from references.engines import get_engine
-
-    return get_engine(engine).is_reference
-
-
-def _recorder(spec: RunSpec, sc):
-    if not spec.segment:
-        return None
-    from references.engines import step_plan
-    from reports.metrics.streaming import StreamingRecorder
-
-    _, saves = step_plan(spec.dt, spec.horizon, spec.saving)
-    ref = None if _is_reference(spec.engine) else functools.partial(reference_for, sc)
-    return StreamingRecorder(saves, sc, spec.dt, spec.segment, ref)
-
-
-def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
-    """Timings, settings and metrics of a run's output (also of a diverged run's part); the
-    timing pass (reports.run.timing) times it again."""
-    if output is None:
-        return
-    traj = output.trajectory
-    row.update(
-        output_columns(output),
-        roundoff_floor=roundoff_floor(sc, output.nstep),
-        steps_taken=output.stats.get("steps taken", math.nan),
-        steps_rejected=output.stats.get("steps rejected", math.nan),
-    )
-    if _is_reference(spec.engine):
-        ref = None
-        row["reference_kind"] = output.settings.get("reference kind", "")
-        row["reference_accuracy"] = float(output.settings.get("accuracy", math.nan))
-    elif len(traj):
-        from references.exact.numerical import ReferenceCostExceeded
-
-        try:
-            ref = reference_for(sc, traj.t)
-            row["reference_kind"] = ref.kind
-            row["reference_accuracy"] = float(ref.accuracy)
-        except ReferenceCostExceeded as exc:  # the metrics without a reference; _judge says why
-            ref = None
-            row["reference_kind"] = "numerical"
-            row["message"] = str(exc)
-    else:
-        ref = None
-    series = None
-    if len(traj):
-        metrics, series = metrics_and_series(sc, traj, ref, expected_for(sc))
-        row.update(metrics)
-    if spec.accuracy is not None:
-        row["accuracy_ratio"] = row["attitude_error_max"] / spec.accuracy
-    if recorder is not None:
-        row.update(recorder.maxima)
-        if not math.isnan(recorder.reference_accuracy):
-            row["reference_accuracy"] = max(row["reference_accuracy"], recorder.reference_accuracy)
-    if out is not None and len(traj) and spec.keep != "none":
-        rel = trajectory_path(spec, SERIES_FORMAT if spec.keep == "series" else fmt)
-        keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
-        identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
-        if spec.keep == "series":
-            identity["reference"] = _is_reference(spec.engine)
-        try:
-            write_run_files(traj, series, Path(out) / rel, fmt, identity, body_of(sc), spec.keep)
-        except OSError as exc:
-            raise StoreUnwritable(
-                f"{Path(out) / rel}: cannot write the run's trajectory ({exc.strerror or exc}; "
-                "disk full or a file-size limit?); finished runs are kept, rerun to continue"
-            ) from exc
-        row["trajectory"] = rel.as_posix()
-
-
-def _judge(row, sc, integ, diverged) -> None:
-    """Status and verdict of a run that produced an output."""
-    bounds = verdicts.tolerances(sc, integ)
-    if diverged is not None:
-        row["status"] = "diverged"
-        row["t_diverged"] = diverged.t_diverged
-        row["message"] = str(diverged)
-    else:
-        why = verdicts.reference_problem(row["reference_accuracy"], bounds)
-        if why is not None:
-            row["status"] = "reference-inaccurate"
-            row["message"] = row["message"] or f"{why} (reference: {row['reference_kind']})"
-        else:
-            row["status"] = "ok"
-    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)
 
 
 # -- many runs ---------------------------------------------------------------------------------
@@ -525,7 +272,7 @@ def with_timing_passes(units: list) -> tuple[list, dict]:
     last, specs = {}, {}
     for i, unit in enumerate(units):
         for s in unit:
-            if _is_reference(s.engine):
+            if is_reference(s.engine):
                 continue
             last[s.scenario.name] = i
             specs.setdefault(s.scenario.name, []).append(s)
@@ -582,9 +329,9 @@ SYSTEM_REFERENCE_WARM_UP = ("multibody", "the multibody reference (numba)")
 def warm_ups(spec: RunSpec) -> dict[str, str]:
     """{key: what it compiles} of every warm-up the first run of ``spec`` in a process goes
     through (:func:`warm_up`, and for a system of bodies its reference's)."""
-    system = bool(getattr(spec.scenario, "is_system", False))
-    out = dict([w]) if (w := warm_up(spec.engine, spec.integrator, system)) else {}
-    if system and not getattr(spec.scenario, "has_contact", False):  # a closed form: no numba
+    kind = spec.scenario.kind
+    out = dict([w]) if (w := warm_up(spec.engine, spec.integrator, kind != "body")) else {}
+    if kind == "system":  # a contact scene's reference is a closed form: no numba
         out.setdefault(*SYSTEM_REFERENCE_WARM_UP)
     return out
 
@@ -634,7 +381,7 @@ def bundles(specs) -> list[list[RunSpec]]:
         else:
             out.append([s])
     for b in grouped.values():  # a bundle's systems of bodies last (see unit_warm_ups)
-        b.sort(key=lambda s: bool(getattr(s.scenario, "is_system", False)))
+        b.sort(key=lambda s: s.scenario.kind != "body")
     out.sort(key=len, reverse=True)
     firsts: dict[str, list[RunSpec]] = {}  # warm-up key -> the first bundle going through it
     for b in out:
@@ -658,8 +405,8 @@ def bundles(specs) -> list[list[RunSpec]]:
 
 
 def _config(spec: RunSpec) -> tuple:
-    """(engine, integrator, body or system): runs of one configuration cost alike per step."""
-    return spec.engine, spec.integrator, bool(getattr(spec.scenario, "is_system", False))
+    """(engine, integrator, scene kind): runs of one configuration cost alike per step."""
+    return spec.engine, spec.integrator, spec.scenario.kind
 
 
 def _steps(unit: list[RunSpec]) -> float:

@@ -1,6 +1,7 @@
-"""One run of a system of bodies, from its spec to its result row: the system counterpart of
-the single-body run in :func:`reports.run.runner.execute`, which prepares the row, hands system
-scenarios here and turns a failure into the row's status.
+"""One run of a system of bodies, from its spec to its result row: the stepper of the
+``system`` scene kind (:data:`reports.run.runner.STEPPERS`), called by
+:func:`reports.run.runner.execute`, which prepares the row and turns a failure into the row's
+status.
 
 Flow: the engine's system builder (:func:`references.engines.system.run_system`) -> the
 states (:class:`references.trajectory.SystemTrajectory`) -> the reference
@@ -20,9 +21,10 @@ from reports.store.results import StoreUnwritable, write_parquet_table
 from reports.store.runs import output_columns, trajectory_path
 
 
-def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str) -> None:
+def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str, progress=None) -> None:
     """Run the system spec ``spec`` (its integrator ``integ``, its scenario at the run's
-    horizon ``sc``) and fill ``row``: timings, metrics, status and verdict. A failure raises;
+    horizon ``sc``) and fill ``row``: timings, metrics, status and verdict (``progress`` is
+    not told: a builder steps the whole run in one call). A failure raises;
     :func:`reports.run.runner.execute`, which prepared the row, makes it the row's status."""
     from references.engines import Diverged, Unsupported
     from references.engines.system import run_system

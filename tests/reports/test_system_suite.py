@@ -43,7 +43,7 @@ def test_library_systems_load_with_their_structure():
     assert scenarios.list_systems() == LIBRARY
     for name in LIBRARY:
         sc = scenarios.load(name)
-        assert sc.name == name and sc.is_system and len(sc.source) > 40
+        assert sc.name == name and sc.kind == "system" and len(sc.source) > 40
     # the loops: the four-bar's second rocker joint and one joint of Bricard's ring
     assert scenarios.load("four_bar").loop_joints == ("B1",)
     assert len(scenarios.load("bricard").loop_joints) == 1
@@ -51,7 +51,7 @@ def test_library_systems_load_with_their_structure():
     for name in ("free_chain_5", "double_pendulum_3d", "spinning_chain", "conical_pendulum"):
         assert scenarios.load(name).is_tree
     # single-body files are unchanged objects
-    assert not getattr(scenarios.load("heavy_top"), "is_system", False)
+    assert scenarios.load("heavy_top").kind == "body"
 
 
 def test_every_problem_is_listed_with_its_field():

@@ -159,7 +159,7 @@ def test_a_bundle_holds_only_its_engines_warm_up_and_runs_its_systems_last():
     mjx = [b for b in order if len(b) > 1]
     assert mjx and all(b[0].engine == "mjx" for b in mjx)
     for b in mjx:
-        kinds = [bool(getattr(s.scenario, "is_system", False)) for s in b]
+        kinds = [s.scenario.kind != "body" for s in b]
         assert kinds == sorted(kinds) and kinds[-1] and not kinds[0]  # bodies, then systems
         assert unit_warm_ups(b) == {f"mjx/{b[0].integrator}"}  # not the systems' reference
     # the reference's leader is a single run, which holds it only while it runs

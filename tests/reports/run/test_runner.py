@@ -432,7 +432,7 @@ def test_references_are_cached_by_content_not_by_object(dzh):
     content gets the reference already computed, a scenario of other content its own."""
     import pickle
 
-    from reports.run.runner import _reference_cached, expected_for, reference_for
+    from reports.run.body import _reference_cached, expected_for, reference_for
 
     _reference_cached.cache_clear()
     t = np.linspace(0.0, SHORT, 11)
@@ -537,3 +537,18 @@ def test_the_workers_fork_server_preloads_no_engine():
         "print(json.dumps([m for m in engines if m in sys.modules]))\n"
     )
     assert _last_json_line_of_fresh_python(code) == []
+
+
+def test_each_scene_declares_its_kind_and_every_kind_has_a_stepper():
+    """The runner dispatches on the kind a scene declares (``sc.kind``): a single body, a
+    system of bodies, bodies in contact; every kind has a stepper that imports."""
+    from reports.run.runner import STEPPERS, stepper
+
+    assert set(STEPPERS) == set(scenarios.SCENE_KINDS)
+    assert all(callable(stepper(k)) for k in scenarios.SCENE_KINDS)
+    kinds = {n: scenarios.load(n).kind for n in ("heavy_top", "four_bar", "block_incline_stick")}
+    assert kinds == {"heavy_top": "body", "four_bar": "system", "block_incline_stick": "contact"}
+    # a system whose contacts are dropped is a system of bodies again
+    sc = scenarios.load("block_incline_stick")
+    assert sc.replace(contacts=()).kind == "system" and sc.loop_joints == ()
+    assert scenarios.load("heavy_top").loop_joints == ()  # one body: no joints, no loops

@@ -476,7 +476,8 @@ def test_a_reference_over_its_bound_is_said_in_the_rows(monkeypatch):
     import math
 
     import scenarios
-    from reports.run.runner import _reference_cached, execute
+    from reports.run.body import _reference_cached
+    from reports.run.runner import execute
     from reports.store.runs import RunSpec
 
     monkeypatch.setenv("DIRECTOR_BENCH_REFERENCE_MAX_STEPS", "50")
