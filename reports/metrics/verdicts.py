@@ -85,6 +85,32 @@ def reference_problem(reference_accuracy: float, bounds: dict[str, float]) -> st
     return None
 
 
+def judge(row: dict, scenario, integrator, diverged=None) -> None:
+    """Set the status and the verdict of a run that produced an output, whatever its scene's
+    kind: ``diverged`` (the engine's :class:`references.engines.Diverged`, or None) makes it
+    ``diverged`` at its time; a reference the row names (``reference_kind``) whose accuracy
+    estimate cannot decide the verdict (:func:`reference_problem`) makes it
+    ``reference-inaccurate``, with that reason unless the row already says one; a row with no
+    reference (``reference_kind`` "none": a system or contact scene that none applies to, its
+    message says why) is ``ok`` and judged on what is measured without one (invariants, joints,
+    contact laws). Then :func:`verdict` against the run's :func:`tolerances`."""
+    bounds = tolerances(scenario, integrator)
+    if diverged is not None:
+        row["status"] = "diverged"
+        row["t_diverged"] = diverged.t_diverged
+        row["message"] = str(diverged)
+    else:
+        why = None
+        if row["reference_kind"] not in ("", "none"):
+            why = reference_problem(row["reference_accuracy"], bounds)
+        if why is not None:
+            row["status"] = "reference-inaccurate"
+            row["message"] = row["message"] or f"{why} (reference: {row['reference_kind']})"
+        else:
+            row["status"] = "ok"
+    row["verdict"], row["verdict_detail"] = verdict(row, bounds)
+
+
 def verdict(row: dict, bounds: dict[str, float]) -> tuple[str, str]:
     """(verdict, detail) of a result row: "pass"/"fail" with the metrics out of bounds, or
     ("", "") when the row has nothing to judge."""

@@ -191,7 +191,7 @@ def run_body_spec(spec: RunSpec, row: dict, integ, sc, out, fmt: str, progress=N
         row["family"] = output.family  # the algorithm this model ran (see RunOutput)
         integ = dataclasses.replace(integ, family=output.family)
     _measure(row, spec, sc, output, recorder, out, fmt)
-    _judge(row, sc, integ, diverged)
+    verdicts.judge(row, sc, integ, diverged)
 
 
 def is_reference(engine: str) -> bool:
@@ -236,7 +236,7 @@ def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
             ref = reference_for(sc, traj.t)
             row["reference_kind"] = ref.kind
             row["reference_accuracy"] = float(ref.accuracy)
-        except ReferenceCostExceeded as exc:  # the metrics without a reference; _judge says why
+        except ReferenceCostExceeded as exc:  # the metrics without a reference; the judge says why
             ref = None
             row["reference_kind"] = "numerical"
             row["message"] = str(exc)
@@ -266,20 +266,3 @@ def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
                 "disk full or a file-size limit?); finished runs are kept, rerun to continue"
             ) from exc
         row["trajectory"] = rel.as_posix()
-
-
-def _judge(row, sc, integ, diverged) -> None:
-    """Status and verdict of a run that produced an output."""
-    bounds = verdicts.tolerances(sc, integ)
-    if diverged is not None:
-        row["status"] = "diverged"
-        row["t_diverged"] = diverged.t_diverged
-        row["message"] = str(diverged)
-    else:
-        why = verdicts.reference_problem(row["reference_accuracy"], bounds)
-        if why is not None:
-            row["status"] = "reference-inaccurate"
-            row["message"] = row["message"] or f"{why} (reference: {row['reference_kind']})"
-        else:
-            row["status"] = "ok"
-    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)

@@ -38,18 +38,8 @@ def run_contact_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str, pro
         diverged = None
     except Diverged as exc:
         output, diverged = exc.output, exc
-    ref = _measure(row, spec, sc, output, out, get_engine(spec.engine).is_reference)
-    bounds = verdicts.tolerances(sc, integ)
-    if diverged is not None:
-        row["status"] = "diverged"
-        row["t_diverged"] = diverged.t_diverged
-        row["message"] = str(diverged)
-    elif ref is None and not get_engine(spec.engine).is_reference:
-        row["status"] = "ok"
-        row["message"] = row["message"] or "no closed form: errors against it not measured"
-    else:
-        row["status"] = "ok"
-    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)
+    _measure(row, spec, sc, output, out, get_engine(spec.engine).is_reference)
+    verdicts.judge(row, sc, integ, diverged)
 
 
 def _measure(row, spec, sc, output, out, is_reference):

@@ -90,7 +90,8 @@ def _batch(cls, specs) -> list[dict]:
     vmapped, compiled call); the rows are built like every other run's (reports.run.runner),
     a diverged member's from its output up to the divergence."""
     from references.engines import Diverged, EngineError, Unsupported
-    from reports.run.body import _judge, _measure
+    from reports.metrics.verdicts import judge
+    from reports.run.body import _measure
 
     spec0 = specs[0]
     integ = cls.integrator(spec0.integrator)
@@ -111,7 +112,7 @@ def _batch(cls, specs) -> list[dict]:
             row.update(status=res.status, message=str(res))
             continue
         _measure(row, sp, m, output, None, None, "parquet")
-        _judge(row, m, integ, diverged)
+        judge(row, m, integ, diverged)
     return rows
 
 

@@ -39,8 +39,8 @@ def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str, prog
         diverged = None
     except Diverged as exc:
         output, diverged = exc.output, exc
-    ref = _measure(row, spec, sc, output, out, fmt)
-    _judge(row, sc, integ, diverged, ref)
+    _measure(row, spec, sc, output, out, fmt)
+    verdicts.judge(row, sc, integ, diverged)
 
 
 def _measure(row, spec, sc, output, out, fmt):
@@ -127,23 +127,3 @@ def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
     except OSError as exc:
         raise StoreUnwritable(f"{path}: cannot write the run's trajectory ({exc})") from exc
     row["trajectory"] = rel.as_posix()
-
-
-def _judge(row, sc, integ, diverged, ref) -> None:
-    """Status and verdict: as for one body, except that a system with no reference is
-    judged on what is measured (invariants, joints) with the reason in the message."""
-    bounds = verdicts.tolerances(sc, integ)
-    if diverged is not None:
-        row["status"] = "diverged"
-        row["t_diverged"] = diverged.t_diverged
-        row["message"] = str(diverged)
-    else:
-        why = None
-        if row["reference_kind"] not in ("", "none"):
-            why = verdicts.reference_problem(row["reference_accuracy"], bounds)
-        if why is not None:
-            row["status"] = "reference-inaccurate"
-            row["message"] = row["message"] or f"{why} (reference: {row['reference_kind']})"
-        else:
-            row["status"] = "ok"
-    row["verdict"], row["verdict_detail"] = verdicts.verdict(row, bounds)
