@@ -165,6 +165,7 @@ PRELOAD = (
     "pandas",  # pyarrow's tables import it (each run's trajectory file)
     "pyarrow.parquet",
     "reports.run.runner",
+    "reports.run.body",  # a single body's runs
     "references.engines",
     "references.exact",
     "references.engines.director.adapter",
