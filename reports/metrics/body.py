@@ -28,10 +28,10 @@ from references.trajectory import angular_momentum, energy, energy_parts
 from reports.metrics.catalog import (  # the tables: re-exported for the modules reading them here
     FLOORS,  # noqa: F401
     HIGHER_IS_BETTER,  # noqa: F401
-    OBSERVABLE,
     ORDER_SLACK,  # noqa: F401
     check_attached,
     computed,
+    measure,
     measures,
 )
 
@@ -245,16 +245,6 @@ def position_error(traj, ref) -> np.ndarray:
     return np.linalg.norm(traj.position - ref.position, axis=1)
 
 
-def _max(a) -> float:
-    a = np.asarray(a)
-    if a.size == 0:
-        return math.nan
-    # A non-finite sample means the run blew up: say so with inf rather than hide it.
-    if not np.all(np.isfinite(a)):
-        return math.inf
-    return float(np.max(a))
-
-
 def _check_same_times(traj, ref):
     if len(traj) != len(ref) or not np.allclose(traj.t, ref.t, rtol=0, atol=1e-9):
         raise ValueError(
@@ -315,21 +305,19 @@ def series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
 def metrics_and_series(scenario, traj, ref=None, expected=None) -> tuple[dict, dict]:
     """(:func:`compute_metrics`, :func:`series`) of one run, each pointwise metric computed
     once for both: a metric's value is the largest of the very series written."""
-    if ref is not None:
-        _check_same_times(traj, ref)
-    expected = expected or {}
-    m, out = {}, {}
-    for metric, fn in computed("body"):
-        if metric.kind == OBSERVABLE:
-            m[metric.name] = fn(scenario, traj, ref, expected)
-        elif metric.reference and ref is None:
-            m[metric.name] = math.nan
-        else:
-            v = fn(scenario, traj, ref)
-            m[metric.name] = math.nan if v is None else _max(v)
-            if v is not None and metric.series is not None:
-                out[metric.series] = v
-    return m, out
+    values, by_name = measure(scenario, traj, ref, expected or {}, window=_same_times)
+    series = {}
+    for metric, _ in computed("body"):
+        v = by_name.get(metric.name)
+        if v is not None and metric.series is not None:
+            series[metric.series] = v
+    return values, series
+
+
+def _same_times(traj, ref):
+    """The run and its reference, which must be sampled at the same times."""
+    _check_same_times(traj, ref)
+    return traj, ref
 
 
 def roundoff_floor(scenario, nstep: int) -> float:

@@ -7,17 +7,20 @@ checks the names of a ``[tolerances]`` table and ``scenarios`` may not import ``
 (``tests/test_layers.py``). This module attaches to each name how it is computed and derives
 every table the later stages use:
 
-- :func:`measures`, a decorator on the function that computes a metric, in
-  :mod:`reports.metrics.body` (``on="body"``) or :mod:`reports.metrics.system`
-  (``on="system"``). A :data:`POINTWISE` function returns the per-sample values, shape (n,),
+- :func:`measures`, a decorator on the function that computes a metric on a scene kind
+  (``on``: :data:`scenarios.SCENE_KINDS`, the kinds the metric's declaration applies it to),
+  in :mod:`reports.metrics.body` (``on="body"``), :mod:`reports.metrics.system`
+  (``on="system"``) or :mod:`reports.metrics.contact` (``on="contact"``). A
+  :data:`POINTWISE` function returns the per-sample values, shape (n,),
   or None where the metric does not apply to the scenario (NaN in the results); an
   :data:`OBSERVABLE` function returns one number. It names the arguments it takes among
   ``scenario``, ``traj``, ``ref`` and ``expected`` (the exact observables), and is called
   with those; ``measures`` may fix further keyword arguments. Each of those modules calls
   :func:`check_attached` at its end, so a declared metric without its function, or a
   function of an undeclared one, fails on import.
-- :func:`computed`: (metric, function) pairs for ``compute_metrics``,
-  ``compute_system_metrics``, the streamed maxima and the per-sample series;
+- :func:`computed`: (metric, function) pairs of a scene kind, for :func:`measure` (the one
+  loop that takes every metric of a run of any kind), the streamed maxima and the per-sample
+  series;
 - the tables: :data:`METRIC_COLUMNS` (store), :data:`FLOORS`, :data:`HIGHER_IS_BETTER`,
   :data:`ORDER_SLACK` (gate, compare, report), :data:`DEFAULT_TOLERANCES` (verdicts),
   :data:`METRIC_TITLES`, :data:`METRIC_SHORT`, :data:`METRIC_UNITS` (report, history),
@@ -31,7 +34,10 @@ with ``@measures(name)`` and its test (docs/extending.md).
 from __future__ import annotations
 
 import inspect
+import math
 from collections.abc import Callable
+
+import numpy as np
 
 from scenarios.metric_catalog import (
     METRICS,
@@ -41,6 +47,7 @@ from scenarios.metric_catalog import (
     Metric,
     shown_order,
 )
+from scenarios.model import SCENE_KINDS
 
 __all__ = [
     "DEFAULT_TOLERANCES",
@@ -63,13 +70,15 @@ __all__ = [
     "by_name",
     "check_attached",
     "computed",
+    "largest",
+    "measure",
     "measures",
 ]
 
 #: the arguments a metric function may take, by name
 ARGUMENTS = ("scenario", "traj", "ref", "expected")
-#: what a metric applies to
-TARGETS = ("body", "system", "contact")
+#: what a metric applies to: the scene kinds (scenarios.SCENE_KINDS, ``sc.kind``)
+TARGETS = SCENE_KINDS
 
 _BY_NAME = {m.name: m for m in METRICS}
 #: (name, target) -> the function, called with keyword arguments among :data:`ARGUMENTS`
@@ -88,8 +97,9 @@ def by_name(name: str) -> Metric:
 
 def measures(name: str, on: str = "body", **fixed) -> Callable:
     """Decorator attaching the function to the catalog as how metric ``name`` is computed on
-    ``on`` ("body" or "system"); ``fixed`` keyword arguments are passed on every call. The
-    function is returned unchanged (it stays callable as before)."""
+    the scene kind ``on`` (:data:`TARGETS`: "body", "system" or "contact"); ``fixed`` keyword
+    arguments are passed on every call. The function is returned unchanged (it stays callable
+    as before)."""
 
     def attach(fn: Callable) -> Callable:
         where = f"{fn.__module__}.{fn.__qualname__}"
@@ -131,6 +141,51 @@ def computed(on: str) -> list[tuple[Metric, Callable]]:
         for m in METRICS
         if getattr(m, on) and m.kind in (POINTWISE, OBSERVABLE)
     ]
+
+
+def largest(a) -> float:
+    """The largest value of a per-sample series: NaN for an empty one, inf when a sample is not
+    finite (the run blew up: said so rather than hidden)."""
+    a = np.asarray(a)
+    if a.size == 0:
+        return math.nan
+    if not np.all(np.isfinite(a)):
+        return math.inf
+    return float(np.max(a))
+
+
+def measure(scenario, traj, ref=None, expected=None, window=None, reduce=largest):
+    """The metrics of one run of ``scenario``, whatever its kind: every pointwise and
+    observable metric declared for ``scenario.kind`` (:func:`computed`), in catalog order, as
+    ``(values, series)``.
+
+    - an observable: its function's number, from the run, the reference and ``expected`` (the
+      scenario's exact observables);
+    - a metric against the reference: NaN without one (``ref`` None), else ``reduce`` of its
+      series over ``window(traj, ref)``: the samples the reference is trusted on (default: the
+      run and the reference as given);
+    - any other: ``reduce`` of its series, NaN where it does not apply (its function returns
+      None).
+
+    ``reduce``: a series to one number (default :func:`largest`). ``series``: metric name ->
+    the per-sample series of every pointwise metric computed (None where it does not apply),
+    for the run's file."""
+    if ref is not None and window is not None:
+        inside = window(traj, ref)
+    else:
+        inside = (traj, ref)
+    values, series = {}, {}
+    for metric, fn in computed(scenario.kind):
+        if metric.kind == OBSERVABLE:
+            values[metric.name] = fn(scenario, traj, ref, expected)
+            continue
+        if metric.reference and ref is None:
+            values[metric.name] = math.nan
+            continue
+        v = fn(scenario, *inside) if metric.reference else fn(scenario, traj, ref)
+        values[metric.name] = math.nan if v is None else reduce(v)
+        series[metric.name] = v
+    return values, series
 
 
 def check_attached(on: str) -> None:

@@ -47,8 +47,8 @@ import math
 import numpy as np
 
 from references.trajectory import system_energy, system_momenta
-from reports.metrics.body import _max, attitude_error, gram, nearest_rotation
-from reports.metrics.catalog import SYSTEM_METRICS, check_attached, computed, measures
+from reports.metrics.body import attitude_error, gram, nearest_rotation
+from reports.metrics.catalog import SYSTEM_METRICS, by_name, check_attached, measure, measures
 from scenarios import force_elements as fe
 from scenarios.system import joint_residuals
 
@@ -234,9 +234,13 @@ def branch_error(scenario, traj) -> np.ndarray | None:
 
 
 def _inside(traj, ref):
-    """The samples of ``traj`` and ``ref`` up to the reference's trusted horizon."""
+    """The samples of ``traj`` and ``ref.trajectory`` up to the reference's trusted horizon
+    (the reference must be sampled at the run's times)."""
+    rt = ref.trajectory
+    if len(rt) != len(traj) or not np.allclose(rt.t, traj.t, rtol=0, atol=1e-9):
+        raise ValueError("the system reference is sampled at other times than the run")
     k = int(np.searchsorted(traj.t, ref.horizon * (1 + 1e-12), side="right"))
-    return traj.head(k), ref.trajectory.head(k)
+    return traj.head(k), rt.head(k)
 
 
 def compute_system_metrics(scenario, traj, ref=None, keep: dict | None = None) -> dict[str, float]:
@@ -248,21 +252,10 @@ def compute_system_metrics(scenario, traj, ref=None, keep: dict | None = None) -
     (error metrics NaN). ``keep``: a dict that receives the per-sample series of the metrics
     not against the reference (metric name: series, None where one does not apply), for
     :func:`error_series` to reuse."""
-    if ref is not None:
-        rt = ref.trajectory
-        if len(rt) != len(traj) or not np.allclose(rt.t, traj.t, rtol=0, atol=1e-9):
-            raise ValueError("the system reference is sampled at other times than the run")
-        a, b = _inside(traj, ref)
-    m = {}
-    for metric, fn in computed("system"):
-        if metric.reference:
-            m[metric.name] = math.nan if ref is None else _max(fn(scenario, a, b))
-        else:
-            v = fn(scenario, traj)
-            m[metric.name] = math.nan if v is None else _max(v)
-            if keep is not None:
-                keep[metric.name] = v
-    return m
+    values, series = measure(scenario, traj, ref, window=_inside)
+    if keep is not None:
+        keep.update({m: v for m, v in series.items() if not by_name(m).reference})
+    return values
 
 
 def error_series(scenario, traj, ref=None, kept: dict | None = None) -> dict[str, np.ndarray]:

@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from references.trajectory import Trajectory
 from reports.metrics import body as metrics
+from reports.metrics import catalog
 from scenarios.model import Scenario
 
 
@@ -338,7 +339,7 @@ def test_nearest_rotation_of_a_reflection_and_of_non_finite_matrices():
     assert np.linalg.det(out[0]) == pytest.approx(1.0, abs=1e-14)
     np.testing.assert_allclose(out[0].T @ out[0], np.eye(3), atol=1e-14)
     assert np.all(np.isnan(out[1]))
-    assert metrics._max([0.1, math.nan]) == math.inf
+    assert catalog.largest([0.1, math.nan]) == math.inf
 
 
 def test_a_read_only_reference_keeps_its_nearest_rotation_and_a_writable_one_does_not():
