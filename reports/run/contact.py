@@ -25,19 +25,11 @@ def run_contact_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str, pro
     """Run the contact spec ``spec`` (its configuration ``integ``, its scene at the run's
     horizon ``sc``) and fill ``row`` (``progress`` is not told: a builder steps the whole run
     in one call); a failure raises (the caller makes it the row)."""
-    from references.engines import Diverged, Unsupported, get_engine
+    from references.engines import get_engine
     from references.engines.contact import run_contact
+    from reports.run.system import step_built
 
-    if spec.accuracy is not None or spec.segment:
-        raise Unsupported(
-            f"{spec.engine} {integ.name}: contact scenes run at fixed steps with the metrics at "
-            "the saved states (no target accuracy, no --segment streaming)"
-        )
-    try:
-        output = run_contact(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
-        diverged = None
-    except Diverged as exc:
-        output, diverged = exc.output, exc
+    output, diverged = step_built(spec, integ, sc, run_contact, "contact scenes")
     _measure(row, spec, sc, output, out, get_engine(spec.engine).is_reference)
     verdicts.judge(row, sc, integ, diverged)
 

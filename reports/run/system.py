@@ -26,21 +26,30 @@ def run_system_spec(spec, row: dict, integ, sc, out: Path | None, fmt: str, prog
     horizon ``sc``) and fill ``row``: timings, metrics, status and verdict (``progress`` is
     not told: a builder steps the whole run in one call). A failure raises;
     :func:`reports.run.runner.execute`, which prepared the row, makes it the row's status."""
-    from references.engines import Diverged, Unsupported
     from references.engines.system import run_system
+
+    output, diverged = step_built(spec, integ, sc, run_system, "systems of bodies")
+    _measure(row, spec, sc, output, out, fmt)
+    verdicts.judge(row, sc, integ, diverged)
+
+
+def step_built(spec, integ, sc, run, what: str):
+    """(output, the divergence or None) of a scene an engine's builder steps in one call
+    (``run``: :func:`references.engines.system.run_system` or
+    :func:`references.engines.contact.run_contact`), at the spec's fixed step; such scenes
+    (``what``, for the message) have no target accuracy and no --segment streaming:
+    :class:`references.engines.Unsupported` when the spec asks for either."""
+    from references.engines import Diverged, Unsupported
 
     if spec.accuracy is not None or spec.segment:
         raise Unsupported(
-            f"{spec.engine} {integ.name}: systems of bodies run at fixed steps with the "
-            "metrics at the saved states (no target accuracy, no --segment streaming)"
+            f"{spec.engine} {integ.name}: {what} run at fixed steps with the metrics at the "
+            "saved states (no target accuracy, no --segment streaming)"
         )
     try:
-        output = run_system(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving)
-        diverged = None
+        return run(spec.engine, sc, integ.name, spec.dt, spec.horizon, spec.saving), None
     except Diverged as exc:
-        output, diverged = exc.output, exc
-    _measure(row, spec, sc, output, out, fmt)
-    verdicts.judge(row, sc, integ, diverged)
+        return exc.output, exc
 
 
 def _measure(row, spec, sc, output, out, fmt):

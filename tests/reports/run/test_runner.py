@@ -552,3 +552,18 @@ def test_each_scene_declares_its_kind_and_every_kind_has_a_stepper():
     sc = scenarios.load("block_incline_stick")
     assert sc.replace(contacts=()).kind == "system" and sc.loop_joints == ()
     assert scenarios.load("heavy_top").loop_joints == ()  # one body: no joints, no loops
+
+
+def test_a_scene_stepped_by_a_builder_refuses_a_target_accuracy_and_streaming():
+    """Systems of bodies and contact scenes are stepped by an engine's builder at fixed steps,
+    with the metrics at the saved states: a spec asking for a target accuracy or for
+    --segment streaming is an unsupported row that says so."""
+    four_bar, block = scenarios.load("four_bar"), scenarios.load("block_incline_stick")
+    rows = [
+        execute(RunSpec(four_bar, "mujoco", "rk4", 1e-3, t_end=0.01, accuracy=1e-6)),
+        execute(RunSpec(block, "mujoco", "pyramidal", 1e-3, t_end=0.01, segment=5)),
+    ]
+    for r, what in zip(rows, ("systems of bodies", "contact scenes"), strict=True):
+        assert r["status"] == "unsupported", r["message"]
+        assert f"{what} run at fixed steps" in r["message"], r["message"]
+        assert "no target accuracy, no --segment streaming" in r["message"]
