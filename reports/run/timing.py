@@ -171,11 +171,11 @@ def _run_again(cls, spec: RunSpec, nstep: int):
     if spec.t_end is not None and spec.horizon != sc.t_end:
         sc = sc.replace(t_end=spec.horizon)
     try:
-        if getattr(sc, "has_contact", False):  # bodies in contact: the engine's contact builder
+        if sc.kind == "contact":  # bodies in contact: the engine's contact builder
             from references.engines.contact import run_contact
 
             out = run_contact(spec.engine, sc, spec.integrator, spec.dt, spec.horizon, spec.saving)
-        elif getattr(sc, "is_system", False):
+        elif sc.kind == "system":  # a system of bodies: the engine's system builder
             from references.engines.system import run_system
 
             out = run_system(spec.engine, sc, spec.integrator, spec.dt, spec.horizon, spec.saving)
