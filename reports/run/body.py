@@ -21,7 +21,7 @@ import numpy as np
 
 from reports.metrics import verdicts
 from reports.metrics.body import metrics_and_series, roundoff_floor
-from reports.run.files import SERIES_FORMAT, SERIES_NOTE, series_table
+from reports.run.files import SERIES_FORMAT, SERIES_NOTE, run_identity, series_table
 from reports.store.atomic import replacing
 from reports.store.results import StoreUnwritable, write_parquet_table
 from reports.store.runs import RunSpec, output_columns, trajectory_path
@@ -254,8 +254,7 @@ def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
             row["reference_accuracy"] = max(row["reference_accuracy"], recorder.reference_accuracy)
     if out is not None and len(traj) and spec.keep != "none":
         rel = trajectory_path(spec, SERIES_FORMAT if spec.keep == "series" else fmt)
-        keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
-        identity = {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")}
+        identity = run_identity(row)
         if spec.keep == "series":
             identity["reference"] = is_reference(spec.engine)
         try:

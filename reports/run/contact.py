@@ -82,25 +82,13 @@ def _write(row, spec, sc, output, ref, out: Path) -> None:
     import numpy as np
     import pyarrow as pa
 
-    from references.trajectory import UNITS
+    from reports.run.files import bodies_file
 
-    traj = output.trajectory
     rel = trajectory_path(spec, "parquet")
     path = out / rel
     path.parent.mkdir(parents=True, exist_ok=True)
-    cols = traj.columns()
-    units = {c: UNITS[c.rsplit(".", 1)[1]] for c in cols if c != "t"} | {"t": "s"}
-    keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
-    meta = {
-        "director_bench.units": units | {"moved": "m", "penetration": "m", "moved_exact": "m"},
-        "director_bench.frames": {
-            "<body>.x .. <body>.vz": "world axes, centre of mass of the body",
-            "<body>.R00 .. R22": "body-to-world rotation, row-major; columns: principal axes",
-            "<body>.wx .. wz": "body axes",
-        },
-        "director_bench.bodies": list(traj.body_names),
-        "director_bench.run": {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")},
-    }
+    units = {"moved": "m", "penetration": "m", "moved_exact": "m"}
+    cols, meta = bodies_file(row, output.trajectory, units)
     extra = {k: np.asarray(v, dtype=float) for k, v in series(sc, output, ref).items()}
     table = pa.table({**cols, **extra})
     try:

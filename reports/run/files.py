@@ -2,8 +2,8 @@
 or nothing.
 
 A run's metrics are computed from its full-resolution trajectory in double precision, in the
-process that ran it, before anything is written (reports.run.runner, reports.run.system);
-what is kept afterwards decides only what can be drawn or read again. Kept in full, every
+process that ran it, before anything is written (the steppers: reports.run.body, .system,
+.contact); what is kept afterwards decides only what can be drawn or read again. Kept in full, every
 saved state of every run of the default suite is about 200 MB, too heavy for a CI artifact or
 a pull request. So by default (``run --trajectories report``, :func:`assign`):
 
@@ -129,3 +129,40 @@ SERIES_NOTE = (
     "the run's metrics were computed from its full trajectory in double precision. "
     "`director-bench run --trajectories full` keeps every column in double precision."
 )
+
+
+#: the columns of a run's row that name the run in its trajectory file's metadata
+IDENTITY = (
+    "run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator", "dt",
+    "target_accuracy", "t_end",
+)  # fmt: skip
+
+#: the frames of a scene of bodies' per-body columns (``<body>.<column>``)
+BODIES_FRAMES = {
+    "<body>.x .. <body>.vz": "world axes, centre of mass of the body",
+    "<body>.R00 .. R22": "body-to-world rotation, row-major; columns: principal axes",
+    "<body>.wx .. wz": "body axes",
+}
+
+
+def run_identity(row: dict) -> dict:
+    """The run's identity kept in its trajectory file's metadata (:data:`IDENTITY`)."""
+    return {k: row[k] for k in IDENTITY}
+
+
+def bodies_file(row: dict, traj, series_units: dict) -> tuple[dict, dict]:
+    """(columns, metadata) of the trajectory file of a run of a system or contact scene:
+    per-body columns (:meth:`references.trajectory.SystemTrajectory.columns`) with their
+    units and frames, the body names and the run's identity; ``series_units``: the units of
+    the per-sample series written beside them."""
+    from references.trajectory import UNITS
+
+    cols = traj.columns()
+    units = {c: UNITS[c.rsplit(".", 1)[1]] for c in cols if c != "t"} | {"t": "s"}
+    meta = {
+        "director_bench.units": units | series_units,
+        "director_bench.frames": BODIES_FRAMES,
+        "director_bench.bodies": list(traj.body_names),
+        "director_bench.run": run_identity(row),
+    }
+    return cols, meta

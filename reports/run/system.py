@@ -100,26 +100,13 @@ def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
     import numpy as np
     import pyarrow as pa
 
-    from references.trajectory import UNITS
-    from reports.run.files import SERIES_FORMAT, SERIES_NOTE, series_table
+    from reports.run.files import SERIES_FORMAT, SERIES_NOTE, bodies_file, series_table
 
     rel = trajectory_path(spec, SERIES_FORMAT if spec.keep == "series" else "parquet")
     path = out / rel
     path.parent.mkdir(parents=True, exist_ok=True)
-    cols = traj.columns()
-    units = {c: UNITS[c.rsplit(".", 1)[1]] for c in cols if c != "t"} | {"t": "s"}
-    keys = ("run_id", "scenario", "scenario_hash", "engine", "engine_version", "integrator")
-    meta = {
-        "director_bench.units": units
-        | {"energy_change": "J", "joint_gap": "m", "loop_gap": "m", "attitude_error": "rad"},
-        "director_bench.frames": {
-            "<body>.x .. <body>.vz": "world axes, centre of mass of the body",
-            "<body>.R00 .. R22": "body-to-world rotation, row-major; columns: principal axes",
-            "<body>.wx .. wz": "body axes",
-        },
-        "director_bench.bodies": list(traj.body_names),
-        "director_bench.run": {k: row[k] for k in (*keys, "dt", "target_accuracy", "t_end")},
-    }
+    units = {"energy_change": "J", "joint_gap": "m", "loop_gap": "m", "attitude_error": "rad"}
+    cols, meta = bodies_file(row, traj, units)
     table = pa.table({**cols, **{k: np.asarray(v, dtype=float) for k, v in series.items()}})
     if spec.keep == "series":  # the series the system figure draws (reports.run.files)
         table = series_table({c: table.column(c).to_numpy() for c in table.column_names}, False)
