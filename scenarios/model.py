@@ -145,6 +145,8 @@ class Scenario(RunFields):
     kind = "body"
     #: a single body has no joints, so no loop closures
     loop_joints = ()
+    #: the scene's number of bodies
+    n_bodies = 1
 
     def __post_init__(self):
         # Normalise containers so that code building a Scenario by hand gets the same object a

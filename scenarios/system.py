@@ -156,6 +156,10 @@ class SystemScenario(RunFields):
         return tuple(b.name for b in self.bodies)
 
     @property
+    def n_bodies(self) -> int:
+        return len(self.bodies)
+
+    @property
     def has_contact(self) -> bool:
         """The scene lists pairs that may touch (``[[contacts]]``)."""
         return bool(self.contacts)

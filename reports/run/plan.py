@@ -166,9 +166,7 @@ def _check_states(sc, dt, horizon, save_every, segment, max_states) -> None:
     if max_states is None:
         return
     # a system keeps every body's state: count them as states of one body
-    kept = (round(horizon / dt) // save_every + 2 + (segment or 0)) * len(
-        getattr(sc, "bodies", (None,))
-    )
+    kept = (round(horizon / dt) // save_every + 2 + (segment or 0)) * sc.n_bodies
     if kept > max_states:
         need = kept * BYTES_PER_STATE / 2**30
         have = max_states * BYTES_PER_STATE / 2**30

@@ -418,7 +418,7 @@ def _size(s: RunSpec) -> float:
     """A run's size for the progress display's estimate: its steps, times its bodies for a
     system of bodies."""
     steps = max(s.horizon / s.dt, 1.0) if s.dt > 0 else 1.0
-    return steps * max(len(getattr(s.scenario, "bodies", ()) or ()), 1)
+    return steps * s.scenario.n_bodies
 
 
 def _export_quietly(out: Path):

@@ -551,7 +551,9 @@ def test_each_scene_declares_its_kind_and_every_kind_has_a_stepper():
     # a system whose contacts are dropped is a system of bodies again
     sc = scenarios.load("block_incline_stick")
     assert sc.replace(contacts=()).kind == "system" and sc.loop_joints == ()
-    assert scenarios.load("heavy_top").loop_joints == ()  # one body: no joints, no loops
+    heavy_top, four_bar = scenarios.load("heavy_top"), scenarios.load("four_bar")
+    assert heavy_top.loop_joints == ()  # one body: no joints, no loops
+    assert (heavy_top.n_bodies, four_bar.n_bodies) == (1, 3)
 
 
 def test_a_scene_stepped_by_a_builder_refuses_a_target_accuracy_and_streaming():
