@@ -48,10 +48,9 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.models.configurations import CONFIGS, variant
 from scenarios.models.model import joint_transform
 
-#: the named configurations of every importer (module docstring)
-CONFIGS = ("as-loaded", "faithful")
 #: the engines with an importer (``references/engines/<engine>/importer.py``)
 ENGINES = ("mujoco", "mjx", "pinocchio", "pybullet", "drake", "dart")
 
@@ -414,29 +413,6 @@ def importer_table(model, engines=None, configs=None, fixed_base=None) -> list:
 
 
 # -- runs through an importer ---------------------------------------------------------------------
-
-#: how a configuration reads in an integrator's name ("RK4 (as loaded)")
-CONFIG_WORDS = {"as-loaded": "as loaded", "faithful": "faithful"}
-
-
-def variant(integrator: str, config: str) -> str:
-    """The name of ``integrator`` run through the engine's importer in ``config``: "RK4 (as
-    loaded)", "Euler (float64, faithful)"."""
-    word = CONFIG_WORDS[config]
-    if integrator.endswith(")"):
-        return f"{integrator[:-1]}, {word})"
-    return f"{integrator} ({word})"
-
-
-def split_variant(name: str) -> tuple[str, str | None]:
-    """(integrator, configuration) of a name made by :func:`variant`; (name, None) for any
-    other name."""
-    for config, word in CONFIG_WORDS.items():
-        for tail in (f" ({word})", f", {word})"):
-            if name.endswith(tail):
-                base = name[: -len(tail)] + ("" if tail.startswith(" ") else ")")
-                return base, config
-    return name, None
 
 
 def variants(engine: str, selected) -> list[str]:

@@ -46,6 +46,7 @@ from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
 from references.trajectory import SystemTrajectory, system_energy
 from scenarios.force_elements import dissipative, has_elements
+from scenarios.models.configurations import split_variant
 
 
 @dataclass
@@ -137,7 +138,7 @@ def run_system(
     t_end = scenario.t_end if t_end is None else float(t_end)
     save_every = scenario.save_every if save_every is None else int(save_every)
     nstep, saves = step_plan(dt, t_end, save_every)
-    base, config = importers.split_variant(integrator)
+    base, config = split_variant(integrator)
     if config is not None:  # through the engine's own importer (references.engines.importers)
 
         def simulate(scenario, integrator, dt, nstep, save_every):

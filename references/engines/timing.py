@@ -18,9 +18,9 @@ and CPU times allow (:func:`bounds`: a slice spent inside one engine call is its
 one with no engine call none). Where no slice ran clean, the engine calls' wall time times
 the slice's CPU share (CPU over wall) is the estimate, with an *uncertainty*: the width of
 those bounds (the waits could all have fallen into the engine calls or all into the glue).
-A run whose
-uncertainty exceeds :data:`STARVED` of its estimate was *starved*: the runner times it
-again and marks it when no repeat ran clean (reports.run.runner, reports.gate.rule).
+A run whose uncertainty exceeds :data:`references.costs.STARVED` of its estimate was
+*starved*: the runner times it again and marks it when no repeat ran clean
+(reports.run.runner, reports.gate.rule).
 
 The CPU clock is the thread's (engines compute on the calling thread), or the process's for
 an engine that computes on threads of its own (``EngineBase.threaded``: MJX's XLA).
@@ -33,6 +33,8 @@ import threading
 import time
 from dataclasses import dataclass
 
+from references.costs import STARVED
+
 #: a slice of the stepping is about this long (s): short enough that most slices run
 #: between two preemptions on a busy machine (a scheduler's time slice is milliseconds),
 #: long enough that its CPU-clock reads (~1 us) cost nothing
@@ -40,8 +42,6 @@ SLICE_S = 5e-4
 #: a slice ran clean (no preemption) when its CPU time is at least this share of its wall
 #: time (timer interrupts and page faults take a few per cent)
 CLEAN = 0.9
-#: a run is starved when its estimate's uncertainty exceeds this fraction of the estimate
-STARVED = 0.1
 #: the engine's share of the CPU time is trusted when the clean slices hold at least this
 #: much CPU time (s)
 SHARE_MIN_S = 2e-4

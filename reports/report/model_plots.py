@@ -42,8 +42,8 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
     through its importer, three lines: the engine on our reading (the system builder) and its
     importer's two configurations, at the integrator the importer runs; None when no run has
     the series."""
-    from references.engines.importers import split_variant
     from reports.store.runs import slug
+    from scenarios.models.configurations import split_variant
 
     panels: dict = {}
     for r in rows.to_dict("records"):

@@ -57,6 +57,7 @@ def plan(
     naming the scenario, before any run.
     """
     from references.engines import engine_names, get_engine, importers, step_plan
+    from scenarios.models.configurations import split_variant
 
     engines = list(engines) if engines else engine_names()
     versions = {name: _version(get_engine(name)) for name in engines}
@@ -84,7 +85,7 @@ def plan(
                 # a robot model also runs through the engine's importer: the configurations
                 # of the integrators selected, or those asked for by name
                 every = importers.variants(name, list(offers))
-                names += [v for v in every if importers.split_variant(v)[0] in names
+                names += [v for v in every if split_variant(v)[0] in names
                           or (integrators and v in integrators)]  # fmt: skip
             cls = get_engine(name)
             steps_e = [sc.dt if not dts else steps[-1]] if cls.is_reference else steps

@@ -329,9 +329,9 @@ def output_columns(output, timings=()) -> dict:
 def starved(row) -> bool:
     """Whether a stored run's engine time was measured *starved*: no timing of it ran clean
     enough that the engine's CPU time is known within
-    :data:`references.engines.timing.STARVED` of itself (``engine_time_spread_s`` beyond
+    :data:`references.costs.STARVED` of itself (``engine_time_spread_s`` beyond
     that share of ``engine_time_s``; a row without a spread never is)."""
-    from references.engines.timing import STARVED
+    from references.costs import STARVED
 
     def value(col):
         try:

@@ -12,6 +12,7 @@ import pytest
 
 import scenarios
 from references.engines import importers as imp
+from scenarios.models.configurations import split_variant
 
 
 def _run(engine, sc, integrator, config=None, nstep=300):
@@ -36,7 +37,7 @@ def test_names_of_the_configurations_round_trip():
     assert imp.variant("RK4", "as-loaded") == "RK4 (as loaded)"
     assert imp.variant("Euler (float64)", "faithful") == "Euler (float64, faithful)"
     for name in ("RK4 (as loaded)", "Euler (float64, faithful)", "semi-implicit Euler"):
-        base, config = imp.split_variant(name)
+        base, config = split_variant(name)
         assert (imp.variant(base, config) if config else base) == name
     assert imp.variants("mujoco", ["RK4", "Euler"]) == ["RK4 (as loaded)", "RK4 (faithful)"]
     assert imp.variants("director", ["rattle"]) == []

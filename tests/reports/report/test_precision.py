@@ -65,7 +65,7 @@ def test_a_configuration_whose_time_loop_is_the_suites_is_ranked_by_its_whole_st
 
 def test_a_cost_measured_starved_says_so():
     # an engine time known within 5 % is a measurement; within 30 %, starved (the rule:
-    # references.engines.timing.STARVED, 10 %)
+    # references.costs.STARVED, 10 %)
     from reports.report.sections import wp_cost
     from reports.store.format import fmt
     from reports.store.runs import starved
