@@ -83,6 +83,19 @@ def _is_busy(exc: sqlite3.Error) -> bool:
     return "locked" in text or "busy" in text
 
 
+def _transaction(con: sqlite3.Connection, statements: Callable[[sqlite3.Connection], None]):
+    """``statements(con)`` in one write transaction (BEGIN IMMEDIATE .. COMMIT), rolled back
+    if any of them fails."""
+    con.execute("BEGIN IMMEDIATE")
+    try:
+        statements(con)
+        con.execute("COMMIT")
+    except sqlite3.Error:
+        with contextlib.suppress(sqlite3.Error):
+            con.execute("ROLLBACK")
+        raise
+
+
 def _retry_busy(attempt: Callable, deadline: float):
     """``attempt()``, tried again while SQLite answers "database is locked" and ``deadline``
     (time.monotonic) is ahead. SQLite's busy handler (``busy_timeout``) waits for most
@@ -176,7 +189,7 @@ class Store:
         self._con = self._open(create)
 
     def _open(self, create: bool) -> sqlite3.Connection:
-        self._since = time.monotonic()
+        since = time.monotonic()
         try:
             writable = os.access(self.path.parent, os.W_OK) and os.access(self.path, os.W_OK)
             if not create and not writable:
@@ -187,9 +200,9 @@ class Store:
                 self._refuse_foreign(con)
                 self._check(con)
                 return con
-            return _retry_busy(lambda: self._connect(create), self._since + BUSY_TIMEOUT_S)
+            return _retry_busy(lambda: self._connect(create), since + BUSY_TIMEOUT_S)
         except sqlite3.DatabaseError as exc:
-            raise self._damaged(exc) from None
+            raise self._damaged(exc, since) from None
         except sqlite3.Error as exc:  # pragma: no cover - other sqlite failures
             raise StoreUnwritable(f"{self.path}: cannot open the results store: {exc}") from None
 
@@ -245,8 +258,8 @@ class Store:
         """The store's id, tables and format record, in one transaction: a process killed
         while it creates them leaves an empty database (read as a store of no rows), never a
         table without the other."""
-        con.execute("BEGIN IMMEDIATE")
-        try:
+
+        def statements(con):
             con.execute(f"PRAGMA application_id = {APPLICATION_ID}")
             con.execute(
                 "CREATE TABLE IF NOT EXISTS runs (run_id TEXT PRIMARY KEY, scenario TEXT, "
@@ -255,11 +268,8 @@ class Store:
             )
             con.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
             con.execute("INSERT OR IGNORE INTO meta VALUES ('format', ?)", (str(STORE_FORMAT),))
-            con.execute("COMMIT")
-        except sqlite3.Error:
-            with contextlib.suppress(sqlite3.Error):
-                con.execute("ROLLBACK")
-            raise
+
+        _transaction(con, statements)
 
     #: an empty database: a store whose creation was cut short, read as holding no rows
     _empty = False
@@ -283,11 +293,14 @@ class Store:
             "are redone"
         )
 
-    def _damaged(self, exc) -> Exception:
+    def _damaged(self, exc, since: float | None = None) -> Exception:
+        """The store error for the sqlite3 error ``exc``; ``since`` (time.monotonic) is when
+        the failed attempt began waiting, for a locked store (without it, the wait was
+        SQLite's busy handler's, :data:`BUSY_TIMEOUT_S`)."""
         text = str(exc)
         if _is_busy(exc):
             who = ", ".join(lock_holders(self.path)) or "another process"
-            waited = time.monotonic() - getattr(self, "_since", time.monotonic())
+            waited = BUSY_TIMEOUT_S if since is None else time.monotonic() - since
             return StoreLocked(
                 f"results store {self.path} stayed locked for the {waited:.1f} s this process "
                 f"waited (at most {BUSY_TIMEOUT_S:g} s; SQLite: {text}); processes that have "
@@ -317,22 +330,11 @@ class Store:
     def _write(self, statements: Callable[[sqlite3.Connection], None]) -> None:
         """``statements(con)`` in one write transaction, waiting out a busy store (at most
         :data:`BUSY_TIMEOUT_S`); any failure rolls it back and raises a store error."""
-        self._since = time.monotonic()
-
-        def attempt():
-            try:
-                self._con.execute("BEGIN IMMEDIATE")
-                statements(self._con)
-                self._con.execute("COMMIT")
-            except sqlite3.Error:
-                with contextlib.suppress(sqlite3.Error):
-                    self._con.execute("ROLLBACK")
-                raise
-
+        since = time.monotonic()
         try:
-            _retry_busy(attempt, self._since + BUSY_TIMEOUT_S)
+            _retry_busy(lambda: _transaction(self._con, statements), since + BUSY_TIMEOUT_S)
         except sqlite3.Error as exc:
-            raise self._damaged(exc) from None
+            raise self._damaged(exc, since) from None
 
     def put(self, row: dict) -> None:
         """Insert (or replace) one row in its own transaction."""
