@@ -43,6 +43,7 @@ import scenarios
 from references.exact import LagrangeTop, reference_trajectory
 from references.exact._util import EPS, carlson_rj, jacobi, jacobi_inverse, rotation_angle
 from scenarios.model import Scenario
+from tests.mp_roots import polyroots
 from tests.references.exact.test_exact_free_body import _mp_free_body
 
 TIGHT = 100.0
@@ -111,7 +112,7 @@ def mp_lagrange(sc, times, dps=30):
         d = mp.sqrt(e1 * e1 - 4 * beta * e0)
         roots = [u0, (-e1 + d) / (2 * beta), (-e1 - d) / (2 * beta)]
     else:
-        roots = [mp.re(r) for r in mp.polyroots(coeffs, maxsteps=500, extraprec=3 * dps)]
+        roots = [mp.re(r) for r in polyroots(coeffs, maxsteps=500, extraprec=3 * dps)]
         for _ in range(20):
             roots = [r - f(r) / fp(r) if fp(r) != 0 else r for r in roots]
     roots = sorted(roots)

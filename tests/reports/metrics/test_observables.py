@@ -14,6 +14,7 @@ import scenarios
 from references.exact import expected_observables, reference_trajectory
 from references.exact._util import rot_x, rot_z
 from reports.metrics import observables as ob
+from tests.mp_roots import polyroots
 
 
 def _cubic_bound(h, d4max, slope):
@@ -276,7 +277,7 @@ def _quadrature_period(sc) -> float:
 
     # f = beta u^3 - (alpha + b^2) u^2 + (2 a b - beta) u + alpha - a^2, three real roots
     coeffs = [beta, -(alpha + b * b), 2 * a * b - beta, alpha - a * a]
-    u1, u2, u3 = sorted(mp.re(r) for r in mp.polyroots(coeffs, maxsteps=200, extraprec=60))
+    u1, u2, u3 = sorted(mp.re(r) for r in polyroots(coeffs, maxsteps=200, extraprec=60))
     if beta < 0:  # the centre of mass below the pivot: the two turning points are the upper
         u1, u2, u3 = u2, u3, u1
     assert -1 <= u1 <= u0 <= u2 <= 1
