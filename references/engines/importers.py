@@ -66,7 +66,9 @@ class Readback:
     "friction", "armature"}} (a missing key: the importer has no such quantity); ``notes``:
     what the importer said or did (warnings, flags used); ``error``: why it failed to load;
     ``joint_body`` {joint name: the body it moves}, where the importer names bodies its own
-    way (an unnamed MJCF body), so that :func:`compare` pairs them by their joint."""
+    way (an unnamed MJCF body), so that :func:`compare` pairs them by their joint;
+    ``root_joint``: "free" or "fixed", where the importer's model says how its root body
+    hangs from the world (compared for MJCF files, whose free joint is in the file)."""
 
     engine: str
     config: str
@@ -75,6 +77,8 @@ class Readback:
     notes: list = field(default_factory=list)
     error: str | None = None
     joint_body: dict = field(default_factory=dict)
+    #: how the root body hangs from the world: "free" or "fixed" (None: not read back)
+    root_joint: str | None = None
 
 
 def to_root(T_root: np.ndarray, mass, com_world, I_world):
@@ -169,6 +173,9 @@ def compare(
     if theirs.error:
         row("model", "load", "loads", theirs.error, math.nan, "")
         return rows
+    if ours.root_joint and theirs.root_joint and ours.root_joint != theirs.root_joint:
+        row(f"body {model.root!r}", "root joint", ours.root_joint, theirs.root_joint,
+            math.nan, "")  # fmt: skip
     grp = rigid_groups(model)
     known = set(grp)
     # a body the importer named its own way, paired with our link by the joint that moves it
@@ -275,6 +282,9 @@ def our_readback(model) -> Readback:
     joints at their ``ref``), in the root link's frame; each revolute joint's axis and point
     there, and its limits, damping, friction and armature as the file gives them."""
     rb = Readback("ours", "reader")
+    if model.format == "mjcf":  # the file says whether its root is free
+        free = any(j.kind == "free" and j.child == model.root for j in model.joints)
+        rb.root_joint = "free" if free else "fixed"
     T = zero_poses(model)
     eye = np.eye(4)
     for lk in model.links:
@@ -326,6 +336,33 @@ def file_for(model, config: str, extra: str | None = None) -> tuple[Path, Path |
         p = strip_urdf(model.path, extra)
         return p, p.parent
     return Path(model.path).resolve(), None
+
+
+def mjcf_copy(path, edit) -> tuple[Path, Path]:
+    """(the path of a copy of the MJCF file ``path`` after ``edit(root element)``, its
+    temporary folder to remove afterwards). The copy lives elsewhere, so the compiler's asset
+    folders and every ``<include>`` are made absolute against the original file's folder."""
+    src = Path(path).resolve()
+    tree = ET.parse(src)
+    root = tree.getroot()
+    comp = root.find("compiler")
+    if comp is None:
+        comp = ET.Element("compiler")
+        root.insert(0, comp)
+    for key in ("meshdir", "texturedir", "assetdir"):
+        if comp.get(key) is not None:
+            comp.set(key, str((src.parent / comp.get(key)).resolve()) + os.sep)
+    for key in ("meshdir", "texturedir"):  # unset: the file's own folder
+        if comp.get(key) is None and comp.get("assetdir") is None:
+            comp.set(key, str(src.parent) + os.sep)
+    for inc in root.iter("include"):
+        if inc.get("file"):
+            inc.set("file", str((src.parent / inc.get("file")).resolve()))
+    edit(root)
+    folder = Path(tempfile.mkdtemp(prefix="director-bench-mjcf-"))
+    out = folder / src.name
+    tree.write(out)
+    return out, folder
 
 
 @contextlib.contextmanager
@@ -388,7 +425,8 @@ def importer_table(model, engines=None, configs=None, fixed_base=None) -> list:
     """Difference rows (:class:`Difference`) of every engine and configuration against our
     reading, and one row per engine not installed; an importer that refuses the file is one
     row with its message. An engine module's ``HINTS`` {(config, quantity): remark} names the
-    known cause of a difference beside it."""
+    known cause of a difference beside it ((config, quantity, format): for one file format,
+    "urdf" or "mjcf", only)."""
     ours = our_readback(model)
     if fixed_base is None:
         fixed_base = model.format == "urdf"
@@ -402,7 +440,8 @@ def importer_table(model, engines=None, configs=None, fixed_base=None) -> list:
                 rows.append(Difference(e, c, "engine", "not installed", "-", str(exc),
                                        float("nan"), ""))  # fmt: skip
                 break
-            hints = {q: h for (hc, q), h in getattr(mod, "HINTS", {}).items() if hc == c}
+            hints = {k[1]: h for k, h in getattr(mod, "HINTS", {}).items()
+                     if k[0] == c and (len(k) == 2 or k[2] == model.format)}  # fmt: skip
             diff = compare(model, ours, rb, hints, fixed_base)
             if not diff:
                 diff = [Difference(e, c, "all", "agree", "-", "-", float("nan"), "",

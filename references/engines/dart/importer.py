@@ -1,11 +1,26 @@
 """DART's own importers (``DartLoader`` for URDF, ``MjcfParser`` for MJCF) on a model file,
 read back (:mod:`references.engines.importers`): each body node's mass, centre of mass and
 inertia, revolute joints' axes, limits, damping and Coulomb friction, at the zero
-configuration. A URDF root is loaded FIXED, or FLOATING for a floating model."""
+configuration. A URDF root is loaded FIXED, or FLOATING for a floating model. The immobile
+skeletons ``MjcfParser`` makes of the world's own geoms (a floor) are not part of the model.
+``MjcfParser`` reads ``<joint>`` elements only (Body.cpp, ``Body::read``): a ``<freejoint>``
+is skipped and its body welded to the world; the faithful configuration loads a copy with
+``<joint type="free">`` in its place. ``MjcfParser`` ignores a joint's ``ref``: DART's
+coordinate 0 is the pose the file gives (where MuJoCo's coordinate is ``ref``), so a
+scenario's joint value q is DART's q - ref.
+
+DART's ``MjcfParser`` (dart/utils/mjcf/MjcfParser.cpp, ``createBodyProperties``; Body.cpp,
+``computeInertialFromGeoms``) gives a body node the mass and centre of mass of the body's
+first geom only, or of its ``<inertial>`` when the body also has a geom, and never its
+rotational inertia, which stays at DART's default (1 kg m^2 about each axis); a body
+without geoms keeps DART's default 1 kg. No option changes that: the faithful configuration
+sets each body node's spatial inertia after loading from MuJoCo's compiled model of the same
+file (:func:`mujoco_inertias`), MJCF's own reading of it."""
 
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import numpy as np
 
@@ -13,17 +28,92 @@ from references.engines.importers import (
     Readback,
     file_for,
     limit,
+    mjcf_copy,
     packages,
     quiet_fd,
     to_root,
 )
+
+_INERTIA = (
+    "DART's MjcfParser takes a body's mass and centre of mass from its first geom and never "
+    "its rotational inertia (1 kg m^2 per axis); a body without geoms gets 1 kg: the "
+    "faithful configuration sets each body's inertia from MuJoCo's compiled model"
+)
+#: the known cause of a difference, by configuration, quantity and format, printed beside it
+HINTS = {
+    **{("as-loaded", q, "mjcf"): _INERTIA for q in ("mass", "com", "inertia")},
+    **{(c, q, "mjcf"): "DART's MjcfParser takes the range as written (degrees under compiler "
+       "angle='degree' read as radians; an unlimited joint: [0, 0], not enforced)"
+       for c in ("as-loaded", "faithful") for q in ("lower", "upper")},
+    **{(c, "friction", "mjcf"): "DART's MjcfParser ignores frictionloss"
+       for c in ("as-loaded", "faithful")},
+    ("as-loaded", "root joint", "mjcf"): "DART's MjcfParser reads <joint> elements only: "
+    "a <freejoint> is skipped and its body welded to the world; the faithful configuration "
+    "loads a copy with <joint type='free'> instead",
+}  # fmt: skip
+
+
+def _free_joints(root) -> None:
+    """Every ``<freejoint>`` of an MJCF tree written as the ``<joint type="free">`` it
+    stands for (DART's parser reads the latter only)."""
+    for el in root.iter("freejoint"):
+        el.tag = "joint"
+        el.set("type", "free")
+        el.attrib.pop("align", None)  # a freejoint's own attribute
+
+
+def dart_file(model, config: str):
+    """(the file DART's parser loads in ``config``, a temporary folder or None): the
+    importers' :func:`~references.engines.importers.file_for`, and for a faithful MJCF file
+    a copy whose ``<freejoint>`` elements are ``<joint type="free">`` (:data:`HINTS`)."""
+    if config == "faithful" and model.format == "mjcf":
+        return mjcf_copy(model.path, _free_joints)
+    return file_for(model, config)
+
+
+def mobile(skels) -> list:
+    """The skeletons of a loaded world that move (``MjcfParser`` adds an immobile one per
+    geom of the world body, a floor: not part of the model)."""
+    return [s for s in skels if s is not None and s.isMobile()]
+
+
+def mujoco_inertias(skels, model) -> None:
+    """Set every body node of ``skels`` (``MjcfParser``'s, in its depth-first order, which is
+    MuJoCo's body order) to the mass, centre of mass and inertia of MuJoCo's compiled model
+    of ``model``'s file, both at the file's pose (MuJoCo's qpos0, DART's zero), matched
+    in the world frame so that where each importer puts a body's frame does not matter.
+    Raises ValueError when the two trees do not pair body for body."""
+    import dartpy as dp
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_path(str(Path(model.path).resolve()))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)  # qpos0: the file's pose, each hinge at its ref
+    nodes = [s.getBodyNode(k) for s in skels for k in range(s.getNumBodyNodes())]
+    if len(nodes) != m.nbody - 1:
+        raise ValueError(f"DART's tree has {len(nodes)} bodies, MuJoCo's {m.nbody - 1}")
+    for s in skels:
+        for k in range(s.getNumJoints()):
+            jt = s.getJoint(k)
+            if jt.getNumDofs() == 1:
+                jt.setPosition(0, 0.0)  # the file's pose (MjcfParser ignores ref)
+    for b, bn in enumerate(nodes, start=1):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
+        if name and name != bn.getName():
+            raise ValueError(f"body {b}: MuJoCo's {name!r}, DART's {bn.getName()!r}")
+        X = bn.getWorldTransform().matrix()
+        R, p = X[:3, :3], X[:3, 3]
+        Ri = d.ximat[b].reshape(3, 3)
+        I_world = Ri @ np.diag(m.body_inertia[b]) @ Ri.T
+        bn.setInertia(dp.dynamics.Inertia(float(m.body_mass[b]), R.T @ (d.xipos[b] - p),
+                                          R.T @ I_world @ R))  # fmt: skip
 
 
 def readback(model, config: str, floating: bool = False) -> Readback:
     import dartpy as dp
 
     rb = Readback("dart", config)
-    path, tmp = file_for(model, config)
+    path, tmp = dart_file(model, config)
     try:
         with quiet_fd() as out:
             if model.format == "urdf":
@@ -40,7 +130,7 @@ def readback(model, config: str, floating: bool = False) -> Readback:
                 skels = [world.getSkeleton(i) for i in range(world.getNumSkeletons())]
         if out and out[0].strip():
             rb.notes.append(out[0].strip().splitlines()[-1][:200])
-        skels = [s for s in skels if s is not None]
+        skels = mobile(skels)
         if not skels:
             rb.error = "the loader returned no skeleton" + (
                 f" ({out[0].strip().splitlines()[-1][:200]})" if out and out[0].strip() else ""
@@ -53,21 +143,31 @@ def readback(model, config: str, floating: bool = False) -> Readback:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
     nodes = {}
-    refs = {j.name: float(j.ref) for j in model.joints}
+    if config == "faithful" and model.format == "mjcf":
+        try:
+            mujoco_inertias(skels, model)
+        except Exception as exc:
+            rb.error = f"faithful inertias from MuJoCo's model: {type(exc).__name__}: {exc}"
+            return rb
+        rb.notes.append("inertias set from MuJoCo's compiled model")
     for s in skels:
         for k in range(s.getNumBodyNodes()):
             bn = s.getBodyNode(k)
             nodes[bn.getName()] = bn
-        # the zero configuration (MJCF: each joint at its ref): DART's loader starts a joint
+        # the zero configuration, the pose the file gives (MJCF: each joint at its ref, which
+        # is DART's 0: MjcfParser ignores ref); DART's loader starts a joint
         # whose limits exclude 0 inside them (go2's calves, panda's joint 4), not at 0
         for k in range(s.getNumJoints()):
             jt = s.getJoint(k)
             if jt.getNumDofs() == 1:
-                jt.setPosition(0, refs.get(jt.getName(), 0.0))
+                jt.setPosition(0, 0.0)
     if model.root not in nodes:
         rb.error = f"no body node named after the root link {model.root!r}"
         return rb
     T = nodes[model.root].getWorldTransform().matrix()
+    if model.format == "mjcf":
+        kind = nodes[model.root].getParentJoint().getType()
+        rb.root_joint = "free" if kind == "FreeJoint" else "fixed" if kind == "WeldJoint" else kind
     for name, bn in nodes.items():
         X = bn.getWorldTransform().matrix()
         R = X[:3, :3]
@@ -76,6 +176,7 @@ def readback(model, config: str, floating: bool = False) -> Readback:
         jt = bn.getParentJoint()
         if jt is None or jt.getType() != "RevoluteJoint":
             continue
+        rb.joint_body[jt.getName()] = name
         Xj = X @ jt.getTransformFromChildBodyNode().matrix()
         ax = np.asarray(jt.getAxis())
         rb.joints[jt.getName()] = {
@@ -113,7 +214,7 @@ class _Sim:
 
         model = scenario.model
         st = start_of(scenario)
-        path, tmp = file_for(model, config)
+        path, tmp = dart_file(model, config)
         said = ""
         try:
             with quiet_fd() as out:
@@ -140,8 +241,7 @@ class _Sim:
         finally:
             if tmp:
                 shutil.rmtree(tmp, ignore_errors=True)
-        skels = [world.getSkeleton(i) for i in range(world.getNumSkeletons())]
-        skels = [s for s in skels if s is not None]
+        skels = mobile([world.getSkeleton(i) for i in range(world.getNumSkeletons())])
         if not skels:
             raise Unsupported(
                 f"dart: its importer returned no skeleton for {scenario.model_spec['file']} "
@@ -163,6 +263,19 @@ class _Sim:
             for k in range(s.getNumJoints()):
                 jt = s.getJoint(k)
                 self.joints[jt.getName()] = jt
+        if config == "faithful" and model.format == "mjcf":
+            try:
+                mujoco_inertias(skels, model)
+            except ImportError:
+                raise Unsupported("dart: the faithful configuration of an MJCF file takes "
+                                  "its inertias from MuJoCo's compiled model, and MuJoCo "
+                                  "is not installed") from None  # fmt: skip
+            except ValueError as exc:
+                raise Unsupported(f"dart: faithful inertias from MuJoCo's model: {exc}") from None
+            rec["inertias"] = ("every body's mass, centre of mass and inertia from "
+                               "MuJoCo's compiled model (MjcfParser keeps no rotational "
+                               "inertia)")  # fmt: skip
+            rec["free joints"] = "a copy of the file with <joint type='free'> for <freejoint>"
         if config == "faithful":
             for jt in self.joints.values():
                 for i in range(jt.getNumDofs()):
@@ -170,7 +283,13 @@ class _Sim:
                     jt.setCoulombFriction(i, 0.0)
                     jt.setSpringStiffness(i, 0.0)
                 jt.setLimitEnforcement(False)
-            rec["switched off"] = "damping, Coulomb friction, springs, limit enforcement"
+            # contact-free, as the scenario is: no shape in the constraint solver's
+            # collision group (the parser's shapes collide with each other and a floor)
+            world.getConstraintSolver().getCollisionGroup().removeAllShapeFrames()
+            rec["switched off"] = (
+                "damping, Coulomb friction, springs, limit enforcement, "
+                "collision (no shape in the solver's collision group)"
+            )
         else:
             damp = sorted({float(jt.getDampingCoefficient(i)) for jt in self.joints.values()
                            for i in range(jt.getNumDofs())})  # fmt: skip
@@ -186,6 +305,8 @@ class _Sim:
 
         from references.errors import Unsupported
 
+        # the scenario's coordinate is MuJoCo's (the file's pose at ref); DART's is 0 there
+        ref = {j.name: float(j.ref) for j in model.joints} if model.format == "mjcf" else {}
         for name in set(st.q) | set(st.qd):
             jt = self.joints.get(name)
             if jt is None:
@@ -197,7 +318,7 @@ class _Sim:
                                       "set here")  # fmt: skip
                 continue
             if name in st.q:
-                jt.setPosition(0, float(st.q[name]))
+                jt.setPosition(0, float(st.q[name]) - ref.get(name, 0.0))
             if name in st.qd:
                 jt.setVelocity(0, float(st.qd[name]))
         root = self.nodes.get(model.root)

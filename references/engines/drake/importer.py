@@ -1,7 +1,17 @@
 """Drake's own importer (``Parser.AddModels``, URDF and MJCF, ``package://`` names resolved
 through its package map) on a model file, read back (:mod:`references.engines.importers`):
 each body's spatial inertia and world pose in the default context, revolute joints' axes,
-limits and default damping."""
+limits, default damping and armature (the reflected rotor inertia of the actuators on the
+joint: Drake holds armature nowhere else).
+
+Drake's MJCF parser (multibody/parsing/detail_mujoco_parser.cc, where it reads a joint's
+``armature``) keeps a joint's armature only as the rotor inertia of an actuator that drives
+that joint; a joint without an actuator loses it (MuJoCo adds it to the mass matrix's
+diagonal for every joint). On crawler.xml four of five hinges lose 0.01 kg m^2; its
+knee_left is left with 2.8e-5 kg m^2 against its damping of 0.3 N m s: the damping's rate
+1.1e4 1/s times a fixed step of 1e-3 s is 10.8, far outside an explicit Runge-Kutta
+method's stability interval, and the as-loaded run diverges in its first steps (the
+faithful configuration switches damping off)."""
 
 from __future__ import annotations
 
@@ -11,6 +21,25 @@ import shutil
 import numpy as np
 
 from references.engines.importers import Readback, file_for, limit, packages, to_root
+
+_ARMATURE = (
+    "Drake's MJCF parser keeps a joint's armature only as the rotor inertia of an actuator "
+    "on that joint: a joint without one loses it (an explicit fixed step then meets the "
+    "joint's damping over a much smaller inertia)"
+)
+#: the known cause of a difference, by configuration, quantity and format, printed beside it
+HINTS = {(c, "armature", "mjcf"): _ARMATURE for c in ("as-loaded", "faithful")}
+
+
+def armatures(plant) -> dict:
+    """{joint index: the reflected rotor inertia of the actuators on it (gear ratio squared
+    times rotor inertia; 0 for a joint without an actuator)}."""
+    out: dict = {}
+    for i in range(plant.num_actuators()):
+        a = plant.get_joint_actuator(_ai(i))
+        k = int(a.joint().index())
+        out[k] = out.get(k, 0.0) + float(a.default_reflected_inertia())
+    return out
 
 
 def readback(model, config: str, floating: bool = False) -> Readback:
@@ -51,6 +80,7 @@ def readback(model, config: str, floating: bool = False) -> Readback:
             (3, 3))  # fmt: skip
         R = X.rotation().matrix()
         rb.bodies[body.name()] = to_root(T, m, X.multiply(com_b), R @ Ic @ R.T)
+    arm = armatures(plant)
     for i in range(plant.num_joints()):
         jt = plant.get_joint(_ji(i))
         if not isinstance(jt, RevoluteJoint):
@@ -62,6 +92,7 @@ def readback(model, config: str, floating: bool = False) -> Readback:
             "lower": limit(jt.position_lower_limits()[0]),
             "upper": limit(jt.position_upper_limits()[0]),
             "damping": float(jt.default_damping()),
+            "armature": arm.get(int(jt.index()), 0.0),
         }
     return rb
 
@@ -146,6 +177,12 @@ class _Sim:
             damp = sorted({float(jt.default_damping()) for jt in joints
                            if hasattr(jt, "default_damping")})  # fmt: skip
             rec["as the file has it"] = f"damping {damp}, {plant.num_actuators()} actuators"
+            arm = armatures(plant)
+            lost = [j.name for j in model.joints if j.armature and plant.HasJointNamed(j.name)
+                    and arm.get(int(plant.GetJointByName(j.name).index()), 0.0) == 0.0]  # fmt: skip
+            if lost:
+                rec["armature lost"] = (f"{lost}: no actuator on them, so Drake's MJCF parser "
+                                        "drops the file's armature")  # fmt: skip
         plant.mutable_gravity_field().set_gravity_vector(st.gravity)
         plant.Finalize()
         self.plant = plant

@@ -9,14 +9,45 @@ import shutil
 
 import numpy as np
 
-from references.engines.importers import Readback, file_for, limit, to_root
+from references.engines.importers import Readback, file_for, limit, mjcf_copy, to_root
+
+_VISUAL = (
+    "Pinocchio's MJCF parser adds up the mass of a body's collision geoms only: a geom with "
+    "contype=0 and conaffinity=0 counts as visual and brings no mass (MuJoCo counts every "
+    "geom); the faithful configuration loads a copy with contype='1' on every geom"
+)
+_FIRST = (
+    "Pinocchio's MJCF parser builds the first <body> under <worldbody> only: a body tree "
+    "after it is dropped"
+)
+#: the known cause of a difference, by configuration, quantity and format, printed beside it
+HINTS = {
+    **{("as-loaded", q, "mjcf"): _VISUAL for q in ("mass", "com", "inertia")},
+    **{(c, "missing", "mjcf"): _FIRST for c in ("as-loaded", "faithful")},
+}
+
+
+def _collidable(root) -> None:
+    """Every geom of an MJCF tree (and every default geom) made collidable (contype 1), so
+    that Pinocchio's parser counts its mass (module :data:`HINTS`)."""
+    for g in root.iter("geom"):
+        g.set("contype", "1")
+
+
+def pinocchio_file(model, config: str):
+    """(the file Pinocchio's parser loads in ``config``, a temporary folder or None): the
+    importers' :func:`~references.engines.importers.file_for`, and for a faithful MJCF file a
+    copy whose every geom is collidable (:data:`HINTS`)."""
+    if config == "faithful" and model.format == "mjcf":
+        return mjcf_copy(model.path, _collidable)
+    return file_for(model, config)
 
 
 def readback(model, config: str, floating: bool = False) -> Readback:
     import pinocchio as pin
 
     rb = Readback("pinocchio", config)
-    path, tmp = file_for(model, config)
+    path, tmp = pinocchio_file(model, config)
     try:
         if model.format == "urdf" and floating:  # the root on a free flyer, as a user does
             pm = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
@@ -104,7 +135,7 @@ class _Sim:
         self.pin = pin
         model = scenario.model
         st = start_of(scenario)
-        path, tmp = file_for(model, config)
+        path, tmp = pinocchio_file(model, config)
         try:
             if model.format == "urdf" and st.floating:
                 pm = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
@@ -129,6 +160,8 @@ class _Sim:
         if config == "faithful":
             pm.armature[:] = 0.0
             rec["armature"] = "0"
+            if model.format == "mjcf":
+                rec["geoms"] = "every geom collidable (contype 1), so that each brings its mass"
         else:
             rec["armature"] = sorted(set(np.round(np.asarray(pm.armature), 12).tolist()))
         if st.held and config == "faithful":  # held as a Pinocchio user holds joints
