@@ -134,6 +134,19 @@ def fmt_attitude(row) -> str:
     return fmt(v)
 
 
+def fmt_joint_angle(row) -> str | None:
+    """The largest joint angle error against the reference (a system of bodies with joints:
+    a robot model, a chain), ``< acc`` below the reference's accuracy as for the attitude;
+    None where the run measured none (a single body, a failed run)."""
+    v = num(row.get("joint_coordinate_error_max"))
+    if math.isnan(v):
+        return None
+    acc = num(row.get("reference_accuracy"))
+    if not math.isnan(acc) and v < acc:
+        return f"< {fmt(acc)}"
+    return fmt(v)
+
+
 def fmt_order(row) -> str:
     """The fitted convergence order with the number of points of the fit, ``-`` if none."""
     o = num(row.get("convergence_order"))

@@ -26,6 +26,7 @@ from reports.report.labels import (
     failed_metrics,
     family_key,
     fmt_attitude,
+    fmt_joint_angle,
     fmt_order,
 )
 from reports.report.plots import rates_left_out
@@ -91,6 +92,8 @@ def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
     if out == "reference-inaccurate":
         return out, who, ["reference too coarse to judge"], ""
     figs = [f"{fmt_attitude(fr)} rad", f"E {fmt(fr['energy_drift_max'])}"]
+    if (q := fmt_joint_angle(fr)) is not None:  # a system of bodies with joints
+        figs.insert(1, f"q {q} rad")
     failing = ""
     if out == "fail":
         names = [METRIC_SHORT.get(m, m) for m in failed_metrics(g.first["verdict_detail"])]
@@ -102,6 +105,8 @@ def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
 SCORECARD_TERMS = {
     "rad": "the max attitude error over the run (< x: below the reference's accuracy x, not "
     "a measurement)",
+    "q": "the max joint angle error against the reference (systems of bodies with joints: "
+    "robot models, chains)",
     "E": "the max energy drift relative to the scenario's energy scale",
     "µs": "the time inside the engine's own calls per step, the cost beside the verdict "
     "(the suite's glue left out; + suite: the suite's time loop around the engine's "
@@ -114,7 +119,8 @@ def scorecard_legend(doc: Doc) -> None:
     md = (
         "✅ pass · ❌ fail (the metrics out of bounds after *fails*) · 💥 diverged · ⚠️ error "
         "· ❔ the reference is not accurate enough to judge. Each entry: the verdict, "
-        f"**rad**: {SCORECARD_TERMS['rad']}, **E**: {SCORECARD_TERMS['E']}, "
+        f"**rad**: {SCORECARD_TERMS['rad']}, **q**: {SCORECARD_TERMS['q']}, "
+        f"**E**: {SCORECARD_TERMS['E']}, "
         f"then each configuration with **µs**: {SCORECARD_TERMS['µs']}. Configurations in one "
         "entry agree to 1e-3 in every metric (round-off-level values aside); each scenario's "
         "details give their largest difference."
@@ -124,7 +130,8 @@ def scorecard_legend(doc: Doc) -> None:
         "<span class='v-diverged'>↯ diverged</span> <span class='v-error'>⚠ error</span> "
         "<span class='v-reference-inaccurate'>? reference too coarse to judge</span>. "
         "Each entry: the verdict, <b>rad</b>: "
-        f"{html.escape(SCORECARD_TERMS['rad'])}, <b>E</b>: {html.escape(SCORECARD_TERMS['E'])}"
+        f"{html.escape(SCORECARD_TERMS['rad'])}, <b>q</b>: {html.escape(SCORECARD_TERMS['q'])}"
+        f", <b>E</b>: {html.escape(SCORECARD_TERMS['E'])}"
         "; the metrics out of bounds after <b>fails</b>; then each configuration with "
         f"<b>µs</b>: {html.escape(SCORECARD_TERMS['µs'])}. Configurations in one entry agree "
         "to 1e-3 in every metric (round-off-level values aside); each scenario's details give "
@@ -136,8 +143,8 @@ def scorecard_legend(doc: Doc) -> None:
 def _entry_html(out: str, who, figs, failing: str, href: str) -> str:
     spans = []
     for f in figs:
-        if f.startswith("E "):
-            abbr = f"<abbr title='{html.escape(SCORECARD_TERMS['E'])}'>E</abbr>"
+        if f.startswith(("E ", "q ")):
+            abbr = f"<abbr title='{html.escape(SCORECARD_TERMS[f[0]])}'>{f[0]}</abbr>"
             spans.append(f"<span class='fig'>{abbr} {html.escape(f[2:])}</span>")
         else:
             wrap = " wrap" if f.startswith(("diverged", "reference")) else ""
@@ -158,7 +165,8 @@ def _family_tip(family: str) -> str:
     """The tooltip of a scorecard column: what its entries show."""
     return (
         f"integrator family {family}. Each entry: the verdict; rad: "
-        f"{SCORECARD_TERMS['rad']}; E: {SCORECARD_TERMS['E']}; then each configuration "
+        f"{SCORECARD_TERMS['rad']}; q: {SCORECARD_TERMS['q']}; E: {SCORECARD_TERMS['E']}; "
+        "then each configuration "
         f"with µs: {SCORECARD_TERMS['µs']}"
     )
 
@@ -229,36 +237,6 @@ def verdict_section(doc: Doc, df, card, links: bool = True) -> None:
         "sweep: in its section)", ["scenario", *COLUMNS], body, cls="verdict",
     )  # fmt: skip
     doc.para(LEGEND, re.sub(r"\*([^*]+)\*", r"<i>\1</i>", html.escape(LEGEND)), cls="hint")
-
-
-def scenario_verdicts(doc: Doc, s: dict) -> None:
-    """report.md's scorecard of one scenario (``s``, an entry of
-    :func:`reports.report.tables.scorecard`): a row per group of configurations that agree,
-    six columns (the HTML report has the scorecard of every scenario instead)."""
-    header = ["family", "configurations", "verdict", "attitude [rad]", "energy", "engine µs/step"]
-    body = []
-    for fam in sorted(s["cells"], key=family_key):
-        for g in s["cells"][fam]:
-            out, who, figs, failing = entry_texts(g)
-            verdict = f"{SYMBOL.get(out, '')} {out}" + (f": {failing}" if failing else "")
-            if out in ("pass", "fail"):
-                fr = g.figure_row()
-                att, energy = fmt_attitude(fr), fmt(fr["energy_drift_max"])
-            else:
-                verdict += figs[0].removeprefix("diverged") if out == "diverged" else ""
-                att = energy = "-"
-            body.append(
-                [
-                    fam,
-                    Cell(md="<br>".join(md_cell(n) for n, _ in who)),
-                    verdict,
-                    num(None, att),
-                    num(None, energy),
-                    Cell(md="<br>".join(md_cell(c.removesuffix(" µs")) for _, c in who), num=True),
-                ]
-            )
-    where = f"dt = {fmt_step(s['dt'])} s, t_end = {fmt_step(s['t_end'])} s"
-    doc.table(f"{s['scenario']}: verdicts at {where}", header, body)
 
 
 def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
@@ -595,10 +573,10 @@ def _kind(p: Path) -> str:
 def details_section(doc: Doc, df, plots: dict, root: Path, card=None) -> None:
     """Per scenario: its facts and key figures in view (:data:`KEY_FIGURES`), then, collapsed
     in HTML, its tables and the other figures; in report.md the whole of it collapsed under
-    its heading, its verdicts first (:func:`scenario_verdicts`)."""
+    its heading, its verdicts first (:func:`reports.report.verdict.scenario_verdicts`)."""
     doc.heading(2, "Details")
     cache = SeriesCache(root)
-    from reports.report.verdict import COLUMNS, verdict_rows
+    from reports.report.verdict import COLUMNS, scenario_verdicts, verdict_rows
 
     card = card or scorecard(df)
     by_name = {s["scenario"]: s for s in card}

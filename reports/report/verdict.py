@@ -1,5 +1,6 @@
 """The verdict a reader sees first: one row per scenario, how many configurations pass, fail,
-diverge, cannot be judged or did not run at the scenario's own step, and a row of totals.
+diverge, cannot be judged or did not run at the scenario's own step, and a row of totals;
+and report.md's short verdict table of each scenario (:func:`scenario_verdicts`).
 
 Six columns of short cells, so that the table keeps one line per row where a report is read:
 on GitHub (report.md in a pull request, 1012 px of page) and in report.html on an 800 px
@@ -9,8 +10,11 @@ tables) follows, collapsed in report.md.
 
 from __future__ import annotations
 
-from reports.report.labels import NOT_RUN
+from reports.report.doc import Cell, Doc, num
+from reports.report.labels import NOT_RUN, family_key, fmt_attitude, fmt_joint_angle
+from reports.report.sections import SYMBOL, entry_texts
 from reports.report.tables import at_scenario_dt, scenarios_of
+from reports.store.format import fmt, fmt_step, md_cell
 from reports.store.results import reference_rows
 
 #: the columns after the scenario, each an outcome of a configuration at a scenario's own step
@@ -54,3 +58,41 @@ def verdict_rows(df, card) -> list[dict]:
 
 def totals(rows: list[dict]) -> dict:
     return {c: sum(r[c] for r in rows) for c in COLUMNS}
+
+
+def scenario_verdicts(doc: Doc, s: dict) -> None:
+    """report.md's scorecard of one scenario (``s``, an entry of
+    :func:`reports.report.tables.scorecard`): a row per group of configurations that agree,
+    six columns (the HTML report has the scorecard of every scenario instead); a seventh,
+    the joint angle error, where the scenario's runs measure one (a system of bodies with
+    joints: a robot model, a chain)."""
+    groups = [g for fam in sorted(s["cells"], key=family_key) for g in s["cells"][fam]]
+    joints = any(fmt_joint_angle(g.figure_row()) is not None for g in groups)
+    header = ["family", "configurations", "verdict", "attitude [rad]", "energy", "engine µs/step"]
+    if joints:
+        header.insert(3, "joint angle [rad]")
+    body = []
+    for fam in sorted(s["cells"], key=family_key):
+        for g in s["cells"][fam]:
+            out, who, figs, failing = entry_texts(g)
+            verdict = f"{SYMBOL.get(out, '')} {out}" + (f": {failing}" if failing else "")
+            fr = g.figure_row()
+            if out in ("pass", "fail"):
+                att, energy = fmt_attitude(fr), fmt(fr["energy_drift_max"])
+                q = fmt_joint_angle(fr) or "-"
+            else:
+                verdict += figs[0].removeprefix("diverged") if out == "diverged" else ""
+                att = energy = q = "-"
+            row = [
+                fam,
+                Cell(md="<br>".join(md_cell(n) for n, _ in who)),
+                verdict,
+                num(None, att),
+                num(None, energy),
+                Cell(md="<br>".join(md_cell(c.removesuffix(" µs")) for _, c in who), num=True),
+            ]
+            if joints:
+                row.insert(3, num(None, q))
+            body.append(row)
+    where = f"dt = {fmt_step(s['dt'])} s, t_end = {fmt_step(s['t_end'])} s"
+    doc.table(f"{s['scenario']}: verdicts at {where}", header, body)

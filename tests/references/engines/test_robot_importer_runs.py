@@ -158,6 +158,21 @@ def test_a_run_writes_the_importer_table_and_the_report_shows_it(tmp_path):
     assert "director-bench show --importers arm3_swing --engines mujoco,pybullet" in md
     assert (out / "plots" / "arm3-swing__importers.png").is_file()
     assert (out / "plots" / "arm3-swing__joint_angles.png").is_file()
+    # the short verdict table (report.md) and the scorecard (report.html) show each
+    # configuration's joint angle error beside its attitude error
+    from reports.store.format import fmt
+
+    r = s.results
+    loaded = r[(r["engine"] == "mujoco") & (r["integrator"] == "RK4 (as loaded)")].iloc[0]
+    q, att = fmt(loaded["joint_coordinate_error_max"]), fmt(loaded["attitude_error_max"])
+    assert q != att  # the two metrics differ on this run, so the column is told apart
+    section = md.split("**arm3_swing: verdicts at")[1].split("\n\n", 2)[1]
+    head, _, *rows = section.splitlines()
+    assert head.split(" | ")[3:5] == ["joint angle [rad]", "attitude [rad]"]
+    row = next(ln for ln in rows if "mujoco RK4 (as loaded)" in ln)
+    assert row.split(" | ")[3:5] == [q, att], row
+    page = (out / "report.html").read_text()
+    assert f"</abbr> {q} rad</span>" in page
 
 
 def test_an_importers_own_initial_joint_values_never_set_the_zero_configuration(tmp_path):
