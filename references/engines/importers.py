@@ -67,7 +67,7 @@ class Readback:
     what the importer said or did (warnings, flags used); ``error``: why it failed to load;
     ``joint_body`` {joint name: the body it moves}, where the importer names bodies its own
     way (an unnamed MJCF body), so that :func:`compare` pairs them by their joint;
-    ``root_joint``: "free" or "fixed", where the importer's model says how its root body
+    ``root_joint``: "free" or "attached", where the importer's model says how its root body
     hangs from the world (compared for MJCF files, whose free joint is in the file)."""
 
     engine: str
@@ -77,7 +77,8 @@ class Readback:
     notes: list = field(default_factory=list)
     error: str | None = None
     joint_body: dict = field(default_factory=dict)
-    #: how the root body hangs from the world: "free" or "fixed" (None: not read back)
+    #: how the root body hangs from the world: "free" (a free joint) or "attached" (welded,
+    #: or on a joint of fewer degrees of freedom); None: not read back
     root_joint: str | None = None
 
 
@@ -284,7 +285,7 @@ def our_readback(model) -> Readback:
     rb = Readback("ours", "reader")
     if model.format == "mjcf":  # the file says whether its root is free
         free = any(j.kind == "free" and j.child == model.root for j in model.joints)
-        rb.root_joint = "free" if free else "fixed"
+        rb.root_joint = "free" if free else "attached"
     T = zero_poses(model)
     eye = np.eye(4)
     for lk in model.links:

@@ -167,7 +167,7 @@ def readback(model, config: str, floating: bool = False) -> Readback:
     T = nodes[model.root].getWorldTransform().matrix()
     if model.format == "mjcf":
         kind = nodes[model.root].getParentJoint().getType()
-        rb.root_joint = "free" if kind == "FreeJoint" else "fixed" if kind == "WeldJoint" else kind
+        rb.root_joint = "free" if kind == "FreeJoint" else "attached"
     for name, bn in nodes.items():
         X = bn.getWorldTransform().matrix()
         R = X[:3, :3]

@@ -182,3 +182,14 @@ dt = 1e-3
             n += sim.world.getLastCollisionResult().getNumContacts()
         counts[config] = n
     assert counts["as-loaded"] > 0 and counts["faithful"] == 0, counts
+
+
+def test_dart_welds_a_freejoint_body_and_the_faithful_copy_frees_it():
+    """crawler.xml's torso has a <freejoint>, which MjcfParser does not read: the as-loaded
+    read-back says the root is attached to the world; the faithful copy (<joint
+    type='free'>) floats it."""
+    pytest.importorskip("dartpy")
+    sc = scenarios.load("crawler_float")
+    rows = {c: [(r.ours, r.theirs) for r in _rows(sc.model, "dart", c)
+                if r.quantity == "root joint"] for c in ("as-loaded", "faithful")}  # fmt: skip
+    assert rows == {"as-loaded": [("free", "attached")], "faithful": []}
