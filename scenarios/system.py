@@ -36,7 +36,9 @@ AXIS_KINDS = ("revolute", "universal", "cylindrical", "prismatic")
 SYSTEM_CLOSED_FORMS = ("spinning_chain", "conical_pendulum", "four_bar", "n_four_bar")
 #: the closed forms of bodies in contact (references.exact.contact); a scene with
 #: ``[[contacts]]`` takes one of these or "none"
-CONTACT_CLOSED_FORMS = ("sliding_block", "tipping_block", "rolling", "bounce", "resting")
+CONTACT_CLOSED_FORMS = (
+    "sliding_block", "tipping_block", "rolling", "bounce", "resting", "hinged_strike",
+)  # fmt: skip
 SYSTEM_REFERENCE_KINDS = ("auto", *SYSTEM_CLOSED_FORMS, *CONTACT_CLOSED_FORMS, "numerical", "none")
 
 #: a joint must hold at t = 0 to this, m for points and rad for axes: the tolerance of

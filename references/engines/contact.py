@@ -370,6 +370,27 @@ def external_wrench(scenario, body_index: int, R) -> tuple[np.ndarray, np.ndarra
     return F, tau
 
 
+def ground_hinges(scenario, engine: str) -> dict:
+    """{body name: its joint} of a scene whose joints are each a revolute joint tying one
+    body to the ground (at most one per body); any other joint is refused with the reason."""
+    out = {}
+    for j in scenario.joints:
+        if j.kind != "revolute" or j.body_b is not None or j.body_a in out:
+            raise Unsupported(
+                f"{engine} contact builder: joint {j.name!r} ({j.kind} between {j.body_a!r} and "
+                f"{j.body_b or 'the ground'!r}): with contact, only one revolute joint from a "
+                "body to the ground is built"
+            )
+        out[j.body_a] = j
+    return out
+
+
+def hinge_rate(b, j) -> float:
+    """The initial rate (rad/s) of body ``b`` about its hinge ``j``'s axis (the scene's
+    checks have made its velocity that of a rotation about the hinge)."""
+    return float(np.asarray(b.omega_body) @ (np.asarray(j.axis_a) / np.linalg.norm(j.axis_a)))
+
+
 def run_contact(
     engine: str,
     scenario,

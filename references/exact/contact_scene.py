@@ -13,7 +13,12 @@ not describe (:class:`ReferenceNotApplicable`).
 ``bounce``         one body above one plane, at rest or moving along the normal
 ``resting``        every body at rest; each body's support is the pair below it (the plane, or
                    the body whose centre is lowest among those it touches)
+``hinged_strike``  one body on a revolute joint to the ground, a sphere at its centre of mass
+                   above one plane, frictionless, released at rest
+                   (:mod:`references.exact.contact_hinged`)
 =================  ===============================================================================
+
+Every other kind describes free bodies: a scene with joints is refused by them.
 """
 
 from __future__ import annotations
@@ -30,9 +35,10 @@ from references.exact.contact import (
     SlidingBlock,
     TippingBlock,
 )
+from scenarios.system import CONTACT_CLOSED_FORMS
 
-#: the contact closed forms by kind
-KINDS = ("sliding_block", "tipping_block", "rolling", "bounce", "resting")
+#: the contact closed forms by kind (declared with the scenario schema)
+KINDS = CONTACT_CLOSED_FORMS
 
 
 def _one_body_on_plane(sc, kind: str, shapes: tuple[str, ...]):
@@ -73,6 +79,12 @@ def builder(sc):
     g = np.asarray(sc.gravity, dtype=float)
     if kind not in KINDS:
         raise ReferenceNotApplicable(f"scenario {sc.name!r}: {kind!r} is not a contact kind")
+    if kind == "hinged_strike":
+        return _hinged(sc, g)
+    if sc.joints:
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: {kind} describes free bodies; the scene has joints"
+        )
     if kind == "resting":
         return _resting(sc, g)
     shapes = {
@@ -207,6 +219,32 @@ def _resting(sc, g):
         supports,
         g,
     )
+
+
+def _hinged(sc, g):
+    from references.exact.contact_hinged import HingedStrike
+
+    kind = "hinged_strike"
+    body, plane, pair = _one_body_on_plane(sc, kind, ("sphere",))
+    _shape_at_centre(sc, body, kind)
+    (j,) = sc.joints if len(sc.joints) == 1 else (None,)
+    if j is None or j.kind != "revolute" or j.body_b is not None:
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: {kind} describes one revolute joint to the ground"
+        )
+    if pair.mu != 0:
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: {kind} is frictionless (mu = {pair.mu:g} here): friction "
+            "at the impact has no closed form here"
+        )
+    if np.any(body.velocity != 0) or np.any(body.omega_body != 0) or sc.forces:
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: {kind} starts at rest, with no external force"
+        )
+    return HingedStrike(
+        body.mass, body.inertia, body.position, body.rotation, j.anchor_b, j.axis_b,
+        body.shape.radius, plane.normal, plane.point, pair.e, g,
+    )  # fmt: skip
 
 
 def contact_motion(sc, t) -> ContactMotion:

@@ -3,7 +3,9 @@ tangent directions, each friction component bounded by mu N on its own, so the f
 a box, not a cone), FCL collision detection (DART's default detector).
 
 Model: each body a skeleton on a ``FreeJoint`` (positions [rotation vector, x], velocities
-[w, v] both world) whose body node frame is the principal frame at the centre of mass, one
+[w, v] both world), or on a ``RevoluteJoint`` for a body hinged to the ground (its frame at
+the anchor with the body's initial axes, q = 0 the scene's initial pose), whose body node
+frame is the principal frame at the centre of mass, one
 shape node (``SphereShape``, ``BoxShape`` of full sides, ``CapsuleShape`` (radius, length of
 its cylinder), ``CylinderShape`` (radius, full height)) at the shape's offset; each plane a
 static skeleton holding a 100 m x 100 m x 1 m box whose top face is the plane (FCL's
@@ -33,7 +35,13 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import timing
-from references.engines.contact import ContactLog, external_wrench, pair_coefficients
+from references.engines.contact import (
+    ContactLog,
+    external_wrench,
+    ground_hinges,
+    hinge_rate,
+    pair_coefficients,
+)
 from references.engines.integrators import Integrator
 from references.errors import Unsupported
 
@@ -100,8 +108,7 @@ def _frame_z_to(n):
 
 class Scene:
     def __init__(self, dart, scenario, conf, dt, settings):
-        if scenario.joints:
-            raise Unsupported("dart contact builder: joints with contact are not built yet")
+        hinges = ground_hinges(scenario, "dart")
         self.dart, self.sc = dart, scenario
         mu = pair_coefficients(scenario, "mu", "min", plane_value=1e3)
         e = pair_coefficients(scenario, "e", "product", plane_value=1.0)
@@ -132,6 +139,7 @@ class Scene:
         cs.setSplitImpulseEnabled(bool(settings.get("split_impulse", False)))
         self.world, self.cs = w, cs
         self.nodes, self.joints, self.shapes = {}, {}, {}
+        self.hinged = set()  # bodies on a revolute joint to the ground
         for p in scenario.planes:
             g = dart.dynamics.Skeleton(f"plane:{p.name}")
             _, gb = g.createWeldJointAndBodyNodePair()
@@ -149,10 +157,17 @@ class Scene:
             self.nodes[p.name], self.shapes[p.name] = gb, sn
         for b in scenario.bodies:
             skel = dart.dynamics.Skeleton(b.name)
-            j, bn = skel.createFreeJointAndBodyNodePair()
+            hinge = hinges.get(b.name)
+            if hinge is None:
+                j, bn = skel.createFreeJointAndBodyNodePair()
+            else:  # the joint frame: at the anchor with the body's initial axes (q = 0)
+                j, bn = skel.createRevoluteJointAndBodyNodePair()
+                j.setTransformFromParentBodyNode(_iso(dart, b.rotation, hinge.anchor_b))
+                j.setTransformFromChildBodyNode(_iso(dart, np.eye(3), hinge.anchor_a))
+                j.setAxis(np.asarray(hinge.axis_a, dtype=float))
             bn.setName(b.name)
             bn.setInertia(dart.dynamics.Inertia(b.mass, np.zeros(3), np.diag(b.inertia)))
-            for i in range(6):
+            for i in range(j.getNumDofs()):
                 j.setDampingCoefficient(i, 0.0)
             if b.shape is not None:
                 sn = bn.createShapeNode(_shape(dart, b.shape))
@@ -164,9 +179,14 @@ class Scene:
                 sn.getDynamicsAspect().setRestitutionCoeff(e[b.name])
                 self.shapes[b.name] = sn
             w.addSkeleton(skel)
-            pos, vel = cv.dart_free_from_state(b.position, b.velocity, b.rotation, b.omega_body)
-            j.setPositions(pos)
-            j.setVelocities(vel)
+            if hinge is None:
+                pos, vel = cv.dart_free_from_state(b.position, b.velocity, b.rotation, b.omega_body)
+                j.setPositions(pos)
+                j.setVelocities(vel)
+            else:
+                j.setPosition(0, 0.0)
+                j.setVelocity(0, hinge_rate(b, hinge))
+                self.hinged.add(b.name)
             self.nodes[b.name], self.joints[b.name] = bn, j
         listed = {frozenset((c.a, c.b)) for c in scenario.contacts}
         filt = cs.getCollisionOption().collisionFilter
@@ -260,6 +280,13 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
 
     def save(k, step):
         for i, n in enumerate(names):
+            if n in sc.hinged:  # its body node's frame is its principal frame at the centre
+                bn = sc.nodes[n]
+                T = bn.getWorldTransform()
+                X[k, i], R[k, i] = np.asarray(T.translation()), np.asarray(T.rotation())
+                V[k, i] = np.asarray(bn.getCOMLinearVelocity())
+                W[k, i] = R[k, i].T @ np.asarray(bn.getAngularVelocity())
+                continue
             j = sc.joints[n]
             st = cv.dart_free_to_state(j.getPositions(), j.getVelocities())
             X[k, i], V[k, i], R[k, i], W[k, i] = (

@@ -2,7 +2,8 @@
 RATTLE in director coordinates with the exact Coulomb cone and Newton's impact law, the
 suite's hard-contact reference integrator, run through its public API.
 
-The scene maps one to one: each body a ``director_model.system.Body`` (the same fields), its
+The scene maps one to one: each body a ``director_model.system.Body`` and each joint a
+``director_model.system.Joint`` (the same fields; the system builder's ``model``), its
 shape a ``Sphere``, ``Box``, ``Capsule`` or ``Cylinder`` (centred at the centre of mass with
 the body's axes: a shape offset or rotation is unsupported, with that reason), each plane
 ``Plane.through(normal, point)``, each pair ``Pair(a, b, mu, e)``, each force
@@ -70,17 +71,15 @@ def _shape(dc, b):
 
 def scene_of(dc, sc):
     """The ``director_model.contact.ContactScene`` of the suite's scene ``sc``."""
-    if sc.joints:
-        raise Unsupported("director contact builder: joints with contact are not built here yet")
-    bodies = [dc.Body(b.name, b.mass, tuple(b.inertia), position=tuple(b.position),
-                      rotation=np.asarray(b.rotation), velocity=tuple(b.velocity),
-                      omega_body=tuple(b.omega_body)) for b in sc.bodies]  # fmt: skip
+    from references.engines.director.system import model
+
+    bodies, joints = model(sc)  # the system's bodies and joints, field for field
     shapes = {b.name: _shape(dc, b) for b in sc.bodies if b.shape is not None}
     planes = {p.name: dc.Plane.through(tuple(p.normal), tuple(p.point)) for p in sc.planes}
     pairs = [dc.Pair(c.a, c.b, mu=c.mu, e=c.e) for c in sc.contacts]
     forces = [dc.PointForce(f.body, tuple(f.force), point=tuple(f.point)) for f in sc.forces]
     try:
-        return dc.ContactScene(bodies, shapes=shapes, planes=planes, pairs=pairs,
+        return dc.ContactScene(bodies, shapes=shapes, planes=planes, pairs=pairs, joints=joints,
                                forces=forces, gravity=tuple(sc.gravity))  # fmt: skip
     except dc.InvalidContactError as exc:
         raise Unsupported(f"director: {exc}") from None

@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 from references.engines import timing
-from references.engines.contact import ContactLog, pair_coefficients
+from references.engines.contact import ContactLog, ground_hinges, hinge_rate, pair_coefficients
 from references.engines.integrators import Integrator
 from references.errors import Unsupported
 
@@ -101,8 +101,7 @@ class Scene:
         import pydrake.all as m
 
         _import()
-        if scenario.joints:
-            raise Unsupported("drake contact builder: joints with contact are not built yet")
+        hinges = ground_hinges(scenario, "drake")
         bad = [f"{c.a}-{c.b}" for c in scenario.contacts if c.e > 0]
         if bad:
             raise Unsupported(
@@ -168,6 +167,25 @@ class Scene:
             self.gid[b.name] = plant.RegisterCollisionGeometry(
                 body, X, _shape(m, s), f"geom:{b.name}", props
             )
+        self.hinges = {}  # body name -> (its RevoluteJoint, its initial rate)
+        for b in scenario.bodies:
+            j = hinges.get(b.name)
+            if j is None:
+                continue
+            # F on the world at the anchor with the body's initial axes, M on the body at its
+            # anchor: they coincide at q = 0, the scene's initial pose
+            F = plant.AddFrame(
+                m.FixedOffsetFrame(
+                    f"{j.name}_F",
+                    plant.world_frame(),
+                    m.RigidTransform(m.RotationMatrix(b.rotation), np.asarray(j.anchor_b, float)),
+                )
+            )
+            M = plant.AddFrame(m.FixedOffsetFrame(
+                f"{j.name}_M", self.body[b.name].body_frame(),
+                m.RigidTransform(np.asarray(j.anchor_a, float))))  # fmt: skip
+            joint = plant.AddJoint(m.RevoluteJoint(j.name, F, M, np.asarray(j.axis_a, float)))
+            self.hinges[b.name] = (joint, hinge_rate(b, j))
         plant.Finalize()
         listed = {frozenset((c.a, c.b)) for c in scenario.contacts}
         names = list(self.gid)
@@ -195,6 +213,11 @@ class Scene:
             plant.get_applied_spatial_force_input_port().FixValue(self.pc, forces)
         for b in scenario.bodies:
             body = self.body[b.name]
+            if b.name in self.hinges:
+                joint, rate = self.hinges[b.name]
+                joint.set_angle(self.pc, 0.0)
+                joint.set_angular_rate(self.pc, rate)
+                continue
             plant.SetFreeBodyPose(
                 self.pc,
                 body,

@@ -47,6 +47,11 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
 
     mujoco, jax, mjx = _import()
     conf = find("mjx", configuration)
+    if scenario.joints:
+        raise Unsupported(
+            "mjx contact builder: joints with contact are built for MuJoCo only (this builder "
+            "sets and reads every body's free joint)"
+        )
     if any(np.any(f.point != 0) for f in scenario.forces):
         raise Unsupported(
             "mjx contact builder: a force off a centre of mass (its torque turns "

@@ -1,7 +1,10 @@
 """MuJoCo's contact: bodies on free joints with one geom each, the scene's planes as plane
 geoms of the world body, and one explicit ``<pair>`` per scene pair (every geom has contype =
 conaffinity = 0, so only the listed pairs collide; MuJoCo documentation, "XML Reference /
-contact / pair").
+contact / pair"). A body on a revolute joint to the ground (a system in contact) gets a
+``hinge`` joint at the joint's anchor and axis in its frame instead of its free joint, at
+qpos 0 (the model's pose is the scene's initial pose) and qvel the initial rate about the
+axis; a joint between two bodies, or of another kind, is not built here (``unsupported``).
 
 Each body's frame is its principal frame at its centre of mass (an explicit ``<inertial>``,
 as in :mod:`.system`); its geom sits at the shape's offset and rotation. A pair has
@@ -34,7 +37,13 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import timing
-from references.engines.contact import ContactLog, external_wrench, pair_index
+from references.engines.contact import (
+    ContactLog,
+    external_wrench,
+    ground_hinges,
+    hinge_rate,
+    pair_index,
+)
 from references.engines.integrators import Integrator
 from references.errors import Unsupported
 
@@ -132,8 +141,7 @@ def _size(s) -> list:
 
 def mjcf(scenario, conf, dt: float, settings: dict) -> str:
     """The model of the scene (module docstring)."""
-    if scenario.joints:
-        raise Unsupported("mujoco contact builder: joints with contact are not built yet")
+    hinges = ground_hinges(scenario, "mujoco")
     opt = conf.options
     solver = settings.get("solver", "Newton")
     integ = settings.get("integrator", "Euler")
@@ -160,7 +168,14 @@ def mjcf(scenario, conf, dt: float, settings: dict) -> str:
     for b in scenario.bodies:
         parts.append(
             f'<body name="{b.name}" pos="{_num(b.position)}" '
-            f'quat="{_num(cv.matrix_to_quat_wxyz(b.rotation))}"><freejoint/>'
+            f'quat="{_num(cv.matrix_to_quat_wxyz(b.rotation))}">'
+        )
+        j = hinges.get(b.name)
+        parts.append(
+            f'<joint name="{j.name}" type="hinge" pos="{_num(j.anchor_a)}" '
+            f'axis="{_num(j.axis_a)}"/>'
+            if j is not None
+            else "<freejoint/>"
         )
         parts.append(
             f'<inertial pos="0 0 0" quat="1 0 0 0" mass="{b.mass!r}" '
@@ -286,9 +301,13 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         i: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.name)
         for i, b in enumerate(scenario.bodies)
     }
+    hinges = ground_hinges(scenario, "mujoco")
     for i, b in enumerate(scenario.bodies):
         jadr = m.body_jntadr[bid[i]]
         qa, va = m.jnt_qposadr[jadr], m.jnt_dofadr[jadr]
+        if b.name in hinges:
+            d.qpos[qa], d.qvel[va] = 0.0, hinge_rate(b, hinges[b.name])
+            continue
         qpos, qvel = cv.mujoco_free_from_state(b.position, b.velocity, b.rotation, b.omega_body)
         d.qpos[qa : qa + 7] = qpos
         d.qvel[va : va + 6] = qvel
@@ -316,13 +335,22 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     t = np.zeros(nsave)
     log = ContactLog()
     f6 = np.zeros(6)
+    vel6 = np.zeros(6)
 
     def save(k, step):
         mujoco.mj_kinematics(m, d)
+        if hinges:  # the velocities of the state saved (mj_objectVelocity reads cvel)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_comVel(m, d)
         for i in range(nb):
             j = bid[i]
             X[k, i] = d.xipos[j]
             R[k, i] = d.ximat[j].reshape(3, 3)
+            if scenario.bodies[i].name in hinges:  # (rotation, translation) at the centre
+                mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, j, vel6, 0)
+                V[k, i] = vel6[3:]
+                W[k, i] = R[k, i].T @ vel6[:3]
+                continue
             jadr = m.body_jntadr[j]
             va = m.jnt_dofadr[jadr]
             V[k, i] = d.qvel[va : va + 3]

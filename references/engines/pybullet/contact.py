@@ -34,9 +34,14 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import timing
-from references.engines.contact import ContactLog, external_wrench, pair_coefficients
+from references.engines.contact import (
+    ContactLog,
+    external_wrench,
+    ground_hinges,
+    hinge_rate,
+    pair_coefficients,
+)
 from references.engines.integrators import Integrator
-from references.errors import Unsupported
 
 FAMILY = "sequential impulses"
 
@@ -84,8 +89,7 @@ def _shape(p, s, cid):
 
 class Scene:
     def __init__(self, p, scenario, conf, dt, settings):
-        if scenario.joints:
-            raise Unsupported("pybullet contact builder: joints with contact are not built yet")
+        hinges = ground_hinges(scenario, "pybullet")
         self.p, self.sc = p, scenario
         self.cid = cid = p.connect(p.DIRECT)
         self.mu_set = pair_coefficients(scenario, "mu", "product", plane_value=1.0)
@@ -98,6 +102,7 @@ class Scene:
                 params[k] = settings[k]
         p.setPhysicsEngineParameter(**params, physicsClientId=cid)
         self.ids = {}
+        self.link = {}  # name -> the link carrying it: -1 the base, 0 a hinged body's link
         for pl in scenario.planes:
             s = p.createCollisionShape(
                 p.GEOM_PLANE, planeNormal=list(map(float, pl.normal)), physicsClientId=cid
@@ -105,8 +110,13 @@ class Scene:
             self.ids[pl.name] = p.createMultiBody(
                 0, s, basePosition=list(map(float, pl.point)), physicsClientId=cid
             )
+            self.link[pl.name] = -1
         for b in scenario.bodies:
+            if b.name in hinges:
+                self._hinged(b, hinges[b.name])
+                continue
             s = _shape(p, b.shape, cid) if b.shape is not None else -1
+            self.link[b.name] = -1
             bid = p.createMultiBody(
                 b.mass,
                 s,
@@ -136,7 +146,7 @@ class Scene:
         for name, bid in self.ids.items():
             p.changeDynamics(
                 bid,
-                -1,
+                self.link[name],
                 lateralFriction=float(self.mu_set[name]),
                 restitution=float(self.e_set[name]),
                 rollingFriction=0.0,
@@ -150,12 +160,71 @@ class Scene:
             for b in names[i + 1 :]:
                 if frozenset((a, b)) not in listed:
                     p.setCollisionFilterPair(
-                        self.ids[a], self.ids[b], -1, -1, 0, physicsClientId=cid
+                        self.ids[a],
+                        self.ids[b],
+                        self.link[a],
+                        self.link[b],
+                        0,
+                        physicsClientId=cid,
                     )
+
+    def _hinged(self, b, j):
+        """Body ``b`` on a revolute joint ``j`` to the ground: a multibody whose fixed base
+        (mass 0, no shape) stands at the hinge with the body's initial axes, and whose one
+        link turns about the axis there, its centre of mass at -anchor_a in the link frame
+        (q = 0: the scene's initial pose), its shape placed in the link frame (PyBullet
+        places a link's collision shape there, not in its inertial frame: a sphere given
+        at the centre of mass was found at the hinge); the joint's default velocity motor
+        is switched off (PyBullet motorises every revolute joint of a multibody)."""
+        import dataclasses
+
+        p, cid = self.p, self.cid
+        shape = -1
+        if b.shape is not None:
+            at_link = dataclasses.replace(b.shape, position=b.shape.position - j.anchor_a)
+            shape = _shape(p, at_link, cid)
+        zero = [0.0, 0.0, 0.0, 1.0]
+        bid = p.createMultiBody(
+            0.0,
+            -1,
+            basePosition=list(map(float, j.anchor_b)),
+            baseOrientation=list(map(float, cv.matrix_to_quat_xyzw(b.rotation))),
+            linkMasses=[float(b.mass)],
+            linkCollisionShapeIndices=[shape],
+            linkVisualShapeIndices=[-1],
+            linkPositions=[[0.0, 0.0, 0.0]],
+            linkOrientations=[zero],
+            linkInertialFramePositions=[list(map(float, -np.asarray(j.anchor_a)))],
+            linkInertialFrameOrientations=[zero],
+            linkParentIndices=[0],
+            linkJointTypes=[p.JOINT_REVOLUTE],
+            linkJointAxis=[list(map(float, j.axis_a))],
+            physicsClientId=cid,
+        )
+        self.ids[b.name], self.link[b.name] = bid, 0
+        p.changeDynamics(bid, 0, localInertiaDiagonal=list(map(float, b.inertia)),
+                         linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+                         physicsClientId=cid)  # fmt: skip
+        p.setJointMotorControl2(bid, 0, p.VELOCITY_CONTROL, force=0.0, physicsClientId=cid)
+        p.resetJointState(bid, 0, 0.0, hinge_rate(b, j), physicsClientId=cid)
+
+    def state(self, name):
+        """(centre of mass, rotation, velocity, angular velocity (world)) of body ``name``."""
+        p, cid, bid = self.p, self.cid, self.ids[name]
+        if self.link[name] == -1:
+            pos, orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)
+            lin, ang = p.getBaseVelocity(bid, physicsClientId=cid)
+        else:
+            st = p.getLinkState(bid, self.link[name], computeLinkVelocity=1,
+                                computeForwardKinematics=1, physicsClientId=cid)  # fmt: skip
+            pos, orn, lin, ang = st[0], st[1], st[6], st[7]
+        return np.asarray(pos), cv.quat_xyzw_to_matrix(orn), np.asarray(lin), np.asarray(ang)
 
     def readback(self) -> dict:
         p, cid = self.p, self.cid
-        info = {n: p.getDynamicsInfo(i, -1, physicsClientId=cid) for n, i in self.ids.items()}
+        info = {
+            n: p.getDynamicsInfo(i, self.link[n], physicsClientId=cid) for n, i in self.ids.items()
+        }
         for b in self.sc.bodies:
             got = np.array(info[b.name][2])
             if not np.allclose(got, b.inertia, rtol=1e-9, atol=0.0):
@@ -177,7 +246,7 @@ class Scene:
         }
         shapes = {}
         for b in self.sc.bodies:
-            data = p.getCollisionShapeData(self.ids[b.name], -1, physicsClientId=cid)
+            data = p.getCollisionShapeData(self.ids[b.name], self.link[b.name], physicsClientId=cid)
             if not data:
                 continue
             d = data[0]
@@ -203,8 +272,10 @@ class Scene:
 
 
 def _plant_mu(scene):
-    for bid in scene.ids.values():
-        scene.p.changeDynamics(bid, -1, lateralFriction=1.0, physicsClientId=scene.cid)
+    for name, bid in scene.ids.items():
+        scene.p.changeDynamics(
+            bid, scene.link[name], lateralFriction=1.0, physicsClientId=scene.cid
+        )
 
 
 def _plant_offset(scene):
@@ -269,11 +340,8 @@ def _run(p, sc, scenario, conf, dt, nstep, save_every):
 
     def save(k, step):
         for i, n in enumerate(names):
-            bid = sc.ids[n]
-            pos, orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)
-            lin, ang = p.getBaseVelocity(bid, physicsClientId=cid)
-            Rb = cv.quat_xyzw_to_matrix(orn)
-            X[k, i], R[k, i], V[k, i], W[k, i] = pos, Rb, lin, Rb.T @ np.asarray(ang)
+            pos, Rb, lin, ang = sc.state(n)
+            X[k, i], R[k, i], V[k, i], W[k, i] = pos, Rb, lin, Rb.T @ ang
         t[k] = step * dt
         if step > 0:
             for c in p.getContactPoints(physicsClientId=cid):
@@ -295,12 +363,12 @@ def _run(p, sc, scenario, conf, dt, nstep, save_every):
     k = 1
     for step in range(1, nstep + 1):
         for i in forced:
-            bid = sc.ids[names[i]]
-            pos, orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)
-            F, tau = external_wrench(scenario, i, cv.quat_xyzw_to_matrix(orn))
-            p.applyExternalForce(bid, -1, list(F), list(pos), p.WORLD_FRAME, physicsClientId=cid)
+            bid, link = sc.ids[names[i]], sc.link[names[i]]
+            pos, Rb, _, _ = sc.state(names[i])
+            F, tau = external_wrench(scenario, i, Rb)
+            p.applyExternalForce(bid, link, list(F), list(pos), p.WORLD_FRAME, physicsClientId=cid)
             if np.any(tau):
-                p.applyExternalTorque(bid, -1, list(tau), p.WORLD_FRAME, physicsClientId=cid)
+                p.applyExternalTorque(bid, link, list(tau), p.WORLD_FRAME, physicsClientId=cid)
         t0 = time.perf_counter()
         p.stepSimulation(physicsClientId=cid)
         engine += timing.lap(t0)
