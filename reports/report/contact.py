@@ -9,7 +9,11 @@
 - :func:`contact_section`: both tables under the heading "Contact", with how they are made;
 - :func:`contact_plot`: a scene's figure, drawn from the series beside each run's trajectory
   (:func:`reports.run.contact.series`): the distance moved and the deepest penetration over
-  time, each configuration at the scene's own dt, the closed form's distance in grey.
+  time, each configuration at the scene's own dt, the closed form's distance in grey. The
+  penetration is drawn as its largest value over the last :data:`PEN_WINDOW` of the run
+  (a box rocking or a ball hopping on a soft contact touches and leaves the ground from one
+  saved state to the next: drawn sample by sample on a log axis, the lines of a dozen
+  configurations fill the panel between 1e-12 and 1e-4 m and none can be read).
 """
 
 from __future__ import annotations
@@ -21,6 +25,18 @@ import numpy as np
 
 #: the smallest value shown on the log axes (no overlap, no motion are drawn here)
 FLOOR = 1e-12
+#: the penetration panel draws the deepest penetration over this fraction of the horizon
+#: before each saved state (module docstring)
+PEN_WINDOW = 0.05
+
+
+def running_max(values, window: int) -> np.ndarray:
+    """Each sample's largest value among itself and the ``window - 1`` before it."""
+    v = np.asarray(values, float)
+    if window <= 1 or len(v) == 0:
+        return v.copy()
+    padded = np.concatenate([np.full(window - 1, -np.inf), v])
+    return np.lib.stride_tricks.sliding_window_view(padded, window).max(axis=1)
 
 
 def contact_rows(df):
@@ -35,15 +51,18 @@ def _config(row) -> str:
 
 
 def _pivot(df, value, scenes):
-    """{configuration: {scene: value(row)}} at each scene's own dt (the largest run of a
-    configuration when several dt are present: the file's dt is the sweep's largest)."""
+    """{configuration: {scene: value(row)}} at each scene's own dt (the exact reference's
+    step, reports.store.results.default_dt: a run with the dt sweep holds the scene's other
+    steps too)."""
+    from reports.store.results import default_dt
+
     out: dict[str, dict] = {}
     for scene in scenes:
         sub = df[df["scenario"] == scene]
         if not len(sub):
             continue
-        h = float(sub["dt"].max())
-        for _, r in sub[sub["dt"] == h].iterrows():
+        h = default_dt(sub)
+        for _, r in sub[np.isclose(sub["dt"], h, rtol=1e-9)].iterrows():
             out.setdefault(_config(r), {})[scene] = value(r)
     return out
 
@@ -152,7 +171,8 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
         moved = np.asarray(s["moved"], float)
         axes[0].plot(s["t"], np.maximum(moved, FLOOR) if still else moved, lw=1.3, label=name,
                      **st)  # fmt: skip
-        pen = np.maximum(np.asarray(s["penetration"], float), FLOOR)
+        window = max(1, int(round(PEN_WINDOW * (len(s["t"]) - 1))))
+        pen = np.maximum(running_max(s["penetration"], window), FLOOR)
         axes[1].plot(s["t"], pen, lw=1.3, label=name, **st)
         ex = np.asarray(s.get("moved_exact", []), float)
         if not exact_drawn and len(ex) and np.isfinite(ex).all():
@@ -163,7 +183,7 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
     if still:
         axes[0].set_yscale("log")
         axes[0].set_ylabel("distance moved [m]\n(closed form: 0)")
-    axes[1].set_ylabel("penetration [m]")
+    axes[1].set_ylabel(f"penetration [m]: deepest\nin the last {PEN_WINDOW:.0%} of the run")
     axes[1].set_yscale("log")
     for ax in axes:
         ax.grid(True, alpha=0.3)
@@ -176,7 +196,8 @@ def contact_plot(rows, h, cache, out: Path, scenario: str, plt, save, styles=Non
         axes[0].legend(fontsize=7)
     Path(out).mkdir(parents=True, exist_ok=True)
     alt = (f"{scenario}: per configuration{dt}, the distance its bodies moved (the closed form "
-           "in grey) and the deepest penetration (log axis) over time")  # fmt: skip
+           f"in grey) and the deepest penetration in the {PEN_WINDOW:.0%} of the run before each "
+           "time (log axis)")  # fmt: skip
     return save(fig, Path(out) / f"{slug(scenario)}__system.png", alt=alt)
 
 
@@ -186,21 +207,69 @@ def _markdown(head, body) -> str:
     return "\n".join(lines)
 
 
+#: the per-scene table's columns (:func:`scene_tables`): the contact metrics and their headings
+SCENE_COLUMNS = {
+    "position_error_max": "x err [m]", "attitude_error_max": "att err [rad]",
+    "creep_speed": "creep [um/s]", "slide_distance": "moved [m]", "penetration_max": "pen [m]",
+    "energy_gain_max": "E gain", "roll_onset_error": "onset err", "roll_speed_error": "v* err",
+    "rebound_ratio_error": "rebound err", "signorini_residual": "Sig",
+    "coulomb_residual": "Coul", "dissipation_residual": "MDP", "force_sum_error": "support err",
+}  # fmt: skip
+
+
+def scene_tables(df) -> list[tuple[str, float, list[str], list[list[str]]]]:
+    """Per contact scene at its own dt: (scene, dt, header, rows), one row per configuration
+    that ran there (unsupported ones with their reason): its verdict, each contact metric that
+    applies to the scene (creep in um/s) and what failed."""
+    from reports.store.results import default_dt
+
+    out = []
+    scenes = sorted(contact_rows(df)["scenario"].unique())
+    for scene in scenes:
+        sub = df[df["scenario"] == scene]
+        h = default_dt(contact_rows(sub))
+        sub = sub[np.isclose(sub["dt"], h, rtol=1e-9)]
+        cols = [c for c in SCENE_COLUMNS if c in sub and sub[c].notna().any()]
+        head = ["configuration", "verdict", *(SCENE_COLUMNS[c] for c in cols), "failing / why"]
+        body = []
+        for _, r in sub.sort_values(["engine", "integrator"]).iterrows():
+            cells = []
+            for c in cols:
+                v = float(r[c])
+                cells.append("-" if math.isnan(v) else f"{v * 1e6:.3g}" if c == "creep_speed"
+                             else f"{v:.2g}")  # fmt: skip
+            ok = r["status"] == "ok"
+            why = (r.get("verdict_detail") if ok else r.get("message")) or ""
+            why = str(why).replace("|", "/")
+            why = why if len(why) <= 140 else why[:137] + "..."
+            body.append([_config(r), r["verdict"] if ok else r["status"], *cells, why])
+        out.append((scene, h, head, body))
+    return out
+
+
 def main(argv=None) -> int:
-    """``python -m reports.report.contact RESULTS_DIR``: the creep table and the stick/slide
-    matrix of a results folder as Markdown (the report's contact section, on its own)."""
+    """``python -m reports.report.contact RESULTS_DIR...``: the creep table and the stick/slide
+    matrix of results folders as Markdown (the report's contact section, on its own); with
+    ``--scenes``, each contact scene's table of every configuration's errors and verdict."""
     import argparse
+
+    import pandas as pd
 
     from reports.store.results import read_results
 
     p = argparse.ArgumentParser(prog="python -m reports.report.contact", description=main.__doc__)
-    p.add_argument("results", help="a results folder (director-bench run --out DIR)")
+    p.add_argument("results", nargs="+", help="results folders (director-bench run --out DIR)")
+    p.add_argument("--scenes", action="store_true", help="each scene's table as well")
     args = p.parse_args(argv)
-    df = read_results(args.results)
+    df = pd.concat([read_results(d) for d in args.results], ignore_index=True)
     print("Creep speed in stick scenes, um/s\n")
     print(_markdown(*creep_table(df)))
     print("\nStick or slide, against Coulomb's law\n")
     print(_markdown(*stick_slide_matrix(df)))
+    if args.scenes:
+        for scene, h, head, body in scene_tables(df):
+            print(f"\n### {scene} (dt {h:g} s)\n")
+            print(_markdown(head, body))
     return 0
 
 

@@ -179,3 +179,29 @@ def test_the_closed_forms_contact_row_has_a_cpu_cost_too():
     assert r["status"] == "ok", r["message"]
     assert 0 < r["engine_time_s"] <= r["cpu_time_s"], r
     assert math.isfinite(r["ns_per_step"]) and math.isfinite(r["engine_time_spread_s"])
+
+
+def test_contact_tables_are_at_the_scenes_own_dt_when_a_sweep_ran(tmp_path):
+    """A run with the dt sweep holds each configuration at several steps: the creep table,
+    the matrix and the per-scene tables show the scene's own dt (the exact reference's),
+    not the sweep's largest (4e-3 s for most library scenes, their files' dt being 1e-3 s)."""
+    from reports.report.contact import creep_table, scene_tables
+
+    sc = scenarios.load("block_incline_stick").replace(t_end=0.2)
+    rows = [execute(RunSpec(sc, e, i, h), tmp_path)
+            for e, i, h in (("pybullet", "default friction", 1e-3),
+                            ("pybullet", "default friction", 4e-3),
+                            ("exact", "closed form", 1e-3))]  # fmt: skip
+    assert all(r["status"] == "ok" for r in rows), [r["message"] for r in rows]
+    fine, coarse, _ = rows
+    assert coarse["creep_speed"] > 5 * fine["creep_speed"]  # 138 and 7 um/s: they differ
+    df = pd.DataFrame(rows)
+    cells = {r[0]: r[1] for r in creep_table(df)[1]}
+    assert float(cells["pybullet default friction"]) == pytest.approx(
+        fine["creep_speed"] * 1e6, rel=1e-2
+    )
+    ((scene, h, head, body),) = scene_tables(df)
+    assert (scene, h) == ("block_incline_stick", 1e-3)
+    creep = head.index("creep [um/s]")
+    row = next(b for b in body if b[0] == "pybullet default friction")
+    assert float(row[creep]) == pytest.approx(fine["creep_speed"] * 1e6, rel=1e-2)
