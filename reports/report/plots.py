@@ -58,7 +58,7 @@ from reports.report.labels import (
     reference_label,
     scaled_label,
 )
-from reports.report.precision import cost_of, outlook
+from reports.report.precision import cost_of, measure_of, outlook
 from reports.store.format import fmt, fmt_step, truthy
 from reports.store.results import records, reference_rows
 from reports.store.runs import slug
@@ -505,22 +505,28 @@ def convergence_plot(df, out: Path, scenario: str, styles: Styles):
     return _save(fig, out / f"{slug(scenario)}__convergence.png", alt=alt, notes="\n".join(parts))
 
 
-#: the work-precision plot leaves out configurations never within this attitude error (rad)
+#: the work-precision plot leaves out configurations never within this error (rad, or m for a
+#: contact scene's position error)
 WP_RELEVANT = 0.1
 
 
 def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
-    """Max attitude error against the cost a user pays (reports.report.precision.cost_of:
-    the CPU time inside the engine's calls, the suite's glue left out; for a ``+ suite``
+    """Max attitude error (a contact scene: its position error against the closed form,
+    reports.report.precision.measure_of) against the cost a user pays
+    (reports.report.precision.cost_of: the CPU time inside the engine's calls, the suite's
+    glue left out; for a ``+ suite``
     configuration the whole step's CPU time), one line per configuration in dt order (every
     configuration ran the scenario's sweep); error-controlled runs in target-accuracy order,
-    open markers. Configurations never within WP_RELEVANT rad, or with no finished run, are
+    open markers. Configurations never within WP_RELEVANT (rad or m), or with no finished run, are
     named under the figure, not drawn; those still converging at the smallest step are named
     too (a smaller step was not tried)."""
     every = df[(df["scenario"] == scenario) & ~reference_rows(df)]
     every = every[~every["status"].isin(NOT_RUN)]
     sub = every[(every["status"] == "ok")]
-    sub = sub[np.isfinite(sub["attitude_error_max"])]
+    if sub.empty:
+        return None
+    col, unit = measure_of(sub.iloc[0])
+    sub = sub[np.isfinite(sub[col])]
     cost = [cost_of(r) for r in records(sub)]
     sub = sub.assign(cost=cost)
     sub = sub[sub["cost"] > 0]
@@ -536,20 +542,20 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
             kv[0][1],
         ),
     )
-    bottom = max(FLOOR, float(sub["attitude_error_max"].clip(lower=FLOOR).min()) / 3.0)
+    bottom = max(FLOOR, float(sub[col].clip(lower=FLOOR).min()) / 3.0)
     drawn = []
     for _config, g in configs:
         first = g.iloc[0]
         name = _wp_name(first)
-        if not (g["attitude_error_max"] <= WP_RELEVANT).any():
-            left_out.append(f"{name} (best {fmt(g['attitude_error_max'].min())} rad)")
+        if not (g[col] <= WP_RELEVANT).any():
+            left_out.append(f"{name} (best {fmt(g[col].min())} {unit})")
             continue
         st = styles.of(first, always_marker=True)
         adaptive = g["target_accuracy"].notna().any()
         g = g.sort_values("target_accuracy" if adaptive else "dt")
         (line,) = ax.loglog(
             g["cost"],
-            np.maximum(g["attitude_error_max"], bottom),
+            np.maximum(g[col], bottom),
             color=st["color"],
             linestyle=st["linestyle"],
             marker=st["marker"],
@@ -567,11 +573,14 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         if (r["engine"], r["integrator"]) not in finished
     ]
     _shade_reference(ax, sub, bottom)
-    ax.set_ylim(bottom, CAPS["attitude_error"])
+    # the attitude panel's cap (about pi rad); a position error up to 1 m (the library's
+    # scenes are 0.1 m in size; a body thrown further is drawn at three times its error)
+    top = CAPS["attitude_error"] if unit == "rad" else max(1.0, 3.0 * float(sub[col].max()))
+    ax.set_ylim(bottom, top)
     _log_axes(ax, x=True)
     ax.set(
         xlabel="CPU time inside the engine's calls [s] (+ suite: of the whole step)",
-        ylabel="max attitude error [rad]",
+        ylabel="max attitude error [rad]" if unit == "rad" else "max position error [m]",
         title=f"{scenario}: work-precision (points: the dt sweep, the same for all)",
     )
     ax.grid(True, which="major", alpha=0.3)
@@ -580,7 +589,7 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
     if sub["target_accuracy"].notna().any():
         parts.append("Open markers: an error-controlled integrator at its target accuracies.")
     if left_out:
-        parts.append(f"Not drawn, never within {WP_RELEVANT:g} rad: " + name_list(left_out))
+        parts.append(f"Not drawn, never within {WP_RELEVANT:g} {unit}: " + name_list(left_out))
     if unfinished:
         parts.append("Not drawn, no run finished: " + name_list(unfinished))
     falling = _still_falling(every, drawn)
@@ -590,7 +599,8 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
             + name_list(falling)
         )
     alt = (
-        f"{scenario}: max attitude error against the time spent inside the engine, log-log, "
+        f"{scenario}: max {'attitude' if unit == 'rad' else 'position'} error against the "
+        "time spent inside the engine, log-log, "
         f"for {len(drawn)} configuration(s)"
         + (f"; not drawn: {name_list([*left_out, *unfinished])}" if left_out or unfinished else "")
         + "."

@@ -32,16 +32,28 @@ def cost_of(row) -> float:
     return t if t > 0 else num(row.get("wall_time_s"))
 
 
+def measure_of(row) -> tuple[str, str]:
+    """(column, unit) of the error a run is ranked by: for a contact scene (a row with a
+    slide distance) the largest position error against its closed form (m: a block's
+    attitude hardly changes whether it holds, creeps or slides, its position tells them
+    apart), else the max attitude error (rad)."""
+    if math.isfinite(num(row.get("slide_distance"))):
+        return "position_error_max", "m"
+    return "attitude_error_max", "rad"
+
+
 def error_of(row) -> float:
-    """The max attitude error a run can be credited with: not below the reference's accuracy
-    (an error below it is not a measurement)."""
-    err, acc = num(row.get("attitude_error_max")), num(row.get("reference_accuracy"))
+    """The error (:func:`measure_of`) a run can be credited with: not below the reference's
+    accuracy (an error below it is not a measurement; a contact closed form's row records
+    its attitude accuracy, of the size of its position accuracy: 16 eps times the scene's
+    positions, or a DOP853 estimate times a reach under 1 m)."""
+    err, acc = num(row.get(measure_of(row)[0])), num(row.get("reference_accuracy"))
     return max(err, 0.0 if math.isnan(acc) else acc)
 
 
 def outlook(rows: list[dict], level: float) -> tuple[str, object]:
     """The answer of one configuration (its ``rows``: the runs of one engine and integrator
-    on one scenario) at one ``level`` of max attitude error:
+    on one scenario) at one ``level`` of its error (:func:`measure_of`, in its unit):
 
     - ``("reached", row)``: its cheapest run within the level;
     - ``("not tried", text)``: no run within it, but its error was still falling at its
@@ -52,6 +64,7 @@ def outlook(rows: list[dict], level: float) -> tuple[str, object]:
       says which and the best error).
     """
     ok = [r for r in rows if r.get("status") == "ok" and math.isfinite(error_of(r))]
+    unit = measure_of(rows[0])[1] if rows else "rad"
     within = [r for r in ok if error_of(r) <= level]
     if within:
         return "reached", min(within, key=cost_of)
@@ -69,20 +82,20 @@ def outlook(rows: list[dict], level: float) -> tuple[str, object]:
         else f"dt {_short(num(last['dt']))}"
     )
     if num(last.get(by)) > finest:  # its finest run did not finish
-        return "does not reach", f"best {_short(best)} rad; diverged below {where}"
+        return "does not reach", f"best {_short(best)} {unit}; diverged below {where}"
     if len(ok) < 2:
-        return "not tried", f"{_short(error_of(last))} rad at {where}, its only finished run"
+        return "not tried", f"{_short(error_of(last))} {unit} at {where}, its only finished run"
     prev = ok[-2]
     fall = error_of(prev) / error_of(last) if error_of(last) > 0 else math.inf
     if fall >= STILL_FALLING:
         if adaptive:
-            return "not tried", f"{_short(error_of(last))} rad at {where}, still falling"
+            return "not tried", f"{_short(error_of(last))} {unit} at {where}, still falling"
         ratio = num(prev["dt"]) / num(last["dt"])
         order = math.log(fall) / math.log(ratio) if ratio > 1 else math.nan
         need = num(last["dt"]) * (level / error_of(last)) ** (1.0 / order) if order > 0 else 0
         about = f"; about dt {_short(need)} would" if need > 0 else ""
-        return "not tried", f"{_short(error_of(last))} rad at {where}{about}"
-    return "does not reach", f"stalls at {_short(best)} rad"
+        return "not tried", f"{_short(error_of(last))} {unit} at {where}{about}"
+    return "does not reach", f"stalls at {_short(best)} {unit}"
 
 
 def _short(v: float) -> str:

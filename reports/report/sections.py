@@ -311,14 +311,16 @@ def wp_cell(entry, winner: bool, missed=None) -> tuple[str, str]:
 
 def work_precision_section(doc: Doc, df) -> None:
     """Per scenario and engine, the cheapest configuration of that engine reaching each level
-    of max attitude error, with its cost and its ratio to the cheapest of all engines; where
-    none reaches it, whether the engine was not tried there or does not reach it."""
-    levels = ACCURACY_LEVELS
-    header = ["scenario", "engine", *(f"≤ {fmt_level(lv)} rad" for lv in levels)]
-    rows = []
+    of error (max attitude error; for a contact scene its position error against the closed
+    form, in its own table), with its cost and its ratio to the cheapest of all engines;
+    where none reaches it, whether the engine was not tried there or does not reach it."""
+    from reports.report.precision import measure_of
+
+    levels, tables = ACCURACY_LEVELS, {"rad": [], "m": []}
     for scenario in scenarios_of(df):
         sub = df[df["scenario"] == scenario]
         wp = work_precision(sub, levels)
+        unit = measure_of(sub.iloc[0])[1]
         engines = sorted(
             set(sub.loc[(sub["status"] == "ok") & ~reference_rows(sub), "engine"]),
             key=engine_key,
@@ -331,7 +333,7 @@ def work_precision_section(doc: Doc, df) -> None:
                 missed = [m for m in lv["not_reached"] if m["engine"] == eng]
                 m, h = wp_cell(mine[0] if mine else None, winner, missed)
                 row.append(Cell(md=m, html_=h, cls="win" if winner else ""))
-            rows.append(row)
+            tables[unit].append(row)
     text = (
         "For each engine, its cheapest configuration reaching each max attitude error (fixed "
         "steps and error-controlled runs alike) and its cost: the CPU time spent inside the "
@@ -345,16 +347,22 @@ def work_precision_section(doc: Doc, df) -> None:
         "falling at the smallest step (and about what step would reach it), *does not reach* "
         "that no run finished or its error stopped falling. An error below the reference's "
         "accuracy reaches no level below that accuracy. For a system of bodies the attitude "
-        "error is the largest over its bodies. `(starved)`: no timing of that run ran clean "
-        "(the machine was too busy to measure the engine's CPU time within 10 %): its cost is "
-        "an estimate, and `compare` never counts a change of it as significant."
+        "error is the largest over its bodies; a contact scene is ranked by its largest "
+        "position error against the closed form, in metres (a block's attitude hardly "
+        "changes whether it holds, creeps or slides), in a table of its own. `(starved)`: no "
+        "timing of that run ran clean (the machine was too busy to measure the engine's CPU "
+        "time within 10 %): its cost is an estimate, and `compare` never counts a change of "
+        "it as significant."
     )
     doc.para(text, re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(text)))
     # seven columns of configurations and times (names break at underscores) fit 800 px;
     # cards on a narrower screen
-    doc.table(
-        "Cheapest configuration of each engine per accuracy", header, rows, cls="wp narrow-stack"
-    )
+    for unit, rows in tables.items():
+        if rows or (unit == "rad" and not tables["m"]):
+            title = "per accuracy" if unit == "rad" else "per position error (contact scenes)"
+            header = ["scenario", "engine", *(f"≤ {fmt_level(lv)} {unit}" for lv in levels)]
+            doc.table(f"Cheapest configuration of each engine {title}", header, rows,
+                      cls="wp narrow-stack")  # fmt: skip
 
 
 def failures_section(doc: Doc, df) -> None:

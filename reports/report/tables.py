@@ -20,7 +20,7 @@ from reports.report.labels import (
     is_failure,
     reference_engines,
 )
-from reports.report.precision import cost_of, outlook
+from reports.report.precision import cost_of, measure_of, outlook
 from reports.store.format import num, truthy
 from reports.store.results import default_dt, records, reference_rows
 from reports.store.runs import starved
@@ -97,7 +97,8 @@ def scorecard(df) -> list[dict]:
 
 
 def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
-    """For each level of max attitude error: every configuration (engine, integrator) that
+    """For each level of error (the max attitude error; a contact scene's position error,
+    :func:`reports.report.precision.measure_of`): every configuration (engine, integrator) that
     reaches it with its cheapest such run (fixed steps and error-controlled points alike),
     cheapest first by the cost a user pays (:func:`reports.report.precision.cost_of`: the
     engine's CPU time; for a ``+ suite`` configuration the whole step's), with the cost
@@ -137,6 +138,8 @@ def work_precision(sub, levels=ACCURACY_LEVELS) -> list[dict]:
                 "dt": float(r["dt"]),
                 "target_accuracy": num(r["target_accuracy"]),
                 "attitude_error_max": num(r["attitude_error_max"]),
+                "error": num(r[measure_of(r)[0]]),
+                "error_measure": measure_of(r)[0],
                 "reference_accuracy": num(r["reference_accuracy"]),
                 "cost_s": cost_of(r),
                 "engine_time_s": num(r["engine_time_s"]),
