@@ -89,6 +89,9 @@ class EngineBase(ABC):
     #: it is not the single body's ``warm_up``; a runner never compiles one warm-up in two
     #: workers at once (reports.run.parallel)
     system_warm_up: ClassVar[str] = ""
+    #: what the first run of a contact scene in a process compiles ("" if nothing), when it
+    #: is neither of the above (the same rule)
+    contact_warm_up: ClassVar[str] = ""
     #: this engine's rows are the reference the others are measured against (the scenario's
     #: exact or high-accuracy solution), not a configuration under test: tables and figures
     #: show it as the floor of the measurement and comparisons between engines leave it out

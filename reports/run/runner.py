@@ -295,12 +295,13 @@ def _provides(unit) -> set[str]:
 
 
 @functools.cache
-def warm_up(engine: str, integrator: str, system: bool = False) -> tuple[str, str] | None:
+def warm_up(engine: str, integrator: str, kind: str = "body") -> tuple[str, str] | None:
     """(key, what it compiles) of the warm-up that the first run of this configuration in a
     process goes through, or None: the engine's own (``EngineBase.warm_up``; one per
     integrator when the engine bundles its runs; for a system of bodies the engine's
-    ``system_warm_up`` when it declares one, under a key of its own) or the suite's compiled
-    RKMK4."""
+    ``system_warm_up``, for a contact scene its ``contact_warm_up``, when it declares one,
+    under a key of its own) or the suite's compiled RKMK4. ``kind``: the scene kind
+    (scenarios.SCENE_KINDS)."""
     from references.engines import EngineError, get_engine
     from references.engines.liegroup import RKMK4_WARM_UP
 
@@ -309,9 +310,9 @@ def warm_up(engine: str, integrator: str, system: bool = False) -> tuple[str, st
         if cls.warm_up:
             if cls.bundle_runs:
                 return f"{engine}/{integrator}", f"{cls.warm_up} for {engine} {integrator}"
-            if system:
-                what = cls.system_warm_up
-                return (f"{engine}/system", what) if what else None
+            if kind != "body":
+                what = cls.contact_warm_up if kind == "contact" else cls.system_warm_up
+                return (f"{engine}/{kind}", what) if what else None
             return engine, cls.warm_up
         if cls.integrator(integrator).stepping == "rkmk4":
             return "rkmk4", RKMK4_WARM_UP
@@ -330,7 +331,7 @@ def warm_ups(spec: RunSpec) -> dict[str, str]:
     """{key: what it compiles} of every warm-up the first run of ``spec`` in a process goes
     through (:func:`warm_up`, and for a system of bodies its reference's)."""
     kind = spec.scenario.kind
-    out = dict([w]) if (w := warm_up(spec.engine, spec.integrator, kind != "body")) else {}
+    out = dict([w]) if (w := warm_up(spec.engine, spec.integrator, kind)) else {}
     if kind == "system":  # a contact scene's reference is a closed form: no numba
         out.setdefault(*SYSTEM_REFERENCE_WARM_UP)
     return out

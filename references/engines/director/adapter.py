@@ -69,6 +69,8 @@ class DirectorEngine(Engine):
     #: a system of bodies runs director_model.system's kernels, compiled apart from the
     #: single body's (reports.run.runner.warm_up)
     system_warm_up = "the system kernels (numba)"
+    #: a contact scene runs director_model.contact's kernels, compiled apart from both
+    contact_warm_up = "the contact kernels (numba)"
     description = "director_model: RATTLE, energy-momentum and compositions in director form"
     scene_builder = SceneBuilder(
         "references.engines.director.system:simulate_system", ("solver",), force_elements=True

@@ -129,6 +129,24 @@ def test_a_system_of_bodies_names_its_kernels_and_its_reference():
     assert sorted(map(id, (s for b in order for s in b))) == sorted(map(id, specs))
 
 
+def test_a_contact_scene_names_its_own_kernels_apart_from_the_systems():
+    # the director's contact kernels compile apart from its system kernels: under the
+    # systems' key, a contact run would start in a second worker while the first compiles
+    # the same kernels (both paying the whole compilation), and the display would name no
+    # compilation while it lasted
+    import scenarios
+    from reports.run.plan import plan
+    from reports.run.runner import _bar, warm_ups
+
+    specs = plan([scenarios.load("sphere_backspin"), scenarios.load("four_bar")], ["director"])
+    contact = next(s for s in specs if s.scenario.name == "sphere_backspin")
+    system = next(s for s in specs if s.scenario.name == "four_bar")
+    assert warm_ups(contact) == {"director/contact": "the contact kernels (numba)"}
+    assert "director/contact" not in warm_ups(system)
+    bar = _bar(specs)
+    assert bar.warming["director/contact"] == "the contact kernels (numba)"
+
+
 def test_the_pool_hands_out_no_unit_whose_compilation_is_under_way():
     from reports.run.parallel import _Gate
 
