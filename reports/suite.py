@@ -99,12 +99,17 @@ def check_singular(scs) -> None:
 COST_WARNING_S = 60.0
 
 
-def warn_costs(scs, t_end=None) -> list[str]:
-    """Print (stderr) and return a line for each system whose numerical reference is
-    estimated to take more than :data:`COST_WARNING_S` (a pilot run,
+def warn_costs(scs, t_end=None, say=None) -> list[str]:
+    """Print (stderr, or through ``say``) and return a line for each system whose numerical
+    reference is estimated to take more than :data:`COST_WARNING_S` (a pilot run,
     :func:`references.engines.exact.system.estimate`), and say when that exceeds the
     reference's bound (it is then refused at once and the rows have no reference)."""
     import sys
+
+    if say is None:
+
+        def say(text: str) -> None:
+            print(text, file=sys.stderr)
 
     from references.engines.exact import system as exact_system
     from references.exact.multibody.integrate import MAX_WALL
@@ -129,7 +134,7 @@ def warn_costs(scs, t_end=None) -> list[str]:
         )
         lines.append(f"scenario {sc.name!r}: its reference will take about {est:.3g} s "
                      f"({how}){over}")  # fmt: skip
-        print(f"director-bench: note: {lines[-1]}", file=sys.stderr)
+        say(f"director-bench: note: {lines[-1]}")
     return lines
 
 
@@ -412,6 +417,7 @@ def run(
     from reports.run.files import MODES, assign
     from reports.run.parallel import make_mapper
     from reports.run.plan import max_states, plan
+    from reports.run.progress import Clock
     from reports.run.runner import run_suite
     from reports.store.exports import keep_edited
     from reports.store.provenance import write_provenance
@@ -440,16 +446,20 @@ def run(
     if engines is None:  # the default suite's engines on this machine
         engines, left_out = default_engines(every=full)
     local = None if scheduler else make_mapper(jobs, None, out, worker_preload(engines))
-    scs = resolve_scenarios(names, all_scenarios)
-    check_engine_settings(scs)
-    warn_costs(scs, t_end)
-    engines = check_engines(engines)
-    integrators = check_integrators(integrators, engines, named)
-    unloadable = {e: why for e in engines if (why := get_engine(e).broken)}
-    limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.plan
-    specs = plan(
-        scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies, limit, full
-    )
+    # the systems' reference pilots compile the multibody reference from a fresh clone: a
+    # terminal shows a running clock meanwhile (reports.run.progress.Clock)
+    with Clock("director-bench: planning the runs", disable=not progress) as clock:
+        scs = resolve_scenarios(names, all_scenarios)
+        check_engine_settings(scs)
+        warn_costs(scs, t_end, say=clock.note)
+        engines = check_engines(engines)
+        integrators = check_integrators(integrators, engines, named)
+        unloadable = {e: why for e in engines if (why := get_engine(e).broken)}
+        limit = max_states(jobs or os.cpu_count() or 1)  # reports.run.plan
+        specs = plan(
+            scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies,
+            limit, full,
+        )  # fmt: skip
     if not specs:
         why = "".join(f"; {w}" for w in unloadable.values())
         raise InputError(f"nothing to run: no engine offers the integrators asked for{why}")

@@ -103,6 +103,73 @@ class Estimate:
         return price / throughput if throughput > 0 else None
 
 
+class Clock:
+    """A step that counts nothing, shown with a running clock (planning the runs, which loads
+    the scenarios and, for a system of bodies, times a pilot run of its reference: from a
+    fresh clone that compiles the multibody reference first).
+
+    In a terminal, ``text [m:ss]`` redrawn every :data:`TICK_S` by a thread until the block
+    ends, then erased (the progress display of the work takes the line); :meth:`note` prints
+    a line above it. Anywhere else nothing but the notes (a log needs no clock: its next line
+    says when the work starts). ``disable``: notes only."""
+
+    def __init__(self, text: str, stream=None, terminal: bool | None = None, disable=False):
+        self.text = text
+        self.stream = sys.stderr if stream is None else stream
+        if terminal is None:
+            isatty = getattr(self.stream, "isatty", None)
+            terminal = bool(isatty and isatty())
+        self.terminal = terminal and not disable
+        self.t0 = time.monotonic()
+        self._width = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._ticker = None
+
+    def __enter__(self) -> Clock:
+        if self.terminal:
+            self._draw()
+            self._ticker = threading.Thread(target=self._tick, daemon=True, name="clock")
+            self._ticker.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+            self._ticker = None
+        if self.terminal:
+            with self._lock:
+                self._erase()
+                self.stream.flush()
+
+    def note(self, text: str) -> None:
+        """A line of its own (above the clock in a terminal)."""
+        with self._lock:
+            if self.terminal:
+                self._erase()
+            self.stream.write(text + "\n")
+            if self.terminal and not self._stop.is_set():
+                self._draw()
+            self.stream.flush()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(TICK_S):
+            with self._lock:
+                self._draw()
+
+    def _draw(self) -> None:
+        width = shutil.get_terminal_size((80, 24)).columns - 1
+        line = f"{self.text} [{_clock(time.monotonic() - self.t0)}]"[:width]
+        self.stream.write("\r" + line.ljust(self._width))
+        self.stream.flush()
+        self._width = len(line)
+
+    def _erase(self) -> None:
+        self.stream.write("\r" + " " * self._width + "\r")
+        self._width = 0
+
+
 class Progress:
     """Progress of ``total`` units of work (runs) on ``stream`` (default: standard error).
 

@@ -267,3 +267,31 @@ def test_each_scenarios_timing_pass_follows_its_last_run():
         assert unit.needs == timed <= before
         after = [s for u in units[i + 1 :] if not isinstance(u, TimingUnit) for s in u]
         assert not any(s.scenario.name == name and s.engine != "exact" for s in after)
+
+
+def test_planning_shows_a_running_clock_in_a_terminal_and_nothing_in_a_log(monkeypatch):
+    # planning compiles the multibody reference from a fresh clone (the systems' pilot
+    # runs): a terminal must see a clock that moves meanwhile, a log only the notes
+    import io
+    import time
+
+    from reports.run import progress
+
+    monkeypatch.setattr(progress, "TICK_S", 0.05)
+    t = [0.0]
+    monkeypatch.setattr(progress.time, "monotonic", lambda: t[0])
+    tty = io.StringIO()
+    with progress.Clock("director-bench: planning the runs", stream=tty, terminal=True) as c:
+        for k in range(1, 4):  # the block holds the main thread; the clock's thread redraws
+            t[0] = 60.0 * k
+            time.sleep(0.3)
+        c.note("director-bench: note: a pilot")
+    shown = tty.getvalue()
+    for clock in ("0:00", "1:00", "2:00", "3:00"):
+        assert f"director-bench: planning the runs [{clock}]" in shown
+    assert "\rdirector-bench: note: a pilot\n" in shown  # the clock's line erased first
+    assert shown.endswith("\r")  # erased: the progress display takes the line
+    log = io.StringIO()
+    with progress.Clock("director-bench: planning the runs", stream=log, terminal=False) as c:
+        c.note("director-bench: note: a pilot")
+    assert log.getvalue() == "director-bench: note: a pilot\n"
