@@ -20,9 +20,13 @@ thousand steps of MuJoCo against thirty thousand of a Runge-Kutta in Drake), so 
 misleads. Each unit of work has a size (its number of steps) and a configuration (engine,
 integrator, body or system); the seconds each finished run took in its worker give a rate per
 configuration (seconds per step), the runs not finished are priced at their configuration's
-rate (the mean rate of all configurations for one not seen yet), and the time left is that
-price over the throughput since the warm-ups ended (seconds of runs finished per second,
-about the number of busy workers). Runs that compiled are left out of both.
+rate (the median rate of the configurations seen for one not seen yet: the rates span orders
+of magnitude, and a mean is one expensive configuration's), and the time left is that price
+over the throughput since the warm-ups ended (seconds of runs finished per second, about the
+number of busy workers). Runs that compiled are left out of both. A unit of work that costs a
+share of its group's runs (a scenario's timing pass, reports.run.timing: a budget in
+proportion to the CPU time its runs spent) is priced as that share of the group's runs, those
+finished at what they took.
 """
 
 from __future__ import annotations
@@ -59,11 +63,14 @@ def _clock(seconds: float) -> str:
 class Item:
     """One unit of the work as the estimate sees it: its ``group`` (a scenario: a log line
     when the last of its items finishes), its ``config`` (items of one config cost alike per
-    unit of size) and its ``size`` (e.g. its number of steps, > 0)."""
+    unit of size) and its ``size`` (e.g. its number of steps, > 0). ``share`` > 0: the item
+    costs that share of the seconds of its group's other items (a timing pass), not a rate of
+    its config."""
 
     group: str
     config: Hashable
     size: float
+    share: float = 0.0
 
 
 class Estimate:
@@ -74,8 +81,13 @@ class Estimate:
         self.left = set(self.items)
         self.seconds: dict[Hashable, float] = {}  # config -> seconds of its measured runs
         self.sizes: dict[Hashable, float] = {}  # config -> size of its measured runs
+        self.took: dict[Hashable, float] = {}  # item -> its seconds, when measured
         self.since = 0.0  # seconds of the runs measured since the origin
         self.n_since = 0
+        self.members: dict[str, list] = {}  # group -> its items that are not a share
+        for key, it in self.items.items():
+            if not it.share:
+                self.members.setdefault(it.group, []).append(key)
 
     def finished(self, item, seconds: float | None, measured: bool, counts: bool) -> None:
         """``item`` finished after ``seconds`` in its worker; ``measured``: its time is a
@@ -84,23 +96,45 @@ class Estimate:
         it = self.items.get(item)
         if it is None or seconds is None or not measured or not seconds >= 0:
             return
-        self.seconds[it.config] = self.seconds.get(it.config, 0.0) + seconds
-        self.sizes[it.config] = self.sizes.get(it.config, 0.0) + it.size
+        if not it.share:  # a share is priced from its group, not as a rate of its config
+            self.took[item] = seconds
+            self.seconds[it.config] = self.seconds.get(it.config, 0.0) + seconds
+            self.sizes[it.config] = self.sizes.get(it.config, 0.0) + it.size
         if counts:
             self.since += seconds
             self.n_since += 1
 
     def left_s(self, elapsed: float) -> float | None:
         """Seconds left, ``elapsed`` seconds after the origin; None when too little is known."""
-        if self.n_since < ETA_MIN_RUNS or elapsed < ETA_MIN_S or not self.seconds:
+        if self.n_since < ETA_MIN_RUNS or elapsed < ETA_MIN_S or not self.took:
             return None
-        rates = {c: self.seconds[c] / self.sizes[c] for c in self.seconds if self.sizes[c] > 0}
+        # what every run pays whatever its size (building the model, the reference, the
+        # metrics, the files): about the quickest run measured
+        fixed = min(self.took.values())
+        extra: dict[Hashable, float] = {}
+        for key, secs in self.took.items():
+            c = self.items[key].config
+            extra[c] = extra.get(c, 0.0) + secs - fixed
+        rates = {c: extra[c] / self.sizes[c] for c in extra if self.sizes[c] > 0}
         if not rates:
             return None
-        mean = sum(rates.values()) / len(rates)
-        price = sum(self.items[k].size * rates.get(self.items[k].config, mean) for k in self.left)
+        ordered = sorted(rates.values())
+        mid = len(ordered) // 2
+        unseen = ordered[mid] if len(ordered) % 2 else (ordered[mid - 1] + ordered[mid]) / 2
+
+        def price(key) -> float:
+            it = self.items[key]
+            return fixed + it.size * rates.get(it.config, unseen)
+
+        def group_seconds(group: str) -> float:
+            return sum(self.took.get(k, price(k)) for k in self.members.get(group, ()))
+
+        total = 0.0
+        for k in self.left:
+            it = self.items[k]
+            total += it.share * group_seconds(it.group) if it.share else price(k)
         throughput = self.since / elapsed  # seconds of runs per second: the busy workers
-        return price / throughput if throughput > 0 else None
+        return total / throughput if throughput > 0 else None
 
 
 class Clock:

@@ -23,7 +23,7 @@ from pathlib import Path
 from reports.run.body import is_reference
 from reports.run.files import kept_less
 from reports.run.plan import UNAVAILABLE, offered
-from reports.run.timing import TimingResult, TimingUnit, time_unit
+from reports.run.timing import BUDGET_FACTOR, TimingResult, TimingUnit, time_unit
 from reports.store.exports import export
 from reports.store.results import Store, StoreUnwritable, read_results
 from reports.store.runs import RunSpec, blank_row, finish_time, trajectory_path
@@ -445,7 +445,10 @@ def _bar(todo: list[RunSpec], passes=None):
             (bundled if bundle_key else warming)[key] = what
     items = progress_items(todo)
     for name, unit in (passes or {}).items():
-        items["timing", name] = Item(name, ("timing",), sum(_size(s) for s in unit.specs))
+        # a pass spends at most BUDGET_FACTOR times its runs' stepping (reports.run.timing)
+        items["timing", name] = Item(
+            name, ("timing",), sum(_size(s) for s in unit.specs), share=BUDGET_FACTOR
+        )
     return Progress(len(todo), warming=warming, bundled=bundled, items=items)
 
 

@@ -226,14 +226,58 @@ def test_the_estimate_prices_what_is_left_per_configuration():
     est = Estimate(items)
     for key, secs in (("s0", 1.0), ("f0", 0.1), ("f1", 0.1), ("f2", 0.1)):
         est.finished(key, secs, measured=True, counts=True)
-    # measured 1.3 s of runs in 2.6 s: one busy worker in two (throughput 0.5)
-    # left: 3 slow (3 s), 7 fast (0.7 s), 300 steps of an unseen config at the mean of
-    # the two rates, (0.01 + 0.001) / 2 s per step = 1.65 s: 5.35 s of runs, 10.7 s of time
-    assert abs(est.left_s(2.6) - 10.7) < 1e-9
+    # every run pays the quickest run's 0.1 s, plus its steps at its configuration's rate of
+    # the rest: slow 0.9 s / 100 steps, fast 0; an unseen configuration at the median rate,
+    # 0.0045 s per step. Left: 3 slow (3 s), 7 fast (0.7 s), the new one 0.1 + 1.35 s:
+    # 5.15 s of runs; measured 1.3 s of runs in 2.6 s: one busy worker in two (throughput
+    # 0.5): 10.3 s of time
+    assert abs(est.left_s(2.6) - 10.3) < 1e-9
     # a run that compiled is not a rate
     est.finished("s1", 100.0, measured=False, counts=True)
-    assert abs(est.left_s(2.6) - (2.0 + 0.7 + 1.65) / 0.5) < 1e-9
+    assert abs(est.left_s(2.6) - (2.0 + 0.7 + 1.45) / 0.5) < 1e-9
     assert Estimate(items).left_s(10.0) is None  # nothing measured yet
+
+
+def test_an_expensive_configuration_does_not_price_the_unseen_ones():
+    # the default suite's rates span three orders of magnitude (a contact scene's steps
+    # against MuJoCo's): the mean rate priced every configuration not seen yet like the
+    # expensive one, the estimate of a warm default run 4.6 times the time left at 20 %
+    from reports.run.progress import Estimate, Item
+
+    items = {f"{c}{k}": Item("g", c, 1000.0) for c in "abcd" for k in range(2)}
+    items["new"] = Item("g", "unseen", 1000.0)
+    est = Estimate(items)
+    for c, secs in (("a", 0.01), ("b", 0.02), ("c", 0.03), ("d", 10.0)):
+        est.finished(f"{c}0", secs, measured=True, counts=True)
+    # fixed 0.01 s; rates per step 0, 1e-5, 2e-5, 9.99e-3: the median 1.5e-5 prices "new"
+    left = 0.01 + 0.02 + 0.03 + 10.0 + (0.01 + 1000 * 1.5e-5)
+    assert abs(est.left_s(4.0) - left / (10.06 / 4.0)) < 1e-9
+
+
+def test_a_timing_pass_is_priced_as_a_share_of_its_scenarios_runs():
+    # a scenario's timing pass spends at most a share of what its runs spent stepping
+    # (reports.run.timing.BUDGET_FACTOR): priced so, never per step like a run
+    from reports.run import runner
+    from reports.run.progress import Estimate, Item
+    from reports.run.timing import BUDGET_FACTOR
+
+    items = {f"r{k}": Item("g", "c", 100.0) for k in range(4)}
+    items["pass"] = Item("g", ("timing",), 400.0, share=0.5)
+    est = Estimate(items)
+    for k in range(3):
+        est.finished(f"r{k}", 1.0, measured=True, counts=True)
+    # r3 priced at 1.0 s (every run took 1 s: all of it fixed); the pass half of 4 s
+    assert abs(est.left_s(3.0) - (1.0 + 0.5 * 4.0) / 1.0) < 1e-9
+    est.finished("pass", 2.0, measured=True, counts=True)  # not a rate of ("timing",)
+    assert ("timing",) not in est.seconds
+    import scenarios
+    from reports.run.plan import plan
+
+    specs = plan([scenarios.load("dzhanibekov")], ["mujoco"])
+    units, passes = runner.with_timing_passes(runner.bundles(specs))
+    bar = runner._bar(specs, passes)
+    assert bar.items["timing", "dzhanibekov"].share == BUDGET_FACTOR
+    bar.close()
 
 
 def test_a_unit_that_needs_other_work_waits_until_it_is_back():
