@@ -27,13 +27,18 @@ factor between its estimate and the time actually left, over its lines from 10 %
 on (:func:`eta_errors`; the command's progress goes to its log, one line per finished
 scenario). Then the median of each.
 
-Usage: python benchmarks/bench_first_run.py [--rounds 3] [--repo PATH] [--keep DIR]
-(about 4 to 8 minutes per round on 2 cores).
+``--beside N``: then N more rounds while a second suite runs beside them (the README's
+command again and again, warm, from the first round's clone into a scratch folder, until the
+round ends): the first run on a machine busy with another suite run.
+
+Usage: python benchmarks/bench_first_run.py [--rounds 3] [--beside 0] [--repo PATH] [--keep DIR]
+(a few minutes per round on 2 cores).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import resource
@@ -49,13 +54,15 @@ REPO = Path(__file__).resolve().parents[1]
 COMMAND = [sys.executable, "-m", "reports.cli", "run", "--out"]
 
 
-def _become_subreaper() -> None:
+def _become_subreaper(on: bool = True) -> None:
     """Adopt the command's orphaned descendants (Linux ``PR_SET_CHILD_SUBREAPER``): the local
     workers' fork server is not waited for by the command, so without this its CPU time and
-    its workers' would be missing from this process's accounting of waited-for children."""
+    its workers' would be missing from this process's accounting of waited-for children.
+    ``on`` False: no longer (beside a second suite run, whose processes are not the
+    command's: CPU times are not measured then)."""
     import ctypes
 
-    if ctypes.CDLL("libc.so.6", use_errno=True).prctl(36, 1) != 0:  # PR_SET_CHILD_SUBREAPER
+    if ctypes.CDLL("libc.so.6", use_errno=True).prctl(36, int(on)) != 0:  # PR_SET_CHILD_SUBREAPER
         sys.exit("cannot become a subreaper (prctl PR_SET_CHILD_SUBREAPER): CPU times would miss "
                  "the workers'")  # fmt: skip
 
@@ -79,17 +86,19 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def timed(cmd: list[str], cwd: Path, env: dict, log: Path) -> tuple[float, ...]:
+def timed(cmd: list[str], cwd: Path, env: dict, log: Path, cpu_too=True) -> tuple[float, ...]:
     """(wall s, CPU s of the process tree, load before, load after, yardstick s) of ``cmd``
-    (the yardstick's own processes are not counted in its CPU time)."""
+    (the yardstick's own processes are not counted in its CPU time); ``cpu_too`` False: CPU
+    not measured (NaN), nothing reaped (a second suite runs beside, from this process)."""
     load0 = os.getloadavg()[0]
     stick0 = yardstick()
     cpu0, t0 = _children_cpu(), time.perf_counter()
     with log.open("w") as fh:
         proc = subprocess.run(cmd, cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
     wall = time.perf_counter() - t0
-    _reap_orphans()
-    cpu = _children_cpu() - cpu0
+    if cpu_too:
+        _reap_orphans()
+    cpu = _children_cpu() - cpu0 if cpu_too else float("nan")
     stick = (stick0 + yardstick()) / 2
     if proc.returncode not in (0, 1):  # 1: some runs failed their verdict (the suite has some)
         sys.exit(f"{' '.join(cmd)} exited with {proc.returncode}; see {log}")
@@ -162,9 +171,49 @@ def check_imports(clone: Path, env: dict) -> None:
         sys.exit(f"the clone imports reports from {out}, not from {clone}")
 
 
+class Beside:
+    """A second suite run beside the measurements: the README's command, warm, from
+    ``clone`` into a scratch folder, started again each time it ends, until stopped."""
+
+    def __init__(self, clone: Path, env: dict, where: Path):
+        import threading
+
+        self.clone, self.env, self.where = clone, env, where
+        self.stop = threading.Event()
+        self.proc = None
+        self.runs = 0
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+
+    def _loop(self) -> None:
+        while not self.stop.is_set():
+            out = self.where / f"beside-{self.runs}"
+            self.proc = subprocess.Popen(
+                [*COMMAND, str(out), "--quiet"], cwd=self.clone, env=self.env,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            )  # fmt: skip
+            self.proc.wait()
+            self.runs += 1
+            shutil.rmtree(out, ignore_errors=True)
+
+    def __enter__(self):
+        _become_subreaper(False)  # its processes are not the measured command's
+        self.thread.start()
+        time.sleep(5.0)  # under way (its workers started) before the measurement starts
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.terminate()
+        self.thread.join()
+        _become_subreaper(True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3, help="cold + warm pairs (default 3)")
+    ap.add_argument("--beside", type=int, default=0,
+                    help="then this many rounds beside a second suite run (default 0)")  # fmt: skip
     ap.add_argument("--repo", type=Path, default=REPO, help="repository to clone")
     ap.add_argument("--keep", type=Path, help="keep the clones and logs under this folder")
     args = ap.parse_args(argv)
@@ -173,15 +222,18 @@ def main(argv=None) -> int:
         args.keep.mkdir(parents=True, exist_ok=True)  # the folder the user named to keep in
     base = Path(tempfile.mkdtemp(prefix="first-run-", dir=args.keep))
     rows = []
+    first = None  # the first round's clone and environment (warm): the suite run beside
     try:
         commit = subprocess.run(
             ["git", "-C", str(args.repo), "rev-parse", "--short", "HEAD"],
             capture_output=True, text=True, check=True,
         ).stdout.strip()  # fmt: skip
         print(f"repository {args.repo} at {commit}; {os.cpu_count()} cores; logs in {base}")
+        print(f"command: {' '.join(COMMAND)} DIR, in a fresh clone (cold), then again (warm)")
         print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
               f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12}")  # fmt: skip
-        for k in range(1, args.rounds + 1):
+        for k in range(1, args.rounds + args.beside + 1):
+            beside = k > args.rounds
             where = base / f"round{k}"
             where.mkdir()
             # JAX's compilation cache and the suite's (reused figures) start empty
@@ -194,21 +246,30 @@ def main(argv=None) -> int:
             env.pop("NUMBA_DISABLE_JIT", None)
             clone = fresh_clone(args.repo, where)
             check_imports(clone, env)
-            for kind in ("cold", "warm"):
-                out = where / f"results-{kind}"
-                row = timed([*COMMAND, str(out)], clone, env, where / f"{kind}.log")
-                rows.append((kind, *row))
-                errs = eta_errors((where / f"{kind}.log").read_text(errors="replace"))
-                worst = max((max(r, 1 / r) for _, r in errs if r > 0), default=float("nan"))
-                print(f"{k:>5} {kind:>6} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
-                      f"{row[3]:11.2f} {row[4]:12.2f} {worst:12.2f}", flush=True)  # fmt: skip
-        for kind in ("cold", "warm"):
+            if first is None:
+                first = (clone, env)
+            with Beside(*first, where) if beside else contextlib.nullcontext():
+                for kind in ("cold", "warm"):
+                    out = where / f"results-{kind}"
+                    row = timed([*COMMAND, str(out)], clone, env, where / f"{kind}.log",
+                                cpu_too=not beside)  # fmt: skip
+                    label = f"{kind}+" if beside else kind
+                    rows.append((label, *row))
+                    errs = eta_errors((where / f"{kind}.log").read_text(errors="replace"))
+                    worst = max((max(r, 1 / r) for _, r in errs if r > 0), default=float("nan"))
+                    print(f"{k:>5} {label:>6} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
+                          f"{row[3]:11.2f} {row[4]:12.2f} {worst:12.2f}", flush=True)  # fmt: skip
+        for kind in ("cold", "warm", "cold+", "warm+"):
             sel = [r for r in rows if r[0] == kind]
+            if not sel:
+                continue
             wall = statistics.median(r[1] for r in sel)
             cpu = statistics.median(r[2] for r in sel)
             loads = [x for r in sel for x in r[3:5]]
             sticks = [r[5] for r in sel]
-            print(f"median {kind}: wall {wall:.1f} s, CPU {cpu:.1f} s over {len(sel)} runs "
+            what = kind.replace("+", " beside a second suite run")
+            cpu_text = f"CPU {cpu:.1f} s" if cpu == cpu else "CPU not measured"
+            print(f"median {what}: wall {wall:.1f} s, {cpu_text} over {len(sel)} runs "
                   f"(load average {min(loads):.2f} to {max(loads):.2f}, yardstick "
                   f"{min(sticks):.2f} to {max(sticks):.2f} s)")  # fmt: skip
     finally:
