@@ -232,6 +232,17 @@ def main(argv=None) -> int:
         print(f"command: {' '.join(COMMAND)} DIR, in a fresh clone (cold), then again (warm)")
         print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
               f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12}")  # fmt: skip
+        if args.beside and not args.rounds:  # the suite beside runs warm: warm a clone first
+            where = base / "beside"
+            where.mkdir()
+            env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"),
+                       DIRECTOR_BENCH_CACHE=str(where / "suite-cache"))  # fmt: skip
+            env.pop("NUMBA_CACHE_DIR", None)
+            env.pop("NUMBA_DISABLE_JIT", None)
+            first = (fresh_clone(args.repo, where), env)
+            subprocess.run([*COMMAND, str(where / "results"), "--quiet"], cwd=first[0], env=env,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+            print(f"warmed {first[0]} for the suite run beside the rounds", flush=True)
         for k in range(1, args.rounds + args.beside + 1):
             beside = k > args.rounds
             where = base / f"round{k}"
