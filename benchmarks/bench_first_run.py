@@ -214,6 +214,9 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=3, help="cold + warm pairs (default 3)")
     ap.add_argument("--beside", type=int, default=0,
                     help="then this many rounds beside a second suite run (default 0)")  # fmt: skip
+    ap.add_argument("--beside-clone", type=Path,
+                    help="a clone whose caches are warm (an earlier round's, kept with --keep) "
+                         "for the suite run beside the rounds")  # fmt: skip
     ap.add_argument("--repo", type=Path, default=REPO, help="repository to clone")
     ap.add_argument("--keep", type=Path, help="keep the clones and logs under this folder")
     args = ap.parse_args(argv)
@@ -232,7 +235,13 @@ def main(argv=None) -> int:
         print(f"command: {' '.join(COMMAND)} DIR, in a fresh clone (cold), then again (warm)")
         print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
               f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12}")  # fmt: skip
-        if args.beside and not args.rounds:  # the suite beside runs warm: warm a clone first
+        if args.beside and args.beside_clone is not None:
+            env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(base / "beside-jax-cache"),
+                       DIRECTOR_BENCH_CACHE=str(base / "beside-suite-cache"))  # fmt: skip
+            env.pop("NUMBA_CACHE_DIR", None)
+            env.pop("NUMBA_DISABLE_JIT", None)
+            first = (args.beside_clone.resolve(), env)
+        elif args.beside and not args.rounds:  # the suite beside runs warm: warm a clone first
             where = base / "beside"
             where.mkdir()
             env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"),
