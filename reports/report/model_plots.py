@@ -52,20 +52,30 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
         base, config = split_variant(str(r["integrator"]))
         panels.setdefault((r["engine"], base), {})[config or "our reading"] = r
     panels = {k: v for k, v in panels.items() if len(v) > 1 or "our reading" not in v}
-    runs = []
+    runs, missing = [], []
     for (engine, base), by in panels.items():
-        lines = []
+        lines, notes = [], []
         for word, st in KINDS:
             r = by.get(word if word == "our reading" else word.replace(" ", "-"))
             s = cache.get(r) if r is not None else None
-            if s is not None and "joint_coordinate_error" in s:
+            if r is not None and r.get("status") == "diverged":  # its few states say little
+                t = r.get("t_diverged")
+                at = "" if t is None or t != t else f" at t = {t:.3g} s"
+                notes.append(f"{word}: diverged{at}")
+            elif s is not None and "joint_coordinate_error" in s:
                 lines.append((word, st, s))
-        if lines:
-            runs.append((f"{engine} {base}", lines))
+            elif r is not None:
+                notes.append(f"{word}: {r.get('status')}")
+        if lines or notes:
+            runs.append((f"{engine} {base}", lines, notes))
+            missing += [f"{engine} {base} {n}" for n in notes]
     if not runs:
         return None
     fig, axes = new_figure(len(runs), 1.3)
-    for ax, (title, lines) in zip(axes, runs, strict=True):
+    for ax, (title, lines, notes) in zip(axes, runs, strict=True):
+        if notes:  # a run the panel has no line for, said in it
+            ax.text(0.01, 0.96, "; ".join(notes), transform=ax.transAxes, fontsize=7,
+                    va="top", color="tab:red")  # fmt: skip
         for word, st, s in lines:
             y = np.asarray(s["joint_coordinate_error"], dtype=float)
             y = np.where(np.isnan(y), np.nan, np.maximum(np.abs(y), FLOOR))
@@ -81,8 +91,9 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
                       fontsize=10)  # fmt: skip
     legend(axes[0])
     alt = (f"{scenario}: the largest joint angle error against the reference over time{dt}, "
-           f"log axes, one panel per engine ({', '.join(t for t, _ in runs)}), each with the "
-           "engine on our reading of the file and its importer as loaded and faithful")  # fmt: skip
+           f"log axes, one panel per engine ({', '.join(t for t, *_ in runs)}), each with the "
+           "engine on our reading of the file and its importer as loaded and faithful"
+           + (f"; no line for {', '.join(missing)}" if missing else ""))  # fmt: skip
     return save(fig, Path(out) / f"{slug(scenario)}__joint_angles.png", alt=alt)
 
 

@@ -237,3 +237,21 @@ def test_mjx_runs_a_model_loaded_with_its_contacts(tmp_path):
     # (our reading of the capsule equals MuJoCo's compiler's); 1e-12 leaves round-off room
     np.testing.assert_allclose(mjx.position, c.position, rtol=0, atol=1e-12)
     assert _attitude(mjx, c) < 1e-12
+
+
+def test_a_diverged_importer_run_is_named_in_its_panel(tmp_path):
+    """Drake's as-loaded crawler diverges in its first steps (its MJCF parser drops the
+    armature of unactuated joints): the joint angle figure has no line for it, so its panel
+    says so, and so does the figure's text."""
+    pytest.importorskip("pydrake")
+    from reports.suite import run
+
+    out = tmp_path / "res"
+    s = run(["crawler_float"], engines=["drake", "exact"],
+            integrators=["runge_kutta5", "reference"], t_end=0.05, out=out,
+            progress=False)  # fmt: skip
+    r = s.results
+    assert "diverged" in set(r[r["integrator"] == "runge_kutta5 (as loaded)"]["status"])
+    md = (out / "report.md").read_text()
+    alt = next(ln for ln in md.splitlines() if "crawler-float__joint_angles.png" in ln)
+    assert "no line for drake runge_kutta5 as loaded: diverged at t = 0 s" in alt, alt
