@@ -3,7 +3,10 @@ Delassus operator, in the suite's time-stepping loop ("+ suite": Pinocchio has n
 stepper of its own in the installed release).
 
 Model: one ``JointModelFreeFlyer`` per body (q = [x, quaternion xyzw], v = [R^T v, W] in the
-LOCAL frame), the body's principal frame at the joint (``Inertia(m, 0, diag(I))``); one coal
+LOCAL frame), the body's principal frame at the joint (``Inertia(m, 0, diag(I))``), or for a
+body on a revolute joint to the ground a ``JointModelRevoluteUnaligned`` placed at the hinge
+with the body's initial axes (q = 0 the scene's initial pose, the centre of mass at -anchor_a
+in the joint frame, q += h q' in the step); one coal
 shape per body (``Sphere``, ``Box`` of full sides, ``Capsule`` and ``Cylinder`` of full
 length) at the shape's offset, the scene's planes as coal ``Halfspace`` on the universe, one
 collision pair per scene pair.
@@ -41,9 +44,9 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import timing
-from references.engines.contact import ContactLog, external_wrench
+from references.engines.contact import ContactLog, external_wrench, ground_hinges, hinge_rate
 from references.engines.integrators import Integrator
-from references.errors import EngineError, Unsupported
+from references.errors import EngineError
 
 FAMILY = "Delassus NCP + suite"
 
@@ -111,18 +114,35 @@ class Scene:
     """The Pinocchio and coal objects of a scene."""
 
     def __init__(self, pin, coal, scenario, settings):
-        if scenario.joints:
-            raise Unsupported("pinocchio contact builder: joints with contact are not built yet")
         self.pin, self.coal, self.sc = pin, coal, scenario
         self.model = pin.Model()
         self.model.gravity.linear = np.asarray(scenario.gravity, dtype=float)
         self.jid = {}
+        # a body on a revolute joint to the ground: its joint frame at the hinge with the
+        # body's initial axes (q = 0: the scene's initial pose), its centre of mass at
+        # -anchor_a in it; name -> (anchor_a, unit axis in the body, initial rate)
+        self.hinge = {}
+        for name, j in ground_hinges(scenario, "pinocchio").items():
+            b = next(b for b in scenario.bodies if b.name == name)
+            axis = np.asarray(j.axis_a, dtype=float) / np.linalg.norm(j.axis_a)
+            self.hinge[name] = (np.asarray(j.anchor_a, dtype=float), axis, hinge_rate(b, j))
         for b in scenario.bodies:
-            j = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), b.name)
+            if b.name in self.hinge:
+                lever, axis, _ = self.hinge[b.name]
+                hj = next(j for j in scenario.joints if j.body_a == b.name)
+                j = self.model.addJoint(0, pin.JointModelRevoluteUnaligned(axis),
+                                        pin.SE3(b.rotation, np.asarray(hj.anchor_b, float)),
+                                        b.name)  # fmt: skip
+                com = -lever
+            else:
+                j = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), b.name)
+                com = np.zeros(3)
             self.model.appendBodyToJoint(
-                j, pin.Inertia(b.mass, np.zeros(3), np.diag(b.inertia)), pin.SE3.Identity()
+                j, pin.Inertia(b.mass, com, np.diag(b.inertia)), pin.SE3.Identity()
             )
             self.jid[b.name] = j
+        self.iq = [self.model.joints[self.jid[b.name]].idx_q for b in scenario.bodies]
+        self.iv = [self.model.joints[self.jid[b.name]].idx_v for b in scenario.bodies]
         self.gm = pin.GeometryModel()
         self.gid = {}
         for b in scenario.bodies:
@@ -133,7 +153,7 @@ class Scene:
                 f"geom:{b.name}",
                 self.jid[b.name],
                 self.jid[b.name],
-                pin.SE3(s.rotation, s.position),
+                pin.SE3(s.rotation, s.position - self._com_offset(b.name)),
                 _coal_shape(coal, s),
             )
             self.gid[b.name] = self.gm.addGeometryObject(obj)
@@ -156,9 +176,22 @@ class Scene:
             req.max_num_patch = 1
         self.npatch = int(settings["patch_points"])
 
+    def _com_offset(self, name) -> np.ndarray:
+        """The body's centre of mass in its joint's frame, times -1 (a free flyer's frame
+        is at the centre of mass; a hinged body's at its hinge, anchor_a from it)."""
+        return self.hinge[name][0] if name in self.hinge else np.zeros(3)
+
+    def free(self) -> list[int]:
+        """The indices of the bodies on free flyers."""
+        return [i for i, b in enumerate(self.sc.bodies) if b.name not in self.hinge]
+
     def q_v(self):
         q, v = [], []
         for b in self.sc.bodies:
+            if b.name in self.hinge:
+                q.append(0.0)
+                v.append(self.hinge[b.name][2])
+                continue
             q += [*b.position, *cv.matrix_to_quat_xyzw(b.rotation)]
             v += [*(b.rotation.T @ b.velocity), *b.omega_body]
         return np.array(q), np.array(v)
@@ -166,8 +199,16 @@ class Scene:
     def states(self, q, v):
         nb = len(self.sc.bodies)
         x, R, vv, W = np.zeros((nb, 3)), np.zeros((nb, 3, 3)), np.zeros((nb, 3)), np.zeros((nb, 3))
-        for i in range(nb):
-            qi, vi = q[7 * i : 7 * i + 7], v[6 * i : 6 * i + 6]
+        for i, b in enumerate(self.sc.bodies):
+            if b.name in self.hinge:  # x = H + R (-anchor_a), R = R0 exp(q axis)
+                lever, axis, _ = self.hinge[b.name]
+                oMj = self.model.jointPlacements[self.jid[b.name]]
+                R[i] = oMj.rotation @ self.pin.exp3(axis * q[self.iq[i]])
+                x[i] = oMj.translation - R[i] @ lever
+                W[i] = axis * v[self.iv[i]]
+                vv[i] = np.cross(R[i] @ W[i], x[i] - oMj.translation)
+                continue
+            qi, vi = q[self.iq[i] : self.iq[i] + 7], v[self.iv[i] : self.iv[i] + 6]
             x[i] = qi[:3]
             R[i] = cv.quat_xyzw_to_matrix(qi[3:])
             vv[i] = R[i] @ vi[:3]
@@ -194,7 +235,7 @@ class Scene:
             shapes[b.name] = {
                 "kind": name,
                 "size": size,
-                "offset": tuple(obj.placement.translation),
+                "offset": tuple(obj.placement.translation + self._com_offset(b.name)),
                 "rotation": np.asarray(obj.placement.rotation),
             }
         pairs = {i: {"mu": self.mu[i], "e": self.e[i]} for i in self.pairs}
@@ -216,19 +257,20 @@ def _plant_offset(scene):
 PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}
 
 
-def classical(a, v, nb):
+def classical(a, v, starts):
     """Pinocchio's free-flyer acceleration (the derivative of the LOCAL twist, whose linear
     part turns with the body: a_lin = R^T a_G - W x v_lin) as the centre of mass's classical
     acceleration in body axes, R^T a_G = a_lin + W x v_lin, so that the step below keeps
-    the world velocity of a body in free flight whatever its spin."""
+    the world velocity of a body in free flight whatever its spin; ``starts``: the free
+    flyers' first velocity index (a hinge's rate needs no correction)."""
     a = np.array(a, dtype=float)
-    for i in range(nb):
-        vi, ai = v[6 * i : 6 * i + 6], a[6 * i : 6 * i + 6]
+    for s in starts:
+        vi, ai = v[s : s + 6], a[s : s + 6]
         ai[:3] += np.cross(vi[3:], vi[:3])
     return a
 
 
-def step_positions(pin, q, v, h, nb):
+def step_positions(pin, q, v, h, free, hinges=()):
     """q+ from v+ on SO(3) x R^3 (each body: x += h R v_lin, R <- R exp(h W)), keeping the
     world velocity (v_lin <- R+^T R v_lin). Pinocchio's ``integrate`` on a free flyer is the
     SE(3) exponential, which moves a spinning body's centre along a screw during the step
@@ -237,8 +279,10 @@ def step_positions(pin, q, v, h, nb):
     the suite's loop uses the decoupled update of the engines."""
     q = q.copy()
     v = v.copy()
-    for i in range(nb):
-        qi, vi = q[7 * i : 7 * i + 7], v[6 * i : 6 * i + 6]
+    for iq, iv in hinges:  # a hinge's angle: q += h q'
+        q[iq] += h * v[iv]
+    for iq, iv in free:
+        qi, vi = q[iq : iq + 7], v[iv : iv + 6]
         R = cv.quat_xyzw_to_matrix(qi[3:])
         vw = R @ vi[:3]
         Rn = R @ pin.exp3(h * vi[3:])
@@ -265,6 +309,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     q, v = sc.q_v()
     h = float(dt)
     nb = len(scenario.bodies)
+    free = [(sc.iq[i], sc.iv[i]) for i in sc.free()]
+    hinged = [(sc.iq[i], sc.iv[i]) for i in range(nb) if i not in sc.free()]
     names = [b.name for b in scenario.bodies]
     forced = [
         i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
@@ -311,11 +357,14 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
             xs, Rs, _, _ = sc.states(q, v)
             for i in forced:
                 F, tau = external_wrench(scenario, i, Rs[i])
-                fext[sc.jid[names[i]]] = pin.Force(Rs[i].T @ F, Rs[i].T @ tau)
+                # about the joint frame's origin (a hinged body's is at the hinge)
+                c = -sc._com_offset(names[i])
+                Fb, tb = Rs[i].T @ F, Rs[i].T @ tau
+                fext[sc.jid[names[i]]] = pin.Force(Fb, tb + np.cross(c, Fb))
         fext = pin.StdVec_Force(fext)
         tau0 = np.zeros(model.nv)
         t0 = time.perf_counter()
-        vfree = v + h * classical(pin.aba(model, data, q, v, tau0, fext), v, nb)
+        vfree = v + h * classical(pin.aba(model, data, q, v, tau0, fext), v, [s for _, s in free])
         pin.forwardKinematics(model, data, q, v)
         pin.updateGeometryPlacements(model, data, gm, gd)
         pin.computeCollisions(gm, gd, False)
@@ -369,6 +418,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
             G = chol.getDelassusOperatorCholeskyExpression().matrix()
             J = pin.getConstraintsJacobian(model, data, cms, cds)
             engine += timing.lap(t0)
+            # eigenpy returns a one-column matrix (a hinge alone: nv = 1) as a vector
+            J = np.asarray(J).reshape(-1, model.nv)
             g = J @ vfree
             vn = (J @ v)[2::3]
             for r, (pi, _p, _Rc, gap) in enumerate(rows):
@@ -381,7 +432,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
             result = pin.ADMMSolverResult() if admm else pin.PGSSolverResult()
             ok = solver.solve(pin.DelassusOperatorDense(G), g, cms, cds, settings_obj, result)
             lam = np.asarray(result.retrieveConstraintImpulses())
-            Minv = pin.computeMinverse(model, data, q)
+            Minv = np.asarray(pin.computeMinverse(model, data, q)).reshape(model.nv, model.nv)
             Minv = np.triu(Minv) + np.triu(Minv, 1).T
             v = vfree + Minv @ (J.T @ lam)
             engine += timing.lap(t0)
@@ -392,7 +443,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         else:
             lam = np.zeros(0)
             v = vfree
-        q, v = step_positions(pin, q, v, h, nb)
+        q, v = step_positions(pin, q, v, h, free, hinged)
         if step % save_every == 0 or step == nstep:
             for r, (pi, p, Rc, gap) in enumerate(rows):
                 log.add(pi, p, Rc[:, 2], Rc @ lam[3 * r : 3 * r + 3] / h, -gap)

@@ -227,7 +227,7 @@ def test_director_contact_through_its_api():
 
 
 #: engines whose contact builders build a body on a revolute joint to the ground
-HINGED = ("mujoco", "dart", "pybullet", "drake", "director")
+HINGED = ("mujoco", "pinocchio", "dart", "pybullet", "drake", "director")
 
 
 @pytest.mark.parametrize("engine", HINGED)
@@ -252,7 +252,7 @@ def test_a_hinged_body_swings_on_its_hinge_and_rests_on_the_ground(engine):
     assert support == pytest.approx(G, rel=FORCE_RTOL)
 
 
-@pytest.mark.parametrize("engine", ["pinocchio", "mjx"])
+@pytest.mark.parametrize("engine", ["mjx"])
 def test_joints_with_contact_unsupported_says_why(engine):
     from references.engines import Unsupported
 
