@@ -38,6 +38,13 @@ from scenarios.tree import spanning_tree
 CHECK_TOL = 1e-10
 
 _TREE_KINDS = ("spherical", "fixed_point", "revolute")
+#: the closures every reduced-coordinate builder makes of point constraints
+POINT_CLOSURES = ("spherical", "fixed_point", "revolute")
+#: a universal closure as a point and a distance: the point pair at the anchors and the points
+#: one length scale L along each axis held L sqrt(2) apart (|L u_a - L u_b|^2 = 2 L^2 (1 -
+#: u_a . u_b): the distance holds the axes perpendicular), for engines with a distance
+#: constraint (MuJoCo: a tendon's length, Drake: AddDistanceConstraint)
+DISTANCE_CLOSURES = (*POINT_CLOSURES, "universal")
 #: the tree joints Pinocchio's builder (and Drake's) build
 SLIDING_KINDS = (*_TREE_KINDS, "prismatic")
 
@@ -61,14 +68,17 @@ class TreeJoint:
 
 @dataclass
 class Loop:
-    """A closing joint between bodies a and b (b = -1: the ground) as point pairs (point in
-    a's principal frame, point in b's principal frame or world)."""
+    """A closing joint between bodies a and b (b = -1: the ground) as point pairs that must
+    coincide (point in a's principal frame, point in b's principal frame or world) and, for a
+    universal closure, ``distances``: (point on a, point on b, the distance held, m)."""
 
     label: str
     kind: str
     a: int
     b: int
     pairs: list
+    distances: list = field(default_factory=list)
+    joint: str = ""  # the scenario joint's name
 
 
 @dataclass
@@ -113,13 +123,16 @@ def _named(joints) -> list:
     return out
 
 
-def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
+def plan(scenario, engine: str, tree_kinds=_TREE_KINDS, closures=POINT_CLOSURES,
+         refused=None) -> Plan:  # fmt: skip
     """The spanning tree, reference orientations and loop closures of ``scenario`` (module
     docstring): the spanning tree and loop closures of :func:`scenarios.tree.spanning_tree`,
     bodies added depth first from the ground, a body joined to nothing a floating root. A joint
     with an axis has R_ref = R_p^T R_c at t = 0 and its axis on both sides (``axis_c``,
     ``axis_p``). ``ValueError`` for malformed joints, :class:`Unsupported` (naming ``engine``)
-    for a kind outside ``tree_kinds`` in the tree, or a closure other than spherical/revolute."""
+    for a kind outside ``tree_kinds`` in the tree, or a closure outside ``closures``
+    (:data:`POINT_CLOSURES`, :data:`DISTANCE_CLOSURES`), with the engine's reason
+    ``refused[kind]`` where it gives one."""
     bodies = list(scenario.bodies)
     names = [b.name for b in bodies]
     if len(set(names)) != len(names):
@@ -191,7 +204,17 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
         b = -1 if j.body_b is None else idx[j.body_b]
         Xa, Xb = vec(j.anchor_a, what), vec(j.anchor_b, what)
         if j.kind in ("spherical", "fixed_point"):
-            loops.append(Loop(what, j.kind, a, b, [(Xa, Xb)]))
+            loops.append(Loop(what, j.kind, a, b, [(Xa, Xb)], joint=j.name))
+        elif j.kind not in closures:
+            why = (refused or {}).get(j.kind, "not built by this adapter")
+            raise Unsupported(f"{engine}: {what} closes a loop: a {j.kind} closure: {why}")
+        elif j.kind == "universal":
+            if j.axis_a is None or j.axis_b is None:
+                raise ValueError(f"{what}: a universal joint needs axis_a and axis_b")
+            na, nb = unit(j.axis_a, what), unit(j.axis_b, what)
+            loops.append(Loop(what, j.kind, a, b, [(Xa, Xb)],
+                              [(Xa + length * na, Xb + length * nb, length * math.sqrt(2.0))],
+                              joint=j.name))  # fmt: skip
         elif j.kind == "revolute":
             if j.axis_a is None or j.axis_b is None:
                 raise ValueError(f"{what}: a revolute joint needs axis_a and axis_b")
@@ -199,12 +222,10 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS) -> Plan:
             Rb = np.eye(3) if b < 0 else R[b]
             if float((R[a] @ na) @ (Rb @ nb)) < 0:
                 nb = -nb  # antiparallel axes describe the same hinge
-            loops.append(Loop(what, j.kind, a, b, [(Xa, Xb), (Xa + length * na, Xb + length * nb)]))
+            loops.append(Loop(what, j.kind, a, b, [(Xa, Xb), (Xa + length * na, Xb + length * nb)],
+                              joint=j.name))  # fmt: skip
         else:
-            raise Unsupported(
-                f"{engine}: {what} closes a loop; this adapter closes spherical and revolute "
-                f"loops with point constraints, a {j.kind} closure is not built"
-            )
+            raise Unsupported(f"{engine}: {what} closes a loop: a {j.kind} closure is not built")
     return Plan(
         str(scenario.name),
         names,
@@ -290,6 +311,63 @@ def check_states(engine: str, pl: Plan, x, R, v, W, joint_points, joint_axes) ->
         raise EngineError(
             f"{engine}: system {pl.name!r}: the engine's kinematics of the initial state differ "
             "from the scenario (a frame, anchor, axis or parent/child is wrong): " + "; ".join(bad)
+        )
+
+
+def closure_points(pl: Plan, lp: Loop) -> tuple[list, list]:
+    """Where the engine's constraints of closure ``lp`` must hold the bodies at t = 0, from the
+    scenario's joint in world coordinates (a second derivation of the plan's body-frame
+    points): (pairs [(point on a, point on b)], distances [(point on a, point on b, m)]) in the
+    order of ``lp.pairs`` and ``lp.distances``."""
+    j = next(j for j in pl.joints if j.name == lp.joint)
+    idx = {n: i for i, n in enumerate(pl.names)}
+    xa, Ra, _, _ = world(pl, idx[j.body_a])
+    xb, Rb, _, _ = world(pl, -1 if j.body_b is None else idx[j.body_b])
+    pa, pb = xa + Ra @ vec(j.anchor_a, "anchor_a"), xb + Rb @ vec(j.anchor_b, "anchor_b")
+    pairs, distances = [(pa, pb)], []
+    if lp.kind in ("revolute", "universal"):
+        ua, ub = Ra @ unit(j.axis_a, "axis_a"), Rb @ unit(j.axis_b, "axis_b")
+        if lp.kind == "revolute":
+            ub = ub if ua @ ub >= 0 else -ub
+            pairs.append((pa + pl.length * ua, pb + pl.length * ub))
+        else:
+            distances.append((pa + pl.length * ua, pb + pl.length * ub,
+                              pl.length * math.sqrt(2.0)))  # fmt: skip
+    return pairs, distances
+
+
+def check_loops(engine: str, pl: Plan, got: dict) -> None:
+    """Compare the engine's loop constraints at t = 0 with the scenario's closures
+    (:func:`closure_points`): ``got[lp.label]`` = (pairs, distances) as the engine holds them,
+    each attachment point in world coordinates from the engine's own kinematics, each distance
+    the engine's. Raises :class:`EngineError` naming the closure."""
+    bad = []
+    L = pl.length
+    for lp in pl.loops:
+        pairs, distances = got.get(lp.label, ([], []))
+        exp_pairs, exp_dist = closure_points(pl, lp)
+        if len(pairs) != len(exp_pairs) or len(distances) != len(exp_dist):
+            bad.append(
+                f"{lp.label}: {len(pairs)} point and {len(distances)} distance "
+                f"constraints, the closure needs {len(exp_pairs)} and {len(exp_dist)}"
+            )
+            continue  # fmt: skip
+        for k, (g, e) in enumerate(zip([*pairs, *distances], [*exp_pairs, *exp_dist], strict=True)):
+            if g is None:  # a constraint the engine's form leaves out (recorded by the builder)
+                continue
+            what = f"point constraint {k}" if k < len(pairs) else f"distance {k - len(pairs)}"
+            for side in (0, 1):
+                err = float(np.max(np.abs(np.asarray(g[side]) - e[side]))) / L
+                if not err <= CHECK_TOL:
+                    bad.append(f"{lp.label}: {what}: the point on side {'ab'[side]} off by "
+                               f"{err:.3g} (relative to {L:.3g} m)")  # fmt: skip
+            if len(e) == 3 and not abs(float(g[2]) - e[2]) <= CHECK_TOL * L:
+                bad.append(f"{lp.label}: {what} held at {float(g[2]):.12g} m, the joint needs "
+                           f"{e[2]:.12g} m (axes perpendicular)")  # fmt: skip
+    if bad:
+        raise EngineError(
+            f"{engine}: system {pl.name!r}: the engine's loop constraints at t = 0 differ from "
+            "the scenario's closures (an anchor, axis or side is wrong): " + "; ".join(bad)
         )
 
 

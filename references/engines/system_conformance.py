@@ -209,6 +209,38 @@ def inclined_slide(spin: float = 0.0):
     return [body], [joint], exact
 
 
+def closure_loop(kind: str = "universal", seed: int = 7):
+    """(bodies, joints): two links hanging at rest from two ground points by spherical joints
+    ``s0``, ``s1`` and joined to each other by a joint ``h1`` of ``kind`` (``link0`` its
+    ``body_a``, ``link1`` its ``body_b``), which closes the loop (the joints to the ground come
+    first in the spanning tree): random attitudes, the closure's point off both links, its
+    axes random (a universal's perpendicular, the others' parallel). At rest, so every initial
+    state satisfies the closure."""
+    from director_model.system import Body, Joint
+
+    rng = np.random.default_rng(seed)
+    Y = np.array([0.0, 0.0, 0.5])
+    pivots = (np.zeros(3), np.array([1.0, 0.2, 0.0]))
+    W = np.array([0.5, 0.1, -0.7])  # the closure's point
+    ua = rng.normal(size=3)
+    ua /= np.linalg.norm(ua)
+    ub = ua if kind != "universal" else np.cross(ua, rng.normal(size=3))
+    ub = ub / np.linalg.norm(ub)
+    bodies, joints, frames = [], [], []
+    for i, P in enumerate(pivots):
+        R = cv.rotvec_to_matrix(0.6 * rng.normal(size=3))
+        x = P - R @ Y
+        m = 1.0 + 0.4 * i
+        bodies.append(Body(f"link{i}", m, (m / 12 + 0.01, m / 12 + 0.014, 0.02), x, R))
+        joints.append(Joint("spherical", f"link{i}", None, Y, P, name=f"s{i}"))
+        frames.append((x, R))
+    (x0, R0), (x1, R1) = frames
+    axes = (R0.T @ ua, R1.T @ ub) if kind != "spherical" else (None, None)
+    joints.append(Joint(kind, "link0", "link1", R0.T @ (W - x0), R1.T @ (W - x1), *axes,
+                        name=PLANTED_JOINT))  # fmt: skip
+    return bodies, joints
+
+
 # -- the planted mistakes -----------------------------------------------------------------------
 
 
@@ -310,6 +342,46 @@ def _plant_director(mistake):
     return "model", change
 
 
+#: the mistakes planted on the closure ``h1`` of :func:`closure_loop`, in the plan's loop (the
+#: builders' boundary for closures: :func:`references.engines.reduced.plan`'s ``loops``)
+CLOSURE_MISTAKES = (
+    "closure axis in the other body's frame",
+    "closure anchor from the body origin",
+    "closure sides swapped",
+)
+
+
+def _plant_closure(mistake):
+    """The mistake in the plan's closure ``h1``: its points along the axis on body a taken
+    with b's axis components; a's points measured from a's joint point (its tree anchor)
+    instead of its COM; or each point put on the other body."""
+
+    def wrong(pl, lp):
+        pairs, dists = list(lp.pairs), list(lp.distances)
+        Xa, Xb = pairs[0]
+        if mistake == CLOSURE_MISTAKES[0]:
+            pairs = [pairs[0], *((Xa + (pb - Xb), pb) for _, pb in pairs[1:])]
+            dists = [(Xa + (pb - Xb), pb, d) for _, pb, d in dists]
+        elif mistake == CLOSURE_MISTAKES[1]:
+            Ya = pl.tree[lp.a].Y
+            pairs = [(pa - Ya, pb) for pa, pb in pairs]
+            dists = [(pa - Ya, pb, d) for pa, pb, d in dists]
+        else:
+            pairs = [(pb, pa) for pa, pb in pairs]
+            dists = [(pb, pa, d) for pa, pb, d in dists]
+        return dataclasses.replace(lp, pairs=pairs, distances=dists)
+
+    def change(orig):
+        def planted(*args, **kw):
+            pl = orig(*args, **kw)
+            pl.loops = [wrong(pl, lp) if lp.joint == PLANTED_JOINT else lp for lp in pl.loops]
+            return pl
+
+        return planted
+
+    return "plan", change
+
+
 def _unit(a) -> np.ndarray:
     a = np.asarray(a, float)
     return a / np.linalg.norm(a)
@@ -329,13 +401,17 @@ PLANTS = {
 
 @contextlib.contextmanager
 def planted(engine: str, mistake: str):
-    """Within the block, ``engine``'s builder makes ``mistake`` (:data:`MISTAKES`) on joint
-    ``h1`` of the kit's chain; the builder is restored on exit."""
-    if mistake not in MISTAKES:
-        raise ValueError(f"mistake {mistake!r} unknown; known: {list(MISTAKES)}")
-    if engine not in PLANTS:
+    """Within the block, ``engine``'s builder makes ``mistake`` (:data:`MISTAKES`,
+    :data:`CLOSURE_MISTAKES`) on joint ``h1`` of the kit's chain or loop; the builder is
+    restored on exit."""
+    if mistake in CLOSURE_MISTAKES:
+        module, make = "reduced", _plant_closure
+    elif mistake not in MISTAKES:
+        raise ValueError(f"mistake {mistake!r} unknown; known: {[*MISTAKES, *CLOSURE_MISTAKES]}")
+    elif engine not in PLANTS:
         raise ValueError(f"engine {engine!r} has no system plants; known: {list(PLANTS)}")
-    module, make = PLANTS[engine]
+    else:
+        module, make = PLANTS[engine]
     mod = importlib.import_module(f"references.engines.{module}")
     attr, change = make(mistake)
     orig = getattr(mod, attr)
@@ -346,31 +422,41 @@ def planted(engine: str, mistake: str):
         setattr(mod, attr, orig)
 
 
-def run(engine: str, sc=None):
-    """A short run of ``sc`` (default: the kit's hinge chain) on ``engine``'s builder."""
+#: the integrator of the kit's short runs of a loop, where it is not :data:`RUNS`' (the only
+#: ones that close loops: Drake's discrete plant, DART's World.step)
+LOOP_RUNS = {"drake": "discrete SAP", "dart": "semi-implicit Euler"}
+
+
+def run(engine: str, sc=None, loop: bool = False):
+    """A short run of ``sc`` (default: the kit's hinge chain) on ``engine``'s builder, with
+    the integrator of :data:`LOOP_RUNS` when ``loop``."""
     from references.engines.system import builder
 
     sc = sc if sc is not None else scenario("kit-hinge4", *hinge_chain())
     integrator, dt, nstep = RUNS[engine]
+    if loop:
+        integrator = LOOP_RUNS.get(engine, integrator)
     return builder(engine)(sc, integrator, dt, nstep, 1)
 
 
-def check_mistakes(engine: str, baseline: bool = True, sc=None) -> list[Check]:
+def check_mistakes(engine: str, baseline: bool = True, sc=None, mistakes=MISTAKES) -> list[Check]:
     """One :class:`Check` per mistake (and one for the true builder when ``baseline``): the
     planted run must raise :class:`EngineError` naming joint 'h1' or body 'link1'. ``sc``:
-    the system (default the hinge chain; :func:`universal_chain` for the universal joints)."""
+    the system (default the hinge chain; :func:`universal_chain` for the universal joints,
+    :func:`closure_loop` with ``mistakes=CLOSURE_MISTAKES`` for a closure)."""
     checks = []
+    loop = any(m in CLOSURE_MISTAKES for m in mistakes)
     if baseline:
         try:
-            run(engine, sc)
+            run(engine, sc, loop)
             checks.append(Check("runs as built", True))
         except Exception as exc:  # noqa: BLE001 - reported, never raised
             checks.append(Check("runs as built", False, f"{type(exc).__name__}: {exc}"))
-    for mistake in MISTAKES:
+    for mistake in mistakes:
         name = f"catches {mistake}"
         try:
             with planted(engine, mistake):
-                run(engine, sc)
+                run(engine, sc, loop)
         except EngineError as exc:
             msg = str(exc)
             named = f"'{PLANTED_JOINT}'" in msg or f"'{PLANTED_BODY}'" in msg
@@ -383,8 +469,9 @@ def check_mistakes(engine: str, baseline: bool = True, sc=None) -> list[Check]:
     return checks
 
 
-def assert_conforms(engine: str, baseline: bool = True, sc=None) -> None:
+def assert_conforms(engine: str, baseline: bool = True, sc=None, mistakes=MISTAKES) -> None:
     """Raise ``AssertionError`` listing every failed item of :func:`check_mistakes`."""
-    failed = [f"{c.name}: {c.message}" for c in check_mistakes(engine, baseline, sc) if not c.ok]
+    checks = check_mistakes(engine, baseline, sc, mistakes)
+    failed = [f"{c.name}: {c.message}" for c in checks if not c.ok]
     if failed:
         raise AssertionError(f"{engine} system builder: " + "; ".join(failed))

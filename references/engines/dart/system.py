@@ -72,6 +72,20 @@ REVOLUTE_CLOSURES = ("revolute", "ball")
 
 #: DART's default error reduction parameter of its dynamic joint constraints (DART 6.20
 #: DynamicJointConstraint; read back in the tests from a fresh World)
+#: why DART closes no loop of these kinds (dartpy 6.20's joint constraints:
+#: BallJointConstraint, RevoluteJointConstraint, WeldJointConstraint,
+#: CylindricalJointConstraint)
+REFUSED_CLOSURES = {
+    "universal": "DART's joint constraints are ball (3 equations), revolute (5), cylindrical "
+    "(4: two rotations and two translations) and weld (6); a universal closure holds a point "
+    "and the axes' right angle (4), and DART has no universal, distance or axis constraint",
+    "prismatic": "DART's joint constraints are ball, revolute, cylindrical and weld; a "
+    "prismatic closure (the rotation held, one translation free) is none of them, and a "
+    "cylindrical constraint leaves the rotation about the axis free",
+    "cylindrical": "not built by this adapter (DART has CylindricalJointConstraint, which "
+    "this builder does not yet add)",
+}
+
 DEFAULT_ERP = 0.01
 
 
@@ -166,6 +180,7 @@ class _Model:
         world.addSkeleton(skel)
         self.world, self.skel = world, skel
         self.constraints = []
+        self.handed: dict = {}  # closure label -> what DART is handed (add_loops)
         self.clock = 0.0
         # per tree joint (tree order), for the RKMK4: (body index, kind, its slice of u, the
         # DART joint, the index of its first degree of freedom in the skeleton)
@@ -216,20 +231,29 @@ class _Model:
             Xa = lp.pairs[0][0]
             point = xa + Ra @ Xa
             ba = self.body[lp.a]
+            # what DART is handed, in the world (it ties the one point to both bodies): the
+            # form of reduced.check_loops; a ball-only revolute closure leaves its axis out
+            handed = [(point, point)]
+            if lp.kind == "revolute":
+                handed.append(None)
             if lp.kind == "revolute" and revolute_closure == "revolute":
                 na = Ra @ (lp.pairs[1][0] - Xa) / pl.length
                 if lp.b < 0:
+                    nb = lp.pairs[1][1] - lp.pairs[0][1]
                     con = C.RevoluteJointConstraint(ba, point, na)
                 else:
                     _, Rb, _, _ = reduced.world(pl, lp.b)
                     nb = Rb @ (lp.pairs[1][1] - lp.pairs[0][1]) / pl.length
                     con = C.RevoluteJointConstraint(ba, self.body[lp.b], point, na, nb)
+                L = pl.length
+                handed[1] = (point + L * na, point + L * nb / np.linalg.norm(nb))
             elif lp.b < 0:
                 con = C.BallJointConstraint(ba, point)
             else:
                 con = C.BallJointConstraint(ba, self.body[lp.b], point)
             self.world.getConstraintSolver().addConstraint(con)
             self.constraints.append((lp, con))
+            self.handed[lp.label] = (handed, [])
 
     # -- read-out ----------------------------------------------------------------------------
     def states(self):
@@ -430,7 +454,8 @@ def build(scenario, integrator: str, dt: float, **settings):
     if closure not in REVOLUTE_CLOSURES:
         raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
     dart = _import()
-    pl = reduced.plan(scenario, "dart", (*reduced.SLIDING_KINDS, "universal"))
+    pl = reduced.plan(scenario, "dart", (*reduced.SLIDING_KINDS, "universal"),
+                      refused=REFUSED_CLOSURES)  # fmt: skip
     if pl.loops and integrator == "RKMK4":
         raise Unsupported(
             f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
@@ -444,6 +469,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     points, axes = dm.joint_world()
     reduced.check_states("dart", pl, x, R, v, W, points, axes)
     dm.add_loops(DEFAULT_ERP if erp is None else erp, closure)
+    reduced.check_loops("dart", pl, dm.handed)
     rec = {
         "engine": f"dart {dart.__version__}",
         "integrator": integrator,

@@ -45,11 +45,14 @@ and the joints that triggered them.
 Loops. A closing spherical joint is one ``AddBallConstraint`` between the anchors (the world
 body for the ground); a closing revolute joint two, at the anchors and at the anchors moved by
 the system's length scale along the hinge (six equations for five; SAP's regularised solve
-accepts the redundancy). Drake honours these constraints only in discrete SAP plants; a
-continuous-time plant with a loop is ``Unsupported`` with that reason. drake#24957 reports a
-constraint silently ignored in continuous mode; Drake 1.51.1 does not ignore it but raises at
-the first step ("Continuous time does not support constraints", for ball and distance
-constraints alike, measured), which the tests show with the refusal bypassed.
+accepts the redundancy); a closing universal joint one at the anchors and an
+``AddDistanceConstraint`` (rigid) holding the points one length scale along each axis sqrt 2
+length scales apart (the axes perpendicular). Prismatic and cylindrical closures are
+unsupported (:data:`REFUSED_CLOSURES`). Drake honours these constraints only in discrete SAP
+plants; a continuous-time plant with a loop is ``Unsupported`` with that reason. drake#24957
+reports a constraint silently ignored in continuous mode; Drake 1.51.1 does not ignore it but
+raises at the first step ("Continuous time does not support constraints", for ball and
+distance constraints alike, measured), which the tests show with the refusal bypassed.
 
 Integrators: the single-body adapter's names (``references.engines.drake_engine``): the
 fixed-step continuous schemes (``ResetIntegratorFromFlags`` at dt, fixed step mode, read back)
@@ -102,6 +105,15 @@ CHART_SWITCH_COS = 0.4
 
 #: the tree joints this builder builds
 TREE_KINDS = (*reduced.SLIDING_KINDS, "universal")
+
+#: why Drake closes no loop of these kinds
+REFUSED_CLOSURES = dict.fromkeys(
+    ("prismatic", "cylindrical"),
+    "Drake's constraints hold a point (AddBallConstraint), a whole pose (AddWeldConstraint), a "
+    "distance (AddDistanceConstraint) or two joints' coordinates (AddCouplerConstraint); none "
+    "leaves a relative translation free, and a composition through an extra body on a "
+    "PrismaticJoint needs that body's mass, which would change the motion",
+)
 
 
 def _import():
@@ -209,12 +221,16 @@ class _Model:
             self.joint[c] = plant.AddJoint(joint)
             self.frames[c] = f
         plant.mutable_gravity_field().set_gravity_vector(pl.gravity)
-        self.loops = []
+        self.loops, self.balls, self.distances = [], [], []
         if pl.loops and loops_supported(integrator):
             for lp in pl.loops:
                 B = plant.world_body() if lp.b < 0 else self.body[lp.b]
                 for Xa, Xb in lp.pairs:
                     plant.AddBallConstraint(self.body[lp.a], Xa, B, Xb)
+                    self.balls.append((self.body[lp.a], Xa, B, Xb))
+                for Xa, Xb, dist in lp.distances:  # rigid: infinite stiffness, no damping
+                    cid = plant.AddDistanceConstraint(self.body[lp.a], Xa, B, Xb, float(dist))
+                    self.distances.append(cid)
                 self.loops.append(lp)
         plant.Finalize()
         self.plant = plant
@@ -262,6 +278,30 @@ class _Model:
             v[c] = V.translational()
             W[c] = R[c].T @ V.rotational()
         return x, R, v, W
+
+    def loop_world(self) -> dict:
+        """Drake's loop constraints at the current state, in the form of
+        :func:`~references.engines.reduced.check_loops`: the ball constraints' points as
+        added, each distance constraint's points and distance as Drake holds them
+        (``GetDistanceConstraintParams``), placed by Drake's body poses."""
+        plant, ctx = self.plant, self.context
+
+        def at(body, p):
+            return body.EvalPoseInWorld(ctx).multiply(np.asarray(p, float))
+
+        out, k, n = {}, 0, 0
+        for lp in self.loops:
+            pairs = [(at(A, pa), at(B, pb)) for A, pa, B, pb in self.balls[k : k + len(lp.pairs)]]
+            dists = []
+            for cid in self.distances[n : n + len(lp.distances)]:
+                par = plant.GetDistanceConstraintParams(ctx, cid)
+                A, B = plant.get_body(par.bodyA()), plant.get_body(par.bodyB())
+                dists.append((at(A, par.p_AP()), at(B, par.p_BQ()), par.distance()))
+                if not (math.isinf(par.stiffness()) and par.damping() == 0):
+                    dists[-1] = (*dists[-1][:2], math.nan)  # compliant: not the joint
+            out[lp.label] = (pairs, dists)
+            k, n = k + len(lp.pairs), n + len(lp.distances)
+        return out
 
     def joint_world(self):
         points, axes = {}, {}
@@ -342,7 +382,7 @@ def read_back(dm: _Model, scenario) -> None:
     want("number of actuators", plant.num_actuators(), 0)
     want("number of collision geometries", plant.num_collision_geometries(), 0)
     want("number of constraints", plant.num_constraints(),
-         sum(len(lp.pairs) for lp in dm.loops))  # fmt: skip
+         sum(len(lp.pairs) + len(lp.distances) for lp in dm.loops))  # fmt: skip
     bad.raise_any("drake", scenario)
 
 
@@ -367,6 +407,7 @@ def assemble(scenario, pl: reduced.Plan, integrator: str, dt: float) -> _Model:
     x, R, v, W = dm.states()
     points, axes = dm.joint_world()
     reduced.check_states("drake", pl, x, R, v, W, points, axes)
+    reduced.check_loops("drake", pl, dm.loop_world())
     return dm
 
 
@@ -385,7 +426,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     reduced.check_settings("drake", settings)
     _import()
-    pl = reduced.plan(scenario, "drake", TREE_KINDS)
+    pl = reduced.plan(scenario, "drake", TREE_KINDS, reduced.DISTANCE_CLOSURES, REFUSED_CLOSURES)
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "
@@ -418,6 +459,10 @@ def build(scenario, integrator: str, dt: float, **settings):
             + (
                 "two AddBallConstraint on the hinge axis (6 equations for 5)"
                 if lp.kind == "revolute"
+                else "AddBallConstraint at the anchors and AddDistanceConstraint (rigid) "
+                f"holding the points {pl.length:.6g} m along each axis {pl.length * 2**0.5:.6g}"
+                " m apart (the axes perpendicular)"
+                if lp.distances
                 else "AddBallConstraint"
             )  # fmt: skip
             for lp in dm.loops

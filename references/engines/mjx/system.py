@@ -149,6 +149,10 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     with x64_mode(True):
         mx = mjx.put_model(m, impl="jax")
         dx = mjx.put_data(m, d, impl="jax")
+        # put_data's integer fields (a tendon's wrap addresses) are int32, step's int64 under
+        # x64: the loop's carry keeps the types step gives (a universal closure's tendon)
+        shapes = jax.eval_shape(mjx.step, mx, dx)
+        dx = jax.tree_util.tree_map(lambda a, s: a.astype(s.dtype), dx, shapes)
     read_back(m, mx, scenario)
     qpos, qvel = np.asarray(dx.qpos), np.asarray(dx.qvel)
     widths = {qpos.dtype.itemsize, qvel.dtype.itemsize, np.asarray(mx.body_mass).dtype.itemsize}

@@ -1,8 +1,11 @@
 """The MJCF document MuJoCo's system builder hands to MuJoCo: a body per body of the plan
 (its principal frame at its centre of mass, parented as the spanning tree says), each tree
 joint as MuJoCo's joints of its kind (:func:`parts`: a universal joint two hinges, a
-cylindrical one a hinge and a slide), each loop closure an ``equality connect`` with the
-builder's solref and solimp, and the integrator and step (:func:`model_xml`). The frames and
+cylindrical one a hinge and a slide), each point pair of a loop closure an ``equality
+connect`` between two sites and each held distance (a universal closure's) a spatial tendon
+between two sites with an ``equality tendon`` on its length (the length itself is set after
+compiling: :func:`hold_distances`), all with the builder's solref and solimp, and the
+integrator and step (:func:`model_xml`). The frames and
 the kinds are described in :mod:`references.engines.mujoco.system`."""
 
 from __future__ import annotations
@@ -56,7 +59,7 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
     for c in pl.order:
         children.setdefault(pl.tree[c].parent, []).append(c)
     sites: dict[int, list[str]] = {}
-    eqs = []
+    eqs, tendons = [], []
     for li, lp in enumerate(pl.loops):
         for pi, (pa, pb) in enumerate(lp.pairs):
             sa, sb = f"loop{li}_{pi}_a", f"loop{li}_{pi}_b"
@@ -64,6 +67,18 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
             sites.setdefault(lp.b, []).append(f'<site name="{sb}" pos="{_num(pb)}"/>')
             eqs.append(
                 f'<connect name="loop{li}_{pi}" site1="{sa}" site2="{sb}" '
+                f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
+            )
+        for di, (pa, pb, _) in enumerate(lp.distances):
+            sa, sb, tn = f"loop{li}_d{di}_a", f"loop{li}_d{di}_b", f"loop{li}_d{di}"
+            sites.setdefault(lp.a, []).append(f'<site name="{sa}" pos="{_num(pa)}"/>')
+            sites.setdefault(lp.b, []).append(f'<site name="{sb}" pos="{_num(pb)}"/>')
+            tendons.append(
+                f'<spatial name="{tn}" limited="false" stiffness="0" damping="0" '
+                f'frictionloss="0" armature="0"><site site="{sa}"/><site site="{sb}"/></spatial>'
+            )
+            eqs.append(
+                f'<tendon name="{tn}" tendon1="{tn}" polycoef="0 0 0 0 0" '
                 f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
             )
 
@@ -113,6 +128,8 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
 
     world = "\n".join([*sites.get(-1, []), *(text.pop(c) for c in children.get(-1, []))])
     equality = f"<equality>\n{chr(10).join(eqs)}\n</equality>" if eqs else ""
+    if tendons:
+        equality = f"<tendon>\n{chr(10).join(tendons)}\n</tendon>\n  {equality}"
     return f"""<mujoco model={quoteattr(str(scenario.name))}>
   <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>
   <option timestep="{dt!r}" gravity="{_num(pl.gravity)}" integrator="{integrator}"
@@ -124,3 +141,38 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
   </worldbody>
   {equality}
 </mujoco>"""
+
+
+def hold_distances(m, pl: reduced.Plan) -> None:
+    """Set each held distance on the compiled model: MuJoCo's tendon equality holds a tendon's
+    length at its length in the reference configuration qpos0 plus ``polycoef[0]``
+    (``eq_data[e, 0]``), so polycoef[0] = the distance - ``tendon_length0``. The equalities
+    are in :func:`model_xml`'s order: per loop its connects, then its tendons."""
+    e = t = 0
+    for lp in pl.loops:
+        e += len(lp.pairs)
+        for _, _, dist in lp.distances:
+            m.eq_data[e, 0] = float(dist) - float(m.tendon_length0[t])
+            e, t = e + 1, t + 1
+
+
+def loop_points(m, d, pl: reduced.Plan) -> dict:
+    """MuJoCo's loop constraints in the world (after ``mj_kinematics``): per closure label,
+    (the connects' two sites, the held distances' two sites and held length), the form
+    :func:`~references.engines.reduced.check_loops` takes."""
+    out, e, t = {}, 0, 0
+    for lp in pl.loops:
+        pairs = []
+        for _ in lp.pairs:
+            s1, s2 = m.eq_obj1id[e], m.eq_obj2id[e]
+            pairs.append((d.site_xpos[s1].copy(), d.site_xpos[s2].copy()))
+            e += 1
+        dists = []
+        for _ in lp.distances:
+            adr = m.tendon_adr[t]
+            s1, s2 = m.wrap_objid[adr], m.wrap_objid[adr + 1]
+            held = float(m.eq_data[e, 0] + m.tendon_length0[t])
+            dists.append((d.site_xpos[s1].copy(), d.site_xpos[s2].copy(), held))
+            e, t = e + 1, t + 1
+        out[lp.label] = (pairs, dists)
+    return out

@@ -42,9 +42,12 @@ body form of ``connect``, whose second anchor MuJoCo computes from the reference
 qpos0, which here is not the initial configuration). A revolute closure is two connects, at the
 anchors and at the anchors moved by ``ell`` (the system's length scale) along the hinge axis:
 six equations for the five a hinge imposes (the one along the axis is redundant; MuJoCo's soft,
-regularised constraints accept it). A prismatic, universal or cylindrical closure is
-unsupported. Connects are soft: ``solref`` (time constant, damping ratio) and ``solimp``,
-MuJoCo's defaults unless given (``solref=(0.002, 1)`` for a stiffer loop); MuJoCo raises a time
+regularised constraints accept it). A universal closure is a connect at the anchors and a
+spatial tendon between the points ``ell`` along each axis whose length an ``equality tendon``
+holds at ``ell sqrt 2`` (the axes perpendicular: four equations for four). A prismatic or
+cylindrical closure is unsupported (:data:`REFUSED_CLOSURES` says why). Connects and tendon
+equalities are soft: ``solref`` (time constant, damping ratio) and ``solimp``, MuJoCo's
+defaults unless given (``solref=(0.002, 1)`` for a stiffer loop); MuJoCo raises a time
 constant below two time steps to two time steps (the ``refsafe`` rule, left on): the settings
 record the requested and the effective value.
 
@@ -75,7 +78,7 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import reduced, timing
-from references.engines.mujoco.mjcf import mj_type, model_xml, parts
+from references.engines.mujoco.mjcf import hold_distances, loop_points, mj_type, model_xml, parts
 from references.engines.native import import_engine
 from references.engines.reduced import saves as _saves
 from references.engines.reduced import unit as _unit
@@ -133,12 +136,25 @@ def _import():
 TREE_KINDS = ("spherical", "fixed_point", "revolute", "prismatic", "universal", "cylindrical")
 
 
+#: why MuJoCo closes no loop of these kinds
+REFUSED_CLOSURES = dict.fromkeys(
+    ("prismatic", "cylindrical"),
+    "MuJoCo's equality constraints hold a point (connect), a whole pose (weld), a joint's or "
+    "a tendon's value (joint, tendon) or a flex; none leaves a relative translation free, and "
+    "a composition through an extra body with a slide joint needs that body to have mass "
+    "(MuJoCo refuses a massless moving body: 'mass and inertia of moving bodies must be "
+    "larger than mjMINVAL'), which would change the motion",
+)
+
+
 def plan(scenario) -> reduced.Plan:
     """The spanning tree, reference configuration and loop closures of ``scenario``: the plan
     of every reduced-coordinate builder (:func:`references.engines.reduced.plan`)
-    with every kind of :data:`TREE_KINDS` in the tree. Raises ``ValueError`` for malformed
-    joints, :class:`Unsupported` for a closure this builder cannot express."""
-    return reduced.plan(scenario, "mujoco", TREE_KINDS)
+    with every kind of :data:`TREE_KINDS` in the tree and a universal closure as a point and a
+    distance. Raises ``ValueError`` for malformed joints, :class:`Unsupported` for a closure
+    this builder cannot express."""
+    return reduced.plan(scenario, "mujoco", TREE_KINDS, reduced.DISTANCE_CLOSURES,
+                        REFUSED_CLOSURES)  # fmt: skip
 
 
 # -- consistency of the initial world states -----------------------------------------------------
@@ -309,14 +325,47 @@ def read_back(mujoco, m, scenario, pl: reduced.Plan, integrator: str, dt, solref
             bad.append(f"{name} {getattr(m, name).tolist()}: must be 0 (it distorts the motion)")
     if np.any(m.jnt_stiffness != 0):
         bad.append(f"jnt_stiffness {m.jnt_stiffness.tolist()}: must be 0")
-    if m.ngeom or m.nu or m.ntendon:
-        bad.append(f"geoms {m.ngeom}, actuators {m.nu}, tendons {m.ntendon}: must be 0")
+    ndist = sum(len(lp.distances) for lp in pl.loops)
+    if m.ngeom or m.nu or m.ntendon != ndist:
+        bad.append(f"geoms {m.ngeom}, actuators {m.nu}, tendons {m.ntendon}: must be 0, 0, "
+                   f"{ndist} (the loops' held distances)")  # fmt: skip
     npairs = sum(len(lp.pairs) for lp in pl.loops)
-    if m.neq != npairs:
-        bad.append(f"{m.neq} equality constraints, the loops need {npairs}")
-    else:
-        e = 0
+    if m.neq != npairs + ndist:
+        bad.append(f"{m.neq} equality constraints, the loops need {npairs + ndist}")
+    elif m.ntendon == ndist:
+        e = t = 0
         for lp in pl.loops:
+            b1, b2 = bid[lp.a], 0 if lp.b < 0 else bid[lp.b]
+            for di, (pa, pb, dist) in enumerate(lp.distances):
+                what = f"{lp.label}: distance {di}"
+                if m.eq_type[e + len(lp.pairs) + di] != mujoco.mjtEq.mjEQ_TENDON:
+                    bad.append(f"{what}: not a tendon equality")
+                ee = e + len(lp.pairs) + di
+                if m.eq_obj1id[ee] != t + di or m.eq_obj2id[ee] != -1:
+                    bad.append(f"{what}: the equality holds tendons {m.eq_obj1id[ee]}, "
+                               f"{m.eq_obj2id[ee]}, needs {t + di} alone")  # fmt: skip
+                want(f"{what}: held length (eq_data[0] + tendon_length0)",
+                     m.eq_data[ee, 0] + m.tendon_length0[t + di], dist, L)  # fmt: skip
+                want(f"{what}: polycoef 1..4", m.eq_data[ee, 1:5], np.zeros(4))
+                want(f"{what}: eq_solref", m.eq_solref[ee], solref)
+                want(f"{what}: eq_solimp", m.eq_solimp[ee], solimp)
+                k = t + di
+                adr = m.tendon_adr[k]
+                if m.tendon_num[k] != 2 or any(
+                    m.wrap_type[adr + i] != mujoco.mjtWrap.mjWRAP_SITE for i in range(2)
+                ):
+                    bad.append(f"{what}: the tendon is not a straight line between two sites")
+                    continue
+                s1, s2 = m.wrap_objid[adr], m.wrap_objid[adr + 1]
+                if m.site_bodyid[s1] != b1 or m.site_bodyid[s2] != b2:
+                    bad.append(f"{what}: its sites are on bodies {m.site_bodyid[[s1, s2]]}")
+                want(f"{what}: site on a", m.site_pos[s1], pa, L)
+                want(f"{what}: site on b", m.site_pos[s2], pb, L)
+                for f in ("tendon_stiffness", "tendon_damping", "tendon_frictionloss",
+                          "tendon_armature", "tendon_limited"):  # fmt: skip
+                    if np.any(np.asarray(getattr(m, f)[k]) != 0):
+                        bad.append(f"{what}: {f} {getattr(m, f)[k]}: must be 0")
+            t += len(lp.distances)
             for pi, (pa, pb) in enumerate(lp.pairs):
                 what = f"{lp.label}: connect {pi}"
                 if m.eq_type[e] != mujoco.mjtEq.mjEQ_CONNECT or m.eq_objtype[e] != int(
@@ -335,6 +384,10 @@ def read_back(mujoco, m, scenario, pl: reduced.Plan, integrator: str, dt, solref
                 want(f"{what}: eq_solimp", m.eq_solimp[e], solimp)
                 if not m.eq_active0[e]:
                     bad.append(f"{what}: inactive (eq_active0 false)")
+                e += 1
+            for di in range(len(lp.distances)):
+                if not m.eq_active0[e]:
+                    bad.append(f"{lp.label}: distance {di}: inactive (eq_active0 false)")
                 e += 1
     want("gravity", m.opt.gravity, pl.gravity)
     want("timestep", m.opt.timestep, dt)
@@ -462,6 +515,7 @@ def check_initial(mujoco, m, d, scenario, pl: reduced.Plan, bid: dict) -> None:
             f"mujoco: system {scenario.name!r}: MuJoCo's kinematics of the initial state differ "
             "from the scenario's world states (a frame, anchor or axis is wrong): " + "; ".join(bad)
         )
+    reduced.check_loops("mujoco", pl, loop_points(m, d, pl))
 
 
 # -- the run -------------------------------------------------------------------------------------
@@ -502,6 +556,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         m = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
         raise EngineError(f"mujoco: system {scenario.name!r} does not compile: {exc}") from exc
+    hold_distances(m, pl)
     bid = read_back(mujoco, m, scenario, pl, integrator, float(dt), solref, solimp)
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = initial_qpos_qvel(m, pl, bid)
@@ -528,6 +583,13 @@ def build(scenario, integrator: str, dt: float, **settings):
             f"{lp.label}: "
             + (
                 "one site-to-site connect at the anchors"
+                + (
+                    f", and a site-to-site spatial tendon between the points {pl.length:.6g} m "
+                    f"along each axis held at {pl.length * math.sqrt(2):.6g} m (equality "
+                    "tendon: the axes perpendicular)"
+                    if lp.distances
+                    else ""
+                )
                 if len(lp.pairs) == 1
                 else "two site-to-site connects, at the anchors and "
                 f"{pl.length:.6g} m along the hinge axis (6 equations for the hinge's 5; "

@@ -44,7 +44,7 @@ without them the loop drifts open; here Kp = omega^2, Kd = 2 omega (critical dam
 omega = ``baumgarte_omega`` (rad/s; default :data:`BAUMGARTE_FACTOR` times the system's frequency
 scale max(sqrt(|g| / L), V / L), L and V its length and rate scales), or ``baumgarte=(Kp, Kd)``
 given. The gains do not depend on dt, so that a sweep over dt integrates one system and shows
-the integrator's order. Other closures are unsupported.
+the integrator's order. Other closures are unsupported (:data:`REFUSED_CLOSURES` says why).
 
 Time stepping (Pinocchio has none; both loops are ours and drawn from Pinocchio's calls only):
 ``semi-implicit Euler``: v += h a(q, v); q = integrate(q, h v); quaternions renormalised
@@ -360,12 +360,31 @@ def _settings(kw: dict, pl: reduced.Plan):
     return gains, prox, rule
 
 
+#: why Pinocchio closes no loop of these kinds (its constraint models, pinocchio 4.1:
+#: RigidConstraintModel CONTACT_3D / CONTACT_6D, PointAnchorConstraintModel,
+#: FrameAnchorConstraintModel, JointLimitConstraintModel, JointFrictionConstraintModel)
+REFUSED_CLOSURES = {
+    "universal": "Pinocchio's constraint models hold a point (CONTACT_3D, "
+    "PointAnchorConstraintModel: 3 equations), a whole placement (CONTACT_6D, "
+    "FrameAnchorConstraintModel: 6) or one joint's coordinate (limits, friction); a universal "
+    "closure holds 4 (a point and the axes' right angle): one point holds 3, two points 5 (a "
+    "hinge), and Pinocchio has no distance or axis constraint",
+    **dict.fromkeys(
+        ("prismatic", "cylindrical"),
+        "Pinocchio's constraint models hold a point (CONTACT_3D, PointAnchorConstraintModel), "
+        "a whole placement (CONTACT_6D, FrameAnchorConstraintModel) or one joint's coordinate "
+        "(limits, friction); every one of them holds the relative translation at its point, "
+        "and a sliding closure leaves one free",
+    ),
+}
+
+
 def build(scenario, integrator: str, dt: float, **settings):
     """(_Model, q0, v0, settings record) of ``scenario``: planned, built, read back, with the
     initial state checked against Pinocchio's kinematics."""
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     pin = _import()
-    pl = reduced.plan(scenario, "pinocchio", TREE_KINDS)
+    pl = reduced.plan(scenario, "pinocchio", TREE_KINDS, refused=REFUSED_CLOSURES)
     gains, prox, gain_rule = _settings(settings, pl)
     pm = _Model(pin, pl, float(dt), gains, prox)
     read_back(pm, scenario, gains, prox)

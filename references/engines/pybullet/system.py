@@ -87,6 +87,19 @@ from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
 INTEGRATORS = ("multibody", "maximal coordinates")
+#: why PyBullet closes no loop of these kinds (createConstraint's joint types on multibodies:
+#: JOINT_POINT2POINT, JOINT_FIXED, JOINT_GEAR, JOINT_PRISMATIC)
+REFUSED_CLOSURES = {
+    "universal": "PyBullet's user constraints are point-to-point (3 equations), fixed (6), "
+    "gear (1: two joints' rates) and prismatic (5); a universal closure holds a point and the "
+    "axes' right angle (4), and PyBullet has no universal or distance constraint",
+    "prismatic": "not built by this adapter (PyBullet has a prismatic user constraint "
+    "(createConstraint JOINT_PRISMATIC, btMultiBodySliderConstraint), which this builder does "
+    "not yet add)",
+    "cylindrical": "PyBullet's user constraints are point-to-point, fixed, gear and prismatic; "
+    "none leaves a rotation and a translation about one axis free",
+}
+
 #: error reduction parameter of the loop closures: Bullet's default global erp (shown in the
 #: tests by a run that leaves it unset)
 DEFAULT_ERP = 0.2
@@ -457,6 +470,20 @@ def _constraint_record(bm: _Model) -> list:
     return out
 
 
+def _loop_world(bm: _Model, x, R) -> dict:
+    """The point-to-point constraints as PyBullet holds them (getConstraintInfo's pivots, in
+    each link's COM frame, the world for the ground), placed by PyBullet's link states (x, R)
+    at t = 0: the form of :func:`~references.engines.reduced.check_loops`."""
+    p, cid, pl = bm.p, bm.cid, bm.pl
+    out: dict = {lp.label: ([], []) for lp in pl.loops}
+    for lp, cons, *_ in bm.constraints:
+        info = p.getConstraintInfo(cons, physicsClientId=cid)
+        pa = x[lp.a] + R[lp.a] @ np.asarray(info[6], float)
+        pb = np.asarray(info[7], float) if lp.b < 0 else x[lp.b] + R[lp.b] @ np.asarray(info[7])
+        out[lp.label][0].append((pa, pb))
+    return out
+
+
 def _check_constraints(bm: _Model, erp: float, max_force: float) -> None:
     p, cid = bm.p, bm.cid
     bad = []
@@ -495,7 +522,8 @@ def build(scenario, integrator: str, dt: float, **settings):
             "of jointed bodies is not built there"
         )
     p = _import()
-    pl = reduced.plan(scenario, "pybullet", (*reduced.SLIDING_KINDS, "universal"))
+    pl = reduced.plan(scenario, "pybullet", (*reduced.SLIDING_KINDS, "universal"),
+                      refused=REFUSED_CLOSURES)  # fmt: skip
     bm = _Model(p, pl, float(dt))
     try:
         read_back(bm, scenario, float(dt))
@@ -506,6 +534,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         reduced.check_states("pybullet", pl, x, R, v, W, points, axes)
         bm.add_loops(erp, max_force)
         _check_constraints(bm, erp, max_force)
+        reduced.check_loops("pybullet", pl, _loop_world(bm, x, R))
     except Exception:
         p.disconnect(physicsClientId=bm.cid)
         raise
