@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from reports.metrics.catalog import METRIC_SHORT  # noqa: F401  (short names in verdict texts)
-from reports.store.format import fmt, fmt_level, fmt_step, num, truthy
+from reports.store.format import fmt, fmt_cost, fmt_level, fmt_step, num, truthy
 from reports.store.results import is_reference_record, reference_rows
 
 #: integrator families in the order tables and the scorecard show them; the reference's
@@ -154,3 +154,40 @@ def fmt_order(row) -> str:
         return "-"
     n = num(row.get("convergence_points"))
     return fmt(o) if math.isnan(n) else f"{fmt(o)} ({int(n)} pts)"
+
+
+#: a symbol per outcome, so that the Markdown scorecard reads at a glance without colour
+SYMBOL = {
+    "pass": "✅",
+    "fail": "❌",
+    "diverged": "💥",
+    "error": "⚠️",
+    "reference-inaccurate": "❔",
+    "unsupported": "➖",
+    "unavailable": "➖",
+    "ok": "✅",
+}
+
+
+def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
+    """(outcome, members, figures, failing) of a scorecard entry: members as (configuration,
+    its time inside the engine per step), every configuration named in full (engine and
+    integrator); figures: short pieces, each kept on one line; failing: the metrics out of
+    bounds (empty unless the verdict is fail)."""
+    who = [(config_label(r), fmt_cost(r.get("engine_ns_per_step"))) for r in g.rows]
+    fr = g.figure_row()
+    out = g.outcome
+    if out == "diverged":
+        return out, who, [f"diverged at t = {fmt(fr['t_diverged'])} s"], ""
+    if out == "error":
+        return out, who, ["error"], ""
+    if out == "reference-inaccurate":
+        return out, who, ["reference too coarse to judge"], ""
+    figs = [f"{fmt_attitude(fr)} rad", f"E {fmt(fr['energy_drift_max'])}"]
+    if (q := fmt_joint_angle(fr)) is not None:  # a system of bodies with joints
+        figs.insert(1, f"q {q} rad")
+    failing = ""
+    if out == "fail":
+        names = [METRIC_SHORT.get(m, m) for m in failed_metrics(g.first["verdict_detail"])]
+        failing = ", ".join(names)
+    return out, who, figs, failing

@@ -21,12 +21,12 @@ from reports.report.importers import importer_section
 from reports.report.labels import (
     METRIC_SHORT,
     NOT_RUN,
+    SYMBOL,
     config_label,
     engine_key,
-    failed_metrics,
+    entry_texts,
     family_key,
     fmt_attitude,
-    fmt_joint_angle,
     fmt_order,
 )
 from reports.report.plots import rates_left_out
@@ -45,7 +45,7 @@ from reports.report.tables import (
     work_precision,
 )
 from reports.run.importers import read_table
-from reports.store.format import fmt, fmt_cost, fmt_int, fmt_level, fmt_step, md_cell
+from reports.store.format import fmt, fmt_int, fmt_level, fmt_step, md_cell
 from reports.store.results import records, reference_rows
 
 #: column titles of the metrics, with units (no character GitHub's tables would split on), in
@@ -62,43 +62,6 @@ MARK = {
     "reference-inaccurate": "?",
     "ok": "✓",
 }
-
-
-#: a symbol per outcome, so that the Markdown scorecard reads at a glance without colour
-SYMBOL = {
-    "pass": "✅",
-    "fail": "❌",
-    "diverged": "💥",
-    "error": "⚠️",
-    "reference-inaccurate": "❔",
-    "unsupported": "➖",
-    "unavailable": "➖",
-    "ok": "✅",
-}
-
-
-def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
-    """(outcome, members, figures, failing) of a scorecard entry: members as (configuration,
-    its time inside the engine per step), every configuration named in full (engine and
-    integrator); figures: short pieces, each kept on one line; failing: the metrics out of
-    bounds (empty unless the verdict is fail)."""
-    who = [(config_label(r), fmt_cost(r.get("engine_ns_per_step"))) for r in g.rows]
-    fr = g.figure_row()
-    out = g.outcome
-    if out == "diverged":
-        return out, who, [f"diverged at t = {fmt(fr['t_diverged'])} s"], ""
-    if out == "error":
-        return out, who, ["error"], ""
-    if out == "reference-inaccurate":
-        return out, who, ["reference too coarse to judge"], ""
-    figs = [f"{fmt_attitude(fr)} rad", f"E {fmt(fr['energy_drift_max'])}"]
-    if (q := fmt_joint_angle(fr)) is not None:  # a system of bodies with joints
-        figs.insert(1, f"q {q} rad")
-    failing = ""
-    if out == "fail":
-        names = [METRIC_SHORT.get(m, m) for m in failed_metrics(g.first["verdict_detail"])]
-        failing = ", ".join(names)
-    return out, who, figs, failing
 
 
 #: what the figures of a scorecard entry are (the legend above the scorecard, the tooltips)

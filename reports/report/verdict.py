@@ -11,8 +11,14 @@ tables) follows, collapsed in report.md.
 from __future__ import annotations
 
 from reports.report.doc import Cell, Doc, num
-from reports.report.labels import NOT_RUN, family_key, fmt_attitude, fmt_joint_angle
-from reports.report.sections import SYMBOL, entry_texts
+from reports.report.labels import (
+    NOT_RUN,
+    SYMBOL,
+    entry_texts,
+    family_key,
+    fmt_attitude,
+    fmt_joint_angle,
+)
 from reports.report.tables import at_scenario_dt, scenarios_of
 from reports.store.format import fmt, fmt_step, md_cell
 from reports.store.results import reference_rows
