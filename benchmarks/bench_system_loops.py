@@ -1,69 +1,112 @@
-"""Per-step cost of the director model's RATTLE schemes on closed loops against an open chain
-of as many bodies, before and after the pivoted factorisations, in one interleaved run.
+"""Per-step cost of the director model's RATTLE schemes on closed loops against open chains of
+as many bodies, this checkout against another one (``--before``, e.g. a git worktree of main),
+in one interleaved run.
 
 Systems: the library's ``four_bar`` (3 bodies, 20 joint rows of rank 17, through its singular
-configuration) and ``bricard`` (5 bodies, 30 rows of rank 29), and open chains of 3, 4 and 5
-rods hanging from a ball joint (director_model.system.examples.rod_chain: ball joints, the
-block solver). Solvers on the loops: ``svd`` (the SVD of both multiplier matrices at every
-sub-step: the code before) and ``minnorm`` (LU with complete pivoting and L D L^T with
-diagonal pivoting, the SVD only where a kept pivot falls below 1e-8 of the first). Schemes:
-rattle, rattle4, rattle6 at dt = 1e-3 s.
+configuration) and ``bricard`` (5 bodies, 30 rows of rank 29) with the loop solver
+("minnorm"), and open chains of 3, 4 and 5 rods hanging from a ball joint
+(director_model.system.examples.rod_chain: ball joints, the block solver). With ``--svd``
+the loops also with the SVD at every solve ("svd"). Schemes: rattle, rattle4, rattle6 at
+dt = 1e-3 s, from the initial state.
 
-Timing: thread CPU time (``time.thread_time``, the stepper's own figure: the compiled stepping
-alone) of ``--steps`` steps, the configurations taken in turn and the round repeated
-``--repeats`` times, the best kept (interleaving spreads the machine's load over all of them
-alike). Printed: ns per step, the loop's ratio to the open chain of as many bodies (the goal
-of issue 32: within 3x), and after/before. The first call of each configuration (compilation,
-cache load) is outside the timing.
+Each checkout runs in a worker process of its own (this script with ``--worker``, the
+checkout first on PYTHONPATH), so that two versions of the same package can be timed side by
+side. Timing: thread CPU time (``time.thread_time`` inside the stepper, the compiled stepping
+alone) of ``--steps`` steps; the workers are asked in turn, configuration by configuration,
+and the round repeated ``--repeats`` times, the best kept (interleaving spreads the machine's
+load over all of them alike). The first call of each configuration (compilation, cache load)
+is outside the timing. Printed: ns per step, the loop's ratio to the open chain of as many
+bodies of the same checkout (the goal of issue 32: within 3x), and before / after.
 
-    python benchmarks/bench_system_loops.py              # 2000 steps, 5 rounds
-    python benchmarks/bench_system_loops.py --quick      # 300 steps, 3 rounds
+    python benchmarks/bench_system_loops.py                          # this checkout only
+    python benchmarks/bench_system_loops.py --before /tmp/main-wt    # against another
+    python benchmarks/bench_system_loops.py --quick                  # 300 steps, 3 rounds
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
-
-import numpy as np
-
-import scenarios
-from director_model.system import Body, Joint, SystemStepper
-from director_model.system.examples import rod_chain
+import subprocess
+import sys
+from pathlib import Path
 
 SCHEMES = ("rattle", "rattle4", "rattle6")
+ROOT = Path(__file__).resolve().parent.parent
 
 
-def from_scenario(name: str):
-    """(bodies, joints, gravity) of a library system as director_model.system objects."""
+def configs(svd: bool):
+    """(label, number of bodies) of every timed configuration."""
+    out = []
+    for name, nb in (("four_bar", 3), ("bricard", 5)):
+        for solver in ("minnorm", "svd") if svd else ("minnorm",):
+            out.append((f"{name} {solver}", nb))
+    out += [(f"chain{n}", n) for n in (3, 4, 5)]
+    return out
+
+
+def _build(label: str):
+    """(bodies, joints, gravity, solver) of a configuration, with the importing checkout's
+    own code (in the worker)."""
+    import scenarios
+    from director_model.system import Body, Joint
+    from director_model.system.examples import rod_chain
+
+    if label.startswith("chain"):
+        b, j = rod_chain(int(label[5:]), True, seed=1)
+        return b, j, (0.0, 0.0, -9.81), "auto"
+    name, solver = label.split()
     sc = scenarios.load(name)
     bodies = [Body(b.name, b.mass, b.inertia, b.position, b.rotation, b.velocity,
                    b.omega_body) for b in sc.bodies]  # fmt: skip
     joints = [Joint(j.kind, j.body_a, j.body_b, j.anchor_a, j.anchor_b, j.axis_a, j.axis_b,
                     name=j.name) for j in sc.joints]  # fmt: skip
-    return bodies, joints, tuple(sc.gravity)
+    return bodies, joints, tuple(sc.gravity), solver
 
 
-def configs():
-    """(label, nbodies, bodies, joints, gravity, solver) of every timed configuration."""
-    out = []
-    for name in ("four_bar", "bricard"):
-        b, j, g = from_scenario(name)
-        for solver in ("svd", "minnorm"):
-            out.append((f"{name} {solver}", len(b), b, j, g, solver))
-    for n in (3, 4, 5):
-        b, j = rod_chain(n, True, seed=1)
-        out.append((f"chain{n}", n, b, j, (0.0, 0.0, -9.81), "auto"))
-    return out
+def worker() -> int:
+    """Answer one JSON request a line on stdin ({"label", "scheme", "steps"}) with the thread
+    CPU time per step in ns ({"ns"}) on stdout."""
+    from director_model.system import SystemStepper
+
+    built = {}
+    for line in sys.stdin:
+        req = json.loads(line)
+        if req["label"] not in built:
+            built[req["label"]] = _build(req["label"])
+        bodies, joints, g, solver = built[req["label"]]
+        st = SystemStepper(bodies, joints, gravity=g, scheme=req["scheme"], dt=1e-3,
+                           solver=solver)  # fmt: skip
+        tr = st.advance(req["steps"], save_every=req["steps"])
+        print(json.dumps({"ns": tr.cpu_time_s / req["steps"] * 1e9}), flush=True)
+    return 0
 
 
-def time_one(cfg, scheme: str, steps: int) -> float:
-    """Thread CPU time per step (ns) of ``steps`` steps from the initial state."""
-    _, _, bodies, joints, g, solver = cfg
-    st = SystemStepper(bodies, joints, gravity=g, scheme=scheme, dt=1e-3, solver=solver)
-    tr = st.advance(steps, save_every=steps)
-    return tr.cpu_time_s / steps * 1e9
+class Worker:
+    """A worker process importing the checkout at ``root``."""
+
+    def __init__(self, root: Path):
+        if not (root / "director_model" / "system").is_dir():
+            raise SystemExit(f"--before {root}: not a checkout of director-bench (no "
+                             "director_model/system there)")  # fmt: skip
+        env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+        self.p = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker"],
+                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                  env=env, cwd=str(root))  # fmt: skip
+
+    def time(self, label: str, scheme: str, steps: int) -> float:
+        self.p.stdin.write(json.dumps({"label": label, "scheme": scheme, "steps": steps}) + "\n")
+        self.p.stdin.flush()
+        line = self.p.stdout.readline()
+        if not line:
+            raise SystemExit(f"the worker stopped at {label} {scheme} (exit {self.p.wait()})")
+        return json.loads(line)["ns"]
+
+    def close(self):
+        self.p.stdin.close()
+        self.p.wait()
 
 
 def main(argv=None) -> int:
@@ -71,35 +114,52 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--before", type=Path, help="another checkout to time alongside this one")
+    ap.add_argument("--svd", action="store_true", help="also the loops with solver='svd'")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    if a.worker:
+        return worker()
     if a.quick:
         a.steps, a.repeats = 300, 3
-    cfgs = configs()
-    for cfg in cfgs:  # compile or load every kernel first
-        for scheme in SCHEMES:
-            time_one(cfg, scheme, 2)
-    best = {(c[0], s): np.inf for c in cfgs for s in SCHEMES}
-    for _ in range(a.repeats):
-        for scheme in SCHEMES:
-            for cfg in cfgs:
-                best[(cfg[0], scheme)] = min(best[(cfg[0], scheme)], time_one(cfg, scheme, a.steps))
+    cfgs = configs(a.svd)
+    versions = {"after": Worker(ROOT)}
+    if a.before is not None:
+        versions = {"before": Worker(a.before.resolve()), **versions}
+    try:
+        for w in versions.values():  # compile or load every kernel first
+            for label, _ in cfgs:
+                for scheme in SCHEMES:
+                    w.time(label, scheme, 2)
+        best = {}
+        for _ in range(a.repeats):
+            for scheme in SCHEMES:
+                for label, _ in cfgs:
+                    for v, w in versions.items():
+                        t = w.time(label, scheme, a.steps)
+                        best[(v, label, scheme)] = min(best.get((v, label, scheme), t), t)
+    finally:
+        for w in versions.values():
+            w.close()
     print(f"# {platform.processor() or platform.machine()}, load {os.getloadavg()[0]:.1f}, "
-          f"{a.steps} steps, best of {a.repeats} interleaved rounds, thread CPU time")  # fmt: skip
-    print("| system | bodies | solver | " + " | ".join(f"{s} ns/step" for s in SCHEMES)
+          f"{a.steps} steps, best of {a.repeats} interleaved rounds, thread CPU time; "
+          f"before = {a.before}, after = {ROOT}")  # fmt: skip
+    print("| system | bodies | solver | code | " + " | ".join(f"{s} ns/step" for s in SCHEMES)
           + " | " + " | ".join(f"{s} / chain" for s in SCHEMES) + " |")  # fmt: skip
-    print("|---" * (3 + 2 * len(SCHEMES)) + "|")
-    for label, nb, *_rest in cfgs:
-        chain = f"chain{nb}"
-        cells = [f"{best[(label, s)]:.0f}" for s in SCHEMES]
-        ratio = [f"{best[(label, s)] / best[(chain, s)]:.1f}x" for s in SCHEMES]
+    print("|---" * (4 + 2 * len(SCHEMES)) + "|")
+    for label, nb in cfgs:
         name, _, solver = label.partition(" ")
-        print(f"| {name} | {nb} | {solver or 'auto (block)'} | " + " | ".join(cells) + " | "
-              + " | ".join(ratio) + " |")  # fmt: skip
-    print()
-    for name in ("four_bar", "bricard"):
-        r = [best[(f"{name} svd", s)] / best[(f"{name} minnorm", s)] for s in SCHEMES]
-        print(f"{name}: before / after = " + ", ".join(f"{s} {x:.1f}x" for s, x in
-                                                      zip(SCHEMES, r, strict=True)))  # fmt: skip
+        for v in versions:
+            cells = [f"{best[(v, label, s)]:.0f}" for s in SCHEMES]
+            ratio = [f"{best[(v, label, s)] / best[(v, f'chain{nb}', s)]:.1f}x" for s in SCHEMES]
+            print(f"| {name} | {nb} | {solver or 'auto (block)'} | {v} | " + " | ".join(cells)
+                  + " | " + " | ".join(ratio) + " |")  # fmt: skip
+    if "before" in versions:
+        print()
+        for label, _ in cfgs:
+            r = [best[("before", label, s)] / best[("after", label, s)] for s in SCHEMES]
+            print(f"{label}: before / after = " + ", ".join(
+                f"{s} {x:.2f}x" for s, x in zip(SCHEMES, r, strict=True)))  # fmt: skip
     return 0
 
 

@@ -24,9 +24,13 @@ first iterate,
 
 assembled row pair by row pair over the rows that share a body (block tridiagonal for a
 chain: solved by banded LU without pivoting, cost linear in the number of bodies; for chains
-of spherical joints assembled and eliminated as 3x3 blocks in straight-line code), or dense
-with a rank-revealing SVD and the minimum-norm solution (closed loops, redundant rows). The
-velocity stage solves the symmetric positive definite system
+of spherical joints assembled and eliminated as 3x3 blocks in straight-line code). Closed
+loops (redundant rows) are factorised in the same band, with the joints ordered along the
+loops (model.band_order), rank-revealing in the row order: the velocity stage's L D L^T drops
+each row dependent on the rows before it, the Newton matrix's LU drops the same rows (a basic
+solution: the joint forces are those of the minimum-norm one), and where a kept pivot is
+small (near a singular configuration) the matrix goes to a dense SVD and the minimum-norm
+solution. The velocity stage solves the symmetric positive semi-definite system
 sum_i G_i blockdiag(1/m_i, D I^-1 D^T) G_i^T nu = G u0 for the multipliers of
 G(q_{n+1}) u_{n+1} = 0, by banded L D L^T (upper band) or the same SVD.
 
@@ -95,15 +99,18 @@ QUAT_SHRINK = 2.0**-64
 #: sigma ~ 1e-16 sigma_1; a configuration 1e-12 away from a singular one keeps its direction,
 #: so Newton still closes the constraints there)
 SOLVE_TOL = 1e-14
-#: the pivoted factorisations (complete-pivoting LU of the Newton matrix, diagonally pivoted
-#: L D L^T of the velocity stage's) reveal the rank by their pivots; where the last kept pivot
-#: falls below PIVOT_CHECK times the first (a configuration near a singular one, where rank
-#: and null space are no longer plain to see) the matrix is decomposed by SVD instead, as
-#: every matrix was before (about 1/7 of the cost of a 20 x 20 SVD on the four-bar)
+#: the loop solver's banded factorisations reveal the rank in the row order: the pivot of
+#: row k over its diagonal entry before elimination is the squared sine of the angle between
+#: row k of G and the rows kept before it (M^-1 metric). A redundant row's ratio is rounding:
+#: each update of a_kk adds at most ~eps a_kk (the updates l_kj^2 d_j sum to at most a_kk),
+#: so over the band (<= 2 bw + 1 of them) at most ~2 bw eps with bw ~ 10..50, ~1e-14; rows
+#: below DROP_TOL = 1e-12 (a factor 100 over that) are dropped. A ratio between DROP_TOL and
+#: PIVOT_CHECK (an angle below 1e-4 rad: near a singular configuration, where rank and null
+#: space are no longer plain to see) sends the matrix to the SVD instead
+DROP_TOL = 1e-10
 PIVOT_CHECK = 1e-8
-#: ``minnorm`` modes of the kernel: 0 block or banded, 1 pivoted with the SVD where a pivot
-#: ratio drops, 2 the SVD at every solve (the ``svd`` solver: the former minnorm, kept to
-#: compare)
+#: ``minnorm`` modes of the kernel: 0 block or banded, 1 banded rank-revealing with the SVD
+#: where a pivot ratio drops, 2 the SVD at every solve (the ``svd`` solver, kept to compare)
 MODE_PIVOTED = 1
 MODE_SVD = 2
 
@@ -134,7 +141,8 @@ D_RANKDROP = 1  # steps whose velocity-stage matrix lost rank below the nominal 
 D_SMIN = 2  # smallest sigma_{rank_nominal} / sigma_1 of that matrix (minnorm solver)
 D_TSMIN = 3  # step index where it occurred
 D_MAXIT = 4  # largest iteration count of one substep
-NDIAG = 5
+D_SVD = 5  # factorisations done by SVD (loop solver: a pivot ratio below PIVOT_CHECK)
+NDIAG = 6
 
 
 @njit(forceinline=True)
@@ -432,7 +440,8 @@ def _ext(fint, fvec, X, D, V, Wd, FE, TE):
 def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
     """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
     (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]; with ``upper`` only the
-    entries s >= r (a symmetric A, JL = JR and Mth symmetric)."""
+    entries s >= r (a symmetric A, JL = JR and Mth symmetric; the rows of a body are listed
+    in increasing order, model.assemble)."""
     _zero2(A)
     nb = ptr.shape[0] - 1
     for i in range(nb):
@@ -447,10 +456,8 @@ def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
             l3 = t0 * Mth[i, 0] + t1 * Mth[i, 3] + t2 * Mth[i, 6]
             l4 = t0 * Mth[i, 1] + t1 * Mth[i, 4] + t2 * Mth[i, 7]
             l5 = t0 * Mth[i, 2] + t1 * Mth[i, 5] + t2 * Mth[i, 8]
-            for e2 in range(ptr[i], ptr[i + 1]):
+            for e2 in range(e1 if upper else ptr[i], ptr[i + 1]):
                 s = idx[e2]
-                if upper and s < r:
-                    continue
                 o2 = 6 * side[e2]
                 v = (
                     l0 * JR[s, o2] + l1 * JR[s, o2 + 1] + l2 * JR[s, o2 + 2]
@@ -595,160 +602,154 @@ def _svd_solve(U, s, Vt, rank, b, x):
 
 
 @njit(forceinline=True)
-def _copy2(A, B):
-    """B[:] = A for square arrays (loops: see the module docstring on slice stores)."""
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(n):
-            B[i, j] = A[i, j]
+def _envelope(ptr, idx, n, ext):
+    """ext[r] = the last row s >= r sharing a body with row r or with a row before it (non-
+    decreasing, so that the eliminations below fill nothing beyond it): the envelope of the
+    multiplier matrices, whose entry (r, s) is nonzero only for rows sharing a body. For a
+    loop of joints listed along it (blocks of rows, each sharing a body with the next) ext[r]
+    is the end of the next joint's rows: about 2/3 of the band of a block tridiagonal matrix."""
+    for r in range(n):
+        ext[r] = r
+    for i in range(ptr.shape[0] - 1):
+        hi = -1
+        for e in range(ptr[i], ptr[i + 1]):
+            hi = max(hi, idx[e])
+        for e in range(ptr[i], ptr[i + 1]):
+            ext[idx[e]] = max(ext[idx[e]], hi)
+    for r in range(1, n):
+        ext[r] = max(ext[r], ext[r - 1])
 
 
-@njit
-def _lucp_factor(A, pr, pc, rank_tol, out):
-    """In-place LU with complete pivoting of the square A: rows and columns permuted so that
-    each pivot is the largest remaining entry, A = P^T L U Q^T (pr[k], pc[k]: the original row
-    and column at position k; L unit lower, U upper, in A). Stops at the first pivot below
-    rank_tol times the first: returns that rank; out[0] = the last kept pivot over the first
-    (1 for rank 0), the rank-revealing ratio checked against PIVOT_CHECK. Returns -1 if A is
-    not finite."""
+@njit(forceinline=True)
+def _band_lu_rr(A, bw, ext, keep, out):
+    """In-place LU without pivoting of the banded A (n, 2 bw + 1), A[r, bw + s - r], within
+    the envelope ``ext`` (:func:`_envelope`), in the row order, over the rows with keep[k] = 1
+    (the others dropped: their unknowns 0, their equations taken as consistent; the pattern
+    of the velocity stage's :func:`_band_ldl_rr` at the sub-step's start). Returns 1 where a
+    kept pivot |u_kk| falls below PIVOT_CHECK times the largest diagonal entry (near a
+    singular configuration: the caller decomposes by SVD instead), -1 on a non-finite entry,
+    else 0; out[0] = the smallest kept pivot over that entry, out[1] = the rows kept."""
     n = A.shape[0]
-    for i in range(n):
-        pr[i] = i
-        pc[i] = i
-        for j in range(n):
-            if not abs(A[i, j]) < math.inf:
-                return -1
-    first = 0.0
-    rank = n
-    out[0] = 1.0
+    dmax = 0.0
+    tot = 0.0
     for k in range(n):
-        best = -1.0
-        bi = k
-        bj = k
-        for i in range(k, n):
-            for j in range(k, n):
-                v = abs(A[i, j])
-                if v > best:
-                    best = v
-                    bi = i
-                    bj = j
-        if k == 0:
-            first = best
-        if not best > rank_tol * first or not first > 0.0:
-            rank = k
-            break
-        out[0] = best / first
-        if bi != k:
-            for j in range(n):
-                A[k, j], A[bi, j] = A[bi, j], A[k, j]
-            pr[k], pr[bi] = pr[bi], pr[k]
-        if bj != k:
-            for i in range(n):
-                A[i, k], A[i, bj] = A[i, bj], A[i, k]
-            pc[k], pc[bj] = pc[bj], pc[k]
-        p = A[k, k]
-        for i in range(k + 1, n):
-            f = A[i, k] / p
-            A[i, k] = f
-            if f != 0.0:
-                for j in range(k + 1, n):
-                    A[i, j] -= f * A[k, j]
-    return rank
+        for j in range(2 * bw + 1):
+            tot += A[k, j]
+        dmax = max(dmax, abs(A[k, bw]))
+    if not abs(tot) < math.inf:
+        return -1
+    rmin = 1.0
+    nk = 0
+    for k in range(n):
+        e = ext[k] + 1
+        if keep[k] == 0:
+            for i in range(k + 1, e):
+                A[i, bw + k - i] = 0.0
+            continue
+        piv = A[k, bw]
+        if not abs(piv) >= PIVOT_CHECK * dmax:
+            return 1
+        rmin = min(rmin, abs(piv) / dmax)
+        nk += 1
+        ip = 1.0 / piv
+        for i in range(k + 1, e):
+            li = A[i, bw + k - i] * ip
+            A[i, bw + k - i] = li
+            if li != 0.0:
+                for j in range(k + 1, e):
+                    A[i, bw + j - i] -= li * A[k, bw + j - k]
+    out[0] = rmin
+    out[1] = nk
+    return 0
 
 
-@njit
-def _lucp_solve(A, pr, pc, rank, b, x, y):
-    """A basic solution of A x = b from :func:`_lucp_factor` (rank ``rank``): the leading
-    rank x rank system, the other unknowns 0 (the rows beyond the rank are taken as
-    consistent: redundant joint rows). ``y`` (n,) is work space."""
-    n = x.shape[0]
-    for k in range(rank):
-        t = b[pr[k]]
-        for j in range(k):
-            t -= A[k, j] * y[j]
-        y[k] = t
-    for k in range(rank - 1, -1, -1):
-        t = y[k]
-        for j in range(k + 1, rank):
-            t -= A[k, j] * y[j]
-        y[k] = t / A[k, k]
-    for j in range(n):
-        x[j] = 0.0
-    for k in range(rank):
-        x[pc[k]] = y[k]
-
-
-@njit
-def _ldlp_factor(A, pr, rank_tol, out):
-    """In-place L D L^T with diagonal pivoting of the symmetric positive semi-definite A (the
-    velocity stage's G M^-1 G^T): at each step the largest remaining diagonal entry is the
-    pivot (a symmetric permutation, pr[k] the original index at position k); L unit lower
-    below the diagonal, D on it. Stops at the first pivot below rank_tol times the first:
-    returns that rank, out[0] the last kept pivot over the first; -1 if A is not finite."""
+@njit(forceinline=True)
+def _band_solve_rr(A, bw, ext, keep, b, x):
+    """The basic solution x of A x = b from :func:`_band_lu_rr` (x_k = 0 for a dropped k)."""
     n = A.shape[0]
     for i in range(n):
-        pr[i] = i
-        for j in range(n):
-            if not abs(A[i, j]) < math.inf:
-                return -1
-    first = 0.0
-    rank = n
-    out[0] = 1.0
+        x[i] = b[i]
     for k in range(n):
-        best = -math.inf
-        bi = k
-        for i in range(k, n):
-            if A[i, i] > best:
-                best = A[i, i]
-                bi = i
-        if k == 0:
-            first = best
-        if not best > rank_tol * first or not first > 0.0:
-            rank = k
-            break
-        out[0] = best / first
-        if bi != k:
-            for j in range(n):
-                A[k, j], A[bi, j] = A[bi, j], A[k, j]
-            for i in range(n):
-                A[i, k], A[i, bi] = A[i, bi], A[i, k]
-            pr[k], pr[bi] = pr[bi], pr[k]
-        d = A[k, k]
-        for i in range(k + 1, n):
-            vi = A[i, k]
-            if vi != 0.0:
-                f = vi / d
-                for j in range(k + 1, i + 1):
-                    A[i, j] -= f * A[j, k]
-        for i in range(k + 1, n):
-            A[i, k] /= d
-        # keep the trailing block symmetric (its upper part is read by the pivot swaps)
-        for i in range(k + 1, n):
-            for j in range(k + 1, i):
-                A[j, i] = A[i, j]
-    return rank
+        xk = x[k]
+        for i in range(k + 1, ext[k] + 1):
+            x[i] -= A[i, bw + k - i] * xk
+    for i in range(n - 1, -1, -1):
+        if keep[i] == 0:
+            x[i] = 0.0
+            continue
+        t = x[i]
+        for j in range(i + 1, ext[i] + 1):
+            t -= A[i, bw + j - i] * x[j]
+        x[i] = t / A[i, bw]
 
 
-@njit
-def _ldlp_solve(A, pr, rank, b, x, y):
-    """A basic solution of A x = b from :func:`_ldlp_factor` (the leading rank block)."""
-    n = x.shape[0]
-    for k in range(rank):
-        t = b[pr[k]]
-        for j in range(k):
-            t -= A[k, j] * y[j]
-        y[k] = t
-    for k in range(rank):
-        y[k] /= A[k, k]
-    for k in range(rank - 1, -1, -1):
-        t = y[k]
-        for j in range(k + 1, rank):
-            t -= A[j, k] * y[j]
-        y[k] = t
-    for j in range(n):
-        x[j] = 0.0
-    for k in range(rank):
-        x[pr[k]] = y[k]
+@njit(forceinline=True)
+def _band_ldl_rr(A, bw, ext, keep, d0, out):
+    """In-place L D L^T of the symmetric positive semi-definite banded A (upper band stored,
+    as :func:`_band_ldl`) within the envelope ``ext``, in the row order, rank-revealing: a
+    row whose pivot d_k is at most DROP_TOL times its diagonal entry a_kk before elimination
+    (d_k / a_kk: the squared sine of the angle between row k of G and the rows kept before
+    it, metric M^-1) is dependent on those rows, a redundant joint row, and is dropped
+    (keep[k] = 0, its L column 0; for a positive semi-definite A its whole remaining row is
+    negligible too, |s_kj| <= sqrt(s_kk s_jj)); the others are kept (keep[k] = 1). Returns 1
+    where a kept pivot falls below PIVOT_CHECK times the largest diagonal entry (near a
+    singular configuration: the caller decomposes by SVD instead), -1 on a non-finite entry,
+    else 0; out as :func:`_band_lu_rr`. ``d0`` (n,) is work space."""
+    n = A.shape[0]
+    dmax = 0.0
+    tot = 0.0
+    for k in range(n):
+        for j in range(bw, 2 * bw + 1):
+            tot += A[k, j]
+        d0[k] = A[k, bw]
+        dmax = max(dmax, A[k, bw])
+    if not abs(tot) < math.inf:
+        return -1
+    rmin = 1.0
+    nk = 0
+    for k in range(n):
+        e = ext[k] + 1
+        d = A[k, bw]
+        if not d > DROP_TOL * d0[k]:
+            keep[k] = 0
+            for i in range(k + 1, e):
+                A[k, bw + i - k] = 0.0
+            continue
+        if d < PIVOT_CHECK * dmax:
+            return 1
+        rmin = min(rmin, d / dmax)
+        keep[k] = 1
+        nk += 1
+        idd = 1.0 / d
+        for i in range(k + 1, e):
+            aki = A[k, bw + i - k]
+            if aki != 0.0:
+                li = aki * idd
+                for j in range(i, e):
+                    A[i, bw + j - i] -= li * A[k, bw + j - k]
+                A[k, bw + i - k] = li
+    out[0] = rmin
+    out[1] = nk
+    return 0
+
+
+@njit(forceinline=True)
+def _band_ldl_solve_rr(A, bw, ext, keep, b, x):
+    """The basic solution x of A x = b from :func:`_band_ldl_rr` (x_k = 0 for a dropped k)."""
+    n = A.shape[0]
+    for i in range(n):
+        x[i] = b[i]
+    for k in range(n):
+        xk = x[k]
+        for i in range(k + 1, ext[k] + 1):
+            x[i] -= A[k, bw + i - k] * xk
+    for k in range(n):
+        x[k] = x[k] / A[k, bw] if keep[k] else 0.0
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for j in range(i + 1, ext[i] + 1):
+            t -= A[i, bw + j - i] * x[j]
+        x[i] = t if keep[i] else 0.0
 
 
 @njit(forceinline=True)
@@ -909,12 +910,14 @@ def _run_system(
     into X, V (nsave, nb, 3), D (nsave, nb, 3, 3), W (nsave, nb, 3). Returns a status; on
     failure info[0] = steps completed, info[1] = the failing sub-step's h.
 
-    ``mu`` (length nr (1 + 2 ns) + 1, nr = max(nrow, 1), ns = len(coef)): the last velocity
+    ``mu`` (length nr (2 + 2 ns) + 2, nr = max(nrow, 1), ns = len(coef)): the last velocity
     multipliers (0:nr), the position multipliers of each sub-step j of the last step
-    (nr (1 + j) ...) and of the step before (nr (1 + ns + j) ...), and the number of steps
-    in that history (0, 1, 2) in the last entry: the integrator state besides S.
+    (nr (1 + j) ...) and of the step before (nr (1 + ns + j) ...), the number of steps in
+    that history (0, 1, 2) at kp0 - 1 = nr (1 + 2 ns), then the loop solver's row pattern
+    (kp0 ... kp0 + nr - 1: 1 kept, 0 dropped) and whether it is set (kp0 + nr): the
+    integrator state besides S.
 
-    The solver of the multiplier equations: ``minnorm`` (an int) the dense pivoted
+    The solver of the multiplier equations: ``minnorm`` (an int) the banded rank-revealing
     factorisations with the SVD where a pivot ratio drops (:data:`MODE_PIVOTED`) or the SVD
     throughout (:data:`MODE_SVD`), else ``banded`` (a
     literal constant: numba drops the branches of the other value before typing them) the
@@ -945,11 +948,6 @@ def _run_system(
     U = np.zeros((nd, nd))
     sv = np.zeros(nd)
     Vt = np.zeros((nd, nd))
-    Ad2 = np.zeros((nd, nd))
-    pr = np.zeros(nd, dtype=np.int64)
-    pc = np.zeros(nd, dtype=np.int64)
-    yv = np.zeros(nd)
-    pv = np.zeros(1)
     psvd = False
     Fn = np.zeros((nb, 3))
     Tn = np.zeros((nb, 3))
@@ -972,18 +970,28 @@ def _run_system(
     TC = np.zeros((nb, 3))
     VG = np.zeros((nb, 3))
     TG = np.zeros((nb, 3))
-    pvt = np.zeros(nd)
     nK = 1 if banded or minnorm else nrow // 3
     Dg = np.zeros((nK, 9))
     Up = np.zeros((nK, 9))
     Lo = np.zeros((nK, 9))
-    # the flags of _assemble as run-time values (constant arguments would compile one
-    # _assemble for each combination): banded storage, and the upper band only (velocity stage)
-    band = not minnorm
-    upper = band
-    full = minnorm < 0  # False, a run-time value (a literal would type _assemble twice)
+    # the flags of _assemble (banded storage, the upper band only) as run-time values
+    # (constant arguments would compile one _assemble for each combination)
+    yes = minnorm >= 0
+    no = minnorm < 0
+    # the loop solver's row patterns (1 kept, 0 dropped): kv of the velocity stage, kn of
+    # the Newton matrix (the velocity stage's at the sub-step's start, kept in mu)
+    kv = np.ones(nr, dtype=np.int64)
+    kn = np.ones(nr, dtype=np.int64)
+    ext = np.zeros(nr, dtype=np.int64)
+    _envelope(ptr, idx, nrow, ext)
+    d0 = np.zeros(nr)
+    pb = np.zeros(2)
     ns = coef.shape[0]
     nhist = int(mu[nr * (1 + 2 * ns)])
+    kp0 = nr * (1 + 2 * ns) + 1
+    havepat = mu[kp0 + nr] > 0.0
+    for r in range(nrow):
+        kn[r] = int(mu[kp0 + r])
     ks = 0
     if saves.shape[0] > 0 and saves[0] == 0:
         _store(B, D0, S, X, V, D, W, saves[0])
@@ -1011,7 +1019,10 @@ def _run_system(
                 _ext(fint, fvec, S, Dn, VC, WD, FE, TE)
             # start value: in the banded solver the position multipliers of this sub-step
             # extrapolated linearly from the same sub-step of the two previous steps
-            # (history in mu, see _run_system); else the last velocity multipliers
+            # (history in mu, see _run_system); else the last velocity multipliers (on the
+            # loops these close the joints more tightly in one iteration: on the four-bar
+            # through its singular configuration, residuals ~5e-16 m against ~3e-15 m from
+            # the extrapolated ones, and the crank and rocker parallel to 3e-13, not 2e-12)
             ho1 = nr * (1 + j)
             ho2 = nr * (1 + ns + j)
             for r in range(nrow):
@@ -1021,6 +1032,22 @@ def _run_system(
                     lam[r] = mu[ho1 + r]
                 else:
                     lam[r] = 2.0 * mu[ho1 + r] - mu[ho2 + r]
+            if minnorm == MODE_PIVOTED and nrow > 0 and not havepat:
+                # no row pattern yet (the first sub-step, or the last velocity stage went to
+                # the SVD): that of the velocity stage's matrix at q_n
+                for i in range(nb):
+                    Mx[i] = 1.0 / B[i, 0]
+                    Di = _row9(Dn, i)
+                    DI = (Di[0] * B[i, 4], Di[1] * B[i, 5], Di[2] * B[i, 6],
+                          Di[3] * B[i, 4], Di[4] * B[i, 5], Di[5] * B[i, 6],
+                          Di[6] * B[i, 4], Di[7] * B[i, 5], Di[8] * B[i, 6])  # fmt: skip
+                    _put9(Mth, i, _mmt(DI, Di))
+                _assemble(ptr, idx, side, Jold, Jold, Mx, Mth, Ab, yes, bw, yes)
+                st = _band_ldl_rr(Ab, bw, ext, kn, d0, pb)
+                if st < 0:
+                    _fail(info, n, h)
+                    return FAIL_SVD
+                havepat = st == 0
             rank = 0
             it = 0
             while True:
@@ -1090,24 +1117,28 @@ def _run_system(
                     return FAIL_NEWTON
                 if fresh:
                     if minnorm:
-                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, band, bw, full)
-                        psvd = minnorm == MODE_SVD
-                        if not psvd:
-                            _copy2(Ad, Ad2)
-                            rank = _lucp_factor(Ad, pr, pc, SOLVE_TOL, pv)
-                            if rank < 0:
+                        # the rows dropped at q_n may not be redundant at q_{n+1} at a singular
+                        # configuration (where branches of the loop meet): from the fourth
+                        # iterate on (the matrix is fresh from then on) the SVD decides
+                        psvd = minnorm == MODE_SVD or it >= 3
+                        if not psvd and havepat:
+                            _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, yes, bw, no)
+                            st = _band_lu_rr(Ab, bw, ext, kn, pb)
+                            if st < 0:
                                 _fail(info, n, h)
                                 return FAIL_SVD
-                            if rank > 0 and pv[0] < PIVOT_CHECK:
-                                psvd = True
-                                _copy2(Ad2, Ad)
+                            psvd = st > 0
+                        else:
+                            psvd = True
                         if psvd:
+                            diag[D_SVD] += 1
+                            _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ad, no, bw, no)
                             rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
                             if rank < 0:
                                 _fail(info, n, h)
                                 return FAIL_SVD
                     elif banded:
-                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, band, bw, full)
+                        _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, yes, bw, no)
                         if not _band_lu(Ab, bw):
                             _fail(info, n, h)
                             return FAIL_SINGULAR
@@ -1120,7 +1151,7 @@ def _run_system(
                     if psvd:
                         _svd_solve(U, sv, Vt, rank, gv, dl)
                     else:
-                        _lucp_solve(Ad, pr, pc, rank, gv, dl, yv)
+                        _band_solve_rr(Ab, bw, ext, kn, gv, dl)
                 elif banded:
                     _band_solve(Ab, bw, gv, dl)
                 else:
@@ -1158,42 +1189,42 @@ def _run_system(
             vsvd = False
             if nrow > 0:
                 if minnorm:
-                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, band, bw, full)
                     vsvd = minnorm == MODE_SVD
                     if not vsvd:
-                        _copy2(Ad, Ad2)
-                        rank = _ldlp_factor(Ad, pr, SOLVE_TOL, pv)
-                        if rank < 0:
+                        _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, yes, bw, yes)
+                        st = _band_ldl_rr(Ab, bw, ext, kv, d0, pb)
+                        if st < 0:
                             _fail(info, n, h)
                             return FAIL_SVD
-                        if rank > 0 and pv[0] < PIVOT_CHECK:
-                            vsvd = True
-                            _copy2(Ad2, Ad)
+                        vsvd = st > 0
+                        # the pattern of the next sub-step's Newton matrix (at this q_{n+1})
+                        havepat = not vsvd
+                        for r in range(nrow):
+                            kn[r] = kv[r]
                     if vsvd:
+                        diag[D_SVD] += 1
+                        _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, no, bw, no)
                         rank = _svd_factor(Ad, SOLVE_TOL, U, sv, Vt)
                         if rank < 0:
                             _fail(info, n, h)
                             return FAIL_SVD
-                        for k in range(sv.shape[0]):
-                            pvt[k] = sv[k]
-                    else:
-                        # the pivots stand for the singular values (the matrix is symmetric
-                        # positive semi-definite; the small ones are the SVD's, above)
+                        nrank = 0
                         for k in range(nd):
-                            pvt[k] = Ad[k, k] if k < rank else 0.0
-                    nrank = 0
-                    for k in range(nd):
-                        if pvt[k] > rank_tol * pvt[0]:
-                            nrank += 1
+                            if sv[k] > rank_tol * sv[0]:
+                                nrank += 1
+                        rel = sv[rank_nom - 1] / sv[0] if rank_nom > 0 and sv[0] > 0.0 else 1.0
+                    else:
+                        # the rows kept; every kept pivot ratio is at least PIVOT_CHECK (a
+                        # bound on sigma_rank / sigma_1 it is not: that one the SVD gives)
+                        nrank = int(pb[1])
+                        rel = pb[0]
                     if nrank < rank_nom:
                         diag[D_RANKDROP] += 1
-                    if rank_nom > 0 and pvt[0] > 0.0:
-                        rel = pvt[rank_nom - 1] / pvt[0]
-                        if rel < diag[D_SMIN]:
-                            diag[D_SMIN] = rel
-                            diag[D_TSMIN] = n
+                    if rel < diag[D_SMIN]:
+                        diag[D_SMIN] = rel
+                        diag[D_TSMIN] = n
                 elif banded:
-                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, band, bw, upper)
+                    _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, yes, bw, yes)
                     if not _band_ldl(Ab, bw):
                         _fail(info, n, h)
                         return FAIL_SINGULAR
@@ -1241,7 +1272,7 @@ def _run_system(
                         if vsvd:
                             _svd_solve(U, sv, Vt, rank, r0, dl)
                         else:
-                            _ldlp_solve(Ad, pr, rank, r0, dl, yv)
+                            _band_ldl_solve_rr(Ab, bw, ext, kv, r0, dl)
                     elif banded:
                         _band_ldl_solve(Ab, bw, r0, dl)
                     else:
@@ -1283,6 +1314,8 @@ def _run_system(
                 mu[r] = 2.0 * dl[r] / h
                 mu[ho2 + r] = mu[ho1 + r]
                 mu[ho1 + r] = lam[r]
+                mu[kp0 + r] = kn[r]
+            mu[kp0 + nr] = 1.0 if havepat else 0.0
             for i in range(nb):
                 m = B[i, 0]
                 I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]

@@ -191,7 +191,8 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
     D0 = np.ascontiguousarray([st._D0 for st in steppers])
     S = np.ascontiguousarray([st._S for st in steppers])
     mu = np.ascontiguousarray([st._mu for st in steppers])
-    rint = asm.rint if asm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
+    kasm = ref._kasm  # the rows in the kernel's order (SystemStepper)
+    rint = kasm.rint if kasm.rint.shape[0] else np.zeros((0, 4), dtype=np.int64)
     banded = ref.solver == "banded"
     _ensure_compiled(banded)
     old = numba.get_num_threads()
@@ -202,12 +203,12 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
         c0 = time.process_time()
         t0 = time.perf_counter()
         args = (
-            asm.bodies, D0, rint, asm.rvec, asm.brow_ptr, asm.brow_idx, asm.brow_side, ref._g,
+            kasm.bodies, D0, rint, kasm.rvec, kasm.brow_ptr, kasm.brow_idx, kasm.brow_side, ref._g,
             S, mu, ref._coef, ref.dt, nstep, saves, X, V, D, W,
         )  # fmt: skip
         rest = (
-            asm.bandwidth, ref.rank_nominal, RANK_TOL, TOL_EPS * K.EPS, asm.length_scale,
-            diag, info, asm.jptr, asm.jidx, asm.jside, ref._fint, ref._fvec, status,
+            kasm.bandwidth, ref.rank_nominal, RANK_TOL, TOL_EPS * K.EPS, kasm.length_scale,
+            diag, info, kasm.jptr, kasm.jidx, kasm.jside, ref._fint, ref._fvec, status,
         )  # fmt: skip
         if banded:
             run_batch_banded(*args, *rest)

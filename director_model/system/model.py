@@ -346,6 +346,45 @@ def assemble(bodies, joints) -> Assembly:
     )
 
 
+def band_order(joints, index) -> list[int]:
+    """An order of the joints (a permutation of their indices) that keeps the rows sharing a
+    body close, for the banded factorisations of the loop solver: Cuthill-McKee over the
+    graph whose nodes are the joints and whose edges join joints sharing a body (the ground
+    joins nothing), from each joint of least degree in turn, the order of smallest largest
+    index distance kept (the given order on a tie). A single loop through the ground (a
+    four-bar listed A0, B0, A1, B1) becomes a path (A0, A1, B1, B0): the multiplier matrices
+    block tridiagonal. ``index`` maps body names to indices (the ground: None)."""
+    nj = len(joints)
+    ends = [{index[j.body_a]} | ({index[j.body_b]} if j.body_b is not None else set())
+            for j in joints]  # fmt: skip
+    nbr = [[k for k in range(nj) if k != i and ends[i] & ends[k]] for i in range(nj)]
+
+    def width(order):
+        pos = {j: p for p, j in enumerate(order)}
+        return max((abs(pos[i] - pos[k]) for i in range(nj) for k in nbr[i]), default=0)
+
+    best, bw = list(range(nj)), width(range(nj))
+    dmin = min((len(n) for n in nbr), default=0)
+    for start in [i for i in range(nj) if len(nbr[i]) == dmin][:32]:
+        order, seen = [], [False] * nj
+        for root in [start, *range(nj)]:  # every component
+            if seen[root]:
+                continue
+            seen[root] = True
+            queue = [root]
+            while queue:
+                i = queue.pop(0)
+                order.append(i)
+                for k in sorted(nbr[i], key=lambda k: len(nbr[k])):
+                    if not seen[k]:
+                        seen[k] = True
+                        queue.append(k)
+        w = width(order)
+        if w < bw:
+            best, bw = order, w
+    return best
+
+
 def assemble_forces(bodies, joints, springs=(), torques=()) -> tuple[np.ndarray, np.ndarray]:
     """(fint (ne, 3) int64, fvec (ne, 10)): the force elements for the kernel (row e: kind 0
     spring / 1 torque, body a, body b (-1 the ground); a spring's anchor_a, anchor_b, k, c,

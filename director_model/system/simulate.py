@@ -17,6 +17,7 @@ from director_model.system.model import (
     Assembly,
     assemble,
     assemble_forces,
+    band_order,
     check_initial,
     energy_momentum,
     force_potential,
@@ -35,7 +36,7 @@ SYSTEM_SCHEMES = {
 TOL_EPS = 16.0
 #: relative singular value below which the minimum-norm solver drops a direction
 RANK_TOL = 1e-10
-#: the kernel's ``minnorm`` mode of each dense solver
+#: the kernel's ``minnorm`` mode of each rank-revealing solver
 _MODES = {"minnorm": K.MODE_PIVOTED, "svd": K.MODE_SVD}
 
 
@@ -65,7 +66,7 @@ class SystemTrajectory:
     Scalars: ``body_names``, ``joint_names`` (tuples), ``nstep`` (steps of this run or
     chunk), ``dt``, ``scheme``, ``wall_time_s``/``cpu_time_s`` (the compiled stepping
     alone), ``solver`` ("block": 3x3-block tridiagonal elimination, "banded": banded LU and
-    L D L^T, "minnorm": dense pivoted factorisations with the SVD near singular
+    L D L^T, "minnorm": rank-revealing banded factorisations with the SVD near singular
     configurations, or "svd": the SVD throughout),
     ``newton_iterations`` (chord-Newton iterations of the position multipliers over all
     sub-steps), ``max_iterations`` (most in one sub-step),
@@ -73,9 +74,13 @@ class SystemTrajectory:
     (RATTLE sub-steps at which the velocity-stage matrix had a numerical rank, singular
     values above RANK_TOL sigma_1, below the nominal rank: a singular configuration),
     ``min_singular_value``
-    (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps, NaN for the banded
-    solver, which does not compute it) and ``min_singular_step`` (the absolute step index where
-    it occurred; -1 for the banded solver).
+    (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps where it was
+    decomposed by SVD; on the others, the loop solver's smallest kept pivot over the largest
+    diagonal entry, at least PIVOT_CHECK = 1e-8; NaN for the banded and block solvers,
+    which do not compute it),
+    ``min_singular_step`` (the absolute step index where it occurred; -1 for the banded
+    solver) and ``svd_factorisations`` (multiplier matrices decomposed by SVD: every one with
+    "svd", near singular configurations with "minnorm").
     The invariants and residuals are computed from the saved states in numpy, independently
     of the compiled step.
     """
@@ -105,6 +110,7 @@ class SystemTrajectory:
     rank_drop_steps: int
     min_singular_value: float
     min_singular_step: int
+    svd_factorisations: int
 
     def __len__(self) -> int:
         return self.t.shape[0]
@@ -176,15 +182,18 @@ class SystemStepper:
         without pivoting of the multiplier matrices (rows ordered as the joints are given;
         bandwidth = the largest row distance between rows sharing a body, so a chain whose
         joints are listed along it has cost linear in its length); a singular configuration
-        stops it with StepSizeError. "minnorm": dense rank-revealing factorisations of the
-        multiplier matrices (LU with complete pivoting of the Newton matrix, L D L^T with
-        diagonal pivoting of the symmetric velocity-stage one), a basic solution over the
-        rank (correct for rank-deficient Jacobians: the joint forces are the same), and the
-        SVD instead wherever the last kept pivot falls below PIVOT_CHECK = 1e-8 of the first
-        (near a singular configuration; the singularity diagnostics of
-        :class:`SystemTrajectory` then come from it); cost cubic in the number of rows.
-        "svd": the SVD at every solve, with the minimum-norm multipliers (the former
-        "minnorm", about 7x its cost on the four-bar; kept to compare).
+        stops it with StepSizeError. "minnorm" (the loop solver): the joints reordered along
+        the loops (model.band_order) and the multiplier matrices factorised in their band,
+        rank-revealing in the row order: the velocity stage's L D L^T drops every row
+        dependent on the rows before it (pivot below DROP_TOL = 1e-10 of its diagonal entry:
+        a redundant row), the Newton matrix's LU the same rows, a basic solution over the
+        rest (correct for rank-deficient Jacobians: the joint forces are those of the
+        minimum-norm solution); where a kept pivot falls below PIVOT_CHECK = 1e-8 of the
+        largest diagonal entry (near a singular configuration) the matrix goes to the SVD
+        and the minimum-norm solution instead (the singularity diagnostics of
+        :class:`SystemTrajectory` then come from it); cost linear in the number of rows for
+        loops of bounded size. "svd": the SVD at every solve, with the minimum-norm
+        multipliers (kept to compare; about 10x the cost of "minnorm" on the four-bar).
 
     Raises InvalidBodyError, InvalidStateError, InvalidJointError, InvalidMechanismError,
     InvalidRunError at construction; StepSizeError from :meth:`advance` (a step whose
@@ -235,6 +244,14 @@ class SystemStepper:
                 "(redundant constraints, e.g. a closed loop): use solver='minnorm' or 'auto'"
             )
         self._asm: Assembly = asm
+        # the rows as the kernel sees them: for the loop solver the joints in an order that
+        # keeps the rows sharing a body close (the factorisations are banded); the other
+        # solvers and every result keep the given order
+        self._kasm: Assembly = asm
+        if solver == "minnorm":
+            order = band_order(joints, {n: i for i, n in enumerate(asm.names)})
+            if order != list(range(len(joints))):
+                self._kasm = assemble(bodies, [joints[k] for k in order])
         self._g = g
         self._coef = np.array(SYSTEM_SCHEMES[scheme][1], dtype=float)
         self.scheme = scheme
@@ -252,7 +269,7 @@ class SystemStepper:
             S[i, 12] = 1.0
             S[i, 20:23] = b.inertia * b.omega_body
         self._S = S
-        self._mu = np.zeros(max(nrow, 1) * (1 + 2 * len(self._coef)) + 1)
+        self._mu = np.zeros(max(nrow, 1) * (2 + 2 * len(self._coef)) + 2)  # see _run_system
         self._bodies = bodies
         if _warm:
             _ensure_compiled(solver == "banded")
@@ -269,7 +286,7 @@ class SystemStepper:
         nstep = _check_count("nstep", nstep)
         save_every = _check_count("save_every", save_every)
         saves = saved_steps(nstep, save_every, include_start)
-        asm = self._asm
+        asm = self._kasm
         nb = len(self._bodies)
         ns = saves.shape[0]
         X = np.empty((ns, nb, 3))
@@ -343,6 +360,7 @@ class SystemStepper:
             min_singular_step=(
                 int(diag[K.D_TSMIN]) + self.nstep_done - nstep if math.isfinite(smin) else -1
             ),
+            svd_factorisations=int(diag[K.D_SVD]),
         )  # fmt: skip
 
 

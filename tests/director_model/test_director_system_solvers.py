@@ -1,10 +1,14 @@
-"""The dense solvers of director_model.system: the pivoted factorisations ("minnorm": LU with
-complete pivoting, L D L^T with diagonal pivoting, the SVD where a kept pivot falls below
-PIVOT_CHECK) against numpy's SVD and against the SVD solver ("svd") they replace.
+"""The loop solver of director_model.system ("minnorm": banded LU and L D L^T in the row
+order that drop the rows dependent on the rows before them and hand the matrix to the SVD
+where a kept pivot falls below PIVOT_CHECK) against numpy and against the SVD solver ("svd").
 
-- On random matrices G W G^T and G1 W G0^T of a given rank (redundant rows), the basic
+- On random matrices G W G^T and G1 W G0^T whose dependent rows are known (redundant rows at
+  the end and in the middle), the factorisations drop exactly those rows, their basic
   solutions solve every consistent system to round-off and give the joint forces G^T x of the
-  minimum-norm solution (numpy.linalg.lstsq), and the factorisations find the rank;
+  minimum-norm solution (numpy.linalg.lstsq); a nearly dependent row is sent to the SVD;
+- the joints are factorised in an order that keeps the rows sharing a body close (the
+  four-bar listed A0, B0, A1, B1 is solved as A0, A1, B1, B0), and the motion does not depend
+  on the order the joints are listed in;
 - on the four-bar (through its singular configuration) and Bricard's loop the two solvers
   give the same motion to 1e-10 and the same singularity diagnostics where they matter.
 """
@@ -15,54 +19,88 @@ import numpy as np
 import pytest
 
 import scenarios
-from director_model.system import Body, Joint, simulate_system
+from director_model.system import Body, Joint, SystemStepper, simulate_system
 from director_model.system import _kernels as K
 
+N = 20
 
-def _problem(rng, n=20, rank=17, sym=True):
-    G0 = rng.standard_normal((n, 30))
-    # rank-deficient rows: the last n - rank rows combinations of the others
-    C = rng.standard_normal((n - rank, rank))
-    G0[rank:] = C @ G0[:rank]
-    G1 = G0 if sym else G0 + 1e-3 * rng.standard_normal(G0.shape)
-    if not sym:
-        G1[rank:] = C @ G1[:rank]
+
+def _problem(rng, dep=(17, 18, 19), sym=True, near=0.0):
+    """(A, b, G0): A = G1 W G0^T (N x N, G0 N x 30) whose rows ``dep`` are combinations of
+    the rows before them (plus ``near`` times a random row: nearly dependent), b consistent."""
+    G0 = rng.standard_normal((N, 30))
+    G1 = G0 + (0.0 if sym else 1e-3) * rng.standard_normal(G0.shape)
+    for k in dep:
+        c = rng.standard_normal(k)
+        G0[k] = c @ G0[:k] + near * rng.standard_normal(30)
+        G1[k] = c @ G1[:k] + near * rng.standard_normal(30) if not sym else G0[k]
     W = np.diag(rng.uniform(0.5, 2.0, 30))
     A = G1 @ W @ G0.T
-    b = A @ rng.standard_normal(n)  # consistent
-    return A, b, G0, W
+    b = A @ rng.standard_normal(N)  # consistent
+    return A, b, G0
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_ldl_with_diagonal_pivoting(seed):
+def _band(A, upper):
+    """A in the kernels' band storage with bw = N - 1 and its envelope (a dense matrix is a
+    full band)."""
+    bw = N - 1
+    Ab = np.zeros((N, 2 * bw + 1))
+    for r in range(N):
+        for s in range(r if upper else 0, N):
+            Ab[r, bw + s - r] = A[r, s]
+    return Ab, bw, np.full(N, N - 1, dtype=np.int64)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("dep", [(17, 18, 19), (4, 11, 19)])
+def test_band_ldl_drops_the_dependent_rows(seed, dep):
     rng = np.random.default_rng(seed)
-    A, b, G, W = _problem(rng)
-    F = A.copy()
-    pr = np.zeros(20, dtype=np.int64)
-    pv = np.zeros(1)
-    rank = K._ldlp_factor(F, pr, K.SOLVE_TOL, pv)
-    assert rank == 17 and pv[0] > K.PIVOT_CHECK
-    x = np.zeros(20)
-    K._ldlp_solve(F, pr, rank, b, x, np.zeros(20))
+    A, b, G = _problem(rng, dep)
+    Ab, bw, ext = _band(A, upper=True)
+    keep = np.zeros(N, dtype=np.int64)
+    out = np.zeros(2)
+    assert K._band_ldl_rr(Ab, bw, ext, keep, np.zeros(N), out) == 0
+    assert [k for k in range(N) if not keep[k]] == list(dep) and out[1] == N - len(dep)
+    assert out[0] >= K.PIVOT_CHECK
+    x = np.zeros(N)
+    K._band_ldl_solve_rr(Ab, bw, ext, keep, b, x)
+    assert np.all(x[list(dep)] == 0.0)
     assert np.max(np.abs(A @ x - b)) < 1e-11 * np.max(np.abs(b))
     xm = np.linalg.lstsq(A, b, rcond=None)[0]
     # the joint forces G^T x are those of the minimum-norm solution
     assert np.max(np.abs(G.T @ (x - xm))) < 1e-9 * np.max(np.abs(G.T @ xm))
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_lu_with_complete_pivoting(seed):
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("dep", [(17, 18, 19), (4, 11, 19)])
+def test_band_lu_solves_over_the_kept_rows(seed, dep):
     rng = np.random.default_rng(seed)
-    A, b, G, W = _problem(rng, sym=False)
-    F = A.copy()
-    pr = np.zeros(20, dtype=np.int64)
-    pc = np.zeros(20, dtype=np.int64)
-    pv = np.zeros(1)
-    rank = K._lucp_factor(F, pr, pc, K.SOLVE_TOL, pv)
-    assert rank == 17
-    x = np.zeros(20)
-    K._lucp_solve(F, pr, pc, rank, b, x, np.zeros(20))
+    A, b, G = _problem(rng, dep, sym=False)
+    Ab, bw, ext = _band(A, upper=False)
+    keep = np.ones(N, dtype=np.int64)
+    keep[list(dep)] = 0
+    out = np.zeros(2)
+    assert K._band_lu_rr(Ab, bw, ext, keep, out) == 0 and out[1] == N - len(dep)
+    x = np.zeros(N)
+    K._band_solve_rr(Ab, bw, ext, keep, b, x)
+    assert np.all(x[list(dep)] == 0.0)
     assert np.max(np.abs(A @ x - b)) < 1e-10 * np.max(np.abs(b))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_nearly_dependent_row_goes_to_the_svd(seed):
+    # row 12 dependent up to 1e-4 of a row's size: pivot ratio ~1e-9 of its diagonal entry
+    # and of the largest, above DROP_TOL and below PIVOT_CHECK: neither kept nor dropped
+    rng = np.random.default_rng(seed)
+    A, b, G = _problem(rng, (12,), near=1e-4)
+    Ab, bw, ext = _band(A, upper=True)
+    assert K._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == 1
+    Ab, bw, ext = _band(A, upper=False)
+    assert K._band_lu_rr(Ab, bw, ext, np.ones(N, dtype=np.int64), np.zeros(2)) == 1
+    # a non-finite entry is refused
+    A[3, 7] = np.nan
+    Ab, bw, ext = _band(A, upper=True)
+    assert K._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == -1
 
 
 def _system(name):
@@ -89,3 +127,23 @@ def test_pivoted_and_svd_solvers_agree(name, t_end):
         assert a.min_singular_value < 1e-10 and b.min_singular_value < 1e-10
     else:
         assert a.rank_drop_steps == b.rank_drop_steps == 0
+
+
+def test_joints_are_factorised_along_the_loop_and_their_listed_order_does_not_matter():
+    bodies, joints, g = _system("four_bar")  # listed A0, B0, A1, B1
+    st = SystemStepper(bodies, joints, gravity=g, dt=1e-3)
+    assert st.solver == "minnorm"
+    assert st._kasm.joint_names == ("A0", "A1", "B1", "B0")
+    assert st._asm.bandwidth == 14 and st._kasm.bandwidth == 9  # rows of two adjacent joints
+    # the envelope: each row reaches to the end of the next joint's rows (the last to its own)
+    a = st._kasm
+    ext = np.zeros(20, dtype=np.int64)
+    K._envelope(a.brow_ptr, a.brow_idx, 20, ext)
+    assert ext.tolist() == [9] * 5 + [14] * 5 + [19] * 10
+    runs = [simulate_system(bodies, js, gravity=g, scheme="rattle4", dt=1e-3, t_end=0.6,
+                            save_every=50)
+            for js in (joints, joints[::-1], [joints[k] for k in (2, 0, 3, 1)])]  # fmt: skip
+    for tr in runs[1:]:
+        assert tr.joint_names != runs[0].joint_names  # reported in the order given
+        assert np.max(np.abs(tr.position - runs[0].position)) < 1e-10
+        assert np.max(np.abs(tr.rotation - runs[0].rotation)) < 1e-10
