@@ -269,7 +269,7 @@ class SystemStepper:
             S[i, 12] = 1.0
             S[i, 20:23] = b.inertia * b.omega_body
         self._S = S
-        self._mu = np.zeros(max(nrow, 1) * (2 + 2 * len(self._coef)) + 2)  # see _run_system
+        self._mu = np.zeros(max(nrow, 1) * (2 + 3 * len(self._coef)) + 2)  # see _run_system
         self._bodies = bodies
         if _warm:
             _ensure_compiled(solver == "banded")
