@@ -60,12 +60,12 @@ RIM_UPRIGHT = 1e-9
 EXTENT_TOL = 1e-9
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _dot(a0, a1, a2, b0, b1, b2):
     return a0 * b0 + a1 * b1 + a2 * b2
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def body_point(X, D, i, x0, x1, x2):
     """D_i xi (world offset of the body-frame point xi of body i); D (nb, 9) row-major."""
     return (
@@ -75,7 +75,7 @@ def body_point(X, D, i, x0, x1, x2):
     )
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def to_body(D, i, y0, y1, y2):
     """D_i^T y (a world vector in the axes of body i)."""
     return (
@@ -85,7 +85,7 @@ def to_body(D, i, y0, y1, y2):
     )
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def feature(FI, FV, k, X, D):
     """The feature k at the state X (nb, 3), D (nb, 9). Returns (valid, inexact, gap, n0, n1,
     n2, ra0, ra1, ra2, rb0, rb1, rb2, dist): ``valid`` False if the feature does not exist in
@@ -249,7 +249,7 @@ def eval_features(FI, FV, idx, n, X, D, out):
         out[k, 12] = dist
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _box_axis_sep(X, D, a, b, ha, hb, u0, u1, u2):
     """Separation of boxes a, b (half extents ha, hb as 3-tuples) along the unit axis u:
     |u . (x_a - x_b)| - (support of a) - (support of b); > 0 means a separating gap."""
@@ -261,7 +261,7 @@ def _box_axis_sep(X, D, a, b, ha, hb, u0, u1, u2):
     return abs(d) - ra - rb
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def box_pair_check(X, D, a, b, ha, hb, margin, P):
     """Whether the contact of boxes a and b (half extents ha, hb) within ``margin`` is
     treated exactly by their vertex features. Returns (near, exact): ``near`` False if the

@@ -87,13 +87,13 @@ from director_model.contact._parts import (
     _stage_solve,
     _store,
     _world_omega,
+    joint_rows,
 )  # fmt: skip
-from director_model.system._kernels import _rows
 
 
-@njit
-def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep, saves,
-                 X, V, D, W, Q, PF, info):  # fmt: skip
+@njit(cache=True)
+def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep, saves,
+                X, V, D, W, Q, PF, info):  # fmt: skip
     """Advance nstep steps of dt; store the states at the step indices ``saves`` (0 = the
     start) into X, V (nsave, nb, 3), D (nsave, nb, 3, 3), W (nsave, nb, 3) (body axes), the
     diagnostics since the previous save into Q (nsave, NQ) and the contact force on body a of
@@ -265,7 +265,7 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
                 rho, rhoV = rhoV, rho
                 Wbuilt = WVbuilt
                 if nj > 0:
-                    _rows(rint, rvec, S, Dm, gvj, Jj)
+                    joint_rows(rint, rvec, S, Dm, gvj, Jj)
             else:
                 _setup_rows(m, nj, cb, cg, rint, rvec, S, Dm, B, gvj, Jj, Jr, rb_, Y, rho)
                 Wbuilt = False
@@ -380,7 +380,7 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
                             if z[3 * c] > 0.0:
                                 dmax = max(dmax, abs(d))
                 if nj > 0:
-                    _rows(rint, rvec, XN, DN, gvj, Jj)
+                    joint_rows(rint, rvec, XN, DN, gvj, Jj)
                     for r in range(nj):
                         d = gvj[r] - h * u[3 * m + r]
                         corr[3 * m + r] += d
@@ -582,7 +582,7 @@ def _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt
     return OK
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _vertex_slip(c, q, cb, cg, Dm, DN, VH, h):
     """Displacement over the step, along the tangent q (1, 2) of contact c, of the material
     point of body a at the contact relative to that of body b (none for a plane): h v_half
@@ -603,21 +603,13 @@ def _vertex_slip(c, q, cb, cg, Dm, DN, VH, h):
     return s
 
 
-@njit(cache=True)
-def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep, saves,
-                X, V, D, W, Q, PF, info):  # fmt: skip
-    """The compiled entry of one scene (see :func:`_run_contact`)."""
-    return _run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep,
-                        saves, X, V, D, W, Q, PF, info)  # fmt: skip
-
-
 @njit(cache=True, parallel=True)
 def run_contact_batch(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt, nstep,
                       saves, X, V, D, W, Q, PF, info, status):  # fmt: skip
     """N scenes of one structure (arrays with a leading batch axis: D0, S, WS, WJ, X, V, D,
-    W, Q, PF, info), each its own :func:`_run_contact`, in parallel over numba's threads."""
+    W, Q, PF, info), each its own :func:`run_contact`, in parallel over numba's threads."""
     for k in prange(S.shape[0]):
-        status[k] = _run_contact(B, SH, D0[k], S[k], WS[k], WJ[k], FI, FV, PI, PV, rint, rvec,
+        status[k] = run_contact(B, SH, D0[k], S[k], WS[k], WJ[k], FI, FV, PI, PV, rint, rvec,
                                  fb, fv, g, dt, nstep, saves, X[k], V[k], D[k], W[k], Q[k], PF[k],
                                  info[k])  # fmt: skip
 

@@ -1,7 +1,16 @@
 """Compiled pieces of the contact step (director_model.contact._kernels): the state's
 layout and status codes, the rows of the contacts and joints, the Delassus operator, one stage's
-solve, the law residuals and the candidate search. Everything here is inlined into the time loop
-(forceinline); the loop and its cached entries are in _kernels."""
+solve, the law residuals and the candidate search; the loop and its cached entries are in
+_kernels.
+
+Compile cost (benchmarks/bench_contact_compile.py): numba compiles each ``@njit`` function
+that is called (not inlined) to its own LLVM module, and when it links a callee's module into
+its caller's it runs the full optimisation over the linked whole again: every level of
+calls re-optimises everything below it. So the helpers called per row or per contact, and
+those with one call site, are inlined in numba's IR (``inline="always"``: no module of their
+own, typed at their call site); the few larger pieces called from several places
+(:func:`_setup_rows`, :func:`_stage_solve`, :func:`_eval`, :func:`_laws`, :func:`_candidates`,
+the solver's Newton method) are compiled once each, and the call tree is kept shallow."""
 
 from __future__ import annotations
 
@@ -66,14 +75,14 @@ I_RES = 3
 NINFO = 4
 
 
-@njit(forceinline=True)
+@njit
 def _dmv(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2):
     """director_model._primitives.dmv_solve, compiled once (its IR-level inlining happens
     here, not at the kernel's call site: numba types an inlined body again at each site)."""
     return dmv_solve(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2)
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _onb(n0, n1, n2):
     """Two unit tangents completing the unit normal n (Duff et al., JCGT 6(1), 2017)."""
     s = 1.0 if n2 >= 0.0 else -1.0
@@ -82,7 +91,7 @@ def _onb(n0, n1, n2):
     return (1.0 + s * n0 * n0 * a, s * b, -s * n0), (b, s + n1 * n1 * a, -n1)
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _directors(D0, S, i):
     R = quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
     return (
@@ -98,7 +107,7 @@ def _directors(D0, S, i):
     )
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _set_directors(D0, S, Dm):
     for i in range(S.shape[0]):
         R = _directors(D0, S, i)
@@ -106,7 +115,7 @@ def _set_directors(D0, S, Dm):
             Dm[i, c] = R[c]
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _loads(B, fb, fv, Dm, Fs, Tb):
     """Total external force Fs (world) and body torque Tb of the constant point forces."""
     for i in range(Fs.shape[0]):
@@ -126,13 +135,13 @@ def _loads(B, fb, fv, Dm, Fs, Tb):
         Tb[i, 2] += x0 * y1 - x1 * y0
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _world_omega(B, Dm, i, P0, P1, P2):
     """w = D I^-1 P (world angular velocity of body momentum P in body axes)."""
     return G.body_point(Dm, Dm, i, P0 * B[i, 4], P1 * B[i, 5], P2 * B[i, 6])
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _omega_half(B, Dm, PIH, i):
     """|w| of the body momentum PIH[i] (body axes): the angular speed of the step."""
     w0 = PIH[i, 0] * B[i, 4]
@@ -141,7 +150,7 @@ def _omega_half(B, Dm, PIH, i):
     return math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _contact_rows(ncand, cb, cg, Jr, rb_):
     """Rows 3c, 3c+1, 3c+2 of candidate c: directions n, t1, t2 (cg[c, 1:10]) at the points
     ra (cg[c, 10:13]) of body a and rb (cg[c, 13:16]) of body b; Jr (rows, 12) as the
@@ -170,7 +179,7 @@ def _contact_rows(ncand, cb, cg, Jr, rb_):
             rb_[r, 1] = b
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _mobility(N, B, Dm, Jr, rb_, Y):
     """Y = M^-1 J^T per row and side: (J_v / m, D I^-1 D^T J_w)."""
     for r in range(N):
@@ -192,7 +201,14 @@ def _mobility(N, B, Dm, Jr, rb_, Y):
             Y[r, o + 5] = y2
 
 
-@njit(forceinline=True)
+@njit
+def joint_rows(rint, rvec, X, D, gv, Jc):
+    """director_model.system's joint rows (values gv, Jacobians Jc) at (X, D), compiled once
+    here (the system's kernel inlines its own copy)."""
+    _rows(rint, rvec, X, D, gv, Jc)
+
+
+@njit
 def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
     """The rows of a stage at (X, Dm): m contacts (cb, cg), then the nj joint rows (their
     values into gvj); their mobilities Y and rho (3 / trace of a contact's diagonal block,
@@ -200,7 +216,7 @@ def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
     N = 3 * m + nj
     _contact_rows(m, cb, cg, Jr, rb_)
     if nj > 0:
-        _rows(rint, rvec, X, Dm, gvj, Jj)
+        joint_rows(rint, rvec, X, Dm, gvj, Jj)
         for r in range(nj):
             for c in range(12):
                 Jr[3 * m + r, c] = Jj[r, c]
@@ -227,7 +243,7 @@ def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
         rho[m + j] = 1.0 / t
 
 
-@njit(forceinline=True)
+@njit
 def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
     """Make the gaps of redundant contacts those of a rigid face: the contacts of one pair
     with one normal (a face on a plane or on a face; at least 4 points) have gaps that are
@@ -299,7 +315,7 @@ def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
                 g0[3 * d] = alpha + b1 * sd + b2 * td
 
 
-@njit(forceinline=True)
+@njit
 def _delassus(N, Jr, rb_, Y, W):
     for r in range(N):
         for s in range(r, N):
@@ -320,7 +336,7 @@ def _delassus(N, Jr, rb_, Y, W):
             W[s, r] = w
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _rate(Jr, rb_, r, V, Om):
     """Row r's rate J_r . (v, w) for body velocities V (nb, 3) and world omegas Om (nb, 3)."""
     s = 0.0
@@ -335,7 +351,7 @@ def _rate(Jr, rb_, r, V, Om):
     return s
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _impulse_response(N, nb, rb_, Y, z, BA):
     """The bodies' velocity changes of the row impulses z: BA (nb, 12) = (dv (3), dw (3),
     sum |terms of dv| (3), sum |terms of dw| (3)), world axes."""
@@ -357,7 +373,7 @@ def _impulse_response(N, nb, rb_, Y, z, BA):
                 BA[i, 6 + c] += abs(d)
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _angular_impulse(N, nb, Jr, rb_, z, DL):
     """World angular impulses DL (nb, 3) of the row impulses z."""
     for i in range(nb):
@@ -377,7 +393,7 @@ def _angular_impulse(N, nb, Jr, rb_, z, DL):
             DL[i, 2] += zr * Jr[r, o + 2]
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _same_list(m, cand, lst, meta):
     """Whether the stage has the contacts of its last call (cand[0:m] == lst[0:meta[2]]);
     records them, and drops the kept factorisation if not."""
@@ -393,7 +409,7 @@ def _same_list(m, cand, lst, meta):
     return same
 
 
-@njit(forceinline=True)
+@njit
 def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
     """u = b + J M^-1 J^T z through the bodies (no W; the size of its terms into ts), the
     Alart-Curnier function F and the residual. Returns (residual, impulse scale)."""
@@ -417,7 +433,7 @@ def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
     return ac_residual(m, nj, mu, rho, z, u, F, 0.0, ts, sc), sc
 
 
-@njit(forceinline=True)
+@njit
 def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV, DW,
                  DL, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same,
                  luflag):  # fmt: skip
@@ -429,9 +445,61 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
     whose last factors are kept. Returns (status, iterations, residual, Wbuilt); the
     bodies' velocity changes DV, DW and angular impulses DL of the solution."""
     N = 3 * m + nj
-    st, it, rr, Wbuilt = _stage_core(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut,
-                                     Ft, piv, nb, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc,
-                                     patc, pat, meta, same, luflag)  # fmt: skip
+    st = OK
+    it = 0
+    rr = 0.0
+    if N > 0:
+        res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+        rr = res
+        done = res <= RES_TOL
+        if not done and same and meta[0] == 1 and meta[1] == N:
+            pattern(m, mu, rho, z, u, pat)
+            ok = True
+            for k in range(m):
+                ok = ok and pat[k] == patc[k]
+            while ok and it < CHORD:
+                it += 1
+                for r in range(N):
+                    dz[r] = -F[r]
+                    zt[r] = z[r]
+                lu_apply(LUc, N, pivc, dz)
+                for r in range(N):
+                    z[r] += dz[r]
+                rn, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+                if rn <= RES_TOL:
+                    rr = rn
+                    done = True
+                    break
+                if not rn <= 0.5 * res:
+                    # not contracting: back to the start value, the full solver from there
+                    for r in range(N):
+                        z[r] = zt[r]
+                    res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+                    break
+                res = rn
+        if not done:
+            if not Wbuilt:
+                _delassus(N, Jr, rb_, Y, W)
+                Wbuilt = True
+            st, k, rr = ac_solve(
+                m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, 0.0, ts, tst, zb, zbar,
+                luflag,
+            )  # fmt: skip
+            it += k
+            meta[0] = 0
+            if st == 0 and luflag[0] == 1:
+                # keep the last factors (of the Jacobian at the last Newton iterate) for the
+                # next steps
+                for r in range(N):
+                    pivc[r] = piv[r]
+                    for c in range(N):
+                        LUc[r, c] = A[r, c]
+                for r in range(N):
+                    zt[r] = z[r]
+                pattern(m, mu, rho, z, u, patc)
+                meta[0] = 1
+                meta[1] = N
+            st = OK if st == 0 else FAIL_SOLVE
     _impulse_response(N, nb, rb_, Y, z, BA)
     for i in range(nb):
         for c in range(3):
@@ -441,63 +509,7 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
     return st, it, rr, Wbuilt
 
 
-@njit(forceinline=True)
-def _stage_core(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, Wbuilt,
-                ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same, luflag):  # fmt: skip
-    """The solve of :func:`_stage_solve`."""
-    N = 3 * m + nj
-    if N == 0:
-        return OK, 0, 0.0, Wbuilt
-    res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
-    if res <= RES_TOL:
-        return OK, 0, res, Wbuilt
-    it = 0
-    if same and meta[0] == 1 and meta[1] == N:
-        pattern(m, mu, rho, z, u, pat)
-        ok = True
-        for k in range(m):
-            ok = ok and pat[k] == patc[k]
-        while ok and it < CHORD:
-            it += 1
-            for r in range(N):
-                dz[r] = -F[r]
-                zt[r] = z[r]
-            lu_apply(LUc, N, pivc, dz)
-            for r in range(N):
-                z[r] += dz[r]
-            rn, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
-            if rn <= RES_TOL:
-                return OK, it, rn, Wbuilt
-            if not rn <= 0.5 * res:
-                # not contracting: back to the start value, the full solver from there
-                for r in range(N):
-                    z[r] = zt[r]
-                res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
-                break
-            res = rn
-    if not Wbuilt:
-        _delassus(N, Jr, rb_, Y, W)
-        Wbuilt = True
-    st, k, rr = ac_solve(
-        m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, 0.0, ts, tst, zb, zbar, luflag
-    )
-    it += k
-    meta[0] = 0
-    if st == 0 and luflag[0] == 1:
-        # keep the last factors (of the Jacobian at the last Newton iterate) for the next steps
-        for r in range(N):
-            pivc[r] = piv[r]
-            for c in range(N):
-                LUc[r, c] = A[r, c]
-        for r in range(N):
-            zt[r] = z[r]
-        pattern(m, mu, rho, z, u, patc)
-        meta[0] = 1
-        meta[1] = N
-    return (OK if st == 0 else FAIL_SOLVE), it, rr, Wbuilt
-
-
-@njit(forceinline=True)
+@njit
 def _laws(m, mu, rho, z, u, vs, Qs):
     """Dimensionless law residuals of a solved stage into Qs[0:3] (max with what is there),
     with Z the stage's largest contact impulse and u the rows' rates including their targets
@@ -524,7 +536,7 @@ def _laws(m, mu, rho, z, u, vs, Qs):
         Qs[2] = max(Qs[2], rho[k] * md / (Z * Z))
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _store(B, D0, S, X, V, D, W, k):
     for i in range(S.shape[0]):
         for c in range(3):
@@ -536,7 +548,7 @@ def _store(B, D0, S, X, V, D, W, k):
             D[k, i, c // 3, c % 3] = R[c]
 
 
-@njit(forceinline=True)
+@njit
 def _candidates(FI, FV, PI, PV, SH, X, Dm, marg, cand, cb, cg, P8, fidx, FO):
     """Candidate features at (X, Dm): near pairs (bounding spheres within the pair's margin
     marg[p]), box-box pairs checked for exactness, each valid feature with distance <= margin
@@ -585,7 +597,7 @@ def _candidates(FI, FV, PI, PV, SH, X, Dm, marg, cand, cb, cg, P8, fidx, FO):
     return OK, nc, -1, -1
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _kahan4(hi, lo, d):
     t0, e0 = kahan(hi[0], lo[0], d[0], True)
     t1, e1 = kahan(hi[1], lo[1], d[1], True)

@@ -62,7 +62,7 @@ OK = 0
 FAIL = 1  # not converged within MAXIT iterations
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def rows_velocity(N, W, b, z, u, ts, eps, zbar):
     """u = W z + b + eps (z - zbar) (first N rows) and ts = |b| + |W| |z|, the size of the
     terms summed (their rounding bounds what any solver can reach on that row)."""
@@ -77,7 +77,7 @@ def rows_velocity(N, W, b, z, u, ts, eps, zbar):
         ts[r] = t
 
 
-@njit(forceinline=True)
+@njit
 def ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc):
     """The Alart-Curnier function F (first 3 m + nj entries) at impulses z and velocities u.
     Returns the residual relative to the terms: max over the rows of |F_r| / (sc + rho
@@ -113,7 +113,7 @@ def ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc):
     return res
 
 
-@njit(forceinline=True)
+@njit
 def _ac_jacobian(m, nj, mu, rho, W, z, u, A, eps):
     """The generalised Jacobian dF/dz of :func:`ac_residual` into A (N x N), for the
     velocities u = (W + eps I) z + ..."""
@@ -167,7 +167,7 @@ def _ac_jacobian(m, nj, mu, rho, W, z, u, A, eps):
         A[r, r] += rho[m + j] * eps
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def _lu_solve(A, N, x, piv):
     """Solve A y = x in place (x becomes y) by LU with partial pivoting, A (N x N)
     overwritten. Returns False on a zero pivot."""
@@ -205,7 +205,7 @@ def _lu_solve(A, N, x, piv):
     return True
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def scale_of(N, m, nj, rho, b, z):
     """Impulse scale of the problem: max(|z|, rho |b|) over the rows (> 0 unless both are 0)."""
     s = 0.0
@@ -311,8 +311,8 @@ def _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst
 
 
 @njit
-def _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
-                luflag):  # fmt: skip
+def solve(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
+          luflag):  # fmt: skip
     """Solve the problem from the start value z (overwritten by the solution; u its
     velocities). Returns (status, Newton iterations, certified residual).
 
@@ -324,59 +324,55 @@ def _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
     those of a rigid motion, and no impulse satisfies all four exactly); their residual
     counts beyond rho gtol. Tangent rows (stick, slip) have no such allowance.
     Newton first; if it stalls, proximal problems (see the module docstring), each started
-    from the last, until the original problem's residual is below RES_TOL."""
+    from the last, until the original problem's residual is below RES_TOL.
+
+    A warm start (the last step's impulses) can leave Newton and the proximal sequence
+    stalled where the contacts' forces are indeterminate (a face resting between stick and
+    slip: a box coming to rest with four corners); the problem is then solved again from
+    z = 0 (measured: a tumbling box's velocity stage, 2575 iterations to 4.3e-8 from the warm
+    start, 23 iterations to 8e-17 from 0). One function, not a helper called twice: each
+    level of compiled calls costs numba a re-optimisation of everything below it."""
     N = 3 * m + nj
     if N == 0:
         return OK, 0, 0.0
-    luflag[0] = 0
-    ok, it = _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb,
-                     0.0, zbar, luflag)  # fmt: skip
-    sc = scale_of(N, m, nj, rho, b, z)
-    if ok or sc == 0.0:
-        return OK, it, ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc) if sc > 0.0 else 0.0
-    wd = 0.0
-    for r in range(N):
-        wd += W[r, r]
-    eps = PROX_REL * wd / N
-    for _ in range(PROX_MAX):
-        for r in range(N):
-            zbar[r] = z[r]
-        _, k = _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb,
-                       eps, zbar, luflag)  # fmt: skip
-        it += k
-        # the original problem at the proximal solution, then Newton from there
+    it = 0
+    res = 0.0
+    for attempt in range(2):
+        if attempt == 1:
+            for r in range(N):
+                z[r] = 0.0
+        luflag[0] = 0
         ok, k = _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst,
                         zb, 0.0, zbar, luflag)  # fmt: skip
         it += k
-        if ok:
-            break
-    sc = scale_of(N, m, nj, rho, b, z)
-    res = ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc)
-    return (OK if res <= RES_TOL else FAIL), it, res
+        sc = scale_of(N, m, nj, rho, b, z)
+        if ok or sc == 0.0:
+            res = ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc) if sc > 0.0 else 0.0
+            return OK, it, res
+        wd = 0.0
+        for r in range(N):
+            wd += W[r, r]
+        eps = PROX_REL * wd / N
+        for _ in range(PROX_MAX):
+            for r in range(N):
+                zbar[r] = z[r]
+            _, k = _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
+                           tst, zb, eps, zbar, luflag)  # fmt: skip
+            it += k
+            # the original problem at the proximal solution, then Newton from there
+            ok, k = _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
+                            tst, zb, 0.0, zbar, luflag)  # fmt: skip
+            it += k
+            if ok:
+                break
+        sc = scale_of(N, m, nj, rho, b, z)
+        res = ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc)
+        if res <= RES_TOL:
+            return OK, it, res
+    return FAIL, it, res
 
 
-@njit
-def solve(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
-          luflag):  # fmt: skip
-    """Solve the problem from the start value z (overwritten by the solution; u its
-    velocities). Returns (status, Newton iterations, certified residual): see
-    :func:`_solve_from`. A warm start (the last step's impulses) can leave Newton and the
-    proximal sequence stalled where the contacts' forces are indeterminate (a face resting
-    between stick and slip: a box coming to rest with four corners); the problem is then
-    solved again from z = 0 (measured: a tumbling box's velocity stage, 2575 iterations to
-    4.3e-8 from the warm start, 23 iterations to 8e-17 from 0)."""
-    st, it, res = _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
-                              tst, zb, zbar, luflag)  # fmt: skip
-    if st == OK:
-        return st, it, res
-    for r in range(3 * m + nj):
-        z[r] = 0.0
-    st, k, res = _solve_from(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts,
-                             tst, zb, zbar, luflag)  # fmt: skip
-    return st, it + k, res
-
-
-@njit(forceinline=True)
+@njit(inline="always")
 def pattern(m, mu, rho, z, u, pat):
     """Each contact's case at (z, u): 0 separated, 1 stick, 2 slip (the branch of the
     Alart-Curnier function, which fixes the form of its Jacobian)."""
@@ -391,7 +387,7 @@ def pattern(m, mu, rho, z, u, pat):
         pat[k] = 1 if math.sqrt(y1 * y1 + y2 * y2) <= mu[k] * sigma else 2
 
 
-@njit(forceinline=True)
+@njit(inline="always")
 def lu_apply(LU, N, piv, x):
     """Solve with the factors of :func:`_lu_solve` (LU and piv), x in place."""
     for k in range(N):

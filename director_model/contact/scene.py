@@ -137,6 +137,7 @@ class ContactScene:
         self.SH = SH
         # pairs and their features
         FI, FV, PI, PV, self.feature_text, self.pair_names = [], [], [], [], [], []
+        self.pair_sign = []
         seen = set()
         for k, pr in enumerate(pairs):
             if not isinstance(pr, Pair):
@@ -162,6 +163,7 @@ class ContactScene:
                     raise InvalidContactError(f"{where}: body {nm!r} has no shape in shapes")
             f0 = len(FI)
             p = len(PI)
+            self.pair_sign.append(1.0)
             a_name, b_name = pr.a, pr.b
             if a_name in self.planes and b_name in self.planes:
                 raise InvalidContactError(f"{where}: two planes never move; pair a body")
@@ -175,7 +177,10 @@ class ContactScene:
                 ka, kb = _kind_name(self.shapes[a_name]), _kind_name(self.shapes[b_name])
                 order = {"capsule": 0, "sphere": 1, "box": 2, "cylinder": 3}
                 if order[ka] > order[kb]:
+                    # the kernel's body a is the pair's b: its force on a comes out
+                    # negated (pair_force is on the pair's first body)
                     a_name, b_name, ka, kb = b_name, a_name, kb, ka
+                    self.pair_sign[p] = -1.0
                 refuse = _REFUSED.get(tuple(sorted((ka, kb))))
                 if refuse:
                     raise InvalidContactError(f"{where}: a {ka}-{kb} pair is refused: {refuse}")

@@ -172,7 +172,8 @@ def _failure(scene, status, info, done, dt, member=None) -> ContactSolveError:
 def _trajectory(scene, t, X, V, D, W, Q, PF, nstep, dt, wall, cpu):
     E, _, _ = energy_momentum(scene.asm.bodies, scene.gravity, X, V, D, W)
     return ContactTrajectory(
-        t=t, position=X, velocity=V, rotation=D, omega_body=W, energy=E, pair_force=PF,
+        t=t, position=X, velocity=V, rotation=D, omega_body=W, energy=E,
+        pair_force=PF * np.asarray(scene.pair_sign)[None, :, None],
         penetration=Q[:, P.Q_PEN], signorini=Q[:, P.Q_SIG], coulomb=Q[:, P.Q_COUL],
         dissipation=Q[:, P.Q_DISS], contact_work=Q[:, P.Q_WORK],
         iterations=Q[:, P.Q_ITER].astype(np.int64), residual=Q[:, P.Q_RES],
