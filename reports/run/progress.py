@@ -26,7 +26,8 @@ over the throughput since the warm-ups ended (seconds of runs finished per secon
 number of busy workers). Runs that compiled are left out of both. A unit of work that costs a
 share of its group's runs (a scenario's timing pass, reports.run.timing: a budget in
 proportion to the CPU time its runs spent) is priced as that share of the group's runs, those
-finished at what they took.
+finished at what they took; once such units have finished, at the share they actually took
+(a budget is a bound: a pass spends less).
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ class Estimate:
         self.seconds: dict[Hashable, float] = {}  # config -> seconds of its measured runs
         self.sizes: dict[Hashable, float] = {}  # config -> size of its measured runs
         self.took: dict[Hashable, float] = {}  # item -> its seconds, when measured
+        self.shares: dict[Hashable, float] = {}  # share item -> its seconds, when measured
         self.since = 0.0  # seconds of the runs measured since the origin
         self.n_since = 0
         self.members: dict[str, list] = {}  # group -> its items that are not a share
@@ -96,7 +98,9 @@ class Estimate:
         it = self.items.get(item)
         if it is None or seconds is None or not measured or not seconds >= 0:
             return
-        if not it.share:  # a share is priced from its group, not as a rate of its config
+        if it.share:
+            self.shares[item] = seconds
+        else:  # a share is priced from its group, not as a rate of its config
             self.took[item] = seconds
             self.seconds[it.config] = self.seconds.get(it.config, 0.0) + seconds
             self.sizes[it.config] = self.sizes.get(it.config, 0.0) + it.size
@@ -129,10 +133,17 @@ class Estimate:
         def group_seconds(group: str) -> float:
             return sum(self.took.get(k, price(k)) for k in self.members.get(group, ()))
 
+        # the share the finished share items took of their groups, once there are some
+        spent = sum(self.shares.values())
+        of = sum(group_seconds(self.items[k].group) for k in self.shares)
+        taken = spent / of if of > 0 else None
         total = 0.0
         for k in self.left:
             it = self.items[k]
-            total += it.share * group_seconds(it.group) if it.share else price(k)
+            if it.share:
+                total += (it.share if taken is None else taken) * group_seconds(it.group)
+            else:
+                total += price(k)
         throughput = self.since / elapsed  # seconds of runs per second: the busy workers
         return total / throughput if throughput > 0 else None
 

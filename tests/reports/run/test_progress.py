@@ -270,6 +270,16 @@ def test_a_timing_pass_is_priced_as_a_share_of_its_scenarios_runs():
     assert abs(est.left_s(3.0) - (1.0 + 0.5 * 4.0) / 1.0) < 1e-9
     est.finished("pass", 2.0, measured=True, counts=True)  # not a rate of ("timing",)
     assert ("timing",) not in est.seconds
+    # once a pass has finished, the others are priced at the share the finished ones took
+    # (a budget is a bound: the passes of a warm default run took about a fifth of it)
+    items = {f"{g}{k}": Item(g, "c", 100.0) for g in "ab" for k in range(2)}
+    items |= {f"pass-{g}": Item(g, ("timing",), 200.0, share=0.5) for g in "ab"}
+    est = Estimate(items)
+    for key in ("a0", "a1", "b0"):
+        est.finished(key, 1.0, measured=True, counts=True)
+    est.finished("pass-a", 0.2, measured=True, counts=True)  # 10 % of a's 2 s
+    # left: b1 (1 s) and b's pass at 10 % of 2 s; throughput 3.2 s of runs in 3.2 s
+    assert abs(est.left_s(3.2) - (1.0 + 0.1 * 2.0)) < 1e-9
     import scenarios
     from reports.run.plan import plan
 
