@@ -180,17 +180,21 @@ class Beside:
 
         self.clone, self.env, self.where = clone, env, where
         self.stop = threading.Event()
+        self.lock = threading.Lock()  # no run starts once stopped
         self.proc = None
         self.runs = 0
         self.thread = threading.Thread(target=self._loop, daemon=True)
 
     def _loop(self) -> None:
-        while not self.stop.is_set():
+        while True:
             out = self.where / f"beside-{self.runs}"
-            self.proc = subprocess.Popen(
-                [*COMMAND, str(out), "--quiet"], cwd=self.clone, env=self.env,
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            )  # fmt: skip
+            with self.lock:
+                if self.stop.is_set():
+                    return
+                self.proc = subprocess.Popen(
+                    [*COMMAND, str(out), "--quiet"], cwd=self.clone, env=self.env,
+                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                )  # fmt: skip
             self.proc.wait()
             self.runs += 1
             shutil.rmtree(out, ignore_errors=True)
@@ -202,9 +206,10 @@ class Beside:
         return self
 
     def __exit__(self, *exc):
-        self.stop.set()
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.terminate()
+        with self.lock:
+            self.stop.set()
+            if self.proc is not None and self.proc.poll() is None:
+                self.proc.terminate()
         self.thread.join()
         _become_subreaper(True)
 
