@@ -138,6 +138,10 @@ def _run(f, y0, t, rtol, scale, max_step, max_steps, deadline, label):
     nstep = 0
     while k < len(t):
         msg = solver.step()
+        if solver.status == "failed" and getattr(f, "singular", None):
+            from references.exact.multibody.loops import LoopSingular
+
+            raise LoopSingular(f.singular)
         if solver.status == "failed":
             raise RuntimeError(
                 f"multibody reference ({label}): DOP853 failed at t = {solver.t:.6g} s: {msg}"

@@ -22,7 +22,11 @@ contribute nothing, and the motion is unique though the multipliers are not. Nea
 configuration (a rank that drops, where two branches of the loop meet) the rows' rates lose
 their hold on the motion along the other branch and errors are amplified by 1/s_min: the
 reference stops there (:data:`SINGULAR_TOL`, :class:`LoopSingular`) rather than follow a
-branch it cannot tell apart (the closed forms cover the four-bars that pass through one).
+branch it cannot tell apart (the closed forms cover the four-bars that pass through one). The
+test is made on the states DOP853 accepts: a trial stage that lands near a singular
+configuration (on a stiff system, IFToMM A05's dampers, a rejected step's stage may land
+anywhere) returns NaN, which makes DOP853 reject the step, and LoopSingular is raised when no
+smaller step avoids it.
 The rows, per joint (world vectors; a = body_a, b = body_b or the ground; A, B unit vectors
 fixed in a and b):
 
@@ -531,17 +535,25 @@ def rhs_function(system: LoopSystem, alpha: float = 0.0):
     rank0 = system.rank0
 
     def f(t, y):
+        if not np.all(np.isfinite(y)):  # a stage after a rejected one (below): rejected too
+            return np.full(len(y), np.nan)
         out = _rhs(y, nq, *args)  # q' (and the unconstrained u', replaced)
         out[nq:], s = accelerations(system, y[:nq], y[nq:], alpha)
         if rank0 and not s[rank0 - 1] >= SINGULAR_TOL * s[0]:
-            raise LoopSingular(
+            # a state near a singular configuration: NaN makes DOP853 reject the step (a
+            # trial stage of a stiff system may land anywhere), and the driver raises
+            # LoopSingular with this message when no smaller step avoids it (every accepted
+            # state passes here: DOP853 evaluates f at each step's end)
+            f.singular = (
                 f"the loops reach a singular configuration near t = {t:.6g} s (the rows' "
                 f"smallest singular value {s[rank0 - 1] / s[0]:.3g} of the largest, below "
                 f"{SINGULAR_TOL:g}: their rank drops from {rank0}, and the loop's branches "
                 "meet); the numerical reference does not follow a branch through it"
             )
+            out[:] = np.nan
         return out
 
+    f.singular = None
     return f
 
 
