@@ -43,7 +43,10 @@ MODULES = {
         "reports/gate/rule.py",
         ["tests/reports/gate/test_gate.py", "tests/reports/gate/test_compare.py"],
     ),
-    "versions cost": ("reports/versions/cost.py", ["tests/reports/versions/test_versions.py"]),
+    "versions cost": (
+        "reports/versions/cost.py",
+        ["tests/reports/versions/test_versions.py", "tests/reports/versions/test_cost_rule.py"],
+    ),
 }
 
 #: the packages copied into mutmut's ``mutants/`` (the tests import them from there)
