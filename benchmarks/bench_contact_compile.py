@@ -22,6 +22,12 @@ of benchmarks/bench_contact_vs_engines.py (sphere, box, stack of 3, incline), be
     python benchmarks/bench_contact_compile.py            # cold + cached, no batch
     python benchmarks/bench_contact_compile.py --batch    # the batch kernel too
     python benchmarks/bench_contact_compile.py --cache DIR  # keep the cache in DIR (new)
+    python benchmarks/bench_contact_compile.py --profile    # + compile CPU per function
+
+``--profile``: the exclusive compile time of each numba function compiled for run_contact
+(thread CPU between numba's compile events, nested compiles subtracted). A function's time
+includes the optimisation of what it links in from its callees: numba re-optimises a callee's
+code in every module that links it, so deep call chains show up here.
 """
 
 from __future__ import annotations
