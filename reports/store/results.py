@@ -20,7 +20,9 @@ newest row per configuration (:data:`~reports.store.runs.CONFIG_KEY`); tables, r
 convergence fits read that view.
 
 The store is refused, never converted, when the file is an SQLite database of another
-application (:data:`APPLICATION_ID`, the tables it holds).
+application (:data:`APPLICATION_ID`, the tables it holds). A store of an older format of ours
+is read: its rows are completed as they are read (:func:`upgrade_rows`), and rewritten in the
+current format when the store is opened for writing (:meth:`Store._migrate`).
 """
 
 from __future__ import annotations
@@ -46,8 +48,11 @@ from reports.store.runs import (
 )
 
 STORE_NAME = "results.sqlite"
-#: version of the store's layout, checked on open
-STORE_FORMAT = 1
+#: version of the store's layout, checked on open. 2: every row holds its scene's kind
+#: (``scene_kind``); 1: rows without it (read, and migrated: :func:`upgrade_rows`)
+STORE_FORMAT = 2
+#: the formats this code reads
+READABLE_FORMATS = frozenset({"1", str(STORE_FORMAT)})
 #: SQLite ``application_id`` of a results store ("DBR1" in ASCII); a database with another
 #: non-zero id, or with tables of its own, is not ours and is refused
 APPLICATION_ID = 0x44425231
@@ -163,6 +168,48 @@ def checksum(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+# -- older formats ------------------------------------------------------------------------------
+
+
+def _legacy_kind(rows: list[dict]) -> str:
+    """The scene kind of a scenario's rows written before the store recorded it (format 1),
+    from what its runs measured: ``contact`` when a run has a metric only contact scenes have,
+    ``system`` when one has a metric of systems that single bodies do not have, else ``body``
+    (the metrics' scene kinds are the catalog's, :data:`scenarios.metric_catalog.METRICS`)."""
+    from scenarios.metric_catalog import METRICS
+
+    def measured(names) -> bool:
+        for r in rows:
+            for n in names:
+                try:
+                    if math.isfinite(float(r.get(n))):
+                        return True
+                except (TypeError, ValueError):
+                    continue
+        return False
+
+    if measured([m.name for m in METRICS if m.contact and not (m.body or m.system)]):
+        return "contact"
+    if measured([m.name for m in METRICS if m.system and not m.body]):
+        return "system"
+    return "body"
+
+
+def upgrade_rows(rows: list[dict]) -> list[dict]:
+    """``rows`` (store order) with the columns of the current format filled in where a row of
+    an older format lacks them: ``scene_kind``, per scenario by :func:`_legacy_kind`. Rows that
+    have every column are returned as they are."""
+    old = [r for r in rows if "scene_kind" not in r]
+    if not old:
+        return rows
+    by_scenario: dict[str, list[dict]] = {}
+    for r in old:
+        by_scenario.setdefault(r.get("scenario", ""), []).append(r)
+    kinds = {name: _legacy_kind(rs) for name, rs in by_scenario.items()}
+    return [r if "scene_kind" in r else {**r, "scene_kind": kinds[r.get("scenario", "")]}
+            for r in rows]  # fmt: skip
+
+
 # -- the store ----------------------------------------------------------------------------------
 
 
@@ -221,6 +268,8 @@ class Store:
                 con.execute("PRAGMA synchronous = NORMAL")
                 self._create_schema(con)
             self._check(con)
+            if create and self._format != str(STORE_FORMAT):
+                self._migrate(con)
         except BaseException:
             con.close()
             raise
@@ -283,8 +332,32 @@ class Store:
             self._empty = True
             return
         fmt = con.execute("SELECT value FROM meta WHERE key = 'format'").fetchone()
-        if fmt is None or fmt[0] != str(STORE_FORMAT):
+        if fmt is None or fmt[0] not in READABLE_FORMATS:
             raise StoreDamaged(self._advice(f"not a director-bench results store (format {fmt})"))
+        self._format = fmt[0]
+
+    #: the format of the store as opened (:data:`READABLE_FORMATS`)
+    _format = str(STORE_FORMAT)
+
+    def _migrate(self, con) -> None:
+        """Rewrite a store of an older format in the current one, in one transaction: every
+        row, its checksum verified first, completed by :func:`upgrade_rows` and given its new
+        checksum, then the format record. A damaged row stops it before anything is written
+        (:class:`StoreDamaged`); a process killed during it leaves the old store whole."""
+        rows = self._verified(con)
+        new = upgrade_rows(rows)
+
+        def statements(con):
+            for row in new:
+                text = canonical(row)
+                con.execute(
+                    "UPDATE runs SET row_json = ?, checksum = ? WHERE run_id = ?",
+                    (text, checksum(text), row["run_id"]),
+                )
+            con.execute("UPDATE meta SET value = ? WHERE key = 'format'", (str(STORE_FORMAT),))
+
+        _transaction(con, statements)
+        self._format = str(STORE_FORMAT)
 
     def _advice(self, what: str) -> str:
         return (
@@ -397,16 +470,20 @@ class Store:
         return {r["run_id"] for r in self.rows() if r.get("status") not in RETRY_STATUSES}
 
     def rows(self) -> list[dict]:
-        """Every row, checksums verified (:class:`StoreDamaged` on a mismatch)."""
+        """Every row, checksums verified (:class:`StoreDamaged` on a mismatch), in the current
+        format (a store of an older one: :func:`upgrade_rows`)."""
         if self._empty:
             return []
         try:
-            cur = self._con.execute(
-                "SELECT run_id, status, row_json, checksum FROM runs ORDER BY rowid"
-            )
-            data = cur.fetchall()
+            return upgrade_rows(self._verified(self._con))
         except sqlite3.DatabaseError as exc:
             raise self._damaged(exc) from None
+
+    def _verified(self, con) -> list[dict]:
+        """Every row as stored, checksums verified (:class:`StoreDamaged` on a mismatch)."""
+        data = con.execute(
+            "SELECT run_id, status, row_json, checksum FROM runs ORDER BY rowid"
+        ).fetchall()
         out, bad = [], []
         for run_id, status, text, chk in data:
             try:
