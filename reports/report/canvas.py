@@ -31,6 +31,7 @@ from reports.report.tables import at_scenario_dt, scenario_dt
 from reports.store.format import fmt
 from reports.store.results import reference_rows
 from reports.store.runs import error_series_path
+from scenarios.model import SCENE_KINDS
 
 #: colours of the configurations, given out in engine and integrator order so that every
 #: configuration of a results folder has its own (tab10, then darker tones of tab20b/c); a
@@ -515,20 +516,42 @@ def _plot_rows(df, scenario):
     return rows, scenario_dt(sub)
 
 
-def is_system(df, cache, scenario: str) -> bool:
-    """Whether a scenario of the results is a system of bodies: a run of it has a system
-    metric (:data:`reports.metrics.system.SYSTEM_METRICS`), or a series file with per-body
-    columns (``<body>.wx``); a single body's runs have neither."""
-    from reports.metrics.system import SYSTEM_METRICS
+#: the figures of one scenario, in report order, each with the scene kinds it draws
+#: (:data:`scenarios.SCENE_KINDS`, recorded in each run's row as ``scene_kind``): ``scenario``
+#: and ``rates`` show one body's motion and body rates; ``system`` the joints and invariants of
+#: a scene of bodies (a contact scene's: distance moved and penetration,
+#: :data:`BODIES_FIGURE`); ``joint_angles`` and ``importers`` a robot model's
+#: (:mod:`reports.report.model_plots`); the others any scene's
+FIGURES = {
+    "scenario": ("body",),
+    "errors": SCENE_KINDS,
+    "rates": ("body",),
+    "system": ("system", "contact"),
+    "joint_angles": ("system", "contact"),
+    "importers": ("system", "contact"),
+    "convergence": SCENE_KINDS,
+    "work_precision": SCENE_KINDS,
+}
 
-    sub = df[df["scenario"] == scenario]
-    if any(m in sub and sub[m].notna().any() for m in SYSTEM_METRICS):
-        return True
-    for _, row in sub.iterrows():
-        s = cache.get(row)
-        if s is not None:
-            return any("." in c for c in s)
-    return False
+#: the function drawing the ``system`` figure of each kind of scene of bodies (module:name)
+BODIES_FIGURE = {
+    "system": "reports.report.system_plots:system_plot",
+    "contact": "reports.report.contact:contact_plot",
+}
+
+
+def scene_kind(df, scenario: str) -> str:
+    """The kind of scene ``scenario`` is (:data:`scenarios.SCENE_KINDS`), as the runner
+    recorded it in its rows (``scene_kind``; a store of an older format has it filled when
+    read, :func:`reports.store.results.upgrade_rows`); '' when the results hold no run of it."""
+    kinds = df.loc[df["scenario"] == scenario, "scene_kind"]
+    return str(kinds.iloc[-1]) if len(kinds) else ""
+
+
+def draws(figure: str, df, scenario: str) -> bool:
+    """Whether the figure kind ``figure`` (:data:`FIGURES`) is drawn for ``scenario``: its
+    scene kind is one of those the figure declares."""
+    return scene_kind(df, scenario) in FIGURES[figure]
 
 
 def _hash_code(h) -> None:

@@ -1,5 +1,5 @@
-"""Every figure of a results folder, drawn once: which kinds a scenario gets (:data:`KINDS`;
-a system of bodies takes ``system`` in the place of ``scenario`` and ``rates``), the drawing
+"""Every figure of a results folder, drawn once: which kinds a scenario gets (:data:`KINDS`,
+each drawn for the scene kinds it declares, :data:`reports.report.canvas.FIGURES`), the drawing
 of each scenario's figures (beside a worker process from :data:`PARALLEL_FROM` scenarios) and
 the record of what each was made from (:data:`CACHE_FILE`: a scenario whose rows, series and
 figure code are unchanged keeps its figures; :mod:`reports.report.figure_cache` reuses them
@@ -13,10 +13,13 @@ scenario); the scorecard is drawn apart (:mod:`reports.report.scorecard_plot`).
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 
 from reports.report import figure_cache
 from reports.report.canvas import (
+    BODIES_FIGURE,
+    FIGURES,
     SeriesCache,
     Styles,
     _hash_code,
@@ -25,7 +28,8 @@ from reports.report.canvas import (
     _plot_rows,
     _plt,
     _save,
-    is_system,
+    draws,
+    scene_kind,
 )
 from reports.report.pictures import scenario_plot_from_results
 from reports.report.plots import convergence_plot, errors_plot, rates_plot, work_precision_plot
@@ -34,20 +38,9 @@ from reports.store.atomic import write_text
 from reports.store.results import records
 from reports.store.runs import error_series_path, slug
 
-#: the figures of one scenario, in report order (``scenario`` and ``rates`` are a single
-#: body's, ``system`` a system of bodies': :func:`is_system`)
-KINDS = (
-    "scenario", "errors", "rates", "system", "joint_angles", "importers", "convergence",
-    "work_precision",
-)  # fmt: skip
-
-
-#: the figures only a single body has, and those only a system of bodies has (a robot
-#: model's two: :mod:`reports.report.model_plots`)
-SINGLE_BODY_KINDS = ("scenario", "rates")
-
-
-SYSTEM_KINDS = ("system", "joint_angles", "importers")
+#: the figures of one scenario, in report order (the scene kinds each draws:
+#: :data:`reports.report.canvas.FIGURES`)
+KINDS = tuple(FIGURES)
 
 
 def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles, failed=None):
@@ -74,23 +67,17 @@ def scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles
 def _scenario_plot(kind: str, df, cache, out: Path, scenario: str, styles: Styles):
     if kind not in KINDS:
         raise ValueError(f"unknown plot kind {kind!r}; known: {', '.join(KINDS)}")
-    if kind in (SINGLE_BODY_KINDS if is_system(df, cache, scenario) else SYSTEM_KINDS):
-        return None  # a single body's figure code never sees a system, nor the reverse
+    if not draws(kind, df, scenario):
+        return None  # a figure's code sees only the scenes it declares
     if kind == "scenario":
         return scenario_plot_from_results(df, cache, out, scenario)
     if kind == "errors":
         return errors_plot(df, cache, out, scenario, styles)
-    if kind == "system":
-        from reports.report.system_plots import system_plot  # joints, invariants over time
-
+    if kind == "system":  # joints and invariants over time; a contact scene's distance
+        module, name = BODIES_FIGURE[scene_kind(df, scenario)].split(":")
+        draw = getattr(importlib.import_module(module), name)
         rows, h = _plot_rows(df, scenario)
-        if "slide_distance" in rows and rows["slide_distance"].notna().any():
-            from reports.report.contact import contact_plot  # distance, penetration
-
-            system_plot = contact_plot
-        return system_plot(
-            rows, h, cache, out, scenario, _plt(), _save, styles, _new_figure, _legend
-        )
+        return draw(rows, h, cache, out, scenario, _plt(), _save, styles, _new_figure, _legend)
     if kind in ("joint_angles", "importers"):  # a robot model's, with its importer table
         from reports.report import model_plots
         from reports.run.importers import read_table

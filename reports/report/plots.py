@@ -44,9 +44,10 @@ from reports.report.canvas import (
     _running_max,
     _save,
     _thin,
-    is_system,
+    draws,
     name_list,
     plot_label,
+    scene_kind,
 )
 from reports.report.groups import group_rows, sweep_groups
 from reports.report.labels import (
@@ -111,9 +112,9 @@ def errors_plot(df, cache: SeriesCache, out: Path, scenario: str, styles: Styles
     fig, axes = _new_figure(len(panels))
     axes[-1].set_xlim(0, float(rows["t_end"].max()))
     off = {}
-    system = is_system(df, cache, scenario)
+    bodies = scene_kind(df, scenario) != "body"
     for ax, (column, ylabel, scale_col, unit) in zip(axes, panels, strict=True):
-        if system and column == "attitude_error":
+        if bodies and column == "attitude_error":
             ylabel = "attitude error [rad]\n(largest over bodies)"
         left = _error_panel(ax, rows, groups, ref, column, styles)
         for name, t_left in left:
@@ -275,7 +276,7 @@ def rates_left_out(df, cache: SeriesCache, scenario: str) -> str:
     drawn because every configuration stays within RATES_VISIBLE of max |W| of the reference
     (the figure would be the reference alone); '' when the figure is drawn or there is no
     reference to draw it against."""
-    if is_system(df, cache, scenario):
+    if not draws("rates", df, scenario):
         return ""
     sel = _rates_selection(df, cache, scenario)
     if sel is None or sel[5] or not sel[6]:

@@ -143,9 +143,8 @@ def test_a_system_without_series_files_gets_no_single_body_figure(built, df, tmp
     rows = df.copy()
     rows.loc[rows["scenario"] == "four_bar", "trajectory"] = ""
     styles, cache = canvas.Styles(rows), canvas.SeriesCache(built)
-    assert canvas.is_system(rows, cache, "four_bar") and not canvas.is_system(
-        rows, cache, "free_tumbling"
-    )
+    assert canvas.scene_kind(rows, "four_bar") == "system"
+    assert canvas.scene_kind(rows, "free_tumbling") == "body"
     made = [
         figures.scenario_plot(k, rows, cache, tmp_path, "four_bar", styles) for k in figures.KINDS
     ]
