@@ -47,10 +47,12 @@ def joint_angle_plot(rows, h, cache, out: Path, scenario, plt, save, new_figure,
 
     panels: dict = {}
     for r in rows.to_dict("records"):
-        if is_reference_record(r) or r.get("engine") in ("director", "exact"):
+        if is_reference_record(r):
             continue
         base, config = split_variant(str(r["integrator"]))
         panels.setdefault((r["engine"], base), {})[config or "our reading"] = r
+    # a panel only where an importer ran: an engine that reads no model file (the suite's
+    # own integrator) has our reading alone
     panels = {k: v for k, v in panels.items() if len(v) > 1 or "our reading" not in v}
     runs, missing = [], []
     for (engine, base), by in panels.items():
