@@ -21,7 +21,7 @@ from scenarios.system_file import validate_system
 LIBRARY = ["bricard", "conical_pendulum", "conical_pendulum_fast",
            "conical_pendulum_unstable", "double_pendulum_3d", "four_bar",
            "four_bar_stiff_loop", "free_chain_5", "iftomm_a02", "iftomm_a02_n2", "iftomm_a03",
-           "planar_chain_3_rates", "planar_chain_4", "slider_crank_spatial",
+           "iftomm_a05", "planar_chain_3_rates", "planar_chain_4", "slider_crank_spatial",
            "spinning_chain"]  # fmt: skip
 
 
