@@ -94,6 +94,20 @@ def _times(t) -> np.ndarray:
     return t
 
 
+def _pivot_accuracy(err, phi, r0, x0, t_end) -> dict:
+    """Accuracy of a motion integrated as a rotation phi(t) about a fixed axis (a box tipping
+    about its edge, a body on a hinge): the angle's error ``err`` (the DOP853 estimate) plus
+    round-off on the angle swept; positions at the reach ``|r0|`` of the centre from the axis,
+    plus round-off of the position ``x0``; velocities that angle error over the run."""
+    att = 2.0 * err + 16 * EPS * (1.0 + float(np.max(np.abs(phi))))
+    reach = float(np.linalg.norm(r0))
+    return {
+        "position": att * reach + 16 * EPS * float(np.linalg.norm(x0)),
+        "attitude": att,
+        "velocity": att * reach / max(t_end, 1e-300),
+    }
+
+
 def _stack(t, x, R, v, W) -> ContactMotion:
     """One body's (n, ...) arrays as a motion of one body."""
     return ContactMotion(t, x[:, None], R[:, None], v[:, None], W[:, None])
@@ -325,13 +339,7 @@ class TippingBlock:
             "min_normal": float(np.min(Cn)),
             "max_friction_ratio": float(np.max(Ct / (self.mu * Cn))),
         }
-        att = 2.0 * err + 16 * EPS * (1.0 + float(np.max(np.abs(phi))))
-        reach = float(np.linalg.norm(self.r0))
-        out.accuracy = {
-            "position": att * reach + 16 * EPS * float(np.linalg.norm(self.x0)),
-            "attitude": att,
-            "velocity": att * reach / max(float(t[-1]), 1e-300),
-        }
+        out.accuracy = _pivot_accuracy(err, phi, self.r0, self.x0, float(t[-1]))
         out.method = (
             "rotation about the downhill edge, DOP853 at rtol 1e-12 (error: twice the gap to a "
             "run at rtol 1e-10)"

@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from references.exact._util import EPS, ReferenceNotApplicable, rot_axis
-from references.exact.contact import ContactMotion, _times, _unit
+from references.exact._util import ReferenceNotApplicable, rot_axis
+from references.exact.contact import ContactMotion, _pivot_accuracy, _times, _unit
 
 #: the flights are integrated at this rtol, and again at the check's to estimate the error
 RTOL = 1e-12
@@ -167,13 +167,7 @@ class HingedStrike:
         if not len(impacts):
             facts.pop("rebound_heights")
         out.facts = facts
-        reach = float(np.linalg.norm(self.r0))
-        att = 2.0 * err + 16 * EPS * (1.0 + float(np.max(np.abs(phi))))
-        out.accuracy = {
-            "position": att * reach + 16 * EPS * float(np.linalg.norm(self.x0)),
-            "attitude": att,
-            "velocity": att * reach / max(float(t[-1]), 1e-300),
-        }
+        out.accuracy = _pivot_accuracy(err, phi, self.r0, self.x0, float(t[-1]))
         out.method = (
             "rotation about the hinge, flights by DOP853 at rtol 1e-12 with the impacts as "
             "events, phi' -> -e phi' at each (error: twice the gap to a run at rtol 1e-10)"
