@@ -1,44 +1,176 @@
 """PyBullet's own importer (``loadURDF``, ``loadMJCF``) on a model file, read back
 (:mod:`references.engines.importers`) through ``getDynamicsInfo``, ``getLinkState`` and
-``getJointInfo``. As loaded, ``loadURDF`` takes no flags; faithful, it takes
+``getJointInfo``. As loaded, ``loadURDF`` and ``loadMJCF`` take no flags; faithful, they take
 ``URDF_USE_INERTIA_FROM_FILE`` (without it PyBullet recomputes each link's inertia from its
-collision shapes: :data:`HINTS`)."""
+collision shapes: :data:`HINTS`).
+
+``loadMJCF`` (Bullet's ``BulletMJCFImporter.cpp``, bullet3 examples/Importers/ImportMJCFDemo)
+reads each element's own attributes and little else: a body without ``<inertial>`` gets the
+mass 1000 kg/m^3 times its geoms' volume (a constant in ``parseBody``: neither a geom's
+``density`` or ``mass`` nor a ``<default>``'s is read; a mesh adds no volume), its centre of
+mass at the midpoint of its last ``fromto`` capsule (else the body origin) and, without
+``URDF_USE_INERTIA_FROM_FILE``, the inertia of its collision shapes; a joint's ``type`` and
+``axis`` only when written on the joint itself (not from a class), the axis kept unnormalised;
+``euler``, ``xyaxes``, ``zaxis``, ``<freejoint>``, ``ref``, ``damping`` and ellipsoids not at
+all. The faithful configuration therefore loads a copy of the file written out from MuJoCo's
+compiled model of it (:func:`flat_mjcf`): every body's ``pos`` and ``quat``, an explicit
+``<inertial>`` (``inertiafromgeom="false"``), every joint's type, position and unit axis on the
+joint, no geometry (the scenario is contact-free). PyBullet's coordinate 0 of an MJCF joint is
+then the file's pose, where MuJoCo's is ``ref``: a scenario's joint value q is PyBullet's
+q - ref."""
 
 from __future__ import annotations
 
 import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 
-from references.engines.importers import Readback, file_for, quiet_fd, rot_inertia, to_root
+from references.engines.importers import (
+    Readback,
+    combine,
+    file_for,
+    mjcf_copy,
+    quiet_fd,
+    rot_inertia,
+    to_root,
+)
 
 #: the known cause of a difference, by configuration and quantity, printed beside it
 HINTS = {
     ("as-loaded", "inertia"): "loadURDF without URDF_USE_INERTIA_FROM_FILE "
     "recomputes the inertia from the collision shapes: pass that flag",
     ("as-loaded", "com"): "loadURDF without URDF_USE_INERTIA_FROM_FILE",
-}
+    ("as-loaded", "mass", "mjcf"): "loadMJCF gives a body without <inertial> 1000 kg/m^3 "
+    "times its geoms' volume, reading no density or mass of the file (BulletMJCFImporter.cpp "
+    "parseBody); the faithful configuration writes each body's <inertial> out",
+    ("as-loaded", "inertia", "mjcf"): "loadMJCF without URDF_USE_INERTIA_FROM_FILE takes the "
+    "inertia of the collision shapes at its own mass; the faithful configuration writes each "
+    "body's <inertial> out and passes that flag",
+    ("as-loaded", "com", "mjcf"): "loadMJCF puts a body's centre of mass at its last fromto "
+    "capsule's midpoint, else at the body origin",
+    ("as-loaded", "missing", "mjcf"): "loadMJCF reads a joint's type and axis only from the "
+    "joint element (not from a default class) and skips <freejoint>, euler, xyaxes, zaxis",
+    ("as-loaded", "damping", "mjcf"): "loadMJCF does not read a joint's damping",
+}  # fmt: skip
+
+
+_MJCF_JOINT = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
+
+#: attributes of a body or joint that the flat copy replaces by its own
+_FRAME_KEYS = ("pos", "quat", "euler", "axisangle", "xyaxes", "zaxis", "class", "childclass")
+
+
+def _num(a) -> str:
+    return " ".join(repr(float(x)) for x in a)
+
+
+def flat_mjcf(model) -> tuple:
+    """(the path of PyBullet's faithful copy of the MJCF file, its temporary folder): the file
+    with every body's ``pos`` and ``quat``, an ``<inertial>`` and every joint's type, ``pos``
+    and unit ``axis`` written on the element from MuJoCo's compiled model of the file (its
+    qpos0: the file's pose) and its range (radians) where the joint is limited,
+    ``inertiafromgeom="false"``, every geom and ``<default>`` removed, ``<freejoint>`` written
+    as ``<joint type="free">``.
+    Raises ValueError when the file's bodies or joints do not pair with MuJoCo's one for one
+    (a ``<frame>``, an ``<include>`` or a ``<replicate>`` that MuJoCo expands)."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_path(str(Path(model.path).resolve()))
+
+    def edit(root):
+        comp = root.find("compiler")
+        comp.set("inertiafromgeom", "false")
+        comp.set("angle", "radian")
+        for key in ("eulerseq", "autolimits"):
+            comp.attrib.pop(key, None)
+        for el in root.findall("default"):
+            root.remove(el)
+        world = root.find("worldbody")
+        if world is None or world.find(".//frame") is not None:
+            raise ValueError("the file's <worldbody> has <frame> elements or none at all")
+        bodies = list(world.iter("body"))
+        if len(bodies) != m.nbody - 1:
+            raise ValueError(f"the file has {len(bodies)} bodies, MuJoCo's model {m.nbody - 1}")
+        for parent in [world, *bodies]:
+            for g in parent.findall("geom"):
+                parent.remove(g)
+        for b, el in enumerate(bodies, start=1):
+            for key in _FRAME_KEYS:
+                el.attrib.pop(key, None)
+            el.set("pos", _num(m.body_pos[b]))
+            el.set("quat", _num(m.body_quat[b]))
+            for old in el.findall("inertial"):
+                el.remove(old)
+            ine = ET.Element(
+                "inertial",
+                {
+                    "pos": _num(m.body_ipos[b]),
+                    "quat": _num(m.body_iquat[b]),
+                    "mass": repr(float(m.body_mass[b])),
+                    "diaginertia": _num(m.body_inertia[b]),
+                },
+            )
+            el.insert(0, ine)
+            joints = [j for j in el if j.tag in ("joint", "freejoint")]
+            if len(joints) != m.body_jntnum[b]:
+                raise ValueError(
+                    f"body {b}: {len(joints)} joints in the file, "
+                    f"{m.body_jntnum[b]} in MuJoCo's model"
+                )
+            for k, jel in enumerate(joints):
+                j = m.body_jntadr[b] + k
+                jel.tag = "joint"
+                jel.attrib.clear()
+                jel.set("name", mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"j{j}")
+                jel.set("type", _MJCF_JOINT[int(m.jnt_type[j])])
+                jel.set("pos", _num(m.jnt_pos[j]))
+                jel.set("axis", _num(m.jnt_axis[j] / np.linalg.norm(m.jnt_axis[j])))
+                limited = bool(m.jnt_limited[j])
+                jel.set("limited", "true" if limited else "false")
+                if limited:
+                    jel.set("range", _num(m.jnt_range[j]))
+
+    return mjcf_copy(model.path, edit)
+
+
+def _pybullet_file(model, config: str) -> tuple:
+    """(the file PyBullet loads in ``config``, a temporary folder or None): the importers'
+    :func:`~references.engines.importers.file_for`, and for a faithful MJCF file
+    :func:`flat_mjcf`'s copy."""
+    if config == "faithful" and model.format == "mjcf":
+        return flat_mjcf(model)
+    return file_for(model, config)
+
+
+def _load(p, path, model, floating: bool, flags: int, cid) -> list:
+    if model.format == "urdf":
+        return [p.loadURDF(str(path), useFixedBase=not floating, flags=flags,
+                           physicsClientId=cid)]  # fmt: skip
+    return list(p.loadMJCF(str(path), flags=flags, physicsClientId=cid))
 
 
 def readback(model, config: str, floating: bool = False) -> Readback:
     import pybullet as p
 
     rb = Readback("pybullet", config)
-    path, tmp = file_for(model, config)
     cid = p.connect(p.DIRECT)
+    tmp = None
     try:
+        path, tmp = _pybullet_file(model, config)
         flags = p.URDF_USE_INERTIA_FROM_FILE if config == "faithful" else 0
         rb.notes.append(f"flags {flags}")
         with quiet_fd() as out:
-            if model.format == "urdf":
-                ids = [p.loadURDF(str(path), useFixedBase=not floating, flags=flags,
-                                  physicsClientId=cid)]  # fmt: skip
-            else:
-                ids = list(p.loadMJCF(str(path), physicsClientId=cid))
+            ids = _load(p, path, model, floating, flags, cid)
         if out and out[0].strip():
             rb.notes.append(out[0].strip().splitlines()[-1][:200])
+        frames = {b: _frames(p, cid, b) for b in ids}
+        # the root link's frame, in whichever loaded body holds it (loadMJCF returns one body
+        # per tree of the world body: pusher's object and goal are bodies of their own)
+        T = next((f[0][model.root] for f in frames.values() if model.root in f[0]), None)
         for b in ids:
-            _pybullet_body(p, cid, b, model, rb)
+            _pybullet_body(p, cid, b, model, rb, frames[b], T)
     except Exception as exc:
         rb.error = f"{type(exc).__name__}: {exc}".strip()
     finally:
@@ -48,7 +180,9 @@ def readback(model, config: str, floating: bool = False) -> Readback:
     return rb
 
 
-def _pybullet_body(p, cid, b, model, rb):
+def _frames(p, cid, b) -> tuple:
+    """({link name: its link frame (4, 4) in the world}, the base's inertial frame, the list
+    of (link index, name), -1 the base) of PyBullet body ``b``."""
     base = p.getBodyInfo(b, physicsClientId=cid)[0].decode()
     links = [(-1, base)]
     for j in range(p.getNumJoints(b, physicsClientId=cid)):
@@ -58,13 +192,26 @@ def _pybullet_body(p, cid, b, model, rb):
     dyn = p.getDynamicsInfo(b, -1, physicsClientId=cid)
     pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=cid)
     Tin = _T(pos, orn, p)
-    Tloc = _T(dyn[3], dyn[4], p)
-    Tb = Tin @ np.linalg.inv(Tloc)
-    frames = {base: Tb}
+    frames = {base: Tin @ np.linalg.inv(_T(dyn[3], dyn[4], p))}
     for j, name in links[1:]:
         st = p.getLinkState(b, j, computeForwardKinematics=True, physicsClientId=cid)
         frames[name] = _T(st[4], st[5], p)
-    T = frames.get(model.root, Tb)
+    return frames, Tin, links
+
+
+def _pybullet_body(p, cid, b, model, rb, fr, T):
+    """Read body ``b`` into ``rb``, in the root link's frame ``T`` (None: this body's base
+    frame); ``fr``: :func:`_frames` of ``b``."""
+    frames, Tin, links = fr
+    base = links[0][1]
+    if T is None:
+        T = frames[base]
+    # loadMJCF makes a jointed body two links: one on the joint, without mass, and the body's
+    # own, fixed to it (named after the body, or "link..." when the body has no name); a link
+    # our reading does not know that hangs by a fixed joint is counted with its parent's
+    ours = {lk.name for lk in model.links}
+    owner: dict = {base: base}
+    parts: dict = {}
     for j, name in links:
         dyn = p.getDynamicsInfo(b, j, physicsClientId=cid)
         if j < 0:
@@ -72,12 +219,18 @@ def _pybullet_body(p, cid, b, model, rb):
         else:
             st = p.getLinkState(b, j, computeForwardKinematics=True, physicsClientId=cid)
             Tc = _T(st[0], st[1], p)
-        rb.bodies[name] = to_root(T, dyn[0], Tc[:3, 3], rot_inertia(Tc[:3, :3], dyn[2]))
+            info = p.getJointInfo(b, j, physicsClientId=cid)
+            up = links[info[16] + 1][1]
+            fold = name not in ours and info[2] == p.JOINT_FIXED
+            owner[name] = owner[up] if fold else name
+        part = to_root(T, dyn[0], Tc[:3, 3], rot_inertia(Tc[:3, :3], dyn[2]))
+        parts.setdefault(owner[name], []).append(part)
+        rb.bodies[owner[name]] = combine(parts[owner[name]])
         if j < 0:
             continue
-        info = p.getJointInfo(b, j, physicsClientId=cid)
         if info[2] != p.JOINT_REVOLUTE:
             continue
+        rb.joint_body[info[1].decode()] = name
         Tl = frames[name]
         lo, hi = float(info[8]), float(info[9])
         rb.joints[info[1].decode()] = {
@@ -129,17 +282,14 @@ class _Sim:
         self.p = p
         model = scenario.model
         st = start_of(scenario)
-        path, tmp = file_for(model, config)
         cid = p.connect(p.DIRECT)
         self.cid = cid
         flags = p.URDF_USE_INERTIA_FROM_FILE if config == "faithful" else 0
+        tmp, out = None, []
         try:
+            path, tmp = _pybullet_file(model, config)
             with quiet_fd() as out:
-                if model.format == "urdf":
-                    ids = [p.loadURDF(str(path), useFixedBase=not st.floating, flags=flags,
-                                      physicsClientId=cid)]  # fmt: skip
-                else:
-                    ids = list(p.loadMJCF(str(path), physicsClientId=cid))
+                ids = _load(p, path, model, st.floating, flags, cid)
         except Exception as exc:
             p.disconnect(cid)
             said = out[0].strip().splitlines()[-1][:200] if out and out[0].strip() else ""
@@ -150,9 +300,9 @@ class _Sim:
         finally:
             if tmp:
                 shutil.rmtree(tmp, ignore_errors=True)
-        rec = {"importer": ("loadURDF" if model.format == "urdf" else "loadMJCF")
-               + f" (flags {flags}, useFixedBase {not st.floating})"
-               if model.format == "urdf" else "loadMJCF", "configuration": config,
+        rec = {"importer": "loadURDF" + f" (flags {flags}, useFixedBase {not st.floating})"
+               if model.format == "urdf" else f"loadMJCF (flags {flags})",
+               "configuration": config,
                "integrator": "stepSimulation (multibody)",
                "gravity": st.gravity.tolist()}  # fmt: skip
         p.setGravity(*st.gravity.tolist(), physicsClientId=cid)
@@ -182,6 +332,11 @@ class _Sim:
         else:
             rec["as the file has it"] = ("PyBullet's defaults: velocity motors on, damping "
                                          "0.04, the file's joint damping and limits")  # fmt: skip
+        if config == "faithful" and model.format == "mjcf":
+            rec["file"] = (
+                "a copy written from MuJoCo's compiled model: each body's pose and "
+                "<inertial>, each joint's type, pos and unit axis, no geometry"
+            )
         if st.held:
             rec["held joints"] = f"{st.held}: free in PyBullet's model, at rest at t = 0"
         self._start(st, model, ids)
@@ -189,13 +344,15 @@ class _Sim:
 
     def _start(self, st, model, ids) -> None:
         p, cid = self.p, self.cid
+        # the scenario's coordinate is MuJoCo's (the file's pose at ref); PyBullet's is 0 there
+        ref = {j.name: float(j.ref) for j in model.joints} if model.format == "mjcf" else {}
         for name, (b, j, kind) in self.joint_of.items():
             if kind not in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
                 if name in st.given:
                     raise ValueError(f"pybullet: joint {name!r} (type {kind}): start not set here")
                 continue
             if name in st.q or name in st.qd:
-                p.resetJointState(b, j, float(st.q.get(name, 0.0)),
+                p.resetJointState(b, j, float(st.q.get(name, 0.0)) - ref.get(name, 0.0),
                                   float(st.qd.get(name, 0.0)), physicsClientId=cid)  # fmt: skip
         T = st.T
         if model.root not in self.where or self.where[model.root][1] != -1:
