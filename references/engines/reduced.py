@@ -47,6 +47,11 @@ POINT_CLOSURES = ("spherical", "fixed_point", "revolute")
 DISTANCE_CLOSURES = (*POINT_CLOSURES, "universal")
 #: the tree joints Pinocchio's builder (and Drake's) build
 SLIDING_KINDS = (*_TREE_KINDS, "prismatic")
+#: closures that leave a translation along their axis free, as a plan holds them: the point pair
+#: at the anchors and the pair one length scale L along the axes (a revolute closure's form; the
+#: engine's constraint frees the motion along the axis, and for a cylindrical the turn about
+#: it), the engines' own constraints (DART CylindricalJointConstraint, PyBullet JOINT_PRISMATIC)
+SLIDING_CLOSURES = ("cylindrical", "prismatic")
 
 
 @dataclass
@@ -124,7 +129,7 @@ def _named(joints) -> list:
 
 
 def plan(scenario, engine: str, tree_kinds=_TREE_KINDS, closures=POINT_CLOSURES,
-         refused=None) -> Plan:  # fmt: skip
+         refused=None, tree_refused=None) -> Plan:  # fmt: skip
     """The spanning tree, reference orientations and loop closures of ``scenario`` (module
     docstring): the spanning tree and loop closures of :func:`scenarios.tree.spanning_tree`,
     bodies added depth first from the ground, a body joined to nothing a floating root. A joint
@@ -132,7 +137,7 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS, closures=POINT_CLOSURES,
     ``axis_p``). ``ValueError`` for malformed joints, :class:`Unsupported` (naming ``engine``)
     for a kind outside ``tree_kinds`` in the tree, or a closure outside ``closures``
     (:data:`POINT_CLOSURES`, :data:`DISTANCE_CLOSURES`), with the engine's reason
-    ``refused[kind]`` where it gives one."""
+    ``refused[kind]`` (a closure) or ``tree_refused[kind]`` (a tree joint) where it gives one."""
     bodies = list(scenario.bodies)
     names = [b.name for b in bodies]
     if len(set(names)) != len(names):
@@ -179,8 +184,9 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS, closures=POINT_CLOSURES,
             continue
         what = label(j)
         if j.kind not in tree_kinds:
+            why = (tree_refused or {}).get(j.kind, "not built by this adapter")
             raise Unsupported(
-                f"{engine}: {what}: a {j.kind} joint in a tree is not built by this adapter "
+                f"{engine}: {what}: a {j.kind} joint in a tree: {why} "
                 f"(built: {', '.join(tree_kinds)})"
             )
         child_is_a = idx[j.body_a] == c
@@ -215,9 +221,9 @@ def plan(scenario, engine: str, tree_kinds=_TREE_KINDS, closures=POINT_CLOSURES,
             loops.append(Loop(what, j.kind, a, b, [(Xa, Xb)],
                               [(Xa + length * na, Xb + length * nb, length * math.sqrt(2.0))],
                               joint=j.name))  # fmt: skip
-        elif j.kind == "revolute":
+        elif j.kind in ("revolute", *SLIDING_CLOSURES):
             if j.axis_a is None or j.axis_b is None:
-                raise ValueError(f"{what}: a revolute joint needs axis_a and axis_b")
+                raise ValueError(f"{what}: a {j.kind} joint needs axis_a and axis_b")
             na, nb = unit(j.axis_a, what), unit(j.axis_b, what)
             Rb = np.eye(3) if b < 0 else R[b]
             if float((R[a] @ na) @ (Rb @ nb)) < 0:
@@ -324,16 +330,33 @@ def closure_points(pl: Plan, lp: Loop) -> tuple[list, list]:
     xa, Ra, _, _ = world(pl, idx[j.body_a])
     xb, Rb, _, _ = world(pl, -1 if j.body_b is None else idx[j.body_b])
     pa, pb = xa + Ra @ vec(j.anchor_a, "anchor_a"), xb + Rb @ vec(j.anchor_b, "anchor_b")
+    if lp.kind in SLIDING_CLOSURES:
+        # the anchors may stand apart along the axis: b holds a's anchor where it meets b's line
+        ub = Rb @ unit(j.axis_b, "axis_b")
+        pb = pb + ((pa - pb) @ ub) * ub
     pairs, distances = [(pa, pb)], []
-    if lp.kind in ("revolute", "universal"):
+    if lp.kind in ("revolute", "universal", *SLIDING_CLOSURES):
         ua, ub = Ra @ unit(j.axis_a, "axis_a"), Rb @ unit(j.axis_b, "axis_b")
-        if lp.kind == "revolute":
+        if lp.kind != "universal":
             ub = ub if ua @ ub >= 0 else -ub
             pairs.append((pa + pl.length * ua, pb + pl.length * ub))
         else:
             distances.append((pa + pl.length * ua, pb + pl.length * ub,
                               pl.length * math.sqrt(2.0)))  # fmt: skip
+        if lp.kind == "prismatic":
+            # the turn about the axis is held too: a direction across it, the same on both
+            # sides at t = 0 (the engine's pair shows where its b side takes it)
+            e = across(ua)
+            pairs.append((pa + pl.length * e, pb + pl.length * e))
     return pairs, distances
+
+
+def across(u) -> np.ndarray:
+    """A unit vector perpendicular to the unit vector ``u`` (the one nearest the world axis
+    least along ``u``): the direction a prismatic closure's third pair of points follows."""
+    u = np.asarray(u, float)
+    e = np.cross(u, np.eye(3)[int(np.argmin(np.abs(u)))])
+    return e / np.linalg.norm(e)
 
 
 def check_loops(engine: str, pl: Plan, got: dict) -> None:

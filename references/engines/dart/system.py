@@ -26,12 +26,18 @@ others              -                         unsupported (not built by this ada
 
 Loop closures (``World.step`` only; DART's constraint solver is not part of
 ``computeForwardDynamics``): a closing spherical joint is a ``BallJointConstraint``, a closing
-revolute joint a ``RevoluteJointConstraint`` (both created at the initial configuration, from
-the world anchor and axes). DART solves them as velocity-level impulses (a boxed LCP) with a
-position correction set by its global error reduction parameter (ERP), error allowance, maximum
-error-reduction velocity and constraint force mixing: read back and recorded, DART's defaults
-unless ``erp`` is given. A closure under RKMK4 is unsupported (the constraint would be ignored
-by ``computeForwardDynamics``), as is any other closing kind.
+revolute joint a ``RevoluteJointConstraint``, a closing cylindrical joint a
+``CylindricalJointConstraint`` (each created at the initial configuration from one world point,
+body a's anchor, which DART ties to both bodies, and the world axes; a cylindrical's anchors
+may stand apart along the axis, so b is tied at the point of its line that meets a's anchor).
+DART solves them as velocity-level impulses (a boxed LCP) with a position correction set by its
+global error reduction parameter (ERP), error allowance, maximum error-reduction velocity and
+constraint force mixing: read back and recorded, DART's defaults unless ``erp`` is given.
+*Measured*: DART's cylindrical constraint does not hold its line once the joint slides (its
+velocity rows tie the bodies at the initial anchor point; the kit's loop drifts 0.30 m off the
+line over a 0.67 m slide, tests/references/engines/test_system_closures.py): its runs fail on
+the joint gap, a verdict on DART's constraint. A closure under RKMK4 is unsupported (the
+constraint would be ignored by ``computeForwardDynamics``), as is any other closing kind.
 
 Integrators: ``semi-implicit Euler`` is ``World.step`` (DART's only stepper); ``RKMK4`` is the
 suite's Runge-Kutta-Munthe-Kaas of order 4 (:mod:`references.engines.liegroup`) on the product
@@ -70,6 +76,13 @@ _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 #: planar loop whose tree hinges are parallel, recorded as such, never chosen silently)
 REVOLUTE_CLOSURES = ("revolute", "ball")
 
+#: why DART's builder builds no cylindrical tree joint
+TREE_REFUSED = {
+    "cylindrical": "DART 6.20 has no cylindrical joint (its joints: ball, Euler, free, planar, "
+    "prismatic, revolute, screw, translational, universal, weld); a prismatic and a revolute "
+    "through a massless body node would express it, and this builder does not write one",
+}
+
 #: DART's default error reduction parameter of its dynamic joint constraints (DART 6.20
 #: DynamicJointConstraint; read back in the tests from a fresh World)
 #: why DART closes no loop of these kinds (dartpy 6.20's joint constraints:
@@ -82,9 +95,9 @@ REFUSED_CLOSURES = {
     "prismatic": "DART's joint constraints are ball, revolute, cylindrical and weld; a "
     "prismatic closure (the rotation held, one translation free) is none of them, and a "
     "cylindrical constraint leaves the rotation about the axis free",
-    "cylindrical": "not built by this adapter (DART has CylindricalJointConstraint, which "
-    "this builder does not yet add)",
 }
+#: the closures this builder makes (DART's ball, revolute and cylindrical joint constraints)
+CLOSURES = (*reduced.POINT_CLOSURES, "cylindrical")
 
 DEFAULT_ERP = 0.01
 
@@ -234,17 +247,20 @@ class _Model:
             # what DART is handed, in the world (it ties the one point to both bodies): the
             # form of reduced.check_loops; a ball-only revolute closure leaves its axis out
             handed = [(point, point)]
-            if lp.kind == "revolute":
+            if lp.kind in ("revolute", "cylindrical"):
                 handed.append(None)
-            if lp.kind == "revolute" and revolute_closure == "revolute":
+            hinge = lp.kind == "revolute" and revolute_closure == "revolute"
+            if lp.kind == "cylindrical" or hinge:
+                Con = (C.CylindricalJointConstraint if lp.kind == "cylindrical"
+                       else C.RevoluteJointConstraint)  # fmt: skip
                 na = Ra @ (lp.pairs[1][0] - Xa) / pl.length
                 if lp.b < 0:
                     nb = lp.pairs[1][1] - lp.pairs[0][1]
-                    con = C.RevoluteJointConstraint(ba, point, na)
+                    con = Con(ba, point, na)
                 else:
                     _, Rb, _, _ = reduced.world(pl, lp.b)
                     nb = Rb @ (lp.pairs[1][1] - lp.pairs[0][1]) / pl.length
-                    con = C.RevoluteJointConstraint(ba, self.body[lp.b], point, na, nb)
+                    con = Con(ba, self.body[lp.b], point, na, nb)
                 L = pl.length
                 handed[1] = (point + L * na, point + L * nb / np.linalg.norm(nb))
             elif lp.b < 0:
@@ -454,8 +470,8 @@ def build(scenario, integrator: str, dt: float, **settings):
     if closure not in REVOLUTE_CLOSURES:
         raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
     dart = _import()
-    pl = reduced.plan(scenario, "dart", (*reduced.SLIDING_KINDS, "universal"),
-                      refused=REFUSED_CLOSURES)  # fmt: skip
+    pl = reduced.plan(scenario, "dart", (*reduced.SLIDING_KINDS, "universal"), CLOSURES,
+                      refused=REFUSED_CLOSURES, tree_refused=TREE_REFUSED)  # fmt: skip
     if pl.loops and integrator == "RKMK4":
         raise Unsupported(
             f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
@@ -490,7 +506,9 @@ def build(scenario, integrator: str, dt: float, **settings):
         rec["loop closures"] = [
             f"{lp.label}: "
             + (
-                "RevoluteJointConstraint"
+                "CylindricalJointConstraint"
+                if lp.kind == "cylindrical"
+                else "RevoluteJointConstraint"
                 if lp.kind == "revolute" and closure == "revolute"
                 else "BallJointConstraint"
                 + (" at the anchor (3 of the hinge's 5 equations)" if lp.kind == "revolute" else "")

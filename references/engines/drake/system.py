@@ -106,6 +106,13 @@ CHART_SWITCH_COS = 0.4
 #: the tree joints this builder builds
 TREE_KINDS = (*reduced.SLIDING_KINDS, "universal")
 
+#: why Drake's builder builds no cylindrical tree joint
+TREE_REFUSED = {
+    "cylindrical": "Drake 1.51 has no cylindrical joint (its joints: revolute, prismatic, "
+    "screw, universal, planar, ball rpy, floating, weld); a prismatic and a revolute through a "
+    "massless body would express it, and this builder does not write one",
+}
+
 #: why Drake closes no loop of these kinds
 REFUSED_CLOSURES = dict.fromkeys(
     ("prismatic", "cylindrical"),
@@ -426,7 +433,8 @@ def build(scenario, integrator: str, dt: float, **settings):
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     reduced.check_settings("drake", settings)
     _import()
-    pl = reduced.plan(scenario, "drake", TREE_KINDS, reduced.DISTANCE_CLOSURES, REFUSED_CLOSURES)
+    pl = reduced.plan(scenario, "drake", TREE_KINDS, reduced.DISTANCE_CLOSURES, REFUSED_CLOSURES,
+                      TREE_REFUSED)  # fmt: skip
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "

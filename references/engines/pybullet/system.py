@@ -86,6 +86,13 @@ from references.engines.pybullet.adapter import MAX_JOINT_VELOCITY, _import
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 
+#: why PyBullet's builder builds no cylindrical tree joint
+TREE_REFUSED = {
+    "cylindrical": "PyBullet has no cylindrical joint (its joint types: revolute, prismatic, "
+    "spherical, planar, fixed); a prismatic and a revolute through a massless link (as the "
+    "universal joint's cross) would express it, and this builder does not write one",
+}
+
 INTEGRATORS = ("multibody", "maximal coordinates")
 #: why PyBullet closes no loop of these kinds (createConstraint's joint types on multibodies:
 #: JOINT_POINT2POINT, JOINT_FIXED, JOINT_GEAR, JOINT_PRISMATIC)
@@ -93,12 +100,11 @@ REFUSED_CLOSURES = {
     "universal": "PyBullet's user constraints are point-to-point (3 equations), fixed (6), "
     "gear (1: two joints' rates) and prismatic (5); a universal closure holds a point and the "
     "axes' right angle (4), and PyBullet has no universal or distance constraint",
-    "prismatic": "not built by this adapter (PyBullet has a prismatic user constraint "
-    "(createConstraint JOINT_PRISMATIC, btMultiBodySliderConstraint), which this builder does "
-    "not yet add)",
     "cylindrical": "PyBullet's user constraints are point-to-point, fixed, gear and prismatic; "
     "none leaves a rotation and a translation about one axis free",
 }
+#: the closures this builder makes: point-to-point constraints, and JOINT_PRISMATIC
+CLOSURES = (*reduced.POINT_CLOSURES, "prismatic")
 
 #: error reduction parameter of the loop closures: Bullet's default global erp (shown in the
 #: tests by a run that leaves it unset)
@@ -355,17 +361,36 @@ class _Model:
             p.setPhysicsEngineParameter(erp=float(erp), physicsClientId=cid)
         for lp in pl.loops:
             mba, ka = self.where[lp.a]
+            mbb, kb = (-1, -1) if lp.b < 0 else self.where[lp.b]
+            if lp.kind == "prismatic":
+                self.constraints.append(self._slider(lp, mba, ka, mbb, kb))
+                continue
             for Xa, Xb in lp.pairs:
-                if lp.b < 0:
-                    mbb, kb = -1, -1
-                else:
-                    mbb, kb = self.where[lp.b]
                 cons = p.createConstraint(mba, ka, mbb, kb, p.JOINT_POINT2POINT, [0, 0, 0],
                                           Xa.tolist(), Xb.tolist(),
                                           physicsClientId=cid)  # fmt: skip
-                p.changeConstraint(cons, maxForce=float(max_force), erp=float(erp),
-                                   physicsClientId=cid)  # fmt: skip
                 self.constraints.append((lp, cons, Xa, Xb))
+        for _, cons, *_ in self.constraints:
+            p.changeConstraint(cons, maxForce=float(max_force), erp=float(erp),
+                               physicsClientId=cid)  # fmt: skip
+
+    def _slider(self, lp, mba, ka, mbb, kb) -> tuple:
+        """A prismatic closure as one JOINT_PRISMATIC (btMultiBodySliderConstraint: the two
+        translations across the axis and the three rotations held, the axis in a's link frame):
+        pivot on a at its anchor, on b at the point of b that meets a's anchor at t = 0 (the
+        anchors may stand apart along the axis), frames chosen so that both are the same world
+        frame at t = 0 (a's: its link frame; b's: R_b^T R_a, the ground's: R_a)."""
+        p, cid, pl = self.p, self.cid, self.pl
+        xa, Ra, _, _ = reduced.world(pl, lp.a)
+        xb, Rb, _, _ = (np.zeros(3), np.eye(3), None, None) if lp.b < 0 else reduced.world(pl, lp.b)
+        Xa = lp.pairs[0][0]
+        axis = (lp.pairs[1][0] - Xa) / pl.length
+        Xb = Rb.T @ (xa + Ra @ Xa - xb)
+        Fb = Rb.T @ Ra
+        cons = p.createConstraint(mba, ka, mbb, kb, p.JOINT_PRISMATIC, axis.tolist(), Xa.tolist(),
+                                  Xb.tolist(), [0, 0, 0, 1], cv.matrix_to_quat_xyzw(Fb).tolist(),
+                                  physicsClientId=cid)  # fmt: skip
+        return lp, cons, Xa, Xb, axis, Fb
 
 
 def read_back(bm: _Model, scenario, dt: float) -> None:
@@ -465,38 +490,51 @@ def _constraint_record(bm: _Model) -> list:
     out = []
     for lp, cons, *_ in bm.constraints:
         info = p.getConstraintInfo(cons, physicsClientId=cid)
-        out.append({"closure": lp.label, "type": "JOINT_POINT2POINT",
+        kind = "JOINT_PRISMATIC" if lp.kind == "prismatic" else "JOINT_POINT2POINT"
+        out.append({"closure": lp.label, "type": kind,
                     "maxAppliedForce (N)": float(info[10]), "erp": float(info[14])})  # fmt: skip
     return out
 
 
 def _loop_world(bm: _Model, x, R) -> dict:
-    """The point-to-point constraints as PyBullet holds them (getConstraintInfo's pivots, in
-    each link's COM frame, the world for the ground), placed by PyBullet's link states (x, R)
-    at t = 0: the form of :func:`~references.engines.reduced.check_loops`."""
+    """The constraints as PyBullet holds them (getConstraintInfo's pivots, in each link's COM
+    frame, the world for the ground), placed by PyBullet's link states (x, R) at t = 0: the
+    form of :func:`~references.engines.reduced.check_loops`. A prismatic constraint gives three
+    pairs: its pivots, the points one length scale along the axis (a's axis, taken to b by the
+    rotation b's frame holds relative to a's), and the same across the axis."""
     p, cid, pl = bm.p, bm.cid, bm.pl
     out: dict = {lp.label: ([], []) for lp in pl.loops}
     for lp, cons, *_ in bm.constraints:
         info = p.getConstraintInfo(cons, physicsClientId=cid)
+        Rb = np.eye(3) if lp.b < 0 else R[lp.b]
         pa = x[lp.a] + R[lp.a] @ np.asarray(info[6], float)
-        pb = np.asarray(info[7], float) if lp.b < 0 else x[lp.b] + R[lp.b] @ np.asarray(info[7])
+        pb = np.asarray(info[7], float) if lp.b < 0 else x[lp.b] + Rb @ np.asarray(info[7])
         out[lp.label][0].append((pa, pb))
+        if lp.kind == "prismatic":
+            Fa = R[lp.a] @ cv.quat_xyzw_to_matrix(info[8])
+            Fb = Rb @ cv.quat_xyzw_to_matrix(info[9])
+            u = R[lp.a] @ np.asarray(info[5], float)
+            for d in (u, reduced.across(u)):
+                out[lp.label][0].append((pa + pl.length * d, pb + pl.length * Fb @ Fa.T @ d))
     return out
 
 
 def _check_constraints(bm: _Model, erp: float, max_force: float) -> None:
     p, cid = bm.p, bm.cid
     bad = []
-    for lp, cons, Xa, Xb in bm.constraints:
+    for lp, cons, Xa, Xb, *slider in bm.constraints:
         info = p.getConstraintInfo(cons, physicsClientId=cid)
-        if info[4] != p.JOINT_POINT2POINT:
-            bad.append(f"{lp.label}: constraint type {info[4]}")
-        for what, got, exp in (
-            ("pivot on body a", info[6], Xa),
-            ("pivot on body b", info[7], Xb),
-            ("erp", info[14], erp),
-            ("max force", info[10], max_force),
-        ):
+        kind = p.JOINT_PRISMATIC if slider else p.JOINT_POINT2POINT
+        if info[4] != kind:
+            bad.append(f"{lp.label}: constraint type {info[4]}, needs {kind}")
+        checks = [("pivot on body a", info[6], Xa), ("pivot on body b", info[7], Xb),
+                  ("erp", info[14], erp), ("max force", info[10], max_force)]  # fmt: skip
+        if slider:
+            axis, Fb = slider
+            checks += [("axis (a's link frame)", info[5], axis),
+                       ("frame on a", cv.quat_xyzw_to_matrix(info[8]), np.eye(3)),
+                       ("frame on b", cv.quat_xyzw_to_matrix(info[9]), Fb)]  # fmt: skip
+        for what, got, exp in checks:
             if not np.allclose(got, exp, rtol=reduced.CHECK_TOL, atol=reduced.CHECK_TOL):
                 bad.append(f"{lp.label}: {what} {np.round(got, 12).tolist()}, expected "
                            f"{np.round(exp, 12).tolist()}")  # fmt: skip
@@ -522,8 +560,8 @@ def build(scenario, integrator: str, dt: float, **settings):
             "of jointed bodies is not built there"
         )
     p = _import()
-    pl = reduced.plan(scenario, "pybullet", (*reduced.SLIDING_KINDS, "universal"),
-                      refused=REFUSED_CLOSURES)  # fmt: skip
+    pl = reduced.plan(scenario, "pybullet", (*reduced.SLIDING_KINDS, "universal"), CLOSURES,
+                      refused=REFUSED_CLOSURES, tree_refused=TREE_REFUSED)  # fmt: skip
     bm = _Model(p, pl, float(dt))
     try:
         read_back(bm, scenario, float(dt))
@@ -575,6 +613,9 @@ def build(scenario, integrator: str, dt: float, **settings):
             + (
                 "two JOINT_POINT2POINT on the hinge axis (6 equations for 5)"
                 if lp.kind == "revolute"
+                else "JOINT_PRISMATIC (btMultiBodySliderConstraint: two translations, three "
+                "rotations)"
+                if lp.kind == "prismatic"
                 else "JOINT_POINT2POINT"
             )  # fmt: skip
             for lp in pl.loops
