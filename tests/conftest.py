@@ -24,7 +24,8 @@ os.environ["DIRECTOR_BENCH_CACHE"] = tempfile.mkdtemp(prefix="director-bench-tes
 LONGEST_FIRST = (
     "test_faults.py",
     "test_contact.py",
-    "test_report.py",
+    "test_report_figures.py",
+    "test_report_documents.py",
     "test_cli_inputs.py",
     "test_distributed.py",
     "test_layers.py",

@@ -15,7 +15,7 @@ import scenarios
 from reports.run.plan import plan
 from reports.run.runner import run_suite
 from reports.store.results import read_results
-from tests.reports.report.test_report import _capture_figures
+from tests.reports.report.test_report_figures import _capture_figures
 
 #: 0.1 s of the four-bar at its own dt (2 ms): 50 steps per run, a second or so in all
 ENGINES = ("director", "exact", "mujoco", "pinocchio")
