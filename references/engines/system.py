@@ -108,16 +108,34 @@ def _declared(engine: str):
     return declared
 
 
+#: how each engine whose builder does not apply force elements could (what it lacks, or what
+#: would express them and is not written): the reason its refusal gives
+FORCE_ELEMENT_ROUTES = {
+    "mjx": "MJX steps the C builder's model, whose springs (spatial tendons) and torques "
+    "(qfrc_applied) MJX also has; the MJX builder does not pass or check them",
+    "pinocchio": "Pinocchio has no spring element; the suite's loop around aba would add the "
+    "elements' generalised forces at each evaluation (not written)",
+    "dart": "DART has joint springs but no spring between two body points; forces applied "
+    "on the body nodes at each step would express them (not written)",
+    "pybullet": "PyBullet has no spring element; applyExternalForce and applyExternalTorque "
+    "at each step would express them (not written)",
+    "drake": "Drake has LinearSpringDamper and joint actuators for a constant torque; the "
+    "builder does not add them",
+}
+
+
 def _check_force_elements(engine: str, scenario) -> None:
     """:class:`Unsupported` when ``scenario`` has force elements and ``engine``'s builder does
-    not declare that it applies them (a run without them would be another motion)."""
+    not declare that it applies them (a run without them would be another motion), with the
+    reason (:data:`FORCE_ELEMENT_ROUTES`)."""
     if not has_elements(scenario) or _declared(engine).force_elements:
         return
     what = [f"torque on {t.joint!r}" for t in getattr(scenario, "torques", ())]
     what += [f"spring {s.name!r}" for s in getattr(scenario, "springs", ())]
+    why = FORCE_ELEMENT_ROUTES.get(engine, "its builder does not declare force_elements")
     raise Unsupported(
         f"{engine}: force elements ({', '.join(what)}) are not built in this engine's system "
-        "builder; only builders declaring force_elements run them (director, exact)"
+        f"builder: {why}; the builders that apply them: director, exact, mujoco"
     )
 
 

@@ -61,7 +61,9 @@ class MujocoEngine(Engine):
     name = "mujoco"
     description = "MuJoCo: free joint or ball joint, MuJoCo's own integrators via mj_step"
     scene_builder = SceneBuilder(
-        "references.engines.mujoco.system:simulate_system", ("solref", "solimp")
+        "references.engines.mujoco.system:simulate_system",
+        ("solref", "solimp"),
+        force_elements=True,
     )
     integrators = (
         Integrator(

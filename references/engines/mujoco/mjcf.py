@@ -4,9 +4,10 @@ joint as MuJoCo's joints of its kind (:func:`parts`: a universal joint two hinge
 cylindrical one a hinge and a slide), each point pair of a loop closure an ``equality
 connect`` between two sites and each held distance (a universal closure's) a spatial tendon
 between two sites with an ``equality tendon`` on its length (the length itself is set after
-compiling: :func:`hold_distances`), all with the builder's solref and solimp, and the
-integrator and step (:func:`model_xml`). The frames and
-the kinds are described in :mod:`references.engines.mujoco.system`."""
+compiling: :func:`hold_distances`), all with the builder's solref and solimp, each spring of
+the force elements a spatial tendon with its stiffness, damping and rest length
+(:mod:`references.engines.mujoco.forces`), and the integrator and step (:func:`model_xml`).
+The frames and the kinds are described in :mod:`references.engines.mujoco.system`."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import reduced
+from references.engines.mujoco.forces import spring_parts
 from references.errors import Unsupported
 
 #: the MuJoCo joint type (or pair of types) of each plan kind
@@ -81,6 +83,12 @@ def model_xml(scenario, pl: reduced.Plan, integrator: str, dt: float, solref, so
                 f'<tendon name="{tn}" tendon1="{tn}" polycoef="0 0 0 0 0" '
                 f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
             )
+
+    # the force elements' springs: their tendons after the held distances'
+    spring_sites, spring_tendons = spring_parts(scenario, pl)
+    for c, elems in spring_sites.items():
+        sites.setdefault(c, []).extend(elems)
+    tendons += spring_tendons
 
     # every body's element from its children's, leaves first (a chain of 2000 bodies nests
     # 2000 deep: no recursion)

@@ -78,6 +78,7 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import reduced, timing
+from references.engines.mujoco import forces
 from references.engines.mujoco.mjcf import hold_distances, loop_points, mj_type, model_xml, parts
 from references.engines.native import import_engine
 from references.engines.reduced import saves as _saves
@@ -85,6 +86,7 @@ from references.engines.reduced import unit as _unit
 from references.engines.reduced import vec as _vec
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
+from scenarios.force_elements import has_elements
 
 #: MuJoCo's integrators offered (``mjtIntegrator``); "discrete" only where MuJoCo has it
 INTEGRATORS = {
@@ -326,13 +328,16 @@ def read_back(mujoco, m, scenario, pl: reduced.Plan, integrator: str, dt, solref
     if np.any(m.jnt_stiffness != 0):
         bad.append(f"jnt_stiffness {m.jnt_stiffness.tolist()}: must be 0")
     ndist = sum(len(lp.distances) for lp in pl.loops)
-    if m.ngeom or m.nu or m.ntendon != ndist:
+    nspring = len(getattr(scenario, "springs", ()))
+    if m.ngeom or m.nu or m.ntendon != ndist + nspring:
         bad.append(f"geoms {m.ngeom}, actuators {m.nu}, tendons {m.ntendon}: must be 0, 0, "
-                   f"{ndist} (the loops' held distances)")  # fmt: skip
+                   f"{ndist + nspring} (the loops' held distances, the springs)")  # fmt: skip
+    else:
+        forces.read_back_springs(mujoco, m, scenario, pl, bid, ndist, want, bad)
     npairs = sum(len(lp.pairs) for lp in pl.loops)
     if m.neq != npairs + ndist:
         bad.append(f"{m.neq} equality constraints, the loops need {npairs + ndist}")
-    elif m.ntendon == ndist:
+    elif m.ntendon == ndist + nspring:
         e = t = 0
         for lp in pl.loops:
             b1, b2 = bid[lp.a], 0 if lp.b < 0 else bid[lp.b]
@@ -561,6 +566,8 @@ def build(scenario, integrator: str, dt: float, **settings):
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = initial_qpos_qvel(m, pl, bid)
     check_initial(mujoco, m, d, scenario, pl, bid)
+    applied = forces.torque_forces(m, scenario, pl, bid)
+    forces.apply_torques(d, applied)
     mujoco.mj_forward(m, d)
     refsafe = max(solref[0], 2.0 * float(dt))
     rec = {
@@ -578,6 +585,12 @@ def build(scenario, integrator: str, dt: float, **settings):
         "sleep, solref override": "off (read back)",
         "gravity compensation": "0 (read back)",
     }
+    if has_elements(scenario):
+        rec["force elements"] = [
+            f"spring {s.name!r}: spatial tendon 'spring{k}' (stiffness {s.stiffness:g}, damping "
+            f"{s.damping:g}, springlength {s.rest_length:g}; read back)"
+            for k, s in enumerate(getattr(scenario, "springs", ()))
+        ] + [label for _, _, label in applied]
     if pl.loops:
         rec["loop closures"] = [
             f"{lp.label}: "
