@@ -57,6 +57,11 @@ class Metric:
     - ``slack``: for a higher-is-better metric, by how much it may fall before it is worse;
     - ``body``, ``system``, ``contact``: whether it applies to a single body, to a system of
       bodies, to a scene of bodies in contact (computed by ``reports.metrics.contact``);
+    - ``headline``: the scene kinds (``scenarios.SCENE_KINDS``) whose runs are summed up by
+      this error wherever a run is one number (the scorecard, the short verdict tables,
+      summary.json, the work-precision answers); each kind has exactly one such metric;
+    - ``headline_energy``: likewise the scene kinds whose runs show this energy error beside
+      it (the energy drift of a conservative motion, the energy gained in contact);
     - ``kind``: :data:`POINTWISE`, :data:`OBSERVABLE` or :data:`SWEEP`;
     - ``reference``: needs the reference trajectory (NaN without one);
     - ``series``: the name of its per-sample series, written beside a single body's
@@ -81,6 +86,8 @@ class Metric:
     body: bool = True
     system: bool = False
     contact: bool = False
+    headline: tuple[str, ...] = ()
+    headline_energy: tuple[str, ...] = ()
     kind: str = POINTWISE
     reference: bool = False
     series: str | None = None
@@ -102,8 +109,9 @@ METRICS: tuple[Metric, ...] = (
         "(Scenario.energy_scale; SystemScenario.energy_scale: T0 + V0 - V_low over the "
         "configurations the joints allow, scenarios/energy.py)",
         per="E_c", floor=1e-11, title="energy drift [E_c]", short="energy", tolerance=1e-2,
-        system=True, series="energy_drift", panel="|E − E₀| / E_c [1]", panel_top=10.0,
-        scale_column="energy_scale", scale_unit="J",
+        system=True, headline_energy=("body", "system"), series="energy_drift",
+        panel="|E − E₀| / E_c [1]", panel_top=10.0, scale_column="energy_scale",
+        scale_unit="J",
     ),
     Metric(
         "energy_drift_rot_max", "1",
@@ -143,8 +151,8 @@ METRICS: tuple[Metric, ...] = (
     Metric(
         "attitude_error_max", "rad", "none: an angle", floor=1e-10,
         title="attitude error [rad]", short="attitude", tolerance=0.1, system=True,
-        contact=True, reference=True, series="attitude_error", panel="attitude error [rad]",
-        panel_top=4.0,
+        contact=True, headline=("body", "system"), reference=True, series="attitude_error",
+        panel="attitude error [rad]", panel_top=4.0,
     ),
     Metric(
         "omega_error_max", "rad/s", "none: |W - W_ref| in rad/s", floor=1e-10,
@@ -153,7 +161,11 @@ METRICS: tuple[Metric, ...] = (
     ),
     Metric(
         "position_error_max", "m", "none: |x_G - x_G,ref| in m", floor=1e-10,
-        title="x_G error [m]", short="position", system=True, contact=True, reference=True,
+        title="x_G error [m]", short="position", system=True, contact=True,
+        reference=True,
+        # a contact scene's: a block's attitude hardly changes whether it holds, creeps or
+        # slides; its position against the closed form tells them apart
+        headline=("contact",),
     ),
     Metric(
         "flip_interval_error", "1", "the exact flip interval", floor=1e-9,
@@ -224,7 +236,7 @@ METRICS: tuple[Metric, ...] = (
         "energy_gain_max", "1", "E_c, the largest kinetic energy of the closed form plus "
         "m |g| L: the mechanical energy less the external forces' work may only fall",
         floor=1e-11, title="energy gained [E_c]", short="energy gained", tolerance=1e-2,
-        body=False, contact=True,
+        body=False, contact=True, headline_energy=("contact",),
     ),
     Metric(
         "roll_onset_error", "1", "t*, the closed form's end of slip", floor=1e-9,

@@ -24,6 +24,8 @@ every table the later stages use:
 - the tables: :data:`METRIC_COLUMNS` (store), :data:`FLOORS`, :data:`HIGHER_IS_BETTER`,
   :data:`ORDER_SLACK` (gate, compare, report), :data:`DEFAULT_TOLERANCES` (verdicts),
   :data:`METRIC_TITLES`, :data:`METRIC_SHORT`, :data:`METRIC_UNITS` (report, history),
+  :data:`HEADLINE`, :data:`HEADLINE_ENERGY` (the errors a run of each scene kind is summed
+  up by),
   :data:`ERROR_PANELS` and :data:`PANEL_TOPS` (errors figure), :data:`SYSTEM_METRICS`,
   :data:`STREAMED`.
 
@@ -53,6 +55,8 @@ __all__ = [
     "DEFAULT_TOLERANCES",
     "ERROR_PANELS",
     "FLOORS",
+    "HEADLINE",
+    "HEADLINE_ENERGY",
     "HIGHER_IS_BETTER",
     "METRICS",
     "METRIC_COLUMNS",
@@ -245,6 +249,26 @@ ERROR_PANELS = tuple(
 #: the top of each panel's log axis, by series column: beyond it a run has blown up (the runner
 #: declares divergence at an energy error of 1 scale; attitude errors end at pi)
 PANEL_TOPS = {m.series: m.panel_top for m in METRICS if m.panel is not None}
+
+
+def _per_kind(field: str) -> dict[str, str]:
+    """scene kind -> the one metric whose declaration names it in ``field``."""
+    out = {kind: m.name for m in METRICS for kind in getattr(m, field)}
+    if sorted(out) != sorted(SCENE_KINDS) or sum(len(getattr(m, field)) for m in METRICS) != len(
+        SCENE_KINDS
+    ):
+        raise ImportError(
+            f"scenarios.metric_catalog: each scene kind needs exactly one metric with it in "
+            f"{field}, have {[(m.name, getattr(m, field)) for m in METRICS if getattr(m, field)]}"
+        )
+    return out
+
+
+#: the error each scene kind (:data:`scenarios.SCENE_KINDS`) is summed up by wherever a run is
+#: one number (scorecard, short verdict tables, summary.json, work precision): kind -> metric
+HEADLINE = _per_kind("headline")
+#: the energy error shown beside it: kind -> metric
+HEADLINE_ENERGY = _per_kind("headline_energy")
 
 #: the metrics only systems have
 SYSTEM_METRICS = tuple(m.name for m in METRICS if m.system and not m.body)

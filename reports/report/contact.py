@@ -1,5 +1,5 @@
-"""The report's contact section and figures: contact runs are the rows with a ``slide_distance``
-(a metric only contact scenes have, :mod:`reports.metrics.contact`).
+"""The report's contact section and figures: contact runs are the rows whose recorded scene
+kind is ``contact`` (``scene_kind``, :data:`scenarios.SCENE_KINDS`).
 
 - :func:`creep_table`: engine x configuration x stick scene, the creep speed in um/s (exact 0:
   Coulomb friction holds every stick scene);
@@ -40,10 +40,11 @@ def running_max(values, window: int) -> np.ndarray:
 
 
 def contact_rows(df):
-    """The contact runs of a results table (their scenes have a slide distance)."""
-    if "slide_distance" not in df:
+    """The runs of contact scenes in a results table (the scene kind the runner recorded,
+    ``scene_kind``; a store of an older format has it filled when read), every status."""
+    if "scene_kind" not in df:
         return df.iloc[0:0]
-    return df[df["slide_distance"].notna()]
+    return df[df["scene_kind"] == "contact"]
 
 
 def _config(row) -> str:

@@ -1,14 +1,15 @@
 """How the report names and orders what it shows: integrator families and engines in table
 order, a configuration's label, a run's outcome in one word, the metrics' short names in
-verdict texts, the attitude error and fitted order as table cells, a figure's axis label with
-the value of the scale its quantity is divided by.
+verdict texts, the error a run is summed up by (:func:`headline`: the attitude error, a
+contact scene's position error), the attitude error and fitted order as table cells, a
+figure's axis label with the value of the scale its quantity is divided by.
 """
 
 from __future__ import annotations
 
 import math
 
-from reports.metrics.catalog import METRIC_SHORT  # noqa: F401  (short names in verdict texts)
+from reports.metrics.catalog import HEADLINE, HEADLINE_ENERGY, METRIC_SHORT, METRIC_UNITS
 from reports.store.format import fmt, fmt_cost, fmt_level, fmt_step, num, truthy
 from reports.store.results import is_reference_record, reference_rows
 
@@ -127,11 +128,46 @@ def is_failure(row) -> bool:
 def fmt_attitude(row) -> str:
     """The attitude error, or ``< acc`` (the reference's accuracy) when it is below what the
     reference can measure."""
-    v = num(row.get("attitude_error_max"))
-    acc = num(row.get("reference_accuracy"))
+    return fmt_error(row.get("attitude_error_max"), row.get("reference_accuracy"))
+
+
+def fmt_error(value, accuracy) -> str:
+    """An error against the reference, or ``< acc`` when it is below the reference's
+    ``accuracy`` (what the reference can measure)."""
+    v, acc = num(value), num(accuracy)
     if not math.isnan(v) and not math.isnan(acc) and v < acc:
         return f"< {fmt(acc)}"
     return fmt(v)
+
+
+def headline(row) -> tuple[str, str, str]:
+    """(column, unit, short name) of the error a run is summed up by wherever it is one
+    number (the scorecard, the short verdict tables, summary.json, the work-precision
+    answers): the metric catalog's for the run's scene kind
+    (:data:`reports.metrics.catalog.HEADLINE`, the row's ``scene_kind``): the max attitude
+    error (rad) of a body or a system, the largest position error against the closed form
+    (m) of a contact scene."""
+    name = HEADLINE[_kind(row)]
+    return name, METRIC_UNITS[name], METRIC_SHORT.get(name, name)
+
+
+def energy_headline(row) -> str:
+    """The column of the energy error shown beside the :func:`headline` error, in E_c: the
+    energy drift of a body or a system, the energy gained by a contact scene (exact <= 0;
+    its drift is not measured: contact takes energy away)."""
+    return HEADLINE_ENERGY[_kind(row)]
+
+
+def _kind(row) -> str:
+    """The scene kind recorded in the row (``scene_kind``), ``body`` where it holds none."""
+    kind = row.get("scene_kind")
+    return kind if isinstance(kind, str) and kind in HEADLINE else "body"
+
+
+def fmt_headline(row) -> str:
+    """The run's :func:`headline` error as a cell (``< acc`` below the reference's
+    accuracy), without its unit."""
+    return fmt_error(row.get(headline(row)[0]), row.get("reference_accuracy"))
 
 
 def fmt_joint_angle(row) -> str | None:
@@ -183,7 +219,7 @@ def entry_texts(g) -> tuple[str, list[tuple[str, str]], list[str], str]:
         return out, who, ["error"], ""
     if out == "reference-inaccurate":
         return out, who, ["reference too coarse to judge"], ""
-    figs = [f"{fmt_attitude(fr)} rad", f"E {fmt(fr['energy_drift_max'])}"]
+    figs = [f"{fmt_headline(fr)} {headline(fr)[1]}", f"E {fmt(fr[energy_headline(fr)])}"]
     if (q := fmt_joint_angle(fr)) is not None:  # a system of bodies with joints
         figs.insert(1, f"q {q} rad")
     failing = ""

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+from reports.report.labels import headline
 from reports.store.format import num, truthy
 
 #: the error must have fallen by at least this factor over the last halving of the step for
@@ -33,13 +34,12 @@ def cost_of(row) -> float:
 
 
 def measure_of(row) -> tuple[str, str]:
-    """(column, unit) of the error a run is ranked by: for a contact scene (a row with a
-    slide distance) the largest position error against its closed form (m: a block's
+    """(column, unit) of the error a run is ranked by: the error it is summed up by
+    everywhere (:func:`reports.report.labels.headline`, by the row's recorded scene kind):
+    for a contact scene the largest position error against its closed form (m: a block's
     attitude hardly changes whether it holds, creeps or slides, its position tells them
     apart), else the max attitude error (rad)."""
-    if math.isfinite(num(row.get("slide_distance"))):
-        return "position_error_max", "m"
-    return "attitude_error_max", "rad"
+    return headline(row)[:2]
 
 
 def error_of(row) -> float:

@@ -54,7 +54,13 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
     """The scorecard figure's content: scenarios (columns), configurations (rows: (engine,
     integrator, label)) and {(row, scenario): (outcome, lines of text)}; each scenario at its
     own dt (an error-controlled integrator at its tightest target accuracy)."""
-    from reports.report.labels import METRIC_SHORT, failed_metrics, fmt_attitude, outcome
+    from reports.report.labels import (
+        METRIC_SHORT,
+        failed_metrics,
+        fmt_headline,
+        headline,
+        outcome,
+    )
     from reports.report.tables import scenarios_of
 
     scens = scenarios_of(df)
@@ -73,7 +79,7 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
                 text = ["! error"]
             else:
                 text = [
-                    f"{OUTCOME_MARKS.get(out, '')} {fmt_attitude(r)}",
+                    f"{OUTCOME_MARKS.get(out, '')} {fmt_headline(r)} {headline(r)[1]}",
                     fmt_cost(r["engine_ns_per_step"]),
                 ]
                 if out == "fail":
@@ -87,16 +93,18 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
 #: the scorecard figure's title (wrapped to the figure's width)
 SCORECARD_TITLE = (
     "director-bench scorecard, each scenario at its own dt: verdict, max attitude error [rad] "
-    "(< x: below the reference's accuracy x), time inside the engine per step, and the "
-    "metrics that failed"
+    "(a contact scene's position error against its closed form [m]; < x: below the "
+    "reference's accuracy x), time inside the engine per step, and the metrics that failed"
 )
 
 
 def scorecard_figure(df, out: Path) -> list[Path]:
     """The scorecard as one picture for a README or a pull request, ``scorecard.png`` and
     ``scorecard.svg`` in ``out``: a row per configuration, a column per scenario at its own
-    dt; each cell coloured by the verdict, with the max attitude error [rad] (``< x``: below
-    the reference's accuracy), the time inside the engine per step and the failing metrics.
+    dt; each cell coloured by the verdict, with the error its run is summed up by
+    (:func:`reports.report.labels.headline`: the max attitude error in rad, a contact scene's
+    position error in m; ``< x``: below the reference's accuracy), the time inside the
+    engine per step and the failing metrics.
     Returns the paths written ([] for an empty table)."""
     import matplotlib
     from matplotlib.patches import Patch, Rectangle

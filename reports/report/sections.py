@@ -27,7 +27,10 @@ from reports.report.labels import (
     entry_texts,
     family_key,
     fmt_attitude,
+    fmt_error,
+    fmt_headline,
     fmt_order,
+    headline,
 )
 from reports.report.plots import rates_left_out
 from reports.report.tables import (
@@ -68,21 +71,28 @@ MARK = {
 SCORECARD_TERMS = {
     "rad": "the max attitude error over the run (< x: below the reference's accuracy x, not "
     "a measurement)",
+    "m": "a contact scene's largest position error against its closed form (a block's "
+    "attitude hardly changes whether it holds, creeps or slides; its position tells them "
+    "apart)",
     "q": "the max joint angle error against the reference (systems of bodies with joints: "
     "robot models, chains)",
-    "E": "the max energy drift relative to the scenario's energy scale",
+    "E": "the max energy drift relative to the scenario's energy scale (a contact scene: the "
+    "energy gained, exact 0 or less)",
     "µs": "the time inside the engine's own calls per step, the cost beside the verdict "
     "(the suite's glue left out; + suite: the suite's time loop around the engine's "
     "dynamics, whose own time is this figure)",
 }
 
 
-def scorecard_legend(doc: Doc) -> None:
-    """The key to the scorecard, above it."""
+def scorecard_legend(doc: Doc, contact: bool = False) -> None:
+    """The key to the scorecard, above it; ``contact``: the scorecard has contact scenes,
+    whose entries show their position error in m."""
+    m_md = f"**m**: {SCORECARD_TERMS['m']}, " if contact else ""
+    m_html = f"<b>m</b>: {html.escape(SCORECARD_TERMS['m'])}, " if contact else ""
     md = (
         "✅ pass · ❌ fail (the metrics out of bounds after *fails*) · 💥 diverged · ⚠️ error "
         "· ❔ the reference is not accurate enough to judge. Each entry: the verdict, "
-        f"**rad**: {SCORECARD_TERMS['rad']}, **q**: {SCORECARD_TERMS['q']}, "
+        f"**rad**: {SCORECARD_TERMS['rad']}, {m_md}**q**: {SCORECARD_TERMS['q']}, "
         f"**E**: {SCORECARD_TERMS['E']}, "
         f"then each configuration with **µs**: {SCORECARD_TERMS['µs']}. Configurations in one "
         "entry agree to 1e-3 in every metric (round-off-level values aside); each scenario's "
@@ -93,7 +103,8 @@ def scorecard_legend(doc: Doc) -> None:
         "<span class='v-diverged'>↯ diverged</span> <span class='v-error'>⚠ error</span> "
         "<span class='v-reference-inaccurate'>? reference too coarse to judge</span>. "
         "Each entry: the verdict, <b>rad</b>: "
-        f"{html.escape(SCORECARD_TERMS['rad'])}, <b>q</b>: {html.escape(SCORECARD_TERMS['q'])}"
+        f"{html.escape(SCORECARD_TERMS['rad'])}, {m_html}"
+        f"<b>q</b>: {html.escape(SCORECARD_TERMS['q'])}"
         f", <b>E</b>: {html.escape(SCORECARD_TERMS['E'])}"
         "; the metrics out of bounds after <b>fails</b>; then each configuration with "
         f"<b>µs</b>: {html.escape(SCORECARD_TERMS['µs'])}. Configurations in one entry agree "
@@ -124,11 +135,13 @@ def _entry_html(out: str, who, figs, failing: str, href: str) -> str:
     )
 
 
-def _family_tip(family: str) -> str:
-    """The tooltip of a scorecard column: what its entries show."""
+def _family_tip(family: str, contact: bool = False) -> str:
+    """The tooltip of a scorecard column: what its entries show (``contact``: the
+    scorecard has contact scenes)."""
+    m = f"m: {SCORECARD_TERMS['m']}; " if contact else ""
     return (
         f"integrator family {family}. Each entry: the verdict; rad: "
-        f"{SCORECARD_TERMS['rad']}; q: {SCORECARD_TERMS['q']}; E: {SCORECARD_TERMS['E']}; "
+        f"{SCORECARD_TERMS['rad']}; {m}q: {SCORECARD_TERMS['q']}; E: {SCORECARD_TERMS['E']}; "
         "then each configuration "
         f"with µs: {SCORECARD_TERMS['µs']}"
     )
@@ -136,13 +149,19 @@ def _family_tip(family: str) -> str:
 
 def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
     fams = sorted({f for s in card for f in s["cells"]}, key=family_key)
+    contact = any(
+        headline(g.figure_row())[1] == "m"
+        for s in card
+        for groups in s["cells"].values()
+        for g in groups
+    )
     header = [
         Cell(
             "scenario",
             html_="<span title='each scenario at its own dt and horizon'>scenario</span>",
         ),
         *(
-            Cell(f, html_=f"<span title='{html.escape(_family_tip(f), quote=True)}'>"
+            Cell(f, html_=f"<span title='{html.escape(_family_tip(f, contact), quote=True)}'>"
                  f"{html.escape(f)}</span>")
             for f in fams
         ),
@@ -170,7 +189,7 @@ def scorecard_section(doc: Doc, df, card, links: bool = True) -> None:
                 html_parts.append(_entry_html(out, who, figs, failing, href))
             row.append(Cell(md="<br>".join(md_parts) or "-", html_="".join(html_parts) or "-"))
         rows.append(row)
-    scorecard_legend(doc)
+    scorecard_legend(doc, contact)
     doc.table("Verdicts at each scenario's own dt", header, rows, cls="scorecard stack")
     if len(energy_momentum_rows(df)):
         doc.para("**energy_momentum:** " + ENERGY_MOMENTUM_NOTE, html.escape(ENERGY_MOMENTUM_NOTE))
@@ -213,7 +232,8 @@ def scorecard_picture(doc: Doc, paths: list[Path], root: Path, df) -> None:
         f"Scorecard: {runs.groupby(['engine', 'integrator']).ngroups} configurations (rows) "
         f"on {runs['scenario'].nunique()} scenarios (columns), each cell coloured by its "
         "verdict (green pass, pink fail, red diverged, grey not run) with the max attitude "
-        "error, the time inside the engine per step and the failing metrics."
+        "error (a contact scene's: its position error against the closed form), the time "
+        "inside the engine per step and the failing metrics."
     )
     names = " and ".join(f"`{p.relative_to(root).as_posix()}`" for p in paths)
     doc.open_details("The scorecard as one picture, for a README or a pull request")
@@ -459,7 +479,9 @@ def scenario_table(doc: Doc, scenario: str, rows, info) -> None:
 
 
 def sweep_table(doc: Doc, scenario: str, sub) -> None:
-    """Attitude error at every dt of the sweep, with the fitted and declared orders."""
+    """The scenario's headline error (:func:`reports.report.labels.headline`: the attitude
+    error, a contact scene's position error) at every dt of the sweep, with the fitted and
+    declared orders."""
     shown = sub[~sub["status"].isin(NOT_RUN)]
     groups = [g for g in sweep_groups(shown) if len(g.dts) >= 2]
     if not groups:
@@ -482,7 +504,7 @@ def sweep_table(doc: Doc, scenario: str, sub) -> None:
             at = g.at(h)
             out = at.outcome
             if out in ("pass", "fail", "ok"):
-                cells.append(num(None, fmt_attitude(at.figure_row())))
+                cells.append(num(None, fmt_headline(at.figure_row())))
             elif out == "diverged":
                 cells.append(Cell(f"diverged {fmt(at.value('t_diverged'))} s", cls="v-diverged"))
             else:
@@ -490,17 +512,19 @@ def sweep_table(doc: Doc, scenario: str, sub) -> None:
         cells.append(order_cell(fmt_order(g.first)))
         cells.append(num(None, fmt_int(g.first["order"])))
         body.append(cells)
-    doc.table(f"{scenario}: max attitude error [rad] over the dt sweep", header, body)
+    _, unit, short = headline(groups[0].first)
+    doc.table(f"{scenario}: max {short} error [{unit}] over the dt sweep", header, body)
 
 
 def wp_table(doc: Doc, scenario: str, sub) -> None:
     wp = work_precision(sub)
     if not any(lv["ranked"] for lv in wp):
         return
+    _, unit, short = headline(sub.iloc[0])
     header = [
-        "attitude error ≤",
+        f"{short} error ≤",
         "cheapest",
-        "its error [rad]",
+        f"its error [{unit}]",
         "cost [s]",
         "wall time [s]",
         "next cheapest (cost ratio)",
@@ -524,7 +548,7 @@ def wp_table(doc: Doc, scenario: str, sub) -> None:
             [
                 num(None, fmt_level(lv["level"])),
                 first["configuration"],
-                num(None, fmt_attitude(first)),
+                num(None, fmt_error(first["error"], first["reference_accuracy"])),
                 num(None, wp_cost(first)),
                 num(first["wall_time_s"]),
                 nxt or "-",

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from reports.metrics.catalog import METRIC_COLUMNS
 from reports.report.groups import Group
+from reports.report.labels import energy_headline, headline
 from reports.report.tables import scenarios_of, scorecard, work_precision
 from reports.store.atomic import write_text
 from reports.store.format import json_value, truthy
@@ -47,6 +48,7 @@ RUN_FIELDS = (
 
 def _group_json(g: Group) -> dict:
     fr = g.figure_row()
+    col = headline(fr)[0]  # the error the group is summed up by (contact: position)
     return {
         "configurations": [
             {
@@ -61,11 +63,16 @@ def _group_json(g: Group) -> dict:
         "status": g.first["status"],
         "verdict": g.first["verdict"],
         "verdict_detail": g.first["verdict_detail"],
+        "error": json_value(fr[col]),
+        "error_measure": col,
+        "error_below_reference_accuracy": bool(fr[col] < fr["reference_accuracy"]),
         "attitude_error_max": json_value(fr["attitude_error_max"]),
         "attitude_below_reference_accuracy": bool(
             fr["attitude_error_max"] < fr["reference_accuracy"]
         ),
         "reference_accuracy": json_value(fr["reference_accuracy"]),
+        "energy": json_value(fr[energy_headline(fr)]),
+        "energy_measure": energy_headline(fr),
         "energy_drift_max": json_value(fr["energy_drift_max"]),
         "t_diverged": json_value(fr["t_diverged"]),
         "max_rel_diff": json_value(g.max_rel_diff),

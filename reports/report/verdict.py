@@ -12,12 +12,15 @@ from __future__ import annotations
 
 from reports.report.doc import Cell, Doc, num
 from reports.report.labels import (
+    METRIC_SHORT,
     NOT_RUN,
     SYMBOL,
+    energy_headline,
     entry_texts,
     family_key,
-    fmt_attitude,
+    fmt_headline,
     fmt_joint_angle,
+    headline,
 )
 from reports.report.tables import at_scenario_dt, scenarios_of
 from reports.store.format import fmt, fmt_step, md_cell
@@ -69,12 +72,18 @@ def totals(rows: list[dict]) -> dict:
 def scenario_verdicts(doc: Doc, s: dict) -> None:
     """report.md's scorecard of one scenario (``s``, an entry of
     :func:`reports.report.tables.scorecard`): a row per group of configurations that agree,
-    six columns (the HTML report has the scorecard of every scenario instead); a seventh,
-    the joint angle error, where the scenario's runs measure one (a system of bodies with
-    joints: a robot model, a chain)."""
+    six columns (the HTML report has the scorecard of every scenario instead), the error
+    its runs are summed up by (:func:`reports.report.labels.headline`: the attitude error,
+    a contact scene's position error) among them; a seventh, the joint angle error, where
+    the scenario's runs measure one (a system of bodies with joints: a robot model, a
+    chain)."""
     groups = [g for fam in sorted(s["cells"], key=family_key) for g in s["cells"][fam]]
     joints = any(fmt_joint_angle(g.figure_row()) is not None for g in groups)
-    header = ["family", "configurations", "verdict", "attitude [rad]", "energy", "engine µs/step"]
+    first = groups[0].figure_row() if groups else {}
+    _, unit, short = headline(first)
+    energy = METRIC_SHORT.get(energy_headline(first), "energy")
+    header = ["family", "configurations", "verdict", f"{short} [{unit}]", energy,
+              "engine µs/step"]  # fmt: skip
     if joints:
         header.insert(3, "joint angle [rad]")
     body = []
@@ -84,7 +93,7 @@ def scenario_verdicts(doc: Doc, s: dict) -> None:
             verdict = f"{SYMBOL.get(out, '')} {out}" + (f": {failing}" if failing else "")
             fr = g.figure_row()
             if out in ("pass", "fail"):
-                att, energy = fmt_attitude(fr), fmt(fr["energy_drift_max"])
+                att, energy = fmt_headline(fr), fmt(fr[energy_headline(fr)])
                 q = fmt_joint_angle(fr) or "-"
             else:
                 verdict += figs[0].removeprefix("diverged") if out == "diverged" else ""

@@ -226,3 +226,64 @@ def test_work_precision_of_a_contact_scene_is_its_position_error(tmp_path):
     (entry,) = level["ranked"]
     assert entry["error_measure"] == "position_error_max"
     assert entry["error"] == pytest.approx(pyr["position_error_max"])
+
+
+def test_a_contact_run_is_summed_up_by_its_position_error_everywhere(tmp_path):
+    """Wherever a run is one number (the scorecard's entry and picture, report.md's short
+    verdict table, summary.json, the dt sweep and work-precision tables), a contact scene's
+    is its position error against the closed form in m, the metric catalog's headline for
+    the scene kind; a body's stays its attitude error in rad. MuJoCo's pyramidal cone on the
+    15 degree ramp: attitude < 1e-4 rad, position 6e-4 m from its 1.2 mm/s creep, so the two
+    cannot be mistaken for each other. An unsupported contact row (no metrics at all) counts
+    among the contact rows by its recorded scene kind."""
+    from reports.metrics.catalog import HEADLINE
+    from reports.report.contact import contact_rows
+    from reports.report.doc import Doc
+    from reports.report.labels import entry_texts, headline
+    from reports.report.precision import measure_of
+    from reports.report.scorecard_plot import scorecard_cells
+    from reports.report.sections import sweep_table, wp_table
+    from reports.report.summary_json import summary
+    from reports.report.tables import scorecard
+    from reports.report.verdict import scenario_verdicts
+    from reports.store.format import fmt
+
+    assert HEADLINE == {"body": "attitude_error_max", "system": "attitude_error_max",
+                        "contact": "position_error_max"}  # fmt: skip
+    sc = scenarios.load("block_incline_stick").replace(t_end=0.5)
+    rows = [execute(RunSpec(sc, "mujoco", "pyramidal", h), tmp_path) for h in (2e-3, 1e-3)]
+    rows.append(execute(RunSpec(sc, "exact", "closed form", 1e-3), tmp_path))
+    pyr = rows[1]
+    assert pyr["attitude_error_max"] < 1e-4 < pyr["position_error_max"], pyr
+    pos = fmt(pyr["position_error_max"])
+    df = pd.DataFrame(rows)
+    assert headline(pyr) == ("position_error_max", "m", "position")
+    assert measure_of(pyr) == ("position_error_max", "m")
+    assert headline({"scene_kind": "body"})[:2] == measure_of({}) == ("attitude_error_max", "rad")
+
+    (s,) = scorecard(df)
+    (g,) = [g for gs in s["cells"].values() for g in gs]
+    assert entry_texts(g)[2][:2] == [f"{pos} m", f"E {fmt(pyr['energy_gain_max'])}"]
+    doc = Doc()
+    scenario_verdicts(doc, s)
+    table = [ln for ln in "\n".join(doc.md).splitlines() if ln.startswith("| ")]
+    assert table[0].split(" | ")[3:5] == ["position [m]", "energy gained"]
+    assert table[1].split(" | ")[3] == pos
+    _, _, cells = scorecard_cells(df)
+    (text,) = [t for (key, _), (_, t) in cells.items() if key[0] == "mujoco"]
+    assert text[0].endswith(f"{pos} m"), text
+    (grp,) = summary(df)["scorecard"][0]["families"].values()
+    assert grp[0]["error_measure"] == "position_error_max"
+    assert grp[0]["error"] == pytest.approx(pyr["position_error_max"])
+    assert grp[0]["energy_measure"] == "energy_gain_max"
+    doc = Doc()
+    sweep_table(doc, "block_incline_stick", df)
+    wp_table(doc, "block_incline_stick", df)
+    md = "\n".join(doc.md)
+    assert "max position error [m] over the dt sweep" in md and pos in md
+    assert "| position error ≤ | cheapest | its error [m] |" in md
+    assert "attitude" not in md
+
+    bare = {**rows[0], "status": "unsupported", "position_error_max": math.nan,
+            "slide_distance": math.nan, "engine": "mjx"}  # fmt: skip
+    assert len(contact_rows(pd.DataFrame([*rows, bare]))) == 4
