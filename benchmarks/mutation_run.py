@@ -32,16 +32,31 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: name -> (the module mutated, the test files selected for it)
+#: name -> (the module mutated, the test files selected for it[, pytest -k expression]); the
+#: expression leaves out the few slow end-to-end tests (a run through the engines takes 30-100 s,
+#: and mutmut would rerun it for each of hundreds of mutants), so each module's run takes minutes
 MODULES = {
     "energy": (
         "scenarios/energy.py",
         ["tests/scenarios/test_energy_in_play.py", "tests/reports/metrics/test_energy_scales.py"],
     ),
-    "system metrics": ("reports/metrics/system.py", ["tests/reports/test_system_suite.py"]),
+    "system metrics": (
+        "reports/metrics/system.py",
+        ["tests/reports/test_system_suite.py", "tests/reports/metrics/test_system_metrics.py"],
+        "not end_to_end and not spinning_chain",
+    ),
     "gate rule": (
         "reports/gate/rule.py",
         ["tests/reports/gate/test_gate.py", "tests/reports/gate/test_compare.py"],
+    ),
+    "gate check": ("reports/gate/check.py", ["tests/reports/gate/test_gate.py"]),
+    "gate compare": ("reports/gate/compare.py", ["tests/reports/gate/test_compare.py"]),
+    "versions changes": (
+        "reports/versions/changes.py",
+        [
+            "tests/reports/versions/test_versions.py",
+            "tests/reports/versions/test_versions_history.py",
+        ],  # fmt: skip
     ),
     "versions cost": (
         "reports/versions/cost.py",
@@ -65,16 +80,17 @@ def _copy_checkout(dest: Path) -> None:
             shutil.copy2(src, dest / f)
 
 
-def _setup_cfg(module: str, tests: list[str]) -> str:
+def _setup_cfg(module: str, tests: list[str], keyword: str | None = None) -> str:
     def lines(xs):
         return "\n".join(f"    {x}" for x in xs)
 
+    selection = tests + (["-k", keyword] if keyword else [])
     return (
         "[mutmut]\n"
         f"source_paths =\n{lines(PACKAGES)}\n"
         f"only_mutate =\n    {module}\n"
         f"also_copy =\n{lines(ALSO)}\n"
-        f"pytest_add_cli_args_test_selection =\n{lines(tests)}\n"
+        f"pytest_add_cli_args_test_selection =\n{lines(selection)}\n"
         # one process per mutant (mutmut forks), no xdist workers, the default suite's marks
         "pytest_add_cli_args =\n    -n\n    0\n    -p\n    no:cacheprovider\n"
     )
@@ -92,10 +108,10 @@ def _results(cwd: Path, env) -> dict[str, str]:
 
 
 def run_module(name: str, max_children: int, keep: bool) -> dict:
-    module, tests = MODULES[name]
+    module, tests, *keyword = MODULES[name]
     work = Path(tempfile.mkdtemp(prefix=f"mutation-{name.replace(' ', '-')}-"))
     _copy_checkout(work)
-    (work / "setup.cfg").write_text(_setup_cfg(module, tests))
+    (work / "setup.cfg").write_text(_setup_cfg(module, tests, *keyword))
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
     t0 = time.monotonic()
     proc = subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children",
