@@ -1,17 +1,24 @@
-"""Time the README's first run: the default suite and its report, from a fresh clone (cold:
-no compiled code cached anywhere) and again with the caches warm.
+"""Time the README's first run: the install-time compilation, the default suite and its
+report from a fresh clone (cold: nothing cached but what the compilation wrote), and again with
+every cache warm.
 
 Each round clones the repository afresh (``git clone``: no ``__pycache__``, so no numba cache
 either), points JAX's persistent compilation cache and the suite's own cache (figures reused
 across results folders, reports.report.figure_cache) at new empty folders (the user's own
-caches under ``~/.cache/director-bench`` are left alone), and runs the README's command
-``director-bench run --out results`` inside the clone as ``python -m reports.cli run --out
-results``, so that the clone's code is the code run (checked: the script asks the clone which
-``reports`` it imports). Then the same command again in the same clone into a new output
-folder: the compiled code is cached now (numba's files beside the clone's sources, JAX's in
-its folder) and so are the figures whose inputs do not change from run to run (all but the
-work-precision figures and the scorecard picture, which show the timings); the results are
-not. Installation is not timed.
+caches under ``~/.cache/director-bench`` are left alone), and runs inside the clone the
+README's commands after ``pip install``: ``director-bench compile`` (the numba kernels into
+numba's cache beside the sources) as ``python -m reports.cli compile``, then ``director-bench
+run --out results`` as ``python -m reports.cli run --out results`` (cold: the figure cache
+empty, the results folder new), so that the clone's code is the code run (checked: the
+script asks the clone which ``reports`` it imports). Then the run again in the same clone
+into a new output folder (warm): the figures whose inputs do not change from run to run are
+cached now (all but the work-precision figures and the scorecard picture, which show the
+timings); the results are not. ``pip install`` itself is not timed (the engines are
+installed already); ``--no-compile``: no compile step (the cold run compiles).
+
+Each command runs with a probe (a ``sitecustomize`` on ``PYTHONPATH``, in every process of
+the command) that counts numba's top-level compilations (numba's ``numba:compile`` event; a
+kernel loaded from the cache fires none): after ``compile``, the runs should compile nothing.
 
 Printed per run: wall time, CPU time (user + sys of the whole process tree: the command, its
 worker processes, their fork server and the report's drawing processes, from the operating
@@ -32,13 +39,14 @@ command again and again, warm, from the first round's clone into a scratch folde
 round ends): the first run on a machine busy with another suite run.
 
 Usage: python benchmarks/bench_first_run.py [--rounds 3] [--beside 0] [--repo PATH] [--keep DIR]
-(a few minutes per round on 2 cores).
+[--no-compile] (a few minutes per round on 2 cores).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
 import re
 import resource
@@ -52,6 +60,61 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 COMMAND = [sys.executable, "-m", "reports.cli", "run", "--out"]
+COMPILE = [sys.executable, "-m", "reports.cli", "compile"]
+
+#: the probe: in every Python process of a command, a listener on numba's compile event
+#: appending each top-level compilation (name, thread CPU s) to $NB_PROBE_DIR/<pid>.jsonl
+PROBE = """\
+import os, sys
+_dir = os.environ.get("NB_PROBE_DIR")
+if _dir:
+    import importlib.abc, importlib.util, json, time
+
+    def _install():
+        import numba.core.event as ev
+        stack = []
+
+        class _L(ev.Listener):
+            def on_start(self, event):
+                f = getattr((event.data or {}).get("dispatcher"), "py_func", None)
+                stack.append((f"{getattr(f, '__module__', '?')}.{getattr(f, '__qualname__', '?')}",
+                              time.thread_time()))
+
+            def on_end(self, event):
+                if not stack:
+                    return
+                name, c0 = stack.pop()
+                if not stack:
+                    with open(os.path.join(_dir, f"{os.getpid()}.jsonl"), "a") as fh:
+                        fh.write(json.dumps({"name": name, "cpu": time.thread_time() - c0}) + "\\n")
+
+        ev.register("numba:compile", _L())
+
+    class _Hook(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path, target=None):
+            if name != "numba":
+                return None
+            sys.meta_path.remove(self)
+            spec = importlib.util.find_spec("numba")
+            run = spec.loader.exec_module
+
+            def exec_module(module):
+                run(module)
+                _install()
+
+            spec.loader.exec_module = exec_module
+            return spec
+
+    sys.meta_path.insert(0, _Hook())
+"""
+
+
+def compilations(probe_dir: Path) -> list[dict]:
+    """The top-level numba compilations the probe recorded in ``probe_dir``."""
+    out = []
+    for f in sorted(probe_dir.glob("*.jsonl")):
+        out += [json.loads(line) for line in f.read_text().splitlines() if line.strip()]
+    return out
 
 
 def _become_subreaper(on: bool = True) -> None:
@@ -224,6 +287,11 @@ def main(argv=None) -> int:
                          "for the suite run beside the rounds")  # fmt: skip
     ap.add_argument("--repo", type=Path, default=REPO, help="repository to clone")
     ap.add_argument("--keep", type=Path, help="keep the clones and logs under this folder")
+    ap.add_argument(
+        "--no-compile",
+        action="store_true",
+        help="no `director-bench compile` before the cold run (it compiles)",
+    )
     args = ap.parse_args(argv)
     _become_subreaper()
     if args.keep is not None:
@@ -237,9 +305,15 @@ def main(argv=None) -> int:
             capture_output=True, text=True, check=True,
         ).stdout.strip()  # fmt: skip
         print(f"repository {args.repo} at {commit}; {os.cpu_count()} cores; logs in {base}")
-        print(f"command: {' '.join(COMMAND)} DIR, in a fresh clone (cold), then again (warm)")
-        print(f"{'round':>5} {'caches':>6} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
-              f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12}")  # fmt: skip
+        first_cmd = "" if args.no_compile else f"{' '.join(COMPILE)}, then "
+        print(f"commands: {first_cmd}{' '.join(COMMAND)} DIR, in a fresh clone (cold), then "
+              "the run again (warm)")  # fmt: skip
+        probe = base / "probe"
+        probe.mkdir()
+        (probe / "sitecustomize.py").write_text(PROBE)
+        print(f"{'round':>5} {'step':>7} {'wall s':>8} {'CPU s':>8} {'load before':>12} "
+              f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12} "
+              f"{'numba compiles':>15}")  # fmt: skip
         if args.beside and args.beside_clone is not None:
             env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(base / "beside-jax-cache"),
                        DIRECTOR_BENCH_CACHE=str(base / "beside-suite-cache"))  # fmt: skip
@@ -273,18 +347,27 @@ def main(argv=None) -> int:
             check_imports(clone, env)
             if first is None:
                 first = (clone, env)
+            steps = ("cold", "warm") if args.no_compile else ("compile", "cold", "warm")
             with Beside(*first, where) if beside else contextlib.nullcontext():
-                for kind in ("cold", "warm"):
+                for kind in steps:
                     out = where / f"results-{kind}"
-                    row = timed([*COMMAND, str(out)], clone, env, where / f"{kind}.log",
-                                cpu_too=not beside)  # fmt: skip
+                    cmd = COMPILE if kind == "compile" else [*COMMAND, str(out)]
+                    seen = where / f"probe-{kind}"
+                    seen.mkdir()
+                    env_k = dict(env, NB_PROBE_DIR=str(seen), PYTHONPATH=str(probe))
+                    row = timed(cmd, clone, env_k, where / f"{kind}.log", cpu_too=not beside)
                     label = f"{kind}+" if beside else kind
                     rows.append((label, *row))
                     errs = eta_errors((where / f"{kind}.log").read_text(errors="replace"))
                     worst = max((max(r, 1 / r) for _, r in errs if r > 0), default=float("nan"))
-                    print(f"{k:>5} {label:>6} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
-                          f"{row[3]:11.2f} {row[4]:12.2f} {worst:12.2f}", flush=True)  # fmt: skip
-        for kind in ("cold", "warm", "cold+", "warm+"):
+                    got = compilations(seen)
+                    print(f"{k:>5} {label:>7} {row[0]:8.1f} {row[1]:8.1f} {row[2]:12.2f} "
+                          f"{row[3]:11.2f} {row[4]:12.2f} {worst:12.2f} {len(got):>15}",
+                          flush=True)  # fmt: skip
+                    if got and kind != "compile":
+                        names = ", ".join(sorted({c["name"] for c in got}))
+                        print(f"      numba compiled in that run: {names}", flush=True)
+        for kind in ("compile", "cold", "warm", "compile+", "cold+", "warm+"):
             sel = [r for r in rows if r[0] == kind]
             if not sel:
                 continue
@@ -297,6 +380,13 @@ def main(argv=None) -> int:
             print(f"median {what}: wall {wall:.1f} s, {cpu_text} over {len(sel)} runs "
                   f"(load average {min(loads):.2f} to {max(loads):.2f}, yardstick "
                   f"{min(sticks):.2f} to {max(sticks):.2f} s)")  # fmt: skip
+        for tail in ("", "+"):  # a user's first time after pip install: compile, then run
+            comp = [r[1] for r in rows if r[0] == f"compile{tail}"]
+            cold = [r[1] for r in rows if r[0] == f"cold{tail}"]
+            if comp and len(comp) == len(cold):
+                where = " beside a second suite run" if tail else ""
+                total = statistics.median(a + b for a, b in zip(comp, cold, strict=True))
+                print(f"median compile + cold run{where}: wall {total:.1f} s")
     finally:
         if args.keep is None:
             shutil.rmtree(base, ignore_errors=True)

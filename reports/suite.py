@@ -484,6 +484,26 @@ def run(
     )
 
 
+def compile_kernels(jobs: int | None = None) -> dict:
+    """Compile the numba kernels of the default suite's runs into numba's on-disk cache
+    (``director-bench compile``, reports.run.compile): plans the default suite as :func:`run`
+    does, then executes one short run of each configuration that compiles something."""
+    import os
+
+    from reports.run.compile import compile_specs
+    from reports.run.plan import max_states, plan
+
+    check_count("--jobs", jobs)
+    check_jobs(jobs)
+    engines, _ = default_engines()
+    scs = resolve_scenarios(())
+    engines = check_engines(engines)
+    integrators = check_integrators(None, engines, False)
+    limit = max_states(jobs or os.cpu_count() or 1)
+    specs = plan(scs, engines, integrators, None, None, False, None, None, None, limit, False)
+    return compile_specs(specs, jobs, worker_preload(engines))
+
+
 def ensemble(
     name,
     n: int,

@@ -1,6 +1,7 @@
 """Command-line interface ``director-bench``: a thin layer, one library call per subcommand.
 
     director-bench list
+    director-bench compile [--jobs N]
     director-bench run [SCENARIO_OR_FILE ...] [--engines a,b] [--integrators x,y]
                        [--dt 1e-3,5e-4] [--t-end T] [--out DIR] [--redo] [--no-sweep]
     director-bench ensemble SCENARIO_OR_FILE [--n 64] [--seed 0] [--engines a,b] ...

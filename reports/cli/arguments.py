@@ -11,6 +11,7 @@ from reports.cli.commands import (
     cmd_baseline,
     cmd_check,
     cmd_compare,
+    cmd_compile,
     cmd_ensemble,
     cmd_list,
     cmd_report,
@@ -379,6 +380,19 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     s.set_defaults(func=cmd_show)
     _add_run(sub)
+    s = sub.add_parser(
+        "compile",
+        help="compile the default suite's numba kernels into numba's cache (after installing)",
+        description="Compile the numba kernels the default suite's runs go through (the "
+        "director's, the multibody reference's, the suite's RKMK4) into numba's on-disk "
+        "cache beside the sources, in parallel, naming each kernel as it compiles; every "
+        "later run loads them. With the cache current it compiles nothing. Run it once after "
+        "installing (the README's first command does); `run` compiles whatever is missing.",
+    )
+    s.add_argument(
+        "--jobs", type=_whole, default=None, help="worker processes (default: one per core)"
+    )
+    s.set_defaults(func=cmd_compile)
     _add_ensemble(sub)
     _add_folder_commands(sub)
     _add_compare(sub)

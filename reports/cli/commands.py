@@ -209,6 +209,25 @@ def _importer_lines(sc, engines) -> list[str]:
     return lines
 
 
+def cmd_compile(args) -> int:
+    from reports.suite import compile_kernels
+
+    got = compile_kernels(jobs=args.jobs)
+    kernels, seconds = got["kernels"], got["seconds"]
+    for run, message in got["errors"]:
+        print(f"director-bench compile: note: the short run {run} errored ({message}); "
+              "what it did not reach compiles at its first run")  # fmt: skip
+    if kernels:
+        cpu = sum(c for _, c in kernels)
+        print(f"compiled {len(kernels)} numba kernel(s) in {seconds:.1f} s ({cpu:.1f} s of CPU "
+              f"compiling), through {got['runs']} short runs; numba keeps them beside the "
+              "sources (__pycache__) for every later run")  # fmt: skip
+    else:
+        print(f"nothing to compile: every kernel of the default suite's runs was in numba's "
+              f"cache ({got['runs']} short runs checked in {seconds:.1f} s)")  # fmt: skip
+    return 0
+
+
 def cmd_run(args) -> int:
     from reports.suite import run
 
