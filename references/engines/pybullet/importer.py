@@ -2,7 +2,9 @@
 (:mod:`references.engines.importers`) through ``getDynamicsInfo``, ``getLinkState`` and
 ``getJointInfo``. As loaded, ``loadURDF`` and ``loadMJCF`` take no flags; faithful, they take
 ``URDF_USE_INERTIA_FROM_FILE`` (without it PyBullet recomputes each link's inertia from its
-collision shapes: :data:`HINTS`).
+collision shapes: :data:`HINTS`), and ``loadURDF`` a copy of the file without geometry whose
+joint axes are unit vectors (PyBullet keeps an axis's length, which scales the joint's
+coordinate and rate).
 
 ``loadMJCF`` (Bullet's ``BulletMJCFImporter.cpp``, bullet3 examples/Importers/ImportMJCFDemo)
 reads each element's own attributes and little else: a body without ``<inertial>`` gets the
@@ -135,13 +137,29 @@ def flat_mjcf(model) -> tuple:
     return mjcf_copy(model.path, edit)
 
 
+def _unit_axes(path) -> None:
+    """Rewrite every ``<joint><axis xyz>`` of the URDF file ``path`` as a unit vector (the
+    URDF's axis is a direction; ``loadURDF`` keeps its length, which scales the joint's
+    coordinate and rate)."""
+    tree = ET.parse(path)
+    for ax in tree.getroot().iter("axis"):
+        v = np.array([float(x) for x in ax.get("xyz", "1 0 0").split()])
+        n = float(np.linalg.norm(v))
+        if n > 0 and abs(n - 1.0) > 1e-15:
+            ax.set("xyz", _num(v / n))
+    tree.write(path)
+
+
 def _pybullet_file(model, config: str) -> tuple:
     """(the file PyBullet loads in ``config``, a temporary folder or None): the importers'
-    :func:`~references.engines.importers.file_for`, and for a faithful MJCF file
-    :func:`flat_mjcf`'s copy."""
+    :func:`~references.engines.importers.file_for`; faithful, for an MJCF file
+    :func:`flat_mjcf`'s copy, for a URDF file that copy (no geometry) with unit axes."""
     if config == "faithful" and model.format == "mjcf":
         return flat_mjcf(model)
-    return file_for(model, config)
+    path, tmp = file_for(model, config)
+    if config == "faithful" and tmp is not None:
+        _unit_axes(path)
+    return path, tmp
 
 
 def _load(p, path, model, floating: bool, flags: int, cid) -> list:
