@@ -237,6 +237,37 @@ class Trajectory:
         df = pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
         return cls.from_frame(df)
 
+    def as_bodies(self, name: str = "body") -> SystemTrajectory:
+        """The same states on a bodies axis: a :class:`SystemTrajectory` of one body named
+        ``name`` carrying this trajectory's energy, angular momentum and velocity-constraint
+        residual; its arrays are views of this one's (no copy)."""
+        return SystemTrajectory(
+            self.t, self.position[:, None], self.velocity[:, None], self.rotation[:, None],
+            self.omega_body[:, None], (name,), energy=self.energy,
+            angular_momentum=self.angular_momentum, constraint_velocity=self.constraint_velocity,
+        )  # fmt: skip
+
+
+def one_body(traj):
+    """The states of a scene of one body as the single-body metrics read them, (n, ...) arrays
+    without a bodies axis: a :class:`Trajectory` as it is (None as None); a
+    :class:`SystemTrajectory` of one body that carries its energy and angular momentum
+    (:meth:`Trajectory.as_bodies`) as a :class:`Trajectory` over views of its arrays (no
+    copy: the values, and the memory layout numpy's arithmetic may depend on, are the same)."""
+    if traj is None or isinstance(traj, Trajectory):
+        return traj
+    nb = len(traj.body_names)
+    if nb != 1 or traj.energy is None or traj.angular_momentum is None:
+        raise ValueError(
+            f"one_body: a trajectory of {nb} bodies ({', '.join(traj.body_names)})"
+            + ("" if nb != 1 else " without its energy and angular momentum")
+            + " is not the trajectory of a scene of one body (see Trajectory.as_bodies)"
+        )
+    return Trajectory(
+        traj.t, traj.position[:, 0], traj.velocity[:, 0], traj.rotation[:, 0],
+        traj.omega_body[:, 0], traj.energy, traj.angular_momentum, traj.constraint_velocity,
+    )  # fmt: skip
+
 
 # -- systems of bodies ----------------------------------------------------------------------
 
@@ -256,10 +287,14 @@ class SystemTrajectory:
     ``body_names``     (nb,)           names of the bodies
     =================  ==============  ====================================================
 
-    Energy, momenta and joint residuals are computed by the suite from these states
-    (``reports.metrics.system``), never taken from an engine. On disk (Parquet) the columns
-    are ``t`` and, per body ``<name>``, ``<name>.x ... <name>.R22 ... <name>.wz`` in the
-    layout of :data:`COLUMNS` (without energy and momentum).
+    A scene of one body also carries its per-sample ``energy`` (n,), ``angular_momentum``
+    (n, 3) and ``constraint_velocity`` (n,), computed the single body's way
+    (:meth:`Trajectory.from_states`, :meth:`Trajectory.as_bodies`) and read by its metrics
+    through :func:`one_body`; for a system they are None. Energy, momenta and joint residuals
+    of a system are computed by the suite from its states (``reports.metrics.system``), never
+    taken from an engine. On disk (Parquet) the columns are ``t`` and, per body ``<name>``,
+    ``<name>.x ... <name>.R22 ... <name>.wz`` in the layout of :data:`COLUMNS` (without
+    energy and momentum).
     """
 
     t: np.ndarray
@@ -268,6 +303,9 @@ class SystemTrajectory:
     rotation: np.ndarray
     omega_body: np.ndarray
     body_names: tuple = ()
+    energy: np.ndarray | None = None
+    angular_momentum: np.ndarray | None = None
+    constraint_velocity: np.ndarray | None = None
 
     def __post_init__(self):
         self.t = np.asarray(self.t, dtype=float)
@@ -288,15 +326,32 @@ class SystemTrajectory:
                 )
             setattr(self, name, arr)
         self.body_names = tuple(self.body_names)
+        one_body_shapes = {"energy": (n,), "angular_momentum": (n, 3), "constraint_velocity": (n,)}
+        for name, shape in one_body_shapes.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.asarray(value, dtype=float)
+            if nb != 1 or arr.shape != shape:
+                raise ValueError(
+                    f"SystemTrajectory field {name!r} (a scene of one body's) has shape "
+                    f"{arr.shape} with nb = {nb} bodies, expected {shape} and nb = 1"
+                )
+            setattr(self, name, arr)
 
     def __len__(self) -> int:
         return len(self.t)
 
     def head(self, k: int) -> SystemTrajectory:
         """The first ``k`` saved states."""
+
+        def first(a):
+            return None if a is None else a[:k]
+
         return SystemTrajectory(
             self.t[:k], self.position[:k], self.velocity[:k], self.rotation[:k],
-            self.omega_body[:k], self.body_names,
+            self.omega_body[:k], self.body_names, first(self.energy),
+            first(self.angular_momentum), first(self.constraint_velocity),
         )  # fmt: skip
 
     #: per-body columns on disk, in order

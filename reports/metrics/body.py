@@ -1,7 +1,10 @@
 """Metrics computed by the suite from trajectories, identically for every engine.
 
 Every function takes trajectories in the suite's schema (:class:`references.Trajectory`) and the
-:class:`scenarios.Scenario` they came from; none trusts a value reported by an engine. Drifts
+:class:`scenarios.Scenario` they came from; the entry points (:func:`compute_metrics`,
+:func:`series`, :func:`metrics_and_series`) also take a scene of one body on a bodies axis
+(:class:`references.trajectory.SystemTrajectory`), read through
+:func:`references.trajectory.one_body`; none trusts a value reported by an engine. Drifts
 are measured against the scenario's own initial state (computed the suite's way), not against
 the engine's first saved sample, so an engine that builds the initial state wrongly shows it.
 Each has a physical scale, the scenario's (:class:`scenarios.model.Scenario`), never a
@@ -24,7 +27,7 @@ import math
 
 import numpy as np
 
-from references.trajectory import angular_momentum, energy, energy_parts
+from references.trajectory import angular_momentum, energy, energy_parts, one_body
 from reports.metrics.catalog import (  # the tables: re-exported for the modules reading them here
     FLOORS,  # noqa: F401
     HIGHER_IS_BETTER,  # noqa: F401
@@ -292,6 +295,7 @@ def series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
     """The per-sample series of one run written beside its trajectory, so that figures are
     pure functions of files: {series name: values (n,)} of every catalog metric that
     declares a ``series`` and applies here (those against the reference only with one)."""
+    traj, ref = one_body(traj), one_body(ref)
     out = {}
     for metric, fn in computed("body"):
         if metric.series is None or (metric.reference and ref is None):
@@ -305,6 +309,7 @@ def series(scenario, traj, ref=None) -> dict[str, np.ndarray]:
 def metrics_and_series(scenario, traj, ref=None, expected=None) -> tuple[dict, dict]:
     """(:func:`compute_metrics`, :func:`series`) of one run, each pointwise metric computed
     once for both: a metric's value is the largest of the very series written."""
+    traj, ref = one_body(traj), one_body(ref)
     values, by_name = measure(scenario, traj, ref, expected or {}, window=_same_times)
     series = {}
     for metric, _ in computed("body"):

@@ -218,7 +218,9 @@ def _measure(row, spec, sc, output, recorder, out, fmt) -> None:
     timing pass (reports.run.timing) times it again."""
     if output is None:
         return
-    traj = output.trajectory
+    from references.trajectory import one_body
+
+    traj = one_body(output.trajectory)  # a bodies axis of one body: the single body's file
     row.update(
         output_columns(output),
         roundoff_floor=roundoff_floor(sc, output.nstep),

@@ -100,3 +100,49 @@ def test_wrong_shape_names_the_field():
             energy=np.zeros(2),
             angular_momentum=np.zeros((2, 3)),
         )
+
+
+def test_a_single_body_on_a_bodies_axis_is_the_same_memory_both_ways():
+    """Trajectory.as_bodies gives (n, 1, ...) views carrying energy, momentum and the
+    velocity-constraint residual; one_body gives them back as the single body's (n, ...)
+    arrays: the same memory, C-contiguous as before (numpy's arithmetic may depend on the
+    layout, and the metrics must stay bit for bit)."""
+    from references.trajectory import SystemTrajectory, one_body
+
+    sc = scenario()
+    t = np.linspace(0.0, 1.0, 5)
+    R = Rotation.from_rotvec(np.outer(t, [0.2, -0.4, 0.9])).as_matrix()
+    W = np.tile(sc.omega_body, (5, 1))
+    x = np.outer(t, [1.0, 2.0, 3.0])
+    tr = Trajectory.from_states(sc, t, x, x + 1.0, R, W)
+    bodies = tr.as_bodies("ball")
+    assert isinstance(bodies, SystemTrajectory) and bodies.body_names == ("ball",)
+    assert bodies.position.shape == (5, 1, 3) and bodies.rotation.shape == (5, 1, 3, 3)
+    back = one_body(bodies)
+    for name in ("t", "position", "velocity", "rotation", "omega_body", "energy",
+                 "angular_momentum", "constraint_velocity"):  # fmt: skip
+        a, b = getattr(tr, name), getattr(back, name)
+        assert np.shares_memory(a, b) and a.shape == b.shape, name
+        assert b.flags.c_contiguous, name
+        np.testing.assert_array_equal(a, b)
+    assert one_body(tr) is tr and one_body(None) is None
+    head = bodies.head(2)
+    assert head.energy.shape == (2,) and head.angular_momentum.shape == (2, 3)
+
+
+def test_one_body_refuses_a_system_and_a_body_without_its_energy():
+    from references.trajectory import SystemTrajectory, one_body
+
+    z = np.zeros((1, 2, 3))
+    R = np.tile(np.eye(3), (1, 2, 1, 1))
+    two = SystemTrajectory([0.0], z, z, R, z, ("a", "b"))
+    with pytest.raises(ValueError, match=r"2 bodies \(a, b\)"):
+        one_body(two)
+    bare = SystemTrajectory([0.0], z[:, :1], z[:, :1], R[:, :1], z[:, :1], ("a",))
+    with pytest.raises(ValueError, match="without its energy and angular momentum"):
+        one_body(bare)
+    with pytest.raises(ValueError, match="'energy'.*nb = 2 bodies"):
+        SystemTrajectory([0.0], z, z, R, z, ("a", "b"), energy=[1.0])
+    with pytest.raises(ValueError, match="'angular_momentum'"):
+        SystemTrajectory([0.0], z[:, :1], z[:, :1], R[:, :1], z[:, :1], ("a",),
+                         energy=[1.0], angular_momentum=[1.0, 2.0])  # fmt: skip

@@ -472,3 +472,48 @@ def test_linear_momentum_drift_of_a_run_saved_and_streamed():
     # p_c / m = |v1| = 9.76 m/s: 2e-13 (measured 6e-18)
     assert full["linear_momentum_drift_max"] < 2e-13
     assert seg["linear_momentum_drift_max"] == pytest.approx(full["linear_momentum_drift_max"])
+
+
+@pytest.mark.parametrize(
+    "name, engine, integrator",
+    [("dzhanibekov", "mujoco", "RK4"), ("heavy_top", "director", "rattle4")],
+)
+def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
+    tmp_path, monkeypatch, name, engine, integrator
+):
+    """An engine whose single-body output is on a bodies axis (Trajectory.as_bodies) gives the
+    row and the trajectory file of the same run in the single body's schema, bit for bit:
+    every column but the timings, and every column of the file."""
+    import dataclasses
+
+    import pandas as pd
+
+    import scenarios
+    from references.engines import get_engine
+    from reports.run.runner import execute
+    from reports.store.runs import RunSpec
+
+    sc = scenarios.load(name).replace(t_end=0.5, dt_sweep=())
+    spec = RunSpec(sc, engine, integrator, 1e-3)
+    plain = execute(spec, out=tmp_path / "plain")
+    cls = get_engine(engine)
+    run = cls.run
+
+    def on_bodies(self, *args, **kw):
+        out = run(self, *args, **kw)
+        return dataclasses.replace(out, trajectory=out.trajectory.as_bodies())
+
+    monkeypatch.setattr(cls, "run", on_bodies)
+    bodies = execute(spec, out=tmp_path / "bodies")
+    assert plain["status"] == "ok", plain["message"]
+    timing = {"wall_time_s", "engine_time_s", "glue_time_s", "cpu_time_s", "ns_per_step",
+              "engine_ns_per_step", "finished_at", "wall_time_max_s", "engine_time_max_s",
+              "cpu_time_max_s", "cpu_share", "timing_repeats", "_run_seconds"}  # fmt: skip
+    assert plain.keys() == bodies.keys()
+    for c in plain.keys() - timing:
+        a, b = plain[c], bodies[c]
+        same = (a == b) or (isinstance(a, float) and math.isnan(a) and math.isnan(b))
+        assert same, (c, a, b)
+    fa = pd.read_parquet(tmp_path / "plain" / plain["trajectory"])
+    fb = pd.read_parquet(tmp_path / "bodies" / bodies["trajectory"])
+    pd.testing.assert_frame_equal(fa, fb, check_exact=True)
