@@ -29,6 +29,7 @@ import scenarios
 from references.engines import get_engine
 from references.errors import Diverged, EngineError
 from references.exact import reference_trajectory
+from references.trajectory import one_body
 
 
 def attitude_error(R, R_ref) -> float:
@@ -48,7 +49,7 @@ def run_one(cls, sc, integrator: str, accuracy: float, t_end: float, checkpoints
     except EngineError as exc:
         row.update(status=exc.status, message=str(exc))
         return row
-    tr = out.trajectory
+    tr = one_body(out.trajectory)
     ref = reference_trajectory(sc, tr.t)
     row.update(
         achieved=attitude_error(tr.rotation, ref.rotation),
