@@ -47,7 +47,11 @@ MODULES = {
     ),
     "gate rule": (
         "reports/gate/rule.py",
-        ["tests/reports/gate/test_gate.py", "tests/reports/gate/test_compare.py"],
+        [
+            "tests/reports/gate/test_gate.py",
+            "tests/reports/gate/test_compare.py",
+            "tests/reports/gate/test_rule.py",
+        ],  # fmt: skip
     ),
     "gate check": ("reports/gate/check.py", ["tests/reports/gate/test_gate.py"]),
     "gate compare": ("reports/gate/compare.py", ["tests/reports/gate/test_compare.py"]),
@@ -57,6 +61,8 @@ MODULES = {
             "tests/reports/versions/test_versions.py",
             "tests/reports/versions/test_versions_history.py",
         ],  # fmt: skip
+        # two tests build a release's environment (14 s each, rerun for every mutant they reach)
+        "not worker_records_the_planned_identity and not unreachable_index",
     ),
     "versions cost": (
         "reports/versions/cost.py",
