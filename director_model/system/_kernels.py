@@ -145,7 +145,8 @@ D_SVD = 5  # factorisations done by SVD (loop solver: a pivot ratio below PIVOT_
 NDIAG = 6
 
 #: array indices cast to unsigned at the access, ``A[_U(i), _U(j)]``, in the loop solver's
-#: assembly, factorisations and solves (every index there is >= 0): numba then skips its
+#: assembly, factorisations and solves, the rows, the joint forces and the 3x3 block reads
+#: (every index there is >= 0; the ground's -1 is tested before): numba then skips its
 #: negative-index wraparound (a sign test and a select per index), which also keeps LLVM from
 #: unrolling these short loops. The index arithmetic stays signed (numba computes uint64 with
 #: int64 in float64). Measured on the four-bar's 20 x 20 Newton matrix: its LU 1.4 -> 0.5 us
@@ -282,9 +283,10 @@ def _dmv(I0, I1, I2, p0, p1, p2, h):
 def _rows(rint, rvec, X, D, gv, Jc):
     """Row values gv (nrow,) and Jacobians Jc (nrow, 12) at positions X (nb, 3) and
     directors D (nb, 9); body index -1 is the ground (x = 0, D = 1)."""
-    for r in range(rint.shape[0]):
+    for r0 in range(rint.shape[0]):
+        r = _U(r0)
         prim = rint[r, 0]
-        a = rint[r, 1]
+        a = _U(rint[r, 1])
         b = rint[r, 2]
         k = rint[r, 3]
         va0, va1, va2 = rvec[r, 0], rvec[r, 1], rvec[r, 2]
@@ -293,10 +295,11 @@ def _rows(rint, rvec, X, D, gv, Jc):
         ra1 = D[a, 3] * va0 + D[a, 4] * va1 + D[a, 5] * va2
         ra2 = D[a, 6] * va0 + D[a, 7] * va1 + D[a, 8] * va2
         if b >= 0:
-            rb0 = D[b, 0] * vb0 + D[b, 1] * vb1 + D[b, 2] * vb2
-            rb1 = D[b, 3] * vb0 + D[b, 4] * vb1 + D[b, 5] * vb2
-            rb2 = D[b, 6] * vb0 + D[b, 7] * vb1 + D[b, 8] * vb2
-            xb0, xb1, xb2 = X[b, 0], X[b, 1], X[b, 2]
+            ub = _U(b)
+            rb0 = D[ub, 0] * vb0 + D[ub, 1] * vb1 + D[ub, 2] * vb2
+            rb1 = D[ub, 3] * vb0 + D[ub, 4] * vb1 + D[ub, 5] * vb2
+            rb2 = D[ub, 6] * vb0 + D[ub, 7] * vb1 + D[ub, 8] * vb2
+            xb0, xb1, xb2 = X[ub, 0], X[ub, 1], X[ub, 2]
         else:
             rb0, rb1, rb2 = vb0, vb1, vb2
             xb0, xb1, xb2 = 0.0, 0.0, 0.0
@@ -367,17 +370,21 @@ def _forces(rint, Jc, lam, F, T):
     """Joint forces -G^T lam per body: F (nb, 3) force, T (nb, 3) world torque."""
     _zero2(F)
     _zero2(T)
-    for r in range(rint.shape[0]):
-        a = rint[r, 1]
+    for r0 in range(rint.shape[0]):
+        r = _U(r0)
+        a = _U(rint[r, 1])
         b = rint[r, 2]
         lr = lam[r]
-        for c in range(3):
+        for c0 in range(3):
+            c = _U(c0)
             F[a, c] -= Jc[r, c] * lr
-            T[a, c] -= Jc[r, 3 + c] * lr
+            T[a, c] -= Jc[r, _U(3 + c0)] * lr
         if b >= 0:
-            for c in range(3):
-                F[b, c] -= Jc[r, 6 + c] * lr
-                T[b, c] -= Jc[r, 9 + c] * lr
+            ub = _U(b)
+            for c0 in range(3):
+                c = _U(c0)
+                F[ub, c] -= Jc[r, _U(6 + c0)] * lr
+                T[ub, c] -= Jc[r, _U(9 + c0)] * lr
 
 
 @njit(forceinline=True)
@@ -784,13 +791,15 @@ def _band_ldl_solve_rr(A, bw, ext, keep, b, x):
 
 @njit(forceinline=True)
 def _row9(A, i):
-    return (A[i, 0], A[i, 1], A[i, 2], A[i, 3], A[i, 4], A[i, 5], A[i, 6], A[i, 7], A[i, 8])
+    u = _U(i)
+    return (A[u, 0], A[u, 1], A[u, 2], A[u, 3], A[u, 4], A[u, 5], A[u, 6], A[u, 7], A[u, 8])
 
 
 @njit(forceinline=True)
 def _put9(A, i, T):
+    u = _U(i)
     for c in range(9):
-        A[i, c] = T[c]
+        A[u, _U(c)] = T[c]
 
 
 @njit(forceinline=True)
@@ -835,10 +844,12 @@ def _store(B, D0, S, X, V, D, W, k):
 @njit(forceinline=True)
 def _blk(J, r, o):
     """The 3x3 block J[r:r + 3, o:o + 3] as a row-major 9-tuple."""
+    r0, r1, r2 = _U(r), _U(r + 1), _U(r + 2)
+    o0, o1, o2 = _U(o), _U(o + 1), _U(o + 2)
     return (
-        J[r, o], J[r, o + 1], J[r, o + 2],
-        J[r + 1, o], J[r + 1, o + 1], J[r + 1, o + 2],
-        J[r + 2, o], J[r + 2, o + 1], J[r + 2, o + 2],
+        J[r0, o0], J[r0, o1], J[r0, o2],
+        J[r1, o0], J[r1, o1], J[r1, o2],
+        J[r2, o0], J[r2, o1], J[r2, o2],
     )  # fmt: skip
 
 
@@ -1297,17 +1308,21 @@ def _run_system(
                 else:
                     vel, om = VH, TW
                 if nrow > 0:
-                    for r in range(nrow):
-                        a = rint[r, 1]
-                        b = rint[r, 2]
-                        s = Jnew[r, 0] * vel[a, 0] + Jnew[r, 1] * vel[a, 1] + Jnew[r, 2] * vel[a, 2]
-                        s += Jnew[r, 3] * om[a, 0] + Jnew[r, 4] * om[a, 1] + Jnew[r, 5] * om[a, 2]
+                    for rr in range(nrow):
+                        ur = _U(rr)
+                        ua = _U(rint[ur, 1])
+                        b = rint[ur, 2]
+                        s = (Jnew[ur, 0] * vel[ua, 0] + Jnew[ur, 1] * vel[ua, 1]
+                             + Jnew[ur, 2] * vel[ua, 2])  # fmt: skip
+                        s += (Jnew[ur, 3] * om[ua, 0] + Jnew[ur, 4] * om[ua, 1]
+                              + Jnew[ur, 5] * om[ua, 2])  # fmt: skip
                         if b >= 0:
-                            s += (Jnew[r, 6] * vel[b, 0] + Jnew[r, 7] * vel[b, 1]
-                                  + Jnew[r, 8] * vel[b, 2])  # fmt: skip
-                            s += (Jnew[r, 9] * om[b, 0] + Jnew[r, 10] * om[b, 1]
-                                  + Jnew[r, 11] * om[b, 2])  # fmt: skip
-                        r0[r] = s
+                            ub = _U(b)
+                            s += (Jnew[ur, 6] * vel[ub, 0] + Jnew[ur, 7] * vel[ub, 1]
+                                  + Jnew[ur, 8] * vel[ub, 2])  # fmt: skip
+                            s += (Jnew[ur, 9] * om[ub, 0] + Jnew[ur, 10] * om[ub, 1]
+                                  + Jnew[ur, 11] * om[ub, 2])  # fmt: skip
+                        r0[ur] = s
                     if minnorm:
                         if vsvd:
                             _svd_solve(U, sv, Vt, rank, r0, dl)
