@@ -15,16 +15,26 @@ includes pinocchio's Python binding (a few microseconds a call, which dominates 
 the per body-step figure of Pinocchio is fair from N ~ 20). Each figure is the best of
 ``--repeats`` rounds, the configurations taken in turn within a round.
 
+With ``--before PATH`` (another checkout, e.g. a git worktree of main) the director's chains
+are also timed with that checkout's code, in a worker process of its own (this script with
+``--worker``, the checkout first on PYTHONPATH), asked in turn with this one's: a before and
+an after column measured side by side.
+
     python benchmarks/bench_system_chain_scaling.py            # N = 1, 2, 5, 10, 20, 50, 100
     python benchmarks/bench_system_chain_scaling.py --quick    # N = 2, 20; fewer steps
+    python benchmarks/bench_system_chain_scaling.py --before /tmp/main-wt
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -41,6 +51,41 @@ def director_ns(n: int, hang: bool, steps: int) -> float:
     st = SystemStepper(b, j, gravity=g, scheme="rattle", dt=1e-3)
     tr = st.advance(steps, save_every=steps)
     return tr.cpu_time_s / steps / n * 1e9
+
+
+def worker() -> int:
+    """Answer one JSON request a line on stdin ({"n", "hang", "steps"}) with
+    :func:`director_ns` ({"ns"}) on stdout."""
+    for line in sys.stdin:
+        req = json.loads(line)
+        ns = director_ns(req["n"], req["hang"], req["steps"])
+        print(json.dumps({"ns": ns}), flush=True)
+    return 0
+
+
+class Before:
+    """A worker process timing the director's chains with the checkout at ``root``."""
+
+    def __init__(self, root: Path):
+        if not (root / "director_model" / "system").is_dir():
+            raise SystemExit(f"--before {root}: not a checkout of director-bench (no "
+                             "director_model/system there)")  # fmt: skip
+        env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+        self.p = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker"],
+                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                  env=env, cwd=str(root))  # fmt: skip
+
+    def __call__(self, n: int, hang: bool, steps: int) -> float:
+        self.p.stdin.write(json.dumps({"n": n, "hang": hang, "steps": steps}) + "\n")
+        self.p.stdin.flush()
+        line = self.p.stdout.readline()
+        if not line:
+            raise SystemExit(f"the --before worker stopped at N = {n} (exit {self.p.wait()})")
+        return json.loads(line)["ns"]
+
+    def close(self):
+        self.p.stdin.close()
+        self.p.wait()
 
 
 def pinocchio_model(n: int, hang: bool):
@@ -86,7 +131,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--before", type=Path, help="another checkout whose director to time too")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    if a.worker:
+        return worker()
     sizes = (2, 20) if a.quick else (1, 2, 5, 10, 20, 50, 100)
     body_steps = 20000 if a.quick else 100000
     try:
@@ -97,26 +146,43 @@ def main(argv=None) -> int:
         have_pin = False
         print("# pinocchio is not installed: its column is left out")
     cfgs = [(n, hang) for hang in (False, True) for n in sizes]
-    for n, hang in cfgs:  # compile or load the kernels first
-        director_ns(n, hang, 2)
+    who_fn = [("director", director_ns)]
+    before = Before(a.before.resolve()) if a.before is not None else None
+    if before is not None:
+        who_fn.insert(0, ("before", before))
+    if have_pin:
+        who_fn.append(("pinocchio", pinocchio_ns))
     best = {}
-    for _ in range(a.repeats):
-        for n, hang in cfgs:
-            steps = max(100, body_steps // n)
-            for who, fn in (("director", director_ns), ("pinocchio", pinocchio_ns)):
-                if who == "pinocchio" and not have_pin:
-                    continue
-                key = (who, n, hang)
-                best[key] = min(best.get(key, np.inf), fn(n, hang, steps))
+    try:
+        for n, hang in cfgs:  # compile or load the kernels first
+            for who, fn in who_fn[:2]:
+                if who != "pinocchio":
+                    fn(n, hang, 2)
+        for _ in range(a.repeats):
+            for n, hang in cfgs:
+                steps = max(100, body_steps // n)
+                for who, fn in who_fn:
+                    key = (who, n, hang)
+                    best[key] = min(best.get(key, np.inf), fn(n, hang, steps))
+    finally:
+        if before is not None:
+            before.close()
     print(f"# {platform.processor() or platform.machine()}, load {os.getloadavg()[0]:.1f}, "
           f"best of {a.repeats} interleaved rounds, thread CPU time, ns per body-step")  # fmt: skip
-    print("| chain | N | director rattle | goal 350 ns | director / goal | Pinocchio ABA + "
-          "Euler (Python loop) | director / Pinocchio |")  # fmt: skip
-    print("|---|--:|--:|--:|--:|--:|--:|")
+    if before is not None:
+        print(f"# before = {a.before}")
+    head = "| chain | N | " + ("director before | before / after | " if before else "")
+    print(head + "director rattle | goal 350 ns | director / goal | Pinocchio ABA + Euler "
+          "(Python loop) | director / Pinocchio |")  # fmt: skip
+    print("|---|--:|" + ("--:|--:|" if before else "") + "--:|--:|--:|--:|--:|")
     for n, hang in cfgs:
         d = best[("director", n, hang)]
         p = best.get(("pinocchio", n, hang), np.nan)
-        print(f"| {'hanging' if hang else 'free'} | {n} | {d:.0f} | {GOAL_NS:.0f} | "
+        cells = ""
+        if before is not None:
+            b = best[("before", n, hang)]
+            cells = f"{b:.0f} | {b / d:.2f} | "
+        print(f"| {'hanging' if hang else 'free'} | {n} | {cells}{d:.0f} | {GOAL_NS:.0f} | "
               f"{d / GOAL_NS:.2f} | {p:.0f} | {d / p:.2f} |")  # fmt: skip
     return 0
 
