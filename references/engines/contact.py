@@ -306,8 +306,11 @@ def _solve(rule, known, want, pair, what):
 
 def check_readback(scenario, readback: dict, engine: str) -> None:
     """Compare what the engine holds with the scene: every pair's mu (and e where the engine
-    models it: the key is present) and every body's shape kind, sizes and offset. Raises
-    :class:`EngineError` naming the pair or body and both values."""
+    models it: the key is present), every body's shape kind, sizes and offset, and where the
+    builder reads them back (``joints``) every joint (:func:`check_joints`). Raises
+    :class:`EngineError` naming the pair, body or joint and both values."""
+    if "joints" in readback:
+        check_joints(scenario, readback["joints"], engine)
     pairs = readback.get("pairs", {})
     for i, c in enumerate(scenario.contacts):
         got = pairs.get(i)
@@ -373,13 +376,20 @@ def external_wrench(scenario, body_index: int, R) -> tuple[np.ndarray, np.ndarra
 def ground_hinges(scenario, engine: str) -> dict:
     """{body name: its joint} of a scene whose joints are each a revolute joint tying one
     body to the ground (at most one per body); any other joint is refused with the reason."""
+    return ground_joints(scenario, engine, ("revolute",))
+
+
+def ground_joints(scenario, engine: str, kinds=("revolute", "prismatic")) -> dict:
+    """{body name: its joint} of a scene whose joints each tie one body to the ground (at
+    most one per body) and are of one of ``kinds`` (those the engine's builder makes with
+    contact); any other joint is refused, naming it and what the builder makes."""
     out = {}
     for j in scenario.joints:
-        if j.kind != "revolute" or j.body_b is not None or j.body_a in out:
+        if j.kind not in kinds or j.body_b is not None or j.body_a in out:
             raise Unsupported(
                 f"{engine} contact builder: joint {j.name!r} ({j.kind} between {j.body_a!r} and "
-                f"{j.body_b or 'the ground'!r}): with contact, only one revolute joint from a "
-                "body to the ground is built"
+                f"{j.body_b or 'the ground'!r}): with contact, this builder makes one "
+                f"{' or '.join(kinds)} joint from a body to the ground, no other"
             )
         out[j.body_a] = j
     return out
@@ -389,6 +399,82 @@ def hinge_rate(b, j) -> float:
     """The initial rate (rad/s) of body ``b`` about its hinge ``j``'s axis (the scene's
     checks have made its velocity that of a rotation about the hinge)."""
     return float(np.asarray(b.omega_body) @ (np.asarray(j.axis_a) / np.linalg.norm(j.axis_a)))
+
+
+def joint_rate(b, j) -> float:
+    """The initial rate of body ``b``'s ground joint ``j``: about a hinge's axis (rad/s,
+    :func:`hinge_rate`), along a slider's (m/s: the centre of mass's velocity along the
+    axis, world; the scene's checks have made its velocity a slide along the axis)."""
+    if j.kind == "prismatic":
+        return float(np.asarray(b.velocity) @ joint_axis_world(b, j))
+    return hinge_rate(b, j)
+
+
+def joint_axis_world(b, j) -> np.ndarray:
+    """The unit axis of body ``b``'s joint ``j`` in world axes at t = 0."""
+    a = np.asarray(b.rotation) @ np.asarray(j.axis_a, dtype=float)
+    return a / np.linalg.norm(a)
+
+
+def joint_anchor_world(b, j) -> np.ndarray:
+    """The anchor of body ``b``'s joint ``j`` (on body a) in world coordinates at t = 0."""
+    return np.asarray(b.position) + np.asarray(b.rotation) @ np.asarray(j.anchor_a, float)
+
+
+def tilted_joints(scenario, angle: float = 0.01):
+    """The scene with every joint's axis turned by ``angle`` rad about a world axis across
+    it, on both sides (``axis_a`` in its body, ``axis_b`` in the world), so that the joint
+    still holds at t = 0: the conformance kit's planted 'joint axis' mistake for builders
+    that build their model from a scene."""
+    import dataclasses
+
+    bodies = {b.name: b for b in scenario.bodies}
+    out = []
+    for j in scenario.joints:
+        b = bodies[j.body_a]
+        a = joint_axis_world(b, j)
+        across = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        across /= np.linalg.norm(across)
+        t = math.cos(angle) * a + math.sin(angle) * np.cross(across, a)
+        fields = {"axis_a": np.asarray(b.rotation).T @ t}
+        if j.body_b is None and j.axis_b is not None:
+            fields["axis_b"] = t
+        out.append(dataclasses.replace(j, **fields))
+    return scenario.replace(joints=tuple(out))
+
+
+def check_joints(scenario, joints: dict, engine: str) -> None:
+    """Compare the joints an engine holds (``{name: {"kind", "axis", "anchor"}}``, world
+    axes at t = 0, read from its model) with the scene's: the kind, the axis's direction
+    (either sense), and for a hinge its anchor (a slider's anchor may sit anywhere on its
+    line: the line through the anchor along the axis is compared). Raises
+    :class:`EngineError` naming the joint and both values."""
+    bodies = {b.name: b for b in scenario.bodies}
+    for j in scenario.joints:
+        got = joints.get(j.name)
+        if got is None:
+            raise EngineError(f"{engine}: joint {j.name!r} is not in the engine's model")
+        if got["kind"] != j.kind:
+            raise EngineError(f"{engine}: joint {j.name!r} is {got['kind']} (scene: {j.kind})")
+        b = bodies[j.body_a]
+        axis, anchor = joint_axis_world(b, j), joint_anchor_world(b, j)
+        ga = np.asarray(got["axis"], dtype=float)
+        ga = ga / np.linalg.norm(ga)
+        if float(np.linalg.norm(np.cross(ga, axis))) > READBACK_RTOL:
+            raise EngineError(
+                f"{engine}: joint {j.name!r}: the engine's axis is {ga.tolist()}, the "
+                f"scene's {axis.tolist()} (world, t = 0)"
+            )
+        gap = np.asarray(got["anchor"], dtype=float) - anchor
+        if j.kind == "prismatic":
+            gap = gap - (gap @ axis) * axis
+        scale = max(b.shape.extent if b.shape is not None else 0.0, 1.0)
+        if float(np.linalg.norm(gap)) > READBACK_RTOL * scale:
+            raise EngineError(
+                f"{engine}: joint {j.name!r}: the engine's anchor is "
+                f"{np.asarray(got['anchor']).tolist()} m, the scene's {anchor.tolist()} m "
+                "(world, t = 0)"
+            )
 
 
 def run_contact(

@@ -10,7 +10,8 @@ not describe (:class:`ReferenceNotApplicable`).
 ``rolling``        one sphere, or one cylinder lying on its side, touching one plane at its lowest
                    point; e the direction of the initial velocity (downhill when at rest), the
                    spin about n x e; k = a . I a/(m r^2) from the body's inertia
-``bounce``         one body above one plane, at rest or moving along the normal
+``bounce``         one body above one plane, at rest or moving along the normal; free, or on a
+                   prismatic joint to the ground along the normal (it carries no force then)
 ``resting``        every body at rest; each body's support is the pair below it (the plane, or
                    the body whose centre is lowest among those it touches)
 ``hinged_strike``  one body on a revolute joint to the ground, a sphere at its centre of mass
@@ -68,6 +69,32 @@ def _shape_at_centre(sc, body, kind):
         )
 
 
+def _slider_along_normal(sc) -> None:
+    """Accept for ``bounce`` a body on one prismatic joint to the ground whose axis is the
+    plane's normal, without spin: the joint then only forbids what the free motion along the
+    normal never does (turning, moving across), so it carries no force and the closed form
+    holds as for a free body."""
+    (j,) = sc.joints if len(sc.joints) == 1 else (None,)
+    if j is None or j.kind != "prismatic" or j.body_b is not None or len(sc.planes) != 1:
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: bounce describes a free body, or one on a single prismatic "
+            "joint to the ground above one plane"
+        )
+    body = next(b for b in sc.bodies if b.name == j.body_a)
+    axis = body.rotation @ np.asarray(j.axis_a, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    n = np.asarray(sc.planes[0].normal, dtype=float)
+    if float(np.linalg.norm(np.cross(axis, n))) > GEOMETRY_TOL:
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: joint {j.name!r}'s axis {axis.tolist()} is not the plane's "
+            f"normal {n.tolist()}: the slider would carry forces bounce does not describe"
+        )
+    if np.any(np.asarray(body.omega_body) != 0):
+        raise ReferenceNotApplicable(
+            f"scenario {sc.name!r}: a body on a prismatic joint cannot spin"
+        )
+
+
 def _forces_on(sc, name):
     return [(f.force, f.point) for f in sc.forces if f.body == name]
 
@@ -81,7 +108,9 @@ def builder(sc):
         raise ReferenceNotApplicable(f"scenario {sc.name!r}: {kind!r} is not a contact kind")
     if kind == "hinged_strike":
         return _hinged(sc, g)
-    if sc.joints:
+    if kind == "bounce" and sc.joints:
+        _slider_along_normal(sc)
+    elif sc.joints:
         raise ReferenceNotApplicable(
             f"scenario {sc.name!r}: {kind} describes free bodies; the scene has joints"
         )

@@ -3,8 +3,10 @@ tangent directions, each friction component bounded by mu N on its own, so the f
 a box, not a cone), FCL collision detection (DART's default detector).
 
 Model: each body a skeleton on a ``FreeJoint`` (positions [rotation vector, x], velocities
-[w, v] both world), or on a ``RevoluteJoint`` for a body hinged to the ground (its frame at
-the anchor with the body's initial axes, q = 0 the scene's initial pose), whose body node
+[w, v] both world), or on a ``RevoluteJoint`` or ``PrismaticJoint`` for a body hinged or
+slid on the ground (its frame at the anchor with the body's initial axes, q = 0 the scene's
+initial pose; each joint read back: its type, and the world anchor and axis of its parent
+side), whose body node
 frame is the principal frame at the centre of mass, one
 shape node (``SphereShape``, ``BoxShape`` of full sides, ``CapsuleShape`` (radius, length of
 its cylinder), ``CylinderShape`` (radius, full height)) at the shape's offset; each plane a
@@ -38,8 +40,9 @@ from references.engines import timing
 from references.engines.contact import (
     ContactLog,
     external_wrench,
-    ground_hinges,
-    hinge_rate,
+    ground_joints,
+    joint_anchor_world,
+    joint_rate,
     pair_coefficients,
 )
 from references.engines.integrators import Integrator
@@ -108,7 +111,7 @@ def _frame_z_to(n):
 
 class Scene:
     def __init__(self, dart, scenario, conf, dt, settings):
-        hinges = ground_hinges(scenario, "dart")
+        hinges = ground_joints(scenario, "dart")
         self.dart, self.sc = dart, scenario
         mu = pair_coefficients(scenario, "mu", "min", plane_value=1e3)
         e = pair_coefficients(scenario, "e", "product", plane_value=1.0)
@@ -139,7 +142,7 @@ class Scene:
         cs.setSplitImpulseEnabled(bool(settings.get("split_impulse", False)))
         self.world, self.cs = w, cs
         self.nodes, self.joints, self.shapes = {}, {}, {}
-        self.hinged = set()  # bodies on a revolute joint to the ground
+        self.hinged = set()  # bodies on a joint to the ground
         for p in scenario.planes:
             g = dart.dynamics.Skeleton(f"plane:{p.name}")
             _, gb = g.createWeldJointAndBodyNodePair()
@@ -161,8 +164,15 @@ class Scene:
             if hinge is None:
                 j, bn = skel.createFreeJointAndBodyNodePair()
             else:  # the joint frame: at the anchor with the body's initial axes (q = 0)
-                j, bn = skel.createRevoluteJointAndBodyNodePair()
-                j.setTransformFromParentBodyNode(_iso(dart, b.rotation, hinge.anchor_b))
+                if hinge.kind == "prismatic":
+                    j, bn = skel.createPrismaticJointAndBodyNodePair()
+                else:
+                    j, bn = skel.createRevoluteJointAndBodyNodePair()
+                # the anchor on body a where it is at t = 0 (a hinge's anchor_b, a slider's
+                # point on its line)
+                j.setTransformFromParentBodyNode(
+                    _iso(dart, b.rotation, joint_anchor_world(b, hinge))
+                )
                 j.setTransformFromChildBodyNode(_iso(dart, np.eye(3), hinge.anchor_a))
                 j.setAxis(np.asarray(hinge.axis_a, dtype=float))
             bn.setName(b.name)
@@ -185,7 +195,7 @@ class Scene:
                 j.setVelocities(vel)
             else:
                 j.setPosition(0, 0.0)
-                j.setVelocity(0, hinge_rate(b, hinge))
+                j.setVelocity(0, joint_rate(b, hinge))
                 self.hinged.add(b.name)
             self.nodes[b.name], self.joints[b.name] = bn, j
         listed = {frozenset((c.a, c.b)) for c in scenario.contacts}
@@ -230,7 +240,26 @@ class Scene:
                 "mu": min(da.getFrictionCoeff(), db.getFrictionCoeff()),
                 "e": da.getRestitutionCoeff() * db.getRestitutionCoeff(),
             }
-        return {"pairs": pairs, "shapes": shapes}
+        joints = {}
+        kinds = {"RevoluteJoint": "revolute", "PrismaticJoint": "prismatic"}
+        for j in self.sc.joints:
+            dj = self.joints[j.body_a]
+            T = dj.getTransformFromParentBodyNode()  # the parent is the world
+            joints[j.name] = {
+                "kind": kinds.get(dj.getType(), dj.getType()),
+                "anchor": np.asarray(T.translation()),
+                "axis": np.asarray(T.rotation()) @ np.asarray(dj.getAxis()),
+            }
+        return {"pairs": pairs, "shapes": shapes, "joints": joints}
+
+
+def _plant_axis(scene):
+    """Tilt every joint's axis by 0.01 rad."""
+    for j in scene.sc.joints:
+        dj = scene.joints[j.body_a]
+        a = np.asarray(dj.getAxis(), dtype=float)
+        across = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        dj.setAxis(a + 0.01 * across / np.linalg.norm(across))
 
 
 def _plant_mu(scene):
@@ -246,7 +275,8 @@ def _plant_offset(scene):
     )
 
 
-PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}
+PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset,
+             "joint axis": _plant_axis}  # fmt: skip
 
 
 def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None, **settings):

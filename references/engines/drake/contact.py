@@ -36,7 +36,13 @@ import time
 import numpy as np
 
 from references.engines import timing
-from references.engines.contact import ContactLog, ground_hinges, hinge_rate, pair_coefficients
+from references.engines.contact import (
+    ContactLog,
+    ground_joints,
+    joint_anchor_world,
+    joint_rate,
+    pair_coefficients,
+)
 from references.engines.integrators import Integrator
 from references.errors import Unsupported
 
@@ -101,7 +107,7 @@ class Scene:
         import pydrake.all as m
 
         _import()
-        hinges = ground_hinges(scenario, "drake")
+        hinges = ground_joints(scenario, "drake")
         bad = [f"{c.a}-{c.b}" for c in scenario.contacts if c.e > 0]
         if bad:
             raise Unsupported(
@@ -167,7 +173,7 @@ class Scene:
             self.gid[b.name] = plant.RegisterCollisionGeometry(
                 body, X, _shape(m, s), f"geom:{b.name}", props
             )
-        self.hinges = {}  # body name -> (its RevoluteJoint, its initial rate)
+        self.hinges = {}  # body name -> (its RevoluteJoint or PrismaticJoint, its initial rate)
         for b in scenario.bodies:
             j = hinges.get(b.name)
             if j is None:
@@ -178,14 +184,15 @@ class Scene:
                 m.FixedOffsetFrame(
                     f"{j.name}_F",
                     plant.world_frame(),
-                    m.RigidTransform(m.RotationMatrix(b.rotation), np.asarray(j.anchor_b, float)),
+                    m.RigidTransform(m.RotationMatrix(b.rotation), joint_anchor_world(b, j)),
                 )
             )
             M = plant.AddFrame(m.FixedOffsetFrame(
                 f"{j.name}_M", self.body[b.name].body_frame(),
                 m.RigidTransform(np.asarray(j.anchor_a, float))))  # fmt: skip
-            joint = plant.AddJoint(m.RevoluteJoint(j.name, F, M, np.asarray(j.axis_a, float)))
-            self.hinges[b.name] = (joint, hinge_rate(b, j))
+            kind = m.PrismaticJoint if j.kind == "prismatic" else m.RevoluteJoint
+            joint = plant.AddJoint(kind(j.name, F, M, np.asarray(j.axis_a, float)))
+            self.hinges[b.name] = (joint, joint_rate(b, j))
         plant.Finalize()
         listed = {frozenset((c.a, c.b)) for c in scenario.contacts}
         names = list(self.gid)
@@ -215,8 +222,12 @@ class Scene:
             body = self.body[b.name]
             if b.name in self.hinges:
                 joint, rate = self.hinges[b.name]
-                joint.set_angle(self.pc, 0.0)
-                joint.set_angular_rate(self.pc, rate)
+                if type(joint).__name__.startswith("PrismaticJoint"):
+                    joint.set_translation(self.pc, 0.0)
+                    joint.set_translation_rate(self.pc, rate)
+                else:
+                    joint.set_angle(self.pc, 0.0)
+                    joint.set_angular_rate(self.pc, rate)
                 continue
             plant.SetFreeBodyPose(
                 self.pc,
@@ -259,12 +270,24 @@ class Scene:
         for i, c in enumerate(self.sc.contacts):
             a, bb = mus[c.a], mus[c.b]
             pairs[i] = {"mu": 2 * a * bb / (a + bb) if a + bb > 0 else 0.0}
-        return {"pairs": pairs, "shapes": shapes}
+        joints = {}
+        for j in self.sc.joints:
+            joint, _ = self.hinges[j.body_a]
+            X = joint.frame_on_parent().CalcPoseInWorld(self.pc)
+            prismatic = type(joint).__name__.startswith("PrismaticJoint")
+            axis = joint.translation_axis() if prismatic else joint.revolute_axis()
+            joints[j.name] = {
+                "kind": "prismatic" if prismatic else "revolute",
+                "anchor": np.asarray(X.translation()),
+                "axis": X.rotation().matrix() @ np.asarray(axis),
+            }
+        return {"pairs": pairs, "shapes": shapes, "joints": joints}
 
 
 #: mistakes the conformance kit plants (Drake's model is fixed at Finalize, so the builder
-#: builds it with the mistake): every geometry's friction 1, the first body's shape moved 1 cm
-PLANTABLE = {"mu not applied": "mu", "shape offset": "offset"}
+#: builds it with the mistake): every geometry's friction 1, the first body's shape moved 1 cm,
+#: every joint's axis tilted by 0.01 rad
+PLANTABLE = {"mu not applied": "mu", "shape offset": "offset", "joint axis": "axis"}
 
 
 def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None, **settings):
@@ -279,6 +302,10 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         b = scenario.bodies[0]
         moved = dataclasses.replace(b.shape, position=b.shape.position + np.array([0, 0, 0.01]))
         built = scenario.replace(bodies=(dataclasses.replace(b, shape=moved), *scenario.bodies[1:]))
+    if _plant == "joint axis":  # every joint's axis tilted by 0.01 rad
+        from references.engines.contact import tilted_joints
+
+        built = tilted_joints(scenario)
     import logging
 
     # Drake's log lines (a half-space "not supported for deformable contact", TAMSI's

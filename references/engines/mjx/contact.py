@@ -1,5 +1,7 @@
 """MJX's contact: the model of :mod:`references.engines.mujoco.contact` (the same MJCF, with
-its model name fixed so that one compilation serves every scene of one shape), put on the JAX
+its model name fixed so that one compilation serves every scene of one shape; its bodies on
+free joints or on a hinge or slide to the ground, set and read by that module's
+``set_initial_state`` and ``read_bodies``), put on the JAX
 device with ``mjx.put_model(impl="jax")`` in float64 (``jax.enable_x64``), stepped by
 ``mjx.step`` in a jitted ``lax.fori_loop`` between saved steps.
 
@@ -20,7 +22,6 @@ import time
 
 import numpy as np
 
-from references import conventions as cv
 from references.engines import timing
 from references.engines.contact import ContactLog, external_wrench, pair_index
 from references.engines.integrators import Integrator
@@ -47,11 +48,6 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
 
     mujoco, jax, mjx = _import()
     conf = find("mjx", configuration)
-    if scenario.joints:
-        raise Unsupported(
-            "mjx contact builder: joints with contact are built for MuJoCo only (this builder "
-            "sets and reads every body's free joint)"
-        )
     if any(np.any(f.point != 0) for f in scenario.forces):
         raise Unsupported(
             "mjx contact builder: a force off a centre of mass (its torque turns "
@@ -66,12 +62,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     d = mujoco.MjData(m)
     nb = len(scenario.bodies)
     bid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.name) for b in scenario.bodies]
+    mjc.set_initial_state(mujoco, m, d, scenario, bid)
     for i, b in enumerate(scenario.bodies):
-        jadr = m.body_jntadr[bid[i]]
-        qa, va = m.jnt_qposadr[jadr], m.jnt_dofadr[jadr]
-        qpos, qvel = cv.mujoco_free_from_state(b.position, b.velocity, b.rotation, b.omega_body)
-        d.qpos[qa : qa + 7] = qpos
-        d.qvel[va : va + 6] = qvel
         F, tau = external_wrench(scenario, i, b.rotation)
         d.xfrc_applied[bid[i], :3] = F
         d.xfrc_applied[bid[i], 3:] = tau
@@ -93,14 +85,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     f6 = np.zeros(6)
 
     def save(k, step, dd):
-        mujoco.mj_kinematics(m, dd)
-        for i in range(nb):
-            j = bid[i]
-            va = m.jnt_dofadr[m.body_jntadr[j]]
-            X[k, i] = dd.xipos[j]
-            R[k, i] = dd.ximat[j].reshape(3, 3)
-            V[k, i] = dd.qvel[va : va + 3]
-            W[k, i] = dd.qvel[va + 3 : va + 6]
+        mjc.read_bodies(mujoco, m, dd, scenario, bid, X[k], R[k], V[k], W[k])
         t[k] = step * dt
         if step > 0:
             for c in range(dd.ncon):

@@ -1,10 +1,11 @@
 """MuJoCo's contact: bodies on free joints with one geom each, the scene's planes as plane
 geoms of the world body, and one explicit ``<pair>`` per scene pair (every geom has contype =
 conaffinity = 0, so only the listed pairs collide; MuJoCo documentation, "XML Reference /
-contact / pair"). A body on a revolute joint to the ground (a system in contact) gets a
-``hinge`` joint at the joint's anchor and axis in its frame instead of its free joint, at
-qpos 0 (the model's pose is the scene's initial pose) and qvel the initial rate about the
-axis; a joint between two bodies, or of another kind, is not built here (``unsupported``).
+contact / pair"). A body on a revolute or prismatic joint to the ground (a system in contact)
+gets a ``hinge`` or ``slide`` joint at the joint's anchor and axis in its frame instead of its
+free joint, at qpos 0 (the model's pose is the scene's initial pose) and qvel the initial rate
+about or along the axis; a joint between two bodies, or of another kind, is not built here
+(``unsupported``, :func:`references.engines.contact.ground_joints`).
 
 Each body's frame is its principal frame at its centre of mass (an explicit ``<inertial>``,
 as in :mod:`.system`); its geom sits at the shape's offset and rotation. A pair has
@@ -25,7 +26,8 @@ Contacts read after each step (they are those the step's collision found and its
 loaded): ``d.contact[i]`` (``pos``, ``frame`` whose first row is the normal from geom1 to
 geom2, ``dist`` < 0 when penetrating) and ``mj_contactForce`` (the force geom1 exerts on geom2
 in that frame, normal first). Read back: ``pair_friction``, ``pair_solref``, geom types, sizes,
-positions and orientations in their bodies.
+positions and orientations in their bodies, each joint's type, world anchor and axis at t = 0
+(``xanchor``, ``xaxis``).
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ from references.engines import timing
 from references.engines.contact import (
     ContactLog,
     external_wrench,
-    ground_hinges,
-    hinge_rate,
+    ground_joints,
+    joint_rate,
     pair_index,
 )
 from references.engines.integrators import Integrator
@@ -109,6 +111,8 @@ SETTINGS = ("solver", "iterations", "tolerance", "solref", "solimp", "integrator
 _SOLVERS = ("Newton", "CG", "PGS")
 _INTEGRATORS = ("Euler", "implicit", "implicitfast", "RK4")
 _GEOM = {"sphere": "sphere", "box": "box", "capsule": "capsule", "cylinder": "cylinder"}
+#: the MJCF joint type of each scene joint kind built here (to the ground)
+_JOINT = {"revolute": "hinge", "prismatic": "slide"}
 DEFAULT_SOLREF = (0.02, 1.0)
 
 
@@ -141,7 +145,7 @@ def _size(s) -> list:
 
 def mjcf(scenario, conf, dt: float, settings: dict) -> str:
     """The model of the scene (module docstring)."""
-    hinges = ground_hinges(scenario, "mujoco")
+    joints = ground_joints(scenario, "mujoco")
     opt = conf.options
     solver = settings.get("solver", "Newton")
     integ = settings.get("integrator", "Euler")
@@ -170,9 +174,9 @@ def mjcf(scenario, conf, dt: float, settings: dict) -> str:
             f'<body name="{b.name}" pos="{_num(b.position)}" '
             f'quat="{_num(cv.matrix_to_quat_wxyz(b.rotation))}">'
         )
-        j = hinges.get(b.name)
+        j = joints.get(b.name)
         parts.append(
-            f'<joint name="{j.name}" type="hinge" pos="{_num(j.anchor_a)}" '
+            f'<joint name="{j.name}" type="{_JOINT[j.kind]}" pos="{_num(j.anchor_a)}" '
             f'axis="{_num(j.axis_a)}"/>'
             if j is not None
             else "<freejoint/>"
@@ -249,7 +253,29 @@ def readback(mujoco, m, scenario) -> dict:
             "offset": tuple(m.geom_pos[gid]),
             "rotation": cv.quat_wxyz_to_matrix(m.geom_quat[gid]),
         }
-    return {"pairs": pairs, "shapes": shapes}
+    return {"pairs": pairs, "shapes": shapes, "joints": read_joints(mujoco, m, scenario)}
+
+
+def read_joints(mujoco, m, scenario) -> dict:
+    """Each scene joint as the model holds it at qpos0 (the scene's initial pose): its kind,
+    world anchor and axis (``xanchor``, ``xaxis`` after ``mj_kinematics``)."""
+    if not scenario.joints:
+        return {}
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    kinds = {int(mujoco.mjtJoint.mjJNT_HINGE): "revolute", int(mujoco.mjtJoint.mjJNT_SLIDE):
+             "prismatic"}  # fmt: skip
+    out = {}
+    for j in scenario.joints:
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j.name)
+        if jid < 0:
+            continue
+        out[j.name] = {
+            "kind": kinds.get(int(m.jnt_type[jid]), "other"),
+            "anchor": d.xanchor[jid].copy(),
+            "axis": d.xaxis[jid].copy(),
+        }
+    return out
 
 
 def _plant_mu(mujoco, m):
@@ -260,8 +286,58 @@ def _plant_offset(mujoco, m):
     m.geom_pos[m.ngeom - 1] += np.array([0.0, 0.0, 0.01])
 
 
+def _plant_axis(mujoco, m):
+    """Tilt every joint's axis by 0.01 rad (about an axis across it)."""
+    for k in range(m.njnt):
+        a = np.array(m.jnt_axis[k], float)
+        across = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        a = a + 0.01 * across / np.linalg.norm(across)
+        m.jnt_axis[k] = a / np.linalg.norm(a)
+
+
 #: mistakes the conformance kit plants after the model is compiled; the read-back must see them
-PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}
+PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset,
+             "joint axis": _plant_axis}  # fmt: skip
+
+
+def set_initial_state(mujoco, m, d, scenario, bid) -> None:
+    """The scene's initial state in ``d``: a free body's position, attitude and velocities,
+    a body on a ground joint its rate about or along the joint (qpos 0: the model's pose is
+    the scene's); ``bid``: the scene bodies' MuJoCo body ids."""
+    joints = ground_joints(scenario, "mujoco")
+    for i, b in enumerate(scenario.bodies):
+        jadr = m.body_jntadr[bid[i]]
+        qa, va = m.jnt_qposadr[jadr], m.jnt_dofadr[jadr]
+        if b.name in joints:
+            d.qpos[qa], d.qvel[va] = 0.0, joint_rate(b, joints[b.name])
+            continue
+        qpos, qvel = cv.mujoco_free_from_state(b.position, b.velocity, b.rotation, b.omega_body)
+        d.qpos[qa : qa + 7] = qpos
+        d.qvel[va : va + 6] = qvel
+
+
+def read_bodies(mujoco, m, d, scenario, bid, X, R, V, W) -> None:
+    """The scene bodies' centres, attitudes, velocities (world) and body rates (body axes)
+    from ``d`` into the arrays of one saved step (each (nb, ...)); a free body's from its
+    qvel, a body on a ground joint's from ``mj_objectVelocity`` at its centre of mass."""
+    mujoco.mj_kinematics(m, d)
+    if scenario.joints:  # the velocities of the state saved (mj_objectVelocity reads cvel)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_comVel(m, d)
+    vel6 = np.zeros(6)
+    for i in range(len(scenario.bodies)):
+        j = bid[i]
+        X[i] = d.xipos[j]
+        R[i] = d.ximat[j].reshape(3, 3)
+        jadr = m.body_jntadr[j]
+        if int(m.jnt_type[jadr]) != int(mujoco.mjtJoint.mjJNT_FREE):  # (rotation, translation)
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, j, vel6, 0)
+            V[i] = vel6[3:]
+            W[i] = R[i].T @ vel6[:3]
+            continue
+        va = m.jnt_dofadr[jadr]
+        V[i] = d.qvel[va : va + 3]
+        W[i] = d.qvel[va + 3 : va + 6]
 
 
 def settings_record(m, conf, settings) -> dict:
@@ -301,16 +377,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         i: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.name)
         for i, b in enumerate(scenario.bodies)
     }
-    hinges = ground_hinges(scenario, "mujoco")
-    for i, b in enumerate(scenario.bodies):
-        jadr = m.body_jntadr[bid[i]]
-        qa, va = m.jnt_qposadr[jadr], m.jnt_dofadr[jadr]
-        if b.name in hinges:
-            d.qpos[qa], d.qvel[va] = 0.0, hinge_rate(b, hinges[b.name])
-            continue
-        qpos, qvel = cv.mujoco_free_from_state(b.position, b.velocity, b.rotation, b.omega_body)
-        d.qpos[qa : qa + 7] = qpos
-        d.qvel[va : va + 6] = qvel
+    set_initial_state(mujoco, m, d, scenario, bid)
     mujoco.mj_forward(m, d)
     geom_body = {}
     for b in scenario.bodies:
@@ -335,26 +402,9 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     t = np.zeros(nsave)
     log = ContactLog()
     f6 = np.zeros(6)
-    vel6 = np.zeros(6)
 
     def save(k, step):
-        mujoco.mj_kinematics(m, d)
-        if hinges:  # the velocities of the state saved (mj_objectVelocity reads cvel)
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_comVel(m, d)
-        for i in range(nb):
-            j = bid[i]
-            X[k, i] = d.xipos[j]
-            R[k, i] = d.ximat[j].reshape(3, 3)
-            if scenario.bodies[i].name in hinges:  # (rotation, translation) at the centre
-                mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, j, vel6, 0)
-                V[k, i] = vel6[3:]
-                W[k, i] = R[k, i].T @ vel6[:3]
-                continue
-            jadr = m.body_jntadr[j]
-            va = m.jnt_dofadr[jadr]
-            V[k, i] = d.qvel[va : va + 3]
-            W[k, i] = d.qvel[va + 3 : va + 6]
+        read_bodies(mujoco, m, d, scenario, bid, X[k], R[k], V[k], W[k])
         t[k] = step * dt
         for c in range(d.ncon):
             con = d.contact[c]

@@ -4,9 +4,10 @@ stepper of its own in the installed release).
 
 Model: one ``JointModelFreeFlyer`` per body (q = [x, quaternion xyzw], v = [R^T v, W] in the
 LOCAL frame), the body's principal frame at the joint (``Inertia(m, 0, diag(I))``), or for a
-body on a revolute joint to the ground a ``JointModelRevoluteUnaligned`` placed at the hinge
-with the body's initial axes (q = 0 the scene's initial pose, the centre of mass at -anchor_a
-in the joint frame, q += h q' in the step); one coal
+body on a revolute or prismatic joint to the ground a ``JointModelRevoluteUnaligned`` or
+``JointModelPrismaticUnaligned`` placed at the anchor with the body's initial axes (q = 0 the
+scene's initial pose, the centre of mass at -anchor_a in the joint frame, q += h q' in the
+step; read back: the joint's kind, world anchor and axis); one coal
 shape per body (``Sphere``, ``Box`` of full sides, ``Capsule`` and ``Cylinder`` of full
 length) at the shape's offset, the scene's planes as coal ``Halfspace`` on the universe, one
 collision pair per scene pair.
@@ -44,7 +45,13 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import timing
-from references.engines.contact import ContactLog, external_wrench, ground_hinges, hinge_rate
+from references.engines.contact import (
+    ContactLog,
+    external_wrench,
+    ground_joints,
+    joint_anchor_world,
+    joint_rate,
+)
 from references.engines.integrators import Integrator
 from references.errors import EngineError
 
@@ -118,20 +125,25 @@ class Scene:
         self.model = pin.Model()
         self.model.gravity.linear = np.asarray(scenario.gravity, dtype=float)
         self.jid = {}
-        # a body on a revolute joint to the ground: its joint frame at the hinge with the
-        # body's initial axes (q = 0: the scene's initial pose), its centre of mass at
-        # -anchor_a in it; name -> (anchor_a, unit axis in the body, initial rate)
+        # a body on a revolute or prismatic joint to the ground: its joint frame at the anchor
+        # with the body's initial axes (q = 0: the scene's initial pose), its centre of mass
+        # at -anchor_a in it; name -> (anchor_a, unit axis in the body, initial rate)
         self.hinge = {}
-        for name, j in ground_hinges(scenario, "pinocchio").items():
+        self.sliding = set()  # the bodies on a prismatic joint
+        for name, j in ground_joints(scenario, "pinocchio").items():
             b = next(b for b in scenario.bodies if b.name == name)
             axis = np.asarray(j.axis_a, dtype=float) / np.linalg.norm(j.axis_a)
-            self.hinge[name] = (np.asarray(j.anchor_a, dtype=float), axis, hinge_rate(b, j))
+            self.hinge[name] = (np.asarray(j.anchor_a, dtype=float), axis, joint_rate(b, j))
+            if j.kind == "prismatic":
+                self.sliding.add(name)
         for b in scenario.bodies:
             if b.name in self.hinge:
                 lever, axis, _ = self.hinge[b.name]
                 hj = next(j for j in scenario.joints if j.body_a == b.name)
-                j = self.model.addJoint(0, pin.JointModelRevoluteUnaligned(axis),
-                                        pin.SE3(b.rotation, np.asarray(hj.anchor_b, float)),
+                kind = (pin.JointModelPrismaticUnaligned if b.name in self.sliding
+                        else pin.JointModelRevoluteUnaligned)  # fmt: skip
+                j = self.model.addJoint(0, kind(axis),
+                                        pin.SE3(b.rotation, joint_anchor_world(b, hj)),
                                         b.name)  # fmt: skip
                 com = -lever
             else:
@@ -200,6 +212,13 @@ class Scene:
         nb = len(self.sc.bodies)
         x, R, vv, W = np.zeros((nb, 3)), np.zeros((nb, 3, 3)), np.zeros((nb, 3)), np.zeros((nb, 3))
         for i, b in enumerate(self.sc.bodies):
+            if b.name in self.sliding:  # x = H + R0 (q axis - anchor_a), R = R0
+                lever, axis, _ = self.hinge[b.name]
+                oMj = self.model.jointPlacements[self.jid[b.name]]
+                R[i] = oMj.rotation
+                x[i] = oMj.translation + R[i] @ (axis * q[self.iq[i]] - lever)
+                vv[i] = R[i] @ axis * v[self.iv[i]]
+                continue
             if b.name in self.hinge:  # x = H + R (-anchor_a), R = R0 exp(q axis)
                 lever, axis, _ = self.hinge[b.name]
                 oMj = self.model.jointPlacements[self.jid[b.name]]
@@ -239,8 +258,22 @@ class Scene:
                 "rotation": np.asarray(obj.placement.rotation),
             }
         pairs = {i: {"mu": self.mu[i], "e": self.e[i]} for i in self.pairs}
+        joints = {}
+        for j in self.sc.joints:
+            jid = self.jid[j.body_a]
+            jm, oMj = self.model.joints[jid], self.model.jointPlacements[jid]
+            name = jm.shortname()
+            joints[j.name] = {
+                "kind": "prismatic"
+                if "Prismatic" in name
+                else "revolute"
+                if "Revolute" in name
+                else name,
+                "anchor": np.asarray(oMj.translation),
+                "axis": np.asarray(oMj.rotation) @ np.asarray(jm.extract().axis),
+            }
         del pin
-        return {"pairs": pairs, "shapes": shapes}
+        return {"pairs": pairs, "shapes": shapes, "joints": joints}
 
 
 def _plant_mu(scene):
@@ -254,7 +287,24 @@ def _plant_offset(scene):
     )
 
 
-PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}
+def _plant_axis(scene):
+    """Every ground joint's axis tilted by 0.01 rad, in the model (and its data)."""
+    pin = scene.pin
+    for j in scene.sc.joints:
+        jid = scene.jid[j.body_a]
+        a = np.asarray(scene.model.joints[jid].extract().axis, dtype=float)
+        across = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        a = a + 0.01 * across / np.linalg.norm(across)
+        kind = (pin.JointModelPrismaticUnaligned if j.body_a in scene.sliding
+                else pin.JointModelRevoluteUnaligned)  # fmt: skip
+        jm = kind(a / np.linalg.norm(a))
+        jm.setIndexes(jid, scene.model.joints[jid].idx_q, scene.model.joints[jid].idx_v)
+        scene.model.joints[jid] = jm
+    scene.data = scene.model.createData()
+
+
+PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset,
+             "joint axis": _plant_axis}  # fmt: skip
 
 
 def classical(a, v, starts):

@@ -37,8 +37,9 @@ from references.engines import timing
 from references.engines.contact import (
     ContactLog,
     external_wrench,
-    ground_hinges,
-    hinge_rate,
+    ground_joints,
+    joint_anchor_world,
+    joint_rate,
     pair_coefficients,
 )
 from references.engines.integrators import Integrator
@@ -89,7 +90,7 @@ def _shape(p, s, cid):
 
 class Scene:
     def __init__(self, p, scenario, conf, dt, settings):
-        hinges = ground_hinges(scenario, "pybullet")
+        hinges = ground_joints(scenario, "pybullet")
         self.p, self.sc = p, scenario
         self.cid = cid = p.connect(p.DIRECT)
         self.mu_set = pair_coefficients(scenario, "mu", "product", plane_value=1.0)
@@ -169,9 +170,10 @@ class Scene:
                     )
 
     def _hinged(self, b, j):
-        """Body ``b`` on a revolute joint ``j`` to the ground: a multibody whose fixed base
-        (mass 0, no shape) stands at the hinge with the body's initial axes, and whose one
-        link turns about the axis there, its centre of mass at -anchor_a in the link frame
+        """Body ``b`` on a revolute or prismatic joint ``j`` to the ground: a multibody whose
+        fixed base (mass 0, no shape) stands at the anchor (where body a's is at t = 0) with
+        the body's initial axes, and whose one link turns about or slides along the axis
+        there, its centre of mass at -anchor_a in the link frame
         (q = 0: the scene's initial pose), its shape placed in the link frame (PyBullet
         places a link's collision shape there, not in its inertial frame: a sphere given
         at the centre of mass was found at the hinge); the joint's default velocity motor
@@ -187,7 +189,7 @@ class Scene:
         bid = p.createMultiBody(
             0.0,
             -1,
-            basePosition=list(map(float, j.anchor_b)),
+            basePosition=list(map(float, joint_anchor_world(b, j))),
             baseOrientation=list(map(float, cv.matrix_to_quat_xyzw(b.rotation))),
             linkMasses=[float(b.mass)],
             linkCollisionShapeIndices=[shape],
@@ -197,7 +199,7 @@ class Scene:
             linkInertialFramePositions=[list(map(float, -np.asarray(j.anchor_a)))],
             linkInertialFrameOrientations=[zero],
             linkParentIndices=[0],
-            linkJointTypes=[p.JOINT_REVOLUTE],
+            linkJointTypes=[p.JOINT_PRISMATIC if j.kind == "prismatic" else p.JOINT_REVOLUTE],
             linkJointAxis=[list(map(float, j.axis_a))],
             physicsClientId=cid,
         )
@@ -206,7 +208,7 @@ class Scene:
                          linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
                          physicsClientId=cid)  # fmt: skip
         p.setJointMotorControl2(bid, 0, p.VELOCITY_CONTROL, force=0.0, physicsClientId=cid)
-        p.resetJointState(bid, 0, 0.0, hinge_rate(b, j), physicsClientId=cid)
+        p.resetJointState(bid, 0, 0.0, joint_rate(b, j), physicsClientId=cid)
 
     def state(self, name):
         """(centre of mass, rotation, velocity, angular velocity (world)) of body ``name``."""
@@ -265,7 +267,20 @@ class Scene:
                 "offset": tuple(d[5]),
                 "rotation": cv.quat_xyzw_to_matrix(d[6]),
             }
-        return {"pairs": pairs, "shapes": shapes}
+        joints = {}
+        kinds = {p.JOINT_REVOLUTE: "revolute", p.JOINT_PRISMATIC: "prismatic"}
+        for j in self.sc.joints:
+            bid = self.ids[j.body_a]
+            info = p.getJointInfo(bid, 0, physicsClientId=cid)
+            base, orn = p.getBasePositionAndOrientation(bid, physicsClientId=cid)
+            Rb = cv.quat_xyzw_to_matrix(orn)  # the fixed base: the joint's parent frame
+            Rj = Rb @ cv.quat_xyzw_to_matrix(info[15])
+            joints[j.name] = {
+                "kind": kinds.get(info[2], str(info[2])),
+                "anchor": np.asarray(base) + Rb @ np.asarray(info[14]),
+                "axis": Rj @ np.asarray(info[13]),
+            }
+        return {"pairs": pairs, "shapes": shapes, "joints": joints}
 
     def close(self):
         self.p.disconnect(physicsClientId=self.cid)
@@ -301,7 +316,22 @@ def _plant_offset(scene):
     scene.ids[b.name] = bid
 
 
-PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset}
+def _plant_axis(scene):
+    """Rebuild every jointed body with its joint's axis tilted by 0.01 rad."""
+    import dataclasses
+
+    bodies = {b.name: b for b in scene.sc.bodies}
+    for j in scene.sc.joints:
+        a = np.asarray(j.axis_a, dtype=float)
+        across = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        tilted = dataclasses.replace(j, axis_a=a + 0.01 * np.linalg.norm(a) * across
+                                     / np.linalg.norm(across))  # fmt: skip
+        scene.p.removeBody(scene.ids[j.body_a], physicsClientId=scene.cid)
+        scene._hinged(bodies[j.body_a], tilted)
+
+
+PLANTABLE = {"mu not applied": _plant_mu, "shape offset": _plant_offset,
+             "joint axis": _plant_axis}  # fmt: skip
 
 
 def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None, **settings):

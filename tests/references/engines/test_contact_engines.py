@@ -226,17 +226,14 @@ def test_director_contact_through_its_api():
     assert moved < 1e-12
 
 
-#: engines whose contact builders build a body on a revolute joint to the ground
-HINGED = ("mujoco", "pinocchio", "dart", "pybullet", "drake", "director")
-
-
-@pytest.mark.parametrize("engine", HINGED)
+@pytest.mark.parametrize("engine", _engines())
 def test_a_hinged_body_swings_on_its_hinge_and_rests_on_the_ground(engine):
     """A system in contact (hinged_strike: a ball on a hinge to the ground, striking it):
     the joint holds (the ball's centre stays 0.3 m from the hinge point), the model reads
-    back (shapes in their bodies: a link's shape placed in the wrong frame shows here), and
-    once it rests the ground carries the weight, m g, by the moment balance about the hinge
-    (the hinge is at the ball centre's height: it carries none)."""
+    back (shapes in their bodies: a link's shape placed in the wrong frame shows here; the
+    hinge's kind, anchor and axis), and once it rests the ground carries the weight, m g,
+    by the moment balance about the hinge (the hinge is at the ball centre's height: it
+    carries none)."""
     _available(engine)
     sc = scenarios.load("hinged_strike")
     # 1 s: the forces are averaged over its second half, when MuJoCo's soft contact has
@@ -248,15 +245,57 @@ def test_a_hinged_body_swings_on_its_hinge_and_rests_on_the_ground(engine):
     # solver's tolerance (1e-12 m): 1e-9 m leaves room for rounding over 1000 steps
     assert np.max(np.abs(np.linalg.norm(x - hinge, axis=1) - 0.3)) < 1e-9
     assert out.readback["shapes"]["ball"]["offset"] == pytest.approx((0, 0, 0), abs=1e-12)
+    assert out.readback["joints"]["hinge"]["kind"] == "revolute"
     (support,) = _normal_sums(sc, out)
     assert support == pytest.approx(G, rel=FORCE_RTOL)
 
 
-@pytest.mark.parametrize("engine", ["mjx"])
-def test_joints_with_contact_unsupported_says_why(engine):
+@pytest.mark.parametrize("engine", _engines())
+def test_a_body_on_a_slider_drops_along_it(engine):
+    """A system in contact with a prismatic joint (slider_drop: the ball of drop_e05 on a
+    vertical slider to the ground, e = 0.5): the joint holds (the ball neither moves across
+    the axis nor turns: to 1e-9, the reduced coordinates' and the director's constraint
+    rows' rounding over 2000 steps), its kind, anchor line and axis read back, and the ball
+    ends resting on the ground (its centre within 1 mm of r = 0.1 m after the bounces have
+    ended at 0.96 s: MuJoCo's soft contact sinks or hops by up to 0.2 mm, 1e-3 leaves room).
+    Drake's discrete contact has no restitution coefficient: unsupported, saying so."""
     from references.engines import Unsupported
 
     _available(engine)
-    with pytest.raises(Unsupported, match="joint"):
+    sc = scenarios.load("slider_drop")
+    if engine == "drake":
+        with pytest.raises(Unsupported, match="no restitution coefficient"):
+            run_contact(engine, sc, _confs(engine)[0], 1e-3, t_end=0.01, save_every=10)
+        return
+    out = run_contact(engine, sc, _confs(engine)[0], 1e-3, t_end=2.0, save_every=10)
+    x, R = out.trajectory.position[:, 0], out.trajectory.rotation[:, 0]
+    assert np.max(np.abs(x[:, :2])) < 1e-9
+    assert np.max(np.abs(R - np.eye(3))) < 1e-9
+    assert out.readback["joints"]["slider"]["kind"] == "prismatic"
+    assert x[-1, 2] == pytest.approx(0.1, abs=1e-3)
+
+
+@pytest.mark.parametrize("engine", _engines())
+def test_a_planted_joint_axis_is_caught(engine):
+    """Every joint of hinged_strike built with its axis tilted by 0.01 rad (in the engine's
+    model after it is built, or in the scene the builder is handed): the joint read-back
+    names the joint and both axes."""
+    _available(engine)
+    assert "joint axis" in builder(engine).PLANTABLE
+    with pytest.raises(EngineError, match="joint 'hinge': the engine's axis"):
         run_contact(engine, scenarios.load("hinged_strike"), _confs(engine)[0], 1e-3,
-                    t_end=0.01, save_every=10)  # fmt: skip
+                    t_end=0.01, save_every=10, _plant="joint axis")  # fmt: skip
+
+
+def test_joints_with_contact_unsupported_says_why():
+    """A joint a contact builder does not make (here a spherical joint to the ground) is
+    refused before anything runs, naming the joint and what the builder makes."""
+    import dataclasses
+
+    from references.engines import Unsupported
+
+    sc = scenarios.load("hinged_strike")
+    ball = dataclasses.replace(sc.joints[0], kind="spherical", axis_a=None, axis_b=None)
+    with pytest.raises(Unsupported, match="joint 'hinge' \\(spherical .*revolute or prismatic"):
+        run_contact("mujoco", sc.replace(joints=(ball,)), "pyramidal", 1e-3, t_end=0.01,
+                    save_every=10)  # fmt: skip

@@ -422,3 +422,28 @@ def test_stack_support_forces():
     assert np.all(mo.v == 0) and np.allclose(mo.x[1], x0)
     with pytest.raises(ReferenceNotApplicable, match="cycle"):
         Resting(m, x0, [np.eye(3)] * 3, [2, 0, 1], [0, 0, -G])
+
+
+def test_bounce_on_a_slider_along_the_normal_only():
+    """slider_drop (the ball of drop_e05 on a vertical prismatic joint): the bounce closed
+    form takes it and gives drop_e05's motion (the slider carries nothing); a slider whose
+    axis is not the plane's normal, or a hinge, is refused with the reason."""
+    import dataclasses
+
+    import scenarios
+    from references.exact.contact_scene import builder
+
+    sc = scenarios.load("slider_drop")
+    t = np.linspace(0.0, 1.0, 101)
+    got = builder(sc).motion(t)
+    want = builder(scenarios.load("drop_e05")).motion(t)
+    assert np.array_equal(got.x, want.x)
+    (j,) = sc.joints
+    tilted = dataclasses.replace(
+        j, axis_a=np.array([0.0, 0.1, 1.0]), axis_b=np.array([0.0, 0.1, 1.0])
+    )
+    with pytest.raises(ReferenceNotApplicable, match="is not the plane's normal"):
+        builder(sc.replace(joints=(tilted,)))
+    hinge = dataclasses.replace(j, kind="revolute")
+    with pytest.raises(ReferenceNotApplicable, match="single prismatic joint"):
+        builder(sc.replace(joints=(hinge,)))

@@ -102,6 +102,9 @@ def test_refusals(change, said):
 
 
 def test_other_kinds_refuse_a_scene_with_joints():
-    sc = _scene().replace(reference="bounce")
+    sc = _scene().replace(reference="rolling")
     with pytest.raises(ReferenceNotApplicable, match="free bodies"):
         contact_motion(sc, [0.0, 0.1])
+    # bounce takes a prismatic joint along the normal (slider_drop), not a hinge
+    with pytest.raises(ReferenceNotApplicable, match="single prismatic joint"):
+        contact_motion(_scene().replace(reference="bounce"), [0.0, 0.1])
