@@ -280,11 +280,31 @@ def check_engine_settings(scs) -> None:
                 known, what = builder_settings(engine), "system builder"
             for name, value in values.items():
                 if known is not None and name not in known:
+                    hint = _configured(engine, name) if sc.kind == "contact" else ""
                     raise InputError(
                         f"invalid scenario file {sc.path}: engine_settings.{engine}.{name} = "
                         f"{value!r}: not a setting of {engine}'s {what}"
-                        f"{_did_you_mean(name, known)}; known: {', '.join(known) or 'none'}"
+                        f"{hint or _did_you_mean(name, known)}; known: "
+                        f"{', '.join(known) or 'none'}"
                     )
+
+
+def _configured(engine: str, name: str) -> str:
+    """Where a contact setting the builder does not take is what its configurations choose
+    (MuJoCo's ``cone``, ``impratio``, ``noslip_iterations``): ", chosen by the
+    configuration" and those that set it, for the error text; else ''."""
+    from references.engines.contact import configurations
+
+    confs = configurations(engine)
+    keys = {k for c in confs for k in (c.options or {})}
+    hit = next((k for k in sorted(keys) if name == k or k.startswith(name)), None)
+    if hit is None:
+        return ""
+    names = ", ".join(repr(c.name) for c in confs)
+    return (
+        f" ({hit} is chosen by the contact configuration: pick one with --integrators; "
+        f"{engine} offers {names})"
+    )
 
 
 def check_integrators(integrators, engines: list[str], named: bool = False) -> list[str] | None:

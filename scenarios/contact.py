@@ -363,11 +363,18 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
     ``[[forces]]``; every problem through ``bad(field, value, rule)``. ``bodies`` are the
     file's bodies (their ``shape`` read already)."""
     names = {b.name: b for b in bodies}
+    # what the file declares though it was refused (reported where it stands): a pair naming
+    # a refused plane, or a body whose shape was refused, is not reported again
+    refused = set()
+    shaped = {
+        t.get("name") for t in data.get("bodies") or [] if isinstance(t, dict) and "shape" in t
+    }
     planes = []
     for i, tab in enumerate(_array(data, "planes", bad)):
         p = f"planes[{i}]"
         good = _typed(tab, _PLANE_KEYS, ("name", "normal"), p, bad)
         name = good.get("name", f"plane{i}")
+        refused.add(name)
         if name in names:
             bad(f"{p}.name", name, "a plane's name must differ from every body's")
         if any(q.name == name for q in planes):
@@ -392,6 +399,7 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
             )
         )
     plane_names = {q.name for q in planes}
+    refused -= plane_names
     pairs = []
     seen = set()
     for i, tab in enumerate(_array(data, "contacts", bad)):
@@ -414,7 +422,9 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
         known = ", ".join(sorted(names) + sorted(plane_names))
         problem = False
         for nm in pair:
-            if nm not in names and nm not in plane_names:
+            if nm in refused:
+                problem = True
+            elif nm not in names and nm not in plane_names:
                 bad(
                     f"{p}.pair",
                     pair,
@@ -438,7 +448,8 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
         seen.add(key)
         for nm in (a, b):
             if nm in names and names[nm].shape is None:
-                bad(f"{p}.pair", pair, f"body {nm!r} has no [bodies.shape]: it cannot touch")
+                if nm not in shaped:  # (a shape given but refused is reported as such)
+                    bad(f"{p}.pair", pair, f"body {nm!r} has no [bodies.shape]: it cannot touch")
                 problem = True
         if problem:
             continue

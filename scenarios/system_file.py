@@ -186,6 +186,10 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
     if not probs and joints:
         _initial_gaps(bodies, joints, bad)
     planes, contacts, forces = ct.read_contact_parts(data, bodies, bad)
+    # the pairs the file lists, valid or not: a pair refused above (mu < 0, say) is no reason
+    # to report its bodies as touching nothing or the file as listing no contact
+    raw = data.get("contacts") if isinstance(data.get("contacts"), list) else []
+    listed = [t["pair"] for t in raw if isinstance(t, dict) and isinstance(t.get("pair"), list)]
     torques, springs = (), ()
     if not probs:
         from scenarios.force_elements import read_force_elements
@@ -198,7 +202,7 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
     if contacts and kind not in (*CONTACT_CLOSED_FORMS, "none", "auto"):
         bad("reference.kind", kind, "a scene with [[contacts]] takes a contact closed form ("
             f"{', '.join(CONTACT_CLOSED_FORMS)}) or none")  # fmt: skip
-    elif kind in CONTACT_CLOSED_FORMS and not contacts:
+    elif kind in CONTACT_CLOSED_FORMS and not contacts and not listed:
         bad("reference.kind", kind, "a contact closed form needs [[contacts]] (the pairs that "
             "touch)")  # fmt: skip
     if not probs and contacts:
@@ -206,6 +210,7 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
             types.SimpleNamespace(bodies=bodies, planes=planes, contacts=contacts), bad
         )
     touching = {n for c in contacts for n in (c.a, c.b)}
+    touching |= {n for pair in listed for n in pair if isinstance(n, str)}
     probs.extend(chk.unjoined_problems(bodies, joints, touching))
     if not probs:
         probs.extend(chk.step_problems(bodies, good_run["dt"], sweep))

@@ -72,8 +72,7 @@ def config_label(row, with_step: bool = False) -> str:
     accuracy (``tol 1e-8``)."""
     if is_reference_record(row):
         return reference_label(row)
-    sep = " + suite " if truthy(row.get("suite_integrated")) else " "
-    text = f"{row['engine']}{sep}{row['integrator']}"
+    text = f"{row['engine']}{suite_sep(row)}{row['integrator']}"
     if on_cpu_alone(row):
         text += " (one instance, CPU)"
     acc = num(row.get("target_accuracy"))
@@ -82,6 +81,14 @@ def config_label(row, with_step: bool = False) -> str:
     elif with_step:
         text += f" dt {fmt_step(row['dt'])} s"
     return text
+
+
+def suite_sep(row) -> str:
+    """What goes between a configuration's engine and its integrator: `` + suite `` where
+    its time loop is the suite's own code, unless the integrator's name says so already
+    (Pinocchio's contact configurations, ``ADMM + suite``), else a space."""
+    integ = str(row.get("integrator", ""))
+    return " + suite " if truthy(row.get("suite_integrated")) and "+ suite" not in integ else " "
 
 
 def on_cpu_alone(row) -> bool:

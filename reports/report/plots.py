@@ -58,9 +58,10 @@ from reports.report.labels import (
     on_cpu_alone,
     reference_label,
     scaled_label,
+    suite_sep,
 )
 from reports.report.precision import cost_of, measure_of, outlook
-from reports.store.format import fmt, fmt_step, truthy
+from reports.store.format import fmt, fmt_step
 from reports.store.results import records, reference_rows
 from reports.store.runs import slug
 
@@ -614,9 +615,8 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
 def _wp_name(row) -> str:
     """A configuration's name in the work-precision figure: ``engine [+ suite] integrator``,
     and MJX stepped alone on a CPU says so (reports.report.labels.on_cpu_alone)."""
-    sep = " + suite " if truthy(row["suite_integrated"]) else " "
     alone = " (one instance, CPU)" if on_cpu_alone(row) else ""
-    return f"{row['engine']}{sep}{row['integrator']}{alone}"
+    return f"{row['engine']}{suite_sep(row)}{row['integrator']}{alone}"
 
 
 def _still_falling(every, drawn: list[str]) -> list[str]:

@@ -92,6 +92,11 @@ def test_contact_settings_checked_before_any_run(tmp_path):
     with pytest.raises(InputError, match=r"engine_settings\.mujoco\.cone = 'elliptic': not a "
                        r"setting of mujoco's contact builder.*known: solver"):  # fmt: skip
         check_engine_settings([sc])
+    # what a configuration chooses is named as such, with the configurations that choose it
+    data["engine_settings"] = {"mujoco": {"noslip": 10}}
+    with pytest.raises(InputError, match=r"noslip_iterations is chosen by the contact "
+                       r"configuration.*'elliptic noslip 10'"):  # fmt: skip
+        check_engine_settings([scenarios.validate(data, path="mine.toml")])
     data["engine_settings"] = {"mujoco": {"solver": "CG"}}
     check_engine_settings([scenarios.validate(data, path="mine.toml")])
 
@@ -287,3 +292,16 @@ def test_a_contact_run_is_summed_up_by_its_position_error_everywhere(tmp_path):
     bare = {**rows[0], "status": "unsupported", "position_error_max": math.nan,
             "slide_distance": math.nan, "engine": "mjx"}  # fmt: skip
     assert len(contact_rows(pd.DataFrame([*rows, bare]))) == 4
+
+
+def test_a_configuration_named_with_its_suite_loop_says_so_once():
+    """Pinocchio's contact configurations carry '+ suite' in their names: their label does
+    not say it twice ('pinocchio + suite ADMM + suite' in the scorecard and the tables)."""
+    from reports.report.labels import config_label
+
+    row = {"engine": "pinocchio", "integrator": "ADMM + suite", "suite_integrated": True,
+           "reference": False}  # fmt: skip
+    assert config_label(row) == "pinocchio ADMM + suite"
+    row = {"engine": "pinocchio", "integrator": "RKMK4", "suite_integrated": True,
+           "reference": False}  # fmt: skip
+    assert config_label(row) == "pinocchio + suite RKMK4"

@@ -257,6 +257,12 @@ def test_bad_contact_input(edit, field, value, words):
     v, rule = probs[field]
     assert v == value and words in rule, (v, rule)
     assert f"{field} = {value!r}" in msg
+    # that problem alone: a refused pair, plane or shape does not also make its body 'joined
+    # to nothing', the file one 'without [[contacts]]' (both were reported with mu < 0), a
+    # pair's plane 'neither a body nor a plane' or its body one 'without [bodies.shape]';
+    # a pair of two planes names no body, whose block then touches nothing indeed
+    others = sorted(set(probs) - {field})
+    assert others == (["bodies[0].name"] if value == ["ground", "ground"] else []), msg
 
 
 def test_contact_kind_without_contacts_refused():
