@@ -36,6 +36,13 @@ over the step (2 h x the speeds of the shapes' points, plus h^2 |g| and the leng
 tolerance), and whose own distance is below it. After the position stage every feature of a
 near pair is checked at q_{n+1}: one that would overlap without being a candidate is added
 and the step redone (at most REDO_MAX times).
+
+Rows: a stage's rows (their directions, mobilities M^-1 J^T and Delassus operator) are those
+built last while the contacts are the same features and their geometry is the same to
+round-off (_parts._rows_valid: directions and directors within 8 eps, contact points within
+8 eps of the scene's length; joint rows only at the same state exactly): a resting or
+sticking configuration builds them once for many steps. Each stage keeps the factors of its
+last full solve for chord steps at the next steps (_parts._stage_solve).
 """
 
 from __future__ import annotations
@@ -81,6 +88,8 @@ from director_model.contact._parts import (
     _omega_half,
     _onb,
     _rate,
+    _rows_record,
+    _rows_valid,
     _same_list,
     _set_directors,
     _setup_rows,
@@ -159,20 +168,22 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
     pat = np.zeros(max(nf, 1), dtype=np.int64)
     listP = np.full(max(nf, 1), -1, dtype=np.int64)
     listV = np.full(max(nf, 1), -1, dtype=np.int64)
-    metaP = np.zeros(3, dtype=np.int64)
-    metaV = np.zeros(3, dtype=np.int64)
+    metaP = np.zeros(4, dtype=np.int64)
+    metaV = np.zeros(4, dtype=np.int64)
     luflag = np.zeros(1, dtype=np.int64)
     Jr = np.zeros((Nm, 12))
     rb_ = np.zeros((Nm, 2), dtype=np.int64)
     Y = np.zeros((Nm, 12))
     Wd = np.zeros((Nm, Nm))
-    JrV = np.zeros((Nm, 12))
-    rbV = np.zeros((Nm, 2), dtype=np.int64)
-    YV = np.zeros((Nm, 12))
-    WV = np.zeros((Nm, Nm))
-    rhoV = np.zeros(Nm)
-    WVbuilt = False
-    m2 = -1
+    # what the rows (Jr, rb_, Y, rho, Wd) were built from (see _rows_valid); wflag[0] = 1
+    # once Wd is built from them
+    rm = np.full(1, -1, dtype=np.int64)
+    candR = np.zeros(max(nf, 1), dtype=np.int64)
+    cgR = np.zeros((max(nf, 1), 16))
+    XR = np.zeros((nb, 3))
+    DR = np.zeros((nb, 9))
+    wflag = np.zeros(1, dtype=np.int64)
+    m2 = 0
     P8 = np.zeros((8, 4))
     A = np.zeros((Nm, Nm))
     b = np.zeros(Nm)
@@ -252,23 +263,15 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
                 isc[cand[c]] = True
             m = nc
             N = 3 * m + nj
-            # the rows at q_n: those of the last velocity stage if it had the same contacts
-            # (the same state q_n, the same features: the same numbers), else computed
-            reuse = m2 == m and redo == 0
-            for c in range(m):
-                reuse = reuse and cand2[c] == cand[c]
-            if reuse:
-                Jr, JrV = JrV, Jr
-                rb_, rbV = rbV, rb_
-                Y, YV = YV, Y
-                Wd, WV = WV, Wd
-                rho, rhoV = rhoV, rho
-                Wbuilt = WVbuilt
+            # the rows at q_n: those built last (by the last velocity stage, at this state,
+            # or earlier) if they are these contacts' to round-off, else computed
+            if _rows_valid(m, cand, cg, S, Dm, nj, Lsc, rm, candR, cgR, XR, DR):
                 if nj > 0:
                     joint_rows(rint, rvec, S, Dm, gvj, Jj)
             else:
                 _setup_rows(m, nj, cb, cg, rint, rvec, S, Dm, B, gvj, Jj, Jr, rb_, Y, rho)
-                Wbuilt = False
+                _rows_record(m, cand, cg, S, Dm, rm, candR, cgR, XR, DR)
+                wflag[0] = 0
             for c in range(m):
                 f = cand[c]
                 mu[c] = PV[FI[f, 3], 0]
@@ -304,9 +307,9 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
                 for r in range(N):
                     b[r] = u0[r] + off[r]
                 same = _same_list(m, cand, listP, metaP)
-                st, it, rr, Wbuilt = _stage_solve(
+                st, it, rr = _stage_solve(
                     m, nj, mu, rho, Jr, rb_, Y, Wd, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV,
-                    DW, DL, Wbuilt, ts, tst, zb, zbar, BA, LUP, pivP, patP, pat, metaP, same,
+                    DW, DL, wflag, ts, tst, zb, zbar, BA, LUP, pivP, patP, pat, metaP, same,
                     luflag,
                 )  # fmt: skip
                 Qs[Q_ITER] = max(Qs[Q_ITER], it)
@@ -374,8 +377,9 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
                         # a vertex is a material point: its tangential displacement over the
                         # step against the linear prediction h u_t (the rotation's curvature,
                         # O(h^2)), so that a sticking vertex stays exactly in place
+                        s1, s2 = _vertex_slip(c, cb, cg, Dm, DN, VH, h)
                         for q in range(1, 3):
-                            d = _vertex_slip(c, q, cb, cg, Dm, DN, VH, h) - h * u[3 * c + q]
+                            d = (s1 if q == 1 else s2) - h * u[3 * c + q]
                             corr[3 * c + q] += d
                             if z[3 * c] > 0.0:
                                 dmax = max(dmax, abs(d))
@@ -471,7 +475,11 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
             pen = max(pen, -cg2[c, 0])
         Qs[Q_PEN] = max(Qs[Q_PEN], pen)
         N2 = 3 * m2 + nj
-        _setup_rows(m2, nj, cb2, cg2, rint, rvec, XN, DN, B, gvj, Jj, JrV, rbV, YV, rhoV)
+        # the rows at q_{n+1}: the position stage's if they are these contacts' to round-off
+        if not _rows_valid(m2, cand2, cg2, XN, DN, nj, Lsc, rm, candR, cgR, XR, DR):
+            _setup_rows(m2, nj, cb2, cg2, rint, rvec, XN, DN, B, gvj, Jj, Jr, rb_, Y, rho)
+            _rows_record(m2, cand2, cg2, XN, DN, rm, candR, cgR, XR, DR)
+            wflag[0] = 0
         for i in range(nb):
             im = 1.0 / B[i, 0]
             rq = rh * (1.0 / WQ[i, 3])
@@ -485,7 +493,7 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
         for c in range(m2):
             f = cand2[c]
             mu[c] = PV[FI[f, 3], 0]
-            upre = _rate(JrV, rbV, 3 * c, S[:, 6:9], ON)
+            upre = _rate(Jr, rb_, 3 * c, S[:, 6:9], ON)
             off[3 * c] = PV[FI[f, 3], 1] * min(upre, 0.0)
             off[3 * c + 1] = 0.0
             off[3 * c + 2] = 0.0
@@ -496,12 +504,12 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
             off[3 * m2 + r] = 0.0
             z1[3 * m2 + r] = WJ[r, 1]
         for r in range(N2):
-            u0[r] = _rate(JrV, rbV, r, VF1, OF1)
+            u0[r] = _rate(Jr, rb_, r, VF1, OF1)
             b[r] = u0[r] + off[r]
         same = _same_list(m2, cand2, listV, metaV)
-        st, it, rr, WVbuilt = _stage_solve(
-            m2, nj, mu, rhoV, JrV, rbV, YV, WV, b, z1, u, F, A, dz, zt, ut, Ft, piv, nb, DV1, DW,
-            DL1, False, ts, tst, zb, zbar, BA, LUV, pivV, patV, pat, metaV, same, luflag,
+        st, it, rr = _stage_solve(
+            m2, nj, mu, rho, Jr, rb_, Y, Wd, b, z1, u, F, A, dz, zt, ut, Ft, piv, nb, DV1, DW,
+            DL1, wflag, ts, tst, zb, zbar, BA, LUV, pivV, patV, pat, metaV, same, luflag,
         )  # fmt: skip
         Qs[Q_ITER] = max(Qs[Q_ITER], it)
         Qs[Q_RES] = max(Qs[Q_RES], rr)
@@ -515,7 +523,7 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
         vs = gn * h
         for r in range(N2):
             vs = max(vs, abs(u0[r]))
-        _laws(m2, mu, rhoV, z1, u, vs if vs > 0.0 else 1.0, Ls)
+        _laws(m2, mu, rho, z1, u, vs if vs > 0.0 else 1.0, Ls)
         for k in range(3):
             Qs[Q_SIG + k] = max(Qs[Q_SIG + k], Ls[k])
             Ls[k] = 0.0
@@ -583,13 +591,12 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
 
 
 @njit(inline="always")
-def _vertex_slip(c, q, cb, cg, Dm, DN, VH, h):
-    """Displacement over the step, along the tangent q (1, 2) of contact c, of the material
+def _vertex_slip(c, cb, cg, Dm, DN, VH, h):
+    """Displacement over the step, along the tangents t1 and t2 of contact c, of the material
     point of body a at the contact relative to that of body b (none for a plane): h v_half
     plus the directors' change applied to the point's body-frame offset."""
-    o = 1 + 3 * q
-    t0, t1, t2 = cg[c, o], cg[c, o + 1], cg[c, o + 2]
-    s = 0.0
+    s1 = 0.0
+    s2 = 0.0
     for side in range(2):
         i = cb[c, side]
         if i < 0:
@@ -597,10 +604,14 @@ def _vertex_slip(c, q, cb, cg, Dm, DN, VH, h):
         r0, r1, r2 = cg[c, 10 + 3 * side], cg[c, 11 + 3 * side], cg[c, 12 + 3 * side]
         x0, x1, x2 = G.to_body(Dm, i, r0, r1, r2)
         p0, p1, p2 = G.body_point(VH, DN, i, x0, x1, x2)
-        d = (t0 * (h * VH[i, 0] + p0 - r0) + t1 * (h * VH[i, 1] + p1 - r1)
-             + t2 * (h * VH[i, 2] + p2 - r2))  # fmt: skip
-        s += d if side == 0 else -d
-    return s
+        e0 = h * VH[i, 0] + p0 - r0
+        e1 = h * VH[i, 1] + p1 - r1
+        e2 = h * VH[i, 2] + p2 - r2
+        d1 = cg[c, 4] * e0 + cg[c, 5] * e1 + cg[c, 6] * e2
+        d2 = cg[c, 7] * e0 + cg[c, 8] * e1 + cg[c, 9] * e2
+        s1 += d1 if side == 0 else -d1
+        s2 += d2 if side == 0 else -d2
+    return s1, s2
 
 
 @njit(cache=True, parallel=True)

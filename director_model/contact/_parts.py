@@ -243,6 +243,57 @@ def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
         rho[m + j] = 1.0 / t
 
 
+#: the rows of a stage are those built last while the contacts are the same features and
+#: their geometry (directions, the bodies' directors) differs from the one they were built
+#: at by at most ROWS_TOL (absolute, on unit vectors; times the scene's length scale on the
+#: contact points): the size of the rounding in the rows' own computation
+ROWS_TOL = 8.0 * EPS
+
+
+@njit(inline="always")
+def _rows_valid(m, cand, cg, X, Dm, nj, Lsc, rm, candR, cgR, XR, DR):
+    """Whether the rows built last (rm[0] contacts candR with geometry cgR, at the state XR,
+    DR) are the rows of the contacts cand[0:m] with geometry cg at (X, Dm) to round-off
+    (ROWS_TOL); with joint rows (nj > 0), only at the same state exactly."""
+    if rm[0] != m:
+        return False
+    tol = 0.0 if nj > 0 else ROWS_TOL
+    for i in range(DR.shape[0]):
+        for k in range(9):
+            if not abs(Dm[i, k] - DR[i, k]) <= tol:
+                return False
+        if nj > 0:
+            for k in range(3):
+                if X[i, k] != XR[i, k]:
+                    return False
+    tp = tol * Lsc
+    for c in range(m):
+        if cand[c] != candR[c]:
+            return False
+        for k in range(1, 10):
+            if not abs(cg[c, k] - cgR[c, k]) <= tol:
+                return False
+        for k in range(10, 16):
+            if not abs(cg[c, k] - cgR[c, k]) <= tp:
+                return False
+    return True
+
+
+@njit(inline="always")
+def _rows_record(m, cand, cg, X, Dm, rm, candR, cgR, XR, DR):
+    """Record what the rows were just built from (see :func:`_rows_valid`)."""
+    rm[0] = m
+    for i in range(DR.shape[0]):
+        for k in range(9):
+            DR[i, k] = Dm[i, k]
+        for k in range(3):
+            XR[i, k] = X[i, k]
+    for c in range(m):
+        candR[c] = cand[c]
+        for k in range(16):
+            cgR[c, k] = cg[c, k]
+
+
 @njit
 def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
     """Make the gaps of redundant contacts those of a rigid face: the contacts of one pair
@@ -396,7 +447,9 @@ def _angular_impulse(N, nb, Jr, rb_, z, DL):
 @njit(inline="always")
 def _same_list(m, cand, lst, meta):
     """Whether the stage has the contacts of its last call (cand[0:m] == lst[0:meta[2]]);
-    records them, and drops the kept factorisation if not."""
+    records them, and drops the kept factorisation if not. meta (4,): the kept
+    factorisation's state (0 none, 1 LU factors, 2 inverse), its size N, the list's length,
+    the solves done with the LU factors (see :func:`_stage_solve`)."""
     same = meta[2] == m
     if same:
         for c in range(m):
@@ -433,26 +486,49 @@ def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
     return ac_residual(m, nj, mu, rho, z, u, F, 0.0, ts, sc), sc
 
 
+@njit(inline="always")
+def _invert_kept(LUc, N, pivc, A):
+    """Replace the kept LU factors (LUc, pivc) of a matrix K by its inverse, transposed:
+    LUc[c, r] = (K^-1)[r, c], so that a chord step K^-1 F is a sum of contiguous rows of LUc
+    (vectorised) instead of two triangular solves (each a chain of dependent operations).
+    A: N x N scratch."""
+    for j in range(N):
+        for r in range(N):
+            A[j, r] = 0.0
+        A[j, j] = 1.0
+        lu_apply(LUc, N, pivc, A[j])
+    for j in range(N):
+        for r in range(N):
+            LUc[j, r] = A[j, r]
+
+
 @njit
 def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV, DW,
-                 DL, Wbuilt, ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same,
+                 DL, wflag, ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same,
                  luflag):  # fmt: skip
     """Solve one stage from the start value z. First its residual through the bodies (no
-    W); if not converged, chord Newton steps with the factors this stage kept from an
-    earlier step (``LUc``, ``pivc``: valid if ``same``, the same rows as then, and the
-    contacts in the same cases ``patc``; at most CHORD steps, each at least halving the
-    residual); only then W and the full solver (director_model.contact._solver.solve),
-    whose last factors are kept. Returns (status, iterations, residual, Wbuilt); the
-    bodies' velocity changes DV, DW and angular impulses DL of the solution."""
+    W); if not converged, chord Newton steps with the Jacobian this stage factorised at an
+    earlier step (valid if ``same``, the same rows as then, and the contacts in the same
+    cases ``patc``; at most CHORD steps, each at least halving the residual): with its
+    factors ``LUc``, ``pivc`` as the full solver left them (meta[0] = 1; meta[3] counts
+    their solves), until they have served N solves; then they are turned into the inverse
+    (meta[0] = 2; :func:`_invert_kept`, the cost of about N solves, paid only where the
+    factors have already served as many: at most twice the cheaper of the two ways), a
+    matrix-vector product per step. Only then W (built unless wflag[0] = 1) and the full
+    solver (director_model.contact._solver.solve), whose last factors are kept. Returns
+    (status, iterations, residual); the bodies' velocity changes DV, DW and angular
+    impulses DL of the solution."""
     N = 3 * m + nj
     st = OK
     it = 0
     rr = 0.0
+    fresh = False  # BA holds the bodies' response to z (from the last _eval)
     if N > 0:
         res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+        fresh = True
         rr = res
         done = res <= RES_TOL
-        if not done and same and meta[0] == 1 and meta[1] == N:
+        if not done and same and meta[0] >= 1 and meta[1] == N:
             pattern(m, mu, rho, z, u, pat)
             ok = True
             for k in range(m):
@@ -460,11 +536,25 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
             while ok and it < CHORD:
                 it += 1
                 for r in range(N):
-                    dz[r] = -F[r]
                     zt[r] = z[r]
-                lu_apply(LUc, N, pivc, dz)
+                if meta[0] == 1 and meta[3] >= N:
+                    _invert_kept(LUc, N, pivc, A)
+                    meta[0] = 2
+                if meta[0] == 2:
+                    for r in range(N):
+                        dz[r] = 0.0
+                    for c in range(N):
+                        f = F[c]
+                        if f != 0.0:
+                            for r in range(N):
+                                dz[r] += LUc[c, r] * f
+                else:
+                    for r in range(N):
+                        dz[r] = F[r]
+                    lu_apply(LUc, N, pivc, dz)
+                    meta[3] += 1
                 for r in range(N):
-                    z[r] += dz[r]
+                    z[r] -= dz[r]
                 rn, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
                 if rn <= RES_TOL:
                     rr = rn
@@ -478,13 +568,14 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
                     break
                 res = rn
         if not done:
-            if not Wbuilt:
+            if wflag[0] == 0:
                 _delassus(N, Jr, rb_, Y, W)
-                Wbuilt = True
+                wflag[0] = 1
             st, k, rr = ac_solve(
                 m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, 0.0, ts, tst, zb, zbar,
                 luflag,
             )  # fmt: skip
+            fresh = False
             it += k
             meta[0] = 0
             if st == 0 and luflag[0] == 1:
@@ -499,14 +590,16 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
                 pattern(m, mu, rho, z, u, patc)
                 meta[0] = 1
                 meta[1] = N
+                meta[3] = 0
             st = OK if st == 0 else FAIL_SOLVE
-    _impulse_response(N, nb, rb_, Y, z, BA)
+    if not fresh:
+        _impulse_response(N, nb, rb_, Y, z, BA)
     for i in range(nb):
         for c in range(3):
             DV[i, c] = BA[i, c]
             DW[i, c] = BA[i, 3 + c]
     _angular_impulse(N, nb, Jr, rb_, z, DL)
-    return st, it, rr, Wbuilt
+    return st, it, rr
 
 
 @njit
