@@ -138,6 +138,44 @@ def warn_costs(scs, t_end=None, say=None) -> list[str]:
     return lines
 
 
+def warn_compiles(specs, say=None) -> list[str]:
+    """Print (stderr, or through ``say``) and return a line for each engine whose runs would
+    compile for more than :data:`COST_WARNING_S` of CPU in all before they step, where no
+    cache holds the compilations: the engine's ``first_run_cost`` (what, CPU seconds, where
+    compilations are kept) of each configuration (scenario and integrator; the step sizes
+    of a sweep share one), summed."""
+    import sys
+
+    from references.engines import EngineError, get_engine
+
+    if say is None:
+
+        def say(text: str) -> None:
+            print(text, file=sys.stderr)
+
+    costs: dict = {}
+    for s in specs:
+        try:
+            cost = getattr(get_engine(s.engine), "first_run_cost", None)
+        except EngineError:
+            continue
+        got = cost(s.scenario, s.integrator) if cost is not None else None
+        if got is not None:
+            costs.setdefault(s.engine, {})[(s.scenario.name, s.integrator)] = got
+    lines = []
+    for engine, each in costs.items():
+        total = sum(c for _, c, _ in each.values())
+        if total <= COST_WARNING_S:
+            continue
+        (sc, integ), (what, top, kept) = max(each.items(), key=lambda kv: kv[1][1])
+        lines.append(f"{engine}: {len(each)} configurations compile before they step, about "
+                     f"{total:.3g} s of CPU in all where no cache holds them (the largest: "
+                     f"{what} for {sc} {integ}, about {top:.3g} s); compilations are kept in "
+                     f"{kept}, and a kept one loads in about a second")  # fmt: skip
+        say(f"director-bench: note: {lines[-1]}")
+    return lines
+
+
 def check_references(scs) -> None:
     """A user's file that asks for a closed-form reference by name (``reference.kind``
     ``free_body``, ``lagrange_top``, ``steady_precession``; a system's ``spinning_chain``,
@@ -480,6 +518,7 @@ def run(
             scs, engines, integrators, dts, t_end, sweep, save_every, segment, accuracies,
             limit, full,
         )  # fmt: skip
+        warn_compiles(specs, say=clock.note)
     if not specs:
         why = "".join(f"; {w}" for w in unloadable.values())
         raise InputError(f"nothing to run: no engine offers the integrators asked for{why}")

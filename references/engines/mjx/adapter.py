@@ -26,6 +26,7 @@ from references.engines.mjx.compile import (
     _native_fn,
     _states,
     _versions,
+    cache_folder,
     x64_mode,
 )
 from references.engines.mujoco.adapter import MujocoEngine
@@ -212,6 +213,20 @@ class _Handle:
         self._dx, self._d_leaves = None, d_leaves
 
 
+#: CPU seconds of one compilation of MJX's step loop (``mjx.step`` in a ``lax.fori_loop``,
+#: float64) for a system of bodies or a robot model where JAX's persistent cache does not hold
+#: it yet, rounded up from the library's robot models: the CPU time of a command that compiles
+#: less the same command with the cache filled, per compilation (mujoco-mjx 3.17.0, jax
+#: 0.10.2, AMD EPYC; /work/wt/reports/robots4.md): contact-free (the system builder, an
+#: importer's faithful configuration) 5.2 to 16 s on 3 to 13 bodies, not growing with them;
+#: with the file's contacts (an importer's as-loaded configuration of a file with collision
+#: geometry, whose collision functions MJX compiles too) about 30 s (pusher as loaded: its
+#: executable written 2 minutes into the run at a quarter of a core). A compilation the cache
+#: holds loads in about a second. Not counted: the steps themselves, which are cheap on most
+#: models (arm3: 0.14 ms each) but not all (pusher through its importer: 0.51 s of CPU each).
+COMPILE_CPU_S = {"contact-free": 20.0, "with contacts": 60.0}
+
+
 class MjxEngine(Engine):
     """MJX (mujoco-mjx, JAX backend), stepped with a compiled ``mjx.step`` loop."""
 
@@ -247,6 +262,27 @@ class MjxEngine(Engine):
             ("free", "pivoted"),
         ),
     }
+
+    @classmethod
+    def first_run_cost(cls, scenario, integrator: str) -> tuple[str, float, str] | None:
+        """(what, CPU seconds, where it is kept) of the compilation of MJX's step loop that
+        the first run of ``integrator`` on the system of bodies or robot model ``scenario``
+        pays before its first step when JAX's persistent cache does not hold it
+        (:data:`COMPILE_CPU_S`); None for a single body (seconds, announced by the default
+        suite's exclusion) and a contact scene (not measured)."""
+        if scenario.kind != "system":
+            return None
+        from scenarios.models.configurations import split_variant
+
+        _, config = split_variant(integrator)
+        model = getattr(scenario, "model", None)
+        contact = config == "as-loaded" and model is not None and model.contact_geoms > 0
+        what = "mjx.step with the file's contacts" if contact else "mjx.step"
+        return (
+            what,
+            COMPILE_CPU_S["with contacts" if contact else "contact-free"],
+            str(cache_folder()),
+        )
 
     def run_batch(self, members, integrator, dt, t_end, save_every) -> list:
         """The members in one vmapped, compiled call

@@ -49,16 +49,25 @@ _WARP_NOTE = ("Failed to import warp", "Failed to import mujoco_warp")
 _MODULES: tuple | None = None
 
 
+def cache_folder():
+    """The folder of JAX's persistent cache that MJX's runs use (:func:`_persistent_cache`),
+    found without importing JAX: ``JAX_COMPILATION_CACHE_DIR`` when the user sets it, else
+    ``$XDG_CACHE_HOME/director-bench/jax`` (by default ``~/.cache/director-bench/jax``)."""
+    import os
+    from pathlib import Path
+
+    if os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        return Path(os.environ["JAX_COMPILATION_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "director-bench" / "jax"
+
+
 def _persistent_cache(jax) -> None:
     """Keep every compilation in JAX's persistent cache: the folder the user chose
     (``JAX_COMPILATION_CACHE_DIR``, which JAX reads itself) or the user's cache folder; none
     when that folder cannot be created (the run then compiles, as without a cache)."""
-    import os
-    from pathlib import Path
-
     if not jax.config.jax_compilation_cache_dir:
-        base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-        folder = Path(base) / "director-bench" / "jax"
+        folder = cache_folder()
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError:

@@ -260,3 +260,35 @@ def test_a_diverged_importer_run_is_named_in_its_panel(tmp_path):
     md = (out / "report.md").read_text()
     alt = next(ln for ln in md.splitlines() if "crawler-float__joint_angles.png" in ln)
     assert "no line for drake runge_kutta5 as loaded: diverged at t = 0 s" in alt, alt
+
+
+def test_mjx_compilations_are_announced_before_the_runs_with_the_number(capsys):
+    """Issue 32 item 8's rule for a first run's compilation: MJX's runs on robot models
+    compile mjx.step once per scenario and configuration where JAX's persistent cache does not
+    hold it (pusher as loaded, with its contacts, measured minutes of CPU); the planner's note
+    names the count, the total, the largest and where compilations are kept, once the total
+    passes a minute, and says nothing below it or where nothing compiles."""
+    pytest.importorskip("jax")
+    from reports.run.plan import plan
+    from reports.suite import COST_WARNING_S, check_integrators, warn_compiles
+
+    def specs(scs, engines, slugs):
+        return plan(scs, engines, check_integrators(slugs, engines, True))
+
+    scs = [scenarios.load(n) for n in ("arm3_swing", "crawler_float", "pusher_swing")]
+    (line,) = warn_compiles(
+        specs(scs, ["mjx", "mujoco"], ["euler-float64", "euler-float64-as-loaded", "euler"])
+    )
+    # three scenarios x (on our reading, as loaded, faithful: a robot model's importer
+    # configurations come with the integrator); the sweep's steps share a compilation
+    assert line.startswith("mjx: 9 configurations compile before they step, about ")
+    total = float(line.split("about ")[1].split(" s")[0])
+    assert total > COST_WARNING_S
+    # the largest: an as-loaded configuration of a file with collision geometry
+    assert "with the file's contacts for " in line and "(float64, as loaded)" in line
+    assert "kept in " in line
+    assert "note: mjx" in capsys.readouterr().err
+    # arm3 on our reading alone: one contact-free compilation, under a minute: no note
+    assert warn_compiles(specs(scs[:1], ["mjx"], ["euler-float64"])) == []
+    # a single body: MJX's compilation there is not announced by this rule
+    assert warn_compiles(specs([scenarios.load("dzhanibekov")], ["mjx"], ["euler-float64"])) == []
