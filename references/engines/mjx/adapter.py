@@ -220,8 +220,8 @@ class _Handle:
 #: 0.10.2, AMD EPYC; /work/wt/reports/robots4.md): contact-free (the system builder, an
 #: importer's faithful configuration) 5.2 to 16 s on 3 to 13 bodies, not growing with them;
 #: with the file's contacts (an importer's as-loaded configuration of a file with collision
-#: geometry, whose collision functions MJX compiles too) about 30 s (pusher as loaded: its
-#: executable written 2 minutes into the run at a quarter of a core). A compilation the cache
+#: geometry, whose collision functions MJX compiles too) about 30 s (pusher as loaded: 114 s
+#: of wall at a quarter of a core). A compilation the cache
 #: holds loads in about a second. Not counted: the steps themselves, which are cheap on most
 #: models (arm3: 0.14 ms each) but not all (pusher through its importer: 0.51 s of CPU each).
 COMPILE_CPU_S = {"contact-free": 20.0, "with contacts": 60.0}
