@@ -16,9 +16,10 @@ the per body-step figure of Pinocchio is fair from N ~ 20). Each figure is the b
 ``--repeats`` rounds, the configurations taken in turn within a round.
 
 With ``--before PATH`` (another checkout, e.g. a git worktree of main) the director's chains
-are also timed with that checkout's code, in a worker process of its own (this script with
-``--worker``, the checkout first on PYTHONPATH), asked in turn with this one's: a before and
-an after column measured side by side.
+are also timed with that checkout's code: each checkout then runs in a worker process of its
+own (this script with ``--worker``, the checkout first on PYTHONPATH; both alike, so that
+neither shares a process with Pinocchio's runs), asked in turn: a before and an after column
+measured side by side.
 
     python benchmarks/bench_system_chain_scaling.py            # N = 1, 2, 5, 10, 20, 50, 100
     python benchmarks/bench_system_chain_scaling.py --quick    # N = 2, 20; fewer steps
@@ -42,6 +43,7 @@ from director_model.system import SystemStepper
 from director_model.system.examples import rod_chain
 
 GOAL_NS = 350.0  # issue 32: director RATTLE per body-step, every N <= 100
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def director_ns(n: int, hang: bool, steps: int) -> float:
@@ -63,7 +65,7 @@ def worker() -> int:
     return 0
 
 
-class Before:
+class Checkout:
     """A worker process timing the director's chains with the checkout at ``root``."""
 
     def __init__(self, root: Path):
@@ -147,9 +149,9 @@ def main(argv=None) -> int:
         print("# pinocchio is not installed: its column is left out")
     cfgs = [(n, hang) for hang in (False, True) for n in sizes]
     who_fn = [("director", director_ns)]
-    before = Before(a.before.resolve()) if a.before is not None else None
+    before = Checkout(a.before.resolve()) if a.before is not None else None
     if before is not None:
-        who_fn.insert(0, ("before", before))
+        who_fn = [("before", before), ("director", Checkout(ROOT))]
     if have_pin:
         who_fn.append(("pinocchio", pinocchio_ns))
     best = {}
@@ -165,8 +167,9 @@ def main(argv=None) -> int:
                     key = (who, n, hang)
                     best[key] = min(best.get(key, np.inf), fn(n, hang, steps))
     finally:
-        if before is not None:
-            before.close()
+        for _, fn in who_fn:
+            if isinstance(fn, Checkout):
+                fn.close()
     print(f"# {platform.processor() or platform.machine()}, load {os.getloadavg()[0]:.1f}, "
           f"best of {a.repeats} interleaved rounds, thread CPU time, ns per body-step")  # fmt: skip
     if before is not None:
