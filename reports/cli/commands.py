@@ -294,23 +294,27 @@ def cmd_run(args) -> int:
 
 def _known(out, df) -> str:
     """How many of the failures of the results ``df`` the committed baseline expects: ``: all
-    190 fail as in the committed baseline (FILE), known failures`` or ``: 185 fail as in ...,
-    5 do not (`director-bench check` lists them)``."""
+    190 fail as in the committed baseline (FILE), known failures``, ``: 185 fail as in ...,
+    5 do not (`director-bench check` lists them)``, and how many runs it does not hold (``2
+    not in it``: another suite's runs have no expectation there)."""
     from reports.gate.check import failures_in_baseline
     from reports.suite import DEFAULT_BASELINE
 
     if not DEFAULT_BASELINE.is_file():
         return ""
-    known, other = failures_in_baseline(out, df, DEFAULT_BASELINE)
+    known, other, absent = failures_in_baseline(out, df, DEFAULT_BASELINE)
     where = f"the committed baseline ({DEFAULT_BASELINE})"
-    if not known:
-        return f": none of them fails as in {where}"
-    if not other:
+    if not known and not other:
+        return f": none of them is in {where}"
+    if not other and not absent:
         return f": all {known} fail as in {where}, known failures, not regressions"
-    return (
-        f": {known} fail as in {where}, {other} do not (`director-bench check {out} "
-        f"--baseline {DEFAULT_BASELINE}` lists them)"
-    )
+    text = f": {known} fail as in {where}"
+    if other:
+        text += (
+            f", {other} do not (`director-bench check {out} --baseline {DEFAULT_BASELINE}` "
+            "lists them)"
+        )
+    return text + (f", {absent} not in it" if absent else "")
 
 
 def _counts(series) -> str:

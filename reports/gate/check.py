@@ -276,21 +276,23 @@ def compare(
     return cmp
 
 
-def failures_in_baseline(results_dir, df, baseline_path) -> tuple[int, int]:
-    """(failing as in the baseline, failing otherwise) of the failing runs of ``df`` (a
-    failed verdict or an error, :func:`reports.gate.rule.failing`) against the baseline
-    ``baseline_path``: the first are its known failures, the others fail differently, anew or
-    are not in it. For the closing line of ``run``: the committed baseline says which of a
-    suite's failures are expected."""
+def failures_in_baseline(results_dir, df, baseline_path) -> tuple[int, int, int]:
+    """(failing as in the baseline, failing otherwise, not in the baseline) of the failing
+    runs of ``df`` (a failed verdict or an error, :func:`reports.gate.rule.failing`) against
+    the baseline ``baseline_path``: the first are its known failures, the second fail
+    differently or anew, the third are runs the baseline does not hold (another scenario,
+    engine, integrator or dt). For the closing line of ``run``: the committed baseline says
+    which of a suite's failures are expected."""
     failed = {row_key(r) for _, r in df.iterrows() if failing(r)}
     if not failed:
-        return 0, 0
+        return 0, 0, 0
+    absent = len(failed - {entry_key(b) for b in read_baseline(baseline_path)["runs"]})
     try:
         cmp = compare(results_dir, baseline_path, only_present=True, df=df)
     except NothingComparable:
-        return 0, len(failed)
+        return 0, 0, absent
     known = len(failed & set(cmp.known))
-    return known, len(failed) - known
+    return known, len(failed) - known - absent, absent
 
 
 def _run_findings(key, b, r, factor, timing_factor) -> list[Change]:

@@ -46,7 +46,7 @@ def test_the_closing_line_counts_the_failures_the_committed_baseline_expects(
     monkeypatch.setattr(reports.suite, "DEFAULT_BASELINE", other)
     line = _run(strict, out, capsys)[-1]
     assert line == (
-        f"2 run(s) failed their verdict or errored: none of them fails as in the committed "
+        f"2 run(s) failed their verdict or errored: none of them is in the committed "
         f"baseline ({other}); see the report's failures."
     )
     committed = write_baseline(out, tmp_path / "committed.json")
@@ -64,6 +64,13 @@ def test_the_closing_line_counts_the_failures_the_committed_baseline_expects(
     assert line.startswith(
         f"2 run(s) failed their verdict or errored: 1 fail as in the committed baseline "
         f"({committed}), 1 do not (`director-bench check {out} --baseline {committed}` "
+    )
+    doc["runs"] = [r for r in doc["runs"] if r["integrator"] != "RK4"]  # RK4 not in it
+    committed.write_text(json.dumps(doc))
+    line = _run(strict, out, capsys)[-1]
+    assert line == (
+        f"2 run(s) failed their verdict or errored: 1 fail as in the committed baseline "
+        f"({committed}), 1 not in it; see the report's failures."
     )
 
 
