@@ -60,6 +60,15 @@ UNITS = {
 }
 
 
+def _shaped(kind: str, name: str, value, shape: tuple, where: str) -> np.ndarray:
+    """``value`` as a float array of ``shape``, else a ValueError naming the ``kind`` of
+    trajectory, the field, its shape and the expected one (``where``: the sizes that set it)."""
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != shape:
+        raise ValueError(f"{kind} field {name!r} has shape {arr.shape}, expected {shape} ({where})")
+    return arr
+
+
 def velocity_constraint(rotation, omega_body) -> np.ndarray:
     """||R^T R hat(W) - hat(W) R^T R||_F for stacks (n, 3, 3), (n, 3): the director-form
     velocity-constraint residual of D' = R hat(W), shape (n,)."""
@@ -135,16 +144,11 @@ class Trajectory:
             "angular_momentum": (n, 3),
             "constraint_velocity": (n,),
         }
+        where = f"n = {n} saved times"
         for name, shape in shapes.items():
             if name == "constraint_velocity" and self.constraint_velocity is None:
                 self.constraint_velocity = velocity_constraint(self.rotation, self.omega_body)
-            arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.shape != shape:
-                raise ValueError(
-                    f"Trajectory field {name!r} has shape {arr.shape}, expected {shape} "
-                    f"(n = {n} saved times)"
-                )
-            setattr(self, name, arr)
+            setattr(self, name, _shaped("Trajectory", name, getattr(self, name), shape, where))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -317,27 +321,23 @@ class SystemTrajectory:
             "rotation": (n, nb, 3, 3),
             "omega_body": (n, nb, 3),
         }
+        where = f"n = {n} saved times, nb = {nb} bodies"
         for name, shape in shapes.items():
-            arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.shape != shape:
-                raise ValueError(
-                    f"SystemTrajectory field {name!r} has shape {arr.shape}, expected {shape} "
-                    f"(n = {n} saved times, nb = {nb} bodies)"
-                )
-            setattr(self, name, arr)
+            setattr(
+                self, name, _shaped("SystemTrajectory", name, getattr(self, name), shape, where)
+            )
         self.body_names = tuple(self.body_names)
         one_body_shapes = {"energy": (n,), "angular_momentum": (n, 3), "constraint_velocity": (n,)}
         for name, shape in one_body_shapes.items():
             value = getattr(self, name)
             if value is None:
                 continue
-            arr = np.asarray(value, dtype=float)
-            if nb != 1 or arr.shape != shape:
+            if nb != 1:
                 raise ValueError(
-                    f"SystemTrajectory field {name!r} (a scene of one body's) has shape "
-                    f"{arr.shape} with nb = {nb} bodies, expected {shape} and nb = 1"
+                    f"SystemTrajectory field {name!r} belongs to a scene of one body, not of "
+                    f"nb = {nb} bodies"
                 )
-            setattr(self, name, arr)
+            setattr(self, name, _shaped("SystemTrajectory", name, value, shape, where))
 
     def __len__(self) -> int:
         return len(self.t)
