@@ -11,7 +11,11 @@ solver is its Newton solver). MJX does not run MuJoCo's noslip pass: a model wit
 was written, so no noslip configuration is offered.
 
 Contacts at the saved steps: the MJX state brought back to an ``MjData``
-(``mjx.get_data``), read with C MuJoCo's ``mj_contactForce`` as in the C builder. External
+(``mjx.get_data``), each contact's force in its frame decoded from its constraint rows
+(:func:`contact_frame_force`). Not C MuJoCo's ``mj_contactForce`` on that ``MjData``: it
+returned values of 1e160-1e260 on some contacts of some saved steps (box_resting, pyramidal,
+4 of 30 samples, run to run different) where the rows ``get_data`` filled decode to the
+weight they carry. External
 forces: ``xfrc_applied`` fixed for the run (forces at the centres of mass only: a force off the
 centre of mass, whose torque turns with the body, is unsupported here).
 """
@@ -39,6 +43,24 @@ CONFIGURATIONS = tuple(
 )
 
 SETTINGS = ("solver", "iterations", "tolerance", "solref", "solimp")
+
+
+def contact_frame_force(cone: int, con, efc_force) -> np.ndarray:
+    """The force (normal, tangent 1, tangent 2) of one contact of dimension 3 in its frame,
+    from its constraint rows in ``efc_force`` (at ``con.efc_address``), as MuJoCo defines
+    the rows (documentation, "Computation / Constraint model"): an elliptic cone's rows are
+    those three forces; a pyramidal cone's are the forces along its 2 (dim - 1) edges, the
+    normal force their sum and tangent j's mu_j (f_2j - f_2j+1)."""
+    a, dim = int(con.efc_address), int(con.dim)
+    rows = np.asarray(efc_force[a : a + (dim if cone == 1 else 2 * (dim - 1))], dtype=float)
+    out = np.zeros(3)
+    if cone == 1:
+        out[:dim] = rows
+        return out
+    out[0] = rows.sum()
+    for j in range(dim - 1):
+        out[1 + j] = float(con.friction[j]) * (rows[2 * j] - rows[2 * j + 1])
+    return out
 
 
 def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None, **settings):
@@ -82,12 +104,12 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     )
     t = np.zeros(nsave)
     log = ContactLog()
-    f6 = np.zeros(6)
 
     def save(k, step, dd):
         mjc.read_bodies(mujoco, m, dd, scenario, bid, X[k], R[k], V[k], W[k])
         t[k] = step * dt
         if step > 0:
+            efc = np.asarray(dd.efc_force)
             for c in range(dd.ncon):
                 con = dd.contact[c]
                 if con.efc_address < 0:
@@ -95,9 +117,9 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
                 pi = pidx.get(frozenset((geom_name[int(con.geom1)], geom_name[int(con.geom2)])))
                 if pi is None:
                     continue
-                mujoco.mj_contactForce(m, dd, c, f6)
+                f3 = contact_frame_force(int(m.opt.cone), con, efc)
                 fr = np.asarray(con.frame).reshape(3, 3)
-                f, n = fr.T @ f6[:3], fr[0]
+                f, n = fr.T @ f3, fr[0]
                 if geom_name[int(con.geom2)] != scenario.contacts[pi].a:
                     f, n = -f, -n
                 log.add(pi, con.pos.copy(), n, f, -float(con.dist))

@@ -304,3 +304,36 @@ def test_joints_with_contact_unsupported_says_why():
     with pytest.raises(Unsupported, match="joint 'hinge' \\(spherical .*revolute or prismatic"):
         run_contact("mujoco", sc.replace(joints=(ball,)), "pyramidal", 1e-3, t_end=0.01,
                     save_every=10)  # fmt: skip
+
+
+@pytest.mark.parametrize("conf", ["pyramidal", "elliptic"])
+def test_mjx_decodes_contact_rows_as_mujoco_does(conf):
+    """MJX's builder decodes each contact's force from its constraint rows (C MuJoCo's
+    mj_contactForce on the MjData mjx.get_data fills returned 1e160-1e260 on some contacts);
+    the decoding against mj_contactForce itself on C MuJoCo's data: a box sliding under an
+    axis push (friction at its bound, so every tangential row counts), to 1e-12 N."""
+    _available("mujoco")
+    import mujoco
+
+    from references.engines.contact import configuration
+    from references.engines.mjx.contact import contact_frame_force
+    from references.engines.mujoco import contact as mjc
+
+    sc = scenarios.load("push_axis_slide")
+    m = mujoco.MjModel.from_xml_string(mjc.mjcf(sc, configuration("mujoco", conf), 1e-3, {}))
+    d = mujoco.MjData(m)
+    bid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.name) for b in sc.bodies]
+    mjc.set_initial_state(mujoco, m, d, sc, bid)
+    (push,) = sc.forces
+    d.xfrc_applied[bid[0], :3] = push.force
+    f6, seen = np.zeros(6), 0
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+        for c in range(d.ncon):
+            if d.contact[c].efc_address < 0:  # found, not in the problem (the builder skips it)
+                continue
+            mujoco.mj_contactForce(m, d, c, f6)
+            got = contact_frame_force(int(m.opt.cone), d.contact[c], d.efc_force)
+            assert got == pytest.approx(f6[:3], abs=1e-12)
+            seen += max(abs(f6[1]), abs(f6[2])) > 0.1 * abs(f6[0])
+    assert seen > 0, "no contact carried friction: the tangential decoding was not checked"
