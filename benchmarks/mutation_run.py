@@ -54,7 +54,10 @@ MODULES = {
         ],  # fmt: skip
     ),
     "gate check": ("reports/gate/check.py", ["tests/reports/gate/test_gate.py"]),
-    "gate compare": ("reports/gate/compare.py", ["tests/reports/gate/test_compare.py"]),
+    "gate compare": (
+        "reports/gate/compare.py",
+        ["tests/reports/gate/test_compare.py", "tests/reports/gate/test_compare_rule.py"],
+    ),
     "versions changes": (
         "reports/versions/changes.py",
         [
