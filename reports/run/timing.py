@@ -22,6 +22,7 @@ are all back (reports.run.parallel: a unit's ``needs``).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -61,9 +62,10 @@ class TimingUnit:
     specs: list[RunSpec]
     rows: dict = field(default_factory=dict)
 
-    @property
+    @functools.cached_property
     def needs(self) -> set[str]:
-        """The runs that must be back before this unit is handed out."""
+        """The runs that must be back before this unit is handed out (its specs are fixed
+        when it is made; asked for each row that comes back)."""
         return {s.run_id for s in self.specs}
 
 

@@ -15,6 +15,7 @@ compare the metrics of a pair that differs only in the engine's release
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import hashlib
 import json
 import math
@@ -206,9 +207,11 @@ class RunSpec:
     def saving(self) -> int:
         return self.scenario.save_every if self.save_every is None else int(self.save_every)
 
-    @property
+    @functools.cached_property
     def run_id(self) -> str:
-        """Identity of the run: a hash of everything that determines its result."""
+        """Identity of the run: a hash of everything that determines its result (computed
+        once per spec: the runner and the timing passes ask for it per row; the spec is
+        frozen and so is its scenario)."""
         ident = {
             "scenario_hash": self.scenario.scenario_hash,
             "engine": self.engine,
