@@ -10,13 +10,15 @@ solver is its Newton solver). MJX does not run MuJoCo's noslip pass: a model wit
 ``noslip_iterations`` 10 stepped the same trajectory as with 0 in a check made when this module
 was written, so no noslip configuration is offered.
 
-Contacts at the saved steps: the MJX state brought back to an ``MjData``
-(``mjx.get_data``), each contact's force in its frame decoded from its constraint rows
-(:func:`contact_frame_force`). Not C MuJoCo's ``mj_contactForce`` on that ``MjData``: it
-returned values of 1e160-1e260 on some contacts of some saved steps (box_resting, pyramidal,
-4 of 30 samples, run to run different) where the rows ``get_data`` filled decode to the
-weight they carry. External
-forces: ``xfrc_applied`` fixed for the run (forces at the centres of mass only: a force off the
+Contacts at the saved steps: the MJX state brought back to an ``MjData`` (``mjx.get_data``:
+its contacts are MJX's with dist <= 0, in MJX's order), each contact's force in its frame
+decoded from its constraint rows in MJX's own arrays (:func:`contact_frame_force` on the
+device's ``efc_force`` at the contact's MJX row address: ``get_data`` drops the rows whose
+Jacobian is zero, an elliptic cone's friction rows when mu = 0, and the addresses it gives
+then miss rows). Not C MuJoCo's ``mj_contactForce`` on that ``MjData``: it returned values of
+1e160-1e260 on some contacts of some saved steps (box_resting, pyramidal, 4 of 30 samples,
+run to run different) where the rows decode to the weight they carry. External forces:
+``xfrc_applied`` fixed for the run (forces at the centres of mass only: a force off the
 centre of mass, whose torque turns with the body, is unsupported here).
 """
 
@@ -45,13 +47,15 @@ CONFIGURATIONS = tuple(
 SETTINGS = ("solver", "iterations", "tolerance", "solref", "solimp")
 
 
-def contact_frame_force(cone: int, con, efc_force) -> np.ndarray:
+def contact_frame_force(cone: int, con, efc_force, address=None) -> np.ndarray:
     """The force (normal, tangent 1, tangent 2) of one contact of dimension 3 in its frame,
-    from its constraint rows in ``efc_force`` (at ``con.efc_address``), as MuJoCo defines
-    the rows (documentation, "Computation / Constraint model"): an elliptic cone's rows are
-    those three forces; a pyramidal cone's are the forces along its 2 (dim - 1) edges, the
-    normal force their sum and tangent j's mu_j (f_2j - f_2j+1)."""
-    a, dim = int(con.efc_address), int(con.dim)
+    from its constraint rows in ``efc_force`` (at ``address``, default
+    ``con.efc_address``), as MuJoCo defines the rows (documentation, "Computation /
+    Constraint model"): an elliptic cone's rows are those three forces; a pyramidal cone's
+    are the forces along its 2 (dim - 1) edges, the normal force their sum and tangent j's
+    mu_j (f_2j - f_2j+1)."""
+    a = int(con.efc_address if address is None else address)
+    dim = int(con.dim)
     rows = np.asarray(efc_force[a : a + (dim if cone == 1 else 2 * (dim - 1))], dtype=float)
     out = np.zeros(3)
     if cone == 1:
@@ -105,11 +109,13 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     t = np.zeros(nsave)
     log = ContactLog()
 
-    def save(k, step, dd):
+    def save(k, step, dd, dx=None):
         mjc.read_bodies(mujoco, m, dd, scenario, bid, X[k], R[k], V[k], W[k])
         t[k] = step * dt
         if step > 0:
-            efc = np.asarray(dd.efc_force)
+            impl = jax.device_get(dx._impl)  # MJX's rows, before get_data compacts them
+            efc = np.asarray(impl.efc_force)
+            rows = np.asarray(impl.contact.efc_address)[np.nonzero(impl.contact.dist <= 0)[0]]
             for c in range(dd.ncon):
                 con = dd.contact[c]
                 if con.efc_address < 0:
@@ -117,7 +123,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
                 pi = pidx.get(frozenset((geom_name[int(con.geom1)], geom_name[int(con.geom2)])))
                 if pi is None:
                     continue
-                f3 = contact_frame_force(int(m.opt.cone), con, efc)
+                f3 = contact_frame_force(int(m.opt.cone), con, efc, rows[c])
                 fr = np.asarray(con.frame).reshape(3, 3)
                 f, n = fr.T @ f3, fr[0]
                 if geom_name[int(con.geom2)] != scenario.contacts[pi].a:
@@ -153,7 +159,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
             engine += timing.lap(t0)
             step += n
             dd = mjx.get_data(m, dx)
-            save(k, step, dd)
+            save(k, step, dd, dx)
             k += 1
             if not np.all(np.isfinite(dd.qpos)):
                 break
