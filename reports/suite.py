@@ -549,11 +549,12 @@ def compile_kernels(jobs: int | None = None) -> dict:
     does, then executes one short run of each configuration that compiles something."""
     import os
 
-    from reports.run.compile import compile_specs
+    from reports.run.compile import compile_specs, listen
     from reports.run.plan import max_states, plan
 
     check_count("--jobs", jobs)
     check_jobs(jobs)
+    listen()  # the loops' singularity check (check_singular) compiles multibody kernels here
     engines, _ = default_engines()
     scs = resolve_scenarios(())
     engines = check_engines(engines)

@@ -163,7 +163,7 @@ def compile_specs(specs, jobs: int | None = None, preload: tuple[str, ...] = ())
     work = units(specs)
     n_runs = sum(len(u) for u in work)
     jobs = jobs or os.cpu_count() or 1
-    kernels, errors = drain(), []  # what planning compiled here (the systems' pilots)
+    kernels, errors = drain(), []  # what planning compiled here (the loops' check)
     if not work:
         return dict(kernels=kernels, errors=errors, units=0, runs=0, seconds=0.0)
     _say(f"{n_runs} short runs in {len(work)} units, on {min(jobs, len(work))} process(es)")
