@@ -93,16 +93,15 @@ def unit_keys(unit) -> set[str]:
 # -- in each process: what numba compiles ----------------------------------------------------
 
 _compiled: list[tuple[str, float]] = []
-_listening = False
+_listener = None
 
 
 def listen() -> None:
     """Print a line when numba starts and ends a top-level compilation in this process, and
-    record (name, CPU s of this thread) of each; once per process."""
-    global _listening
-    if _listening:
+    record (name, CPU s of this thread) of each, until :func:`stop`; once per process."""
+    global _listener
+    if _listener is not None:
         return
-    _listening = True
     import numba.core.event as ev
 
     depth = []
@@ -125,7 +124,18 @@ def listen() -> None:
                 _compiled.append((name, cpu))
                 _say(f"compiled {name} ({cpu:.1f} s CPU)")
 
-    ev.register("numba:compile", Listener())
+    _listener = Listener()
+    ev.register("numba:compile", _listener)
+
+
+def stop() -> None:
+    """No more lines nor records of numba's compilations in this process."""
+    global _listener
+    if _listener is not None:
+        import numba.core.event as ev
+
+        ev.unregister("numba:compile", _listener)
+        _listener = None
 
 
 def drain() -> list[tuple[str, float]]:
