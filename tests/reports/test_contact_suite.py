@@ -288,6 +288,14 @@ def test_a_contact_run_is_summed_up_by_its_position_error_everywhere(tmp_path):
     assert "max position error [m] over the dt sweep" in md and pos in md
     assert "| position error ≤ | cheapest | its error [m] |" in md
     assert "attitude" not in md
+    # a scene whose runs have a fitted order (a sliding one): the order is the attitude
+    # error's (reports.metrics.body.add_convergence_orders), and the header says so beside
+    # the position errors
+    slid = df.assign(convergence_order=1.0, convergence_points=2.0)
+    doc = Doc()
+    sweep_table(doc, "block_incline_stick", slid)
+    header = next(ln for ln in "\n".join(doc.md).splitlines() if ln.startswith("| family"))
+    assert header.endswith("| fitted order (attitude error) | declared order |"), header
 
     bare = {**rows[0], "status": "unsupported", "position_error_max": math.nan,
             "slide_distance": math.nan, "engine": "mjx"}  # fmt: skip
