@@ -52,6 +52,17 @@ def spring_parts(scenario, pl: reduced.Plan) -> tuple[dict, list]:
     return sites, tendons
 
 
+def site_pair(mujoco, m, t: int):
+    """The two sites of tendon ``t`` if it is a straight line between two sites (a spring's
+    or a loop closure's), else None."""
+    adr = m.tendon_adr[t]
+    if m.tendon_num[t] != 2 or any(
+        m.wrap_type[adr + i] != mujoco.mjtWrap.mjWRAP_SITE for i in range(2)
+    ):
+        return None
+    return m.wrap_objid[adr], m.wrap_objid[adr + 1]
+
+
 def read_back_springs(mujoco, m, scenario, pl: reduced.Plan, bid: dict, first: int, want, bad):
     """Compare the springs' tendons (from tendon ``first`` on) with the scenario: ``want(what,
     got, expected, scale)`` and ``bad`` (a list) are the builder's read-back."""
@@ -60,13 +71,11 @@ def read_back_springs(mujoco, m, scenario, pl: reduced.Plan, bid: dict, first: i
     for k, s in enumerate(getattr(scenario, "springs", ())):
         what = f"spring {s.name!r}"
         t = first + k
-        adr = m.tendon_adr[t]
-        if m.tendon_num[t] != 2 or any(
-            m.wrap_type[adr + i] != mujoco.mjtWrap.mjWRAP_SITE for i in range(2)
-        ):
+        sites = site_pair(mujoco, m, t)
+        if sites is None:
             bad.append(f"{what}: its tendon is not a straight line between two sites")
             continue
-        s1, s2 = m.wrap_objid[adr], m.wrap_objid[adr + 1]
+        s1, s2 = sites
         b1 = bid[idx[s.body_a]]
         b2 = 0 if s.body_b is None else bid[idx[s.body_b]]
         if m.site_bodyid[s1] != b1 or m.site_bodyid[s2] != b2:

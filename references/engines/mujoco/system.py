@@ -355,13 +355,11 @@ def read_back(mujoco, m, scenario, pl: reduced.Plan, integrator: str, dt, solref
                 want(f"{what}: eq_solref", m.eq_solref[ee], solref)
                 want(f"{what}: eq_solimp", m.eq_solimp[ee], solimp)
                 k = t + di
-                adr = m.tendon_adr[k]
-                if m.tendon_num[k] != 2 or any(
-                    m.wrap_type[adr + i] != mujoco.mjtWrap.mjWRAP_SITE for i in range(2)
-                ):
+                sites = forces.site_pair(mujoco, m, k)
+                if sites is None:
                     bad.append(f"{what}: the tendon is not a straight line between two sites")
                     continue
-                s1, s2 = m.wrap_objid[adr], m.wrap_objid[adr + 1]
+                s1, s2 = sites
                 if m.site_bodyid[s1] != b1 or m.site_bodyid[s2] != b2:
                     bad.append(f"{what}: its sites are on bodies {m.site_bodyid[[s1, s2]]}")
                 want(f"{what}: site on a", m.site_pos[s1], pa, L)
