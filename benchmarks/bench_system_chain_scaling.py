@@ -32,12 +32,12 @@ import argparse
 import json
 import os
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _checkout import CheckoutWorker
 
 from director_model.system import SystemStepper
 from director_model.system.examples import rod_chain
@@ -65,29 +65,14 @@ def worker() -> int:
     return 0
 
 
-class Checkout:
+class Checkout(CheckoutWorker):
     """A worker process timing the director's chains with the checkout at ``root``."""
 
     def __init__(self, root: Path):
-        if not (root / "director_model" / "system").is_dir():
-            raise SystemExit(f"--before {root}: not a checkout of director-bench (no "
-                             "director_model/system there)")  # fmt: skip
-        env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
-        self.p = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker"],
-                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                                  env=env, cwd=str(root))  # fmt: skip
+        super().__init__(root, __file__)
 
     def __call__(self, n: int, hang: bool, steps: int) -> float:
-        self.p.stdin.write(json.dumps({"n": n, "hang": hang, "steps": steps}) + "\n")
-        self.p.stdin.flush()
-        line = self.p.stdout.readline()
-        if not line:
-            raise SystemExit(f"the --before worker stopped at N = {n} (exit {self.p.wait()})")
-        return json.loads(line)["ns"]
-
-    def close(self):
-        self.p.stdin.close()
-        self.p.wait()
+        return self.ask({"n": n, "hang": hang, "steps": steps}, f"N = {n}")["ns"]
 
 
 def pinocchio_model(n: int, hang: bool):

@@ -29,9 +29,10 @@ import argparse
 import json
 import os
 import platform
-import subprocess
 import sys
 from pathlib import Path
+
+from _checkout import CheckoutWorker
 
 SCHEMES = ("rattle", "rattle4", "rattle6")
 ROOT = Path(__file__).resolve().parent.parent
@@ -84,29 +85,15 @@ def worker() -> int:
     return 0
 
 
-class Worker:
+class Worker(CheckoutWorker):
     """A worker process importing the checkout at ``root``."""
 
     def __init__(self, root: Path):
-        if not (root / "director_model" / "system").is_dir():
-            raise SystemExit(f"--before {root}: not a checkout of director-bench (no "
-                             "director_model/system there)")  # fmt: skip
-        env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
-        self.p = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker"],
-                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                                  env=env, cwd=str(root))  # fmt: skip
+        super().__init__(root, __file__)
 
     def time(self, label: str, scheme: str, steps: int) -> float:
-        self.p.stdin.write(json.dumps({"label": label, "scheme": scheme, "steps": steps}) + "\n")
-        self.p.stdin.flush()
-        line = self.p.stdout.readline()
-        if not line:
-            raise SystemExit(f"the worker stopped at {label} {scheme} (exit {self.p.wait()})")
-        return json.loads(line)["ns"]
-
-    def close(self):
-        self.p.stdin.close()
-        self.p.wait()
+        req = {"label": label, "scheme": scheme, "steps": steps}
+        return self.ask(req, f"{label} {scheme}")["ns"]
 
 
 def main(argv=None) -> int:
