@@ -285,6 +285,43 @@ def potential(scenario, x, R) -> np.ndarray:
     return V
 
 
+def body_loads(scenario, x, R, v, W, index=None) -> tuple[np.ndarray, np.ndarray]:
+    """(F (nb, 3), T (nb, 3)): the force elements' resultant force on each body (world, N,
+    acting at its centre of mass) and their moment about its centre of mass (world, N m), at one
+    state x (nb, 3), R (nb, 3, 3), v (nb, 3), W (nb, 3) (body axes), bodies in the order of
+    ``scenario.bodies``: a spring's F_a at p_a is F_a on a and (p_a - x_a) x F_a about its
+    centre, -F_a at p_b on b; a torque is the couple tau u on a and -tau u on b (module
+    docstring). What an engine without force elements of its own applies at each evaluation;
+    the ground's share is dropped."""
+    bodies = scenario.bodies
+    idx = index if index is not None else {b.name: i for i, b in enumerate(bodies)}
+    x, R = np.asarray(x, dtype=float), np.asarray(R, dtype=float)
+    F, T = np.zeros((len(bodies), 3)), np.zeros((len(bodies), 3))
+    for s in getattr(scenario, "springs", ()):
+        pa, pb, va, vb = _points(bodies, s, x[None], R[None], np.asarray(v, float)[None],
+                                 np.asarray(W, float)[None], idx)  # fmt: skip
+        d = (pa - pb)[0]
+        length = float(np.linalg.norm(d))
+        e = d / length
+        Fa = -(s.stiffness * (length - s.rest_length) + s.damping * float(e @ (va - vb)[0])) * e
+        ia = idx[s.body_a]
+        F[ia] += Fa
+        T[ia] += np.cross(pa[0] - x[ia], Fa)
+        if s.body_b is not None:
+            ib = idx[s.body_b]
+            F[ib] -= Fa
+            T[ib] -= np.cross(pb[0] - x[ib], Fa)
+    by = {j.name: j for j in scenario.joints}
+    for t in getattr(scenario, "torques", ()):
+        j = by[t.joint]
+        ia = idx[j.body_a]
+        u = R[ia] @ (np.asarray(j.axis_a, dtype=float) / np.linalg.norm(j.axis_a))
+        T[ia] += t.torque * u
+        if j.body_b is not None:
+            T[idx[j.body_b]] -= t.torque * u
+    return F, T
+
+
 def has_elements(scenario) -> bool:
     return bool(getattr(scenario, "torques", ()) or getattr(scenario, "springs", ()))
 
@@ -354,6 +391,7 @@ __all__ = [
     "Spring",
     "angle_steps_ok",
     "axis_inertia",
+    "body_loads",
     "dissipative",
     "energy_bound",
     "grounded",

@@ -117,8 +117,6 @@ FORCE_ELEMENT_ROUTES = {
     "elements' generalised forces at each evaluation (not written)",
     "dart": "DART has joint springs but no spring between two body points; forces applied "
     "on the body nodes at each step would express them (not written)",
-    "pybullet": "PyBullet has no spring element; applyExternalForce and applyExternalTorque "
-    "at each step would express them (not written)",
     "drake": "Drake has LinearSpringDamper and joint actuators for a constant torque; the "
     "builder does not add them",
 }
@@ -135,8 +133,23 @@ def _check_force_elements(engine: str, scenario) -> None:
     why = FORCE_ELEMENT_ROUTES.get(engine, "its builder does not declare force_elements")
     raise Unsupported(
         f"{engine}: force elements ({', '.join(what)}) are not built in this engine's system "
-        f"builder: {why}; the builders that apply them: director, exact, mujoco"
+        f"builder: {why}; the builders that apply them: {', '.join(_applying())}"
     )
+
+
+def _applying() -> list[str]:
+    """The engines whose builder declares that it applies force elements."""
+    from references.engines import engine_names, get_engine
+
+    out = []
+    for name in engine_names():
+        try:
+            declared = get_engine(name).scene_builder
+        except Exception:  # an engine that cannot load declares nothing here
+            continue
+        if declared is not None and declared.force_elements:
+            out.append(name)
+    return out
 
 
 def run_system(

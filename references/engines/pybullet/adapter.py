@@ -115,7 +115,9 @@ class PybulletEngine(Engine):
     name = "pybullet"
     description = "PyBullet: multibody base/spherical link or a maximal-coordinates rigid body"
     scene_builder = SceneBuilder(
-        "references.engines.pybullet.system:simulate_system", ("erp", "max_force")
+        "references.engines.pybullet.system:simulate_system",
+        ("erp", "max_force"),
+        force_elements=True,
     )
     integrators = (
         Integrator(

@@ -82,9 +82,11 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import reduced, timing
+from references.engines.pybullet import forces
 from references.engines.pybullet.adapter import MAX_JOINT_VELOCITY, _import
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
+from scenarios.force_elements import has_elements
 
 #: why PyBullet's builder builds no cylindrical tree joint
 TREE_REFUSED = {
@@ -607,6 +609,8 @@ def build(scenario, integrator: str, dt: float, **settings):
             (r, h, e) for (r, h, _), e in zip(PROBES, rel, strict=True)
         ],
     }
+    if has_elements(scenario):
+        rec["force elements"] = forces.record(scenario)
     if bm.constraints:
         rec["loop closures"] = [
             f"{lp.label}: "
@@ -647,12 +651,20 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         x[0], R[0], v[0], W[0], _ = bm.states()
         done = 0
         timing.stepping()  # the model is built: its construction is not the cost
+        loads = has_elements(scenario)
         for k in range(1, n):
             m = int(steps[k] - done)
-            t0 = time.perf_counter()
-            for _ in range(m):
-                p.stepSimulation(physicsClientId=cid)
-            bm.clock += timing.lap(t0)
+            if loads:  # applied before each step (forces.py); only the step is timed
+                for _ in range(m):
+                    forces.apply(bm, scenario)
+                    t0 = time.perf_counter()
+                    p.stepSimulation(physicsClientId=cid)
+                    bm.clock += timing.lap(t0)
+            else:
+                t0 = time.perf_counter()
+                for _ in range(m):
+                    p.stepSimulation(physicsClientId=cid)
+                bm.clock += timing.lap(t0)
             done = int(steps[k])
             x[k], R[k], v[k], W[k], _ = bm.states()
             speed = float(np.max(np.abs(W[k])))

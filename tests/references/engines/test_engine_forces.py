@@ -1,0 +1,110 @@
+"""Force elements on the engines that apply them step by step (PyBullet, DART, Pinocchio,
+Drake): the spatial arm with two joint torques and a spring-damper to a world point
+(tests/references/exact/test_multibody_forces.py's arm_file) against the reduced-coordinate
+reference (references/exact/multibody: it shares nothing with the engines), at two steps to
+show each integrator's order, and planted mistakes (a spring 1 % too stiff, attached 1 cm off,
+a torque of the wrong sign) that must show. The tolerances are the measured errors with a
+margin; each plant moves the arm by far more than them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import scenarios.force_elements as fe
+from references.engines.exact.system import reference
+from references.engines.system import builder, run_system
+from scenarios.system_file import validate_system
+from tests.references.exact.test_multibody_forces import arm_file
+
+
+def _run(engine, integrator, sc, dt, t_end):
+    n = int(round(t_end / dt))
+    return builder(engine)(sc, integrator, dt, n, max(n // 10, 1))
+
+
+def _err(engine, integrator, c=0.4, dt=1e-3, t_end=0.5, sc=None, extrapolate=False):
+    """Largest position (m) or rotation-entry error of the arm against the reference; with
+    ``extrapolate`` (an order-1 integrator), of 2 x(dt/2) - x(dt), which cancels the
+    integrator's first-order error (Richardson) and leaves what the loads get wrong."""
+    sc = sc or validate_system(arm_file(c, t_end=t_end))
+    res = _run(engine, integrator, sc, dt, t_end)
+    x, R = res.x, res.R
+    if extrapolate:
+        half = _run(engine, integrator, sc, dt / 2, t_end)
+        x, R = 2 * half.x - x, 2 * half.R - R
+    ref = reference(sc, res.t)
+    return max(np.abs(x - ref.trajectory.position).max(),
+               np.abs(R - ref.trajectory.rotation).max())  # fmt: skip
+
+
+def _plant(monkeypatch, plant):
+    """A mistake in the loads every engine applies (scenarios.force_elements.body_loads)."""
+    orig = fe.body_loads
+
+    def planted(scenario, x, R, v, W, index=None):
+        if plant == "stiffness +1 %":
+            s = scenario.springs[0]
+            scenario = _with_spring(scenario, stiffness=s.stiffness * 1.01)
+        elif plant == "anchor 1 cm off":
+            s = scenario.springs[0]
+            scenario = _with_spring(scenario, anchor_a=s.anchor_a + [0.01, 0.0, 0.0])
+        F, T = orig(scenario, x, R, v, W, index)
+        if plant == "torque sign":
+            F2, T2 = orig(_no_torques(scenario), x, R, v, W, index)
+            T = 2 * T2 - T  # every torque's couple reversed
+        return F, T
+
+    monkeypatch.setattr(fe, "body_loads", planted)
+
+
+def _with_spring(scenario, **kw):
+    import dataclasses
+
+    s = dataclasses.replace(scenario.springs[0], **kw)
+    return dataclasses.replace(scenario, springs=(s, *scenario.springs[1:]))
+
+
+def _no_torques(scenario):
+    import dataclasses
+
+    return dataclasses.replace(scenario, torques=())
+
+
+PLANTS = ("stiffness +1 %", "anchor 1 cm off", "torque sign")
+
+# -- PyBullet --------------------------------------------------------------------------------
+
+
+def test_pybullet_applies_the_arms_elements_at_eulers_order():
+    """PyBullet's multibody semi-implicit Euler with the loads applied before each step,
+    0.5 s: 1.85e-3 / 9.23e-4 at dt 1e-3 / 5e-4 (measured; order 1), and the Richardson
+    combination of the two 6.5e-6: the first-order error cancels, so the loads are the
+    elements'."""
+    pytest.importorskip("pybullet")
+    e1 = _err("pybullet", "multibody", dt=1e-3)
+    e2 = _err("pybullet", "multibody", dt=5e-4)
+    ex = _err("pybullet", "multibody", dt=1e-3, extrapolate=True)
+    print("pybullet", e1, e2, ex)
+    assert e1 < 5e-3
+    assert 1.7 < e1 / e2 < 2.3
+    assert ex < 3e-5
+
+
+@pytest.mark.parametrize("plant", PLANTS)
+def test_pybullet_a_planted_mistake_shows(monkeypatch, plant):
+    """Each plant moves the extrapolated arm by more than 40x the measured 6.5e-6 (measured:
+    3.5e-3 with the stiffness 1 % high, 1.1e-2 with the anchor 1 cm off, 0.17 with the torques
+    reversed)."""
+    pytest.importorskip("pybullet")
+    _plant(monkeypatch, plant)
+    bad = _err("pybullet", "multibody", dt=1e-3, extrapolate=True)
+    print(plant, bad)
+    assert bad > 3e-4
+
+
+def test_pybullet_records_the_elements():
+    pytest.importorskip("pybullet")
+    sc = validate_system(arm_file(0.4, t_end=0.01))
+    out = run_system("pybullet", sc, "multibody", 1e-3)
+    assert len(out.settings["force elements"]) == 3
