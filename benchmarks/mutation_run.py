@@ -54,10 +54,15 @@ MODULES = {
             "tests/reports/gate/test_rule.py",
         ],  # fmt: skip
     ),
-    "gate check": ("reports/gate/check.py", ["tests/reports/gate/test_gate.py"]),
+    "gate check": (
+        "reports/gate/check.py",
+        ["tests/reports/gate/test_gate.py", "tests/reports/gate/test_check_output.py"],
+    ),
+    # test_compare.py is left out: its folders come from MuJoCo runs (a module fixture, ~3 s
+    # rebuilt for every mutant); the two files below write their folders row by row
     "gate compare": (
         "reports/gate/compare.py",
-        ["tests/reports/gate/test_compare.py", "tests/reports/gate/test_compare_rule.py"],
+        ["tests/reports/gate/test_compare_rule.py", "tests/reports/gate/test_compare_output.py"],
     ),
     "versions changes": (
         "reports/versions/changes.py",
@@ -65,6 +70,7 @@ MODULES = {
             "tests/reports/versions/test_versions.py",
             "tests/reports/versions/test_versions_history.py",
             "tests/reports/versions/test_changes_rule.py",
+            "tests/reports/versions/test_changes_output.py",
         ],  # fmt: skip
         # two tests build a release's environment (14 s each, rerun for every mutant they reach)
         "not worker_records_the_planned_identity and not unreachable_index",
@@ -118,18 +124,23 @@ def _results(cwd: Path, env) -> dict[str, str]:
     return status
 
 
-def run_module(name: str, max_children: int, keep: bool) -> dict:
+def run_module(name: str, max_children: int, keep: bool, only: list[str] | None = None) -> dict:
     module, tests, *keyword = MODULES[name]
     work = Path(tempfile.mkdtemp(prefix=f"mutation-{name.replace(' ', '-')}-"))
     _copy_checkout(work)
     (work / "setup.cfg").write_text(_setup_cfg(module, tests, *keyword))
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
     t0 = time.monotonic()
+    # mutmut names a mutant <module>.x_<function>__mutmut_<n>, or x\u01c1Class\u01c1method
+    names = [f"{module[:-3].replace('/', '.')}.x{'' if chr(0x1C1) in f else '_'}{f}__mutmut_*"
+             for f in only or ()]  # fmt: skip
     proc = subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children",
-                           str(max_children)], cwd=work, env=env, capture_output=True,
+                           str(max_children), *names], cwd=work, env=env, capture_output=True,
                           text=True)  # fmt: skip
     wall = time.monotonic() - t0
     status = _results(work, env)
+    if only:  # the other functions' mutants were not run ("not checked")
+        status = {n: st for n, st in status.items() if st != "not checked"}
     counts: dict[str, int] = {}
     for st in status.values():
         counts[st] = counts.get(st, 0) + 1
@@ -162,6 +173,9 @@ def main(argv=None) -> int:
                     help=f"comma-separated, of: {', '.join(MODULES)}")  # fmt: skip
     ap.add_argument("--max-children", type=int, default=2, help="mutants run at once")
     ap.add_argument("--keep", action="store_true", help="keep each module's work folder")
+    ap.add_argument("--only", default="",
+                    help="comma-separated function names (e.g. _fmt,as_json; a method as "
+                         "Class\u01c1method): mutate only these (one module)")  # fmt: skip
     ap.add_argument("--json", help="write the results to this file")
     args = ap.parse_args(argv)
     names = [m.strip() for m in args.modules.split(",") if m.strip()]
@@ -171,7 +185,8 @@ def main(argv=None) -> int:
     results = {}
     for name in names:
         print(f"mutating {MODULES[name][0]} ...", file=sys.stderr, flush=True)
-        results[name] = r = run_module(name, args.max_children, args.keep)
+        only = [f.strip() for f in args.only.split(",") if f.strip()]
+        results[name] = r = run_module(name, args.max_children, args.keep, only)
         if not r["counts"]:
             print(f"{name}: mutmut produced no results (exit {r['returncode']}):\n"
                   f"{r['log_tail']}", file=sys.stderr)  # fmt: skip
