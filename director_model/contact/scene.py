@@ -24,7 +24,8 @@ from director_model.contact.shapes import (
     Plane,
     Sphere,
 )
-from director_model.system.model import Body, assemble, check_initial
+from director_model.system.model import Body, assemble
+from director_model.system.states import check_initial
 
 #: a feature overlapping by more than this (m) times the scene's length scale at t = 0 is
 #: refused (bodies placed in contact have gaps of a few ulps of their coordinates)

@@ -14,7 +14,7 @@ from director_model.contact import _parts as P
 from director_model.contact.scene import ContactScene
 from director_model.errors import InvalidRunError
 from director_model.simulate import step_plan
-from director_model.system.model import energy_momentum
+from director_model.system.states import energy_momentum
 
 
 class ContactSolveError(RuntimeError):

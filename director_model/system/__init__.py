@@ -31,7 +31,6 @@ from director_model.system.model import (
     Joint,
     Spring,
     Torque,
-    project_velocities,
 )
 from director_model.system.simulate import (
     SYSTEM_SCHEMES,
@@ -39,6 +38,7 @@ from director_model.system.simulate import (
     SystemTrajectory,
     simulate_system,
 )
+from director_model.system.states import project_velocities
 
 __all__ = [
     "JOINT_KINDS",

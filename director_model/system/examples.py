@@ -12,7 +12,8 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
-from director_model.system.model import Body, Joint, project_velocities
+from director_model.system.model import Body, Joint
+from director_model.system.states import project_velocities
 
 RTOL = 4 * np.finfo(float).eps  # relative tolerance of the Brent solves (round-off)
 

@@ -13,11 +13,8 @@ from director_model.schemes.composition import Rattle4, Rattle6
 from director_model.schemes.rattle import Rattle
 from director_model.simulate import saved_steps, step_plan
 from director_model.system import _kernels as K
-from director_model.system.model import (
-    Assembly,
-    assemble,
-    assemble_forces,
-    band_order,
+from director_model.system.model import Assembly, assemble, assemble_forces, band_order
+from director_model.system.states import (
     check_initial,
     energy_momentum,
     force_potential,
