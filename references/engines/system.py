@@ -115,8 +115,6 @@ FORCE_ELEMENT_ROUTES = {
     "(qfrc_applied) MJX also has; the MJX builder does not pass or check them",
     "pinocchio": "Pinocchio has no spring element; the suite's loop around aba would add the "
     "elements' generalised forces at each evaluation (not written)",
-    "dart": "DART has joint springs but no spring between two body points; forces applied "
-    "on the body nodes at each step would express them (not written)",
     "drake": "Drake has LinearSpringDamper and joint actuators for a constant torque; the "
     "builder does not add them",
 }

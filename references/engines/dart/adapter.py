@@ -57,7 +57,9 @@ class DartEngine(Engine):
     name = "dart"
     description = "DART: FreeJoint or BallJoint; World.step or our RKMK4 on DART's dynamics"
     scene_builder = SceneBuilder(
-        "references.engines.dart.system:simulate_system", ("erp", "revolute_closure")
+        "references.engines.dart.system:simulate_system",
+        ("erp", "revolute_closure"),
+        force_elements=True,
     )
     integrators = (
         Integrator(

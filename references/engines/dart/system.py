@@ -64,10 +64,12 @@ import numpy as np
 
 from references import conventions as cv
 from references.engines import reduced, timing
+from references.engines.dart import forces
 from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
 from references.engines.system import SystemResult
 from references.errors import Diverged, Unsupported
+from scenarios.force_elements import has_elements
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -195,6 +197,7 @@ class _Model:
         self.constraints = []
         self.handed: dict = {}  # closure label -> what DART is handed (add_loops)
         self.clock = 0.0
+        self.loads = None  # the scenario, when it has force elements (forces.py)
         # per tree joint (tree order), for the RKMK4: (body index, kind, its slice of u, the
         # DART joint, the index of its first degree of freedom in the skeleton)
         self.blocks, k = [], 0
@@ -374,6 +377,10 @@ class _Model:
         for j, pos, vel in states:
             j.setPositions(pos)
             j.setVelocities(vel)
+        if self.loads is not None:  # the force elements at this stage (forces.py), not timed
+            self.clock += timing.lap(t0)
+            forces.apply(self, self.loads)
+            t0 = time.perf_counter()
         self.skel.computeForwardDynamics()
         a = self.skel.getAccelerations()
         self.clock += timing.lap(t0)
@@ -486,6 +493,9 @@ def build(scenario, integrator: str, dt: float, **settings):
     reduced.check_states("dart", pl, x, R, v, W, points, axes)
     dm.add_loops(DEFAULT_ERP if erp is None else erp, closure)
     reduced.check_loops("dart", pl, dm.handed)
+    if has_elements(scenario):
+        forces.check(dm, scenario)
+        dm.loads = scenario
     rec = {
         "engine": f"dart {dart.__version__}",
         "integrator": integrator,
@@ -502,6 +512,8 @@ def build(scenario, integrator: str, dt: float, **settings):
         "joint limit enforcement": False,
         "collision": "none (no shape nodes)",
     }
+    if dm.loads is not None:
+        rec["force elements"] = forces.record(scenario, integrator)
     if dm.constraints:
         rec["loop closures"] = [
             f"{lp.label}: "
@@ -554,6 +566,12 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
                     for _ in range(m):
                         q, u = dm.step_rkmk4(q, u, h)
                     dm.unpack(q, u)
+                elif dm.loads is not None:  # set before each step (forces.py), not timed
+                    for _ in range(m):
+                        forces.apply(dm, dm.loads)
+                        t0 = time.perf_counter()
+                        world.step()
+                        dm.clock += timing.lap(t0)
                 else:
                     t0 = time.perf_counter()
                     for _ in range(m):

@@ -108,3 +108,64 @@ def test_pybullet_records_the_elements():
     sc = validate_system(arm_file(0.4, t_end=0.01))
     out = run_system("pybullet", sc, "multibody", 1e-3)
     assert len(out.settings["force elements"]) == 3
+
+
+# -- DART ------------------------------------------------------------------------------------
+
+
+def test_dart_rkmk4_applies_the_arms_elements_at_order_four():
+    """The suite's RKMK4 around computeForwardDynamics with the loads set at every stage,
+    0.5 s: 1.57e-10 / 9.8e-12 at dt 1e-3 / 5e-4 (measured; order 4)."""
+    pytest.importorskip("dartpy")
+    e1 = _err("dart", "RKMK4", dt=1e-3)
+    e2 = _err("dart", "RKMK4", dt=5e-4)
+    print("dart rkmk4", e1, e2)
+    assert e1 < 1e-8
+    assert 12 < e1 / e2 < 20
+
+
+def test_dart_world_step_applies_the_arms_elements_at_eulers_order():
+    """World.step with the loads set before each step, 0.5 s: 1.85e-3 / 9.23e-4 at dt 1e-3 /
+    5e-4 (order 1), Richardson 6.5e-6 (measured; PyBullet's numbers to 1e-16: the same
+    semi-implicit Euler with the loads of each step's start)."""
+    pytest.importorskip("dartpy")
+    e1 = _err("dart", "semi-implicit Euler", dt=1e-3)
+    e2 = _err("dart", "semi-implicit Euler", dt=5e-4)
+    ex = _err("dart", "semi-implicit Euler", dt=1e-3, extrapolate=True)
+    print("dart euler", e1, e2, ex)
+    assert e1 < 5e-3
+    assert 1.7 < e1 / e2 < 2.3
+    assert ex < 3e-5
+
+
+@pytest.mark.parametrize("plant", PLANTS)
+def test_dart_a_planted_mistake_shows(monkeypatch, plant):
+    """Each plant moves RKMK4's arm by far more than its 1.6e-10 (measured: 3.5e-3, 1.1e-2,
+    0.17)."""
+    pytest.importorskip("dartpy")
+    _plant(monkeypatch, plant)
+    bad = _err("dart", "RKMK4", dt=1e-3)
+    print(plant, bad)
+    assert bad > 1e-4
+
+
+def test_dart_reads_its_external_forces_back(monkeypatch):
+    """Forces put at the body frame's origin (the joint point) instead of the centre of mass
+    are refused before any step, naming the body."""
+    pytest.importorskip("dartpy")
+    from references.engines.dart import forces
+    from references.errors import EngineError
+
+    def at_the_joint(dm, scenario, states=None):
+        x, R, v, W = dm.states() if states is None else states
+        F, T = fe.body_loads(scenario, x, R, v, W)
+        dm.skel.clearExternalForces()
+        for c, body in dm.body.items():
+            body.addExtForce(F[c], np.zeros(3), False, True)
+            body.addExtTorque(T[c], False)
+        return F, T
+
+    monkeypatch.setattr(forces, "apply", at_the_joint)
+    sc = validate_system(arm_file(0.4, t_end=0.01))
+    with pytest.raises(EngineError, match="external forces differ: body 'rod'"):
+        run_system("dart", sc, "RKMK4", 1e-3)
