@@ -43,6 +43,7 @@ class PinocchioEngine(Engine):
     scene_builder = SceneBuilder(
         "references.engines.pinocchio.system:simulate_system",
         ("baumgarte", "baumgarte_omega", "prox"),
+        force_elements=True,
     )
     integrators = (
         Integrator(

@@ -72,8 +72,10 @@ import numpy as np
 from references import conventions as cv
 from references.engines import reduced, timing
 from references.engines.native import import_engine
+from references.engines.pinocchio import forces
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError
+from scenarios.force_elements import has_elements
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
 
@@ -163,6 +165,7 @@ class _Model:
             self.prox = pin.ProximalSettings(prox[0], prox[1], int(prox[2]))
         self.tau = np.zeros(model.nv)
         self.clock = 0.0
+        self.loads = None  # the scenario, when it has force elements (forces.py)
 
     # -- initial state -----------------------------------------------------------------------
     def initial(self):
@@ -210,12 +213,15 @@ class _Model:
     # -- dynamics ----------------------------------------------------------------------------
     def accel(self, q, v):
         pin = self.pin
+        tau = self.tau
+        if self.loads is not None:  # the force elements' generalised force (forces.py)
+            tau = tau + forces.generalized(self, q, v)
         t0 = time.perf_counter()
         if self.constraints:
-            a = pin.constraintDynamics(self.model, self.data, q, v, self.tau, self.cmodels,
+            a = pin.constraintDynamics(self.model, self.data, q, v, tau, self.cmodels,
                                        self.cdatas, self.prox)  # fmt: skip
         else:
-            a = pin.aba(self.model, self.data, q, v, self.tau)
+            a = pin.aba(self.model, self.data, q, v, tau)
         self.clock += timing.lap(t0)
         return np.array(a)
 
@@ -407,6 +413,9 @@ def build(scenario, integrator: str, dt: float, **settings):
     if gaps:
         raise EngineError(f"pinocchio: system {scenario.name!r}: loop-closure points apart at "
                           f"t = 0 (a wrong placement): {gaps}")  # fmt: skip
+    if has_elements(scenario):
+        pm.loads = scenario
+        forces.check(pm, q, v)
     rec = {
         "engine": f"pinocchio {pin.__version__}",
         "integrator": integrator,
@@ -423,6 +432,8 @@ def build(scenario, integrator: str, dt: float, **settings):
         "damping, armature, friction": "0 (defaults, read back)",
         "forward dynamics": "constraintDynamics" if pm.constraints else "aba",
     }
+    if pm.loads is not None:
+        rec["force elements"] = forces.record(scenario, integrator)
     if pm.constraints:
         rec["loop closures"] = [f"{lp.label}: " + (
             "one CONTACT_3D at the anchors" if len(lp.pairs) == 1 else

@@ -150,12 +150,21 @@ def test_energy_and_momentum_metrics_say_what_they_cannot_measure():
     assert energy_drift(sc0, reference(sc0, np.linspace(0, 0.1, 11)).trajectory) is not None
 
 
-@pytest.mark.parametrize("engine, integrator", [("pinocchio", "RKMK4"), ("drake", "runge_kutta3")])
-def test_an_engine_that_does_not_apply_force_elements_is_unsupported(engine, integrator):
-    pytest.importorskip({"drake": "pydrake"}.get(engine, engine))
+def test_an_engine_that_does_not_apply_force_elements_is_unsupported(monkeypatch):
+    """A builder that does not declare force_elements (PyBullet's, with the declaration taken
+    away) is refused before it runs, naming the elements and the builders that apply them."""
+    import dataclasses
+
+    from references.engines import get_engine
+
+    pytest.importorskip("pybullet")
+    cls = get_engine("pybullet")
+    monkeypatch.setattr(cls, "scene_builder",
+                        dataclasses.replace(cls.scene_builder, force_elements=False))  # fmt: skip
     sc = validate_system(arm_file(0.0, t_end=0.01))
-    with pytest.raises(Unsupported, match="force elements.*torque on 'h'.*spring 'pull'"):
-        run_system(engine, sc, integrator, 1e-3)
+    with pytest.raises(Unsupported, match="force elements.*torque on 'h'.*spring 'pull'.*"
+                       "builders that apply them: .*director.*mujoco"):  # fmt: skip
+        run_system("pybullet", sc, "multibody", 1e-3)
 
 
 def test_the_energy_scale_counts_the_springs_and_the_torques_work():
