@@ -113,8 +113,6 @@ def _declared(engine: str):
 FORCE_ELEMENT_ROUTES = {
     "mjx": "MJX steps the C builder's model, whose springs (spatial tendons) and torques "
     "(qfrc_applied) MJX also has; the MJX builder does not pass or check them",
-    "drake": "Drake has LinearSpringDamper and joint actuators for a constant torque; the "
-    "builder does not add them",
 }
 
 

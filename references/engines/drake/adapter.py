@@ -61,7 +61,9 @@ class DrakeEngine(Engine):
         "Drake: QuaternionFloatingJoint or BallRpyJoint; Drake's Simulator with each of its "
         "integrators at a fixed step or error-controlled, or the discrete SAP plant"
     )
-    scene_builder = SceneBuilder("references.engines.drake.system:simulate_system")
+    scene_builder = SceneBuilder(
+        "references.engines.drake.system:simulate_system", force_elements=True
+    )
     integrators = INTEGRATORS
 
     #: defaults that distort the experiment, planted back by the conformance kit

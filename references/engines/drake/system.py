@@ -77,9 +77,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from references.engines import reduced, timing
+from references.engines.drake import forces
 from references.engines.native import import_engine
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
+from scenarios.force_elements import has_elements
 
 #: fixed-step continuous schemes (Drake's names) and the discrete plant
 CONTINUOUS = (
@@ -174,7 +176,7 @@ def universal_frames(f: DrakeFrames) -> tuple[np.ndarray, np.ndarray]:
 class _Model:
     """Drake's plant, context, simulator; joints and bodies per scenario body."""
 
-    def __init__(self, pl: reduced.Plan, integrator: str, dt: float):
+    def __init__(self, pl: reduced.Plan, integrator: str, dt: float, scenario=None):
         from pydrake.math import RigidTransform, RotationMatrix
         from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
         from pydrake.multibody.tree import (
@@ -239,10 +241,15 @@ class _Model:
                     cid = plant.AddDistanceConstraint(self.body[lp.a], Xa, B, Xb, float(dist))
                     self.distances.append(cid)
                 self.loops.append(lp)
+        self.springs = [] if scenario is None else forces.add_springs(plant, self.body, pl,
+                                                                      scenario)  # fmt: skip
         plant.Finalize()
         self.plant = plant
         self.context = plant.CreateDefaultContext()
         self.clock = 0.0
+        self.applied = [] if scenario is None else forces.torque_forces(pl, scenario, self.joint)
+        if self.applied:
+            forces.fix_torques(plant, self.context, self.applied)
 
     def set_initial(self) -> None:
         from pydrake.math import RigidTransform, RotationMatrix
@@ -390,6 +397,7 @@ def read_back(dm: _Model, scenario) -> None:
     want("number of collision geometries", plant.num_collision_geometries(), 0)
     want("number of constraints", plant.num_constraints(),
          sum(len(lp.pairs) + len(lp.distances) for lp in dm.loops))  # fmt: skip
+    forces.read_back(dm, scenario, want, bad)
     bad.raise_any("drake", scenario)
 
 
@@ -408,7 +416,7 @@ def assemble(scenario, pl: reduced.Plan, integrator: str, dt: float) -> _Model:
     """The single entry point of every plant of a run: Drake's model of ``pl`` built from its
     bodies' world states (the scenario's at t = 0, the current ones at a chart switch, every
     joint coordinate 0), read back, the state set and checked against Drake's kinematics."""
-    dm = _Model(pl, integrator, float(dt))
+    dm = _Model(pl, integrator, float(dt), scenario)
     read_back(dm, scenario)
     dm.set_initial()
     x, R, v, W = dm.states()
@@ -461,6 +469,8 @@ def build(scenario, integrator: str, dt: float, **settings):
         "joint damping": 0.0,
         "collision": "none (no geometry)",
     }
+    if has_elements(scenario):
+        rec["force elements"] = forces.record(scenario, dm.applied)
     if dm.loops:
         rec["loop closures"] = [
             f"{lp.label}: "

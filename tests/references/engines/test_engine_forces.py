@@ -231,3 +231,60 @@ def test_pinocchio_checks_its_generalised_force_against_rnea(monkeypatch):
     sc = validate_system(arm_file(0.4, t_end=0.01))
     with pytest.raises(EngineError, match="differs from Pinocchio's rnea with fext"):
         run_system("pinocchio", sc, "RKMK4", 1e-3)
+
+
+# -- Drake -----------------------------------------------------------------------------------
+
+
+def test_drake_applies_the_arms_elements_at_runge_kutta3s_order():
+    """LinearSpringDamper and the applied generalised force, runge_kutta3 at fixed step,
+    0.5 s: 8.7e-8 / 1.08e-8 at dt 1e-3 / 5e-4 (measured; order 3)."""
+    pytest.importorskip("pydrake")
+    e1 = _err("drake", "runge_kutta3", dt=1e-3)
+    e2 = _err("drake", "runge_kutta3", dt=5e-4)
+    print("drake rk3", e1, e2)
+    assert e1 < 1e-6
+    assert 6 < e1 / e2 < 10
+
+
+@pytest.mark.parametrize("plant", ["stiffness +1 %", "anchor 1 cm off", "torque sign"])
+def test_drake_a_planted_mistake_is_refused_by_the_read_back(monkeypatch, plant):
+    """What Drake is handed (forces.spring_parameters, forces.torque_forces) planted wrong:
+    the read-back refuses it before any step, naming the element."""
+    pytest.importorskip("pydrake")
+    from references.engines.drake import forces
+    from references.errors import EngineError
+
+    if plant == "torque sign":
+        orig = forces.torque_forces
+        monkeypatch.setattr(forces, "torque_forces", lambda *a: [
+            (iv, -q, lab) for iv, q, lab in orig(*a)])  # fmt: skip
+        words = "applied generalised force"
+    else:
+        orig = forces.spring_parameters
+
+        def planted(scenario):
+            a, P, b, Q, l0, k, c = orig(scenario)[0]
+            if plant == "stiffness +1 %":
+                k = 1.01 * k
+            else:
+                P = P + [0.01, 0.0, 0.0]
+            return [(a, P, b, Q, l0, k, c)]
+
+        monkeypatch.setattr(forces, "spring_parameters", planted)
+        words = "spring 'pull': " + ("stiffness" if plant == "stiffness +1 %" else "p_AP")
+    sc = validate_system(arm_file(0.4, t_end=0.01))
+    with pytest.raises(EngineError, match=words):
+        run_system("drake", sc, "runge_kutta3", 1e-3)
+
+
+def test_drake_discrete_sap_applies_the_arms_elements_at_order_one():
+    """The discrete SAP plant (the one that closes loops), 0.5 s: 1.85e-3 / 9.23e-4 at dt 1e-3
+    / 5e-4 (measured; order 1; without contact or constraints SAP's step is the semi-implicit
+    Euler step, the digits of PyBullet's, DART's and Pinocchio's)."""
+    pytest.importorskip("pydrake")
+    e1 = _err("drake", "discrete SAP", dt=1e-3)
+    e2 = _err("drake", "discrete SAP", dt=5e-4)
+    print("drake sap", e1, e2)
+    assert e1 < 1e-2
+    assert 1.7 < e1 / e2 < 2.3
