@@ -110,10 +110,7 @@ def _declared(engine: str):
 
 #: how each engine whose builder does not apply force elements could (what it lacks, or what
 #: would express them and is not written): the reason its refusal gives
-FORCE_ELEMENT_ROUTES = {
-    "mjx": "MJX steps the C builder's model, whose springs (spatial tendons) and torques "
-    "(qfrc_applied) MJX also has; the MJX builder does not pass or check them",
-}
+FORCE_ELEMENT_ROUTES: dict[str, str] = {}  # every built-in builder applies them
 
 
 def _check_force_elements(engine: str, scenario) -> None:

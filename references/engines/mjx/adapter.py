@@ -235,7 +235,9 @@ class MjxEngine(Engine):
         "MJX, MuJoCo in JAX: free joint or ball joint, MJX's integrators in float64 and float32"
     )
     scene_builder = SceneBuilder(
-        "references.engines.mjx.system:simulate_system", MujocoEngine.scene_builder.settings
+        "references.engines.mjx.system:simulate_system",
+        MujocoEngine.scene_builder.settings,
+        force_elements=True,
     )
     integrators = _configurations()
     bundle_runs = True  # compiled functions are cached per process: compile once per worker

@@ -56,6 +56,7 @@ from references.engines.mujoco import system as ms
 from references.engines.reduced import check_settings
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
+from scenarios.force_elements import has_elements
 
 #: what differs from C MuJoCo on a closed loop, recorded in a loop's run settings
 LOOP_DIFFERENCE = (
@@ -127,6 +128,33 @@ def read_back(m, mx, scenario) -> None:
         )
 
 
+def read_back_forces(mujoco, m, mx, dx, scenario, pl, bid) -> None:
+    """The force elements as MJX holds them, against the scenario (not only the C model):
+    each spring's tendon in the MJX model (:func:`references.engines.mujoco.forces.
+    read_back_springs` on the MJX model's arrays: sites, bodies, k, c, l0) and the joint
+    torques in the MJX data's ``qfrc_applied`` (the C builder's generalised forces of the
+    scenario's torques). Raises :class:`EngineError` naming what differs."""
+    from references.engines.mujoco import forces
+
+    bad = []
+
+    def want(what, got, expect, scale=1.0):  # the C builder's rule (ms.READBACK_TOL)
+        if not ms._close(np.asarray(got), expect, scale) <= ms.READBACK_TOL:
+            g, e = np.asarray(got, float), np.asarray(expect, float)
+            bad.append(f"{what}: MJX holds {np.round(g, 15).tolist()}, the scenario needs "
+                       f"{np.round(e, 15).tolist()}")  # fmt: skip
+
+    ndist = sum(len(lp.distances) for lp in pl.loops)
+    forces.read_back_springs(mujoco, mx, scenario, pl, bid, ndist, want, bad)
+    applied = np.zeros(m.nv)
+    for dof, Q, _ in forces.torque_forces(m, scenario, pl, bid):
+        applied[dof] += Q
+    want("qfrc_applied (the joint torques) in MJX's data", dx.qfrc_applied, applied)
+    if bad:
+        raise EngineError(f"mjx: system {scenario.name!r}: the force elements MJX holds differ "
+                          "from the scenario: " + "; ".join(bad))  # fmt: skip
+
+
 def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every: int,
                     **settings) -> SystemResult:  # fmt: skip
     """Run ``scenario`` on MJX in float64 (module docstring); arguments, settings (``solref``
@@ -154,6 +182,8 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         shapes = jax.eval_shape(mjx.step, mx, dx)
         dx = jax.tree_util.tree_map(lambda a, s: a.astype(s.dtype), dx, shapes)
     read_back(m, mx, scenario)
+    if has_elements(scenario):
+        read_back_forces(mujoco, m, mx, dx, scenario, pl, bid)
     qpos, qvel = np.asarray(dx.qpos), np.asarray(dx.qvel)
     widths = {qpos.dtype.itemsize, qvel.dtype.itemsize, np.asarray(mx.body_mass).dtype.itemsize}
     if widths != {8}:
