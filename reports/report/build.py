@@ -33,6 +33,7 @@ from pathlib import Path
 
 from reports.report.contact import contact_rows, contact_section
 from reports.report.doc import CARDS, CSS, SCRIPT, Doc, anchor
+from reports.report.labels import with_engine_order
 from reports.report.sections import (
     details_section,
     ensemble_section,
@@ -241,8 +242,8 @@ def build_report(root: str | Path, progress: bool = False, results=None) -> dict
         df = read_results(root)
     else:  # a folder holding only an ensemble
         df = frame([])
-    df = python_strings(df)
     prov = read_provenance(root)
+    df = with_engine_order(python_strings(df), prov)  # the folder's engine order, everywhere
     plots, card_figures = report_figures(df, root, progress=progress)
     card = scorecard(df)  # shown in the report, summary.json and the CI job summary
     md, page = document(df, prov, plots, root, edf, card_figures, card)

@@ -149,13 +149,14 @@ class Styles:
         fams = sorted({f for f in under_test if f}, key=family_key)
         extra_s = iter(EXTRA_STYLES * 4)
         self.style = {f: FAMILY_STYLE.get(f) or next(extra_s) for f in fams}
+        engine = engine_key(df)
         pairs = sorted(
             set(
                 zip(
                     *(df.loc[~reference_rows(df), c] for c in ("engine", "integrator")), strict=True
                 )
             ),
-            key=lambda p: (engine_key(p[0]), p[1]),
+            key=lambda p: (engine(p[0]), p[1]),
         )
         self.colour = {p: PALETTE[k % len(PALETTE)] for k, p in enumerate(pairs)}
         n = len(MARKERS)

@@ -3,11 +3,12 @@ figure drawn before, in any folder, is copied from the user's cache instead of d
 
 A figure's inputs are the code that draws it, its kind and scenario, the scenario's rows
 without the columns no such figure shows (:data:`VOLATILE`: the timings, the time a run
-finished, a compilation's time in the settings), the styles of its configurations and the
-*contents* of the runs' series files (and of a robot model's importer table). A second run of
-the same code on the same engines gives byte-identical series and metrics (the engines are
-deterministic; the timings are not), so its figures are copies; a change to any input is a
-new key, drawn anew. The
+finished, a compilation's time in the settings; the rows hold each engine's place in the
+folder's engine order, :data:`reports.report.labels.ENGINE_RANK`, which the legends and
+colours follow), the styles of its configurations and the *contents* of the runs' series
+files (and of a robot model's importer table). A second run of the same code on the same
+engines gives byte-identical series and metrics (the engines are deterministic; the timings
+are not), so its figures are copies; a change to any input is a new key, drawn anew. The
 work-precision figure shows the timings and is never reused (nor the scorecard picture).
 
 The cache lives in ``$DIRECTOR_BENCH_CACHE/figures`` (default ``~/.cache/director-bench``,

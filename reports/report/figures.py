@@ -31,10 +31,12 @@ from reports.report.canvas import (
     draws,
     scene_kind,
 )
+from reports.report.labels import ENGINE_RANK, with_engine_order
 from reports.report.pictures import scenario_plot_from_results
 from reports.report.plots import convergence_plot, errors_plot, rates_plot, work_precision_plot
 from reports.report.scorecard_plot import scorecard_figure_cached
 from reports.store.atomic import write_text
+from reports.store.provenance import read_provenance
 from reports.store.results import records
 from reports.store.runs import error_series_path, slug
 
@@ -296,6 +298,7 @@ def all_plots(
     out.mkdir(parents=True, exist_ok=True)
     if df.empty:
         return {}
+    df = _in_folder_order(df, root)
     styles = Styles(df)
     cache = SeriesCache(root)
     try:
@@ -349,6 +352,14 @@ def all_plots(
     return made
 
 
+def _in_folder_order(df, root):
+    """``df`` with its engines' places in the folder's order (:data:`labels.ENGINE_RANK`,
+    from its provenance.json), unless it has them already (:func:`build_report` adds them)."""
+    if ENGINE_RANK in df:
+        return df
+    return with_engine_order(df, read_provenance(Path(root)))
+
+
 def report_figures(df, root: str | Path, progress: bool = False):
     """The report's figures: every scenario's (:func:`all_plots`, {scenario: [png paths]})
     and the scorecard picture's paths (:func:`scorecard_figure_cached`), the latter drawn in
@@ -356,6 +367,7 @@ def report_figures(df, root: str | Path, progress: bool = False):
     table."""
     if df.empty:
         return {}, []
+    df = _in_folder_order(df, root)
     card: list[Path] = []
 
     def scorecard():

@@ -99,10 +99,11 @@ class Group:
 
 def _sorted_records(df) -> list[dict]:
     recs = records(df)
+    engine = engine_key(df)
 
     def key(r):
         ref = is_reference_record(r)
-        return (family_key(r["family"], ref), engine_key(r["engine"], ref), r["integrator"])
+        return (family_key(r["family"], ref), engine(r["engine"]), r["integrator"])
 
     return sorted(recs, key=key)
 
@@ -167,11 +168,12 @@ def sweep_groups(sub, rtol: float = COLLAPSE_RTOL) -> list[SweepGroup]:
     configs = {}
     for r in records(fixed):
         configs.setdefault((r["engine"], r["integrator"]), {})[float(r["dt"])] = r
+    engine = engine_key(sub)
     order = sorted(
         configs.values(),
         key=lambda c: (
             family_key(_any(c)["family"]),
-            engine_key(_any(c)["engine"]),
+            engine(_any(c)["engine"]),
             _any(c)["integrator"],
         ),
     )

@@ -22,9 +22,9 @@ FAMILY_ORDER = (
     "semi-implicit Euler",
 )
 
-#: engines in the order tables list them; the reference engine follows them, then the others,
-#: sorted; plots colour them likewise
-ENGINE_ORDER = ("director", "mujoco", "pinocchio", "dart", "pybullet")
+#: the column of the report's table holding each run's engine's place in the engine order of
+#: its results folder (:func:`with_engine_order`, :func:`engine_key`)
+ENGINE_RANK = "engine_rank"
 
 #: statuses that are not a result of the configuration (nothing ran, or could not)
 NOT_RUN = ("unsupported", "unavailable")
@@ -35,9 +35,50 @@ def family_key(fam: str, reference: bool = False) -> tuple:
     return _order_key(FAMILY_ORDER, fam, reference)
 
 
-def engine_key(eng: str, reference: bool = False) -> tuple:
-    """The sort key of an engine (``reference``: a reference engine, :func:`reference_rows`)."""
-    return _order_key(ENGINE_ORDER, eng, reference)
+def engine_order(prov: dict, engines=()) -> list[str]:
+    """The engines in the order the report lists them: as the results folder's provenance
+    (``prov``, its ``engines``) lists them, which is the order of the registry of the
+    installation that ran them (:mod:`references.engines`: the built-in engines, then the
+    plug-ins), when it names every one of ``engines``; else this installation's registry,
+    then the provenance's other names in its order."""
+    listed = prov.get("engines") if isinstance(prov, dict) else None
+    listed = [str(e) for e in listed] if isinstance(listed, dict) else []
+    if listed and set(engines) <= set(listed):
+        return listed
+    from references.engines import engine_names
+
+    registry = engine_names()
+    return registry + [e for e in listed if e not in registry]
+
+
+def with_engine_order(df, prov: dict):
+    """The results table ``df`` with the column :data:`ENGINE_RANK`: each run's engine's place
+    in :func:`engine_order` (names it does not hold: one place after the last), so that every
+    table and figure drawn from the table, in this process or a worker's, orders the engines
+    alike, and a figure's reuse key (its rows) changes with the order its colours follow."""
+    order = engine_order(prov, set(df["engine"]))
+    place = {e: k for k, e in enumerate(order)}
+    return df.assign(**{ENGINE_RANK: [place.get(e, len(order)) for e in df["engine"]]})
+
+
+def engine_key(df):
+    """The sort key of the engines of the results table ``df``, a function of an engine's
+    name: the engines under test in the order of :data:`ENGINE_RANK` (a table without that
+    column: this installation's registry, :func:`engine_order`), names the order does not
+    hold after them, alphabetically; then the reference engines (:func:`reference_engines`)
+    in the same order. Plots give out colours in this order."""
+    refs = reference_engines(df)
+    if ENGINE_RANK in df:
+        place = dict(zip(df["engine"], df[ENGINE_RANK], strict=True))
+    else:
+        order = engine_order({}, ())
+        place = {e: order.index(e) for e in set(df["engine"]) if e in order}
+        place.update({e: len(order) for e in set(df["engine"]) - set(place)})
+
+    def key(eng: str) -> tuple:
+        return (eng in refs, place.get(eng, math.inf), eng)
+
+    return key
 
 
 def _order_key(order: tuple, name: str, reference: bool) -> tuple:

@@ -536,11 +536,12 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         return None
     fig, (ax,) = _new_figure(height=4.4)
     left_out = []
+    engine = engine_key(sub)
     configs = sorted(
         sub.groupby(["engine", "integrator"]),
         key=lambda kv: (
             family_key(kv[1]["family"].iloc[0]),
-            engine_key(kv[0][0]),
+            engine(kv[0][0]),
             kv[0][1],
         ),
     )

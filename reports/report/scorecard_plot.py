@@ -86,7 +86,8 @@ def scorecard_cells(df) -> tuple[list, list, dict]:
                     names = failed_metrics(r["verdict_detail"])
                     text.append(", ".join(METRIC_SHORT.get(m, m) for m in names))
             cells[(key, sc)] = (out, text)
-    order = sorted(labels, key=lambda k: (engine_key(k[0]), k[1]))
+    engine = engine_key(df)
+    order = sorted(labels, key=lambda k: (engine(k[0]), k[1]))
     return scens, [(e, i, labels[(e, i)]) for e, i in order], cells
 
 

@@ -306,7 +306,7 @@ def work_precision_section(doc: Doc, df) -> None:
         unit = measure_of(sub.iloc[0])[1]
         engines = sorted(
             set(sub.loc[(sub["status"] == "ok") & ~reference_rows(sub), "engine"]),
-            key=engine_key,
+            key=engine_key(sub),
         )
         for k, eng in enumerate(engines):
             row = [scenario_link(scenario) if k == 0 else Cell(""), Cell(eng)]

@@ -18,7 +18,6 @@ from reports.report.labels import (
     config_label,
     engine_key,
     is_failure,
-    reference_engines,
 )
 from reports.report.precision import cost_of, measure_of, outlook
 from reports.store.format import num, truthy
@@ -181,7 +180,7 @@ def not_run(df) -> list[dict]:
     configuration and message (the whole message: its reason and what to do), with the
     scenarios concerned."""
     rows = df[df["status"].isin(NOT_RUN)]
-    refs = reference_engines(df)
+    engine = engine_key(df)
     out = {}
     for r in records(rows):
         key = (r["engine"], r["integrator"], r["status"], " ".join(str(r["message"]).split()))
@@ -194,9 +193,7 @@ def not_run(df) -> list[dict]:
             "message": m,
             "scenarios": sorted(scs),
         }
-        for (e, i, s, m), scs in sorted(
-            out.items(), key=lambda kv: engine_key(kv[0][0], kv[0][0] in refs)
-        )
+        for (e, i, s, m), scs in sorted(out.items(), key=lambda kv: engine(kv[0][0]))
     ]
 
 
@@ -231,10 +228,8 @@ def settings_table(df) -> list[dict]:
                     "scenarios": sorted(scens),
                 }
             )
-    refs = reference_engines(df)
-    out.sort(
-        key=lambda e: (engine_key(e["engine"], e["engine"] in refs), e["integrator"], e["setting"])
-    )
+    engine = engine_key(df)
+    out.sort(key=lambda e: (engine(e["engine"]), e["integrator"], e["setting"]))
     return out
 
 

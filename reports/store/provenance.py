@@ -59,16 +59,23 @@ def machine() -> dict:
 def engine_versions(names=None) -> dict:
     """Each engine's version as the runner plans its runs (``planned_version``: the installed
     package's metadata where it says it, without importing the engine), or why it is not
-    available."""
+    available; in the registry's order (the built-in engines, then the plug-ins), which the
+    report lists the engines in (reports.report.labels.engine_order)."""
     from references.engines import EngineUnavailable, engine_names, get_engine
 
+    registry = engine_names()
+    names = registry if not names else sorted(names, key=lambda n: _place(registry, n))
     out = {}
-    for name in names or engine_names():
+    for name in names:
         try:
             out[name] = get_engine(name).planned_version()
         except EngineUnavailable as exc:
             out[name] = f"not available ({exc})"
     return out
+
+
+def _place(order: list, name: str) -> tuple:
+    return (order.index(name), "") if name in order else (len(order), name)
 
 
 def provenance(engines=None, left_out=None) -> dict:

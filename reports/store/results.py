@@ -593,6 +593,12 @@ def read_results(folder: str | Path, all_rows: bool = False):
     return df if all_rows else current(df)
 
 
+#: the reference rows of a folder written before the ``reference`` column was recorded: those
+#: of this integrator family, the family of the suite's one reference then (its engine was
+#: named alike); a fact of that store, not of the engine (:func:`reference_rows`)
+LEGACY_REFERENCE_FAMILY = "exact"
+
+
 def reference_rows(df):
     """Boolean Series: the rows of a reference engine (the exact or numerical reference every
     configuration is measured against, not a configuration under test), as the runner recorded
@@ -601,7 +607,8 @@ def reference_rows(df):
     family ``exact``, the family of the suite's one reference engine then."""
     flag = df["reference"].astype(float) if "reference" in df else None
     if flag is None or flag.isna().all():
-        return df["family"] == "exact" if "family" in df else df["engine"] == "exact"
+        old = LEGACY_REFERENCE_FAMILY
+        return df["family"] == old if "family" in df else df["engine"] == old
     return flag == 1.0
 
 
@@ -612,7 +619,7 @@ def is_reference_record(row) -> bool:
     except (TypeError, ValueError):
         flag = math.nan
     if math.isnan(flag):
-        return row.get("family", row.get("engine")) == "exact"
+        return row.get("family", row.get("engine")) == LEGACY_REFERENCE_FAMILY
     return flag == 1.0
 
 

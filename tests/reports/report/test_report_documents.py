@@ -12,6 +12,7 @@ import pytest
 
 from reports.report.tables import failures, scorecard, work_precision
 from reports.store.format import fmt
+from reports.store.results import read_results
 
 
 def test_engines_running_one_algorithm_collapse_into_one_entry(df):
@@ -346,22 +347,40 @@ def test_energy_momentum_note_only_where_the_scheme_ran(df):
     assert not note(none_ran)
 
 
-def test_building_a_report_asks_no_engine_and_no_reference(folder):
+def test_building_a_report_asks_no_engine_and_no_reference(folder, tmp_path):
     """The report is a function of the results folder: building it imports nothing of the
-    engine adapters (references.engines) or the exact references (references.exact), so a
-    folder of engines not installed here is reported all the same."""
+    engine adapters or the exact references (references.exact), so a folder of engines not
+    installed here is reported all the same. A folder whose provenance.json names its engines
+    (every ``director-bench run`` writes one) imports nothing of references.engines at all;
+    one without (the folder of this session, written by run_suite) reads the engine order
+    from the registry, references.engines, and still no adapter."""
+    import ast
     import subprocess
     import sys
 
-    code = (
-        "import sys\n"
-        "from reports.report.build import build_report\n"
-        f"build_report({str(folder)!r})\n"
-        "print(sorted(m for m in sys.modules if m.startswith(('references.engines', "
-        "'references.exact'))))\n"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip().splitlines()[-1] == "[]", out.stdout
+    from references.engines import BUILTIN
+
+    def imported(root):
+        code = (
+            "import sys\n"
+            "from reports.report.build import build_report\n"
+            f"build_report({str(root)!r})\n"
+            "print(sorted(m for m in sys.modules if m.startswith(('references.engines', "
+            "'references.exact'))))\n"
+        )
+        run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr
+        return ast.literal_eval(run.stdout.strip().splitlines()[-1])
+
+    dst = tmp_path / "folder"
+    shutil.copytree(folder, dst)
+    engines = sorted(read_results(dst)["engine"].unique())
+    (dst / "provenance.json").write_text(json.dumps({"engines": dict.fromkeys(engines, "1")}))
+    assert imported(dst) == []
+    without = imported(folder)
+    assert "references.engines" in without  # the registry: the check above can fail
+    adapters = tuple(f"references.engines.{e}" for e in BUILTIN) + ("references.exact",)
+    assert [m for m in without if m.startswith(adapters)] == []
 
 
 def test_the_reference_rows_are_told_by_the_recorded_flag_not_the_engine_name():
