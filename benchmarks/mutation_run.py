@@ -71,6 +71,7 @@ MODULES = {
             "tests/reports/versions/test_versions_history.py",
             "tests/reports/versions/test_changes_rule.py",
             "tests/reports/versions/test_changes_output.py",
+            "tests/reports/versions/test_changes_reading.py",
         ],  # fmt: skip
         # two tests build a release's environment (14 s each, rerun for every mutant they reach)
         "not worker_records_the_planned_identity and not unreachable_index",

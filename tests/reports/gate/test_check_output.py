@@ -96,6 +96,12 @@ def test_each_finding_as_one_line(cmp):
     assert gate.message(gone) == "attitude_error_max: baseline 2.000e-03, now -"
     assert gate.message(Change(K1, "x", 7, 12, 12 / 7, "worse", True)) == (
         "x: baseline 7, now 12 (1.71x)")  # fmt: skip
+    # a failing run failing one more check: named by that column, not by its kind (verdict)
+    more = Change(K1, "failed checks", "fail: a 1 > 0", "also fails b: fail: a 1 > 0; b 2 > 1",
+                  change="worse", gates=True)  # fmt: skip
+    assert gate.message(more) == (
+        "failed checks: baseline fail: a 1 > 0, now also fails b: fail: a 1 > 0; b 2 > 1"
+    )
     assert [gate.run_name(c.key) for c in cmp.changes] == NAMES
 
 

@@ -21,7 +21,9 @@ metric (discrete, implicitfast, semi: only their costs differ)."""
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import re
 
 import pytest
@@ -229,6 +231,7 @@ def test_run_compare_prints_writes_and_exits(folders, tmp_path, capsys, monkeypa
     out = capsys.readouterr().out.split("\n")
     assert out[:4] == [f"A: {a}", f"B: {b}", RELEASE, SUMMARY]
     assert out[-3:] == [VERDICT, f"written: {md}, {js}", ""]
+    assert [_cells(x) for x in out[7:12]] == ROWS and out[12] == ""  # not --all: no "same"
     cmp = compare_folders(a, b)
     assert md.read_text() == as_markdown(cmp)
     assert json.loads(js.read_text()) == json.loads(json.dumps(as_json(cmp)))
@@ -252,15 +255,26 @@ def test_run_compare_prints_writes_and_exits(folders, tmp_path, capsys, monkeypa
 
 def test_run_compare_with_unwritable_summaries_still_gives_its_verdict(folders, tmp_path,
                                                                       capsys):  # fmt: skip
+    """The Markdown written, the JSON's folder a file: the warning names the JSON's path and
+    the system's reason."""
     a, b = folders
     blocker = tmp_path / "file"
     blocker.write_text("")
-    assert run_compare(a, b, markdown=blocker / "c.md", json_path=blocker / "c.json") == 1
+    assert run_compare(a, b, markdown=tmp_path / "ok.md", json_path=blocker / "c.json") == 1
     cap = capsys.readouterr()
     assert cap.out.rstrip().endswith(VERDICT) and "written:" not in cap.out
-    assert cap.err.startswith("director-bench: warning: cannot write ")
+    assert cap.err.startswith(f"director-bench: warning: cannot write {blocker}")
+    assert f"({os.strerror(errno.ENOTDIR)}); " in cap.err and "ok.md" not in cap.err
     assert cap.err.rstrip().endswith("; give --markdown FILE and --json FILE elsewhere")
-    assert str(blocker) in cap.err
+
+
+def test_run_compare_passes_the_columns_allowed_to_differ(tmp_path, capsys):
+    sc = scenarios.load("free_tumbling")
+    a = _folder(tmp_path / "a", [_row(sc, "Euler")])
+    b = _folder(tmp_path / "b", [_row(sc, "Euler", t_end=2.0)])
+    assert run_compare(a, b) == 1  # another horizon: not the same run
+    assert run_compare(a, b, vary=("t_end", "save_every")) == 0
+    assert "; allowed to differ: t_end, save_every); " in capsys.readouterr().out
 
 
 def test_run_compare_with_nothing_comparable_exits_1_naming_why(folders, tmp_path, capsys):

@@ -107,6 +107,17 @@ def test_the_summary_rows_one_per_configuration_and_pair():
     assert rows[0][2] == "status ok -> error: " + "z" * 22 + "…"
     assert rows[1][4] == "runs now (error: " + "z" * 22 + "…)"
     assert summary_rows([_c("x", "metric", M, 1.0, 2.5, 2.5, "worse")])[0][2] == f"{M} x2.5"
+    # the value before is cut at 30 too (31 characters: 29 kept); several items of one kind in
+    # one configuration are joined with "; "
+    rows = summary_rows([
+        _c("x", "verdict", "verdict", "y" * 31, "pass", None, "better"),
+        _c("x", "metric", M, 1.0, 0.25, 0.25, "better"),
+        _c("x", "behaviour", "energy error", "gaining", "losing", None, "changed"),
+        _c("x", "integrator", "status", "unsupported", "error", None, "new"),
+    ])  # fmt: skip
+    assert rows == [["1.0 -> 1.1", "top mujoco x dt=0.001", "",
+                     "verdict " + "y" * 29 + "… -> pass; " + f"{M} x0.25",
+                     "behaviour gaining -> losing; runs now (error)"]]  # fmt: skip
 
 
 def _summary(**kw):
@@ -144,6 +155,12 @@ def test_the_upgrade_gate_text_lists_the_failures_first():
     assert [line.split()[5] for line in lines[4:7]] == ["RK4", "disc", "RK45"]
     assert lines[-1] == "FAIL: upgrading mujoco 1.0 -> 1.1 makes 2 thing(s) worse."
     assert [c.kind for c in res.failures] == ["status", "cost"]
+    # one configuration's changes by dt, the sweep's cost (no dt) before them
+    at = [_c("RK4", "metric", M, 1e-3, 1e-4, 0.1, "better", dt=h) for h in (1e-3, 5e-4)]
+    res = CheckResult("mujoco", "1.0", "1.1", _summary(), [*at, cost])
+    lines = format_check(res).split("\n")
+    assert [_cells(x)[1] for x in lines[4:7]] == ["top mujoco RK4", "top mujoco RK4 dt=0.0005",
+                                                  "top mujoco RK4 dt=0.001"]  # fmt: skip
     # a cost ratio of exactly the cost factor is not beyond it
     assert CheckResult("mujoco", "1.0", "1.1", _summary(), [cost], cost_factor=3.0).ok
 
