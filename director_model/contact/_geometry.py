@@ -225,7 +225,7 @@ def feature(FI, FV, k, X, D):
     return valid, False, sj, n0, n1, n2, r0, r1, r2, w0, w1, w2, dist
 
 
-@njit
+@njit(_nrt=False)
 def eval_features(FI, FV, idx, n, X, D, out):
     """:func:`feature` for the features idx[0:n] into out[k] = (valid, inexact, gap, n (3),
     ra (3), rb (3), dist): one compiled copy of the feature code, called once per batch of
@@ -250,15 +250,68 @@ def eval_features(FI, FV, idx, n, X, D, out):
 
 
 @njit(inline="always")
-def _box_axis_sep(X, D, a, b, ha, hb, u0, u1, u2):
-    """Separation of boxes a, b (half extents ha, hb as 3-tuples) along the unit axis u:
-    |u . (x_a - x_b)| - (support of a) - (support of b); > 0 means a separating gap."""
-    ua0, ua1, ua2 = to_body(D, a, u0, u1, u2)
-    ub0, ub1, ub2 = to_body(D, b, u0, u1, u2)
-    ra = ha[0] * abs(ua0) + ha[1] * abs(ua1) + ha[2] * abs(ua2)
-    rb = hb[0] * abs(ub0) + hb[1] * abs(ub1) + hb[2] * abs(ub2)
-    d = _dot(u0, u1, u2, X[a, 0] - X[b, 0], X[a, 1] - X[b, 1], X[a, 2] - X[b, 2])
-    return abs(d) - ra - rb
+def _box_axes(X, D, a, b, ha, hb):
+    """Separating-axis test of boxes a and b (half extents ha, hb as 3-tuples) in the frame
+    of box a (Gottschalk, Lin & Manocha 1996): with C = D_a^T D_b (C[i][j] = a_i . b_j) and
+    T = D_a^T (x_a - x_b), the separation along each of the 15 axes (the 6 face normals and
+    the 9 edge cross products a_i x b_j) is |T . L| - (support of a) - (support of b) over
+    |L|, every term a product of entries of C and T (no axis is formed or normalised).
+    Returns (largest separation, its axis (0-2: a's faces, 3-5: b's faces, 6: an edge
+    pair), largest separation along a face axis, that face axis). Parallel edges
+    (|a_i x b_j| < 1e-6) are skipped: their axis is a face axis."""
+    t0 = X[a, 0] - X[b, 0]
+    t1 = X[a, 1] - X[b, 1]
+    t2 = X[a, 2] - X[b, 2]
+    T = (_dot(D[a, 0], D[a, 3], D[a, 6], t0, t1, t2),
+         _dot(D[a, 1], D[a, 4], D[a, 7], t0, t1, t2),
+         _dot(D[a, 2], D[a, 5], D[a, 8], t0, t1, t2))  # fmt: skip
+    C = (
+        _dot(D[a, 0], D[a, 3], D[a, 6], D[b, 0], D[b, 3], D[b, 6]),
+        _dot(D[a, 0], D[a, 3], D[a, 6], D[b, 1], D[b, 4], D[b, 7]),
+        _dot(D[a, 0], D[a, 3], D[a, 6], D[b, 2], D[b, 5], D[b, 8]),
+        _dot(D[a, 1], D[a, 4], D[a, 7], D[b, 0], D[b, 3], D[b, 6]),
+        _dot(D[a, 1], D[a, 4], D[a, 7], D[b, 1], D[b, 4], D[b, 7]),
+        _dot(D[a, 1], D[a, 4], D[a, 7], D[b, 2], D[b, 5], D[b, 8]),
+        _dot(D[a, 2], D[a, 5], D[a, 8], D[b, 0], D[b, 3], D[b, 6]),
+        _dot(D[a, 2], D[a, 5], D[a, 8], D[b, 1], D[b, 4], D[b, 7]),
+        _dot(D[a, 2], D[a, 5], D[a, 8], D[b, 2], D[b, 5], D[b, 8]),
+    )
+    best = -math.inf
+    bestk = -1
+    for i in range(3):  # a's faces: support of a is ha_i
+        s = abs(T[i]) - ha[i] - (hb[0] * abs(C[3 * i]) + hb[1] * abs(C[3 * i + 1])
+                                 + hb[2] * abs(C[3 * i + 2]))  # fmt: skip
+        if s > best:
+            best = s
+            bestk = i
+    for j in range(3):  # b's faces
+        tb = _dot(D[b, j], D[b, 3 + j], D[b, 6 + j], t0, t1, t2)
+        s = abs(tb) - hb[j] - (ha[0] * abs(C[j]) + ha[1] * abs(C[3 + j])
+                               + ha[2] * abs(C[6 + j]))  # fmt: skip
+        if s > best:
+            best = s
+            bestk = 3 + j
+    bestf = best
+    bestkf = bestk
+    for i in range(3):
+        i1 = (i + 1) % 3
+        i2 = (i + 2) % 3
+        for j in range(3):
+            j1 = (j + 1) % 3
+            j2 = (j + 2) % 3
+            # L = a_i x b_j = C[i1][j] a_i2 - C[i2][j] a_i1 in a's frame
+            p = C[3 * i1 + j]
+            q = C[3 * i2 + j]
+            ln = math.sqrt(p * p + q * q)
+            if ln < 1e-6:
+                continue
+            ra = ha[i1] * abs(q) + ha[i2] * abs(p)
+            rb = hb[j1] * abs(C[3 * i + j2]) + hb[j2] * abs(C[3 * i + j1])
+            s = (abs(p * T[i2] - q * T[i1]) - ra - rb) / ln
+            if s > best:
+                best = s
+                bestk = 6
+    return best, bestk, bestf, bestkf
 
 
 @njit(inline="always")
@@ -268,36 +321,14 @@ def box_pair_check(X, D, a, b, ha, hb, margin, P):
     boxes are farther apart than margin along some axis (no contact this step). ``P`` (8, 4)
     scratch.
 
-    Separating-axis test (Gottschalk, Lin & Manocha 1996: the 6 face normals and the 9 cross
-    products of edges). The contact is exact when its region's corners are vertices of the
+    Separating-axis test (:func:`_box_axes`: the 6 face normals and the 9 cross products of
+    edges). The contact is exact when its region's corners are vertices of the
     boxes: refused (exact False) when the largest separation is along an edge-edge axis
     (an edge touching an edge), or, on a face axis, when the incident box's vertices lying
     in the contact plane leave the reference face (a vertex or edge over the face's border)
     and, for two faces in contact, when their clipped overlap has a corner that is neither
     box's vertex (crossing edges)."""
-    best = -math.inf
-    bestk = -1
-    for k in range(6):
-        i = a if k < 3 else b
-        j = k % 3
-        s = _box_axis_sep(X, D, a, b, ha, hb, D[i, j], D[i, 3 + j], D[i, 6 + j])
-        if s > best:
-            best = s
-            bestk = k
-    bestf = best
-    bestkf = bestk
-    for ia in range(3):
-        for ib in range(3):
-            c0 = D[a, 3 + ia] * D[b, 6 + ib] - D[a, 6 + ia] * D[b, 3 + ib]
-            c1 = D[a, 6 + ia] * D[b, ib] - D[a, ia] * D[b, 6 + ib]
-            c2 = D[a, ia] * D[b, 3 + ib] - D[a, 3 + ia] * D[b, ib]
-            cn = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-            if cn < 1e-6:
-                continue  # parallel edges: their axis is a face axis
-            s = _box_axis_sep(X, D, a, b, ha, hb, c0 / cn, c1 / cn, c2 / cn)
-            if s > best:
-                best = s
-                bestk = 6
+    best, bestk, bestf, bestkf = _box_axes(X, D, a, b, ha, hb)
     if best > margin:
         return False, True
     scale = ha[0] + ha[1] + ha[2] + hb[0] + hb[1] + hb[2]

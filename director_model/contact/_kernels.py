@@ -42,7 +42,9 @@ built last while the contacts are the same features and their geometry is the sa
 round-off (_parts._rows_valid: directions and directors within 8 eps, contact points within
 8 eps of the scene's length; joint rows only at the same state exactly): a resting or
 sticking configuration builds them once for many steps. Each stage keeps the factors of its
-last full solve for chord steps at the next steps (_parts._stage_solve).
+last full solve for chord steps at the next steps (_parts._stage_solve), and the bodies'
+response to its last impulses: a step that starts from them with the same rows evaluates its
+residual without going through the bodies again (_parts._eval).
 """
 
 from __future__ import annotations
@@ -168,8 +170,19 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
     pat = np.zeros(max(nf, 1), dtype=np.int64)
     listP = np.full(max(nf, 1), -1, dtype=np.int64)
     listV = np.full(max(nf, 1), -1, dtype=np.int64)
-    metaP = np.zeros(4, dtype=np.int64)
-    metaV = np.zeros(4, dtype=np.int64)
+    metaP = np.zeros(7, dtype=np.int64)
+    metaV = np.zeros(7, dtype=np.int64)
+    metaP[4] = -1
+    metaV[4] = -1
+    # each stage's record of the bodies' response to its last impulses (_parts._eval)
+    BAV = np.zeros((nb, 12))
+    PZP = np.zeros(Nm)
+    TZP = np.zeros(Nm)
+    zcP = np.zeros(Nm)
+    PZV = np.zeros(Nm)
+    TZV = np.zeros(Nm)
+    zcV = np.zeros(Nm)
+    rver = 0  # the rows' version: + 1 whenever they are rebuilt
     luflag = np.zeros(1, dtype=np.int64)
     Jr = np.zeros((Nm, 12))
     rb_ = np.zeros((Nm, 2), dtype=np.int64)
@@ -272,6 +285,7 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
                 _setup_rows(m, nj, cb, cg, rint, rvec, S, Dm, B, gvj, Jj, Jr, rb_, Y, rho)
                 _rows_record(m, cand, cg, S, Dm, rm, candR, cgR, XR, DR)
                 wflag[0] = 0
+                rver += 1
             for c in range(m):
                 f = cand[c]
                 mu[c] = PV[FI[f, 3], 0]
@@ -310,7 +324,7 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
                 st, it, rr = _stage_solve(
                     m, nj, mu, rho, Jr, rb_, Y, Wd, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV,
                     DW, DL, wflag, ts, tst, zb, zbar, BA, LUP, pivP, patP, pat, metaP, same,
-                    luflag,
+                    luflag, PZP, TZP, zcP, rver,
                 )  # fmt: skip
                 Qs[Q_ITER] = max(Qs[Q_ITER], it)
                 Qs[Q_RES] = max(Qs[Q_RES], rr)
@@ -480,6 +494,7 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
             _setup_rows(m2, nj, cb2, cg2, rint, rvec, XN, DN, B, gvj, Jj, Jr, rb_, Y, rho)
             _rows_record(m2, cand2, cg2, XN, DN, rm, candR, cgR, XR, DR)
             wflag[0] = 0
+            rver += 1
         for i in range(nb):
             im = 1.0 / B[i, 0]
             rq = rh * (1.0 / WQ[i, 3])
@@ -490,10 +505,11 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
             OF1[i, 0], OF1[i, 1], OF1[i, 2] = o
             for c in range(3):
                 VF1[i, c] = VH[i, c] + hh * (g[c] + Fs[i, c] * im)
+        Vn = S[:, 6:9]
         for c in range(m2):
             f = cand2[c]
             mu[c] = PV[FI[f, 3], 0]
-            upre = _rate(Jr, rb_, 3 * c, S[:, 6:9], ON)
+            upre = _rate(Jr, rb_, 3 * c, Vn, ON)
             off[3 * c] = PV[FI[f, 3], 1] * min(upre, 0.0)
             off[3 * c + 1] = 0.0
             off[3 * c + 2] = 0.0
@@ -509,7 +525,8 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
         same = _same_list(m2, cand2, listV, metaV)
         st, it, rr = _stage_solve(
             m2, nj, mu, rho, Jr, rb_, Y, Wd, b, z1, u, F, A, dz, zt, ut, Ft, piv, nb, DV1, DW,
-            DL1, wflag, ts, tst, zb, zbar, BA, LUV, pivV, patV, pat, metaV, same, luflag,
+            DL1, wflag, ts, tst, zb, zbar, BAV, LUV, pivV, patV, pat, metaV, same, luflag,
+            PZV, TZV, zcV, rver,
         )  # fmt: skip
         Qs[Q_ITER] = max(Qs[Q_ITER], it)
         Qs[Q_RES] = max(Qs[Q_RES], rr)

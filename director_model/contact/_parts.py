@@ -10,7 +10,14 @@ calls re-optimises everything below it. So the helpers called per row or per con
 those with one call site, are inlined in numba's IR (``inline="always"``: no module of their
 own, typed at their call site); the few larger pieces called from several places
 (:func:`_setup_rows`, :func:`_stage_solve`, :func:`_eval`, :func:`_laws`, :func:`_candidates`,
-the solver's Newton method) are compiled once each, and the call tree is kept shallow."""
+the solver's Newton method) are compiled once each, and the call tree is kept shallow.
+
+Reference counting: those pieces (and the solver's, and _geometry.eval_features) take only
+arrays that the time loop allocated and allocate none, so they are compiled without numba's
+runtime (``_nrt=False``, numba's option for code that needs no reference counting): with it,
+every array argument of a compiled call and of each helper inlined into one is an atomic
+increment and decrement, 10-13 % of the step of a stack of three boxes (perf samples in
+numba's NRT_incref/NRT_decref)."""
 
 from __future__ import annotations
 
@@ -30,6 +37,9 @@ OUTER_MAX = 30
 REDO_MAX = 3
 #: chord Newton steps with a kept factorisation before the full solver
 CHORD = 3
+#: a kept factorisation whose smallest pivot is below SINGULAR x its largest is of redundant
+#: rows (a singular Delassus operator, kept regular by the solver's shift >= 1e-9)
+SINGULAR = 1e-6
 #: length tolerance: max(|x|, L) x LEN_TOL (m), for gaps (a closed contact), the outer loop
 #: and the penetration check
 LEN_TOL = 16.0 * EPS
@@ -75,7 +85,7 @@ I_RES = 3
 NINFO = 4
 
 
-@njit
+@njit(_nrt=False)
 def _dmv(I0, I1, I2, a0, a1, a2, ae0, ae1, ae2, b0, b1, b2):
     """director_model._primitives.dmv_solve, compiled once (its IR-level inlining happens
     here, not at the kernel's call site: numba types an inlined body again at each site)."""
@@ -201,14 +211,14 @@ def _mobility(N, B, Dm, Jr, rb_, Y):
             Y[r, o + 5] = y2
 
 
-@njit
+@njit(_nrt=False)
 def joint_rows(rint, rvec, X, D, gv, Jc):
     """director_model.system's joint rows (values gv, Jacobians Jc) at (X, D), compiled once
     here (the system's kernel inlines its own copy)."""
     _rows(rint, rvec, X, D, gv, Jc)
 
 
-@njit
+@njit(_nrt=False)
 def _setup_rows(m, nj, cb, cg, rint, rvec, X, Dm, B, gvj, Jj, Jr, rb_, Y, rho):
     """The rows of a stage at (X, Dm): m contacts (cb, cg), then the nj joint rows (their
     values into gvj); their mobilities Y and rho (3 / trace of a contact's diagonal block,
@@ -294,7 +304,7 @@ def _rows_record(m, cand, cg, X, Dm, rm, candR, cgR, XR, DR):
             cgR[c, k] = cg[c, k]
 
 
-@njit
+@njit(_nrt=False)
 def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
     """Make the gaps of redundant contacts those of a rigid face: the contacts of one pair
     with one normal (a face on a plane or on a face; at least 4 points) have gaps that are
@@ -366,7 +376,7 @@ def _fit_gaps(m, cand, cb, cg, FI, X, g0, grp):
                 g0[3 * d] = alpha + b1 * sd + b2 * td
 
 
-@njit
+@njit(_nrt=False)
 def _delassus(N, Jr, rb_, Y, W):
     for r in range(N):
         for s in range(r, N):
@@ -447,9 +457,11 @@ def _angular_impulse(N, nb, Jr, rb_, z, DL):
 @njit(inline="always")
 def _same_list(m, cand, lst, meta):
     """Whether the stage has the contacts of its last call (cand[0:m] == lst[0:meta[2]]);
-    records them, and drops the kept factorisation if not. meta (4,): the kept
+    records them, and drops the kept factorisation if not. meta (7,): the kept
     factorisation's state (0 none, 1 LU factors, 2 inverse), its size N, the list's length,
-    the solves done with the LU factors (see :func:`_stage_solve`)."""
+    the solves done with the LU factors (see :func:`_stage_solve`), the rows' version and
+    size of the recorded response (see :func:`_eval`), whether the factors are those of
+    redundant rows."""
     same = meta[2] == m
     if same:
         for c in range(m):
@@ -462,14 +474,15 @@ def _same_list(m, cand, lst, meta):
     return same
 
 
-@njit
-def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
-    """u = b + J M^-1 J^T z through the bodies (no W; the size of its terms into ts), the
-    Alart-Curnier function F and the residual. Returns (residual, impulse scale)."""
+@njit(inline="always")
+def _response(N, nb, rb_, Jr, Y, z, BA, PZ, TZ, zc, meta, rv):
+    """The bodies' response to the row impulses z: BA (see :func:`_impulse_response`), the
+    rows' rates PZ = J M^-1 J^T z through the bodies and the size of their terms TZ;
+    recorded (meta[4] = rv, the rows' version; meta[5] = N; zc = z) for :func:`_eval`."""
     _impulse_response(N, nb, rb_, Y, z, BA)
     for r in range(N):
-        s = b[r]
-        t = abs(b[r])
+        s = 0.0
+        t = 0.0
         for sd in range(2):
             i = rb_[r, sd]
             if i < 0:
@@ -478,8 +491,34 @@ def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA):
             for c in range(6):
                 s += Jr[r, o + c] * BA[i, c]
                 t += abs(Jr[r, o + c]) * BA[i, 6 + c]
-        u[r] = s
-        ts[r] = t
+        PZ[r] = s
+        TZ[r] = t
+        zc[r] = z[r]
+    meta[4] = rv
+    meta[5] = N
+
+
+@njit(_nrt=False)
+def _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA, PZ, TZ, zc, meta, rv):
+    """u = b + J M^-1 J^T z through the bodies (no W; the size of its terms into ts), the
+    Alart-Curnier function F and the residual. Returns (residual, impulse scale).
+
+    J M^-1 J^T z depends on z and the rows only: it is computed (:func:`_response`) unless
+    this stage's last one was at the same z and the same rows (version rv), as when a step
+    starts from the impulses its stage ended with at the last step and the rows are reused
+    (a resting or sticking configuration): then only b changes, and u = b + PZ is the same
+    arithmetic either way."""
+    hit = meta[4] == rv and meta[5] == N
+    if hit:
+        for r in range(N):
+            if z[r] != zc[r]:
+                hit = False
+                break
+    if not hit:
+        _response(N, nb, rb_, Jr, Y, z, BA, PZ, TZ, zc, meta, rv)
+    for r in range(N):
+        u[r] = b[r] + PZ[r]
+        ts[r] = abs(b[r]) + TZ[r]
     sc = scale_of(N, m, nj, rho, b, z)
     if sc == 0.0:
         return 0.0, sc
@@ -502,10 +541,10 @@ def _invert_kept(LUc, N, pivc, A):
             LUc[j, r] = A[j, r]
 
 
-@njit
+@njit(_nrt=False)
 def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, piv, nb, DV, DW,
                  DL, wflag, ts, tst, zb, zbar, BA, LUc, pivc, patc, pat, meta, same,
-                 luflag):  # fmt: skip
+                 luflag, PZ, TZ, zc, rv):  # fmt: skip
     """Solve one stage from the start value z. First its residual through the bodies (no
     W); if not converged, chord Newton steps with the Jacobian this stage factorised at an
     earlier step (valid if ``same``, the same rows as then, and the contacts in the same
@@ -517,14 +556,24 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
     matrix-vector product per step. Only then W (built unless wflag[0] = 1) and the full
     solver (director_model.contact._solver.solve), whose last factors are kept. Returns
     (status, iterations, residual); the bodies' velocity changes DV, DW and angular
-    impulses DL of the solution."""
+    impulses DL of the solution. BA, PZ, TZ, zc, meta[4:6]: this stage's record of the
+    bodies' response (:func:`_eval`); rv: the rows' version (changed whenever they are
+    rebuilt).
+
+    No chord steps where a contact slides and the kept factors are those of redundant rows
+    (meta[6]: a pivot below SINGULAR times the largest, e.g. the four corners of a face):
+    the slip law's Jacobian changes from step to step, and along the rows' null space the
+    factors are kept regular only by the solver's small shift, which turns the rounding in
+    F into large moves there; such chord steps mostly fail to contract (a box sliding on a
+    face, diagonal push: 300 of 1000 stages paid a failed chord step before the full solve)
+    where a Newton step from the same start converges at once (38 full solves in all)."""
     N = 3 * m + nj
     st = OK
     it = 0
     rr = 0.0
     fresh = False  # BA holds the bodies' response to z (from the last _eval)
     if N > 0:
-        res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+        res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA, PZ, TZ, zc, meta, rv)
         fresh = True
         rr = res
         done = res <= RES_TOL
@@ -532,7 +581,8 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
             pattern(m, mu, rho, z, u, pat)
             ok = True
             for k in range(m):
-                ok = ok and pat[k] == patc[k]
+                # a sliding contact among redundant rows (meta[6]): no chord steps
+                ok = ok and pat[k] == patc[k] and (patc[k] != 2 or meta[6] == 0)
             while ok and it < CHORD:
                 it += 1
                 for r in range(N):
@@ -555,16 +605,19 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
                     meta[3] += 1
                 for r in range(N):
                     z[r] -= dz[r]
-                rn, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+                rn, sc = _eval(
+                    N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA, PZ, TZ, zc, meta, rv
+                )
                 if rn <= RES_TOL:
                     rr = rn
                     done = True
                     break
                 if not rn <= 0.5 * res:
                     # not contracting: back to the start value, the full solver from there
+                    # (it evaluates its rows itself)
                     for r in range(N):
                         z[r] = zt[r]
-                    res, sc = _eval(N, m, nj, nb, mu, rho, Jr, rb_, Y, b, z, u, F, ts, BA)
+                    fresh = False
                     break
                 res = rn
         if not done:
@@ -591,9 +644,16 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
                 meta[0] = 1
                 meta[1] = N
                 meta[3] = 0
+                # redundant rows: a pivot of the factors at the size of the solver's shift
+                pmin = math.inf
+                pmax = 0.0
+                for r in range(N):
+                    pmin = min(pmin, abs(LUc[r, r]))
+                    pmax = max(pmax, abs(LUc[r, r]))
+                meta[6] = 1 if pmin <= SINGULAR * pmax else 0
             st = OK if st == 0 else FAIL_SOLVE
     if not fresh:
-        _impulse_response(N, nb, rb_, Y, z, BA)
+        _response(N, nb, rb_, Jr, Y, z, BA, PZ, TZ, zc, meta, rv)
     for i in range(nb):
         for c in range(3):
             DV[i, c] = BA[i, c]
@@ -602,7 +662,7 @@ def _stage_solve(m, nj, mu, rho, Jr, rb_, Y, W, b, z, u, F, A, dz, zt, ut, Ft, p
     return st, it, rr
 
 
-@njit
+@njit(_nrt=False)
 def _laws(m, mu, rho, z, u, vs, Qs):
     """Dimensionless law residuals of a solved stage into Qs[0:3] (max with what is there),
     with Z the stage's largest contact impulse and u the rows' rates including their targets
@@ -617,16 +677,20 @@ def _laws(m, mu, rho, z, u, vs, Qs):
         Z = max(Z, abs(z[r]))
     if Z == 0.0:
         return
+    rZ = 1.0 / Z
+    rvs = 1.0 / vs
+    rZ2 = rZ * rZ
     for k in range(m):
         i = 3 * k
         zn = z[i]
-        Qs[0] = max(Qs[0], abs(min(zn / Z, u[i] / vs)))
+        Qs[0] = max(Qs[0], abs(min(zn * rZ, u[i] * rvs)))
         zt = math.sqrt(z[i + 1] ** 2 + z[i + 2] ** 2)
         cap = mu[k] * zn
-        Qs[1] = max(Qs[1], max(zt - cap, 0.0) / (cap if cap > 0.0 else Z))
+        if zt > cap:
+            Qs[1] = max(Qs[1], (zt - cap) / (cap if cap > 0.0 else Z))
         ut = math.sqrt(u[i + 1] ** 2 + u[i + 2] ** 2)
         md = abs(z[i + 1] * u[i + 1] + z[i + 2] * u[i + 2] + cap * ut)
-        Qs[2] = max(Qs[2], rho[k] * md / (Z * Z))
+        Qs[2] = max(Qs[2], rho[k] * md * rZ2)
 
 
 @njit(inline="always")
@@ -641,7 +705,7 @@ def _store(B, D0, S, X, V, D, W, k):
             D[k, i, c // 3, c % 3] = R[c]
 
 
-@njit
+@njit(_nrt=False)
 def _candidates(FI, FV, PI, PV, SH, X, Dm, marg, cand, cb, cg, P8, fidx, FO):
     """Candidate features at (X, Dm): near pairs (bounding spheres within the pair's margin
     marg[p]), box-box pairs checked for exactness, each valid feature with distance <= margin

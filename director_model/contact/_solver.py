@@ -77,7 +77,7 @@ def rows_velocity(N, W, b, z, u, ts, eps, zbar):
         ts[r] = t
 
 
-@njit
+@njit(_nrt=False)
 def ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc):
     """The Alart-Curnier function F (first 3 m + nj entries) at impulses z and velocities u.
     Returns the residual relative to the terms: max over the rows of |F_r| / (sc + rho
@@ -113,7 +113,7 @@ def ac_residual(m, nj, mu, rho, z, u, F, gtol, ts, sc):
     return res
 
 
-@njit
+@njit(_nrt=False)
 def _ac_jacobian(m, nj, mu, rho, W, z, u, A, eps):
     """The generalised Jacobian dF/dz of :func:`ac_residual` into A (N x N), for the
     velocities u = (W + eps I) z + ..."""
@@ -218,7 +218,7 @@ def scale_of(N, m, nj, rho, b, z):
     return s
 
 
-@njit
+@njit(_nrt=False)
 def _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, eps, zbar,
             luflag):  # fmt: skip
     """Semi-smooth Newton on the problem with W + eps I and b - eps zbar, from z. Returns
@@ -310,7 +310,7 @@ def _newton(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst
     return res <= RES_TOL, it
 
 
-@njit
+@njit(_nrt=False)
 def solve(m, nj, mu, rho, W, b, z, u, F, A, dz, zt, ut, Ft, piv, gtol, ts, tst, zb, zbar,
           luflag):  # fmt: skip
     """Solve the problem from the start value z (overwritten by the solution; u its
