@@ -103,6 +103,14 @@ def _show_lines(sc) -> list[str]:
             )
         for j in sc.joints:
             lines.append(f"    joint {j.name}: {j.kind} {j.body_a} - {j.body_b or 'ground'}")
+        for s in getattr(sc, "springs", ()):
+            lines.append(
+                f"    spring {s.name}: {s.body_a} - {s.body_b or 'ground'}, stiffness "
+                f"{s.stiffness:g} N/m, damping {s.damping:g} N s/m, rest length "
+                f"{s.rest_length:g} m"
+            )
+        for t in getattr(sc, "torques", ()):
+            lines.append(f"    torque {t.torque:g} N m on joint {t.joint}")
         if sc.kind == "contact":
             lines += _contact_lines(sc, vec)
         if getattr(sc, "model", None) is not None:

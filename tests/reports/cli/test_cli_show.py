@@ -82,3 +82,16 @@ def test_show_refuses_what_run_refuses_before_planning(tmp_path, capsys):
     system.write_text(text + "\n[engine_settings.mujoco]\nsolreff = [0.004, 1.0]\n")
     code, _, err = _run(["show", str(system)], capsys)
     assert code == 2 and "engine_settings.mujoco.solreff" in err
+
+
+def test_show_lists_a_systems_force_elements(capsys):
+    """Andrews' squeezer (IFToMM A03): its motor torque of 0.033 N m on joint O and its spring
+    of c0 = 4530 N/m, l0 = 0.07785 m, undamped, from the triangle to the ground (the
+    benchmark's parameters, as its file states them)."""
+    code, out, err = _run(["show", "iftomm_a03"], capsys)
+    assert code == 0, err
+    assert "    torque 0.033 N m on joint O" in out
+    assert (
+        "    spring spring: triangle - ground, stiffness 4530 N/m, damping 0 N s/m, "
+        "rest length 0.07785 m" in out
+    )
