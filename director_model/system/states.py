@@ -139,18 +139,13 @@ def check_initial(asm: Assembly, bodies, tol: float = INIT_TOL) -> tuple[int, in
         worst = int(rows[np.argmax(np.abs(gap))])
         if np.max(np.abs(gap)) > tol:
             prim = asm.rint[worst, 0]
-            if prim == POINT:
-                pts = rows[asm.rint[rows, 0] == POINT]
-                d = float(np.linalg.norm(g[pts]))
+            if prim in (POINT, LINE):  # the distance: the norm of the joint's rows of that kind
+                d = float(np.linalg.norm(g[rows[asm.rint[rows, 0] == prim]]))
                 what = (
                     f"the anchors do not coincide at t = 0: gap |x_a + R_a anchor_a - x_b - "
                     f"R_b anchor_b| = {d:.6g} m (tolerance {tol:g} m)"
-                )
-            elif prim == LINE:
-                ln = rows[asm.rint[rows, 0] == LINE]
-                d = float(np.linalg.norm(g[ln]))
-                what = (
-                    f"anchor_b is not on the axis line through anchor_a at t = 0: distance "
+                    if prim == POINT
+                    else f"anchor_b is not on the axis line through anchor_a at t = 0: distance "
                     f"{d:.6g} m (tolerance {tol:g} m)"
                 )
             else:

@@ -151,6 +151,19 @@ def test_misaligned_revolute_axes_are_refused():
         SystemStepper([b], j, dt=1e-3)
 
 
+def test_an_anchor_off_a_cylindrical_axis_is_refused_with_its_distance():
+    """A cylindrical joint lets anchor_b slide along the axis line through anchor_a (0.7 m
+    along x: accepted) but not leave it: 0.3 m along y and 0.4 m along z is 0.5 m off."""
+    b = Body("b", 1.0, (1.0, 2.0, 2.5), position=(0, 0, -1))
+
+    def joint(anchor_b):
+        return [Joint("cylindrical", "b", None, (0, 0, 1), anchor_b, (1, 0, 0), (1, 0, 0))]
+
+    SystemStepper([b], joint((0.7, 0.0, 0.0)), dt=1e-3)
+    with pytest.raises(InvalidJointError, match=r"not on the axis line .* distance 0\.5 m"):
+        SystemStepper([b], joint((0.0, 0.3, 0.4)), dt=1e-3)
+
+
 def test_step_beyond_solvability_raises_with_time_and_step():
     # a free spinning body in a chain: h |W| >= 1 has no solution of the rotation equation
     bodies, joints = rod_chain(2, False, spin=False)
