@@ -1,19 +1,28 @@
 """The timing pass: once every run of a scenario is stored, its configurations are run again
-in one process, in alternation (A B C, then B C A, ...), and each run keeps the best of its
-timings (references.engines.timing.best: the least engine CPU time among those that ran
-clean). Timing a configuration right after itself would favour it (its code and data still
-in the caches) and a burst of load on the machine would hit it alone; alternating, each
-configuration meets the others' traces and every burst is spread over them.
+in one process, in alternation (A B C, then B C A, ...), each over a bounded *window* of its
+first steps, and each run keeps the best of its timings (references.engines.timing.best: the
+least engine CPU time among those that ran clean, per step). Timing a configuration right
+after itself would favour it (its code and data still in the caches) and a burst of load on
+the machine would hit it alone; alternating, each configuration meets the others' traces and
+every burst is spread over them.
 
-What is timed again (:func:`wanted`): every run that finished ok, once more; a cheap run
-(its stepping under :data:`CHEAP_S` of CPU) up to :data:`CHEAP_TIMINGS` timings in all;
-a run whose every timing was starved up to :data:`STARVED_TIMINGS`; in each round the
-starved runs first, then the cheapest. The pass stops at its budget: :data:`BUDGET_FACTOR`
-times the CPU time the scenario's runs spent stepping, plus :data:`BUDGET_FLOOR_S` (a run
-whose stepping takes longer than the budget keeps its own timing: its thousands of slices
-price its engine time within a few per cent, references.engines.timing). A run with no
-timing that ran clean keeps its best and is starved (reports.gate.rule.starved), marked in
-the report and in ``compare``.
+A repeat steps the run's first :func:`window` steps: as many as its own run stepped in about
+:data:`WINDOW_S` of CPU time (at least :data:`WINDOW_MIN_STEPS`; the whole run when it is
+shorter, when its steps are chosen by an error control, or for bodies in contact), and its
+timing is priced per step over the whole run (:func:`scaled`). The run's own timing covers
+every step; a repeat takes its place only when it was cheaper per step, so a window whose
+steps cost less than the run's later ones prices the run low. Measured on the default suite
+(benchmarks/bench_timing_window.py --bias: a window's engine time per step over a whole
+run's, the least of two each, alternating): within 10 % on 291 of the 302 runs a window
+shortens, 0.74 at the lowest (dzhanibekov, the director's energy_momentum at dt 1 ms, whose
+later steps cost more), 0.80-0.90 on three. ``WINDOW_S = math.inf`` repeats whole runs.
+
+What is timed again (:func:`wanted`): every run that finished ok, up to :data:`TIMINGS`
+timings in all (its own included); a run whose every timing was starved up to
+:data:`STARVED_TIMINGS`; in each round the starved runs first, then the cheapest. The pass
+stops at its budget: :data:`BUDGET_FACTOR` times the CPU time the scenario's runs spent
+stepping, plus :data:`BUDGET_FLOOR_S`. A run with no timing that ran clean keeps its best
+and is starved (reports.gate.rule.starved), marked in the report and in ``compare``.
 
 The rows are updated in the results store by the runner (reports.run.runner.run_suite),
 which builds one :class:`TimingUnit` per scenario and hands it out once the scenario's runs
@@ -29,17 +38,21 @@ from dataclasses import dataclass, field
 
 from reports.store.runs import RunSpec, timing_columns
 
-#: a run whose stepping took less CPU time than this (s) is cheap: timed up to
-#: CHEAP_TIMINGS times in all (its own run included)
-CHEAP_S = 0.02
-CHEAP_TIMINGS = 3
+#: a repeat steps about this much of its run's stepping CPU time (s): long enough for
+#: thousands of timing slices' worth of steps (references.engines.timing.SLICE_S), short
+#: enough that a repeat costs little beside the call that builds the engine's model
+WINDOW_S = 0.005
+#: ... and at least this many steps (the whole run when it has fewer)
+WINDOW_MIN_STEPS = 100
+#: every run is timed up to this many times in all (its own run included)
+TIMINGS = 2
 #: a run whose every timing was starved is timed up to this many times in all
 STARVED_TIMINGS = 3
 #: the pass spends at most this many times the CPU time its runs spent stepping, plus the
 #: floor (s)
 BUDGET_FACTOR = 0.5
 BUDGET_FLOOR_S = 0.05
-#: a run's own call costs its stepping plus about this much (s: the model's construction)
+#: a repeat costs its window's stepping plus about this much (s: the model's construction)
 CALL_OVERHEAD_S = 0.003
 
 
@@ -96,14 +109,36 @@ def _from_row(row):
     )
 
 
-def wanted(timings: list, cheap: bool) -> bool:
+def wanted(timings: list) -> bool:
     """Whether a run with these ``timings`` (its own included) is timed once more."""
-    clean = sum(1 for t in timings if not t.starved)
-    if clean == 0:
+    if not any(not t.starved for t in timings):
         return len(timings) < STARVED_TIMINGS
-    if cheap:
-        return len(timings) < CHEAP_TIMINGS
-    return len(timings) < 2
+    return len(timings) < TIMINGS
+
+
+def window(spec: RunSpec, nstep: int, cpu_s: float) -> int:
+    """How many of its first steps a repeat of ``spec`` steps: what its own run of ``nstep``
+    steps stepped in :data:`WINDOW_S` of its ``cpu_s`` CPU time, at least
+    :data:`WINDOW_MIN_STEPS`, at most ``nstep``. The whole run for an error-controlled run
+    (its steps are its error control's: a shorter horizon is another run) and for bodies in
+    contact (a step's cost follows the contacts: Drake's SAP stepped sphere_backspin's first
+    100 of 300 steps at 0.37x the whole run's cost per step, bench_timing_window.py)."""
+    if spec.accuracy is not None or spec.scenario.kind == "contact":
+        return nstep
+    if not (cpu_s > 0 and math.isfinite(cpu_s)):
+        return nstep
+    steps = WINDOW_S * nstep / cpu_s
+    return nstep if steps >= nstep else min(nstep, max(WINDOW_MIN_STEPS, math.ceil(steps)))
+
+
+def scaled(t, factor: float):
+    """The Timing ``t`` of a window priced over ``factor`` times as many steps."""
+    from references.engines.timing import Timing
+
+    return Timing(
+        t.engine * factor, t.spread * factor, t.cpu * factor, t.wall * factor,
+        t.engine_wall * factor,
+    )  # fmt: skip
 
 
 def time_unit(unit: TimingUnit) -> TimingResult:
@@ -137,17 +172,18 @@ def _time(unit: TimingUnit) -> dict[str, dict]:
         ran = False
         for s in order:
             row = rows[s.run_id]
-            cost = float(row["cpu_time_s"]) + CALL_OVERHEAD_S
-            if s.run_id in failed or spent + cost > budget:
-                continue
-            if not wanted(timings[s.run_id], float(row["cpu_time_s"]) < CHEAP_S):
+            nstep, cpu = int(row["nstep"]), float(row["cpu_time_s"])
+            steps = window(s, nstep, cpu)
+            cost = cpu * steps / nstep + CALL_OVERHEAD_S
+            if s.run_id in failed or spent + cost > budget or not wanted(timings[s.run_id]):
                 continue
             c0 = time.process_time()
-            got = _run_again(get_engine(s.engine), s, int(row["nstep"]))
+            got = _run_again(get_engine(s.engine), s, nstep, steps)
             spent += time.process_time() - c0
             if got is None:  # it failed or took another number of steps: no timing
                 failed.add(s.run_id)
                 continue
+            got = scaled(got, nstep / steps) if steps != nstep else got
             timings[s.run_id].append(got)
             extra[s.run_id].append(got)
             ran = True
@@ -166,24 +202,27 @@ def _time(unit: TimingUnit) -> dict[str, dict]:
     return out
 
 
-def _run_again(cls, spec: RunSpec, nstep: int):
-    """The timing of a fresh engine's run of ``spec``, or None when it fails or takes
-    another number of steps than ``nstep``."""
+def _run_again(cls, spec: RunSpec, nstep: int, steps: int | None = None):
+    """The timing of a fresh engine's run of ``spec`` (of ``nstep`` steps), or of its first
+    ``steps`` steps, or None when it fails or takes another number of steps."""
     sc = spec.scenario
-    if spec.t_end is not None and spec.horizon != sc.t_end:
-        sc = sc.replace(t_end=spec.horizon)
+    horizon = spec.horizon
+    if steps is not None and steps != nstep:  # a window: the run's first steps
+        horizon, nstep = steps * spec.dt, steps
+    if horizon != sc.t_end:
+        sc = sc.replace(t_end=horizon)
     try:
         if sc.kind == "contact":  # bodies in contact: the engine's contact builder
             from references.engines.contact import run_contact
 
-            out = run_contact(spec.engine, sc, spec.integrator, spec.dt, spec.horizon, spec.saving)
+            out = run_contact(spec.engine, sc, spec.integrator, spec.dt, horizon, spec.saving)
         elif sc.kind == "system":  # a system of bodies: the engine's system builder
             from references.engines.system import run_system
 
-            out = run_system(spec.engine, sc, spec.integrator, spec.dt, spec.horizon, spec.saving)
+            out = run_system(spec.engine, sc, spec.integrator, spec.dt, horizon, spec.saving)
         else:
             out = cls().run(
-                sc, spec.integrator, spec.dt, spec.horizon, spec.saving, accuracy=spec.accuracy
+                sc, spec.integrator, spec.dt, horizon, spec.saving, accuracy=spec.accuracy
             )
     except Exception:  # noqa: BLE001 - a repeat that fails is no timing; the run stands
         return None
