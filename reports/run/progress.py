@@ -3,15 +3,17 @@
 In a terminal, one line redrawn in place: the count, a bar, the time so far (redrawn every
 second by a clock thread, so it never stands still while a worker compiles), an estimate of
 the time left and what finished last or what is compiling. Anywhere else (CI, a pipe, a file)
-plain lines, never a carriage return: one when the work starts (what compiles first), one per
-finished group of work (a scenario, when the runner names them; else a tenth of the work),
-and one at the end, so that a log of the default suite holds about a dozen lines.
+plain lines, never a carriage return: one when the work starts (what loads or compiles
+first), one per finished group of work (a scenario, when the runner names them; else a tenth
+of the work), and one at the end, so that a log of the default suite holds about a dozen lines.
 
-The first run of some engines in a process compiles code first (the director model's and the
-suite's RKMK4 numba kernels, MJX's step with JAX); such a run takes seconds where the others
+The first run of some engines in a process loads compiled code first, or compiles it where
+the compiler's on-disk cache does not hold it (the director model's and the suite's RKMK4
+numba kernels, MJX's step with JAX); compiling, such a run takes seconds where the others
 take milliseconds. The runner names these warm-ups (``warming``: key -> what compiles) and
 says which key each finished run belongs to; until the first run of every key has finished,
-the display says what is compiling and gives no estimate. A warm-up at the start of a bundle
+the display says what loads or compiles (which of the two, a run only knows once it has
+done it) and gives no estimate. A warm-up at the start of a bundle
 of runs that finish together (MJX's) is only named at the start (``bundled``): its end is not
 seen before the whole bundle's.
 
@@ -40,6 +42,11 @@ import time
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
+#: what a warm-up does, as the display says it: numba and JAX load what their on-disk cache
+#: holds (filled by ``director-bench compile``, or by an earlier run) and compile the rest,
+#: and which of the two a run will do is not known before it does it
+LOADED_OR_COMPILED = "loaded from the compiler's cache or compiled"
+LOADING_OR_COMPILING = "loading or compiling"
 #: a terminal line is redrawn at most this often (s) for a running run's own progress, and
 #: at least this often by the clock thread
 REDRAW_S = 0.2
@@ -276,7 +283,7 @@ class Progress:
             if self.groups:
                 first += f" in {len(self.groups)} groups" if len(self.groups) > 1 else ""
             if self.warming:
-                first += "; compiling first: " + ", ".join(self.warming.values())
+                first += f"; first, {LOADED_OR_COMPILED}: " + ", ".join(self.warming.values())
             if self.bundled:
                 first += "; at the start of their bundles: " + ", ".join(self.bundled.values())
             self._line(first)
@@ -408,7 +415,7 @@ class Progress:
 
     def _tail(self) -> str:
         if self.warming:
-            return ", compiling " + ", ".join(self.warming.values())
+            return f", {LOADING_OR_COMPILING} " + ", ".join(self.warming.values())
         eta = self.eta()
         return f", about {_clock(eta)} left" if eta is not None else ""
 
@@ -435,7 +442,7 @@ class Progress:
         pct = self.n / self.total if self.total else 1.0
         elapsed = _clock(time.monotonic() - self.t0)
         if self.warming and not final:
-            tail = "compiling " + ", ".join(self.warming.values())
+            tail = f"{LOADING_OR_COMPILING} " + ", ".join(self.warming.values())
         else:
             eta = self.eta()
             tail = f"{_clock(eta)} left" if eta is not None and not final else ""

@@ -23,7 +23,10 @@ def test_outside_a_terminal_one_line_per_tenth_and_no_carriage_return():
     # a first line naming what compiles, one per tenth reached before the end (10 % .. 90 %),
     # and the last line
     assert len(lines) == 1 + 9 + 1, lines
-    assert "compiling first: the director kernels (numba)" in lines[0]
+    assert (
+        "first, loaded from the compiler's cache or compiled: the director kernels (numba)"
+        in lines[0]
+    )
     assert re.match(r"director-bench: 441/441 runs in \d+:\d\d$", lines[-1])
     percents = [int(m) for m in re.findall(r"\((\d+) %\)", text)]
     assert percents == sorted(percents) and len(percents) == 9
@@ -37,10 +40,10 @@ def test_compiling_is_named_until_the_first_run_of_each_warm_up_and_has_no_estim
     for _ in range(10):
         bar.update(1)
     frame = log.getvalue().split("\r")[-1]
-    assert "compiling MJX's step (JAX) for mjx Euler, the RKMK4 stages" in frame
+    assert "loading or compiling MJX's step (JAX) for mjx Euler, the RKMK4 stages" in frame
     assert bar.eta() is None
     bar.update(1, key="mjx/Euler")
-    assert "compiling the RKMK4 stages" in log.getvalue().split("\r")[-1]
+    assert "loading or compiling the RKMK4 stages" in log.getvalue().split("\r")[-1]
     assert bar.eta() is None
     bar.update(1, key="rkmk4")  # the warm-ups are over: the estimate starts from here
     assert bar.n_warm == 12 and bar.eta() is None
@@ -98,7 +101,9 @@ def test_warm_ups_of_bundled_runs_are_named_at_the_start_and_do_not_hold_the_est
     bar = _bar(plan([scenarios.load("dzhanibekov")], ["director", "mjx"]))
     assert list(bar.warming) == ["director"]  # MJX's rows arrive with their bundle's end
     first = capsys.readouterr().err  # standard error is no terminal here: the first line
-    assert "compiling first: the director kernels (numba)" in first
+    assert (
+        "first, loaded from the compiler's cache or compiled: the director kernels (numba)" in first
+    )
     assert "at the start of their bundles: MJX's step (JAX) for mjx Euler (float64)" in first
     bar.update(1, key="director")
     assert bar.t_warm is not None
@@ -198,7 +203,7 @@ def test_the_clock_of_a_terminal_display_runs_while_nothing_finishes(monkeypatch
     time.sleep(0.3)  # no update: the clock thread alone redraws
     frame = log.getvalue().split("\r")[-1]
     bar.close()
-    assert "[1:01]" in frame and "compiling the kernels" in frame, frame
+    assert "[1:01]" in frame and "loading or compiling the kernels" in frame, frame
 
 
 def test_outside_a_terminal_one_line_per_finished_group_with_its_outcomes():
