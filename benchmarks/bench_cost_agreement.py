@@ -14,8 +14,11 @@ after), per cost column the rows both ran ok and the share within 1.5x (both dir
 the starved rows on each side, and compare's counts of cost changes (worse / better:
 significant; not significant; starved). ``--markdown FILE`` writes the table.
 
+``--beside N`` runs N suites beside the loaded one (each restarted when it ends), started
+``--lead`` seconds before it, for a load of at least 4 where one is not enough.
+
 Usage: python benchmarks/bench_cost_agreement.py DIR [--engines A,B] [--scenarios X Y]
-       [--markdown FILE] [--compare-only]
+       [--markdown FILE] [--compare-only] [--beside N] [--lead S]
 """
 
 from __future__ import annotations
@@ -74,35 +77,40 @@ def run(out: Path, extra: list[str], log: Path) -> float:
     return time.perf_counter() - t0
 
 
-def measured(out: Path, extra: list[str], log: Path, beside: Path | None) -> dict:
-    """Run into ``out`` (with a second suite beside it into ``beside`` when given)."""
+def measured(
+    out: Path, extra: list[str], log: Path, beside: Path | None, n_beside: int = 1,
+    lead_s: float = 5.0,
+) -> dict:  # fmt: skip
+    """Run into ``out`` (with ``n_beside`` other suites beside it into ``beside``, started
+    ``lead_s`` seconds before it, when given)."""
     stick0, load0 = yardstick(), os.getloadavg()[0]
-    second = None
+    seconds = []
     stop = threading.Event()
-    current: list[subprocess.Popen] = []
+    current: dict[int, subprocess.Popen] = {}
     if beside is not None:
 
-        def keep_running():
+        def keep_running(j):
             k = 0
             while not stop.is_set():
                 k += 1
-                with beside.with_suffix(f".{k}.log").open("w") as fh:
-                    cmd = [*RUN, "--out", str(beside / f"{k}"), *extra]
+                with beside.with_suffix(f".{j}.{k}.log").open("w") as fh:
+                    cmd = [*RUN, "--out", str(beside / f"{j}.{k}"), *extra]
                     proc = subprocess.Popen(cmd, cwd=REPO, stdout=fh, stderr=subprocess.STDOUT)
-                    current[:] = [proc]
+                    current[j] = proc
                     proc.wait()
 
         beside.mkdir(parents=True, exist_ok=True)
-        second = threading.Thread(target=keep_running, daemon=True)
-        second.start()
-        time.sleep(5.0)  # the second suite's workers are up and stepping
+        for j in range(n_beside):
+            seconds.append(threading.Thread(target=keep_running, args=(j,), daemon=True))
+            seconds[-1].start()
+        time.sleep(lead_s)  # the other suites' workers are up and stepping
     with LoadSampler() as load:
         wall = run(out, extra, out.with_suffix(".log"))
     stop.set()
-    if second is not None:
-        for proc in current:
-            proc.terminate()  # its workers end with it (reports.run.parallel)
-        second.join()
+    for proc in list(current.values()):
+        proc.terminate()  # its workers end with it (reports.run.parallel)
+    for t in seconds:
+        t.join()
     return {
         "wall_s": wall,
         "load": load.text(),
@@ -159,6 +167,9 @@ def main(argv=None) -> int:
     ap.add_argument("--scenarios", nargs="*", default=[], help="passed to run")
     ap.add_argument("--markdown", type=Path, help="write the agreement table here")
     ap.add_argument("--compare-only", action="store_true", help="the folders exist: compare")
+    ap.add_argument("--beside", type=int, default=1, help="suites run beside the loaded one")
+    ap.add_argument("--lead", type=float, default=5.0,
+                    help="seconds the suites beside start before the loaded one")  # fmt: skip
     args = ap.parse_args(argv)
     extra = [*args.scenarios] + (["--engines", args.engines] if args.engines else [])
     d = args.dir.resolve()
@@ -168,7 +179,7 @@ def main(argv=None) -> int:
         d.mkdir(parents=True, exist_ok=True)
         info["alone"] = measured(alone, extra, None, None)
         print(f"alone:  {json.dumps(info['alone'])}", flush=True)
-        info["loaded"] = measured(loaded, extra, None, d / "beside")
+        info["loaded"] = measured(loaded, extra, None, d / "beside", args.beside, args.lead)
         print(f"loaded: {json.dumps(info['loaded'])}", flush=True)
         (d / "runs.json").write_text(json.dumps(info, indent=1))
     elif (d / "runs.json").exists():
@@ -176,7 +187,7 @@ def main(argv=None) -> int:
     agree = agreement(alone, loaded)
     counts = compare_counts(alone, loaded)
     lines = [
-        "| | alone | beside a second suite |",
+        f"| | alone | beside {args.beside} other suite run(s) |",
         "|---|---|---|",
     ]
     for k in ("wall_s", "load", "yardstick_s"):
