@@ -139,6 +139,50 @@ def test_mjx_connect_reference_acceleration_lacks_c_mujocos_jdot_v():
     np.testing.assert_allclose(d.efc_aref, aref_mjx - jdotv, rtol=0, atol=1e-8)
 
 
+def c_euler_with_mjx_aref(sc, dt, nstep, **settings):
+    """C MuJoCo's Euler with the reference acceleration MJX uses, aref = -B J v - K imp r (C's
+    Jdot v term left out): mj_step's stages called one by one, efc_aref replaced between
+    mj_fwdVelocity (which computes it) and mj_fwdConstraint (which uses it). Returns (x, R)
+    after nstep steps and the largest |C's aref - this aref| met (the Jdot v C subtracts)."""
+    mujoco, m, d, _, bid, _ = ms.build(sc, "Euler", dt, **settings)
+    largest = 0.0
+    for _ in range(nstep):
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mj_fwdVelocity(m, d)
+        K, B, imp = d.efc_KBIP[:, 0], d.efc_KBIP[:, 1], d.efc_KBIP[:, 2]
+        aref = -B * d.efc_vel - K * imp * (d.efc_pos - d.efc_margin)
+        largest = max(largest, float(np.abs(aref - d.efc_aref).max(initial=0.0)))
+        d.efc_aref[:] = aref
+        mujoco.mj_fwdActuation(m, d)
+        mujoco.mj_fwdAcceleration(m, d)
+        mujoco.mj_fwdConstraint(m, d)
+        mujoco.mj_Euler(m, d)
+    x, R, _, _ = ms.read_states(mujoco, m, d, bid)
+    return x, R, largest
+
+
+@pytest.mark.slow
+def test_the_jdot_v_term_is_the_whole_difference_between_mjx_and_c_mujoco_on_a_loop():
+    """four_bar_stiff_loop (solref 0.004), 0.6 s of Euler at dt 2 ms: MJX and C MuJoCo end
+    2.8e-5 apart (measured); C MuJoCo with MJX's reference acceleration ends 5.2e-15 from MJX
+    (measured): the connect rows' Jdot v (up to 0.14 here) is all that parts them. The same
+    comparison over the library's loops (reports/forces5.md): four_bar 1.8e-3 vs 2.3e-15,
+    bricard 8.7e-4 vs 3.2e-15, slider_crank_spatial with solref 0.002 2.0e-2 vs 6.0e-13,
+    iftomm_a02_n2 1.81 vs 5.2e-12."""
+    import scenarios
+
+    sc = scenarios.load("four_bar_stiff_loop")
+    settings = dict(sc.engine_settings.get("mujoco", {}))
+    n = int(round(sc.t_end / sc.dt))
+    mx = mjx_system.simulate_system(sc, "Euler (float64)", sc.dt, n, n, **settings)
+    c = ms.simulate_system(sc, "Euler", sc.dt, n, n, **settings)
+    xa, Ra, jdv = c_euler_with_mjx_aref(sc, sc.dt, n, **settings)
+    apart = max(np.abs(mx.x[-1] - c.x[-1]).max(), np.abs(mx.R[-1] - c.R[-1]).max())
+    same = max(np.abs(mx.x[-1] - xa).max(), np.abs(mx.R[-1] - Ra).max())
+    assert apart > 1e-6 and jdv > 1e-2
+    assert same < 1e-12
+
+
 @pytest.mark.slow
 def test_mjx_slide_universal_and_cylindrical_joints_equal_c_mujoco():
     """The C builder's slide, universal (two hinges) and cylindrical (hinge and slide) joints
