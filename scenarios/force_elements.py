@@ -322,6 +322,18 @@ def body_loads(scenario, x, R, v, W, index=None) -> tuple[np.ndarray, np.ndarray
     return F, T
 
 
+def load_scale(scenario, length: float, rate: float) -> float:
+    """N: the size of the loads the force elements can give in a system of length scale
+    ``length`` (m) and rate scale ``rate`` (1/s): sum k L + c L rate over the springs plus
+    sum |tau| / L over the torques. A check that compares loads (or their generalised forces)
+    computed two ways compares them to a fraction of this, not of the loads themselves, which
+    are rounding where a spring sits at its rest length."""
+    f = sum(
+        s.stiffness * length + s.damping * length * rate for s in getattr(scenario, "springs", ())
+    )
+    return f + sum(abs(t.torque) / length for t in getattr(scenario, "torques", ()))
+
+
 def has_elements(scenario) -> bool:
     return bool(getattr(scenario, "torques", ()) or getattr(scenario, "springs", ()))
 
@@ -392,6 +404,7 @@ __all__ = [
     "angle_steps_ok",
     "axis_inertia",
     "body_loads",
+    "load_scale",
     "dissipative",
     "energy_bound",
     "grounded",

@@ -17,8 +17,9 @@ closes a loop as on a tree joint.
 
 Read back (:func:`check`): after the first application DART's external wrench of every body
 (``getExternalForceGlobal``: world axes, its moment about the world origin (measured),
-DART's [moment, force]) must be the loads moved to that origin, (T + x_com x F, F), to 1e-12
-relative; else :class:`~references.errors.EngineError` names the body.
+DART's [moment, force]) must be the loads moved to that origin, (T + x_com x F, F), to
+1e-12 of the elements' load scale (:func:`scenarios.force_elements.load_scale`); else
+:class:`~references.errors.EngineError` names the body.
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def check(dm, scenario) -> None:
     x, R, v, W = dm.states()
     F, T = apply(dm, scenario, (x, R, v, W))
     bad = []
-    scale = max(float(np.abs(F).max()), float(np.abs(T).max()) / dm.pl.length, 1e-300)
+    scale = max(float(np.abs(F).max()), float(np.abs(T).max()) / dm.pl.length,
+                fe.load_scale(scenario, dm.pl.length, dm.pl.rate))  # fmt: skip
     for c, body in dm.body.items():
         want = np.concatenate([T[c] + np.cross(x[c], F[c]), F[c]])
         got = np.asarray(body.getExternalForceGlobal(), float)

@@ -17,7 +17,9 @@ joint.
 Read back (:func:`check`, at t = 0): Q must equal what Pinocchio's own external-force input
 makes of the same loads, ``rnea(q, v, 0) - rnea(q, v, 0, fext)`` with ``fext`` each body's load
 as a ``pinocchio.Force`` in its joint's LOCAL frame about the joint's origin, to 1e-12
-relative; else :class:`~references.errors.EngineError` names the difference.
+of the elements' load scale (:func:`scenarios.force_elements.load_scale`: a spring at its
+rest length gives loads of rounding size); else :class:`~references.errors.EngineError`
+names the difference.
 """
 
 from __future__ import annotations
@@ -60,7 +62,9 @@ def check(pm, q, v) -> None:
     want = np.array(pin.rnea(pm.model, pm.data, q, v, a0)) - np.array(
         pin.rnea(pm.model, pm.data, q, v, a0, fext)
     )
-    scale = max(float(np.abs(want).max()), 1e-300)
+    # generalised forces: N m on hinges, N on slides (the length scale makes them one size)
+    scale = max(float(np.abs(want).max()),
+                fe.load_scale(pm.loads, pm.pl.length, pm.pl.rate) * pm.pl.length)  # fmt: skip
     if not np.abs(Q - want).max() <= 1e-12 * scale:
         raise EngineError(
             f"pinocchio: the force elements' generalised force {np.round(Q, 12).tolist()} "
