@@ -13,9 +13,12 @@ checked - 4 regressed among them (the new run is not among the checked) - 1 know
 
 from __future__ import annotations
 
+import errno
 import json
 import math
+import os
 import re
+import xml.etree.ElementTree as ET
 
 import pytest
 
@@ -344,3 +347,129 @@ def test_the_closing_line_counts_known_other_and_absent_failures(tmp_path):
     assert gate.failures_in_baseline(tmp_path / "r", frame([row()]), bl) == (0, 0, 0)
     # none of the failing runs in the baseline, nor any other: nothing comparable
     assert gate.failures_in_baseline(tmp_path / "r", frame([absent]), bl) == (0, 0, 1)
+
+
+# -- the command: what check prints, writes and returns ------------------------------------------
+
+OK_LINE = ("OK: the results' invariants hold (no blown-up run ok, verdicts match statuses, "
+           "fitted orders within 0.3 of declared, junit.xml agrees).")  # fmt: skip
+PYB = {"engine": "pybullet", "integrator": "multibody"}
+
+
+@pytest.fixture
+def bl(tmp_path):
+    base = write(tmp_path / "base", [row(), row(**PYB, energy_drift_max=0.3)])
+    return gate.write_baseline(base, tmp_path / "bl.json")
+
+
+def test_check_prints_the_table_the_invariants_and_what_it_wrote(tmp_path, bl, capsys):
+    """The mujoco run's drift 1e-8 -> 3e-8 (3x: a regression); the pybullet run's 0.3 -> 1.5:
+    5x, and above the divergence limit (1.0) while ok: an invariant broken too."""
+    cur = write(tmp_path / "cur", [row(energy_drift_max=3e-8), row(**PYB, energy_drift_max=1.5)])
+    md, js = tmp_path / "out.md", tmp_path / "out.json"
+    assert gate.check(cur, bl, markdown=md, json_path=js) == 1
+    out = capsys.readouterr().out.split("\n")
+    problem = "dzhanibekov pybullet multibody dt=0.001: status ok with energy drift 1.5"
+    i = out.index("FAIL: 1 statement(s) the results must make true do not hold:")
+    assert out[i + 1] == f"  {problem}"
+    assert out[i + 2].startswith("::error title=director-bench regression%3A dzhanibekov ")
+    assert out[i + 4] == f"::error title=director-bench invariant::{problem}"
+    assert out[i + 5 :] == [f"written: {cur / 'junit.xml'}, {md}, {js}", ""]
+    assert md.read_text().startswith("## director-bench check: FAIL")
+    assert json.loads(js.read_text())["invariant_problems"] == [problem]
+    assert not (cur / "check.md").exists() and not (cur / "check.json").exists()
+    suite = ET.parse(cur / "junit.xml").getroot()
+    assert (suite.get("baseline"), suite.get("failures")) == (str(bl), "2")
+
+
+def test_check_passes_and_writes_beside_the_results_by_default(tmp_path, bl, capsys):
+    cur = write(tmp_path / "cur", [row(), row(**PYB, energy_drift_max=0.3)])
+    assert gate.check(cur, bl) == 0
+    out = capsys.readouterr().out.split("\n")
+    assert out[-3:] == [OK_LINE, f"written: {cur / 'junit.xml'}, {cur / 'check.md'}, "
+                                 f"{cur / 'check.json'}", ""]  # fmt: skip
+    # a drift 2.5x its baseline: beyond the default factor 2, within 3
+    cur = write(tmp_path / "c2", [row(energy_drift_max=2.5e-8), row(**PYB, energy_drift_max=0.3)])
+    assert gate.check(cur, bl) == 1 and gate.check(cur, bl, factor=3.0) == 0
+    # a step 5x slower: gated only with a timing factor
+    cur = write(tmp_path / "c3", [row(ns_per_step=5000.0), row(**PYB, energy_drift_max=0.3)])
+    assert gate.check(cur, bl) == 0 and gate.check(cur, bl, timing_factor=3.0) == 1
+
+
+def test_check_reads_the_junit_run_wrote_and_names_a_missing_run_in_it(tmp_path, bl, capsys):
+    cur = write(tmp_path / "cur", [row()])  # the pybullet run is missing
+    (cur / "junit.xml").write_text('<testsuite tests="7" failures="0" errors="0" skipped="0"/>')
+    assert gate.check(cur, bl) == 1
+    out = capsys.readouterr().out
+    assert f"  {cur / 'junit.xml'}: tests = 7, the results say 1\n" in out
+    suite = ET.parse(cur / "junit.xml").getroot()  # rewritten with the baseline's expectations
+    (case,) = [c for c in suite if c.get("name") == "pybullet/multibody/dt=0.001"]
+    assert case[0].tag == "failure" and "missing run" in case[0].get("message")
+
+
+def test_check_with_nothing_comparable_prints_one_annotation(tmp_path, bl, capsys):
+    cur = write(tmp_path / "cur", [row(scenario="heavy_top")])
+    assert gate.check(cur, bl) == 1
+    cap = capsys.readouterr()
+    why = (f"{cur}: none of its 1 run(s) is in the baseline {bl} (2 runs): nothing was "
+           "compared (another suite, or another baseline?)")  # fmt: skip
+    assert cap.err == f"director-bench: error: {why}\n"
+    assert cap.out == f"::error title=director-bench check%3A nothing compared::{why}\n"
+
+
+def test_check_says_which_output_it_could_not_write(tmp_path, bl, capsys, monkeypatch):
+    """The verdict stands when a summary cannot be written: a warning on stderr naming the
+    file (when the system names one) and the reason; "written:" lists what was written."""
+    cur = write(tmp_path / "cur", [row(), row(**PYB, energy_drift_max=0.3)])
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert gate.check(cur, bl, markdown=blocker / "c.md") == 0
+    cap = capsys.readouterr()
+    tail = "; the verdict above stands, but junit.xml and the summaries were not all written\n"
+    assert cap.err.startswith(f"director-bench: warning: {blocker}") and cap.err.endswith(tail)
+    assert f": {os.strerror(errno.ENOTDIR)}{tail}" in cap.err
+    assert cap.out.split("\n")[-3:] == [OK_LINE, f"written: {cur / 'junit.xml'}", ""]
+
+    def full(*args):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(gate, "write_outputs", full)
+    assert gate.check(cur, bl) == 0
+    assert capsys.readouterr().err == f"director-bench: warning: disk full{tail}"
+
+
+def test_findings_of_compare_name_what_changed(tmp_path, bl):
+    """Runs of another horizon and save_every: mismatches naming both; a run gone from ok
+    to diverged: its status with the message."""
+    other = {"t_end": 10.0, "save_every": 1}
+    cur = write(tmp_path / "cur", [row(**other), row(**PYB, energy_drift_max=0.3, **other)])
+    m = {c.key[1]: c for c in gate.compare(cur, bl).regressions}["mujoco"]
+    assert (m.column, m.a, m.b, m.change) == (
+        "identity", "baseline", "t_end 30 vs 10; save_every 10 vs 1", "mismatch")  # fmt: skip
+    cur = write(
+        tmp_path / "c2",
+        [row(), row(**PYB, status="diverged", verdict="fail", message="blew up at t = 1")],
+    )
+    (s,) = gate.compare(cur, bl).regressions
+    assert (s.column, s.a, s.b, s.change) == (
+        "status", "ok", "diverged: blew up at t = 1", "worse")  # fmt: skip
+
+
+def test_a_run_that_no_longer_diverges_is_no_regression(tmp_path):
+    """Diverged in the baseline (its attitude error 0.1 when it blew up), now run to the end
+    and failing on attitude (1.0): its status improved, so nothing it measures now counts
+    against it; it stays a failing run, listed with both reasons."""
+    was = row(status="diverged", verdict="fail", message="blew up", attitude_error_max=0.1)
+    bl = gate.write_baseline(write(tmp_path / "base", [was]), tmp_path / "bl.json")
+    now = row(verdict="fail", verdict_detail="attitude_error_max 1 > 0.1", attitude_error_max=1.0)
+    cmp = gate.compare(write(tmp_path / "cur", [now]), bl)
+    assert cmp.ok and cmp.known == {K1: ("fail: attitude_error_max 1 > 0.1", "diverged: blew up")}
+
+
+def test_the_energy_parts_are_checked_in_a_store_without_one_of_them(tmp_path):
+    """A store written before the rotational part was measured still has its translational
+    part checked."""
+    df = frame([row(energy_drift_trans_max=2.0)]).drop(columns=["energy_drift_rot_max"])
+    assert gate.invariants(df) == [
+        "dzhanibekov mujoco RK4 dt=0.001: status ok with energy drift trans 2"
+    ]

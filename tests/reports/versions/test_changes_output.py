@@ -161,6 +161,12 @@ def test_the_upgrade_gate_text_lists_the_failures_first():
     lines = format_check(res).split("\n")
     assert [_cells(x)[1] for x in lines[4:7]] == ["top mujoco RK4", "top mujoco RK4 dt=0.0005",
                                                   "top mujoco RK4 dt=0.001"]  # fmt: skip
+    # error-controlled changes at one step by target accuracy, the fixed-step one first
+    acc = [_c("RK45", "metric", M, 1e-3, 1e-4, 0.1, "better", acc=a) for a in (1e-6, None, 1e-8)]
+    lines = format_check(CheckResult("mujoco", "1.0", "1.1", _summary(), acc)).split("\n")
+    assert [_cells(x)[1] for x in lines[4:7]] == [
+        "top mujoco RK45 dt=0.001", "top mujoco RK45 dt=0.001 acc=1e-08",
+        "top mujoco RK45 dt=0.001 acc=1e-06"]  # fmt: skip
     # a cost ratio of exactly the cost factor is not beyond it
     assert CheckResult("mujoco", "1.0", "1.1", _summary(), [cost], cost_factor=3.0).ok
 

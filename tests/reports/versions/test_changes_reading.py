@@ -111,7 +111,8 @@ def test_the_signed_energy_error_of_a_run(tmp_path):
 def test_the_newest_row_of_each_configuration_in_each_release(tmp_path):
     """A store holding, for release 1.0, the Euler run twice (the later one, by its finish
     time, holds 3e-2) and an RK4 sweep at three steps whose attitude errors fall as dt^2 (a
-    fitted order 2); release 0.9 once; and another engine under label 1.0."""
+    fitted order 2; an older run at one step is not part of it); release 0.9 once; and
+    another engine under label 1.0."""
     free = scenarios.load("free_tumbling")
     rows = [
         _row(free, "1.0", "Euler", attitude_error_max=3e-2, finished_at="2026-12-02T00:00:00"),
@@ -119,6 +120,9 @@ def test_the_newest_row_of_each_configuration_in_each_release(tmp_path):
              run_id="an-earlier-run"),
         *[_row(free, "1.0", "RK4", dt=h, attitude_error_max=1e-2 * (h / 1e-3) ** 2)
           for h in (1e-3, 5e-4, 2.5e-4)],
+        # an older run of the sweep's middle step: not in the fit
+        _row(free, "1.0", "RK4", dt=5e-4, attitude_error_max=5e-2,
+             finished_at="2026-11-30T00:00:00", run_id="an-older-rk4-run"),
         _row(free, "0.9", "Euler", attitude_error_max=1e-2),
         {**_row(free, "1.0", "Euler", attitude_error_max=5e-2), "engine": "drake",
          "run_id": "drake-run"},
