@@ -170,7 +170,9 @@ def _load(p, path, model, floating: bool, flags: int, cid) -> list:
 
 
 def readback(model, config: str, floating: bool = False) -> Readback:
-    import pybullet as p
+    from references.engines.pybullet.adapter import _import
+
+    p = _import()  # its build-time banner silenced, as the adapter's runs have it
 
     rb = Readback("pybullet", config)
     cid = p.connect(p.DIRECT)
@@ -292,7 +294,9 @@ class _Sim:
     damping 0, the limits moved to :data:`FAR`, the clamp raised."""
 
     def __init__(self, scenario, config: str, integrator: str, dt: float):
-        import pybullet as p
+        from references.engines.pybullet.adapter import _import
+
+        p = _import()  # its build-time banner silenced
 
         from references.engines.importers import start_of
         from references.errors import Unsupported

@@ -292,3 +292,22 @@ def test_mjx_compilations_are_announced_before_the_runs_with_the_number(capsys):
     assert warn_compiles(specs(scs[:1], ["mjx"], ["euler-float64"])) == []
     # a single body: MJX's compilation there is not announced by this rule
     assert warn_compiles(specs([scenarios.load("dzhanibekov")], ["mjx"], ["euler-float64"])) == []
+
+
+def test_pybullets_importer_prints_no_banner():
+    """PyBullet's C module prints its build time when first imported; the importer's read-back
+    (run in the main process for a run's importer table, reports.run.importers) imports it
+    silenced, as the adapter does: before, a rerun's first line of output was the banner."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("pybullet")
+    code = (
+        "import scenarios\n"
+        "from references.engines import importers as imp\n"
+        "from references.engines.pybullet.importer import readback\n"
+        "readback(scenarios.load('arm3_swing').model, imp.CONFIGS[0])\n"
+    )
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "build time" not in p.stdout + p.stderr, p.stdout + p.stderr
