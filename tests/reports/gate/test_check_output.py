@@ -473,3 +473,69 @@ def test_the_energy_parts_are_checked_in_a_store_without_one_of_them(tmp_path):
     assert gate.invariants(df) == [
         "dzhanibekov mujoco RK4 dt=0.001: status ok with energy drift trans 2"
     ]
+
+
+def test_the_findings_of_a_verdict(tmp_path):
+    """pass -> fail: the verdict, with the run's reason; a failing run failing one more
+    check: that check, with the baseline's reason; fail -> pass: nothing; a run the
+    baseline could not run (unsupported) that now diverges: a verdict from pass to its
+    status and message."""
+    bl = gate.write_baseline(write(tmp_path / "b", [
+        row(), failing_row(**PYB), row(integrator="Euler"),
+        row(integrator="implicit", status="unsupported", message="not here")]),
+        tmp_path / "bl.json")  # fmt: skip
+    more = failing_row(**PYB, energy_drift_max=0.5)
+    more["verdict_detail"] += "; energy_drift_max 0.5 > 0.01"
+    cur = write(
+        tmp_path / "c",
+        [
+            failing_row(),
+            more,
+            row(integrator="Euler"),
+            row(integrator="implicit", status="diverged", verdict="fail", message="blew up"),
+        ],
+    )
+    got = [(c.key[1], c.key[2], c.column, c.a, c.b, c.change)
+           for c in gate.compare(cur, bl).regressions]  # fmt: skip
+    assert got == [
+        ("mujoco", "RK4", "verdict", "pass", "fail: attitude_error_max 0.5 > 0.1", "worse"),
+        ("mujoco", "RK4", "attitude_error_max", 1e-06, 0.5, "worse"),
+        ("mujoco", "implicit", "verdict", "pass", "diverged: blew up", "worse"),
+        ("pybullet", "multibody", "failed checks", "fail: attitude_error_max 0.5 > 0.1",
+         "also fails energy_drift_max: fail: attitude_error_max 0.5 > 0.1; energy_drift_max "
+         "0.5 > 0.01", "worse"),
+        ("pybullet", "multibody", "energy_drift_max", 1e-08, 0.5, "worse"),
+    ]  # fmt: skip
+    # the other way round: every run better or the same, none a regression
+    back = gate.write_baseline(cur, tmp_path / "back.json")
+    assert [c.key[2] for c in gate.compare(write(tmp_path / "d", [
+        row(), failing_row(**PYB), row(integrator="Euler"),
+        row(integrator="implicit", status="diverged", verdict="fail", message="blew up")]),
+        back).regressions] == []  # fmt: skip
+
+
+def test_compare_options_and_what_it_records(tmp_path, bl):
+    # a factor of 1 is allowed (any worsening counts), below 1 is refused naming the option
+    cur = write(tmp_path / "c", [row(energy_drift_max=1.5e-8), row(**PYB, energy_drift_max=0.3)])
+    assert [c.column for c in gate.compare(cur, bl, factor=1.0).regressions] == ["energy_drift_max"]
+    with pytest.raises(ValueError, match=r"^--factor 0\.5: must be a number >= 1$"):
+        gate.compare(cur, bl, factor=0.5)
+    cmp = gate.compare(cur, bl)
+    assert (cmp.a, cmp.b) == (str(bl), str(cur))
+    # the baseline's provenance is the comparison's (check.md names its commit)
+    doc = json.loads(bl.read_text())
+    doc["provenance"] = {"git_commit": "0123abc"}
+    bl.write_text(json.dumps(doc))
+    assert gate.compare(cur, bl).provenance_a == {"git_commit": "0123abc"}
+    # only the runs present: a missing first run does not end the comparison
+    cur = write(tmp_path / "d", [row(**PYB, energy_drift_max=1.5)])
+    (reg,) = gate.compare(cur, bl, only_present=True).regressions
+    assert (reg.key[1], reg.column) == ("pybullet", "energy_drift_max")
+
+
+def test_runs_with_a_target_accuracy_are_matched_on_it(tmp_path):
+    """Two error-controlled runs that differ only in their target accuracy are two runs."""
+    runs = [row(integrator="RK45", target_accuracy=a, run_id=f"rk45-{a}") for a in (1e-6, 1e-8)]
+    bl = gate.write_baseline(write(tmp_path / "b", runs), tmp_path / "bl.json")
+    cmp = gate.compare(write(tmp_path / "c", runs), bl)
+    assert cmp.ok and sorted(k[4] for k in cmp.compared) == [1e-8, 1e-6]
