@@ -72,6 +72,7 @@ from director_model._primitives import (
     fp_count,
     fp_step,
     kahan,
+    kahan4,
     quat_increment,
     quat_matrix,
     stagnated,
@@ -301,16 +302,6 @@ def _kahan3(hi, lo, d, comp):
 
 
 @njit(inline="always")
-def _kahan4(hi, lo, d, comp):
-    """:func:`kahan` on 4-tuples; returns (new values, new compensations)."""
-    t0, e0 = kahan(hi[0], lo[0], d[0], comp)
-    t1, e1 = kahan(hi[1], lo[1], d[1], comp)
-    t2, e2 = kahan(hi[2], lo[2], d[2], comp)
-    t3, e3 = kahan(hi[3], lo[3], d[3], comp)
-    return (t0, t1, t2, t3), (e0, e1, e2, e3)
-
-
-@njit(inline="always")
 def _quat_rescale(p, pl):
     """Multiply p and its compensation by 2^-64 if |p|^2 > 2^128: exact (a power of two),
     so the rotation and the compensated value are unchanged; |p|^2 grows by the factor
@@ -439,7 +430,7 @@ def _rattle_commit(comp, piv, m, pc, hh, rh, w, c, q, p, pl, Pi, Pl, T, G, vecto
 @njit(inline="always")
 def _commit_attitude(p, pl, w, comp):
     """p + p (x) (0, w), compensated: the attitude part of :func:`_rattle_commit`."""
-    return _kahan4(p, pl, quat_increment(p, w), comp)
+    return kahan4(p, pl, quat_increment(p, w), comp)
 
 
 @njit(inline="always")

@@ -68,6 +68,17 @@ def kahan(hi, lo, d, comp):
 
 
 @njit(inline="always")
+def kahan4(hi, lo, d, comp):
+    """:func:`kahan` on 4-tuples (a quaternion and its compensation); returns (new values,
+    new compensations)."""
+    t0, e0 = kahan(hi[0], lo[0], d[0], comp)
+    t1, e1 = kahan(hi[1], lo[1], d[1], comp)
+    t2, e2 = kahan(hi[2], lo[2], d[2], comp)
+    t3, e3 = kahan(hi[3], lo[3], d[3], comp)
+    return (t0, t1, t2, t3), (e0, e1, e2, e3)
+
+
+@njit(inline="always")
 def quat_increment(p, w):
     """p (x) (0, w), the Hamilton product: the increment of the quaternion p when it is
     multiplied by (1, w), the (unnormalised) quaternion of Q with Gibbs vector w. p a

@@ -56,7 +56,7 @@ from numba import njit, prange
 
 from director_model import _cache
 from director_model._primitives import OK as DMV_OK
-from director_model._primitives import kahan, quat_increment, quat_matrix
+from director_model._primitives import kahan, kahan4, quat_increment, quat_matrix
 from director_model.contact import _geometry as G
 from director_model.contact._parts import (
     FAIL_DMV,
@@ -84,7 +84,6 @@ from director_model.contact._parts import (
     _candidates,
     _dmv,
     _fit_gaps,
-    _kahan4,
     _laws,
     _loads,
     _omega_half,
@@ -354,8 +353,8 @@ def run_contact(B, SH, D0, S, WS, WJ, FI, FV, PI, PV, rint, rvec, fb, fv, g, dt,
                         VH[i, c] = VF[i, c] + DV[i, c]
                         XN[i, c], XL[i, c] = kahan(S[i, c], S[i, 3 + c], h * VH[i, c], True)
                     pp = (S[i, 12], S[i, 13], S[i, 14], S[i, 15])
-                    pn, pln = _kahan4(pp, (S[i, 16], S[i, 17], S[i, 18], S[i, 19]),
-                                      quat_increment(pp, (w0, w1, w2)))  # fmt: skip
+                    pn, pln = kahan4(pp, (S[i, 16], S[i, 17], S[i, 18], S[i, 19]),
+                                     quat_increment(pp, (w0, w1, w2)), True)  # fmt: skip
                     for c in range(4):
                         PN[i, c] = pn[c]
                         PL[i, c] = pln[c]

@@ -25,7 +25,7 @@ import math
 
 from numba import njit
 
-from director_model._primitives import dmv_solve, kahan, quat_matrix
+from director_model._primitives import dmv_solve, quat_matrix
 from director_model.contact import _geometry as G
 from director_model.contact._solver import RES_TOL, ac_residual, lu_apply, pattern, scale_of
 from director_model.contact._solver import solve as ac_solve
@@ -752,12 +752,3 @@ def _candidates(FI, FV, PI, PV, SH, X, Dm, marg, cand, cb, cg, P8, fidx, FO):
             cg[nc, 10 + k] = FO[q, 6 + k]
         nc += 1
     return OK, nc, -1, -1
-
-
-@njit(inline="always")
-def _kahan4(hi, lo, d):
-    t0, e0 = kahan(hi[0], lo[0], d[0], True)
-    t1, e1 = kahan(hi[1], lo[1], d[1], True)
-    t2, e2 = kahan(hi[2], lo[2], d[2], True)
-    t3, e3 = kahan(hi[3], lo[3], d[3], True)
-    return (t0, t1, t2, t3), (e0, e1, e2, e3)

@@ -234,17 +234,15 @@ class ContactStepper:
         return self.nstep_done * self.dt
 
     def state(self):
-        """(position (nb, 3), velocity (nb, 3), rotation (nb, 3, 3), omega_body (nb, 3)) now."""
-        S = self._S
-        R = np.array([self._D0[i].reshape(3, 3) @ _qmat(S[i, 12:16]) for i in range(S.shape[0])])
-        return S[:, 0:3].copy(), S[:, 6:9].copy(), R, S[:, 20:23] / self.scene.asm.bodies[:, 1:4]
+        """(position (nb, 3), velocity (nb, 3), rotation (nb, 3, 3), omega_body (nb, 3)) now,
+        stored by the kernel itself (a run of no steps saving its start): the numbers a
+        trajectory saving this step holds, bit for bit."""
+        _, X, V, D, W, *_ = self._run(0, np.zeros(1, dtype=np.int64))
+        return X[0], V[0], D[0], W[0]
 
-    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False):
-        """Advance ``nstep`` steps; save the steps j * save_every of the chunk, its last step
-        and, with ``include_start``, its start. Returns a :class:`ContactTrajectory`."""
-        nstep = _count("nstep", nstep)
-        save_every = _count("save_every", save_every)
-        saves = _saves(nstep, save_every, include_start)
+    def _run(self, nstep: int, saves: np.ndarray):
+        """Run the kernel ``nstep`` steps saving the steps ``saves`` (0 = now). Returns
+        (status, X, V, D, W, Q, PF, info, wall time, thread CPU time)."""
         sc = self.scene
         nb, ns, npair = len(sc.bodies), saves.shape[0], sc.PI.shape[0]
         X = np.zeros((ns, nb, 3))
@@ -264,6 +262,16 @@ class ContactStepper:
         )  # fmt: skip
         wall = time.perf_counter() - t0
         cpu = time.thread_time() - c0
+        return status, X, V, D, W, Q, PF, info, wall, cpu
+
+    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False):
+        """Advance ``nstep`` steps; save the steps j * save_every of the chunk, its last step
+        and, with ``include_start``, its start. Returns a :class:`ContactTrajectory`."""
+        nstep = _count("nstep", nstep)
+        save_every = _count("save_every", save_every)
+        saves = _saves(nstep, save_every, include_start)
+        sc = self.scene
+        status, X, V, D, W, Q, PF, info, wall, cpu = self._run(nstep, saves)
         step0 = self.nstep_done
         if status != P.OK:
             self.nstep_done = step0 + int(info[P.I_STEPS])
@@ -271,15 +279,6 @@ class ContactStepper:
         self.nstep_done = step0 + nstep
         return _trajectory(sc, (step0 + saves) * self.dt, X, V, D, W, Q, PF, nstep, self.dt,
                            wall, cpu)  # fmt: skip
-
-
-def _qmat(p) -> np.ndarray:
-    w, x, y, z = p / np.linalg.norm(p)
-    return np.array([
-        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
-    ])  # fmt: skip
 
 
 def simulate_contact(scene: ContactScene, *, dt: float, t_end: float,

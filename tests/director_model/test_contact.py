@@ -30,6 +30,7 @@ from director_model.contact import (
     Box,
     Capsule,
     ContactScene,
+    ContactStepper,
     Cylinder,
     InvalidContactError,
     Joint,
@@ -352,6 +353,20 @@ def test_tumbling_box_1e5_steps_within_the_laws():
     _check_long_run(tr)
     disp = np.abs(tr.position[-1] - tr.position[len(tr.t) // 2]).max()
     assert disp <= 1e-12  # at rest for the second half: exact stick, no drift
+
+
+def test_stepper_state_is_what_a_trajectory_saves_at_that_step():
+    # ContactStepper.state() is the kernel's own store of the state: equal bit for bit to the
+    # saved step of a trajectory (a tumbling box: a general rotation, spin about every axis)
+    st = ContactStepper(_tumbling_box(), dt=1e-3)
+    start = st.state()
+    tr = st.advance(250, save_every=250, include_start=True)
+    end = st.state()
+    for k, name in enumerate(("position", "velocity", "rotation", "omega_body")):
+        assert np.array_equal(start[k], getattr(tr, name)[0])
+        assert np.array_equal(end[k], getattr(tr, name)[-1])
+    R = end[2]
+    assert abs(np.linalg.det(R[0]) - 1.0) <= 4 * EPS and st.time == 0.25
 
 
 @pytest.mark.parametrize("mu", [0.0, 0.5])
