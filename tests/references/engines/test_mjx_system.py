@@ -166,7 +166,7 @@ def test_the_jdot_v_term_is_the_whole_difference_between_mjx_and_c_mujoco_on_a_l
     """four_bar_stiff_loop (solref 0.004), 0.6 s of Euler at dt 2 ms: MJX and C MuJoCo end
     2.8e-5 apart (measured); C MuJoCo with MJX's reference acceleration ends 5.2e-15 from MJX
     (measured): the connect rows' Jdot v (up to 0.14 here) is all that parts them. The same
-    comparison over the library's loops (reports/forces5.md): four_bar 1.8e-3 vs 2.3e-15,
+    comparison over the library's loops (docs/engines.md, MJX): four_bar 1.8e-3 vs 2.3e-15,
     bricard 8.7e-4 vs 3.2e-15, slider_crank_spatial with solref 0.002 2.0e-2 vs 6.0e-13,
     iftomm_a02_n2 1.81 vs 5.2e-12."""
     import scenarios
