@@ -2,7 +2,8 @@
 
 All numba code of director_model.system is in this module, apart from the primitives it shares
 with the single-body kernels (director_model/_primitives.py: the compensated sum and the
-attitude quaternion's rotation); its disk cache is tied to that file (director_model/_cache.py).
+attitude quaternion's rotation) and the block solver's joint rows (_block3.py); its disk cache
+is tied to those files (director_model/_cache.py).
 
 Formulation. Body i has the director coordinates q_i = (x_i, d_1i, d_2i, d_3i) and the
 constant mass matrix blockdiag(m 1, J_1 1, J_2 1, J_3 1). RATTLE on the whole system splits
@@ -24,7 +25,9 @@ first iterate,
 
 assembled row pair by row pair over the rows that share a body (block tridiagonal for a
 chain: solved by banded LU without pivoting, cost linear in the number of bodies; for chains
-of spherical joints assembled and eliminated as 3x3 blocks in straight-line code). Closed
+of spherical joints assembled and eliminated as 3x3 blocks in straight-line code, their rows,
+forces and rates computed without the zeros of POINT rows, director_model/system/_block3.py,
+with the same numbers). Closed
 loops (redundant rows) are factorised in the same band, with the joints ordered along the
 loops (model.band_order), rank-revealing in the row order: the velocity stage's L D L^T drops
 each row dependent on the rows before it, the Newton matrix's LU drops the same rows (a basic
@@ -72,6 +75,7 @@ tests/director_model/test_director_system.py checks that every kernel compiles a
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from numba import njit, types
@@ -79,6 +83,15 @@ from numba.np.linalg import _LAPACK, ensure_lapack
 
 from director_model import _cache
 from director_model._primitives import kahan, quat_matrix
+from director_model.system._block3 import (  # _U: unsigned array indices, see there
+    _U,
+    _forces3,
+    _hat_blk,
+    _mm_z,
+    _mmt_z,
+    _rows3,
+    _vres3,
+)
 
 ensure_lapack()
 #: LAPACK's dgesdd through numba's wrapper (numba_ez_gesdd: workspace query, then the call),
@@ -152,14 +165,6 @@ D_TSMIN = 3  # step index where it occurred
 D_MAXIT = 4  # largest iteration count of one substep
 D_SVD = 5  # factorisations done by SVD (loop solver: a pivot ratio below PIVOT_CHECK)
 NDIAG = 6
-
-#: array indices cast to unsigned at the access, ``A[_U(i), _U(j)]``, in the loop solver's
-#: assembly, factorisations and solves, the rows, the joint forces and the 3x3 block reads
-#: (every index there is >= 0; the ground's -1 is tested before): numba then skips its
-#: negative-index wraparound (a sign test and a select per index), which also keeps LLVM from
-#: unrolling these short loops. The index arithmetic stays signed (numba computes uint64 with
-#: int64 in float64). Measured on the four-bar's 20 x 20 Newton matrix: its LU 1.4 -> 0.5 us
-_U = np.uint64
 
 
 @njit(forceinline=True)
@@ -400,6 +405,27 @@ def _forces(rint, Jc, lam, F, T):
                 c = _U(c0)
                 F[ub, c] -= Jc[r, _U(6 + c0)] * lr
                 T[ub, c] -= Jc[r, _U(9 + c0)] * lr
+
+
+@njit(forceinline=True)
+def _vres(rint, Jc, vel, om, out):
+    """G u: the rows' rates at the velocities vel (nb, 3) and world angular velocities om
+    (nb, 3)."""
+    for rr in range(rint.shape[0]):
+        ur = _U(rr)
+        ua = _U(rint[ur, 1])
+        b = rint[ur, 2]
+        s = (Jc[ur, 0] * vel[ua, 0] + Jc[ur, 1] * vel[ua, 1]
+             + Jc[ur, 2] * vel[ua, 2])  # fmt: skip
+        s += (Jc[ur, 3] * om[ua, 0] + Jc[ur, 4] * om[ua, 1]
+              + Jc[ur, 5] * om[ua, 2])  # fmt: skip
+        if b >= 0:
+            ub = _U(b)
+            s += (Jc[ur, 6] * vel[ub, 0] + Jc[ur, 7] * vel[ub, 1]
+                  + Jc[ur, 8] * vel[ub, 2])  # fmt: skip
+            s += (Jc[ur, 9] * om[ub, 0] + Jc[ur, 10] * om[ub, 1]
+                  + Jc[ur, 11] * om[ub, 2])  # fmt: skip
+        out[ur] = s
 
 
 @njit(forceinline=True)
@@ -857,23 +883,12 @@ def _store(B, D0, S, X, V, D, W, k):
 
 
 @njit(forceinline=True)
-def _blk(J, r, o):
-    """The 3x3 block J[r:r + 3, o:o + 3] as a row-major 9-tuple."""
-    r0, r1, r2 = _U(r), _U(r + 1), _U(r + 2)
-    o0, o1, o2 = _U(o), _U(o + 1), _U(o + 2)
-    return (
-        J[r0, o0], J[r0, o1], J[r0, o2],
-        J[r1, o0], J[r1, o1], J[r1, o2],
-        J[r2, o0], J[r2, o1], J[r2, o2],
-    )  # fmt: skip
-
-
-@njit(forceinline=True)
 def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
     """Block-tridiagonal assembly for joints of three point rows listed along a chain (joint
     k has the rows 3k .. 3k + 2; joints sharing a body are adjacent): the blocks
     sum_i (sigma sigma' Mx_i 1 + C_k Mth_i C_l^T), C the rotation part of a joint's rows on
-    body i and sigma = +-1 its translation part (+-identity). Dg[k] = block (k, k),
+    body i (a cross-product matrix: zero diagonal, products without its zeros, _block3.py)
+    and sigma = +-1 its translation part (+-identity). Dg[k] = block (k, k),
     Up[k] = (k, k + 1), Lo[k] = (k + 1, k), each a row-major 9-vector."""
     _zero2(Dg)
     _zero2(Up)
@@ -884,12 +899,12 @@ def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
         for e1 in range(jptr[i], jptr[i + 1]):
             k = jidx[e1]
             o1 = 6 * jside[e1]
-            CLM = _mm(_blk(JL, 3 * k, o1 + 3), M)
+            CLM = _mm_z(_hat_blk(JL, 3 * k, o1 + 3), M)
             sl = JL[3 * k, o1] * mx
             for e2 in range(jptr[i], jptr[i + 1]):
                 m = jidx[e2]
                 o2 = 6 * jside[e2]
-                Bk = _mmt(CLM, _blk(JR, 3 * m, o2 + 3))
+                Bk = _mmt_z(CLM, _hat_blk(JR, 3 * m, o2 + 3))
                 d = sl * JR[3 * m, o2]
                 if m == k:
                     for c in range(9):
@@ -1065,7 +1080,10 @@ def _run_system(
                     xmax = max(xmax, abs(S[i, c]))
             tol = tol_rel * xmax
             if nrow > 0:
-                _rows(rint, rvec, S, Dn, gv, Jold)
+                if banded or minnorm:
+                    _rows(rint, rvec, S, Dn, gv, Jold)
+                else:
+                    _rows3(rint, rvec, S, Dn, gv, Jold)
             if nfe > 0:
                 for i in range(nb):
                     WD[i, 0], WD[i, 1], WD[i, 2] = _mul(
@@ -1119,7 +1137,10 @@ def _run_system(
                 # iterate (plain Newton: linear convergence near a singular configuration)
                 fresh = it == 0 or it >= 3
                 if nrow > 0:
-                    _forces(rint, Jold, lam, F, T)
+                    if banded or minnorm:
+                        _forces(rint, Jold, lam, F, T)
+                    else:
+                        _forces3(rint, Jold, lam, F, T)
                 if nfe > 0:
                     if nrow == 0:
                         _zero2(F)
@@ -1167,7 +1188,10 @@ def _run_system(
                         Mx[i] = 0.5 / m
                 if nrow == 0:
                     break
-                _rows(rint, rvec, XN, Dnew, gv, Jnew)
+                if banded or minnorm:
+                    _rows(rint, rvec, XN, Dnew, gv, Jnew)
+                else:
+                    _rows3(rint, rvec, XN, Dnew, gv, Jnew)
                 err = 0.0
                 for r in range(nrow):
                     err = max(err, abs(gv[r]))
@@ -1323,21 +1347,10 @@ def _run_system(
                 else:
                     vel, om = VH, TW
                 if nrow > 0:
-                    for rr in range(nrow):
-                        ur = _U(rr)
-                        ua = _U(rint[ur, 1])
-                        b = rint[ur, 2]
-                        s = (Jnew[ur, 0] * vel[ua, 0] + Jnew[ur, 1] * vel[ua, 1]
-                             + Jnew[ur, 2] * vel[ua, 2])  # fmt: skip
-                        s += (Jnew[ur, 3] * om[ua, 0] + Jnew[ur, 4] * om[ua, 1]
-                              + Jnew[ur, 5] * om[ua, 2])  # fmt: skip
-                        if b >= 0:
-                            ub = _U(b)
-                            s += (Jnew[ur, 6] * vel[ub, 0] + Jnew[ur, 7] * vel[ub, 1]
-                                  + Jnew[ur, 8] * vel[ub, 2])  # fmt: skip
-                            s += (Jnew[ur, 9] * om[ub, 0] + Jnew[ur, 10] * om[ub, 1]
-                                  + Jnew[ur, 11] * om[ub, 2])  # fmt: skip
-                        r0[ur] = s
+                    if banded or minnorm:
+                        _vres(rint, Jnew, vel, om, r0)
+                    else:
+                        _vres3(rint, Jnew, vel, om, r0)
                     if minnorm:
                         if vsvd:
                             _svd_solve(U, sv, Vt, rank, r0, dl)
@@ -1347,7 +1360,10 @@ def _run_system(
                         _band_ldl_solve(Ab, bw, r0, dl)
                     else:
                         _blk_solve(Dg, Up, Lo, r0, dl)
-                    _forces(rint, Jnew, dl, Fn, Tn)
+                    if banded or minnorm:
+                        _forces(rint, Jnew, dl, Fn, Tn)
+                    else:
+                        _forces3(rint, Jnew, dl, Fn, Tn)
                 else:
                     _zero2(Fn)
                     _zero2(Tn)
@@ -1465,4 +1481,7 @@ def run_system_banded(
                        jidx, jside, fint, fvec, True)  # fmt: skip
 
 
-_cache.tie(globals())
+_cache.tie(
+    globals(),
+    *[Path(__file__).parent.parent / "_primitives.py", Path(__file__).with_name("_block3.py")],
+)

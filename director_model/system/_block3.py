@@ -1,0 +1,178 @@
+"""Kernels of the block solver's joints: three POINT rows each (spherical and fixed-point
+joints; model.assemble's ``block3``), rows 3k .. 3k + 2 the components 0, 1, 2 of joint k.
+
+The general code of director_model/system/_kernels.py reads each row's 12 Jacobian entries,
+of which a POINT row has 6 exact zeros and two entries +-1, and computes the lever arms
+once per row. The functions here compute the lever arms once per joint and leave out the
+terms with a factor 0 and the factors 1 (a 3x3 rotation block of a joint is a cross-product
+matrix: zero diagonal), keeping every other operation and the order of every sum: the
+results are bit for bit those of the general code (x + 0 * y = x and x - 0 * y = x for every
+finite nonzero x; only the sign of a zero result could differ, and a zero compares equal to
+zero in every later use). Measured (benchmarks/bench_system_chain_scaling.py): 15-18 % of a
+chain's step. The kernels of _kernels.py inline them; its disk cache is tied to this file.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: array indices cast to unsigned at the access, ``A[_U(i), _U(j)]`` (every index there is
+#: >= 0; the ground's -1 is tested before): numba then skips its negative-index wraparound (a
+#: sign test and a select per index), which also keeps LLVM from unrolling short loops. The
+#: index arithmetic stays signed (numba computes uint64 with int64 in float64). Measured on
+#: the four-bar's 20 x 20 Newton matrix: its LU 1.4 -> 0.5 us
+_U = np.uint64
+
+
+@njit(forceinline=True)
+def _rows3(rint, rvec, X, D, gv, Jc):
+    """The row values gv and Jacobians Jc of ``_kernels._rows`` for joints of three POINT rows
+    (components 0, 1, 2 in rows 3k .. 3k + 2): the lever arms once per joint, only the
+    nonzero entries of Jc written (the others stay 0: in the block solver nothing else
+    writes Jc), each with the operations of ``_kernels._rows``."""
+    for k0 in range(rint.shape[0] // 3):
+        r = _U(3 * k0)
+        r1 = _U(3 * k0 + 1)
+        r2 = _U(3 * k0 + 2)
+        a = _U(rint[r, 1])
+        b = rint[r, 2]
+        va0, va1, va2 = rvec[r, 0], rvec[r, 1], rvec[r, 2]
+        vb0, vb1, vb2 = rvec[r, 3], rvec[r, 4], rvec[r, 5]
+        ra0 = D[a, 0] * va0 + D[a, 1] * va1 + D[a, 2] * va2
+        ra1 = D[a, 3] * va0 + D[a, 4] * va1 + D[a, 5] * va2
+        ra2 = D[a, 6] * va0 + D[a, 7] * va1 + D[a, 8] * va2
+        if b >= 0:
+            ub = _U(b)
+            rb0 = D[ub, 0] * vb0 + D[ub, 1] * vb1 + D[ub, 2] * vb2
+            rb1 = D[ub, 3] * vb0 + D[ub, 4] * vb1 + D[ub, 5] * vb2
+            rb2 = D[ub, 6] * vb0 + D[ub, 7] * vb1 + D[ub, 8] * vb2
+            xb0, xb1, xb2 = X[ub, 0], X[ub, 1], X[ub, 2]
+        else:
+            rb0, rb1, rb2 = vb0, vb1, vb2
+            xb0, xb1, xb2 = 0.0, 0.0, 0.0
+        gv[r] = (X[a, 0] + ra0) - (xb0 + rb0)
+        gv[r1] = (X[a, 1] + ra1) - (xb1 + rb1)
+        gv[r2] = (X[a, 2] + ra2) - (xb2 + rb2)
+        Jc[r, 0] = 1.0
+        Jc[r, 4] = ra2
+        Jc[r, 5] = -ra1
+        Jc[r, 6] = -1.0
+        Jc[r, 10] = -rb2
+        Jc[r, 11] = rb1
+        Jc[r1, 1] = 1.0
+        Jc[r1, 3] = -ra2
+        Jc[r1, 5] = ra0
+        Jc[r1, 7] = -1.0
+        Jc[r1, 9] = rb2
+        Jc[r1, 11] = -rb0
+        Jc[r2, 2] = 1.0
+        Jc[r2, 3] = ra1
+        Jc[r2, 4] = -ra0
+        Jc[r2, 8] = -1.0
+        Jc[r2, 9] = -rb1
+        Jc[r2, 10] = rb0
+
+
+@njit(forceinline=True)
+def _forces3(rint, Jc, lam, F, T):
+    """The joint forces -G^T lam of ``_kernels._forces`` (F force, T world torque per body)
+    for the rows of :func:`_rows3`: each sum over the rows in the same order, without its
+    terms 0 * lam (x - 0 = x) and with 1 * lam as lam."""
+    for i in range(F.shape[0]):
+        for c in range(3):
+            F[i, c] = 0.0
+            T[i, c] = 0.0
+    for k0 in range(rint.shape[0] // 3):
+        r = _U(3 * k0)
+        r1 = _U(3 * k0 + 1)
+        r2 = _U(3 * k0 + 2)
+        a = _U(rint[r, 1])
+        b = rint[r, 2]
+        l0, l1, l2 = lam[r], lam[r1], lam[r2]
+        F[a, 0] -= l0
+        F[a, 1] -= l1
+        F[a, 2] -= l2
+        T[a, 0] = (T[a, 0] - Jc[r1, 3] * l1) - Jc[r2, 3] * l2
+        T[a, 1] = (T[a, 1] - Jc[r, 4] * l0) - Jc[r2, 4] * l2
+        T[a, 2] = (T[a, 2] - Jc[r, 5] * l0) - Jc[r1, 5] * l1
+        if b >= 0:
+            ub = _U(b)
+            F[ub, 0] += l0
+            F[ub, 1] += l1
+            F[ub, 2] += l2
+            T[ub, 0] = (T[ub, 0] - Jc[r1, 9] * l1) - Jc[r2, 9] * l2
+            T[ub, 1] = (T[ub, 1] - Jc[r, 10] * l0) - Jc[r2, 10] * l2
+            T[ub, 2] = (T[ub, 2] - Jc[r, 11] * l0) - Jc[r1, 11] * l1
+
+
+@njit(forceinline=True)
+def _vres3(rint, Jc, vel, om, out):
+    """G u for the rows of :func:`_rows3` (u = (vel, om) per body): the sums of
+    ``_kernels._vres`` in the same order, without their terms 0 * u and with 1 * u as u."""
+    for k0 in range(rint.shape[0] // 3):
+        r = _U(3 * k0)
+        r1 = _U(3 * k0 + 1)
+        r2 = _U(3 * k0 + 2)
+        a = _U(rint[r, 1])
+        b = rint[r, 2]
+        o0, o1, o2 = om[a, 0], om[a, 1], om[a, 2]
+        s0 = vel[a, 0] + (Jc[r, 4] * o1 + Jc[r, 5] * o2)
+        s1 = vel[a, 1] + (Jc[r1, 3] * o0 + Jc[r1, 5] * o2)
+        s2 = vel[a, 2] + (Jc[r2, 3] * o0 + Jc[r2, 4] * o1)
+        if b >= 0:
+            ub = _U(b)
+            o0, o1, o2 = om[ub, 0], om[ub, 1], om[ub, 2]
+            s0 = (s0 - vel[ub, 0]) + (Jc[r, 10] * o1 + Jc[r, 11] * o2)
+            s1 = (s1 - vel[ub, 1]) + (Jc[r1, 9] * o0 + Jc[r1, 11] * o2)
+            s2 = (s2 - vel[ub, 2]) + (Jc[r2, 9] * o0 + Jc[r2, 10] * o1)
+        out[r] = s0
+        out[r1] = s1
+        out[r2] = s2
+
+
+@njit(forceinline=True)
+def _mm_z(A, B):
+    """A B for row-major 3x3 9-tuples, A with a zero diagonal: the sums of ``_kernels._mm``
+    without their terms 0 * b."""
+    return (
+        A[1] * B[3] + A[2] * B[6],
+        A[1] * B[4] + A[2] * B[7],
+        A[1] * B[5] + A[2] * B[8],
+        A[3] * B[0] + A[5] * B[6],
+        A[3] * B[1] + A[5] * B[7],
+        A[3] * B[2] + A[5] * B[8],
+        A[6] * B[0] + A[7] * B[3],
+        A[6] * B[1] + A[7] * B[4],
+        A[6] * B[2] + A[7] * B[5],
+    )
+
+
+@njit(forceinline=True)
+def _mmt_z(A, B):
+    """A B^T for row-major 3x3 9-tuples, B with a zero diagonal: the sums of ``_kernels._mmt``
+    without their terms a * 0."""
+    return (
+        A[1] * B[1] + A[2] * B[2],
+        A[0] * B[3] + A[2] * B[5],
+        A[0] * B[6] + A[1] * B[7],
+        A[4] * B[1] + A[5] * B[2],
+        A[3] * B[3] + A[5] * B[5],
+        A[3] * B[6] + A[4] * B[7],
+        A[7] * B[1] + A[8] * B[2],
+        A[6] * B[3] + A[8] * B[5],
+        A[6] * B[6] + A[7] * B[7],
+    )
+
+
+@njit(forceinline=True)
+def _hat_blk(J, r, o):
+    """The rotation block J[r:r + 3, o:o + 3] of a joint's three POINT rows (zero diagonal)
+    as a row-major 9-tuple."""
+    r0, r1, r2 = _U(r), _U(r + 1), _U(r + 2)
+    o0, o1, o2 = _U(o), _U(o + 1), _U(o + 2)
+    return (
+        0.0, J[r0, o1], J[r0, o2],
+        J[r1, o0], 0.0, J[r1, o2],
+        J[r2, o0], J[r2, o1], 0.0,
+    )  # fmt: skip
