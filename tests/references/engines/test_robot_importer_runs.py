@@ -311,3 +311,22 @@ def test_pybullets_importer_prints_no_banner():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     assert "build time" not in p.stdout + p.stderr, p.stdout + p.stderr
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_an_importer_run_is_timed_in_cpu_time_and_again_in_the_timing_pass(engine):
+    """An importer's stepping is timed on the run's stopwatch (references.engines.timing.lap)
+    as the system builders' is: its row carries the engine's CPU time and its spread, so
+    the timing pass times it again (reports.run.timing.timed) and a busy machine does not
+    inflate its cost (before: wall time only, no repeat, 1.6x-3.3x apart between a run
+    alone and one beside a second suite, bench_cost_agreement.py)."""
+    from reports.run import runner, timing
+    from reports.store.runs import RunSpec
+
+    sc = scenarios.load("arm3_swing").replace(t_end=0.05, dt_sweep=())
+    base = {"mujoco": "RK4", "pybullet": "multibody"}[engine]
+    row = runner.execute(RunSpec(sc, engine, imp.variant(base, "faithful"), 1e-3))
+    assert row["status"] == "ok", row["message"]
+    assert 0 < row["engine_time_s"] <= row["cpu_time_s"] <= row["wall_time_s"] + 1e-9, row
+    assert row["engine_time_spread_s"] >= 0 and 0 < row["cpu_share"] <= 1
+    assert timing.timed(row)
