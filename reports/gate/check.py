@@ -120,6 +120,8 @@ def read_baseline(path: str | Path) -> dict:
                 f"{path}: not a baseline file (larger than {MAX_BASELINE_BYTES} bytes)"
             )
         doc = json.loads(data.decode("utf-8-sig"))  # a leading byte-order mark is no JSON
+    except InputError:  # too large: already says so (it is a ValueError, as JSON's are)
+        raise
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: baseline file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -539,3 +539,103 @@ def test_runs_with_a_target_accuracy_are_matched_on_it(tmp_path):
     bl = gate.write_baseline(write(tmp_path / "b", runs), tmp_path / "bl.json")
     cmp = gate.compare(write(tmp_path / "c", runs), bl)
     assert cmp.ok and sorted(k[4] for k in cmp.compared) == [1e-8, 1e-6]
+
+
+def test_the_baseline_file_as_written(tmp_path):
+    """Strict JSON (no NaN), one line per key, keys sorted, a final newline, into folders
+    made for it; per run its target accuracy (null for a fixed step), its failure reason (a
+    failed verdict's detail, or a status and its message; empty for a pass) and failed checks,
+    the folder's provenance."""
+    folder = write(
+        tmp_path / "r",
+        [
+            row(),
+            row(
+                integrator="Euler",
+                verdict="fail",
+                verdict_detail="attitude_error_max 0.5 > 0.1; energy_drift_max 1 > 0.1",
+            ),
+            row(integrator="RK45", target_accuracy=1e-8, run_id="rk45"),
+            row(integrator="implicit", status="unsupported", verdict="", message="not in 3.3"),
+        ],
+    )
+    (folder / "provenance.json").write_text('{"git_commit": "0123abc"}')
+    path = gate.write_baseline(folder, tmp_path / "a" / "b" / "bl.json")
+    text = path.read_text()
+    assert path == tmp_path / "a" / "b" / "bl.json"
+    assert text.startswith('{\n "format": 3,\n "provenance": {\n  "git_commit": "0123abc"\n },')
+    assert text.endswith("}\n") and "NaN" not in text
+    doc = json.loads(text)
+    assert list(doc) == ["format", "provenance", "runs"]
+    runs = doc["runs"]
+    assert [list(r) == sorted(r) for r in runs] == [True] * 4
+    got = [(r["integrator"], r["status"], r["verdict"], r["target_accuracy"], r["reason"],
+            r["failed_checks"], r["segment"], r["t_end"]) for r in runs]  # fmt: skip
+    assert got == [
+        ("Euler", "ok", "fail", None,
+         "fail: attitude_error_max 0.5 > 0.1; energy_drift_max 1 > 0.1",
+         ["attitude_error_max", "energy_drift_max"], None, 30.0),
+        ("RK4", "ok", "pass", None, "", [], None, 30.0),
+        ("RK45", "ok", "pass", 1e-8, "", [], None, 30.0),
+        ("implicit", "unsupported", "", None, "unsupported: not in 3.3", [], None, 30.0),
+    ]  # fmt: skip
+
+
+def test_more_ways_a_baseline_file_is_refused_or_read(tmp_path, monkeypatch):
+    entry = {
+        "scenario": "s",
+        "engine": "e",
+        "integrator": "i",
+        "dt": 0.001,
+        "status": "ok",
+        "verdict": "pass",
+        "target_accuracy": None,
+        **dict.fromkeys(IDENTITY_COLUMNS),
+    }
+    path = tmp_path / "bl.json"
+
+    def refused(doc):
+        path.write_text(json.dumps(doc))
+        with pytest.raises((ValueError, FileNotFoundError)) as exc:
+            gate.read_baseline(path)
+        return str(exc.value)
+
+    assert refused({"format": 2, "runs": []}) == (
+        f"{path}: baseline format 2, this suite reads format 3 (with each run's identity: "
+        "scenario content, horizon, save_every, segmenting, engine and suite versions); write "
+        "it again with `director-bench baseline DIR --write FILE`"
+    )
+    assert refused({"format": 3, "runs": [entry, {**entry, "verdict": "fail"}]}) == (
+        f"{path}: runs[1] repeats the configuration of runs[0] (s e/i/dt=0.001): each run is "
+        "in a baseline once (which of the two would count is not for the order of the file "
+        "to decide); remove one, or write the baseline again with `director-bench baseline "
+        "DIR --write FILE`"
+    )
+    # an entry without a verdict is a run with nothing to judge
+    no_verdict = {k: v for k, v in entry.items() if k != "verdict"}
+    path.write_text(json.dumps({"format": 3, "runs": [no_verdict]}))
+    assert gate.read_baseline(path)["runs"] == [no_verdict]
+    path.unlink()
+    with pytest.raises(FileNotFoundError) as exc:
+        gate.read_baseline(path)
+    assert str(exc.value) == f"{path}: baseline file not found"
+    # the size limit (64 MiB; 100 bytes here): one byte more is refused before it is parsed
+    monkeypatch.setattr(gate, "MAX_BASELINE_BYTES", 100)
+    path.write_text(" " * 101)
+    with pytest.raises(ValueError) as exc:
+        gate.read_baseline(path)
+    assert str(exc.value) == f"{path}: not a baseline file (larger than 100 bytes)"
+    path.write_text('{"format": 3, "runs": []}'.ljust(100))
+    assert gate.read_baseline(path) == {"format": 3, "runs": []}
+
+
+def test_the_fitted_order_of_every_configuration_is_checked(tmp_path):
+    """A configuration above its order on a steady motion is let through; the next one,
+    off its order on a generic motion, is still checked."""
+    above = dict(order=1.0, convergence_order=2.0, convergence_points=2.0)
+    steady = row(integrator="Euler", **above, reference_kind="spinning_chain")
+    off = row(integrator="RK4", order=4.0, convergence_order=2.9, convergence_points=2.0,
+              reference_kind="free_body")  # fmt: skip
+    assert gate.invariants(frame([steady, off])) == [
+        "dzhanibekov mujoco RK4: fitted order 2.900 from 2 points, declared 4"
+    ]
