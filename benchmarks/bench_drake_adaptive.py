@@ -50,7 +50,7 @@ def run_one(cls, sc, integrator: str, accuracy: float, t_end: float, checkpoints
         row.update(status=exc.status, message=str(exc))
         return row
     tr = one_body(out.trajectory)
-    ref = reference_trajectory(sc, tr.t)
+    ref = one_body(reference_trajectory(sc, tr.t))
     row.update(
         achieved=attitude_error(tr.rotation, ref.rotation),
         reference_accuracy=float(ref.accuracy),

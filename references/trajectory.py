@@ -257,7 +257,8 @@ def one_body(traj):
     without a bodies axis: a :class:`Trajectory` as it is (None as None); a
     :class:`SystemTrajectory` of one body that carries its energy and angular momentum
     (:meth:`Trajectory.as_bodies`) as a :class:`Trajectory` over views of its arrays (no
-    copy: the values, and the memory layout numpy's arithmetic may depend on, are the same)."""
+    copy: the values, and the memory layout numpy's arithmetic may depend on, are the same);
+    of a read-only one, the same view object at every call."""
     if traj is None or isinstance(traj, Trajectory):
         return traj
     nb = len(traj.body_names)
@@ -267,10 +268,21 @@ def one_body(traj):
             + ("" if nb != 1 else " without its energy and angular momentum")
             + " is not the trajectory of a scene of one body (see Trajectory.as_bodies)"
         )
-    return Trajectory(
+    arrays = (traj.t, traj.position, traj.velocity, traj.rotation, traj.omega_body,
+              traj.energy, traj.angular_momentum, traj.constraint_velocity)  # fmt: skip
+    kept = traj.__dict__.get("_one_body")
+    if kept is not None and all(a is b for a, b in zip(kept[0], arrays, strict=True)):
+        return kept[1]
+    view = Trajectory(
         traj.t, traj.position[:, 0], traj.velocity[:, 0], traj.rotation[:, 0],
         traj.omega_body[:, 0], traj.energy, traj.angular_momentum, traj.constraint_velocity,
     )  # fmt: skip
+    if not traj.rotation.flags.writeable:
+        # a trajectory nobody may change (a reference the runner shares among the runs on its
+        # grid): the same view each time, so that what a metric keeps on it
+        # (reports.metrics.body._nearest_kept) is computed once per reference, not per run
+        traj._one_body = (arrays, view)
+    return view
 
 
 # -- systems of bodies ----------------------------------------------------------------------

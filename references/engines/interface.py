@@ -10,7 +10,8 @@ members, so neither can drift).
 :mod:`references.engines.stepping`): the step plan, the read-back of the model, the
 initial-state check through the engine's own quantities, the loop (saves, chunks, progress,
 the stopwatch that separates time inside the engine's calls from the suite's glue), the
-divergence checks and the conversion into the suite's :class:`references.trajectory.Trajectory`.
+divergence checks and the conversion into the suite's trajectory schema
+(:mod:`references.trajectory`).
 Adapters never compute metrics.
 
 Failures are exceptions of the classes below with a ``status``; the runner turns each into a

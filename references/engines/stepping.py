@@ -2,7 +2,7 @@
 calls :func:`run_loop`): the step plan, the read-back of the model, the initial-state check
 through the engine's own quantities, the loop (saves, chunks, progress, the stopwatch that
 separates time inside the engine's calls from the suite's glue), the divergence checks and the
-conversion into the suite's :class:`~references.trajectory.Trajectory`.
+conversion into the suite's trajectory schema (:mod:`references.trajectory`).
 
 ``engine`` below is an :class:`~references.engines.interface.Engine` (an adapter); this module
 does not import it, the interface imports this one.

@@ -1,9 +1,9 @@
 """Exact and high-accuracy reference solutions of scenarios.
 
-:func:`reference_trajectory` returns a :class:`ReferenceTrajectory` (the suite's
-:class:`references.trajectory.Trajectory` plus ``kind``, ``accuracy``, ``omega_accuracy``,
-``method`` and ``reason``); :func:`expected_observables` gives exact values of phase
-observables.
+:func:`reference_trajectory` returns a :class:`ReferenceTrajectory` (the suite's trajectory
+of one body, :class:`references.trajectory.SystemTrajectory`, plus ``kind``, ``accuracy``,
+``omega_accuracy``, ``method`` and ``reason``); :func:`expected_observables` gives exact
+values of phase observables.
 
 Reference kinds (``scenario.reference``, or the ``kind`` argument):
 
@@ -59,7 +59,7 @@ from references.exact import numerical
 from references.exact._util import ReferenceNotApplicable
 from references.exact.free_body import FreeBody, free_flight
 from references.exact.lagrange_top import LagrangeTop, NotALagrangeTop
-from references.trajectory import Trajectory
+from references.trajectory import SystemTrajectory, Trajectory
 
 __all__ = [
     "CLOSED_FORMS",
@@ -89,9 +89,12 @@ NEAR_VERTICAL = 1e-3
 
 
 @dataclass
-class ReferenceTrajectory(Trajectory):
-    """A reference solution in the suite's trajectory schema, with what it is, how good, and
-    why that kind was used (``reason``, including any hand-over to the numerical reference)."""
+class ReferenceTrajectory(SystemTrajectory):
+    """A reference solution in the suite's trajectory schema (the scenario's one body on the
+    bodies axis, its energy and momentum computed by :meth:`Trajectory.from_states`), with what
+    it is, how good, and why that kind was used (``reason``, including any hand-over to the
+    numerical reference). The single-body metrics read it through
+    :func:`references.trajectory.one_body`."""
 
     kind: str = ""
     accuracy: float = math.nan
@@ -284,7 +287,8 @@ def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTraje
 
 
 def _wrap(base: Trajectory, kind, acc, method, wacc, reason) -> ReferenceTrajectory:
-    data = {f.name: getattr(base, f.name) for f in fields(Trajectory)}
+    bodies = base.as_bodies()
+    data = {f.name: getattr(bodies, f.name) for f in fields(SystemTrajectory)}
     return ReferenceTrajectory(
         **data,
         kind=kind,

@@ -75,14 +75,16 @@ class StreamingRecorder(Recorder):
         if not self._nbuf:
             return
         from references.engines.recording import block_trajectory
+        from references.trajectory import one_body
 
         t = np.concatenate(self._buf_steps) * self.dt
         block = cv.BodyState(*(np.concatenate(p) for p in zip(*self._buf, strict=True)))
-        tr = block_trajectory(self.scenario, t, block, np.concatenate(self._buf_cv))
+        tr = one_body(block_trajectory(self.scenario, t, block, np.concatenate(self._buf_cv)))
         ref = None
         if self.reference is not None:
             ref = self.reference(t)
             self.reference_accuracy = max(self.reference_accuracy, float(ref.accuracy))
+            ref = one_body(ref)
         for metric, fn in streamed():
             if metric.reference and ref is None:
                 continue

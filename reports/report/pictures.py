@@ -197,13 +197,14 @@ def scenario_figures(names, out: Path, samples: int = 401) -> list[Path]:
     at ``samples`` times: ``scenario_<name>.png`` in ``out``."""
     import scenarios
     from references.exact import reference_trajectory
+    from references.trajectory import one_body
 
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for name in names:
         sc = scenarios.load(name)
         t = np.linspace(0.0, sc.t_end, samples)
-        ref = reference_trajectory(sc, t)
+        ref = one_body(reference_trajectory(sc, t))
         path = out / f"scenario_{name}.png"
         paths.append(scenario_picture(sc, t, ref.rotation, ref.position, path))
     return paths

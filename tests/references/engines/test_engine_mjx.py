@@ -24,6 +24,7 @@ from references.engines import FAMILIES, EngineError, Unsupported, engine_names,
 from references.engines import conformance as kit
 from references.engines.context import BodyModel, RunContext
 from references.engines.stepping import initial_state
+from references.trajectory import one_body
 
 EPS = np.finfo(float).eps
 U32 = 2.0**-24
@@ -51,6 +52,7 @@ def _angle(Ra, Rb) -> np.ndarray:
 
 def _gap(a, b) -> dict:
     """Largest differences of two trajectories: attitude (rad), W, x, v (their units)."""
+    a, b = one_body(a), one_body(b)
     return {
         "R": float(_angle(a.rotation, b.rotation).max()),
         "W": float(np.abs(a.omega_body - b.omega_body).max()),
@@ -159,7 +161,7 @@ def test_float64_euler_reproduces_c_mujoco(free_runs):
     """500 steps of the same algorithm in another implementation: the gap is round-off, a few
     ulp per step accumulated (bound 500 x 10 eps of each quantity's size; measured ~1e-15)."""
     sc, runs = free_runs
-    ref, got = runs["C"].trajectory, runs["Euler (float64)"].trajectory
+    ref, got = one_body(runs["C"].trajectory), one_body(runs["Euler (float64)"].trajectory)
     gap = _gap(ref, got)
     bound = 500 * 10 * EPS
     assert gap["R"] <= bound
@@ -330,8 +332,8 @@ def test_implicitfast_is_bitwise_euler_in_mjx(every_config):
     free, top, out = every_config
     for sc in (free, top):
         for p in ("float64", "float32"):
-            a = out[sc.name, f"Euler ({p})"].trajectory
-            b = out[sc.name, f"implicitfast ({p})"].trajectory
+            a = one_body(out[sc.name, f"Euler ({p})"].trajectory)
+            b = one_body(out[sc.name, f"implicitfast ({p})"].trajectory)
             assert np.array_equal(a.rotation, b.rotation) and np.array_equal(
                 a.omega_body, b.omega_body
             )
@@ -344,7 +346,7 @@ def test_float64_rk4_is_mjxs_algorithm_on_c_mujocos_dynamics(every_config):
     free, top, out = every_config
     for sc in (free, top):
         qpos, qvel = _rk4_mjx_algorithm(sc, sc.dt, round(sc.t_end / sc.dt))
-        tr = out[sc.name, "RK4 (float64)"].trajectory
+        tr = one_body(out[sc.name, "RK4 (float64)"].trajectory)
         if sc.pivot is not None:
             R, W = cv.mujoco_ball_to_state(qpos, qvel)
         else:
@@ -359,8 +361,8 @@ def test_mjx_rk4_is_not_c_mujoco_4_rk4(every_config):
     their attitudes part by the latter's O(h^2) error, while the torque-free body rates (which
     do not depend on the attitude) agree to round-off."""
     free, top, out = every_config
-    c = out[free.name, "C RK4"].trajectory
-    m = out[free.name, "RK4 (float64)"].trajectory
+    c = one_body(out[free.name, "C RK4"].trajectory)
+    m = one_body(out[free.name, "RK4 (float64)"].trajectory)
     if not get_engine("mujoco").version().startswith("4."):
         pytest.skip("measured against C MuJoCo 4")
     assert _angle(c.rotation, m.rotation).max() > 1e-9

@@ -32,6 +32,7 @@ from references.engines import (
 )
 from references.engines.conformance import free_scenario, pivoted_scenario
 from references.engines.stepping import check_readback
+from references.trajectory import one_body
 from scenarios.model import Scenario
 
 #: the third-party engines' adapters (the suite's own "director" and "exact" are tested with
@@ -146,7 +147,7 @@ def test_initial_state_read_back(name, integrator, kind):
             engine.run(sc, integrator, dt, t_end=dt)
         return
     out = engine.run(sc, integrator, dt, t_end=dt, save_every=1)
-    tr = out.trajectory
+    tr = one_body(out.trajectory)
     x, v, E, L = hand_energy_momentum(sc)
     # 1e-12 relative: the brief's bound; conversions cost a few ulp (measured <= 1e-15)
     assert abs(tr.energy[0] - E) <= 1e-12 * abs(E)
@@ -241,7 +242,7 @@ def test_pybullet_velocity_clamp_is_raised():
     # integrator keeps W exactly (round-off only); the default clamp would cut it to 100
     sc = free_body(omega_body=[0.0, 0.0, 150.0], velocity=[0, 0, 0], gravity=[0, 0, 0])
     for integrator in ("multibody", "maximal coordinates"):
-        tr = run(engine, integrator, sc, 1e-3, t_end=0.05).trajectory
+        tr = one_body(run(engine, integrator, sc, 1e-3, t_end=0.05).trajectory)
         # 1e-12 relative: round-off of 50 steps
         assert np.allclose(tr.omega_body[-1], [0, 0, 150.0], rtol=0, atol=150 * 1e-12)
 
@@ -253,7 +254,7 @@ def test_pybullet_spherical_motor_is_off_and_its_default_is_real():
     # steady spin of a pivoted body about its (principal) pivot axis, no gravity: exact
     # solution R(t) = R0 exp(t hat W), W constant; a motor pulling to identity breaks it
     sc = pivoted_generic(omega_body=[0.0, 0.0, 5.0], pivot=[0, 0, -0.5], gravity=[0, 0, 0])
-    tr = run(engine, "multibody", sc, 1e-3).trajectory
+    tr = one_body(run(engine, "multibody", sc, 1e-3).trajectory)
     R_exact = sc.rotation @ Rotation.from_rotvec([0, 0, 5.0 * sc.t_end]).as_matrix()
     # 1e-12: round-off of 1000 steps (measured 1.4e-15)
     assert np.allclose(tr.rotation[-1], R_exact, rtol=0, atol=1e-12)
@@ -292,7 +293,9 @@ def test_dart_deactivation_is_switched_off():
     # 1e-6: the algorithm's own energy error here is 7.3e-8 (first order, measured); a
     # sleeping body would have no kinetic energy at all (ratio 0)
     assert abs(_energy_ratio(out.trajectory) - 1) < 1e-6
-    assert np.allclose(out.trajectory.position[-1], sc.position + 2.0 * sc.velocity, atol=1e-14)
+    assert np.allclose(
+        one_body(out.trajectory).position[-1], sc.position + 2.0 * sc.velocity, atol=1e-14
+    )
     assert out.settings["deactivation (sleeping)"] is False
     # the read-back refuses a World with deactivation left on
     engine, ctx = built("dart", sc)
@@ -359,7 +362,7 @@ def test_mujoco_state_is_read_from_qpos_not_stale_xmat():
     fresh = d.xmat[1].reshape(3, 3).copy()
     # the step turned the body by dt |W| = 0.026 rad
     assert np.abs(fresh - stale).max() > 0.5 * dt * np.linalg.norm(sc.omega_body)
-    assert np.allclose(out.trajectory.rotation[1], fresh, rtol=0, atol=1e-15)
+    assert np.allclose(one_body(out.trajectory).rotation[1], fresh, rtol=0, atol=1e-15)
 
 
 def test_mujoco_alignment_trap_is_refused():

@@ -481,8 +481,9 @@ def test_linear_momentum_drift_of_a_run_saved_and_streamed():
 def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
     tmp_path, monkeypatch, name, engine, integrator
 ):
-    """An engine whose single-body output is on a bodies axis (Trajectory.as_bodies) gives the
-    row and the trajectory file of the same run in the single body's schema, bit for bit:
+    """A single body's run (its output on the bodies axis, Trajectory.as_bodies) gives the row
+    and the trajectory file of the same run handed over without the bodies axis
+    (references.trajectory.one_body of it: the single body's (n, ...) arrays), bit for bit:
     every column but the timings, and every column of the file."""
     import dataclasses
 
@@ -490,6 +491,7 @@ def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
 
     import scenarios
     from references.engines import get_engine
+    from references.trajectory import one_body
     from reports.run.runner import execute
     from reports.store.runs import RunSpec
 
@@ -499,11 +501,12 @@ def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
     cls = get_engine(engine)
     run = cls.run
 
-    def on_bodies(self, *args, **kw):
+    def one(self, *args, **kw):
         out = run(self, *args, **kw)
-        return dataclasses.replace(out, trajectory=out.trajectory.as_bodies())
+        assert out.trajectory.position.shape[1:] == (1, 3)
+        return dataclasses.replace(out, trajectory=one_body(out.trajectory))
 
-    monkeypatch.setattr(cls, "run", on_bodies)
+    monkeypatch.setattr(cls, "run", one)
     bodies = execute(spec, out=tmp_path / "bodies")
     assert plain["status"] == "ok", plain["message"]
     timing = {"wall_time_s", "engine_time_s", "glue_time_s", "cpu_time_s", "ns_per_step",
@@ -517,3 +520,29 @@ def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
     fa = pd.read_parquet(tmp_path / "plain" / plain["trajectory"])
     fb = pd.read_parquet(tmp_path / "bodies" / bodies["trajectory"])
     pd.testing.assert_frame_equal(fa, fb, check_exact=True)
+
+
+def test_one_body_of_a_shared_reference_is_one_view_and_its_polar_factor_is_kept():
+    """The runner shares a scenario's reference among the runs on its grid, read-only
+    (reports.run.body.reference_for): one_body gives the same view of it at every call, so
+    that its nearest rotation (reports.metrics.body._nearest_kept) is computed once per
+    reference, not once per run; a trajectory that may change gets a new view each time."""
+    import scenarios
+    from references.trajectory import one_body
+    from reports.metrics.body import _nearest_kept
+    from reports.run.body import reference_for
+
+    sc = scenarios.load("dzhanibekov")
+    t = np.linspace(0.0, 0.5, 6)
+    ref = reference_for(sc, t)
+    assert reference_for(sc, t) is ref and ref.rotation.shape == (6, 1, 3, 3)
+    view = one_body(ref)
+    assert one_body(ref) is view and not view.rotation.flags.writeable
+    assert _nearest_kept(one_body(ref)) is _nearest_kept(view)
+    tr = Trajectory.from_states(
+        sc,
+        ref.t,
+        *(np.array(getattr(view, f)) for f in ("position", "velocity", "rotation", "omega_body")),
+    ).as_bodies()
+    assert one_body(tr) is not one_body(tr)
+    np.testing.assert_array_equal(one_body(tr).rotation, view.rotation)
