@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 import scenarios
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 from reports.metrics.system import loop_gap
 from reports.report.tables import closure_settings
 from reports.store.results import read_results, reference_rows
@@ -31,7 +31,7 @@ def rows(folder: Path):
         sc = scenarios.load(r["scenario"])
         if not getattr(sc, "loop_joints", None) or r["dt"] != sc.dt:
             continue
-        tr = SystemTrajectory.read(folder / r["trajectory"])
+        tr = Trajectory.read(folder / r["trajectory"])
         gap = loop_gap(sc, tr)
         at = [gap[min(np.searchsorted(tr.t, f * tr.t[-1]), len(gap) - 1)] for f in FRACTIONS]
         settings = closure_settings(r.to_dict(), short=True)[:60] or "-"

@@ -473,10 +473,10 @@ def initial_state_errors(scenario, state: BodyState, native: dict | None = None)
     each other; only the engine's own energy and momentum (or its own kinematics) check that
     the engine understood the state the way we meant it.
     """
-    from references.trajectory import Trajectory
+    from references.trajectory import OneBody
 
     def one(x, v, R, W):
-        return Trajectory.from_states(scenario, [0.0], [x], [v], [R], [W])
+        return OneBody.from_states(scenario, [0.0], [x], [v], [R], [W])
 
     ref = one(scenario.position, scenario.velocity, scenario.rotation, scenario.omega_body)
     got = one(*state)

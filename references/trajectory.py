@@ -1,22 +1,34 @@
 """The one trajectory schema every engine's output is mapped into.
 
-A :class:`Trajectory` holds, at ``n`` saved times:
+A :class:`Trajectory` holds the saved states of a scene of ``nb`` bodies at ``n`` times, on a
+bodies axis (bodies in the scenario's order; a single body's scenario is a scene of one body,
+named ``"body"``), each body's frame its principal frame at its centre of mass:
 
-=====================  =========  ==========================================================
-field                  shape      meaning
-=====================  =========  ==========================================================
-``t``                  (n,)       time, s
-``position``           (n, 3)     centre of mass x_G, world axes, m
-``velocity``           (n, 3)     centre-of-mass velocity v_G, world axes, m/s
-``rotation``           (n, 3, 3)  body-to-world rotation R (columns are the directors)
-``omega_body``         (n, 3)     angular velocity W in body axes, rad/s
-``energy``             (n,)       E = T + V, J (computed by the suite, see below)
-``angular_momentum``   (n, 3)     L in world axes, about the centre of mass for a free body and
-                                  about the pivot (world origin) for a pivoted one, kg m^2/s
-``constraint_velocity`` (n,)      velocity-constraint residual ||D^T D' + D'^T D||_F, 1/s: the
-                                  director velocities' departure from the tangent space (see
-                                  below)
-=====================  =========  ==========================================================
+=======================  ==============  ===================================================
+field                    shape           meaning
+=======================  ==============  ===================================================
+``t``                    (n,)            time, s
+``position``             (n, nb, 3)      centres of mass x_G, world axes, m
+``velocity``             (n, nb, 3)      centre-of-mass velocities v_G, world axes, m/s
+``rotation``             (n, nb, 3, 3)   body-to-world rotations R (columns: the directors)
+``omega_body``           (n, nb, 3)      angular velocities W in body axes, rad/s
+``body_names``           (nb,)           names of the bodies
+``energy``               (n,)            one body: E = T + V, J (computed by the suite)
+``angular_momentum``     (n, 3)          one body: L in world axes, about the centre of mass
+                                         for a free body and about the pivot (world origin)
+                                         for a pivoted one, kg m^2/s
+``constraint_velocity``  (n,)            one body: velocity-constraint residual
+                                         ||D^T D' + D'^T D||_F, 1/s (see below)
+=======================  ==============  ===================================================
+
+A scene of one body carries its per-sample energy, angular momentum and velocity-constraint
+residual (:meth:`Trajectory.from_states` computes them); for a system of bodies they are None:
+its energy, momenta and joint residuals are computed from its states
+(:func:`system_energy`, :func:`system_momenta`, ``reports.metrics.system``).
+
+The single-body metrics read a scene of one body through :func:`one_body`: a :class:`OneBody`,
+the same states without the bodies axis ((n, 3), (n, 3, 3) arrays, views of the
+trajectory's: no copy), which is also what a single body's file holds.
 
 The velocity constraint of the director form (D^T D' skew) holds by construction for an
 engine whose state is (R, W): there D' = R hat(W) and the residual is R^T R hat(W) -
@@ -29,9 +41,10 @@ computes them from pose, velocity and the scenario's mass and inertia, identical
 engine (``E = 1/2 m |v_G|^2 + 1/2 W . I W - m g . x_G``; ``L = R I W`` about the centre of
 mass, plus ``x_G x m v_G`` about the pivot).
 
-On disk (Parquet, or CSV on request) the columns are
+On disk (Parquet, or CSV on request) a single body's columns are
 ``t, x, y, z, vx, vy, vz, R00 ... R22 (row-major), wx, wy, wz, energy, Lx, Ly, Lz,
-constraint_velocity``.
+constraint_velocity`` (:data:`COLUMNS`, :meth:`OneBody.write`); a system's are ``t`` and, per
+body ``<name>``, ``<name>.x ... <name>.R22 ... <name>.wz`` (:meth:`Trajectory.columns`).
 """
 
 from __future__ import annotations
@@ -90,7 +103,7 @@ def _energy_terms(scenario, position, velocity, omega_body):
 
 
 def energy(scenario, position, velocity, rotation, omega_body) -> np.ndarray:
-    """Total energy E = T + V from states, shape (n,). Arrays as in :class:`Trajectory`."""
+    """Total energy E = T + V from states, shape (n,). Arrays as in :class:`OneBody`."""
     del rotation  # the rotational energy needs only body rates and principal moments
     t_trans, t_rot, V = _energy_terms(scenario, position, velocity, omega_body)
     return (t_trans + t_rot) + V
@@ -120,8 +133,11 @@ def angular_momentum(scenario, position, velocity, rotation, omega_body) -> np.n
 
 
 @dataclass
-class Trajectory:
-    """Saved states of one run in the suite's schema (see the module docstring)."""
+class OneBody:
+    """The states of a scene of one body without the bodies axis, (n, ...) arrays: what the
+    single-body metrics read (:func:`one_body` of a :class:`Trajectory`) and what a single
+    body's file holds (:meth:`write`, :meth:`read`). Fields as in :class:`Trajectory` with
+    ``nb`` left out; ``energy`` and ``angular_momentum`` are required."""
 
     t: np.ndarray
     position: np.ndarray
@@ -148,7 +164,7 @@ class Trajectory:
         for name, shape in shapes.items():
             if name == "constraint_velocity" and self.constraint_velocity is None:
                 self.constraint_velocity = velocity_constraint(self.rotation, self.omega_body)
-            setattr(self, name, _shaped("Trajectory", name, getattr(self, name), shape, where))
+            setattr(self, name, _shaped("OneBody", name, getattr(self, name), shape, where))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -156,8 +172,9 @@ class Trajectory:
     @classmethod
     def from_states(
         cls, scenario, t, position, velocity, rotation, omega_body, constraint_velocity=None
-    ) -> Trajectory:
-        """Build a trajectory from states, computing energy and momentum the suite's way.
+    ) -> OneBody:
+        """One body's states, computing energy and momentum the suite's way
+        (:meth:`Trajectory.from_states` puts them on the bodies axis).
 
         For a pivoted scenario ``position`` and ``velocity`` may be None: they follow from the
         rotation and body rates (x_G = -R c, v_G = -R (W x c) with c the pivot in body axes).
@@ -203,7 +220,7 @@ class Trajectory:
         return pd.DataFrame(data, columns=COLUMNS)
 
     @classmethod
-    def from_frame(cls, df) -> Trajectory:
+    def from_frame(cls, df) -> OneBody:
         missing = [c for c in COLUMNS if c not in df.columns]
         if missing:
             raise ValueError(f"trajectory table lacks columns {missing}")
@@ -234,18 +251,19 @@ class Trajectory:
         return path
 
     @classmethod
-    def read(cls, path: str | Path) -> Trajectory:
+    def read(cls, path: str | Path) -> OneBody:
+        """Read a single body's file written by the suite (Parquet or CSV)."""
         import pandas as pd
 
         path = Path(path)
         df = pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
         return cls.from_frame(df)
 
-    def as_bodies(self, name: str = "body") -> SystemTrajectory:
-        """The same states on a bodies axis: a :class:`SystemTrajectory` of one body named
-        ``name`` carrying this trajectory's energy, angular momentum and velocity-constraint
-        residual; its arrays are views of this one's (no copy)."""
-        return SystemTrajectory(
+    def as_bodies(self, name: str = "body") -> Trajectory:
+        """The same states on the bodies axis: a :class:`Trajectory` of one body named
+        ``name`` carrying these energy, angular momentum and velocity-constraint residual;
+        its arrays are views of these (no copy)."""
+        return Trajectory(
             self.t, self.position[:, None], self.velocity[:, None], self.rotation[:, None],
             self.omega_body[:, None], (name,), energy=self.energy,
             angular_momentum=self.angular_momentum, constraint_velocity=self.constraint_velocity,
@@ -254,26 +272,26 @@ class Trajectory:
 
 def one_body(traj):
     """The states of a scene of one body as the single-body metrics read them, (n, ...) arrays
-    without a bodies axis: a :class:`Trajectory` as it is (None as None); a
-    :class:`SystemTrajectory` of one body that carries its energy and angular momentum
-    (:meth:`Trajectory.as_bodies`) as a :class:`Trajectory` over views of its arrays (no
-    copy: the values, and the memory layout numpy's arithmetic may depend on, are the same);
-    of a read-only one, the same view object at every call."""
-    if traj is None or isinstance(traj, Trajectory):
+    without the bodies axis: of a :class:`Trajectory` of one body that carries its energy and
+    angular momentum (:meth:`Trajectory.from_states`), a :class:`OneBody` over views of its
+    arrays (no copy: the values, and the memory layout numpy's arithmetic may depend on, are
+    the same), of a read-only one the same view object at every call; a :class:`OneBody` as
+    it is, None as None."""
+    if traj is None or isinstance(traj, OneBody):
         return traj
     nb = len(traj.body_names)
     if nb != 1 or traj.energy is None or traj.angular_momentum is None:
         raise ValueError(
             f"one_body: a trajectory of {nb} bodies ({', '.join(traj.body_names)})"
             + ("" if nb != 1 else " without its energy and angular momentum")
-            + " is not the trajectory of a scene of one body (see Trajectory.as_bodies)"
+            + " is not the trajectory of a scene of one body (see Trajectory.from_states)"
         )
     arrays = (traj.t, traj.position, traj.velocity, traj.rotation, traj.omega_body,
               traj.energy, traj.angular_momentum, traj.constraint_velocity)  # fmt: skip
     kept = traj.__dict__.get("_one_body")
     if kept is not None and all(a is b for a, b in zip(kept[0], arrays, strict=True)):
         return kept[1]
-    view = Trajectory(
+    view = OneBody(
         traj.t, traj.position[:, 0], traj.velocity[:, 0], traj.rotation[:, 0],
         traj.omega_body[:, 0], traj.energy, traj.angular_momentum, traj.constraint_velocity,
     )  # fmt: skip
@@ -285,33 +303,16 @@ def one_body(traj):
     return view
 
 
-# -- systems of bodies ----------------------------------------------------------------------
+# -- the trajectory: bodies on an axis --------------------------------------------------------
 
 
 @dataclass
-class SystemTrajectory:
-    """Saved states of one run of a system of ``nb`` bodies at ``n`` times, bodies in the
-    order of the scenario's ``bodies`` (each body's frame its principal frame at its centre
-    of mass):
-
-    =================  ==============  ====================================================
-    ``t``              (n,)            time, s
-    ``position``       (n, nb, 3)      centres of mass, world axes, m
-    ``velocity``       (n, nb, 3)      centre-of-mass velocities, world axes, m/s
-    ``rotation``       (n, nb, 3, 3)   body-to-world rotations
-    ``omega_body``     (n, nb, 3)      angular velocities in body axes, rad/s
-    ``body_names``     (nb,)           names of the bodies
-    =================  ==============  ====================================================
-
-    A scene of one body also carries its per-sample ``energy`` (n,), ``angular_momentum``
-    (n, 3) and ``constraint_velocity`` (n,), computed the single body's way
-    (:meth:`Trajectory.from_states`, :meth:`Trajectory.as_bodies`) and read by its metrics
-    through :func:`one_body`; for a system they are None. Energy, momenta and joint residuals
-    of a system are computed by the suite from its states (``reports.metrics.system``), never
-    taken from an engine. On disk (Parquet) the columns are ``t`` and, per body ``<name>``,
-    ``<name>.x ... <name>.R22 ... <name>.wz`` in the layout of :data:`COLUMNS` (without
-    energy and momentum).
-    """
+class Trajectory:
+    """Saved states of one run of a scene of ``nb`` bodies at ``n`` times, in the suite's
+    schema (the fields and their shapes: the module docstring). A scene of one body also
+    carries its ``energy``, ``angular_momentum`` and ``constraint_velocity``
+    (:meth:`from_states`), read by its metrics through :func:`one_body`; for a system they are
+    None."""
 
     t: np.ndarray
     position: np.ndarray
@@ -335,9 +336,7 @@ class SystemTrajectory:
         }
         where = f"n = {n} saved times, nb = {nb} bodies"
         for name, shape in shapes.items():
-            setattr(
-                self, name, _shaped("SystemTrajectory", name, getattr(self, name), shape, where)
-            )
+            setattr(self, name, _shaped("Trajectory", name, getattr(self, name), shape, where))
         self.body_names = tuple(self.body_names)
         one_body_shapes = {"energy": (n,), "angular_momentum": (n, 3), "constraint_velocity": (n,)}
         for name, shape in one_body_shapes.items():
@@ -346,21 +345,34 @@ class SystemTrajectory:
                 continue
             if nb != 1:
                 raise ValueError(
-                    f"SystemTrajectory field {name!r} belongs to a scene of one body, not of "
+                    f"Trajectory field {name!r} belongs to a scene of one body, not of "
                     f"nb = {nb} bodies"
                 )
-            setattr(self, name, _shaped("SystemTrajectory", name, value, shape, where))
+            setattr(self, name, _shaped("Trajectory", name, value, shape, where))
 
     def __len__(self) -> int:
         return len(self.t)
 
-    def head(self, k: int) -> SystemTrajectory:
+    @classmethod
+    def from_states(
+        cls, scenario, t, position, velocity, rotation, omega_body, constraint_velocity=None
+    ) -> Trajectory:
+        """The trajectory of a scene of one body from its states, (n, ...) arrays as in
+        :class:`OneBody`, energy and momentum computed the suite's way
+        (:meth:`OneBody.from_states`; ``constraint_velocity`` None: computed from R and W).
+        For a pivoted scenario ``position`` and ``velocity`` may be None."""
+        one = OneBody.from_states(
+            scenario, t, position, velocity, rotation, omega_body, constraint_velocity
+        )
+        return one.as_bodies()
+
+    def head(self, k: int) -> Trajectory:
         """The first ``k`` saved states."""
 
         def first(a):
             return None if a is None else a[:k]
 
-        return SystemTrajectory(
+        return Trajectory(
             self.t[:k], self.position[:k], self.velocity[:k], self.rotation[:k],
             self.omega_body[:k], self.body_names, first(self.energy),
             first(self.angular_momentum), first(self.constraint_velocity),
@@ -370,7 +382,7 @@ class SystemTrajectory:
     BODY_COLUMNS = COLUMNS[1:19]
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The on-disk columns, name -> (n,) array (see the class docstring)."""
+        """A system's on-disk columns, name -> (n,) array (see the module docstring)."""
         n = len(self)
         cols = {"t": self.t}
         for b, name in enumerate(self.body_names):
@@ -387,7 +399,7 @@ class SystemTrajectory:
         return cols
 
     @classmethod
-    def from_columns(cls, cols, body_names) -> SystemTrajectory:
+    def from_columns(cls, cols, body_names) -> Trajectory:
         """The inverse of :meth:`columns` (``cols``: a mapping or a DataFrame)."""
         t = np.asarray(cols["t"], dtype=float)
         n, nb = len(t), len(body_names)
@@ -401,17 +413,21 @@ class SystemTrajectory:
         )  # fmt: skip
 
     @classmethod
-    def read(cls, path: str | Path) -> SystemTrajectory:
-        """Read a system trajectory written by the suite (Parquet); the body names are the
-        column prefixes, in order."""
+    def read(cls, path: str | Path) -> Trajectory:
+        """Read a trajectory file written by the suite: a system's (Parquet; the body names are
+        the column prefixes, in order) or a single body's (Parquet or CSV,
+        :meth:`OneBody.read`: one body with its energy and momentum)."""
         import pandas as pd
 
-        df = pd.read_parquet(path)
+        path = Path(path)
+        df = pd.read_csv(path) if path.suffix == ".csv" else pd.read_parquet(path)
         names = list(dict.fromkeys(c.rsplit(".", 1)[0] for c in df.columns if c.endswith(".x")))
+        if not names and "x" in df.columns:
+            return OneBody.from_frame(df).as_bodies()
         return cls.from_columns(df, names)
 
 
-def system_energy(scenario, traj: SystemTrajectory) -> np.ndarray:
+def system_energy(scenario, traj: Trajectory) -> np.ndarray:
     """E = sum_b 1/2 m_b |v_b|^2 + 1/2 W_b . I_b W_b - m_b g . x_b of a system's states, (n,),
     J (the bodies' masses and principal moments from ``scenario.bodies``), plus the force
     elements' potential (:func:`scenarios.force_elements.potential`: the springs' 1/2 k
@@ -427,7 +443,7 @@ def system_energy(scenario, traj: SystemTrajectory) -> np.ndarray:
     return (t_trans + t_rot) + V + potential(scenario, x, traj.rotation)
 
 
-def system_momenta(scenario, traj: SystemTrajectory, about) -> tuple[np.ndarray, np.ndarray]:
+def system_momenta(scenario, traj: Trajectory, about) -> tuple[np.ndarray, np.ndarray]:
     """(linear momentum (n, 3) kg m/s, angular momentum about the world point ``about``
     (n, 3) kg m^2/s) of a system's states: sum m_b v_b and
     sum (x_b - about) x m_b v_b + R_b I_b W_b."""

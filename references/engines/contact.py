@@ -45,7 +45,7 @@ from references.engines.integrators import Family, register_family
 from references.engines.stepping import step_plan
 from references.engines.system import _threaded
 from references.errors import Diverged, EngineError, Unsupported
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 
 #: families of contact configurations: what the engines' contact solvers are (docs/engines.md)
 CONTACT_FAMILIES = {
@@ -128,7 +128,7 @@ def check_settings(engine: str, settings: dict, known) -> None:
 class ContactRunOutput:
     """A contact run's states, contacts and costs (``SystemRunOutput`` plus ``contacts``)."""
 
-    trajectory: SystemTrajectory
+    trajectory: Trajectory
     contacts: dict
     nstep: int
     wall_time_s: float
@@ -513,9 +513,7 @@ def run_contact(
     if missing:
         raise EngineError(f"{engine} contact builder: its result lacks {missing}")
     try:
-        traj = SystemTrajectory(
-            res["t"], res["x"], res["v"], res["R"], res["W"], scenario.body_names
-        )
+        traj = Trajectory(res["t"], res["x"], res["v"], res["R"], res["W"], scenario.body_names)
     except ValueError as exc:
         raise EngineError(f"{engine} contact builder: {exc}") from None
     contacts = res["contacts"]

@@ -15,7 +15,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.integrators import Integrator
 from references.engines.timing import Stopwatch, Timing
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from references.engines.native import NativeStderr
@@ -122,12 +122,12 @@ class RunContext:
 class RunOutput:
     """What one run returns: the trajectory in the suite's schema (the scene's one body on the
     bodies axis; the single-body metrics read it through references.trajectory.one_body), the
-    number of steps taken,
-    the wall time of the stepping (model building excluded) split into the time inside the
-    engine's own calls and the suite's glue around them, the dynamics evaluations per step,
-    and every setting changed from the engine's defaults (recorded with the results)."""
+    number of steps taken, the wall time of the stepping (model building excluded) split into
+    the time inside the engine's own calls and the suite's glue around them, the dynamics
+    evaluations per step, and every setting changed from the engine's defaults (recorded with
+    the results)."""
 
-    trajectory: SystemTrajectory
+    trajectory: Trajectory
     nstep: int
     wall_time_s: float
     engine_time_s: float

@@ -1,6 +1,6 @@
 """Recording a run's states: the :class:`Recorder` keeps the saved steps block by block and
-turns them into the suite's trajectory (:class:`~references.trajectory.SystemTrajectory`, one body
-on the bodies axis)."""
+turns them into the suite's :class:`~references.trajectory.Trajectory` (the scene's one body on
+the bodies axis)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from references import conventions as cv
-from references.trajectory import SystemTrajectory, Trajectory
+from references.trajectory import Trajectory
 
 
 def sorted_unique(a) -> np.ndarray:
@@ -65,7 +65,7 @@ class Recorder:
             self.blocks.append(cv.BodyState(*(a[keep] for a in block)))
             self.cv.append(res[keep])
 
-    def trajectory(self, scenario, dt: float) -> SystemTrajectory:
+    def trajectory(self, scenario, dt: float) -> Trajectory:
         if not self.blocks:
             return block_trajectory(scenario, np.zeros(0), None, np.zeros(0))
         steps = np.concatenate(self.steps)
@@ -73,15 +73,14 @@ class Recorder:
         return block_trajectory(scenario, steps * dt, block, np.concatenate(self.cv))
 
 
-def block_trajectory(scenario, t, block, residuals) -> SystemTrajectory:
-    """The trajectory of a block of states of the scenario's one body, on the bodies axis
-    (:meth:`Trajectory.as_bodies`), energy and momentum computed the single body's way
-    (:meth:`Trajectory.from_states`); ``residuals`` the engine's own velocity-constraint
-    residuals (NaN where it has none: then computed from R and W)."""
+def block_trajectory(scenario, t, block, residuals) -> Trajectory:
+    """The trajectory of a block of states of the scenario's one body, energy and momentum
+    computed the suite's way (:meth:`Trajectory.from_states`); ``residuals`` the engine's own
+    velocity-constraint residuals (NaN where it has none: then computed from R and W)."""
     t = np.asarray(t, dtype=float)
     if block is None or not len(t):
         z = np.zeros((0, 3))
-        return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z).as_bodies()
+        return Trajectory.from_states(scenario, t, z, z, np.zeros((0, 3, 3)), z)
     x, v, R, W = block
     res = np.asarray(residuals, dtype=float)
     own = None
@@ -89,4 +88,4 @@ def block_trajectory(scenario, t, block, residuals) -> SystemTrajectory:
         from references.trajectory import velocity_constraint
 
         own = np.where(np.isfinite(res), res, velocity_constraint(R, W))
-    return Trajectory.from_states(scenario, t, x, v, R, W, own).as_bodies()
+    return Trajectory.from_states(scenario, t, x, v, R, W, own)

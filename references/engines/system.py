@@ -44,7 +44,7 @@ from references.engines import importers, timing
 from references.engines.context import SystemResult
 from references.engines.stepping import DIVERGENCE_ENERGY, step_plan
 from references.errors import Diverged, EngineError, Unsupported
-from references.trajectory import SystemTrajectory, system_energy
+from references.trajectory import Trajectory, system_energy
 from scenarios.force_elements import dissipative, has_elements
 from scenarios.models.configurations import split_variant
 
@@ -53,7 +53,7 @@ from scenarios.models.configurations import split_variant
 class SystemRunOutput:
     """A system run's states and costs (the system counterpart of ``RunOutput``)."""
 
-    trajectory: SystemTrajectory
+    trajectory: Trajectory
     nstep: int
     wall_time_s: float
     engine_time_s: float
@@ -230,7 +230,7 @@ def _output(engine, scenario, integrator, dt, t_end, saves, res, wall) -> System
             f"{engine} system builder: it returned a {type(res).__name__}, not a SystemResult"
         )
     try:
-        traj = SystemTrajectory(res.t, res.x, res.v, res.R, res.W, scenario.body_names)
+        traj = Trajectory(res.t, res.x, res.v, res.R, res.W, scenario.body_names)
     except ValueError as exc:
         raise EngineError(f"{engine} system builder: {exc}") from None
     want = saves * float(dt)

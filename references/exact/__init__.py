@@ -1,7 +1,7 @@
 """Exact and high-accuracy reference solutions of scenarios.
 
-:func:`reference_trajectory` returns a :class:`ReferenceTrajectory` (the suite's trajectory
-of one body, :class:`references.trajectory.SystemTrajectory`, plus ``kind``, ``accuracy``,
+:func:`reference_trajectory` returns a :class:`ReferenceTrajectory` (the suite's
+:class:`references.trajectory.Trajectory` of the scene's one body, plus ``kind``, ``accuracy``,
 ``omega_accuracy``, ``method`` and ``reason``); :func:`expected_observables` gives exact
 values of phase observables.
 
@@ -59,7 +59,7 @@ from references.exact import numerical
 from references.exact._util import ReferenceNotApplicable
 from references.exact.free_body import FreeBody, free_flight
 from references.exact.lagrange_top import LagrangeTop, NotALagrangeTop
-from references.trajectory import SystemTrajectory, Trajectory
+from references.trajectory import Trajectory
 
 __all__ = [
     "CLOSED_FORMS",
@@ -89,7 +89,7 @@ NEAR_VERTICAL = 1e-3
 
 
 @dataclass
-class ReferenceTrajectory(SystemTrajectory):
+class ReferenceTrajectory(Trajectory):
     """A reference solution in the suite's trajectory schema (the scenario's one body on the
     bodies axis, its energy and momentum computed by :meth:`Trajectory.from_states`), with what
     it is, how good, and why that kind was used (``reason``, including any hand-over to the
@@ -287,8 +287,7 @@ def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTraje
 
 
 def _wrap(base: Trajectory, kind, acc, method, wacc, reason) -> ReferenceTrajectory:
-    bodies = base.as_bodies()
-    data = {f.name: getattr(bodies, f.name) for f in fields(SystemTrajectory)}
+    data = {f.name: getattr(base, f.name) for f in fields(Trajectory)}
     return ReferenceTrajectory(
         **data,
         kind=kind,

@@ -1,10 +1,11 @@
 """Metrics computed by the suite from trajectories, identically for every engine.
 
-Every function takes trajectories in the suite's schema (:class:`references.Trajectory`) and the
-:class:`scenarios.Scenario` they came from; the entry points (:func:`compute_metrics`,
-:func:`series`, :func:`metrics_and_series`) also take a scene of one body on a bodies axis
-(:class:`references.trajectory.SystemTrajectory`), read through
-:func:`references.trajectory.one_body`; none trusts a value reported by an engine. Drifts
+Every function takes one body's states (:class:`references.trajectory.OneBody`: (n, 3),
+(n, 3, 3) arrays) and the :class:`scenarios.Scenario` they came from; the entry points
+(:func:`compute_metrics`, :func:`series`, :func:`metrics_and_series`) take the run's
+trajectory in the suite's schema (:class:`references.trajectory.Trajectory`, the scene's one
+body on the bodies axis) and read it through :func:`references.trajectory.one_body`; none
+trusts a value reported by an engine. Drifts
 are measured against the scenario's own initial state (computed the suite's way), not against
 the engine's first saved sample, so an engine that builds the initial state wrongly shows it.
 Each has a physical scale, the scenario's (:class:`scenarios.model.Scenario`), never a

@@ -1,5 +1,5 @@
 """Metrics of systems of bodies, computed by the suite from the states of a run
-(:class:`references.trajectory.SystemTrajectory`) and the scenario
+(:class:`references.trajectory.Trajectory`) and the scenario
 (:class:`scenarios.SystemScenario`), identically for every engine. The columns are those of
 one body where the meaning carries over (the largest over the bodies) and three more:
 
@@ -57,10 +57,10 @@ __all__ = ["SYSTEM_METRICS", "compute_system_metrics", "error_series"]
 
 def _initial(scenario):
     """The scenario's initial state as a one-sample trajectory."""
-    from references.trajectory import SystemTrajectory
+    from references.trajectory import Trajectory
 
     bs = scenario.bodies
-    return SystemTrajectory(
+    return Trajectory(
         [0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
         [[b.rotation for b in bs]], [[b.omega_body for b in bs]], scenario.body_names,
     )  # fmt: skip

@@ -152,7 +152,7 @@ def run_identity(row: dict) -> dict:
 
 def bodies_file(row: dict, traj, series_units: dict) -> tuple[dict, dict]:
     """(columns, metadata) of the trajectory file of a run of a system or contact scene:
-    per-body columns (:meth:`references.trajectory.SystemTrajectory.columns`) with their
+    per-body columns (:meth:`references.trajectory.Trajectory.columns`) with their
     units and frames, the body names and the run's identity; ``series_units``: the units of
     the per-sample series written beside them."""
     from references.trajectory import UNITS

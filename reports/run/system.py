@@ -4,7 +4,7 @@
 status.
 
 Flow: the engine's system builder (:func:`references.engines.system.run_system`) -> the
-states (:class:`references.trajectory.SystemTrajectory`) -> the reference
+states (:class:`references.trajectory.Trajectory`) -> the reference
 (:func:`references.engines.exact.system.reference`) -> the metrics
 (:mod:`reports.metrics.system`) -> status and verdict (:mod:`reports.metrics.verdicts`) -> the
 trajectory file (Parquet, per-body columns and the error series).

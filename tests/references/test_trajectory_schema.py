@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from references.trajectory import COLUMNS, Trajectory
+from references.trajectory import COLUMNS, OneBody, Trajectory, one_body
 from scenarios.model import Scenario
 
 
@@ -51,7 +51,7 @@ def test_velocity_constraint_residual_by_hand():
 
 def test_energy_and_momentum_by_hand():
     sc = scenario()
-    tr = Trajectory.from_states(
+    tr = OneBody.from_states(
         sc, [0.0], [sc.position], [sc.velocity], [sc.rotation], [sc.omega_body]
     )
     W, I = sc.omega_body, np.array([1.0, 2.0, 2.5])
@@ -63,7 +63,7 @@ def test_energy_and_momentum_by_hand():
 def test_pivot_momentum_equals_pivot_inertia_form():
     """About the pivot, x_G x m v_G + R I W must equal R I_pivot W (parallel-axis theorem)."""
     sc = scenario(pivot=(0.1, -0.2, -0.5))
-    tr = Trajectory.from_states(sc, [0.0], None, None, [sc.rotation], [sc.omega_body])
+    tr = OneBody.from_states(sc, [0.0], None, None, [sc.rotation], [sc.omega_body])
     expect = sc.rotation @ (sc.pivot_inertia @ sc.omega_body)
     np.testing.assert_allclose(tr.angular_momentum[0], expect, rtol=1e-13)
     np.testing.assert_allclose(tr.position[0], -sc.rotation @ sc.pivot, rtol=1e-15)
@@ -75,7 +75,7 @@ def test_round_trip(tmp_path, fmt):
     n = 4
     R = Rotation.random(n, random_state=1).as_matrix()
     rng = np.random.default_rng(0)
-    tr = Trajectory.from_states(
+    tr = OneBody.from_states(
         sc,
         np.arange(n) * 0.1,
         rng.normal(size=(n, 3)),
@@ -84,14 +84,19 @@ def test_round_trip(tmp_path, fmt):
         rng.normal(size=(n, 3)),
     )
     path = tr.write(tmp_path / f"a.{fmt}", fmt)
-    back = Trajectory.read(path)
-    for f in ("t", "position", "velocity", "rotation", "omega_body", "energy", "angular_momentum"):
+    back = OneBody.read(path)
+    # the one reader of trajectory files: a single body's file is a scene of one body
+    bodies = Trajectory.read(path)
+    assert bodies.body_names == ("body",) and bodies.rotation.shape == (n, 1, 3, 3)
+    for f in ("t", "position", "velocity", "rotation", "omega_body", "energy", "angular_momentum",
+              "constraint_velocity"):  # fmt: skip
         np.testing.assert_array_equal(getattr(back, f), getattr(tr, f))
+        np.testing.assert_array_equal(getattr(one_body(bodies), f), getattr(tr, f))
 
 
 def test_wrong_shape_names_the_field():
-    with pytest.raises(ValueError, match="'rotation' has shape"):
-        Trajectory(
+    with pytest.raises(ValueError, match="OneBody field 'rotation' has shape"):
+        OneBody(
             t=np.zeros(2),
             position=np.zeros((2, 3)),
             velocity=np.zeros((2, 3)),
@@ -103,20 +108,19 @@ def test_wrong_shape_names_the_field():
 
 
 def test_a_single_body_on_a_bodies_axis_is_the_same_memory_both_ways():
-    """Trajectory.as_bodies gives (n, 1, ...) views carrying energy, momentum and the
+    """OneBody.as_bodies gives (n, 1, ...) views carrying energy, momentum and the
     velocity-constraint residual; one_body gives them back as the single body's (n, ...)
     arrays: the same memory, C-contiguous as before (numpy's arithmetic may depend on the
-    layout, and the metrics must stay bit for bit)."""
-    from references.trajectory import SystemTrajectory, one_body
-
+    layout, and the metrics must stay bit for bit). Trajectory.from_states is that trajectory
+    of the same states."""
     sc = scenario()
     t = np.linspace(0.0, 1.0, 5)
     R = Rotation.from_rotvec(np.outer(t, [0.2, -0.4, 0.9])).as_matrix()
     W = np.tile(sc.omega_body, (5, 1))
     x = np.outer(t, [1.0, 2.0, 3.0])
-    tr = Trajectory.from_states(sc, t, x, x + 1.0, R, W)
+    tr = OneBody.from_states(sc, t, x, x + 1.0, R, W)
     bodies = tr.as_bodies("ball")
-    assert isinstance(bodies, SystemTrajectory) and bodies.body_names == ("ball",)
+    assert isinstance(bodies, Trajectory) and bodies.body_names == ("ball",)
     assert bodies.position.shape == (5, 1, 3) and bodies.rotation.shape == (5, 1, 3, 3)
     back = one_body(bodies)
     for name in ("t", "position", "velocity", "rotation", "omega_body", "energy",
@@ -128,21 +132,24 @@ def test_a_single_body_on_a_bodies_axis_is_the_same_memory_both_ways():
     assert one_body(tr) is tr and one_body(None) is None
     head = bodies.head(2)
     assert head.energy.shape == (2,) and head.angular_momentum.shape == (2, 3)
+    made = Trajectory.from_states(sc, t, x, x + 1.0, R, W)
+    assert made.body_names == ("body",)
+    for name in ("position", "velocity", "rotation", "omega_body", "energy", "angular_momentum",
+                 "constraint_velocity"):  # fmt: skip
+        np.testing.assert_array_equal(getattr(one_body(made), name), getattr(tr, name))
 
 
 def test_one_body_refuses_a_system_and_a_body_without_its_energy():
-    from references.trajectory import SystemTrajectory, one_body
-
     z = np.zeros((1, 2, 3))
     R = np.tile(np.eye(3), (1, 2, 1, 1))
-    two = SystemTrajectory([0.0], z, z, R, z, ("a", "b"))
+    two = Trajectory([0.0], z, z, R, z, ("a", "b"))
     with pytest.raises(ValueError, match=r"2 bodies \(a, b\)"):
         one_body(two)
-    bare = SystemTrajectory([0.0], z[:, :1], z[:, :1], R[:, :1], z[:, :1], ("a",))
+    bare = Trajectory([0.0], z[:, :1], z[:, :1], R[:, :1], z[:, :1], ("a",))
     with pytest.raises(ValueError, match="without its energy and angular momentum"):
         one_body(bare)
     with pytest.raises(ValueError, match="'energy'.*nb = 2 bodies"):
-        SystemTrajectory([0.0], z, z, R, z, ("a", "b"), energy=[1.0])
+        Trajectory([0.0], z, z, R, z, ("a", "b"), energy=[1.0])
     with pytest.raises(ValueError, match="'angular_momentum'"):
-        SystemTrajectory([0.0], z[:, :1], z[:, :1], R[:, :1], z[:, :1], ("a",),
-                         energy=[1.0], angular_momentum=[1.0, 2.0])  # fmt: skip
+        Trajectory([0.0], z[:, :1], z[:, :1], R[:, :1], z[:, :1], ("a",),
+                   energy=[1.0], angular_momentum=[1.0, 2.0])  # fmt: skip

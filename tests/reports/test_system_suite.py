@@ -13,7 +13,7 @@ import pytest
 
 import scenarios
 from references.engines.exact.system import reference
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 from reports.metrics.system import compute_system_metrics
 from scenarios import ScenarioError
 from scenarios.system_file import validate_system
@@ -29,9 +29,9 @@ def _data(name: str) -> dict:
     return tomllib.loads((scenarios.systems_path() / f"{name}.toml").read_text())
 
 
-def _initial_traj(sc) -> SystemTrajectory:
+def _initial_traj(sc) -> Trajectory:
     bs = sc.bodies
-    return SystemTrajectory([0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
+    return Trajectory([0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
                             [[b.rotation for b in bs]], [[b.omega_body for b in bs]],
                             sc.body_names)  # fmt: skip
 
@@ -152,7 +152,7 @@ def test_a_system_runs_end_to_end_through_the_runner(tmp_path):
     # round-off: constraints, momentum and energy of a relative equilibrium
     assert row["joint_gap_max"] < 1e-12 and row["momentum_drift_max"] < 1e-12
     assert row["attitude_error_max"] < 1e-9
-    tr = SystemTrajectory.read(tmp_path / row["trajectory"])
+    tr = Trajectory.read(tmp_path / row["trajectory"])
     assert tr.body_names == sc.body_names and len(tr) == 51
     assert np.max(np.abs(tr.position[0] - [b.position for b in sc.bodies])) == 0.0
     row = execute(RunSpec(sc, "director", "energy_momentum", 1e-3, t_end=0.5), tmp_path)
@@ -333,5 +333,5 @@ def test_a_builders_divergence_is_a_diverged_row_with_its_states(tmp_path, monke
     # 11 saves (0, 10, ..., 100 steps): the first 5 kept, the divergence seen at the 6th
     assert row["t_diverged"] == pytest.approx(0.05) and row["nstep"] == 40
     assert row["joint_gap_max"] < 1e-12  # measured on the states before the divergence
-    tr = SystemTrajectory.read(tmp_path / row["trajectory"])
+    tr = Trajectory.read(tmp_path / row["trajectory"])
     assert len(tr) == 5

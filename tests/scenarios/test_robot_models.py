@@ -301,7 +301,7 @@ def test_joint_coordinate_error_recovers_a_joint_turned_by_a_known_angle():
     """Two states of arm3 placed by our conversion from joint coordinates (an independent
     path: forward kinematics), one with the elbow turned 0.05 rad further: the metric, from
     the bodies' attitudes alone, finds 0.05 rad on the elbow and nothing on the others."""
-    from references.trajectory import SystemTrajectory
+    from references.trajectory import Trajectory
     from reports.metrics.system import joint_coordinate_error_by_joint, joint_coordinate_errors
 
     sc = scenarios.load("arm3_swing")
@@ -310,7 +310,7 @@ def test_joint_coordinate_error_recovers_a_joint_turned_by_a_known_angle():
     def traj(q):
         conv = to_system(sc.model, q)
         bs = conv.bodies
-        return SystemTrajectory([0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
+        return Trajectory([0.0], [[b.position for b in bs]], [[b.velocity for b in bs]],
                                 [[b.rotation for b in bs]], [[b.omega_body for b in bs]],
                                 [b.name for b in bs])  # fmt: skip
 

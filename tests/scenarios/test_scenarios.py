@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import scenarios
-from references.trajectory import Trajectory
+from references.trajectory import OneBody
 from scenarios import ScenarioError
 from scenarios.schema import step_plan
 
@@ -101,7 +101,7 @@ def test_simo_wong_top_energy_and_momentum():
     assert mgl == 20.0
     # the top stands above the pivot: centre of mass at +0.5 d3 from the pivot (the origin)
     assert sc.position[2] > 0 and np.isclose(np.linalg.norm(sc.position), 0.5, rtol=0, atol=1e-15)
-    traj = Trajectory.from_states(sc, [0.0], None, None, sc.rotation[None], sc.omega_body[None])
+    traj = OneBody.from_states(sc, [0.0], None, None, sc.rotation[None], sc.omega_body[None])
     # 30-digit values of docs/numerics.md section 5; the suite's formulas add a handful of
     # roundings of O(1e3) terms, hence 1e-15 relative
     assert traj.energy[0] == pytest.approx(1269.9750052078993249, rel=1e-15)
@@ -467,11 +467,11 @@ def test_heavy_top_defeats_a_first_order_stepper_at_dt_1e_3():
 
     def energy_ratio(h):
         R, W = sc.rotation.copy(), sc.omega_body.copy()
-        e0 = Trajectory.from_states(sc, [0.0], None, None, R[None], W[None]).energy[0]
+        e0 = OneBody.from_states(sc, [0.0], None, None, R[None], W[None]).energy[0]
         for _ in range(round(sc.t_end / h)):
             W = W + h * Ip_inv @ (np.cross(-sc.pivot, R.T @ mg) - np.cross(W, Ip @ W))
             R = R @ Rotation.from_rotvec(h * W).as_matrix()
-        e1 = Trajectory.from_states(sc, [0.0], None, None, R[None], W[None]).energy[0]
+        e1 = OneBody.from_states(sc, [0.0], None, None, R[None], W[None]).energy[0]
         return e1 / e0
 
     assert energy_ratio(1e-3) == pytest.approx(114, rel=0.05)  # "by 114"

@@ -228,7 +228,7 @@ class DirectorEngine(Engine):
             RunOutput(
                 Trajectory.from_states(
                     m, out.t, out.position[k], out.velocity[k], out.rotation[k], out.omega_body[k]
-                ).as_bodies(),
+                ),
                 int(out.nstep),
                 wall,
                 wall,

@@ -33,7 +33,7 @@ import numpy as np
 
 from references.engines.system import SystemResult
 from references.errors import EngineError, Unsupported
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 
 #: the closed form's initial state must equal the file's to this, relative to the system's
 #: size (positions), 1 (rotations) and the rate scale (velocities): the files print 17
@@ -53,7 +53,7 @@ class SystemReference:
     horizon), ``accuracy_position`` (m), ``horizon`` (s: trajectory errors are judged on
     t <= horizon; t_end when the whole run is trusted), ``method`` and ``wall_time_s``."""
 
-    trajectory: SystemTrajectory
+    trajectory: Trajectory
     kind: str
     accuracy: float
     accuracy_position: float
@@ -227,7 +227,7 @@ def _exact(scenario, kind, t, start) -> SystemReference:
     at, motion = _closed_form(scenario)
     x, R, v, W = at(t)
     acc = motion.accuracy(t)
-    traj = SystemTrajectory(t, x, v, R, W, scenario.body_names)
+    traj = Trajectory(t, x, v, R, W, scenario.body_names)
     horizon, notes = float(t[-1]), {}
     method = f"closed form ({kind}), references.exact.multibody"
     stab = motion.stability()
@@ -287,7 +287,7 @@ def _numerical(scenario, t, start) -> SystemReference:
     except ValueError as exc:
         raise Unsupported(f"{scenario.name}: the numerical reference refuses: {exc}") from None
     order = _order(sol.names, scenario.body_names)
-    traj = SystemTrajectory(t, sol.x[:, order], sol.v[:, order], sol.R[:, order],
+    traj = Trajectory(t, sol.x[:, order], sol.v[:, order], sol.R[:, order],
                             sol.W[:, order], scenario.body_names)  # fmt: skip
     inside = t <= hz.horizon
     # a run that diverged in its first save has only t = 0: the start, exact (no estimate)

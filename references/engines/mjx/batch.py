@@ -170,9 +170,7 @@ def _batch_output(ctx, mem, qp, qv, points, saves, nstep, settings, wall, engine
     bad = ~finite | ~(drift <= DIVERGENCE_ENERGY)
     good = int(np.argmax(bad)) if bad.any() else len(points)
     keep = np.flatnonzero(saved & (np.arange(len(points)) < good))
-    traj = Trajectory.from_states(
-        mem, points[keep] * dt, x[keep], v[keep], R[keep], W[keep]
-    ).as_bodies()
+    traj = Trajectory.from_states(mem, points[keep] * dt, x[keep], v[keep], R[keep], W[keep])
     done = int(points[good - 1]) if good < len(points) else nstep
     output = RunOutput(traj, done, wall, engine_s, float(integ.evals_per_step or 0.0), settings)
     if good == len(points):

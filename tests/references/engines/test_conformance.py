@@ -63,11 +63,11 @@ def _blind(cls):
     """An adapter whose "own" quantities are computed from the state the suite reads back
     through its conversions: a consistent mistake then passes every check but the kit's."""
     from references.engines.stepping import check_readback  # noqa: F401 - the path under test
-    from references.trajectory import Trajectory
+    from references.trajectory import OneBody
 
     def native_quantities(self, ctx):
         st = self.read_state(ctx)
-        tr = Trajectory.from_states(ctx.scenario, [0.0], *(np.asarray(a)[None] for a in st))
+        tr = OneBody.from_states(ctx.scenario, [0.0], *(np.asarray(a)[None] for a in st))
         return {
             "energy": float(tr.energy[0]),
             "angular momentum": tr.angular_momentum[0],

@@ -16,7 +16,7 @@ from references.exact import (
     reference_trajectory,
 )
 from references.exact._util import rotation_angle
-from references.trajectory import SystemTrajectory, angular_momentum, energy, one_body
+from references.trajectory import Trajectory, angular_momentum, energy, one_body
 from scenarios.model import Scenario
 
 KIND = {
@@ -56,7 +56,7 @@ def test_library_reference_runs(name):
     sc = scenarios.load(name)
     t = np.linspace(0.0, min(sc.t_end, 0.5), 11)
     ref = reference_trajectory(sc, t)
-    assert isinstance(ref, ReferenceTrajectory) and isinstance(ref, SystemTrajectory)
+    assert isinstance(ref, ReferenceTrajectory) and isinstance(ref, Trajectory)
     assert ref.kind == KIND[name] and ref.method
     assert ref.reason.startswith(f"{ref.kind}: ")
     assert 0 <= ref.accuracy < 1e-9 and 0 <= ref.omega_accuracy < 1e-8

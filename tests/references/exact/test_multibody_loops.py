@@ -138,7 +138,7 @@ def test_loop_reference_agrees_with_director_rattle6(name, t_end):
     dt = 1e-3 (its error over 0.5 s ~1e-9 rad: docs/numerics.md) agree to 1e-7 rad and m,
     and the reference holds its rows and its energy to 1e-10 of the energy in play."""
     from references.engines.system import run_system
-    from references.trajectory import SystemTrajectory, system_energy
+    from references.trajectory import Trajectory, system_energy
 
     sc = scenarios.load(name).replace(t_end=t_end)
     out = run_system("director", sc, "rattle6", 1e-3, t_end, 10)
@@ -151,7 +151,7 @@ def test_loop_reference_agrees_with_director_rattle6(name, t_end):
     assert float(np.max(ang)) < 1e-7
     assert float(np.max(np.abs(tr.position - sol.x[:, order]))) < 1e-7
     assert sol.constraint_residual < 1e-10
-    ref_tr = SystemTrajectory(tr.t, sol.x[:, order], sol.v[:, order], sol.R[:, order],
+    ref_tr = Trajectory(tr.t, sol.x[:, order], sol.v[:, order], sol.R[:, order],
                               sol.W[:, order], sc.body_names)  # fmt: skip
     E = system_energy(sc, ref_tr)
     assert float(np.max(np.abs(E - E[0]))) < 1e-10 * sc.energy_scale

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from references.trajectory import Trajectory
+from references.trajectory import OneBody
 from reports.metrics import body as metrics
 from reports.metrics.verdicts import DEFAULT_TOLERANCES, verdict
 from scenarios.model import Scenario
@@ -95,7 +95,7 @@ def _semi_implicit_fall(sc, h):
     R = np.zeros((n + 1, 3, 3))
     R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
     W = np.tile(sc.omega_body, (n + 1, 1))
-    return Trajectory.from_states(sc, t, x, v, R, W)
+    return OneBody.from_states(sc, t, x, v, R, W)
 
 
 def test_semi_implicit_euler_free_fall_is_a_small_error_of_what_is_in_play():
@@ -123,7 +123,7 @@ def test_a_rotational_error_is_not_hidden_by_a_large_fall():
     sc = FALL.replace(omega_body=[0.0, 0.0, 3.0])
     tr = _semi_implicit_fall(sc, sc.dt)
     W = tr.omega_body * np.linspace(1.0, 1.05, len(tr.t))[:, None]
-    bad = Trajectory.from_states(sc, tr.t, tr.position, tr.velocity, tr.rotation, W)
+    bad = OneBody.from_states(sc, tr.t, tr.position, tr.velocity, tr.rotation, W)
     m = metrics.compute_metrics(sc, bad)
     assert m["energy_drift_rot_max"] == pytest.approx(1.05**2 - 1, rel=1e-12)
     assert m["energy_drift_max"] < 1e-3
@@ -135,7 +135,7 @@ def test_the_energy_parts_of_a_pivoted_body_are_not_measured():
     sc = FALL.replace(pivot=[0.0, 0.0, -0.1], t_end=0.01)
     t = np.array([0.0, 0.01])
     R = np.tile(sc.rotation, (2, 1, 1))
-    tr = Trajectory.from_states(sc, t, None, None, R, np.tile(sc.omega_body, (2, 1)))
+    tr = OneBody.from_states(sc, t, None, None, R, np.tile(sc.omega_body, (2, 1)))
     m = metrics.compute_metrics(sc, tr)
     assert math.isnan(m["energy_drift_rot_max"]) and math.isnan(m["energy_drift_trans_max"])
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from references.trajectory import Trajectory
+from references.trajectory import OneBody
 from reports.metrics import body as metrics
 from reports.metrics import catalog
 from scenarios.model import Scenario
@@ -36,7 +36,7 @@ def spin_traj(sc, t, angle_offset=0.0, W=None):
     W = np.tile(sc.omega_body, (len(t), 1)) if W is None else W
     R = rz(sc.omega_body[2] * t + angle_offset)
     x = np.zeros((len(t), 3))
-    return Trajectory.from_states(sc, t, x, x.copy(), R, W)
+    return OneBody.from_states(sc, t, x, x.copy(), R, W)
 
 
 def test_exact_spin_has_zero_drifts_and_errors():
@@ -115,9 +115,7 @@ def test_energy_drift_of_a_pendulum_released_at_rest_uses_m_g_l():
     E0 or T0 (both 0) or by |E0| would give inf or nan."""
     sc = pendulum()
     t = np.linspace(0, 1, 3)
-    tr = Trajectory.from_states(
-        sc, t, None, None, np.tile(sc.rotation, (3, 1, 1)), np.zeros((3, 3))
-    )
+    tr = OneBody.from_states(sc, t, None, None, np.tile(sc.rotation, (3, 1, 1)), np.zeros((3, 3)))
     tr.energy = tr.energy + np.array([0.0, 0.049, -0.049])
     expect = np.array([0.0, 0.049, 0.049]) / (2.0 * 9.81 * 0.25)
     np.testing.assert_allclose(metrics.energy_drift(sc, tr), expect, rtol=1e-12, atol=1e-15)
@@ -134,7 +132,7 @@ def test_energy_drift_scale_is_neither_T0_nor_E0():
     E0 = float(metrics._initial(sc)[0])
     assert abs(E0 - t0) < 1e-12  # axis horizontal: x_G at the pivot's height, V = 0
     t = np.linspace(0, 1, 2)
-    tr = Trajectory.from_states(
+    tr = OneBody.from_states(
         sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), np.tile(sc.omega_body, (2, 1))
     )
     tr.energy = tr.energy + np.array([0.0, 1e-3])
@@ -147,9 +145,7 @@ def test_momentum_drift_of_a_pendulum_with_zero_initial_momentum():
     whose vertical momentum is off by 1e-3 reads 1e-3 / 1.1926."""
     sc = pendulum()
     t = np.linspace(0, 1, 2)
-    tr = Trajectory.from_states(
-        sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), np.zeros((2, 3))
-    )
+    tr = OneBody.from_states(sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), np.zeros((2, 3)))
     tr.angular_momentum = tr.angular_momentum + np.array([[0, 0, 0], [0, 0, 1e-3]])
     L_c = math.sqrt(2 * 4.905 * 0.145)
     np.testing.assert_allclose(metrics.momentum_drift(sc, tr), [0.0, 1e-3 / L_c], rtol=1e-12)
@@ -163,7 +159,7 @@ def test_momentum_drift_of_a_symmetric_top_sees_the_spin():
     assert metrics.conserved_momentum(sc) == "Lg+spin"
     t = np.linspace(0, 1, 2)
     W = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, 5.3]])
-    tr = Trajectory.from_states(sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), W)
+    tr = OneBody.from_states(sc, t, None, None, np.tile(sc.rotation, (2, 1, 1)), W)
     assert abs(tr.angular_momentum[1] @ [0, 0, 1.0]) < 1e-15  # d3 horizontal
     L_c = math.sqrt(2 * 4.905 * 0.145)
     np.testing.assert_allclose(metrics.momentum_drift(sc, tr), [0.0, 3e-3 / L_c], rtol=1e-10)
@@ -293,7 +289,7 @@ def test_attitude_error_of_a_stretched_rotation_is_that_of_its_rotation(stretch,
     t = np.linspace(0, 1, 7)
     ref = spin_traj(sc, t)
     R = _stretched(rz(np.full(len(t), delta)), stretch)
-    tr = Trajectory.from_states(sc, t, ref.position, ref.velocity, R, ref.omega_body)
+    tr = OneBody.from_states(sc, t, ref.position, ref.velocity, R, ref.omega_body)
     err = metrics.attitude_error(tr, ref)
     np.testing.assert_allclose(err, delta, rtol=1e-12, atol=1e-15)
     assert metrics.orthonormality(tr).max() > stretch  # the norm error is reported there
@@ -319,8 +315,8 @@ def test_attitude_error_of_a_non_unit_quaternion_against_scipy():
     Rref = Rotation.random(n, random_state=5).as_matrix()
     sc = spin_scenario(omega_body=(0, 0, 0.0))
     t = np.linspace(0, 1, n)
-    ref = Trajectory.from_states(sc, t, np.zeros((n, 3)), np.zeros((n, 3)), Rref, np.zeros((n, 3)))
-    tr = Trajectory.from_states(sc, t, np.zeros((n, 3)), np.zeros((n, 3)), R, np.zeros((n, 3)))
+    ref = OneBody.from_states(sc, t, np.zeros((n, 3)), np.zeros((n, 3)), Rref, np.zeros((n, 3)))
+    tr = OneBody.from_states(sc, t, np.zeros((n, 3)), np.zeros((n, 3)), R, np.zeros((n, 3)))
     Q = np.array([polar(r)[0] for r in R])
     want = Rotation.from_matrix(np.einsum("nji,njk->nik", Rref, Q)).magnitude()
     # 1e-12: angles of order 1, computed by two formulas (Frobenius distance vs quaternion)
@@ -426,10 +422,10 @@ def test_linear_momentum_drift_in_closed_form():
     R, W = rz(3.0 * t), np.tile(sc.omega_body, (len(t), 1))
     x = v0 * t[:, None] + 0.5 * g * t[:, None] ** 2
     v = v0 + g * t[:, None]
-    exact = metrics.compute_metrics(sc, Trajectory.from_states(sc, t, x, v, R, W))
+    exact = metrics.compute_metrics(sc, OneBody.from_states(sc, t, x, v, R, W))
     assert exact["linear_momentum_drift_max"] < 1e-15  # a few ulp of g t over |v1| ~ 10
     kick = np.outer(t, [0.0, 1e-3, 0.0])
-    off = metrics.compute_metrics(sc, Trajectory.from_states(sc, t, x, v + kick, R, W))
+    off = metrics.compute_metrics(sc, OneBody.from_states(sc, t, x, v + kick, R, W))
     assert off["linear_momentum_drift_max"] == pytest.approx(1e-3 / math.hypot(1.0, 9.81))
     top = spin_scenario(pivot=(0.0, 0.0, -0.2), gravity=g)
     assert math.isnan(metrics.compute_metrics(top, spin_traj(top, t))["linear_momentum_drift_max"])
@@ -447,7 +443,7 @@ def test_linear_momentum_drift_sees_a_velocity_in_body_axes():
     R, W = rz(3.0 * t), np.tile(sc.omega_body, (len(t), 1))
     x = v0 * t[:, None]
     wrong = np.einsum("nji,j->ni", R, v0)  # R^T v0
-    m = metrics.compute_metrics(sc, Trajectory.from_states(sc, t, x, wrong, R, W))
+    m = metrics.compute_metrics(sc, OneBody.from_states(sc, t, x, wrong, R, W))
     assert m["energy_drift_trans_max"] < 1e-15
     assert m["linear_momentum_drift_max"] == pytest.approx(2.0 * math.sin(1.5), rel=1e-14)
     v, detail = verdict({"status": "ok", **m}, DEFAULT_TOLERANCES)
@@ -481,7 +477,7 @@ def test_linear_momentum_drift_of_a_run_saved_and_streamed():
 def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
     tmp_path, monkeypatch, name, engine, integrator
 ):
-    """A single body's run (its output on the bodies axis, Trajectory.as_bodies) gives the row
+    """A single body's run (its output on the bodies axis, Trajectory.from_states) gives the row
     and the trajectory file of the same run handed over without the bodies axis
     (references.trajectory.one_body of it: the single body's (n, ...) arrays), bit for bit:
     every column but the timings, and every column of the file."""
@@ -539,7 +535,7 @@ def test_one_body_of_a_shared_reference_is_one_view_and_its_polar_factor_is_kept
     view = one_body(ref)
     assert one_body(ref) is view and not view.rotation.flags.writeable
     assert _nearest_kept(one_body(ref)) is _nearest_kept(view)
-    tr = Trajectory.from_states(
+    tr = OneBody.from_states(
         sc,
         ref.t,
         *(np.array(getattr(view, f)) for f in ("position", "velocity", "rotation", "omega_body")),

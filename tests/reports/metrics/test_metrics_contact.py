@@ -14,7 +14,7 @@ import pytest
 import scenarios
 from references.engines.contact import ContactLog, ContactRunOutput
 from references.exact.contact_scene import contact_motion
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 from reports.metrics import contact as mc
 from reports.metrics.contact import compute_contact_metrics
 
@@ -28,7 +28,7 @@ def _run(sc, x=None, v=None, rows=None, n=51, R=None, W=None):
     ref = contact_motion(sc, t)
     X = ref.x.copy() if x is None else x(t, ref)
     V = ref.v.copy() if v is None else v(t, ref)
-    traj = SystemTrajectory(t, X, V, ref.R if R is None else R, ref.W if W is None else W,
+    traj = Trajectory(t, X, V, ref.R if R is None else R, ref.W if W is None else W,
                             sc.body_names)  # fmt: skip
     log = ContactLog()
     for k in range(n):

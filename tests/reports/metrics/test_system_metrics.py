@@ -20,7 +20,7 @@ import pytest
 
 import scenarios
 from references import conventions as cv
-from references.trajectory import SystemTrajectory
+from references.trajectory import Trajectory
 from reports.metrics.system import compute_system_metrics, error_series
 
 D = 1e-3  # the coupler's lift, m
@@ -31,9 +31,9 @@ HORIZON = 0.75  # the sample at 0.75 s is in, the last one out
 
 
 def _stack(sc, states):
-    """A SystemTrajectory at the times T of the states [(x, v, R, W) per body]."""
+    """A Trajectory at the times T of the states [(x, v, R, W) per body]."""
     x, v, R, W = (np.array([[b[k] for b in s] for s in states]) for k in range(4))
-    return SystemTrajectory(T[: len(states)], x, v, R, W, sc.body_names)
+    return Trajectory(T[: len(states)], x, v, R, W, sc.body_names)
 
 
 def _initial(sc):
