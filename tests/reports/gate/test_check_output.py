@@ -398,10 +398,12 @@ def test_check_passes_and_writes_beside_the_results_by_default(tmp_path, bl, cap
 
 def test_check_reads_the_junit_run_wrote_and_names_a_missing_run_in_it(tmp_path, bl, capsys):
     cur = write(tmp_path / "cur", [row()])  # the pybullet run is missing
-    (cur / "junit.xml").write_text('<testsuite tests="7" failures="0" errors="0" skipped="0"/>')
+    (cur / "junit.xml").write_text('<testsuite tests="7" failures="2" errors="0" skipped="0"/>')
     assert gate.check(cur, bl) == 1
     out = capsys.readouterr().out
-    assert f"  {cur / 'junit.xml'}: tests = 7, the results say 1\n" in out
+    assert (f"FAIL: 2 statement(s) the results must make true do not hold:\n"
+            f"  {cur / 'junit.xml'}: tests = 7, the results say 1\n"
+            f"  {cur / 'junit.xml'}: failures = 2, the results say 0\n") in out  # fmt: skip
     suite = ET.parse(cur / "junit.xml").getroot()  # rewritten with the baseline's expectations
     (case,) = [c for c in suite if c.get("name") == "pybullet/multibody/dt=0.001"]
     assert case[0].tag == "failure" and "missing run" in case[0].get("message")
@@ -639,3 +641,85 @@ def test_the_fitted_order_of_every_configuration_is_checked(tmp_path):
     assert gate.invariants(frame([steady, off])) == [
         "dzhanibekov mujoco RK4: fitted order 2.900 from 2 points, declared 4"
     ]
+
+
+def test_the_findings_for_runs_missing_or_new(tmp_path, bl):
+    """Missing and new runs carry no column; a missing run's baseline status, and where the
+    store holds it only as history, why: its identity differs from the baseline's (named),
+    or its scenario's newest runs have another identity."""
+    cur = write(tmp_path / "c", [row(), row(engine="dart", integrator="x")])
+    got = {c.key[1]: c for c in gate.compare(cur, bl).regressions}
+    assert [(k, c.column, c.a, c.b, c.change) for k, c in sorted(got.items())] == [
+        ("dart", "", None, "ok", "new"), ("pybullet", "", "ok", None, "missing")]  # fmt: skip
+    # the pybullet run stored with another horizon (20), then the scenario run again at 10
+    old = row(**PYB, energy_drift_max=0.3, t_end=20.0, finished_at="2026-11-21T00:00:00")
+    cur = write(tmp_path / "d", [old, row(t_end=10.0, run_id="new")])
+    (miss,) = [c for c in gate.compare(cur, bl).regressions if c.change == "missing"]
+    assert (miss.key[1], miss.a, miss.b) == ("pybullet", "ok", "history only: t_end 30 vs 20")
+    # the same run as the baseline's, superseded by an edited scenario's newer runs
+    same = row(**PYB, energy_drift_max=0.3, finished_at="2026-11-21T00:00:00")
+    cur = write(tmp_path / "e", [same, row(scenario_hash="edited", run_id="new")])
+    (miss,) = [c for c in gate.compare(cur, bl).regressions if c.change == "missing"]
+    assert miss.b == "history only: its scenario's newest runs have another identity"
+    # a missing first run does not end the comparison of the others
+    cur = write(tmp_path / "f", [row(**PYB, energy_drift_max=1.5)])
+    assert sorted((c.key[1], c.change) for c in gate.compare(cur, bl).regressions) == [
+        ("mujoco", "missing"),
+        ("pybullet", "worse"),
+    ]
+    # the default factor is 2: a drift 2.5x its baseline is a regression
+    cur = write(tmp_path / "g", [row(energy_drift_max=2.5e-8), row(**PYB, energy_drift_max=0.3)])
+    assert [c.column for c in gate.compare(cur, bl).regressions] == ["energy_drift_max"]
+
+
+def test_a_baseline_entry_without_its_reason_has_none(tmp_path):
+    """The reader does not require an entry's reason (the writer always writes one): without
+    it, a known failure's baseline reason and a failed-checks finding's baseline value are
+    empty."""
+    bl = gate.write_baseline(write(tmp_path / "b", [failing_row(), failing_row(**PYB)]),
+                             tmp_path / "bl.json")  # fmt: skip
+    doc = json.loads(bl.read_text())
+    for entry in doc["runs"]:
+        del entry["reason"]
+    bl.write_text(json.dumps(doc))
+    more = failing_row(**PYB, energy_drift_max=0.5)
+    more["verdict_detail"] += "; energy_drift_max 0.5 > 0.01"
+    cmp = gate.compare(write(tmp_path / "c", [failing_row(), more]), bl)
+    assert cmp.known == {K1: ("fail: attitude_error_max 0.5 > 0.1", "")}
+    (f,) = [c for c in cmp.regressions if c.column == "failed checks"]
+    assert f.a == ""
+
+
+def test_a_baseline_file_that_is_no_file_or_no_text(tmp_path):
+    entry = {
+        "scenario": "s",
+        "engine": "e",
+        "integrator": "i",
+        "dt": 0.001,
+        "status": "ok",
+        "verdict": "pass",
+        "target_accuracy": None,
+        **dict.fromkeys(IDENTITY_COLUMNS),
+    }
+    cases = {
+        "dir": (None, "not a baseline file (not a regular file)"),
+        "latin1.json": (b'{"runs": ["\xe9"]}', "cannot read the baseline file ("),
+        "lacks.json": (json.dumps({"format": 3, "runs": [{"scenario": "s"}]}).encode(),
+                       "runs[0] lacks engine, integrator, dt, status, scenario_hash, t_end, "
+                       "save_every, segment, engine_version, suite_version"),
+        "zero.json": (json.dumps({"format": 3, "runs": [{**entry, "target_accuracy": 0.0}]})
+                      .encode(), "runs[0].target_accuracy = 0.0: a target accuracy is in (0, "
+                      "1), or null for a fixed step"),
+        "neg.json": (json.dumps({"format": 3, "runs": [{**entry, "attitude_error_max": -1}]})
+                     .encode(), "runs[0].attitude_error_max = -1: must be >= 0 (an error, a "
+                     "drift or a cost; Infinity for a blow-up)"),
+    }  # fmt: skip
+    for name, (data, words) in cases.items():
+        path = tmp_path / name
+        if data is None:
+            path.mkdir()
+        else:
+            path.write_bytes(data)
+        with pytest.raises(ValueError) as exc:
+            gate.read_baseline(path)
+        assert str(exc.value).startswith(f"{path}: {words}"), name
