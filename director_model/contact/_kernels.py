@@ -39,7 +39,7 @@ and the step redone (at most REDO_MAX times).
 
 Rows: a stage's rows (their directions, mobilities M^-1 J^T and Delassus operator) are those
 built last while the contacts are the same features and their geometry is the same to
-round-off (_parts._rows_valid: directions and directors within 8 eps, contact points within
+round-off (_stage_rows._rows_valid: directions and directors within 8 eps, contact points within
 8 eps of the scene's length; joint rows only at the same state exactly): a resting or
 sticking configuration builds them once for many steps. Each stage keeps the factors of its
 last full solve for chord steps at the next steps (_parts._stage_solve), and the bodies'
@@ -83,22 +83,24 @@ from director_model.contact._parts import (
     REDO_MAX,
     _candidates,
     _dmv,
-    _fit_gaps,
     _laws,
     _loads,
     _omega_half,
     _onb,
     _rate,
-    _rows_record,
-    _rows_valid,
     _same_list,
     _set_directors,
-    _setup_rows,
     _stage_solve,
     _store,
     _world_omega,
-    joint_rows,
 )  # fmt: skip
+from director_model.contact._stage_rows import (
+    _fit_gaps,
+    _rows_record,
+    _rows_valid,
+    _setup_rows,
+    joint_rows,
+)
 
 
 @njit(cache=True)
@@ -676,6 +678,7 @@ _cache.tie(
             "system/_kernels.py",
             "contact/_geometry.py",
             "contact/_parts.py",
+            "contact/_stage_rows.py",
             "contact/_solver.py",
         )
     ],
