@@ -651,11 +651,14 @@ def test_the_findings_for_runs_missing_or_new(tmp_path, bl):
     got = {c.key[1]: c for c in gate.compare(cur, bl).regressions}
     assert [(k, c.column, c.a, c.b, c.change) for k, c in sorted(got.items())] == [
         ("dart", "", None, "ok", "new"), ("pybullet", "", "ok", None, "missing")]  # fmt: skip
-    # the pybullet run stored with another horizon (20), then the scenario run again at 10
-    old = row(**PYB, energy_drift_max=0.3, t_end=20.0, finished_at="2026-11-21T00:00:00")
+    # the pybullet run stored with another horizon (20) and save_every (5), then the scenario
+    # run again at 10
+    old = row(**PYB, energy_drift_max=0.3, t_end=20.0, save_every=5,
+              finished_at="2026-11-21T00:00:00")  # fmt: skip
     cur = write(tmp_path / "d", [old, row(t_end=10.0, run_id="new")])
     (miss,) = [c for c in gate.compare(cur, bl).regressions if c.change == "missing"]
-    assert (miss.key[1], miss.a, miss.b) == ("pybullet", "ok", "history only: t_end 30 vs 20")
+    assert (miss.key[1], miss.a, miss.b) == (
+        "pybullet", "ok", "history only: t_end 30 vs 20; save_every 10 vs 5")  # fmt: skip
     # the same run as the baseline's, superseded by an edited scenario's newer runs
     same = row(**PYB, energy_drift_max=0.3, finished_at="2026-11-21T00:00:00")
     cur = write(tmp_path / "e", [same, row(scenario_hash="edited", run_id="new")])
