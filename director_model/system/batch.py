@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
 from numba import njit, prange
 
+from director_model import _cache
 from director_model.errors import InvalidRunError, StepSizeError
 from director_model.simulate import saved_steps, step_plan
 from director_model.system import _kernels as K
@@ -240,3 +242,14 @@ def simulate_system_batch(bodies_batch, joints, *, gravity=(0.0, 0.0, 0.0),
 
 
 __all__ = ["SystemBatchTrajectory", "run_batch", "simulate_system_batch"]
+
+# the batch kernels compile the system kernel into their own cached code: their cache is tied
+# to the files it is compiled from (an edit of _kernels.py left them running the old step)
+_cache.tie(
+    {"run_batch": run_batch, "run_batch_banded": run_batch_banded},
+    *[
+        Path(__file__).parent.parent / "_primitives.py",
+        Path(__file__).with_name("_kernels.py"),
+        Path(__file__).with_name("_block3.py"),
+    ],
+)
