@@ -285,37 +285,63 @@ def potential(scenario, x, R) -> np.ndarray:
     return V
 
 
+def _mv(R, a):
+    """R a for a 3x3 R and a 3-vector a, as plain floats (3-vectors cost more through NumPy
+    than through Python's own arithmetic)."""
+    return (R[0][0] * a[0] + R[0][1] * a[1] + R[0][2] * a[2],
+            R[1][0] * a[0] + R[1][1] * a[1] + R[1][2] * a[2],
+            R[2][0] * a[0] + R[2][1] * a[1] + R[2][2] * a[2])  # fmt: skip
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 def body_loads(scenario, x, R, v, W, index=None) -> tuple[np.ndarray, np.ndarray]:
     """(F (nb, 3), T (nb, 3)): the force elements' resultant force on each body (world, N,
     acting at its centre of mass) and their moment about its centre of mass (world, N m), at one
     state x (nb, 3), R (nb, 3, 3), v (nb, 3), W (nb, 3) (body axes), bodies in the order of
     ``scenario.bodies``: a spring's F_a at p_a is F_a on a and (p_a - x_a) x F_a about its
     centre, -F_a at p_b on b; a torque is the couple tau u on a and -tau u on b (module
-    docstring). What an engine without force elements of its own applies at each evaluation;
-    the ground's share is dropped."""
+    docstring). What an engine without force elements of its own applies at each evaluation
+    (each step or stage, so it is written on plain floats); the ground's share is dropped."""
     bodies = scenario.bodies
     idx = index if index is not None else {b.name: i for i, b in enumerate(bodies)}
-    x, R = np.asarray(x, dtype=float), np.asarray(R, dtype=float)
+    x, R = np.asarray(x, dtype=float).tolist(), np.asarray(R, dtype=float).tolist()
+    v, W = np.asarray(v, dtype=float).tolist(), np.asarray(W, dtype=float).tolist()
     F, T = np.zeros((len(bodies), 3)), np.zeros((len(bodies), 3))
+
+    def point(i, anchor):  # a body point's position, velocity and arm from the centre
+        r = _mv(R[i], anchor)
+        w = _mv(R[i], W[i])
+        wr = _cross(w, r)
+        return ([x[i][k] + r[k] for k in range(3)], [v[i][k] + wr[k] for k in range(3)], r)
+
     for s in getattr(scenario, "springs", ()):
-        pa, pb, va, vb = _points(bodies, s, x[None], R[None], np.asarray(v, float)[None],
-                                 np.asarray(W, float)[None], idx)  # fmt: skip
-        d = (pa - pb)[0]
-        length = float(np.linalg.norm(d))
-        e = d / length
-        Fa = -(s.stiffness * (length - s.rest_length) + s.damping * float(e @ (va - vb)[0])) * e
         ia = idx[s.body_a]
-        F[ia] += Fa
-        T[ia] += np.cross(pa[0] - x[ia], Fa)
-        if s.body_b is not None:
+        pa, va, ra = point(ia, s.anchor_a)
+        if s.body_b is None:
+            pb, vb, rb = [float(c) for c in s.anchor_b], [0.0, 0.0, 0.0], None
+        else:
             ib = idx[s.body_b]
+            pb, vb, rb = point(ib, s.anchor_b)
+        d = [pa[k] - pb[k] for k in range(3)]
+        length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        e = [c / length for c in d]
+        rate = sum(e[k] * (va[k] - vb[k]) for k in range(3))
+        f = -(s.stiffness * (length - s.rest_length) + s.damping * rate)
+        Fa = (f * e[0], f * e[1], f * e[2])
+        F[ia] += Fa
+        T[ia] += _cross(ra, Fa)
+        if rb is not None:
             F[ib] -= Fa
-            T[ib] -= np.cross(pb[0] - x[ib], Fa)
+            T[ib] -= _cross(rb, Fa)
     by = {j.name: j for j in scenario.joints}
     for t in getattr(scenario, "torques", ()):
         j = by[t.joint]
         ia = idx[j.body_a]
-        u = R[ia] @ (np.asarray(j.axis_a, dtype=float) / np.linalg.norm(j.axis_a))
+        n = math.sqrt(sum(float(c) * float(c) for c in j.axis_a))
+        u = np.array(_mv(R[ia], [float(c) / n for c in j.axis_a]))
         T[ia] += t.torque * u
         if j.body_b is not None:
             T[idx[j.body_b]] -= t.torque * u
