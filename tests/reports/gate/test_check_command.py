@@ -14,8 +14,7 @@ import pytest
 
 from reports.gate import check as gate
 from reports.store.results import frame
-from reports.store.runs import IDENTITY_COLUMNS
-from tests.reports.gate.test_gate import failing_row, row, write
+from tests.reports.gate.test_gate import baseline_entry, failing_row, row, write
 
 K1 = ("dzhanibekov", "mujoco", "RK4", 0.001, None)
 
@@ -253,16 +252,7 @@ def test_the_baseline_file_as_written(tmp_path):
 
 
 def test_more_ways_a_baseline_file_is_refused_or_read(tmp_path, monkeypatch):
-    entry = {
-        "scenario": "s",
-        "engine": "e",
-        "integrator": "i",
-        "dt": 0.001,
-        "status": "ok",
-        "verdict": "pass",
-        "target_accuracy": None,
-        **dict.fromkeys(IDENTITY_COLUMNS),
-    }
+    entry = baseline_entry()
     path = tmp_path / "bl.json"
 
     def refused(doc):
@@ -363,16 +353,7 @@ def test_a_baseline_entry_without_its_reason_has_none(tmp_path):
 
 
 def test_a_baseline_file_that_is_no_file_or_no_text(tmp_path):
-    entry = {
-        "scenario": "s",
-        "engine": "e",
-        "integrator": "i",
-        "dt": 0.001,
-        "status": "ok",
-        "verdict": "pass",
-        "target_accuracy": None,
-        **dict.fromkeys(IDENTITY_COLUMNS),
-    }
+    entry = baseline_entry()
     cases = {
         "dir": (None, "not a baseline file (not a regular file)"),
         "latin1.json": (b'{"runs": ["\xe9"]}', "cannot read the baseline file ("),

@@ -22,8 +22,7 @@ import pytest
 from reports.gate import check as gate
 from reports.gate.rule import Change, Comparison, VersionChange
 from reports.store.results import frame
-from reports.store.runs import IDENTITY_COLUMNS
-from tests.reports.gate.test_gate import failing_row, row, write
+from tests.reports.gate.test_gate import baseline_entry, failing_row, row, write
 
 K1 = ("dzhanibekov", "mujoco", "RK4", 0.001, None)
 K2 = ("heavy_top", "pybullet", "multibody", 0.002, None)
@@ -270,16 +269,7 @@ def test_a_number_as_the_baseline_file_spells_it():
 
 
 def test_a_baseline_number_below_its_rule_names_it(tmp_path):
-    entry = {
-        "scenario": "s",
-        "engine": "e",
-        "integrator": "i",
-        "dt": 0.001,
-        "status": "ok",
-        "verdict": "pass",
-        "target_accuracy": None,
-        **dict.fromkeys(IDENTITY_COLUMNS),
-    }
+    entry = baseline_entry()
     cases = {
         ("energy_drift_max", -math.inf): "runs[0].energy_drift_max = -Infinity: must be >= 0",
         ("dt", 0.0): "runs[0].dt = 0.0: a step must be finite and > 0",

@@ -12,7 +12,7 @@ import pytest
 from reports.cli import main
 from reports.gate import check as gate
 from reports.store.results import Store
-from reports.store.runs import NUMERIC_COLUMNS, RESULT_COLUMNS, suite_version
+from reports.store.runs import IDENTITY_COLUMNS, NUMERIC_COLUMNS, RESULT_COLUMNS, suite_version
 
 
 def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, status="ok", **m):
@@ -38,6 +38,21 @@ def row(scenario="dzhanibekov", engine="mujoco", integrator="RK4", dt=1e-3, stat
     r.update(energy_drift_max=1e-8, attitude_error_max=1e-6)
     r.update(m)
     return r
+
+
+def baseline_entry() -> dict:
+    """One entry of a baseline file as check reads it: a passing run with every identity
+    field present and empty (the tests that refuse a baseline change one field of it)."""
+    return {
+        "scenario": "s",
+        "engine": "e",
+        "integrator": "i",
+        "dt": 0.001,
+        "status": "ok",
+        "verdict": "pass",
+        "target_accuracy": None,
+        **dict.fromkeys(IDENTITY_COLUMNS),
+    }
 
 
 def write(folder, rows):
