@@ -215,6 +215,34 @@ class ContactLog:
         return out
 
 
+class SavedStates:
+    """The body states a contact builder saves: every ``save_every``-th step and the last,
+    plus the initial state (``t``, centres ``x``, attitudes ``R``, centre velocities ``v``,
+    body-frame angular velocities ``W``; one row per saved step, one column per body).
+    The builders fill rows ``0..k-1`` and return :meth:`fields` of the rows filled (a run
+    that stops early returns the rows it reached)."""
+
+    def __init__(self, nstep: int, save_every: int, nbodies: int):
+        n = nstep // save_every + (1 if nstep % save_every else 0) + 1
+        self.t = np.zeros(n)
+        self.x = np.zeros((n, nbodies, 3))
+        self.R = np.zeros((n, nbodies, 3, 3))
+        self.v = np.zeros((n, nbodies, 3))
+        self.W = np.zeros((n, nbodies, 3))
+
+    def fields(self, k: int) -> dict:
+        """The first ``k`` rows, under the keys a builder's result carries."""
+        return {"t": self.t[:k], "x": self.x[:k], "R": self.R[:k], "v": self.v[:k], "W": self.W[:k]}
+
+
+def forced_bodies(scenario) -> list[int]:
+    """Indices of the bodies a force element acts on (the builders apply their loads before
+    every step)."""
+    return [
+        i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
+    ]
+
+
 def pair_index(scenario) -> dict:
     """{frozenset((a, b)): index} of the scene's contact pairs."""
     return {frozenset((c.a, c.b)): i for i, c in enumerate(scenario.contacts)}

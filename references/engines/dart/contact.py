@@ -39,11 +39,14 @@ from references import conventions as cv
 from references.engines import timing
 from references.engines.contact import (
     ContactLog,
+    SavedStates,
     external_wrench,
+    forced_bodies,
     ground_joints,
     joint_anchor_world,
     joint_rate,
     pair_coefficients,
+    pair_index,
 )
 from references.engines.integrators import Integrator
 from references.errors import Unsupported
@@ -293,19 +296,11 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     node_of = {}
     for name, sn in sc.shapes.items():
         node_of[sn.getName()] = name
-    pidx = {frozenset((c.a, c.b)): i for i, c in enumerate(scenario.contacts)}
-    forced = [
-        i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
-    ]
+    pidx = pair_index(scenario)
+    forced = forced_bodies(scenario)
     nb = len(names)
-    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
-    X, R, V, W = (
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3, 3)),
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3)),
-    )
-    t = np.zeros(nsave)
+    saved = SavedStates(nstep, save_every, nb)
+    t, X, R, V, W = saved.t, saved.x, saved.R, saved.v, saved.W
     log = ContactLog()
 
     def save(k, step):
@@ -383,11 +378,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         "stepping": "World.step (semi-implicit Euler)",
     }
     return {
-        "t": t[:k],
-        "x": X[:k],
-        "R": R[:k],
-        "v": V[:k],
-        "W": W[:k],
+        **saved.fields(k),
         "contacts": log.arrays(),
         "engine_time_s": engine,
         "settings": record,

@@ -38,10 +38,12 @@ import numpy as np
 from references.engines import timing
 from references.engines.contact import (
     ContactLog,
+    SavedStates,
     ground_joints,
     joint_anchor_world,
     joint_rate,
     pair_coefficients,
+    pair_index,
 )
 from references.engines.integrators import Integrator
 from references.errors import Unsupported
@@ -361,16 +363,10 @@ def _run(sc, scenario, conf, dt, nstep, save_every):
     plant, pc = sc.plant, sc.pc
     names = [b.name for b in scenario.bodies]
     by_index = {sc.body[n].index(): n for n in names}
-    pidx = {frozenset((c.a, c.b)): i for i, c in enumerate(scenario.contacts)}
+    pidx = pair_index(scenario)
     nb = len(names)
-    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
-    X, R, V, W = (
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3, 3)),
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3)),
-    )
-    t = np.zeros(nsave)
+    saved = SavedStates(nstep, save_every, nb)
+    t, X, R, V, W = saved.t, saved.x, saved.R, saved.v, saved.W
     log = ContactLog()
     world = plant.world_body().index()
 
@@ -450,11 +446,7 @@ def _run(sc, scenario, conf, dt, nstep, save_every):
         else "off",
     }
     return {
-        "t": t[:k],
-        "x": X[:k],
-        "R": R[:k],
-        "v": V[:k],
-        "W": W[:k],
+        **saved.fields(k),
         "contacts": log.arrays(),
         "engine_time_s": engine,
         "settings": record,

@@ -29,7 +29,7 @@ import time
 import numpy as np
 
 from references.engines import timing
-from references.engines.contact import ContactLog, external_wrench, pair_index
+from references.engines.contact import ContactLog, SavedStates, external_wrench, pair_index
 from references.engines.integrators import Integrator
 from references.engines.mujoco import contact as mjc
 from references.errors import Unsupported
@@ -99,14 +99,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         g: mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g).split(":", 1)[1]
         for g in range(m.ngeom)
     }
-    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
-    X, R, V, W = (
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3, 3)),
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3)),
-    )
-    t = np.zeros(nsave)
+    saved = SavedStates(nstep, save_every, nb)
+    t, X, R, V, W = saved.t, saved.x, saved.R, saved.v, saved.W
     log = ContactLog()
 
     def save(k, step, dd, dx=None):
@@ -168,11 +162,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     record["precision"] = "float64 (jax.enable_x64)"
     record["jit compile (s)"] = round(compile_s, 3)
     return {
-        "t": t[:k],
-        "x": X[:k],
-        "R": R[:k],
-        "v": V[:k],
-        "W": W[:k],
+        **saved.fields(k),
         "contacts": log.arrays(),
         "engine_time_s": engine,
         "settings": record,

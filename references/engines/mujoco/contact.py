@@ -41,7 +41,9 @@ from references import conventions as cv
 from references.engines import timing
 from references.engines.contact import (
     ContactLog,
+    SavedStates,
     external_wrench,
+    forced_bodies,
     ground_joints,
     joint_rate,
     pair_index,
@@ -388,18 +390,9 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         g: (geom_body.get(g) or mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g).split(":", 1)[1])
         for g in range(m.ngeom)
     }
-    forced = [
-        i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
-    ]
-    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
-    nb = len(scenario.bodies)
-    X, R, V, W = (
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3, 3)),
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3)),
-    )
-    t = np.zeros(nsave)
+    forced = forced_bodies(scenario)
+    saved = SavedStates(nstep, save_every, len(scenario.bodies))
+    t, X, R, V, W = saved.t, saved.x, saved.R, saved.v, saved.W
     log = ContactLog()
     f6 = np.zeros(6)
 
@@ -440,13 +433,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
             k += 1
             if not np.all(np.isfinite(d.qpos)):
                 break
-    k_end = k
     return {
-        "t": t[:k_end],
-        "x": X[:k_end],
-        "R": R[:k_end],
-        "v": V[:k_end],
-        "W": W[:k_end],
+        **saved.fields(k),
         "contacts": log.arrays(),
         "engine_time_s": engine,
         "settings": settings_record(m, conf, settings),

@@ -47,7 +47,9 @@ from references import conventions as cv
 from references.engines import timing
 from references.engines.contact import (
     ContactLog,
+    SavedStates,
     external_wrench,
+    forced_bodies,
     ground_joints,
     joint_anchor_world,
     joint_rate,
@@ -362,9 +364,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
     free = [(sc.iq[i], sc.iv[i]) for i in sc.free()]
     hinged = [(sc.iq[i], sc.iv[i]) for i in range(nb) if i not in sc.free()]
     names = [b.name for b in scenario.bodies]
-    forced = [
-        i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
-    ]
+    forced = forced_bodies(scenario)
     admm = conf.options["solver"] == "ADMM"
     if admm:
         settings_obj = pin.ADMMSolverSettings()
@@ -380,14 +380,8 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         setattr(settings_obj, k, tol)
     settings_obj.max_iterations = int(st["max_iterations"])
     settings_obj.solve_ncp = bool(st["solve_ncp"])
-    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
-    X, R, V, W = (
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3, 3)),
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3)),
-    )
-    t = np.zeros(nsave)
+    saved = SavedStates(nstep, save_every, nb)
+    t, X, R, V, W = saved.t, saved.x, saved.R, saved.v, saved.W
     log = ContactLog()
     stats = {"solves": 0, "not converged": 0, "iterations max": 0, "contacts max": 0}
     engine = 0.0
@@ -518,11 +512,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
         "most iterations": stats["iterations max"],
     }
     return {
-        "t": t[:k],
-        "x": X[:k],
-        "R": R[:k],
-        "v": V[:k],
-        "W": W[:k],
+        **saved.fields(k),
         "contacts": log.arrays(),
         "engine_time_s": engine,
         "settings": record,

@@ -36,11 +36,14 @@ from references import conventions as cv
 from references.engines import timing
 from references.engines.contact import (
     ContactLog,
+    SavedStates,
     external_wrench,
+    forced_bodies,
     ground_joints,
     joint_anchor_world,
     joint_rate,
     pair_coefficients,
+    pair_index,
 )
 from references.engines.integrators import Integrator
 
@@ -353,19 +356,11 @@ def _run(p, sc, scenario, conf, dt, nstep, save_every):
     cid = sc.cid
     names = [b.name for b in scenario.bodies]
     byid = {i: n for n, i in sc.ids.items()}
-    pidx = {frozenset((c.a, c.b)): i for i, c in enumerate(scenario.contacts)}
-    forced = [
-        i for i, b in enumerate(scenario.bodies) if any(f.body == b.name for f in scenario.forces)
-    ]
+    pidx = pair_index(scenario)
+    forced = forced_bodies(scenario)
     nb = len(names)
-    nsave = nstep // save_every + (1 if nstep % save_every else 0) + 1
-    X, R, V, W = (
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3, 3)),
-        np.zeros((nsave, nb, 3)),
-        np.zeros((nsave, nb, 3)),
-    )
-    t = np.zeros(nsave)
+    saved = SavedStates(nstep, save_every, nb)
+    t, X, R, V, W = saved.t, saved.x, saved.R, saved.v, saved.W
     log = ContactLog()
 
     def save(k, step):
@@ -425,11 +420,7 @@ def _run(p, sc, scenario, conf, dt, nstep, save_every):
         "restitution velocity threshold) unless set in [engine_settings.pybullet]",
     }
     return {
-        "t": t[:k],
-        "x": X[:k],
-        "R": R[:k],
-        "v": V[:k],
-        "W": W[:k],
+        **saved.fields(k),
         "contacts": log.arrays(),
         "engine_time_s": engine,
         "settings": record,
