@@ -201,13 +201,22 @@ class _Model:
         pin = self.pin
         pin.forwardKinematics(self.model, self.data, q, v)
         x, R, vv, W = reduced.state_arrays(len(self.pl.bodies))
+        oMi, twists = self.data.oMi, self.data.v
         for c, jid in self.jid.items():
-            M, tw = self.data.oMi[jid], self.data.v[jid]
+            M, tw = oMi[jid], twists[jid]
             Rc, off = M.rotation, self.frames[c].body_offset
             R[c] = Rc
             x[c] = M.translation + Rc @ off
-            W[c] = tw.angular
-            vv[c] = Rc @ (tw.linear + np.cross(tw.angular, off))
+            w, lin = tw.angular, tw.linear
+            W[c] = w
+            # the centre's velocity in the joint frame, lin + w x off (written out: np.cross
+            # costs ~10 us on 3-vectors, the same products here well under one)
+            u = (
+                lin[0] + (w[1] * off[2] - w[2] * off[1]),
+                lin[1] + (w[2] * off[0] - w[0] * off[2]),
+                lin[2] + (w[0] * off[1] - w[1] * off[0]),
+            )
+            vv[c] = Rc @ u
         return x, R, vv, W
 
     # -- dynamics ----------------------------------------------------------------------------
