@@ -276,10 +276,14 @@ class SystemStepper:
         """Time reached, s (nstep_done * dt)."""
         return self.nstep_done * self.dt
 
-    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False):
+    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False, *,
+                stepped=None):  # fmt: skip
         """Advance ``nstep`` steps; save the steps j * save_every of the chunk and its last
         step (and its start with ``include_start``). Returns a :class:`SystemTrajectory`
-        with absolute times. Raises StepSizeError naming the time and the step."""
+        with absolute times. Raises StepSizeError naming the time and the step.
+        ``stepped``: called with no argument as soon as the compiled stepping has returned,
+        before the invariants and residuals are computed from the saved states (where a
+        caller timing the stepping stops its clock)."""
         nstep = _check_count("nstep", nstep)
         save_every = _check_count("save_every", save_every)
         saves = saved_steps(nstep, save_every, include_start)
@@ -311,6 +315,8 @@ class SystemStepper:
             status = K.run_system(*args, minnorm, *rest)
         wall = time.perf_counter() - t0
         cpu = time.thread_time() - c0
+        if stepped is not None:
+            stepped()
         step0 = self.nstep_done
         if status != K.OK:
             done = step0 + int(info[0])

@@ -254,6 +254,14 @@ def stepping() -> None:
         watch.restart()
 
 
+def stepped() -> None:
+    """A system builder's stepping is over: what it does before it returns (its engine's
+    own checks of the states it saved) is not the run's cost (:meth:`Stopwatch.pause`)."""
+    watch = getattr(_local, "watch", None)
+    if watch is not None:
+        watch.pause()
+
+
 @dataclass(frozen=True)
 class Timing:
     """One timing of a run's stepping, s: ``engine`` (the engine calls' CPU time, priced by

@@ -365,7 +365,7 @@ def timing_columns(nstep: int, timings) -> dict:
     kept, _ = best(timings)
     n = max(int(nstep), 1)
     # the whole step's CPU time is read, not priced: the least of all timings (a first run
-    # that compiled code inside its stepping, a director system's, is not the step's cost)
+    # that compiled or loaded code inside its stepping is not the step's cost)
     cpu = max(min(t.cpu for t in timings), kept.engine)
     return dict(
         wall_time_s=min(t.wall for t in timings),

@@ -137,3 +137,22 @@ def test_a_slices_bounds():
     assert bounds(10e-3, 4e-3, 0.0) == (0.0, 0.0)
     # glue of 1 ms: at least 3 ms of the CPU time was the engine's
     assert bounds(10e-3, 4e-3, 9e-3) == (pytest.approx(3e-3), 4e-3)
+
+
+def test_a_builders_stepping_ends_where_it_says_so(clocks):
+    """Between ``stepping()`` and ``stepped()`` (a system builder's stepping) the CPU time
+    counts; its model's construction before and its own checks of the saved states after do
+    not (the planted mistake, ``stepped`` not called: the checks count and the test fails)."""
+    watch = Stopwatch(cpu_now=lambda: clocks.cpu)
+    with timing.running(watch):
+        clocks.run(5e-3)  # the model's construction
+        timing.stepping()
+        clocks.run(1e-4)  # the stepping's glue
+        clocks.run(2e-3)  # a compiled run of many steps ...
+        timing.stepped()
+        timing.add(2e-3, 2e-3)  # ... timed by the engine itself
+        clocks.run(3e-3)  # the builder's checks of what it saved
+    t = watch.timing()
+    assert t.engine == pytest.approx(2e-3, rel=1e-9)
+    assert t.cpu == pytest.approx(2.1e-3, rel=1e-9)
+    assert t.wall == pytest.approx(2.1e-3, rel=1e-9)
