@@ -304,12 +304,14 @@ def body_loads(scenario, x, R, v, W, index=None) -> tuple[np.ndarray, np.ndarray
     ``scenario.bodies``: a spring's F_a at p_a is F_a on a and (p_a - x_a) x F_a about its
     centre, -F_a at p_b on b; a torque is the couple tau u on a and -tau u on b (module
     docstring). What an engine without force elements of its own applies at each evaluation
-    (each step or stage, so it is written on plain floats); the ground's share is dropped."""
+    (each step or stage, so it is written on plain floats); the ground's share is dropped.
+    Only the states of :func:`loaded_bodies` are read (the others' rows may hold anything)."""
     bodies = scenario.bodies
     idx = index if index is not None else {b.name: i for i, b in enumerate(bodies)}
     x, R = np.asarray(x, dtype=float).tolist(), np.asarray(R, dtype=float).tolist()
     v, W = np.asarray(v, dtype=float).tolist(), np.asarray(W, dtype=float).tolist()
-    F, T = np.zeros((len(bodies), 3)), np.zeros((len(bodies), 3))
+    F = [[0.0, 0.0, 0.0] for _ in bodies]
+    T = [[0.0, 0.0, 0.0] for _ in bodies]
 
     def point(i, anchor):  # a body point's position, velocity and arm from the centre
         r = _mv(R[i], anchor)
@@ -319,33 +321,57 @@ def body_loads(scenario, x, R, v, W, index=None) -> tuple[np.ndarray, np.ndarray
 
     for s in getattr(scenario, "springs", ()):
         ia = idx[s.body_a]
-        pa, va, ra = point(ia, s.anchor_a)
+        # the anchors as floats: NumPy's scalars would carry through every product below
+        pa, va, ra = point(ia, s.anchor_a.tolist())
         if s.body_b is None:
-            pb, vb, rb = [float(c) for c in s.anchor_b], [0.0, 0.0, 0.0], None
+            pb, vb, rb = s.anchor_b.tolist(), [0.0, 0.0, 0.0], None
         else:
             ib = idx[s.body_b]
-            pb, vb, rb = point(ib, s.anchor_b)
+            pb, vb, rb = point(ib, s.anchor_b.tolist())
         d = [pa[k] - pb[k] for k in range(3)]
         length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         e = [c / length for c in d]
         rate = sum(e[k] * (va[k] - vb[k]) for k in range(3))
         f = -(s.stiffness * (length - s.rest_length) + s.damping * rate)
         Fa = (f * e[0], f * e[1], f * e[2])
-        F[ia] += Fa
-        T[ia] += _cross(ra, Fa)
+        _add(F[ia], Fa)
+        _add(T[ia], _cross(ra, Fa))
         if rb is not None:
-            F[ib] -= Fa
-            T[ib] -= _cross(rb, Fa)
+            _sub(F[ib], Fa)
+            _sub(T[ib], _cross(rb, Fa))
     by = {j.name: j for j in scenario.joints}
     for t in getattr(scenario, "torques", ()):
         j = by[t.joint]
         ia = idx[j.body_a]
         n = math.sqrt(sum(float(c) * float(c) for c in j.axis_a))
-        u = np.array(_mv(R[ia], [float(c) / n for c in j.axis_a]))
-        T[ia] += t.torque * u
+        tu = [t.torque * c for c in _mv(R[ia], [float(c) / n for c in j.axis_a])]
+        _add(T[ia], tu)
         if j.body_b is not None:
-            T[idx[j.body_b]] -= t.torque * u
-    return F, T
+            _sub(T[idx[j.body_b]], tu)
+    return np.array(F), np.array(T)
+
+
+def _add(acc, a):
+    acc[0] += a[0]
+    acc[1] += a[1]
+    acc[2] += a[2]
+
+
+def _sub(acc, a):
+    acc[0] -= a[0]
+    acc[1] -= a[1]
+    acc[2] -= a[2]
+
+
+def loaded_bodies(scenario, index=None) -> tuple[int, ...]:
+    """The bodies (indices in the order of ``scenario.bodies``, ascending) the force elements
+    act on: a spring's two, a torque's joint's two, the ground left out. :func:`body_loads`
+    reads their states alone and gives every other body no load."""
+    idx = index if index is not None else {b.name: i for i, b in enumerate(scenario.bodies)}
+    by = {j.name: j for j in scenario.joints}
+    ends = [(s.body_a, s.body_b) for s in getattr(scenario, "springs", ())]
+    ends += [(by[t.joint].body_a, by[t.joint].body_b) for t in getattr(scenario, "torques", ())]
+    return tuple(sorted({idx[n] for pair in ends for n in pair if n is not None}))
 
 
 def load_scale(scenario, length: float, rate: float) -> float:
@@ -430,6 +456,7 @@ __all__ = [
     "angle_steps_ok",
     "axis_inertia",
     "body_loads",
+    "loaded_bodies",
     "load_scale",
     "dissipative",
     "energy_bound",

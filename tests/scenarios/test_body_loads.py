@@ -67,3 +67,26 @@ def test_the_loads_do_the_elements_power():
     u_k = R[1] @ (np.array([1.0, 0.0, 1.0]) / math.sqrt(2.0))
     want += 0.2 * w[0] @ u_h - 0.1 * (w[1] - w[0]) @ u_k
     assert power == pytest.approx(want, rel=1e-13, abs=1e-13)
+
+
+def test_only_the_loaded_bodies_states_are_read():
+    """IFToMM A03 (a spring from the triangle to a ground point, the motor torque between the
+    crank and the ground): loaded_bodies names the triangle and the crank alone (read from
+    the file, not from the code), body_loads gives every other body no load, and NaN in the
+    other bodies' states changes nothing (the planted mistake, reading every body, fails)."""
+    import scenarios
+    from scenarios.force_elements import loaded_bodies
+
+    sc = scenarios.load("iftomm_a03")
+    names = [b.name for b in sc.bodies]
+    loaded = loaded_bodies(sc)
+    assert [names[i] for i in loaded] == ["crank", "triangle"]  # the file's order
+    x, R, v, W = _state(sc)
+    F, T = body_loads(sc, x, R, v, W)
+    others = [i for i in range(len(names)) if i not in loaded]
+    assert not F[others].any() and not T[others].any()
+    for a in (x, R, v, W):
+        a[others] = np.nan
+    F2, T2 = body_loads(sc, x, R, v, W)
+    np.testing.assert_array_equal(F2, F)
+    np.testing.assert_array_equal(T2, T)

@@ -166,6 +166,7 @@ class _Model:
         self.tau = np.zeros(model.nv)
         self.clock = 0.0
         self.loads = None  # the scenario, when it has force elements (forces.py)
+        self.loaded = []  # the bodies they act on (forces.loaded)
 
     # -- initial state -----------------------------------------------------------------------
     def initial(self):
@@ -196,13 +197,15 @@ class _Model:
         return q, v
 
     # -- read-out ----------------------------------------------------------------------------
-    def states(self, q, v):
-        """(x, R, v, W) per body (scenario order) from Pinocchio's forward kinematics."""
+    def states(self, q, v, bodies=None):
+        """(x, R, v, W) per body (scenario order) from Pinocchio's forward kinematics; with
+        ``bodies`` (indices), only theirs are read (the other rows are left unset)."""
         pin = self.pin
         pin.forwardKinematics(self.model, self.data, q, v)
         x, R, vv, W = reduced.state_arrays(len(self.pl.bodies))
-        oMi, twists = self.data.oMi, self.data.v
-        for c, jid in self.jid.items():
+        oMi, twists, jids = self.data.oMi, self.data.v, self.jid
+        for c in jids if bodies is None else bodies:
+            jid = jids[c]
             M, tw = oMi[jid], twists[jid]
             Rc, off = M.rotation, self.frames[c].body_offset
             R[c] = Rc
@@ -424,6 +427,7 @@ def build(scenario, integrator: str, dt: float, **settings):
                           f"t = 0 (a wrong placement): {gaps}")  # fmt: skip
     if has_elements(scenario):
         pm.loads = scenario
+        pm.loaded = forces.loaded(pm)
         forces.check(pm, q, v)
     rec = {
         "engine": f"pinocchio {pin.__version__}",

@@ -24,39 +24,53 @@ from references import conventions as cv
 from scenarios import force_elements as fe
 
 
-def link_states(bm):
-    """(x, R, v, W) of every body (scenario order; W in body axes) from PyBullet's link
-    states: the centre of mass (getLinkState 0), its orientation (1), linear and angular
-    velocity (6, 7); a multibody's base from getBasePositionAndOrientation/getBaseVelocity."""
+def link_states(bm, bodies=None):
+    """(x, R, v, W) of every body (scenario order; W in body axes), or of ``bodies`` alone
+    (indices; the other rows are left unset), from PyBullet's link states: the centre of mass
+    (getLinkState 0), its orientation (1), linear and angular velocity (6, 7), read with one
+    ``getLinkStates`` per multibody (one pass of its forward kinematics); a multibody's base
+    from getBasePositionAndOrientation/getBaseVelocity."""
     p, cid = bm.p, bm.cid
     nb = len(bm.pl.bodies)
     x, R, v, W = np.empty((nb, 3)), np.empty((nb, 3, 3)), np.empty((nb, 3)), np.empty((nb, 3))
-    for c, (mb, k) in bm.where.items():
+    links: dict[int, list] = {}  # multibody -> [(body, link)]
+    read = []
+    for c in bm.where if bodies is None else bodies:
+        mb, k = bm.where[c]
         if k < 0:
             xc, q = p.getBasePositionAndOrientation(mb, physicsClientId=cid)
             vc, wc = p.getBaseVelocity(mb, physicsClientId=cid)
+            read.append((c, xc, q, vc, wc))
         else:
-            s = p.getLinkState(mb, k, computeLinkVelocity=1, computeForwardKinematics=1,
-                               physicsClientId=cid)  # fmt: skip
-            xc, q, vc, wc = s[0], s[1], s[6], s[7]
+            links.setdefault(mb, []).append((c, k))
+    for mb, ck in links.items():
+        got = p.getLinkStates(mb, [k for _, k in ck], computeLinkVelocity=1,
+                              computeForwardKinematics=1, physicsClientId=cid)  # fmt: skip
+        read += [(c, s[0], s[1], s[6], s[7]) for (c, _), s in zip(ck, got, strict=True)]
+    for c, xc, q, vc, wc in read:
         R[c] = cv.quat_xyzw_to_matrix(q)
         x[c], v[c] = xc, vc
         W[c] = R[c].T @ np.asarray(wc, float)
     return x, R, v, W
 
 
-def apply(bm, scenario) -> tuple[np.ndarray, np.ndarray]:
+def apply(bm, scenario, bodies=None) -> tuple[np.ndarray, np.ndarray]:
     """Apply the force elements' loads at PyBullet's current state for the next step; returns
-    them (F, T), world, per body."""
+    them (F, T), world, per body. ``bodies``: the bodies they act on
+    (:func:`scenarios.force_elements.loaded_bodies`, computed when not given): only their
+    states are read and only they are loaded."""
     p, cid = bm.p, bm.cid
-    x, R, v, W = link_states(bm)
+    if bodies is None:
+        bodies = fe.loaded_bodies(scenario)
+    x, R, v, W = link_states(bm, bodies)
     F, T = fe.body_loads(scenario, x, R, v, W)
-    for c, (mb, k) in bm.where.items():
-        if F[c].any():
-            p.applyExternalForce(mb, k, F[c].tolist(), x[c].tolist(), p.WORLD_FRAME,
-                                 physicsClientId=cid)  # fmt: skip
-        if T[c].any():
-            p.applyExternalTorque(mb, k, T[c].tolist(), p.WORLD_FRAME, physicsClientId=cid)
+    Fl, Tl, xl = F.tolist(), T.tolist(), x.tolist()
+    for c in bodies:
+        mb, k = bm.where[c]
+        if any(Fl[c]):
+            p.applyExternalForce(mb, k, Fl[c], xl[c], p.WORLD_FRAME, physicsClientId=cid)
+        if any(Tl[c]):
+            p.applyExternalTorque(mb, k, Tl[c], p.WORLD_FRAME, physicsClientId=cid)
     return F, T
 
 

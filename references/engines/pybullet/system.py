@@ -86,7 +86,7 @@ from references.engines.pybullet import forces
 from references.engines.pybullet.adapter import MAX_JOINT_VELOCITY, _import
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
-from scenarios.force_elements import has_elements
+from scenarios.force_elements import has_elements, loaded_bodies
 
 #: why PyBullet's builder builds no cylindrical tree joint
 TREE_REFUSED = {
@@ -652,11 +652,12 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         done = 0
         timing.stepping()  # the model is built: its construction is not the cost
         loads = has_elements(scenario)
+        loaded = loaded_bodies(scenario) if loads else ()
         for k in range(1, n):
             m = int(steps[k] - done)
             if loads:  # applied before each step (forces.py); only the step is timed
                 for _ in range(m):
-                    forces.apply(bm, scenario)
+                    forces.apply(bm, scenario, loaded)
                     t0 = time.perf_counter()
                     p.stepSimulation(physicsClientId=cid)
                     bm.clock += timing.lap(t0)
