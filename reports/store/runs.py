@@ -26,6 +26,23 @@ from pathlib import Path
 
 from reports.metrics.catalog import METRIC_COLUMNS
 
+#: a run's costs: its wall, engine and CPU times and what is derived from them (the
+#: timing pass's repeats, spread and CPU share)
+COST_COLUMNS = (
+    "wall_time_s",
+    "engine_time_s",
+    "glue_time_s",
+    "wall_time_max_s",
+    "engine_time_max_s",
+    "timing_repeats",
+    "cpu_time_s",
+    "cpu_time_max_s",
+    "engine_time_spread_s",
+    "cpu_share",
+    "ns_per_step",
+    "engine_ns_per_step",
+)
+
 #: every column of a run's row; the metric columns are the catalog's
 #: (:data:`reports.metrics.catalog.METRIC_COLUMNS`), in its order
 RESULT_COLUMNS = (
@@ -51,18 +68,7 @@ RESULT_COLUMNS = (
     "message",
     "t_diverged",
     "nstep",
-    "wall_time_s",
-    "engine_time_s",
-    "glue_time_s",
-    "wall_time_max_s",
-    "engine_time_max_s",
-    "timing_repeats",
-    "cpu_time_s",
-    "cpu_time_max_s",
-    "engine_time_spread_s",
-    "cpu_share",
-    "ns_per_step",
-    "engine_ns_per_step",
+    *COST_COLUMNS,
     "evals_per_step",
     "steps_taken",
     "steps_rejected",
@@ -81,25 +87,9 @@ RESULT_COLUMNS = (
 )
 
 
-#: the columns that differ between two runs of the same configuration: the timings and the
+#: the columns that differ between two runs of the same configuration: the costs and the
 #: time of day (every other column is deterministic)
-TIMING_COLUMNS = frozenset(
-    {
-        "wall_time_s",
-        "engine_time_s",
-        "glue_time_s",
-        "wall_time_max_s",
-        "engine_time_max_s",
-        "timing_repeats",
-        "cpu_time_s",
-        "cpu_time_max_s",
-        "engine_time_spread_s",
-        "cpu_share",
-        "ns_per_step",
-        "engine_ns_per_step",
-        "finished_at",
-    }
-)
+TIMING_COLUMNS = frozenset({*COST_COLUMNS, "finished_at"})
 
 #: columns holding text; every other column holds a number
 TEXT_COLUMNS = frozenset(
