@@ -20,9 +20,26 @@ prismatic           ``PrismaticJoint`` (axis  the anchors' offset along the axis
                     = the child's axis)       (:func:`~references.engines.reduced.slide_state`)
 universal           ``UniversalJoint`` (axis1 (0, 0); the relative rate on the two axes
                     R_ref^T u_p, axis2 u_c)
+cylindrical         ``PrismaticJoint`` to a   the slide as a prismatic joint's; the turn 0,
+                    massless sleeve body      n . (W_c - R_rel^T W_p)
+                    node, ``RevoluteJoint``
+                    from it (both on u_c)
 (floating root)     ``FreeJoint``             [rotation vector, x]; [w WORLD, v WORLD]
 others              -                         unsupported (not built by this adapter)
 ==================  ========================  ===========================================
+
+Cylindrical joints: DART has none; the builder writes the composition: a massless body node,
+the joint's *sleeve* (named ``<joint>_sleeve``: mass 0, moments 0, no shape), on a
+``PrismaticJoint`` from the parent at the joint's placement along the child's axis, and the
+body on a ``RevoluteJoint`` from the sleeve about the same axis at the sleeve's origin (the
+slide and the turn about one line commute). DART accepts the zero mass and moments with
+warnings (a zero mass "can cause invalid physical behavior or segfault", an "invalid moment
+of inertia matrix", each zero moment "should be positive"); a sleeve is never a leaf (the body
+hangs from it), so its articulated inertia is the body's and DART's dynamics stay regular:
+the runs agree with the loop reference (tests/references/engines/test_system_cylindrical.py).
+The builder captures those warnings (:data:`SLEEVE_WARNINGS`), refuses any other, and records
+them. Read back: the sleeve's mass, moments, joint type, parent, axis and transforms, and the
+body's joint from the sleeve.
 
 Loop closures (``World.step`` only; DART's constraint solver is not part of
 ``computeForwardDynamics``): a closing spherical joint is a ``BallJointConstraint``, a closing
@@ -65,6 +82,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines import reduced, timing
 from references.engines.dart import forces
+from references.engines.dart.sleeve import Cylinder, sleeve_read_back
 from references.engines.liegroup import so3_right_jacobian_inverse
 from references.engines.native import import_engine
 from references.engines.system import SystemResult
@@ -78,13 +96,9 @@ _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 #: planar loop whose tree hinges are parallel, recorded as such, never chosen silently)
 REVOLUTE_CLOSURES = ("revolute", "ball")
 
-#: why DART's builder builds no cylindrical tree joint
-TREE_REFUSED = {
-    "cylindrical": "DART 6.20 has no cylindrical joint (its joints: ball, Euler, free, planar, "
-    "prismatic, revolute, screw, translational, universal, weld); a prismatic and a revolute "
-    "through a massless body node would express it, and this builder does not write one",
-}
-
+#: the tree joints this builder builds (cylindrical through a massless sleeve: module
+#: docstring)
+TREE_KINDS = (*reduced.SLIDING_KINDS, "universal", "cylindrical")
 #: DART's default error reduction parameter of its dynamic joint constraints (DART 6.20
 #: DynamicJointConstraint; read back in the tests from a fresh World)
 #: why DART closes no loop of these kinds (dartpy 6.20's joint constraints:
@@ -158,6 +172,10 @@ class _Model:
         world.setDeactivationOptions(opts)
         skel = dart.dynamics.Skeleton(str(pl.name))
         self.joint, self.body, self.frames = {}, {}, {}
+        #: body of a cylindrical joint -> (the sleeve's PrismaticJoint, the sleeve body node)
+        self.sleeve: dict = {}
+        #: what DART printed while the model was built (module docstring: SLEEVE_WARNINGS)
+        self.build_warnings: list[str] = []
         create = {
             "free": skel.createFreeJointAndBodyNodePair,
             "spherical": skel.createBallJointAndBodyNodePair,
@@ -168,15 +186,30 @@ class _Model:
         for c in pl.order:
             f = engine_frames(pl, c)
             tj = pl.tree[c]
-            if tj.parent < 0:
-                joint, body = create[f.kind]()
+            parent = () if tj.parent < 0 else (self.body[tj.parent],)
+            if f.kind == "cylindrical":
+                sj, sleeve = skel.createPrismaticJointAndBodyNodePair(*parent)
+                sj.setName(f"{tj.name}_slide")
+                sleeve.setName(f"{tj.name}_sleeve")
+                sj.setTransformFromParentBodyNode(_iso(dart, f.R, f.p))
+                sj.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
+                sj.setAxis(f.axis)
+                with dart_warnings() as said:
+                    sleeve.setInertia(dart.dynamics.Inertia(0.0, np.zeros(3), np.zeros((3, 3))))
+                self.build_warnings += [_ANSI.sub("", ln).strip() for ln in said[0].splitlines()
+                                        if ln.strip()]  # fmt: skip
+                self._neutral(sj)
+                self.sleeve[c] = (sj, sleeve)
+                joint, body = create["revolute"](sleeve)
+                place = (np.eye(3), np.zeros(3))  # the body turns in its sleeve
             else:
-                joint, body = create[f.kind](self.body[tj.parent])
+                joint, body = create[f.kind](*parent)
+                place = (f.R, f.p)
             joint.setName(f"{pl.names[c]}_joint")
             body.setName(pl.names[c])
-            joint.setTransformFromParentBodyNode(_iso(dart, f.R, f.p))
+            joint.setTransformFromParentBodyNode(_iso(dart, *place))
             joint.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
-            if f.kind in ("revolute", "prismatic"):
+            if f.kind in ("revolute", "prismatic", "cylindrical"):
                 joint.setAxis(f.axis)
             elif f.kind == "universal":
                 # about the parent's axis (R_ref^T u_p in the joint frame), then the child's:
@@ -186,11 +219,7 @@ class _Model:
             b = pl.bodies[c]
             moments = np.diag(np.asarray(b.inertia, float))
             body.setInertia(dart.dynamics.Inertia(float(b.mass), f.body_offset, moments))
-            for i in range(joint.getNumDofs()):
-                joint.setDampingCoefficient(i, 0.0)
-                joint.setSpringStiffness(i, 0.0)
-                joint.setCoulombFriction(i, 0.0)
-            joint.setLimitEnforcement(False)
+            self._neutral(joint)
             self.joint[c], self.body[c], self.frames[c] = joint, body, f
         world.addSkeleton(skel)
         self.world, self.skel = world, skel
@@ -199,18 +228,33 @@ class _Model:
         self.clock = 0.0
         self.loads = None  # the scenario, when it has force elements (forces.py)
         # per tree joint (tree order), for the RKMK4: (body index, kind, its slice of u, the
-        # DART joint, the index of its first degree of freedom in the skeleton)
+        # DART joint, the index of its first degree of freedom in the skeleton); a cylindrical
+        # joint's two (slide, turn) as one, the sleeve's degree of freedom first (read back)
         self.blocks, k = [], 0
+        sizes = {"free": 6, "spherical": 3, "revolute": 1, "prismatic": 1, "universal": 2,
+                 "cylindrical": 2}  # fmt: skip
         for c in pl.order:
             kind = pl.tree[c].kind
-            n = {"free": 6, "spherical": 3, "revolute": 1, "prismatic": 1, "universal": 2}[kind]
+            n = sizes[kind]
             joint = self.joint[c]
-            self.blocks.append((c, kind, slice(k, k + n), joint, joint.getIndexInSkeleton(0)))
+            if c in self.sleeve:
+                joint = Cylinder(self.sleeve[c][0], joint)
+            first = joint.slide if kind == "cylindrical" else joint
+            self.blocks.append((c, kind, slice(k, k + n), joint, first.getIndexInSkeleton(0)))
             k += n
         # the rotational slices of u (ball joints and free roots), where dexpinv acts
         self.rot_slices = [
             slice(b[2].start, b[2].start + 3) for b in self.blocks if b[1] in ("free", "spherical")
         ]
+
+    @staticmethod
+    def _neutral(joint) -> None:
+        """No damping, spring, friction or limits on ``joint`` (read back)."""
+        for i in range(joint.getNumDofs()):
+            joint.setDampingCoefficient(i, 0.0)
+            joint.setSpringStiffness(i, 0.0)
+            joint.setCoulombFriction(i, 0.0)
+        joint.setLimitEnforcement(False)
 
     # -- initial state -----------------------------------------------------------------------
     def set_initial(self) -> None:
@@ -225,6 +269,12 @@ class _Model:
             elif tj.kind == "prismatic":
                 d0, rate = reduced.slide_state(pl, tj)
                 pos, vel = [d0], [rate]
+            elif tj.kind == "cylindrical":
+                # the sleeve slides as a prismatic joint; the body turns in it from 0
+                d0, rate = reduced.slide_state(pl, tj)
+                self.sleeve[c][0].setPositions(np.array([d0]))
+                self.sleeve[c][0].setVelocities(np.array([rate]))
+                pos, vel = [0.0], [float(tj.axis_c @ reduced.relative_state(pl, tj)[1])]
             elif tj.kind == "universal":
                 # at (0, 0) the relative rate is q1' a1 + q2' a2 (least squares: the state
                 # check catches a rate off the two axes)
@@ -295,12 +345,15 @@ class _Model:
                 continue
             T = self.body[c].getWorldTransform().multiply(joint.getTransformFromChildBodyNode())
             points[tj.name] = T.translation()
-            if tj.kind == "revolute":
+            if tj.kind in ("revolute", "cylindrical"):
+                # a cylindrical joint's: the turn's (the slide's is read back equal to it)
                 axes[tj.name] = T.rotation() @ joint.getAxis()
-            if tj.kind == "prismatic":
+            if tj.kind in ("prismatic", "cylindrical"):
                 # the child's side moves along the axis; the parent's is the joint placement
-                parent = joint.getParentBodyNode()
-                P = joint.getTransformFromParentBodyNode()
+                # (a cylindrical joint's: the sleeve's slide)
+                placed = joint if tj.kind == "prismatic" else self.sleeve[c][0]
+                parent = placed.getParentBodyNode()
+                P = placed.getTransformFromParentBodyNode()
                 fixed = P if parent is None else parent.getWorldTransform().multiply(P)
                 j = next(j for j in self.pl.joints if j.name == tj.name)
                 a_is_child = j.body_a == self.pl.names[c]
@@ -314,8 +367,7 @@ class _Model:
         """(q, u): q a list of per-joint group elements (R, angle, or (R, x)), u the velocities
         with each free root's angular part in body axes."""
         q, u = [], []
-        for c in self.pl.order:
-            j, kind = self.joint[c], self.pl.tree[c].kind
+        for _, kind, _, j, _ in self.blocks:
             p, v = j.getPositions(), j.getVelocities()
             if kind == "free":
                 st = cv.dart_free_to_state(p, v)
@@ -325,7 +377,7 @@ class _Model:
                 R, W = cv.dart_ball_to_state(p, v)
                 q.append((R,))
                 u.append(W)
-            else:  # revolute, prismatic, universal: coordinates in a vector space
+            else:  # revolute, prismatic, universal, cylindrical: a vector space
                 q.append((np.array(p, float),))
                 u.append(np.array(v, float))
         return q, np.concatenate(u)
@@ -334,7 +386,7 @@ class _Model:
         out = []
         for (_, kind, s, _, _), g in zip(self.blocks, q, strict=True):
             th = theta[s]
-            if kind in ("revolute", "prismatic", "universal"):
+            if kind in ("revolute", "prismatic", "universal", "cylindrical"):
                 out.append((g[0] + th,))
             elif kind == "spherical":
                 out.append((g[0] @ cv.rotvec_to_matrix(th),))
@@ -415,8 +467,9 @@ def read_back(dm: _Model, scenario, dt: float) -> None:
     want = bad.want
 
     kinds = {"free": "FreeJoint", "spherical": "BallJoint", "revolute": "RevoluteJoint",
-             "prismatic": "PrismaticJoint", "universal": "UniversalJoint"}  # fmt: skip
-    want("number of bodies", skel.getNumBodyNodes(), len(pl.bodies))
+             "prismatic": "PrismaticJoint", "universal": "UniversalJoint",
+             "cylindrical": "RevoluteJoint"}  # fmt: skip
+    want("number of bodies", skel.getNumBodyNodes(), len(pl.bodies) + len(dm.sleeve))
     for c, body in dm.body.items():
         b, tj, joint = pl.bodies[c], pl.tree[c], dm.joint[c]
         name = f"body {b.name!r} ({tj.label})"
@@ -425,6 +478,9 @@ def read_back(dm: _Model, scenario, dt: float) -> None:
         parent = body.getParentBodyNode()
         got_parent = "ground" if parent is None else parent.getName()
         exp_parent = "ground" if tj.parent < 0 else pl.names[tj.parent]
+        if tj.kind == "cylindrical":
+            sleeve_read_back(dm, c, name, bad)
+            exp_parent = f"{tj.name}_sleeve"
         if got_parent != exp_parent:
             bad.append(f"{name}: parent {got_parent!r}, needs {exp_parent!r}")
         inr = body.getInertia()
@@ -477,8 +533,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     if closure not in REVOLUTE_CLOSURES:
         raise ValueError(f"revolute_closure {closure!r}: one of {list(REVOLUTE_CLOSURES)}")
     dart = _import()
-    pl = reduced.plan(scenario, "dart", (*reduced.SLIDING_KINDS, "universal"), CLOSURES,
-                      refused=REFUSED_CLOSURES, tree_refused=TREE_REFUSED)  # fmt: skip
+    pl = reduced.plan(scenario, "dart", TREE_KINDS, CLOSURES, refused=REFUSED_CLOSURES)
     if pl.loops and integrator == "RKMK4":
         raise Unsupported(
             f"dart: {pl.loops[0].label} closes a loop; DART closes loops only inside "
@@ -507,6 +562,18 @@ def build(scenario, integrator: str, dt: float, **settings):
         "tree": reduced.tree_record(pl),
         "frames": "each body frame at its joint point, parallel to its principal frame "
         "(local COM -Y)",
+        **(
+            {
+                "cylindrical joints": [
+                    f"{pl.tree[c].name}: PrismaticJoint then RevoluteJoint on one axis through the "
+                    f"massless body node '{pl.tree[c].name}_sleeve' (mass 0, moments 0; DART's "
+                    "warnings about them captured)"
+                    for c in dm.sleeve
+                ]
+            }
+            if dm.sleeve
+            else {}
+        ),  # fmt: skip
         "deactivation (sleeping)": False,
         "joint damping, spring stiffness, Coulomb friction": 0.0,
         "joint limit enforcement": False,

@@ -1,6 +1,7 @@
 """Drake builder for systems of rigid bodies: one MultibodyPlant in Drake's reduced coordinates
-(``BallRpyJoint``, ``RevoluteJoint``, ``PrismaticJoint``, ``QuaternionFloatingJoint`` for a
-floating root), loops
+(``BallRpyJoint``, ``RevoluteJoint``, ``PrismaticJoint``, ``UniversalJoint``,
+``QuaternionFloatingJoint`` for a floating root; a cylindrical joint through a massless body),
+loops
 closed by ``AddBallConstraint`` on discrete (SAP) plants only.
 
 Input: a system scenario (the contract's ``name, gravity, bodies, joints``); the spanning tree
@@ -29,9 +30,23 @@ prismatic           ``PrismaticJoint`` (axis translation = the anchors' offset a
 universal           ``UniversalJoint`` (F's  angles 0; rates: w_FM in F's x and y
                     x the parent's axis, y  (:func:`universal_frames`: F and M turned so,
                     the child's)            coinciding at t = 0)
+cylindrical         ``PrismaticJoint`` from  the slide as a prismatic joint's; the turn 0,
+                    F to a massless sleeve  its rate n . (W_c - R_rel^T W_p)
+                    body, ``RevoluteJoint``
+                    from it to M (both on
+                    the child's axis)
 (floating root)     ``QuaternionFloatingJoint``  SetFreeBodyPose / SetFreeBodySpatialVelocity
 others              -                       unsupported (not built by this adapter)
 ==================  ======================  ================================================
+
+Cylindrical joints: Drake has none; the builder writes the composition: a massless body, the
+joint's *sleeve* (``<joint>_sleeve``: ``SpatialInertia.Zero()``), on a ``PrismaticJoint`` from
+F (its body frame the joint's M at a zero slide) and the body on a ``RevoluteJoint`` from the
+sleeve's body frame to M, both along the child's axis (the slide and the turn about one line
+commute). Drake accepts a massless body that is not a leaf (the body hangs from it, so the
+articulated inertia stays regular; measured: the runs agree with the loop reference,
+tests/references/engines/test_system_cylindrical.py). Read back: the sleeve's zero mass and
+inertia, both joints' types, parents, frames and axes.
 
 The roll-pitch-yaw chart of a ball joint is singular at pitch = +-pi/2. The builder switches
 charts for the whole system at once: a Simulator monitor ends ``AdvanceTo`` at the end of a step
@@ -105,15 +120,8 @@ INTEGRATORS = (*CONTINUOUS, DISCRETE)
 CHART_SWITCH_COS = 0.4
 
 
-#: the tree joints this builder builds
-TREE_KINDS = (*reduced.SLIDING_KINDS, "universal")
-
-#: why Drake's builder builds no cylindrical tree joint
-TREE_REFUSED = {
-    "cylindrical": "Drake 1.51 has no cylindrical joint (its joints: revolute, prismatic, "
-    "screw, universal, planar, ball rpy, floating, weld); a prismatic and a revolute through a "
-    "massless body would express it, and this builder does not write one",
-}
+#: the tree joints this builder builds (cylindrical through a massless sleeve: module docstring)
+TREE_KINDS = (*reduced.SLIDING_KINDS, "universal", "cylindrical")
 
 #: why Drake closes no loop of these kinds
 REFUSED_CLOSURES = dict.fromkeys(
@@ -196,6 +204,8 @@ class _Model:
         if self.discrete:
             plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
         self.body, self.joint, self.frames = {}, {}, {}
+        #: body of a cylindrical joint -> (the sleeve's PrismaticJoint, the sleeve body)
+        self.sleeve: dict = {}
         for c in pl.order:
             b = pl.bodies[c]
             I1, I2, I3 = (float(v) for v in b.inertia)
@@ -219,7 +229,15 @@ class _Model:
             Mf = plant.AddFrame(
                 FixedOffsetFrame(f"{pl.names[c]}_M", self.body[c].body_frame(), X_M)
             )
-            if tj.kind == "spherical":
+            if tj.kind == "cylindrical":
+                sleeve = plant.AddRigidBody(f"{tj.name}_sleeve", SpatialInertia.Zero())
+                slide = plant.AddJoint(
+                    PrismaticJoint(f"{tj.name}_slide", F, sleeve.body_frame(), f.axis, damping=0.0)
+                )
+                self.sleeve[c] = (slide, sleeve)
+                joint = RevoluteJoint(f"{pl.names[c]}_joint", sleeve.body_frame(), Mf, f.axis,
+                                      0.0)  # fmt: skip
+            elif tj.kind == "spherical":
                 joint = BallRpyJoint(f"{pl.names[c]}_joint", F, Mf, 0.0)
             elif tj.kind == "prismatic":
                 joint = PrismaticJoint(f"{pl.names[c]}_joint", F, Mf, f.axis)
@@ -268,10 +286,14 @@ class _Model:
             if tj.kind == "spherical":
                 joint.set_angles(ctx, np.zeros(3))
                 joint.set_angular_velocity(ctx, f.R_F.T @ Rp.T @ (w - wp))
-            elif tj.kind == "prismatic":
+            elif tj.kind in ("prismatic", "cylindrical"):
                 d0, rate = reduced.slide_state(pl, tj)
-                joint.set_translation(ctx, d0)
-                joint.set_translation_rate(ctx, rate)
+                slide = joint if tj.kind == "prismatic" else self.sleeve[c][0]
+                slide.set_translation(ctx, d0)
+                slide.set_translation_rate(ctx, rate)
+                if tj.kind == "cylindrical":  # the body turns in its sleeve from 0
+                    joint.set_angle(ctx, 0.0)
+                    joint.set_angular_rate(ctx, float(tj.axis_c @ (R.T @ (w - wp))))
             elif tj.kind == "universal":
                 # at angles 0 the rates are w_FM in F's x and y (its z part is off the joint:
                 # the state check names it)
@@ -326,8 +348,16 @@ class _Model:
             X = joint.frame_on_child().CalcPoseInWorld(self.context)
             XF = joint.frame_on_parent().CalcPoseInWorld(self.context)
             points[tj.name] = X.translation()
-            if tj.kind == "revolute":
+            if tj.kind in ("revolute", "cylindrical"):
+                # a cylindrical joint's: the turn's (the slide's is read back equal to it)
                 axes[tj.name] = XF.rotation().matrix() @ joint.revolute_axis()
+            if tj.kind == "cylindrical":
+                # the child's side (M) moves along the axis; the parent's side is the slide's F
+                XF = self.sleeve[c][0].frame_on_parent().CalcPoseInWorld(self.context)
+                j = next(j for j in self.pl.joints if j.name == tj.name)
+                a_is_child = j.body_a == self.pl.names[c]
+                points[tj.name] = {("a" if a_is_child else "b"): X.translation(),
+                                   ("b" if a_is_child else "a"): XF.translation()}  # fmt: skip
             if tj.kind == "prismatic":
                 # the child's side (M) moves along the axis; the parent's side is F
                 j = next(j for j in self.pl.joints if j.name == tj.name)
@@ -345,7 +375,8 @@ def read_back(dm: _Model, scenario) -> None:
     want = bad.want
 
     types = {"spherical": "ball_rpy", "revolute": "revolute", "prismatic": "prismatic",
-             "universal": "universal", "free": "quaternion_floating"}  # fmt: skip
+             "universal": "universal", "free": "quaternion_floating",
+             "cylindrical": "revolute"}  # fmt: skip
     for c, body in dm.body.items():
         b, tj = pl.bodies[c], pl.tree[c]
         name = f"body {b.name!r} ({tj.label})"
@@ -364,6 +395,9 @@ def read_back(dm: _Model, scenario) -> None:
         if joint.child_body().index() != body.index():
             bad.append(f"{name}: the joint's child is {joint.child_body().name()!r}")
         exp_parent = "world" if tj.parent < 0 else pl.names[tj.parent]
+        if tj.kind == "cylindrical":
+            _sleeve_read_back(dm, c, name, bad)
+            exp_parent = f"{tj.name}_sleeve"
         got_parent = "world" if joint.parent_body().index() == plant.world_body().index() else (
             joint.parent_body().name())  # fmt: skip
         if got_parent != exp_parent:
@@ -383,22 +417,59 @@ def read_back(dm: _Model, scenario) -> None:
         XF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
         XM = joint.frame_on_child().GetFixedPoseInBodyFrame()
         RF, RM = universal_frames(f) if tj.kind == "universal" else (f.R_F, np.eye(3))
-        want(f"{name}: frame F position in the parent", XF.translation(), f.p_F)
+        pF = f.p_F
+        if tj.kind == "cylindrical":  # the turn's F is the sleeve's body frame
+            pF, RF = np.zeros(3), np.eye(3)
+        want(f"{name}: frame F position in the parent", XF.translation(), pF)
         want(f"{name}: frame F rotation in the parent", XF.rotation().matrix(), RF)
         want(f"{name}: frame M position in the child", XM.translation(), f.p_M)
         want(f"{name}: frame M rotation in the child", XM.rotation().matrix(), RM)
-        if tj.kind == "revolute":
+        if tj.kind in ("revolute", "cylindrical"):
             want(f"{name}: revolute axis", joint.revolute_axis(), f.axis)
         if tj.kind == "prismatic":
             want(f"{name}: prismatic axis", joint.translation_axis(), f.axis)
     want("gravity", plant.gravity_field().gravity_vector(), pl.gravity)
-    want("number of joints", plant.num_joints(), len(dm.body))
+    want("number of joints", plant.num_joints(), len(dm.body) + len(dm.sleeve))
     want("number of actuators", plant.num_actuators(), 0)
     want("number of collision geometries", plant.num_collision_geometries(), 0)
     want("number of constraints", plant.num_constraints(),
          sum(len(lp.pairs) + len(lp.distances) for lp in dm.loops))  # fmt: skip
     forces.read_back(dm, scenario, want, bad)
     bad.raise_any("drake", scenario)
+
+
+def _sleeve_read_back(dm: _Model, c: int, name: str, bad: reduced.Mismatches) -> None:
+    """The massless sleeve of body c's cylindrical joint (module docstring): mass and
+    inertia 0, its PrismaticJoint from the parent's frame F (at p_F, R_F) to the sleeve's body
+    frame along the frames' axis, undamped, limits infinite."""
+    want, pl, f, ctx = bad.want, dm.pl, dm.frames[c], dm.context
+    tj = pl.tree[c]
+    slide, sleeve = dm.sleeve[c]
+    what = f"{tj.name}_sleeve"
+    M = sleeve.CalcSpatialInertiaInBodyFrame(ctx)
+    want(f"{what}: mass", M.get_mass(), 0.0)
+    want(f"{what}: rotational inertia", M.CalcRotationalInertia().CopyToFullMatrix3(),
+         np.zeros((3, 3)))  # fmt: skip
+    if slide.type_name() != "prismatic":
+        bad.append(f"{what}: joint {slide.type_name()}, needs prismatic")
+        return
+    plant = dm.plant
+    got = "world" if slide.parent_body().index() == plant.world_body().index() else (
+        slide.parent_body().name())  # fmt: skip
+    exp = "world" if tj.parent < 0 else pl.names[tj.parent]
+    if got != exp or slide.child_body().index() != sleeve.index():
+        bad.append(f"{what}: slides from {got!r} (needs {exp!r}) to "
+                   f"{slide.child_body().name()!r}")  # fmt: skip
+    XF = slide.frame_on_parent().GetFixedPoseInBodyFrame()
+    want(f"{what}: frame F position in the parent", XF.translation(), f.p_F)
+    want(f"{what}: frame F rotation in the parent", XF.rotation().matrix(), f.R_F)
+    want(f"{what}: its own frame", slide.frame_on_child().GetFixedPoseInBodyFrame().GetAsMatrix4(),
+         np.eye(4))  # fmt: skip
+    want(f"{what}: prismatic axis", slide.translation_axis(), f.axis)
+    want(f"{what}: joint damping", slide.GetDampingVector(ctx), np.zeros(1))
+    lim = (slide.position_lower_limits(), slide.position_upper_limits())
+    if not (np.all(np.isneginf(lim[0])) and np.all(np.isposinf(lim[1]))):
+        bad.append(f"{what}: joint limits not infinite")
 
 
 def at_state(pl: reduced.Plan, x, R, v, W) -> reduced.Plan:
@@ -441,8 +512,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     reduced.check_settings("drake", settings)
     _import()
-    pl = reduced.plan(scenario, "drake", TREE_KINDS, reduced.DISTANCE_CLOSURES, REFUSED_CLOSURES,
-                      TREE_REFUSED)  # fmt: skip
+    pl = reduced.plan(scenario, "drake", TREE_KINDS, reduced.DISTANCE_CLOSURES, REFUSED_CLOSURES)
     if pl.loops and not loops_supported(integrator):
         raise Unsupported(
             f"drake: {pl.loops[0].label} closes a loop; Drake's constraints (AddBallConstraint) "
@@ -469,6 +539,12 @@ def build(scenario, integrator: str, dt: float, **settings):
         "joint damping": 0.0,
         "collision": "none (no geometry)",
     }
+    if dm.sleeve:
+        rec["cylindrical joints"] = [
+            f"{pl.tree[c].name}: PrismaticJoint then RevoluteJoint on one axis through the "
+            f"massless body '{pl.tree[c].name}_sleeve' (SpatialInertia.Zero())"
+            for c in dm.sleeve
+        ]
     if has_elements(scenario):
         rec["force elements"] = forces.record(scenario, dm.applied)
     if dm.loops:

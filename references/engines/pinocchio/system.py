@@ -31,9 +31,19 @@ universal           ``JointModelUniversal``       R_p^T R_c at t = 0; q = (0, 0)
                     (R_ref^T u_p, then u_c:       relative angular velocity on the two axes
                     :func:`universal_first_axis`) (least squares; the state check catches
                                                   a rate off them)
+cylindrical         ``JointModelComposite`` of    R_p^T R_c at t = 0; q = (the prismatic's
+                    ``JointModelPrismaticUnaligned``  slide, 0), v = (its rate,
+                    and ``JointModelRevoluteUnaligned``  n . (W_c - R_rel^T W_p))
+                    on the child's axis
 (floating root)     ``JointModelFreeFlyer``       q = [x, quaternion of R], v = [R^T v, W]
 others              -                             unsupported (not built by this adapter)
 ==================  ============================  ==========================================
+
+Cylindrical joints: Pinocchio 4.1 has no cylindrical joint model; the builder writes the
+composition Pinocchio offers for it, one ``JointModelComposite`` holding a slide and a turn on
+the same axis (both at the composite's origin: the two commute, so this is the cylindrical
+joint; no extra body). Read back: the composite's two parts, their types, axes and (identity)
+placements.
 
 Loop closures: each closing spherical joint is one ``RigidConstraintModel(CONTACT_3D)`` between
 the two anchors (LOCAL frame); a closing revolute joint is two of them, at the anchors and at the
@@ -98,8 +108,10 @@ def engine_frames(pl: reduced.Plan, c: int) -> reduced.EngineFrames:
     return reduced.engine_frames(pl, c)
 
 
-#: the tree joints this builder builds
-TREE_KINDS = (*reduced.SLIDING_KINDS, "universal")
+#: the tree joints this builder builds (cylindrical as a composite: module docstring)
+TREE_KINDS = (*reduced.SLIDING_KINDS, "universal", "cylindrical")
+#: the parts of a cylindrical joint's JointModelComposite, in order
+CYLINDRICAL_PARTS = ("JointModelPrismaticUnaligned", "JointModelRevoluteUnaligned")
 
 
 def universal_first_axis(tj) -> np.ndarray:
@@ -131,6 +143,11 @@ class _Model:
             elif f.kind == "universal":
                 # about the parent's axis (in the joint frame, R_ref^T u_p) then the child's
                 jm = pin.JointModelUniversal(universal_first_axis(tj), np.asarray(f.axis, float))
+            elif f.kind == "cylindrical":
+                # a slide and a turn on the child's axis (module docstring)
+                jm = pin.JointModelComposite(2)
+                jm.addJoint(pin.JointModelPrismaticUnaligned(*f.axis))
+                jm.addJoint(pin.JointModelRevoluteUnaligned(*f.axis))
             else:
                 jm = pin.JointModelRevoluteUnaligned(*f.axis)
             parent = 0 if tj.parent < 0 else self.jid[tj.parent]
@@ -185,6 +202,10 @@ class _Model:
             elif tj.kind == "prismatic":
                 d0, rate = reduced.slide_state(pl, tj)
                 qq, vv = [d0], [rate]
+            elif tj.kind == "cylindrical":
+                d0, rate = reduced.slide_state(pl, tj)
+                _, Wrel = reduced.relative_state(pl, tj)
+                qq, vv = [d0, 0.0], [rate, float(tj.axis_c @ Wrel)]
             elif tj.kind == "universal":
                 _, Wrel = reduced.relative_state(pl, tj)
                 axes = np.column_stack([universal_first_axis(tj), np.asarray(jm.extract().axis2)])
@@ -286,7 +307,7 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
     kinds = {"free": "JointModelFreeFlyer", "spherical": "JointModelSpherical",
              "revolute": "JointModelRevoluteUnaligned",
              "prismatic": "JointModelPrismaticUnaligned",
-             "universal": "JointModelUniversal"}  # fmt: skip
+             "universal": "JointModelUniversal", "cylindrical": "JointModelComposite"}  # fmt: skip
     want("number of joints", model.njoints, len(pl.order) + 1)
     for c, jid in pm.jid.items():
         b, tj = pl.bodies[c], pl.tree[c]
@@ -299,6 +320,16 @@ def read_back(pm: _Model, scenario, gains, prox) -> None:
         # the inertia about the COM in the joint frame = principal moments (frames parallel)
         want(f"{name}: inertia about the COM", inr.inertia, np.diag(np.asarray(b.inertia, float)))
         want(f"{name}: COM in the joint frame", inr.lever, -tj.Y)
+        if tj.kind == "cylindrical" and model.joints[jid].shortname() == kinds["cylindrical"]:
+            comp = model.joints[jid].extract()
+            parts = [j.shortname() for j in comp.joints]
+            if parts != list(CYLINDRICAL_PARTS):
+                bad.append(f"{name}: composite of {parts}, needs {list(CYLINDRICAL_PARTS)}")
+            else:
+                for k, part in enumerate(comp.joints):
+                    want(f"{name}: {parts[k]} axis", part.extract().axis, pm.frames[c].axis)
+                    want(f"{name}: {parts[k]} placement in the composite",
+                         comp.jointPlacements[k].homogeneous, np.eye(4))  # fmt: skip
     for jid in range(1, model.njoints):
         # crba and constraintDynamics need every subtree's velocities contiguous (depth first)
         idx = sorted(i for k in model.subtrees[jid]
@@ -329,7 +360,7 @@ def _joint_world(pm: _Model):
         name = tj.name
         M = pm.data.oMi[jid]
         points[name] = M.translation.copy()
-        if tj.kind == "prismatic":
+        if tj.kind in ("prismatic", "cylindrical"):
             # the child's side moves along the axis; the parent's is the joint placement
             parent = pm.model.parents[jid]
             fixed = pm.data.oMi[parent].act(pm.model.jointPlacements[jid]).translation
@@ -338,6 +369,9 @@ def _joint_world(pm: _Model):
             points[name] = {child_side: M.translation.copy(), parent_side: fixed.copy()}
         if tj.kind in ("revolute", "prismatic"):
             axes[name] = M.rotation @ np.asarray(pm.model.joints[jid].extract().axis)
+        if tj.kind == "cylindrical":  # the turn's axis (read back equal to the slide's)
+            turn = pm.model.joints[jid].extract().joints[1].extract()
+            axes[name] = M.rotation @ np.asarray(turn.axis)
     return points, axes, loops
 
 
@@ -378,14 +412,6 @@ def _settings(kw: dict, pl: reduced.Plan):
     return gains, prox, rule
 
 
-#: why Pinocchio's builder builds no cylindrical tree joint
-TREE_REFUSED = {
-    "cylindrical": "Pinocchio 4.1 has no cylindrical joint model (its models: revolute, "
-    "prismatic, helical, spherical, universal, planar, translation, free flyer, ellipsoid, "
-    "mimic, composite); a JointModelComposite of a prismatic and a revolute on one axis would "
-    "express it, and this builder does not write one",
-}
-
 #: why Pinocchio closes no loop of these kinds (its constraint models, pinocchio 4.1:
 #: RigidConstraintModel CONTACT_3D / CONTACT_6D, PointAnchorConstraintModel,
 #: FrameAnchorConstraintModel, JointLimitConstraintModel, JointFrictionConstraintModel)
@@ -410,9 +436,7 @@ def build(scenario, integrator: str, dt: float, **settings):
     initial state checked against Pinocchio's kinematics."""
     reduced.check_run_args(integrator, dt, INTEGRATORS)
     pin = _import()
-    pl = reduced.plan(
-        scenario, "pinocchio", TREE_KINDS, refused=REFUSED_CLOSURES, tree_refused=TREE_REFUSED
-    )
+    pl = reduced.plan(scenario, "pinocchio", TREE_KINDS, refused=REFUSED_CLOSURES)
     gains, prox, gain_rule = _settings(settings, pl)
     pm = _Model(pin, pl, float(dt), gains, prox)
     read_back(pm, scenario, gains, prox)
@@ -445,6 +469,13 @@ def build(scenario, integrator: str, dt: float, **settings):
         "damping, armature, friction": "0 (defaults, read back)",
         "forward dynamics": "constraintDynamics" if pm.constraints else "aba",
     }
+    cylinders = [pl.tree[c].name for c in pl.order if pl.tree[c].kind == "cylindrical"]
+    if cylinders:
+        rec["cylindrical joints"] = [
+            f"{name}: JointModelComposite (PrismaticUnaligned, then RevoluteUnaligned on the "
+            "same axis)"
+            for name in cylinders
+        ]
     if pm.loads is not None:
         rec["force elements"] = forces.record(scenario, integrator)
     if pm.constraints:

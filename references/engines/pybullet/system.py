@@ -25,6 +25,10 @@ prismatic           ``JOINT_PRISMATIC``    resetJointState: the anchors' offset 
 universal           two ``JOINT_REVOLUTE``  both 0; the relative rate on the two axes (least
                     through a massless     squares; the state check catches a rate off them)
                     cross link
+cylindrical         ``JOINT_PRISMATIC`` to  the slide as a prismatic joint's; the turn 0,
+                    a massless sleeve       n . (W_c - R_rel^T W_p)
+                    link, ``JOINT_REVOLUTE``
+                    from it
 (floating root)     base of a multibody    resetBasePositionAndOrientation / resetBaseVelocity
                                            (COM, world v and world w)
 others              -                      unsupported (not built by this adapter)
@@ -40,6 +44,16 @@ Rot(u_c, q2), DART's and Pinocchio's parametrisation. Both hinges are read back 
 axis, placement, the cross's zero mass and moments). The cross adds no inertia, so the motion is
 the universal joint's; its two coordinates are the engine's, the bodies' states are read as
 for any link.
+
+Cylindrical joints: PyBullet has none either; the builder writes the composition: a massless
+link, the joint's *sleeve* (``<joint>_sleeve`` in the settings record: mass 0, moments 0, no
+collision shape), on a ``JOINT_PRISMATIC`` from the parent at the joint's placement (R_ref,
+X - Y_p) along the child's axis (the sleeve's frame is the child's at a zero turn), and the body
+on a ``JOINT_REVOLUTE`` from the sleeve about the same axis at the sleeve's origin: the slide
+and the turn about one line commute, so this is the cylindrical joint. Read back as the
+universal's (both joints' types, parents, axes and placements, the sleeve's zero mass and
+moments); the initial-state check compares the anchors from both sides (the child's moves
+along the axis, as a prismatic joint's) and the hinge's world axis with both sides' axes.
 
 Loop closures: a closing spherical joint is one ``JOINT_POINT2POINT`` constraint between the two
 anchors (pivots relative to each link's COM frame, world point for the ground); a closing
@@ -88,12 +102,11 @@ from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
 from scenarios.force_elements import has_elements, loaded_bodies
 
-#: why PyBullet's builder builds no cylindrical tree joint
-TREE_REFUSED = {
-    "cylindrical": "PyBullet has no cylindrical joint (its joint types: revolute, prismatic, "
-    "spherical, planar, fixed); a prismatic and a revolute through a massless link (as the "
-    "universal joint's cross) would express it, and this builder does not write one",
-}
+#: the tree joints this builder builds (universal and cylindrical as compositions through a
+#: massless link: module docstring)
+TREE_KINDS = (*reduced.SLIDING_KINDS, "universal", "cylindrical")
+#: the massless link of a composed joint: (its name's suffix, its joint type) per kind
+COMPOSED = {"universal": ("cross", "JOINT_REVOLUTE"), "cylindrical": ("sleeve", "JOINT_PRISMATIC")}
 
 INTEGRATORS = ("multibody", "maximal coordinates")
 #: why PyBullet closes no loop of these kinds (createConstraint's joint types on multibodies:
@@ -132,6 +145,14 @@ def engine_frames(pl: reduced.Plan, c: int) -> reduced.EngineFrames:
     return reduced.engine_frames(pl, c)
 
 
+def _joint_types(p) -> dict:
+    """PyBullet's joint type of each tree kind's body link (a composed joint's body hangs from
+    its massless link by a revolute joint)."""
+    return {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
+            "prismatic": p.JOINT_PRISMATIC, "universal": p.JOINT_REVOLUTE,
+            "cylindrical": p.JOINT_REVOLUTE}  # fmt: skip
+
+
 class _Model:
     """PyBullet's client, multibodies and links (per scenario body) and loop constraints."""
 
@@ -140,7 +161,8 @@ class _Model:
         self.cid = p.connect(p.DIRECT)
         self.clock = 0.0
         self.where: dict[int, tuple[int, int]] = {}  # body -> (multibody id, link index)
-        #: body of a universal joint -> (multibody id, link index of its massless cross)
+        #: body of a universal or cylindrical joint -> (multibody id, link index of its
+        #: massless cross or sleeve)
         self.cross: dict[int, tuple[int, int]] = {}
         self.frames: dict[int, reduced.EngineFrames] = {}
         self.constraints: list = []
@@ -164,27 +186,29 @@ class _Model:
 
     def _multibody(self, base, links) -> None:
         p, cid, pl = self.p, self.cid, self.pl
-        kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
-                 "prismatic": p.JOINT_PRISMATIC, "universal": p.JOINT_REVOLUTE}  # fmt: skip
-        # the multibody's links: each body's, preceded by its massless cross for a universal
-        # joint (module docstring); rows (body, is_cross, position, orientation, inertial
-        # offset, axis, mass)
+        kinds = _joint_types(p)
+        # the multibody's links: each body's, preceded by its massless cross (universal) or
+        # sleeve (cylindrical) (module docstring); rows (body, is_cross, position,
+        # orientation, inertial offset, axis, mass, joint type)
         rows, index, cross = [], {}, {}
         for c in links:
             fc = engine_frames(pl, c)
             self.frames[c] = fc
             tj = pl.tree[c]
-            if fc.kind == "universal":
+            mass = float(pl.bodies[c].mass)
+            if fc.kind in COMPOSED:
+                # the cross turns about the parent's axis; the sleeve slides along the child's
+                first = tj.R_ref.T @ tj.axis_p if fc.kind == "universal" else fc.axis
                 cross[c] = len(rows)
-                rows.append((c, True, fc.p, fc.R, np.zeros(3), tj.R_ref.T @ tj.axis_p, 0.0))
+                rows.append((c, True, fc.p, fc.R, np.zeros(3), first, 0.0,
+                             getattr(p, COMPOSED[fc.kind][1])))  # fmt: skip
                 index[c] = len(rows)
-                rows.append((c, False, np.zeros(3), np.eye(3), fc.body_offset, fc.axis,
-                             float(pl.bodies[c].mass)))  # fmt: skip
+                rows.append((c, False, np.zeros(3), np.eye(3), fc.body_offset, fc.axis, mass,
+                             p.JOINT_REVOLUTE))  # fmt: skip
             else:
                 index[c] = len(rows)
                 axis = fc.axis if fc.axis is not None else np.array([0, 0, 1.0])
-                rows.append((c, False, fc.p, fc.R, fc.body_offset, axis,
-                             float(pl.bodies[c].mass)))  # fmt: skip
+                rows.append((c, False, fc.p, fc.R, fc.body_offset, axis, mass, kinds[fc.kind]))
 
         def parent(c, is_cross):
             if c in cross and not is_cross:
@@ -208,7 +232,7 @@ class _Model:
             linkInertialFramePositions=[np.asarray(r[4]).tolist() for r in rows],
             linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * len(rows),
             linkParentIndices=[parent(r[0], r[1]) for r in rows],
-            linkJointTypes=[kinds[pl.tree[r[0]].kind] for r in rows],
+            linkJointTypes=[r[7] for r in rows],
             linkJointAxis=[np.asarray(r[5]).tolist() for r in rows],
             useMaximalCoordinates=False,
             physicsClientId=cid,
@@ -239,7 +263,8 @@ class _Model:
             p.changeDynamics(mb, k, jointDamping=0.0, physicsClientId=cid)
             p.changeDynamics(mb, k, localInertiaDiagonal=[0.0, 0.0, 0.0], physicsClientId=cid)
         ks = [index[c] for c in links] + list(cross.values())
-        self.motors_off(mb, ks, [pl.tree[c].kind for c in links] + ["revolute"] * len(cross))
+        composed = ["prismatic" if pl.tree[c].kind == "cylindrical" else "revolute" for c in cross]
+        self.motors_off(mb, ks, [pl.tree[c].kind for c in links] + composed)
 
     def motors_off(self, mb, links, kinds) -> None:
         """Every joint's default motor off: a zero force limit (zero gains alone do not)."""
@@ -288,6 +313,12 @@ class _Model:
                     q12 = [rates, rates]
                 p.resetJointState(mb, self.cross[c][1], 0.0, float(q12[0]), physicsClientId=cid)
                 p.resetJointState(mb, k, 0.0, float(q12[1]), physicsClientId=cid)
+            elif tj.kind == "cylindrical":
+                # the sleeve slides as a prismatic joint; the body turns in it from 0
+                d0, rate = reduced.slide_state(pl, tj)
+                u = (rates, rates) if rates is not None else (rate, float(tj.axis_c @ Wr))
+                p.resetJointState(mb, self.cross[c][1], d0, u[0], physicsClientId=cid)
+                p.resetJointState(mb, k, 0.0, u[1], physicsClientId=cid)
             else:
                 u = rates if rates is not None else float(tj.axis_c @ Wr)
                 p.resetJointState(mb, k, 0.0, u, physicsClientId=cid)
@@ -329,9 +360,11 @@ class _Model:
                 continue
             P, Rf = frames[c]
             points[tj.name] = P
-            if tj.kind in ("revolute", "prismatic"):
+            if tj.kind in ("revolute", "prismatic", "cylindrical"):
+                # a cylindrical joint's: the hinge's from the sleeve (the slide's is read back
+                # equal to it)
                 axes[tj.name] = Rf @ np.asarray(p.getJointInfo(mb, k, physicsClientId=cid)[13])
-            if tj.kind == "prismatic":
+            if tj.kind in ("prismatic", "cylindrical"):
                 # the child's side moves along the axis; the parent's is the joint placement
                 if tj.parent < 0:
                     fixed = self.frames[c].p
@@ -401,8 +434,7 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
     bad = reduced.Mismatches()
     want = bad.want
 
-    kinds = {"spherical": p.JOINT_SPHERICAL, "revolute": p.JOINT_REVOLUTE,
-             "prismatic": p.JOINT_PRISMATIC, "universal": p.JOINT_REVOLUTE}  # fmt: skip
+    kinds = _joint_types(p)
     inv = {v: c for c, v in bm.where.items()}
     for c, (mb, k) in bm.where.items():
         b, tj, f = pl.bodies[c], pl.tree[c], bm.frames[c]
@@ -424,24 +456,28 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
         parent = j[16]
         exp_parent = "ground" if tj.parent < 0 else pl.names[tj.parent]
         place = f.p
-        if tj.kind == "universal":
-            # the body hangs from its cross at the joint point, about its own axis; the cross
-            # from the parent, about the parent's axis (module docstring)
+        if tj.kind in COMPOSED:
+            # the body hangs from its cross (universal) or sleeve (cylindrical) at the joint
+            # point, about its own axis; the cross turns from the parent about the parent's
+            # axis, the sleeve slides along the child's (module docstring)
+            what, jtype = COMPOSED[tj.kind]
             kc = bm.cross[c][1]
             if parent != kc:
-                bad.append(f"{name}: parent link {parent}, needs its cross (link {kc})")
-            want(f"{name}: joint position in its cross", j[14], np.zeros(3))
-            want(f"{name}: joint frame orientation in its cross", j[15], [0, 0, 0, 1])
+                bad.append(f"{name}: parent link {parent}, needs its {what} (link {kc})")
+            want(f"{name}: joint position in its {what}", j[14], np.zeros(3))
+            want(f"{name}: joint frame orientation in its {what}", j[15], [0, 0, 0, 1])
             want(f"{name}: joint axis (child frame)", j[13], f.axis)
-            name = f"{tj.name}_cross"
+            name = f"{tj.name}_{what}"
             ci = p.getDynamicsInfo(mb, kc, physicsClientId=cid)
             want(f"{name}: mass", ci[0], 0.0)
             want(f"{name}: moments", ci[2], np.zeros(3))
             j = p.getJointInfo(mb, kc, physicsClientId=cid)
-            if j[2] != p.JOINT_REVOLUTE:
-                bad.append(f"{name}: joint type {j[2]}, needs revolute")
+            if j[2] != getattr(p, jtype):
+                bad.append(f"{name}: joint type {j[2]}, needs {jtype}")
             want(f"{name}: joint damping", j[6], 0.0)
-            want(f"{name}: joint axis (its frame)", j[13], tj.R_ref.T @ tj.axis_p)
+            want(f"{name}: joint friction", j[7], 0.0)
+            first = tj.R_ref.T @ tj.axis_p if tj.kind == "universal" else f.axis
+            want(f"{name}: joint axis (its frame)", j[13], first)
             parent = j[16]
         got_parent = inv.get((mb, parent))
         got_parent = "ground" if got_parent is None else pl.names[got_parent]
@@ -459,6 +495,21 @@ def read_back(bm: _Model, scenario, dt: float) -> None:
     want("time step", params["fixedTimeStep"], dt)
     want("number of substeps", params["numSubSteps"], 0)
     bad.raise_any("pybullet", scenario)
+
+
+def _composed_record(pl: reduced.Plan, composed) -> dict:
+    """The settings record's entries for the joints built as compositions (module docstring):
+    each names its massless link."""
+    out: dict = {}
+    for c in composed:
+        tj = pl.tree[c]
+        what = COMPOSED[tj.kind][0]
+        joints = ("two JOINT_REVOLUTE" if tj.kind == "universal"
+                  else "JOINT_PRISMATIC then JOINT_REVOLUTE on one axis")  # fmt: skip
+        out.setdefault(f"{tj.kind} joints", []).append(
+            f"{tj.name}: {joints} through the massless link '{tj.name}_{what}' (mass 0, moments 0)"
+        )
+    return out
 
 
 def probe(bm: _Model, dt: float) -> list:
@@ -562,8 +613,7 @@ def build(scenario, integrator: str, dt: float, **settings):
             "of jointed bodies is not built there"
         )
     p = _import()
-    pl = reduced.plan(scenario, "pybullet", (*reduced.SLIDING_KINDS, "universal"), CLOSURES,
-                      refused=REFUSED_CLOSURES, tree_refused=TREE_REFUSED)  # fmt: skip
+    pl = reduced.plan(scenario, "pybullet", TREE_KINDS, CLOSURES, refused=REFUSED_CLOSURES)
     bm = _Model(p, pl, float(dt))
     try:
         read_back(bm, scenario, float(dt))
@@ -594,17 +644,7 @@ def build(scenario, integrator: str, dt: float, **settings):
         "maxJointVelocity": MAX_JOINT_VELOCITY,
         "activationState": "ACTIVATION_STATE_DISABLE_SLEEPING",
         "collision": "none (no collision shapes)",
-        **(
-            {
-                "universal joints": [
-                    f"{pl.tree[c].name}: two JOINT_REVOLUTE through the massless link "
-                    f"'{pl.tree[c].name}_cross' (mass 0, moments 0)"
-                    for c in bm.cross
-                ]
-            }
-            if bm.cross
-            else {}
-        ),  # fmt: skip
+        **_composed_record(pl, bm.cross),
         "probes (rate rad/s, step s, relative kinetic-energy change)": [
             (r, h, e) for (r, h, _), e in zip(PROBES, rel, strict=True)
         ],

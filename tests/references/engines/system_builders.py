@@ -30,7 +30,7 @@ from references.conventions import rotvec_to_matrix
 from references.engines import reduced
 from references.engines import system_conformance as kit
 from references.engines.system_conformance import hinge_chain, scenario
-from references.errors import EngineError, Unsupported
+from references.errors import EngineError
 from references.exact.multibody import solve, tree_from_world
 
 #: the stand-in chains of the builders' order tests (:func:`chain`), and the names pytest shows
@@ -205,16 +205,6 @@ def assert_prismatic_mistake_caught(monkeypatch, mod, mistake: str, integrator) 
         monkeypatch.setattr(reduced, "slide_state", lambda pl, tj: (0.0, orig_state(pl, tj)[1]))
     with pytest.raises(EngineError, match=r"initial state differ.*body 'collar'"):
         mod.simulate_system(scenario("slider", bodies, joints), integrator, 1e-3, 1, 1)
-
-
-def assert_cylindrical_unsupported(mod, integrator) -> None:
-    """A cylindrical joint, which the Pinocchio, Drake, DART and PyBullet builders do not
-    build, is refused with the joint named."""
-    b, j = rod_chain(2, True, seed=0)
-    bad = [j[0], dataclasses.replace(j[1], kind="cylindrical", axis_a=(1, 0, 0),
-                                     axis_b=(0, 1, 0))]  # fmt: skip
-    with pytest.raises(Unsupported, match="joint1.*cylindrical"):
-        mod.simulate_system(scenario("u", b, bad), integrator, 1e-3, 1, 1)
 
 
 def assert_saved_steps(mod, sc, integrator) -> None:

@@ -136,7 +136,6 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
 
 
 def test_unsupported_and_bad_arguments():
-    sb.assert_cylindrical_unsupported(ds, RK)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(ValueError, match="unknown settings"):
         ds.simulate_system(sc, EULER, 1e-3, 1, 1, baumgarte=(1, 1))

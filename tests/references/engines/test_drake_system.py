@@ -208,7 +208,6 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
 
 
 def test_unsupported_and_bad_arguments():
-    sb.assert_cylindrical_unsupported(ds, RK5)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="error-controlled"):
         ds.simulate_system(sc, "runge_kutta5 (error-controlled)", 1e-3, 1, 1)

@@ -154,10 +154,6 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
     sb.assert_prismatic_mistake_caught(monkeypatch, ps, mistake, RK)
 
 
-def test_unsupported_joints_and_closures_name_the_joint():
-    sb.assert_cylindrical_unsupported(ps, RK)
-
-
 def test_bad_arguments_are_named():
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(ValueError, match="integrator 'RK4' unknown"):

@@ -152,7 +152,6 @@ def test_planted_prismatic_mistakes_are_caught(monkeypatch, mistake):
 
 
 def test_unsupported_and_bad_arguments():
-    sb.assert_cylindrical_unsupported(bs, MB)
     sc = scenario("s", *rod_chain(2, True, seed=0))
     with pytest.raises(Unsupported, match="maximal coordinates"):
         bs.simulate_system(sc, "maximal coordinates", 1e-3, 1, 1)
