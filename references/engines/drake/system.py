@@ -129,7 +129,10 @@ REFUSED_CLOSURES = dict.fromkeys(
     "Drake's constraints hold a point (AddBallConstraint), a whole pose (AddWeldConstraint), a "
     "distance (AddDistanceConstraint) or two joints' coordinates (AddCouplerConstraint); none "
     "leaves a relative translation free, and a composition through an extra body on a "
-    "PrismaticJoint needs that body's mass, which would change the motion",
+    "PrismaticJoint needs that body's mass, which would change the motion: the body would be a "
+    "leaf of the tree (tied to the other side by constraints only), and Drake refuses a "
+    "massless leaf on a sliding joint ('An internal mass matrix associated with the joint ... "
+    "is not positive-definite', measured on a discrete SAP plant, Drake 1.51.1)",
 )
 
 

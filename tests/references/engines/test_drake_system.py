@@ -220,3 +220,32 @@ def test_unsupported_and_bad_arguments():
 def test_a_floating_chain_keeps_its_momentum_to_the_integrators_order(integrator, dt, p):
     """A floating 5-body chain (QuaternionFloatingJoint root) in zero gravity."""
     sb.assert_momentum_order(ds, integrator, dt, p)
+
+
+def test_drake_refuses_a_massless_leaf_on_a_sliding_joint():
+    """What the sliding closures' reason says (REFUSED_CLOSURES): the composition that builds a
+    cylindrical tree joint (a PrismaticJoint to a massless body) would, for a closure, leave
+    that body a leaf tied to the other side by constraints only; Drake refuses it. Should a
+    later Drake accept it, this fails and the reason must be revisited."""
+    from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
+    from pydrake.multibody.tree import (
+        PrismaticJoint,
+        RevoluteJoint,
+        RotationalInertia,
+        SpatialInertia,
+    )
+    from pydrake.systems.analysis import Simulator
+
+    plant = MultibodyPlant(time_step=1e-3)
+    plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
+    rod = SpatialInertia.MakeFromCentralInertia(1.0, np.zeros(3), RotationalInertia(0.1, 0.1, 0.02))
+    a, b = plant.AddRigidBody("a", rod), plant.AddRigidBody("b", rod)
+    sleeve = plant.AddRigidBody("sleeve", SpatialInertia.Zero())
+    plant.AddJoint(RevoluteJoint("ja", plant.world_frame(), a.body_frame(), [0, 1.0, 0], 0.0))
+    plant.AddJoint(RevoluteJoint("jb", plant.world_frame(), b.body_frame(), [0, 1.0, 0], 0.0))
+    plant.AddJoint(PrismaticJoint("slide", a.body_frame(), sleeve.body_frame(), [1.0, 0, 0]))
+    plant.AddBallConstraint(sleeve, [0, 0, 0], b, [0, 0, 0])
+    plant.Finalize()
+    assert "massless leaf" in ds.REFUSED_CLOSURES["prismatic"]
+    with pytest.raises(RuntimeError, match="not positive-definite"):
+        Simulator(plant, plant.CreateDefaultContext()).AdvanceTo(0.01)
