@@ -47,6 +47,11 @@ POINT_CLOSURES = ("spherical", "fixed_point", "revolute")
 DISTANCE_CLOSURES = (*POINT_CLOSURES, "universal")
 #: the tree joints Pinocchio's builder (and Drake's) build
 SLIDING_KINDS = (*_TREE_KINDS, "prismatic")
+#: the mass (kg) and each principal moment (kg m^2) of the body a joint the engine lacks is
+#: composed through (PyBullet's universal cross; DART's, PyBullet's and Drake's cylindrical
+#: sleeve): none, so the composition is the joint. The builders hand this value to the engine
+#: and read back 0 (the tests plant a mass here)
+COMPOSED_MASS = 0.0
 #: closures that leave a translation along their axis free, as a plan holds them: the point pair
 #: at the anchors and the pair one length scale L along the axes (a revolute closure's form; the
 #: engine's constraint frees the motion along the axis, and for a cylindrical the turn about

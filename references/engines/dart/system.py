@@ -195,7 +195,8 @@ class _Model:
                 sj.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
                 sj.setAxis(f.axis)
                 with dart_warnings() as said:
-                    sleeve.setInertia(dart.dynamics.Inertia(0.0, np.zeros(3), np.zeros((3, 3))))
+                    m = reduced.COMPOSED_MASS
+                    sleeve.setInertia(dart.dynamics.Inertia(m, np.zeros(3), m * np.eye(3)))
                 self.build_warnings += [_ANSI.sub("", ln).strip() for ln in said[0].splitlines()
                                         if ln.strip()]  # fmt: skip
                 self._neutral(sj)

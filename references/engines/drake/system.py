@@ -233,7 +233,12 @@ class _Model:
                 FixedOffsetFrame(f"{pl.names[c]}_M", self.body[c].body_frame(), X_M)
             )
             if tj.kind == "cylindrical":
-                sleeve = plant.AddRigidBody(f"{tj.name}_sleeve", SpatialInertia.Zero())
+                m = reduced.COMPOSED_MASS  # Drake's central inertia needs m > 0: Zero() for 0
+                Ms = SpatialInertia.Zero()
+                if m != 0:
+                    Im = RotationalInertia(m, m, m)
+                    Ms = SpatialInertia.MakeFromCentralInertia(m, np.zeros(3), Im)
+                sleeve = plant.AddRigidBody(f"{tj.name}_sleeve", Ms)
                 slide = plant.AddJoint(
                     PrismaticJoint(f"{tj.name}_slide", F, sleeve.body_frame(), f.axis, damping=0.0)
                 )

@@ -200,7 +200,7 @@ class _Model:
                 # the cross turns about the parent's axis; the sleeve slides along the child's
                 first = tj.R_ref.T @ tj.axis_p if fc.kind == "universal" else fc.axis
                 cross[c] = len(rows)
-                rows.append((c, True, fc.p, fc.R, np.zeros(3), first, 0.0,
+                rows.append((c, True, fc.p, fc.R, np.zeros(3), first, reduced.COMPOSED_MASS,
                              getattr(p, COMPOSED[fc.kind][1])))  # fmt: skip
                 index[c] = len(rows)
                 rows.append((c, False, np.zeros(3), np.eye(3), fc.body_offset, fc.axis, mass,
@@ -261,7 +261,8 @@ class _Model:
                              physicsClientId=cid)  # fmt: skip
         for k in cross.values():
             p.changeDynamics(mb, k, jointDamping=0.0, physicsClientId=cid)
-            p.changeDynamics(mb, k, localInertiaDiagonal=[0.0, 0.0, 0.0], physicsClientId=cid)
+            p.changeDynamics(mb, k, localInertiaDiagonal=[reduced.COMPOSED_MASS] * 3,
+                             physicsClientId=cid)  # fmt: skip
         ks = [index[c] for c in links] + list(cross.values())
         composed = ["prismatic" if pl.tree[c].kind == "cylindrical" else "revolute" for c in cross]
         self.motors_off(mb, ks, [pl.tree[c].kind for c in links] + composed)

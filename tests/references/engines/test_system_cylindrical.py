@@ -21,7 +21,7 @@ from references.engines import reduced
 from references.engines import system_conformance as kit
 from references.engines.joint_coverage import tree_probe
 from references.engines.system import builder
-from references.errors import Unsupported
+from references.errors import EngineError, Unsupported
 from references.exact.multibody import solve
 from references.exact.multibody.loops import system_from_world
 
@@ -106,3 +106,14 @@ def test_a_tree_kind_a_builder_does_not_build_is_refused_with_its_reason():
         r"a cylindrical joint in a tree: no such joint \(built: spherical",
     ):
         reduced.plan(sc, "eng", ("spherical",), tree_refused={"cylindrical": "no such joint"})
+
+
+@pytest.mark.parametrize("engine", ["dart", "pybullet", "drake"])
+def test_a_sleeve_with_mass_is_refused_by_the_read_back(monkeypatch, engine):
+    """The composition is the cylindrical joint only while its sleeve has no mass: a sleeve
+    of 0.1 kg (moments 0.1 kg m^2) handed to the engine is refused, the sleeve named."""
+    _available(engine)
+    monkeypatch.setattr(reduced, "COMPOSED_MASS", 0.1)
+    sc = kit.scenario("kit-cylindrical", *tree_probe("cylindrical"))
+    with pytest.raises(EngineError, match=r"h1_sleeve: mass"):
+        builder(engine)(sc, kit.RUNS[engine][0], 1e-3, 2, 1)

@@ -74,3 +74,16 @@ def test_planted_mistakes_on_a_universal_joint_are_caught(engine):
     checks = kit.check_mistakes(engine, sc=sc)
     assert [c.name for c in checks if not c.ok] == [], [c for c in checks if not c.ok]
     assert len(checks) == 1 + len(kit.MISTAKES)
+
+
+def test_a_cross_with_mass_is_refused_by_pybullets_read_back(monkeypatch):
+    """PyBullet's two-hinge universal joint is the joint only while its cross has no mass: a
+    cross of 0.1 kg (moments 0.1 kg m^2) handed to PyBullet is refused, the cross named."""
+    from references.engines import reduced
+    from references.errors import EngineError
+
+    _available("pybullet")
+    monkeypatch.setattr(reduced, "COMPOSED_MASS", 0.1)
+    sc = kit.scenario("kit-universal3", *kit.universal_chain())
+    with pytest.raises(EngineError, match=r"h1_cross: mass"):
+        builder("pybullet")(sc, "multibody", 1e-3, 2, 1)
