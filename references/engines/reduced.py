@@ -52,6 +52,7 @@ SLIDING_KINDS = (*_TREE_KINDS, "prismatic")
 #: sleeve): none, so the composition is the joint. The builders hand this value to the engine
 #: and read back 0 (the tests plant a mass here)
 COMPOSED_MASS = 0.0
+
 #: closures that leave a translation along their axis free, as a plan holds them: the point pair
 #: at the anchors and the pair one length scale L along the axes (a revolute closure's form; the
 #: engine's constraint frees the motion along the axis, and for a cylindrical the turn about
@@ -103,6 +104,19 @@ class Plan:
     gravity: np.ndarray
     length: float
     rate: float
+
+
+def composed_name(pl: Plan, tj: TreeJoint, part: str) -> str:
+    """The name of the massless body a composed joint goes through, ``<joint>_<part>``
+    (``part``: "cross", "sleeve"); ``ValueError`` naming the joint when a scenario body has
+    that name (the engine would refuse or rename it)."""
+    name = f"{tj.name}_{part}"
+    if name in pl.names:
+        raise ValueError(
+            f"{tj.label}: its massless {part} is named {name!r}, the name of a body of the "
+            "scenario: rename that body or the joint"
+        )
+    return name
 
 
 def label(j) -> str:

@@ -190,7 +190,7 @@ class _Model:
             if f.kind == "cylindrical":
                 sj, sleeve = skel.createPrismaticJointAndBodyNodePair(*parent)
                 sj.setName(f"{tj.name}_slide")
-                sleeve.setName(f"{tj.name}_sleeve")
+                sleeve.setName(reduced.composed_name(pl, tj, "sleeve"))
                 sj.setTransformFromParentBodyNode(_iso(dart, f.R, f.p))
                 sj.setTransformFromChildBodyNode(_iso(dart, np.eye(3), np.zeros(3)))
                 sj.setAxis(f.axis)

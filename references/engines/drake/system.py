@@ -238,7 +238,7 @@ class _Model:
                 if m != 0:
                     Im = RotationalInertia(m, m, m)
                     Ms = SpatialInertia.MakeFromCentralInertia(m, np.zeros(3), Im)
-                sleeve = plant.AddRigidBody(f"{tj.name}_sleeve", Ms)
+                sleeve = plant.AddRigidBody(reduced.composed_name(pl, tj, "sleeve"), Ms)
                 slide = plant.AddJoint(
                     PrismaticJoint(f"{tj.name}_slide", F, sleeve.body_frame(), f.axis, damping=0.0)
                 )

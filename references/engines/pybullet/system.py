@@ -197,6 +197,7 @@ class _Model:
             tj = pl.tree[c]
             mass = float(pl.bodies[c].mass)
             if fc.kind in COMPOSED:
+                reduced.composed_name(pl, tj, COMPOSED[fc.kind][0])  # not a body's name
                 # the cross turns about the parent's axis; the sleeve slides along the child's
                 first = tj.R_ref.T @ tj.axis_p if fc.kind == "universal" else fc.axis
                 cross[c] = len(rows)

@@ -117,3 +117,18 @@ def test_a_sleeve_with_mass_is_refused_by_the_read_back(monkeypatch, engine):
     sc = kit.scenario("kit-cylindrical", *tree_probe("cylindrical"))
     with pytest.raises(EngineError, match=r"h1_sleeve: mass"):
         builder(engine)(sc, kit.RUNS[engine][0], 1e-3, 2, 1)
+
+
+@pytest.mark.parametrize("engine", ["dart", "pybullet", "drake"])
+def test_a_body_named_as_the_sleeve_is_refused_naming_the_joint(engine):
+    """The sleeve is named '<joint>_sleeve'; a scenario body of that name (which Drake would
+    refuse deep inside AddRigidBody and DART rename) is refused before the engine is asked."""
+    import dataclasses
+
+    _available(engine)
+    bodies, joints = tree_probe("cylindrical")
+    bodies = [bodies[0], dataclasses.replace(bodies[1], name="h1_sleeve")]
+    joints = [joints[0], dataclasses.replace(joints[1], body_b="h1_sleeve")]
+    sc = kit.scenario("kit-cylindrical", bodies, joints)
+    with pytest.raises(ValueError, match=r"joint 'h1' .*its massless sleeve is named 'h1_sleeve'"):
+        builder(engine)(sc, kit.RUNS[engine][0], 1e-3, 2, 1)
