@@ -156,3 +156,40 @@ def test_a_builders_stepping_ends_where_it_says_so(clocks):
     assert t.engine == pytest.approx(2e-3, rel=1e-9)
     assert t.cpu == pytest.approx(2.1e-3, rel=1e-9)
     assert t.wall == pytest.approx(2.1e-3, rel=1e-9)
+
+
+def test_the_exact_references_cost_is_its_own_threads_cpu_time():
+    """The reference (engine "exact") is timed on the calling thread's CPU clock, as every
+    engine: CPU time another thread of the process spends meanwhile (here NumPy's loops,
+    which run without the GIL) is not its cost. Planted: the process's clock (as it was)
+    counts the other thread and fails the first assertion whenever that thread ran."""
+    import threading
+    import time
+
+    import numpy as np
+
+    import scenarios
+    from references.engines.exact.adapter import ExactEngine
+
+    sc = scenarios.load("dzhanibekov")
+    ExactEngine().run(sc, "reference", sc.dt)  # its imports done: the call below is its run
+    stop, started = threading.Event(), threading.Event()
+    a = np.random.default_rng(0).random(2_000_000)
+
+    def busy():
+        while not stop.is_set():
+            np.sin(a)
+            started.set()
+
+    other = threading.Thread(target=busy, daemon=True)
+    other.start()
+    try:
+        started.wait(10.0)
+        c0, p0 = time.thread_time(), time.process_time()
+        out = ExactEngine().run(sc, "reference", sc.dt)
+        mine, process = time.thread_time() - c0, time.process_time() - p0
+    finally:
+        stop.set()
+        other.join()
+    assert 0 < out.cpu_time_s <= mine + 1e-6, (out.cpu_time_s, mine, process)
+    assert out.timing.cpu == out.cpu_time_s and out.timing.spread == 0.0
