@@ -93,6 +93,7 @@ import numpy as np
 
 from references.engines import reduced, timing
 from references.engines.drake import forces
+from references.engines.drake.sleeve import sleeve_read_back
 from references.engines.native import import_engine
 from references.engines.system import SystemResult
 from references.errors import Diverged, EngineError, Unsupported
@@ -404,7 +405,7 @@ def read_back(dm: _Model, scenario) -> None:
             bad.append(f"{name}: the joint's child is {joint.child_body().name()!r}")
         exp_parent = "world" if tj.parent < 0 else pl.names[tj.parent]
         if tj.kind == "cylindrical":
-            _sleeve_read_back(dm, c, name, bad)
+            sleeve_read_back(dm, c, name, bad)
             exp_parent = f"{tj.name}_sleeve"
         got_parent = "world" if joint.parent_body().index() == plant.world_body().index() else (
             joint.parent_body().name())  # fmt: skip
@@ -444,40 +445,6 @@ def read_back(dm: _Model, scenario) -> None:
          sum(len(lp.pairs) + len(lp.distances) for lp in dm.loops))  # fmt: skip
     forces.read_back(dm, scenario, want, bad)
     bad.raise_any("drake", scenario)
-
-
-def _sleeve_read_back(dm: _Model, c: int, name: str, bad: reduced.Mismatches) -> None:
-    """The massless sleeve of body c's cylindrical joint (module docstring): mass and
-    inertia 0, its PrismaticJoint from the parent's frame F (at p_F, R_F) to the sleeve's body
-    frame along the frames' axis, undamped, limits infinite."""
-    want, pl, f, ctx = bad.want, dm.pl, dm.frames[c], dm.context
-    tj = pl.tree[c]
-    slide, sleeve = dm.sleeve[c]
-    what = f"{tj.name}_sleeve"
-    M = sleeve.CalcSpatialInertiaInBodyFrame(ctx)
-    want(f"{what}: mass", M.get_mass(), 0.0)
-    want(f"{what}: rotational inertia", M.CalcRotationalInertia().CopyToFullMatrix3(),
-         np.zeros((3, 3)))  # fmt: skip
-    if slide.type_name() != "prismatic":
-        bad.append(f"{what}: joint {slide.type_name()}, needs prismatic")
-        return
-    plant = dm.plant
-    got = "world" if slide.parent_body().index() == plant.world_body().index() else (
-        slide.parent_body().name())  # fmt: skip
-    exp = "world" if tj.parent < 0 else pl.names[tj.parent]
-    if got != exp or slide.child_body().index() != sleeve.index():
-        bad.append(f"{what}: slides from {got!r} (needs {exp!r}) to "
-                   f"{slide.child_body().name()!r}")  # fmt: skip
-    XF = slide.frame_on_parent().GetFixedPoseInBodyFrame()
-    want(f"{what}: frame F position in the parent", XF.translation(), f.p_F)
-    want(f"{what}: frame F rotation in the parent", XF.rotation().matrix(), f.R_F)
-    want(f"{what}: its own frame", slide.frame_on_child().GetFixedPoseInBodyFrame().GetAsMatrix4(),
-         np.eye(4))  # fmt: skip
-    want(f"{what}: prismatic axis", slide.translation_axis(), f.axis)
-    want(f"{what}: joint damping", slide.GetDampingVector(ctx), np.zeros(1))
-    lim = (slide.position_lower_limits(), slide.position_upper_limits())
-    if not (np.all(np.isneginf(lim[0])) and np.all(np.isposinf(lim[1]))):
-        bad.append(f"{what}: joint limits not infinite")
 
 
 def at_state(pl: reduced.Plan, x, R, v, W) -> reduced.Plan:
