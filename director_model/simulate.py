@@ -316,7 +316,8 @@ class Stepper:
         K.store_state(self._scheme_cls.method, self._P, self._S, self._g, self.time, X, V, D, Dp)
         return StepperState(X[0], V[0], D[0], omega_body_from_directors(D, Dp)[0])
 
-    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False) -> Trajectory:
+    def advance(self, nstep: int, save_every: int = 1, include_start: bool = False, *,
+                stepped=None) -> Trajectory:  # fmt: skip
         """Advance by ``nstep`` steps of ``dt`` and return the states saved in this chunk.
 
         Saved: the steps j * save_every (j = 1, 2, ...) of the chunk and always its last
@@ -329,6 +330,10 @@ class Stepper:
         Raises StepSizeError (``time``: the absolute time of the failing step's start) if a
         step cannot be solved; the stepper then stays at the last completed step
         (``nstep_done`` counts it) and the chunk's states are not returned.
+
+        ``stepped``: called with no argument as soon as the compiled stepping has returned,
+        before the invariants are computed from the saved states (where a caller timing the
+        stepping stops its clock).
         """
         nstep = _check_count("nstep", nstep)
         save_every = _check_count("save_every", save_every)
@@ -349,6 +354,8 @@ class Stepper:
         )  # fmt: skip
         wall = time.perf_counter() - t0
         cpu = time.thread_time() - c0
+        if stepped is not None:
+            stepped()
         if status != K.OK:
             self.nstep_done = step0 + int(info[0])
             raise _step_error(sch, int(status), info, self.dt, step0=step0)

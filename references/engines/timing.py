@@ -141,6 +141,11 @@ class Stopwatch:
             self._running = False
         return t1
 
+    @property
+    def running(self) -> bool:
+        """Whether the stepping is on (between :meth:`resume` and :meth:`pause`)."""
+        return self._running
+
     def restart(self) -> None:
         """The stepping starts now: what ran since :meth:`resume` (a system builder's model
         construction) is left out, as the building of a single body's model is."""
