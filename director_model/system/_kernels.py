@@ -83,6 +83,13 @@ from numba.np.linalg import _LAPACK, ensure_lapack
 
 from director_model import _cache
 from director_model._primitives import kahan, quat_matrix
+from director_model.system._band5 import (
+    _b5_ldl_solve_rr,
+    _b5_solve_rr,
+    _is_band5,
+    _is_revolute5,
+    _r5_assemble,
+)
 from director_model.system._block3 import (  # _U: unsigned array indices, see there
     _U,
     _forces3,
@@ -1079,6 +1086,10 @@ def _run_system(
     kn = np.ones(nr, dtype=np.int64)
     ext = np.zeros(nr, dtype=np.int64)
     _envelope(ptr, idx, nrow, ext)
+    # joints of five rows, each sharing a body with the next only: the solves in joint blocks
+    # (_band5.py), and for revolute joints the assembly too
+    b5 = minnorm == MODE_PIVOTED and _is_band5(ext, nrow)
+    r5 = b5 and _is_revolute5(rint, nrow)
     d0 = np.zeros(nr)
     pb = np.zeros(2)
     ns = coef.shape[0]
@@ -1244,7 +1255,10 @@ def _run_system(
                         # iterate on (the matrix is fresh from then on) the SVD decides
                         psvd = minnorm == MODE_SVD or it >= 3
                         if not psvd and havepat:
-                            _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, yes, bw, no)
+                            if r5:
+                                _r5_assemble(jptr, jidx, jside, Jnew, Jold, Mx, Mth, Ab, bw, no)
+                            else:
+                                _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, yes, bw, no)
                             st = _band_lu_rr(Ab, bw, ext, kn, pb)
                             if st < 0:
                                 _fail(info, n, h)
@@ -1272,6 +1286,8 @@ def _run_system(
                 if minnorm:
                     if psvd:
                         _svd_solve(U, sv, Vt, rank, gv, dl)
+                    elif b5:
+                        _b5_solve_rr(Ab, bw, kn, gv, dl)
                     else:
                         _band_solve_rr(Ab, bw, ext, kn, gv, dl)
                 elif banded:
@@ -1316,7 +1332,10 @@ def _run_system(
                 if minnorm:
                     vsvd = minnorm == MODE_SVD
                     if not vsvd:
-                        _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, yes, bw, yes)
+                        if r5:
+                            _r5_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Ab, bw, yes)
+                        else:
+                            _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, yes, bw, yes)
                         st = _band_ldl_rr(Ab, bw, ext, kv, d0, pb)
                         if st < 0:
                             _fail(info, n, h)
@@ -1389,6 +1408,8 @@ def _run_system(
                     if minnorm:
                         if vsvd:
                             _svd_solve(U, sv, Vt, rank, r0, dl)
+                        elif b5:
+                            _b5_ldl_solve_rr(Ab, bw, kv, r0, dl)
                         else:
                             _band_ldl_solve_rr(Ab, bw, ext, kv, r0, dl)
                     elif banded:
@@ -1513,5 +1534,9 @@ def run_system_banded(
 
 _cache.tie(
     globals(),
-    *[Path(__file__).parent.parent / "_primitives.py", Path(__file__).with_name("_block3.py")],
+    *[
+        Path(__file__).parent.parent / "_primitives.py",
+        Path(__file__).with_name("_block3.py"),
+        Path(__file__).with_name("_band5.py"),
+    ],
 )

@@ -251,5 +251,6 @@ _cache.tie(
         Path(__file__).parent.parent / "_primitives.py",
         Path(__file__).with_name("_kernels.py"),
         Path(__file__).with_name("_block3.py"),
+        Path(__file__).with_name("_band5.py"),
     ],
 )

@@ -22,11 +22,12 @@ from director_model import _cache
 #: block-solver rows; the batch of systems: the system kernel)
 KERNEL_MODULES = {
     "director_model._kernels": ("_primitives.py",),
-    "director_model.system._kernels": ("_primitives.py", "system/_block3.py"),
+    "director_model.system._kernels": ("_primitives.py", "system/_block3.py", "system/_band5.py"),
     "director_model.system.batch": (
         "_primitives.py",
         "system/_kernels.py",
         "system/_block3.py",
+        "system/_band5.py",
     ),
 }
 

@@ -1,0 +1,238 @@
+"""The loop solver's banded solves and assembly in 5 x 5 joint blocks, where the joints have
+five rows each (revolute and prismatic joints) and each joint's rows share a body with the
+next joint's only: the multiplier matrix is block tridiagonal in joint blocks (a single loop
+closed through the ground, joints listed along it by model.band_order: the four-bar,
+Bricard's linkage; a chain of such joints). ``_kernels._envelope`` then gives every row of
+joint k the envelope end of joint k + 1's rows, and the loops here run over the blocks with
+trip counts that are constants of the block (the general solves read each row's end from the
+envelope array). For revolute joints (three POINT rows, two DOT rows) the assembly of
+G1 W G0^T goes joint pair by joint pair without the products by the rows' exact zeros (a
+POINT row has one translation entry, +-1, and a zero rotation entry; a DOT row no
+translation entries), as _block3.py does for ball joints.
+
+Each unknown receives the same subtractions in the same order as in the general solves
+(``_kernels._band_solve_rr``, ``_kernels._band_ldl_solve_rr``), each matrix entry the same
+products summed in the same order as in ``_kernels._assemble`` less those with a factor 0
+(x + 0 * y = x for finite x; only the sign of a zero could differ): the results are bit for
+bit theirs (tests/director_model/test_director_system_band5.py). Measured on the four-bar's
+20 x 20 matrices at step 1000 (thread CPU time, best of 5 x 20000 calls, /tmp scripts):
+LU solve 290 -> 212 ns, L D L^T solve 300 -> 170 ns, Newton matrix assembly 467 -> 273 ns,
+velocity-stage matrix (upper band) 305 -> 222 ns. The kernels of _kernels.py inline these
+functions; its disk cache is tied to this file.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from director_model.system._block3 import _U
+
+#: rows of a joint block
+JB = 5
+
+
+@njit(forceinline=True)
+def _is_band5(ext, n):
+    """Whether the envelope ``ext`` (``_kernels._envelope``) of an n-row matrix is block
+    tridiagonal in blocks of JB rows (row r's end: the last row of the next block)."""
+    if n == 0 or n % JB != 0:
+        return False
+    for r in range(n):
+        if ext[r] != min(JB * (r // JB) + 2 * JB - 1, n - 1):
+            return False
+    return True
+
+
+@njit(forceinline=True)
+def _b5_solve_rr(A, bw, keep, b, x):
+    """``_kernels._band_solve_rr`` (the basic solution from ``_band_lu_rr``'s factors) on a
+    block tridiagonal envelope (:func:`_is_band5`)."""
+    n = A.shape[0]
+    nbk = n // JB
+    for i in range(n):
+        x[_U(i)] = b[_U(i)]
+    for bb in range(nbk):
+        r0 = JB * bb
+        nxt = bb < nbk - 1
+        for p in range(JB):
+            xk = x[_U(r0 + p)]
+            for i in range(p + 1, JB):
+                x[_U(r0 + i)] -= A[_U(r0 + i), _U(bw + p - i)] * xk
+            if nxt:
+                for i in range(JB):
+                    x[_U(r0 + JB + i)] -= A[_U(r0 + JB + i), _U(bw + p - JB - i)] * xk
+    for bb in range(nbk - 1, -1, -1):
+        r0 = JB * bb
+        nxt = bb < nbk - 1
+        for p in range(JB - 1, -1, -1):
+            ui = _U(r0 + p)
+            if keep[ui] == 0:
+                x[ui] = 0.0
+                continue
+            t = x[ui]
+            for j in range(p + 1, JB):
+                t -= A[ui, _U(bw + j - p)] * x[_U(r0 + j)]
+            if nxt:
+                for j in range(JB):
+                    t -= A[ui, _U(bw + JB + j - p)] * x[_U(r0 + JB + j)]
+            x[ui] = t / A[ui, _U(bw)]
+
+
+@njit(forceinline=True)
+def _b5_ldl_solve_rr(A, bw, keep, b, x):
+    """``_kernels._band_ldl_solve_rr`` (the basic solution from ``_band_ldl_rr``'s factors,
+    upper band stored) on a block tridiagonal envelope (:func:`_is_band5`)."""
+    n = A.shape[0]
+    nbk = n // JB
+    for i in range(n):
+        x[_U(i)] = b[_U(i)]
+    for bb in range(nbk):
+        r0 = JB * bb
+        nxt = bb < nbk - 1
+        for p in range(JB):
+            uk = _U(r0 + p)
+            xk = x[uk]
+            for i in range(p + 1, JB):
+                x[_U(r0 + i)] -= A[uk, _U(bw + i - p)] * xk
+            if nxt:
+                for i in range(JB):
+                    x[_U(r0 + JB + i)] -= A[uk, _U(bw + JB + i - p)] * xk
+    for k in range(n):
+        uk = _U(k)
+        x[uk] = x[uk] / A[uk, _U(bw)] if keep[uk] else 0.0
+    for bb in range(nbk - 1, -1, -1):
+        r0 = JB * bb
+        nxt = bb < nbk - 1
+        for p in range(JB - 1, -1, -1):
+            ui = _U(r0 + p)
+            t = x[ui]
+            for j in range(p + 1, JB):
+                t -= A[ui, _U(bw + j - p)] * x[_U(r0 + j)]
+            if nxt:
+                for j in range(JB):
+                    t -= A[ui, _U(bw + JB + j - p)] * x[_U(r0 + JB + j)]
+            x[ui] = t if keep[ui] else 0.0
+
+
+@njit(forceinline=True)
+def _is_revolute5(rint, n):
+    """Whether every joint block of an n-row matrix (:func:`_is_band5`) has the rows of a
+    revolute joint: POINT components 0, 1, 2, then two DOT rows (model.py)."""
+    for r in range(n):
+        p = r % JB
+        if rint[r, 0] != (0 if p < 3 else 1) or (p < 3 and rint[r, 3] != p):
+            return False
+    return True
+
+
+@njit(forceinline=True)
+def _r5_l(JL, r, o, mx, M, p):
+    """Row r (component p of a revolute joint) of JL blockdiag(mx 1, M) on the side at column
+    o: (its translation entry, at column p if p < 3, else 0; its rotation entries) as
+    ``_kernels._assemble`` computes them, without the terms with a factor 0 (the
+    translation entries off p, a POINT row's rotation entry p)."""
+    if p < 3:
+        lin = JL[_U(r), _U(o + p)] * mx
+    else:
+        lin = 0.0
+    t0 = JL[_U(r), _U(o + 3)]
+    t1 = JL[_U(r), _U(o + 4)]
+    t2 = JL[_U(r), _U(o + 5)]
+    if p == 0:
+        return lin, t1 * M[3] + t2 * M[6], t1 * M[4] + t2 * M[7], t1 * M[5] + t2 * M[8]
+    if p == 1:
+        return lin, t0 * M[0] + t2 * M[6], t0 * M[1] + t2 * M[7], t0 * M[2] + t2 * M[8]
+    if p == 2:
+        return lin, t0 * M[0] + t1 * M[3], t0 * M[1] + t1 * M[4], t0 * M[2] + t1 * M[5]
+    return (
+        lin,
+        t0 * M[0] + t1 * M[3] + t2 * M[6],
+        t0 * M[1] + t1 * M[4] + t2 * M[7],
+        t0 * M[2] + t1 * M[5] + t2 * M[8],
+    )
+
+
+@njit(forceinline=True)
+def _r5_add(A, bw, r, R2, upper, p, lv, S, U):
+    """A[r, s] += the products of the row lv (:func:`_r5_l`, component p) with the rows
+    s = R2 .. R2 + 4 of a revolute joint (translation entries S (3,), rotation entries U
+    (15,)), each summed in the order of ``_kernels._assemble`` without its zero terms (only
+    s >= r if ``upper``)."""
+    lin, l3, l4, l5 = lv
+    if p == 0:
+        v0 = (lin * S[0] + l4 * U[1]) + l5 * U[2]
+    else:
+        v0 = l4 * U[1] + l5 * U[2]
+    if p == 1:
+        v1 = (lin * S[1] + l3 * U[3]) + l5 * U[5]
+    else:
+        v1 = l3 * U[3] + l5 * U[5]
+    if p == 2:
+        v2 = (lin * S[2] + l3 * U[6]) + l4 * U[7]
+    else:
+        v2 = l3 * U[6] + l4 * U[7]
+    v3 = l3 * U[9] + l4 * U[10] + l5 * U[11]
+    v4 = l3 * U[12] + l4 * U[13] + l5 * U[14]
+    ur = _U(r)
+    if not upper or R2 >= r:
+        A[ur, _U(bw + R2 - r)] += v0
+    if not upper or R2 + 1 >= r:
+        A[ur, _U(bw + R2 + 1 - r)] += v1
+    if not upper or R2 + 2 >= r:
+        A[ur, _U(bw + R2 + 2 - r)] += v2
+    if not upper or R2 + 3 >= r:
+        A[ur, _U(bw + R2 + 3 - r)] += v3
+    if not upper or R2 + 4 >= r:
+        A[ur, _U(bw + R2 + 4 - r)] += v4
+
+
+@njit(forceinline=True)
+def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
+    """``_kernels._assemble`` (banded) for revolute joints (:func:`_is_revolute5`; joint k
+    has the rows 5k .. 5k + 4, ``jptr``, ``jidx``, ``jside`` the joints touching each body):
+    joint pair by joint pair, without the products by the exact zeros of POINT and DOT rows
+    (a POINT row's translation entries off its component and its rotation entry at it, a
+    DOT row's translation entries), the other products summed in the same order, the bodies
+    in the same order: the same floats."""
+    for r in range(A.shape[0]):
+        for c in range(A.shape[1]):
+            A[_U(r), _U(c)] = 0.0
+    for i in range(jptr.shape[0] - 1):
+        ui = _U(i)
+        mx = Mx[ui]
+        M = (Mth[ui, _U(0)], Mth[ui, _U(1)], Mth[ui, _U(2)], Mth[ui, _U(3)], Mth[ui, _U(4)],
+             Mth[ui, _U(5)], Mth[ui, _U(6)], Mth[ui, _U(7)], Mth[ui, _U(8)])  # fmt: skip
+        for e1 in range(jptr[ui], jptr[_U(i + 1)]):
+            k1 = jidx[_U(e1)]
+            o1 = 6 * jside[_U(e1)]
+            R1 = JB * k1
+            L0 = _r5_l(JL, R1, o1, mx, M, 0)
+            L1 = _r5_l(JL, R1 + 1, o1, mx, M, 1)
+            L2 = _r5_l(JL, R1 + 2, o1, mx, M, 2)
+            L3 = _r5_l(JL, R1 + 3, o1, mx, M, 3)
+            L4 = _r5_l(JL, R1 + 4, o1, mx, M, 4)
+            for e2 in range(jptr[ui], jptr[_U(i + 1)]):
+                k2 = jidx[_U(e2)]
+                if upper and k2 < k1:
+                    continue
+                o2 = 6 * jside[_U(e2)]
+                R2 = JB * k2
+                u0 = _U(R2)
+                u1 = _U(R2 + 1)
+                u2 = _U(R2 + 2)
+                u3 = _U(R2 + 3)
+                u4 = _U(R2 + 4)
+                c3 = _U(o2 + 3)
+                c4 = _U(o2 + 4)
+                c5 = _U(o2 + 5)
+                S = (JR[u0, _U(o2)], JR[u1, _U(o2 + 1)], JR[u2, _U(o2 + 2)])
+                U = (0.0, JR[u0, c4], JR[u0, c5],
+                     JR[u1, c3], 0.0, JR[u1, c5],
+                     JR[u2, c3], JR[u2, c4], 0.0,
+                     JR[u3, c3], JR[u3, c4], JR[u3, c5],
+                     JR[u4, c3], JR[u4, c4], JR[u4, c5])  # fmt: skip
+                _r5_add(A, bw, R1, R2, upper, 0, L0, S, U)
+                _r5_add(A, bw, R1 + 1, R2, upper, 1, L1, S, U)
+                _r5_add(A, bw, R1 + 2, R2, upper, 2, L2, S, U)
+                _r5_add(A, bw, R1 + 3, R2, upper, 3, L3, S, U)
+                _r5_add(A, bw, R1 + 4, R2, upper, 4, L4, S, U)
