@@ -8,7 +8,8 @@ trip counts that are constants of the block (the general solves read each row's 
 envelope array). For revolute joints (three POINT rows, two DOT rows) the assembly of
 G1 W G0^T goes joint pair by joint pair without the products by the rows' exact zeros (a
 POINT row has one translation entry, +-1, and a zero rotation entry; a DOT row no
-translation entries), as _block3.py does for ball joints.
+translation entries), and so are the rows, their Jacobians and the joint forces (the lever
+arms and the axis once per joint), as _block3.py does for ball joints.
 
 Each unknown receives the same subtractions in the same order as in the general solves
 (``_kernels._band_solve_rr``, ``_kernels._band_ldl_solve_rr``), each matrix entry the same
@@ -17,7 +18,8 @@ products summed in the same order as in ``_kernels._assemble`` less those with a
 bit theirs (tests/director_model/test_director_system_band5.py). Measured on the four-bar's
 20 x 20 matrices at step 1000 (thread CPU time, best of 5 x 20000 calls, /tmp scripts):
 LU solve 290 -> 212 ns, L D L^T solve 300 -> 170 ns, Newton matrix assembly 467 -> 273 ns,
-velocity-stage matrix (upper band) 305 -> 222 ns. The kernels of _kernels.py inline these
+velocity-stage matrix (upper band) 305 -> 222 ns, rows and Jacobians 92 -> 44 ns, joint
+forces 76 -> 39 ns. The kernels of _kernels.py inline these
 functions; its disk cache is tied to this file.
 """
 
@@ -236,3 +238,142 @@ def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
                 _r5_add(A, bw, R1 + 2, R2, upper, 2, L2, S, U)
                 _r5_add(A, bw, R1 + 3, R2, upper, 3, L3, S, U)
                 _r5_add(A, bw, R1 + 4, R2, upper, 4, L4, S, U)
+
+
+@njit(forceinline=True)
+def _r5_rows(rint, rvec, X, D, gv, Jc):
+    """The row values gv and Jacobians Jc of ``_kernels._rows`` for revolute joints
+    (:func:`_is_revolute5`, joint k in rows 5k .. 5k + 4): the lever arms and the axis once per
+    joint (the three POINT rows share their anchors, the two DOT rows their axis in a), only
+    the nonzero entries of Jc written (the others stay 0: where the kernel uses this, nothing
+    else writes Jc), each with the operations of ``_kernels._rows``."""
+    for k0 in range(rint.shape[0] // JB):
+        r = _U(JB * k0)
+        r1 = _U(JB * k0 + 1)
+        r2 = _U(JB * k0 + 2)
+        r3 = _U(JB * k0 + 3)
+        r4 = _U(JB * k0 + 4)
+        a = _U(rint[r, 1])
+        b = rint[r, 2]
+        va0, va1, va2 = rvec[r, 0], rvec[r, 1], rvec[r, 2]
+        vb0, vb1, vb2 = rvec[r, 3], rvec[r, 4], rvec[r, 5]
+        ra0 = D[a, 0] * va0 + D[a, 1] * va1 + D[a, 2] * va2
+        ra1 = D[a, 3] * va0 + D[a, 4] * va1 + D[a, 5] * va2
+        ra2 = D[a, 6] * va0 + D[a, 7] * va1 + D[a, 8] * va2
+        ua0, ua1, ua2 = rvec[r3, 0], rvec[r3, 1], rvec[r3, 2]
+        sa0 = D[a, 0] * ua0 + D[a, 1] * ua1 + D[a, 2] * ua2
+        sa1 = D[a, 3] * ua0 + D[a, 4] * ua1 + D[a, 5] * ua2
+        sa2 = D[a, 6] * ua0 + D[a, 7] * ua1 + D[a, 8] * ua2
+        m0, m1, m2 = rvec[r3, 3], rvec[r3, 4], rvec[r3, 5]
+        n0, n1, n2 = rvec[r4, 3], rvec[r4, 4], rvec[r4, 5]
+        if b >= 0:
+            ub = _U(b)
+            rb0 = D[ub, 0] * vb0 + D[ub, 1] * vb1 + D[ub, 2] * vb2
+            rb1 = D[ub, 3] * vb0 + D[ub, 4] * vb1 + D[ub, 5] * vb2
+            rb2 = D[ub, 6] * vb0 + D[ub, 7] * vb1 + D[ub, 8] * vb2
+            xb0, xb1, xb2 = X[ub, 0], X[ub, 1], X[ub, 2]
+            p0 = D[ub, 0] * m0 + D[ub, 1] * m1 + D[ub, 2] * m2
+            p1 = D[ub, 3] * m0 + D[ub, 4] * m1 + D[ub, 5] * m2
+            p2 = D[ub, 6] * m0 + D[ub, 7] * m1 + D[ub, 8] * m2
+            q0 = D[ub, 0] * n0 + D[ub, 1] * n1 + D[ub, 2] * n2
+            q1 = D[ub, 3] * n0 + D[ub, 4] * n1 + D[ub, 5] * n2
+            q2 = D[ub, 6] * n0 + D[ub, 7] * n1 + D[ub, 8] * n2
+        else:
+            rb0, rb1, rb2 = vb0, vb1, vb2
+            xb0, xb1, xb2 = 0.0, 0.0, 0.0
+            p0, p1, p2 = m0, m1, m2
+            q0, q1, q2 = n0, n1, n2
+        gv[r] = (X[a, 0] + ra0) - (xb0 + rb0)
+        gv[r1] = (X[a, 1] + ra1) - (xb1 + rb1)
+        gv[r2] = (X[a, 2] + ra2) - (xb2 + rb2)
+        Jc[r, 0] = 1.0
+        Jc[r, 4] = ra2
+        Jc[r, 5] = -ra1
+        Jc[r, 6] = -1.0
+        Jc[r, 10] = -rb2
+        Jc[r, 11] = rb1
+        Jc[r1, 1] = 1.0
+        Jc[r1, 3] = -ra2
+        Jc[r1, 5] = ra0
+        Jc[r1, 7] = -1.0
+        Jc[r1, 9] = rb2
+        Jc[r1, 11] = -rb0
+        Jc[r2, 2] = 1.0
+        Jc[r2, 3] = ra1
+        Jc[r2, 4] = -ra0
+        Jc[r2, 8] = -1.0
+        Jc[r2, 9] = -rb1
+        Jc[r2, 10] = rb0
+        gv[r3] = (sa0 * p0 + sa1 * p1 + sa2 * p2) - rvec[r3, 9]
+        c0 = sa1 * p2 - sa2 * p1
+        c1 = sa2 * p0 - sa0 * p2
+        c2 = sa0 * p1 - sa1 * p0
+        Jc[r3, 3] = c0
+        Jc[r3, 4] = c1
+        Jc[r3, 5] = c2
+        Jc[r3, 9] = -c0
+        Jc[r3, 10] = -c1
+        Jc[r3, 11] = -c2
+        gv[r4] = (sa0 * q0 + sa1 * q1 + sa2 * q2) - rvec[r4, 9]
+        c0 = sa1 * q2 - sa2 * q1
+        c1 = sa2 * q0 - sa0 * q2
+        c2 = sa0 * q1 - sa1 * q0
+        Jc[r4, 3] = c0
+        Jc[r4, 4] = c1
+        Jc[r4, 5] = c2
+        Jc[r4, 9] = -c0
+        Jc[r4, 10] = -c1
+        Jc[r4, 11] = -c2
+
+
+@njit(forceinline=True)
+def _r5_forces(rint, Jc, lam, F, T):
+    """``_kernels._forces`` (the joint forces -G^T lam: F force, T world torque per body) for
+    revolute joints (:func:`_is_revolute5`), without the products by the exact zeros of the
+    rows; each entry's terms in the same order."""
+    for i in range(F.shape[0]):
+        for c in range(3):
+            F[_U(i), _U(c)] = 0.0
+            T[_U(i), _U(c)] = 0.0
+    for k0 in range(rint.shape[0] // JB):
+        r = _U(JB * k0)
+        r1 = _U(JB * k0 + 1)
+        r2 = _U(JB * k0 + 2)
+        r3 = _U(JB * k0 + 3)
+        r4 = _U(JB * k0 + 4)
+        a = _U(rint[r, 1])
+        b = rint[r, 2]
+        l0, l1, l2, l3, l4 = lam[r], lam[r1], lam[r2], lam[r3], lam[r4]
+        # row by row, as the general code (each entry's terms in row order)
+        F[a, 0] -= Jc[r, 0] * l0
+        T[a, 1] -= Jc[r, 4] * l0
+        T[a, 2] -= Jc[r, 5] * l0
+        F[a, 1] -= Jc[r1, 1] * l1
+        T[a, 0] -= Jc[r1, 3] * l1
+        T[a, 2] -= Jc[r1, 5] * l1
+        F[a, 2] -= Jc[r2, 2] * l2
+        T[a, 0] -= Jc[r2, 3] * l2
+        T[a, 1] -= Jc[r2, 4] * l2
+        T[a, 0] -= Jc[r3, 3] * l3
+        T[a, 1] -= Jc[r3, 4] * l3
+        T[a, 2] -= Jc[r3, 5] * l3
+        T[a, 0] -= Jc[r4, 3] * l4
+        T[a, 1] -= Jc[r4, 4] * l4
+        T[a, 2] -= Jc[r4, 5] * l4
+        if b >= 0:
+            ub = _U(b)
+            F[ub, 0] -= Jc[r, 6] * l0
+            T[ub, 1] -= Jc[r, 10] * l0
+            T[ub, 2] -= Jc[r, 11] * l0
+            F[ub, 1] -= Jc[r1, 7] * l1
+            T[ub, 0] -= Jc[r1, 9] * l1
+            T[ub, 2] -= Jc[r1, 11] * l1
+            F[ub, 2] -= Jc[r2, 8] * l2
+            T[ub, 0] -= Jc[r2, 9] * l2
+            T[ub, 1] -= Jc[r2, 10] * l2
+            T[ub, 0] -= Jc[r3, 9] * l3
+            T[ub, 1] -= Jc[r3, 10] * l3
+            T[ub, 2] -= Jc[r3, 11] * l3
+            T[ub, 0] -= Jc[r4, 9] * l4
+            T[ub, 1] -= Jc[r4, 10] * l4
+            T[ub, 2] -= Jc[r4, 11] * l4

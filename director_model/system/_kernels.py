@@ -89,6 +89,8 @@ from director_model.system._band5 import (
     _is_band5,
     _is_revolute5,
     _r5_assemble,
+    _r5_forces,
+    _r5_rows,
 )
 from director_model.system._block3 import (  # _U: unsigned array indices, see there
     _U,
@@ -1087,7 +1089,7 @@ def _run_system(
     ext = np.zeros(nr, dtype=np.int64)
     _envelope(ptr, idx, nrow, ext)
     # joints of five rows, each sharing a body with the next only: the solves in joint blocks
-    # (_band5.py), and for revolute joints the assembly too
+    # (_band5.py), and for revolute joints the rows, forces and assembly too
     b5 = minnorm == MODE_PIVOTED and _is_band5(ext, nrow)
     r5 = b5 and _is_revolute5(rint, nrow)
     d0 = np.zeros(nr)
@@ -1114,7 +1116,9 @@ def _run_system(
                     xmax = max(xmax, abs(S[i, c]))
             tol = tol_rel * xmax
             if nrow > 0:
-                if banded or minnorm:
+                if r5:
+                    _r5_rows(rint, rvec, S, Dn, gv, Jold)
+                elif banded or minnorm:
                     _rows(rint, rvec, S, Dn, gv, Jold)
                 else:
                     _rows3(rint, rvec, S, Dn, gv, Jold)
@@ -1171,7 +1175,9 @@ def _run_system(
                 # iterate (plain Newton: linear convergence near a singular configuration)
                 fresh = it == 0 or it >= 3
                 if nrow > 0:
-                    if banded or minnorm:
+                    if r5:
+                        _r5_forces(rint, Jold, lam, F, T)
+                    elif banded or minnorm:
                         _forces(rint, Jold, lam, F, T)
                     else:
                         _forces3(rint, Jold, lam, F, T)
@@ -1231,7 +1237,9 @@ def _run_system(
                         Mx[i] = 0.5 / m
                 if nrow == 0:
                     break
-                if banded or minnorm:
+                if r5:
+                    _r5_rows(rint, rvec, XN, Dnew, gv, Jnew)
+                elif banded or minnorm:
                     _rows(rint, rvec, XN, Dnew, gv, Jnew)
                 else:
                     _rows3(rint, rvec, XN, Dnew, gv, Jnew)
@@ -1416,7 +1424,9 @@ def _run_system(
                         _band_ldl_solve(Ab, bw, r0, dl)
                     else:
                         _blk_solve(Dg, Up, Lo, r0, dl)
-                    if banded or minnorm:
+                    if r5:
+                        _r5_forces(rint, Jnew, dl, Fn, Tn)
+                    elif banded or minnorm:
                         _forces(rint, Jnew, dl, Fn, Tn)
                     else:
                         _forces3(rint, Jnew, dl, Fn, Tn)

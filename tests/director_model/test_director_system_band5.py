@@ -151,3 +151,29 @@ def test_revolute_rows_are_recognised():
         bad = a.rint.copy()
         bad[r, c] = v
         assert not B5._is_revolute5(bad, 20)
+
+
+@pytest.mark.parametrize("name", ["four_bar", "bricard"])
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("posed", [False, True])
+def test_revolute_rows_and_forces_equal_the_general_ones_bit_for_bit(name, seed, posed):
+    st = _stepper(name)
+    rng = np.random.default_rng(seed)
+    a = st._kasm
+    n, nb = a.rint.shape[0], a.bodies.shape[0]
+    X = np.array([b.position for b in st._bodies], dtype=float)
+    D = np.array([b.rotation.ravel() for b in st._bodies])
+    if posed:
+        X = X + rng.standard_normal(X.shape)
+        D = np.array([np.linalg.qr(rng.standard_normal((3, 3)))[0].ravel() for _ in range(nb)])
+    g0, J0 = np.zeros(n), np.zeros((n, 12))
+    K._rows(a.rint, a.rvec, X, D, g0, J0)
+    g1, J1 = np.full(n, np.nan), np.zeros((n, 12))  # the zero entries are never written
+    B5._r5_rows(a.rint, a.rvec, X, D, g1, J1)
+    assert np.array_equal(g0, g1) and np.array_equal(J0, J1)
+    lam = rng.standard_normal(n) * 10.0 ** rng.uniform(-3, 3, n)
+    F0, T0 = np.zeros((nb, 3)), np.zeros((nb, 3))
+    K._forces(a.rint, J0, lam, F0, T0)
+    F1, T1 = np.full((nb, 3), np.nan), np.full((nb, 3), np.nan)
+    B5._r5_forces(a.rint, J1, lam, F1, T1)
+    assert np.array_equal(F0, F1) and np.array_equal(T0, T1)
