@@ -1,0 +1,230 @@
+"""The CPU a warm default-suite run spends outside the engines' stepping, before and after a
+change, measured side by side: two checkouts of director-bench (``--before DIR``, e.g. a
+``git archive`` of main, and this one), each step timed on both in alternation (B A, A B,
+...), CPU time, so that a busy machine slows both alike.
+
+Steps (each a median over ``--rounds`` rounds, the two checkouts in alternating order):
+
+- ``run``: the default suite and its report, warm (numba's cache current, the figure cache
+  filled by a first run of each checkout), ``python -m reports.cli run --out DIR`` in the
+  checkout: wall time and CPU time of the whole process tree (its workers and their fork
+  server adopted and reaped, as benchmarks/bench_first_run.py does);
+- ``references``: every closed-form and numerical reference the default suite's systems of
+  bodies ask for, on every time grid their runs save on, in one process with its caches
+  emptied (what each worker process computes for itself);
+- ``scorecard``: the scorecard picture (PNG and SVG) of the results folder ``--results``;
+- ``report``: the report of a copy of ``--results`` whose figures are all current (the
+  documents, summary.json and the scorecard's check);
+- ``drake-contact``: the first Drake contact scene a process builds (its imports), in a fresh
+  process each time.
+
+Usage: python benchmarks/bench_warm_run.py --before DIR --results RESULTS [--rounds 3]
+[--steps run references scorecard report drake-contact] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+STEPS = ("run", "references", "scorecard", "report", "drake-contact")
+
+
+# -- the steps measured inside a checkout's own process ----------------------------------------
+
+
+def _grids(sc):
+    """The time grids the default suite's runs of the system ``sc`` save on."""
+    import numpy as np
+
+    from reports.run.plan import plan
+    from reports.suite import check_engines, default_engines
+
+    engines = check_engines(default_engines()[0])
+    grids = {}
+    for s in plan([sc], engines, None, None, None, True, None, None, None, 10**9, False):
+        from references.engines import step_plan
+
+        _, saves = step_plan(s.dt, s.horizon, s.saving)
+        t = np.asarray(saves, dtype=float) * s.dt
+        grids.setdefault(t.tobytes(), t)
+    return list(grids.values())
+
+
+def _references() -> float:
+    import scenarios
+    from references.engines.exact import system as ex
+    from references.errors import Unsupported
+
+    scs = [scenarios.load(n) for n in scenarios.default_systems() + scenarios.default_robots()]
+    work = [(sc, t) for sc in scs if sc.kind == "system" for t in _grids(sc)]
+    for f in (getattr(ex, "_cached", None), getattr(ex, "_stability", None)):
+        if f is not None:
+            f.cache_clear()
+    c0 = time.process_time()
+    for sc, t in work:
+        try:
+            ex.reference(sc, t)
+        except Unsupported:
+            pass
+    return time.process_time() - c0
+
+
+def _frame(results: str):
+    from reports.report.build import python_strings
+    from reports.report.labels import with_engine_order
+    from reports.store.provenance import read_provenance
+    from reports.store.results import read_results
+
+    return with_engine_order(python_strings(read_results(results)), read_provenance(results))
+
+
+def _scorecard(results: str) -> float:
+    from reports.report.scorecard_plot import scorecard_figure
+
+    df = _frame(results)
+    with tempfile.TemporaryDirectory() as tmp:
+        c0 = time.process_time()
+        scorecard_figure(df, Path(tmp))
+        return time.process_time() - c0
+
+
+def _report(results: str) -> float:
+    from reports.report.build import build_report
+
+    with tempfile.TemporaryDirectory() as tmp:
+        copy = Path(tmp) / "r"
+        shutil.copytree(results, copy)  # modification times kept: every figure current
+        build_report(copy)  # the scorecard's and the figures' marks written for this copy
+        c0 = time.process_time()
+        build_report(copy)
+        return time.process_time() - c0
+
+
+def worker() -> None:
+    """Answer {"step": ..., "results": ...} requests with {"cpu": s} (run by CheckoutWorker)."""
+    import reports
+
+    for line in sys.stdin:
+        req = json.loads(line)
+        step = req["step"]
+        if step == "where":
+            out = {"where": reports.__file__}
+        elif step == "references":
+            out = {"cpu": _references()}
+        elif step == "scorecard":
+            out = {"cpu": _scorecard(req["results"])}
+        else:
+            out = {"cpu": _report(req["results"])}
+        print(json.dumps(out), flush=True)
+
+
+# -- the steps measured from outside ----------------------------------------------------------
+
+DRAKE_CONTACT = """
+import time
+import scenarios
+from references.engines.contact import configurations
+from references.engines.drake.contact import Scene
+sc = scenarios.load("sphere_backspin")
+conf = configurations("drake")[0]
+c0 = time.process_time()
+Scene(sc, conf, sc.dt, {})
+print(time.process_time() - c0)
+"""
+
+
+def _env(root: Path) -> dict:
+    return dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+
+
+def drake_contact(root: Path) -> float:
+    out = subprocess.run([sys.executable, "-c", DRAKE_CONTACT], cwd=root, env=_env(root),
+                         capture_output=True, text=True, check=True)  # fmt: skip
+    return float(out.stdout.split()[-1])
+
+
+def warm_run(root: Path, out: Path, env: dict) -> tuple[float, float]:
+    """(wall s, CPU s of the process tree) of the default suite and its report in ``root``."""
+    from bench_first_run import timed
+
+    shutil.rmtree(out, ignore_errors=True)
+    cmd = [sys.executable, "-m", "reports.cli", "run", "--out", str(out)]
+    wall, cpu, *_ = timed(cmd, root, env, out.with_suffix(".log"))
+    return wall, cpu
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--before", type=Path, required=True, help="a checkout of the code before")
+    ap.add_argument("--results", type=Path, help="a default-suite results folder")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--steps", nargs="+", choices=STEPS, default=list(STEPS))
+    ap.add_argument("--keep", type=Path, help="the runs' folders (default: a temporary one)")
+    args = ap.parse_args(argv)
+    if {"scorecard", "report"} & set(args.steps) and args.results is None:
+        ap.error("--results is needed for the steps scorecard and report")
+    from _checkout import CheckoutWorker
+    from bench_first_run import _become_subreaper
+
+    roots = {"before": args.before.resolve(), "after": ROOT}
+    keep = args.keep or Path(tempfile.mkdtemp(prefix="warm-run-"))
+    got: dict = {(s, side): [] for s in args.steps for side in roots}
+    workers = {side: CheckoutWorker(root, __file__) for side, root in roots.items()}
+    try:
+        for side, w in workers.items():  # each imports its own checkout
+            print(f"{side}: {w.ask({'step': 'where'}, 'where')['where']}")
+        if "run" in args.steps:
+            _become_subreaper()
+            cache = keep / "figure-cache"
+            for side, root in roots.items():  # fills the figure cache: the runs below are warm
+                env = dict(_env(root), DIRECTOR_BENCH_CACHE=str(cache / side))
+                warm_run(root, keep / f"{side}-first", env)
+        for r in range(args.rounds):
+            order = list(roots) if r % 2 == 0 else list(reversed(roots))
+            for step in args.steps:
+                for side in order:
+                    if step == "run":
+                        cache = str(keep / "figure-cache" / side)
+                        env = dict(_env(roots[side]), DIRECTOR_BENCH_CACHE=cache)
+                        value = warm_run(roots[side], keep / f"{side}-{r}", env)
+                    elif step == "drake-contact":
+                        value = (drake_contact(roots[side]),)
+                    else:
+                        req = {"step": step, "results": str(args.results)}
+                        value = (workers[side].ask(req, step)["cpu"],)
+                    got[step, side].append(value)
+                    shown = " ".join(f"{v:.3f}" for v in value)
+                    load = os.getloadavg()[0]
+                    print(f"round {r + 1} {step} {side} {shown} (load {load:.1f})", flush=True)
+    finally:
+        for w in workers.values():
+            w.close()
+    print("\nstep            before (median)   after (median)   after/before (CPU)")
+    print("(CPU s; the step run: wall s / CPU s of the process tree)")
+    for step in args.steps:
+        b = [statistics.median(v) for v in zip(*got[step, "before"], strict=True)]
+        a = [statistics.median(v) for v in zip(*got[step, "after"], strict=True)]
+        ratio = a[-1] / b[-1] if b[-1] else float("nan")
+        bs, as_ = " / ".join(f"{x:.3f}" for x in b), " / ".join(f"{x:.3f}" for x in a)
+        print(f"{step:15s} {bs:>16s}  {as_:>16s}   {ratio:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    if "--worker" in sys.argv:
+        worker()
+    else:
+        sys.exit(main())
