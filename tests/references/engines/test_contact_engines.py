@@ -337,3 +337,25 @@ def test_mjx_decodes_contact_rows_as_mujoco_does(conf):
             assert got == pytest.approx(f6[:3], abs=1e-12)
             seen += max(abs(f6[1]), abs(f6[2])) > 0.1 * abs(f6[0])
     assert seen > 0, "no contact carried friction: the tangential decoding was not checked"
+
+
+def test_drakes_log_of_a_run_does_not_depend_on_what_ran_before_in_its_process():
+    """Drake says some things once per process (a half space registered: "not supported for
+    deformable contact"): the same run twice in a fresh process has the same log, so a
+    run's settings do not depend on which worker built a scene first."""
+    import subprocess
+    import sys
+
+    _available("drake")
+    code = (
+        "import json, scenarios\n"
+        "from references.engines.contact import run_contact\n"
+        "sc = scenarios.load('block_incline_stick').replace(t_end=0.01)\n"
+        "logs = [run_contact('drake', sc, 'SAP, point contact', 1e-3, 0.01, 5)"
+        '.settings["Drake\'s log"] for _ in range(2)]\n'
+        "print(json.dumps(logs))\n"
+    )
+    got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert got.returncode == 0, got.stderr
+    first, second = __import__("json").loads(got.stdout.splitlines()[-1])
+    assert first == second
