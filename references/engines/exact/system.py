@@ -194,6 +194,14 @@ def _cached(scenario_hash: str, t_bytes: bytes) -> SystemReference:
     return _compute(_BY_HASH[scenario_hash], np.frombuffer(t_bytes, dtype=float))
 
 
+@functools.lru_cache(maxsize=16)
+def _stability(scenario_hash: str):
+    """The linear stability of a closed form's motion (its Floquet analysis, which does not
+    depend on the times asked for), once per process per scenario: the runs of a dt sweep
+    save on other grids and would each analyse it again (0.4 s of CPU for spinning_chain)."""
+    return _closed_form(_BY_HASH[scenario_hash])[1].stability()
+
+
 def reference(scenario, t) -> SystemReference:
     """The reference of a system scenario at the times ``t`` (s), cached per process by the
     scenario's content (the engines of one scenario share a grid, and a worker process
@@ -230,7 +238,7 @@ def _exact(scenario, kind, t, start) -> SystemReference:
     traj = Trajectory(t, x, v, R, W, scenario.body_names)
     horizon, notes = float(t[-1]), {}
     method = f"closed form ({kind}), references.exact.multibody"
-    stab = motion.stability()
+    stab = _stability(scenario.scenario_hash)
     if stab is None:
         method += "; one degree of freedom: errors of the initial state grow linearly"
     else:
