@@ -15,6 +15,7 @@ import collections
 import contextlib
 import functools
 import importlib
+import shutil
 import time
 import traceback
 from collections.abc import Callable, Iterable
@@ -23,6 +24,7 @@ from pathlib import Path
 from reports.run.body import is_reference
 from reports.run.files import kept_less
 from reports.run.plan import UNAVAILABLE, offered
+from reports.run.system import SHARED, shared_key
 from reports.run.timing import BUDGET_FACTOR, TimingResult, TimingUnit, time_unit
 from reports.store.exports import export
 from reports.store.results import Store, StoreUnwritable, read_results
@@ -194,6 +196,7 @@ def run_suite(
         # which decides what the tables show (reports.store.results.current)
         store.touch(s.run_id for s in specs if s.run_id in done)
         n_run = 0
+        shutil.rmtree(out / SHARED, ignore_errors=True)  # an interrupted run's (reports.run.system)
         if mapper is None:
             from reports.run.parallel import serial
 
@@ -214,9 +217,9 @@ def run_suite(
             fn = functools.partial(execute_unit, out=out, fmt=fmt)
         try:
             if passes:
-                rows_of = mapper(fn, units, unit_warm_ups, _needs, _provides)
+                rows_of = mapper(fn, units, unit_keys, _needs, _provides)
             else:
-                rows_of = mapper(fn, units, keys=unit_warm_ups)
+                rows_of = mapper(fn, units, keys=unit_keys)
             spec_of = {s.run_id: s for s in todo}
             stored = {}  # run_id -> its row, until its scenario's timing pass is back
             for rows in rows_of:
@@ -248,6 +251,7 @@ def run_suite(
         finally:
             if bar is not None:
                 bar.close()
+            shutil.rmtree(out / SHARED, ignore_errors=True)
             df = _export_quietly(out)
     return df, n_run
 
@@ -347,6 +351,16 @@ def unit_warm_ups(unit: list[RunSpec]) -> set[str]:
     if len(unit) > 1:
         return {k for s in unit if (w := warm_up(s.engine, s.integrator)) for k in (w[0],)}
     return {k for s in unit for k in warm_ups(s)}
+
+
+def unit_keys(unit) -> set[str]:
+    """The keys the process pool's gate holds a unit of work back by (reports.run.parallel):
+    its warm-ups (:func:`unit_warm_ups`) and the system references its runs share with
+    other units (:func:`reports.run.system.shared_key`: one unit computes each, the others
+    wait for it, while the workers take other units, and read it)."""
+    if isinstance(unit, TimingUnit):
+        return set()
+    return unit_warm_ups(unit) | {k for s in unit if (k := shared_key(s)) is not None}
 
 
 def _bundled(engine: str) -> bool:

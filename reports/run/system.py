@@ -12,6 +12,7 @@ trajectory file (Parquet, per-body columns and the error series).
 
 from __future__ import annotations
 
+import contextlib
 import math
 from pathlib import Path
 
@@ -56,7 +57,6 @@ def _measure(row, spec, sc, output, out, fmt):
     """Timings, settings, metrics and the trajectory file of a run's output; returns the
     reference used (None: none)."""
     from references.engines import Unsupported, get_engine
-    from references.engines.exact.system import reference
     from reports.metrics.system import compute_system_metrics, error_series
 
     if output is None:
@@ -72,7 +72,7 @@ def _measure(row, spec, sc, output, out, fmt):
         row["reference_accuracy"] = float(output.settings.get("accuracy", math.nan))
     elif len(traj):
         try:
-            ref = reference(sc, traj.t)
+            ref = shared_reference(sc, traj.t, out)
             row["reference_kind"] = ref.kind
             row["reference_accuracy"] = ref.accuracy
             if ref.horizon < traj.t[-1]:
@@ -92,6 +92,94 @@ def _measure(row, spec, sc, output, out, fmt):
     if out is not None and len(traj) and spec.keep != "none":
         _write(row, spec, traj, error_series(sc, traj, ref, kept), Path(out), fmt)
     return ref
+
+
+#: the folder of a results folder where, while a run is in progress, the worker process that
+#: computed a system's reference on a time grid leaves it for the other workers (the process
+#: pool lets one unit compute it while the others of that grid wait: :func:`shared_key`);
+#: :func:`reports.run.runner.run_suite` removes it when it starts and when it ends
+SHARED = ".references"
+
+
+def shared_key(spec) -> str | None:
+    """The key of the reference a system run's metrics need (its scenario's content and
+    the time grid of its saves: dt, horizon, decimation), for the process pool's gate
+    (reports.run.parallel): the first unit holding the key computes the reference and
+    leaves it in :data:`SHARED`; the others are handed out after it and read it. None: the
+    run needs no shared reference (a single body's reference is cheap, a contact scene's is
+    a closed form, the exact reference's own runs are the reference)."""
+    from reports.run.body import is_reference
+
+    if spec.scenario.kind != "system" or is_reference(spec.engine):
+        return None
+    return f"reference {spec.scenario.scenario_hash} {spec.dt!r} {spec.horizon!r} {spec.saving}"
+
+
+def shared_reference(sc, t, out: Path | None):
+    """:func:`references.engines.exact.system.reference` of ``sc`` at the times ``t``, which
+    each worker process would otherwise compute for itself (a numerical reference or a
+    Floquet analysis takes 0.1-0.4 s of CPU per scenario and grid): read from the run's
+    :data:`SHARED` folder when another process left it there, else computed and left there
+    (written whole or not at all). Without an output folder, or when the folder cannot be
+    read or written, computed here. A refusal (Unsupported) is not kept: it is raised."""
+    import hashlib
+
+    import numpy as np
+
+    from references.engines.exact.system import reference
+
+    if out is None:
+        return reference(sc, t)
+    key = (sc.scenario_hash, np.ascontiguousarray(t, dtype=float).tobytes())
+    ref = _SEEN.get(key)
+    if ref is not None:
+        return ref
+    grid = hashlib.sha256(key[1]).hexdigest()[:20]
+    path = Path(out) / SHARED / f"{key[0]}-{grid}.pickle"
+    ref = _read_shared(path, key)
+    if ref is None:
+        ref = reference(sc, t)
+        _leave(path, key, ref)
+    while len(_SEEN) >= _SEEN_MAX:  # bounded like the reference's own cache
+        _SEEN.pop(next(iter(_SEEN)))
+    _SEEN[key] = ref
+    return ref
+
+
+#: the shared references this process has used ((scenario hash, times) -> reference): the
+#: runs of a grid share one, as they share the reference's own per-process cache
+_SEEN: dict = {}
+_SEEN_MAX = 16
+
+
+def _read_shared(path: Path, key: tuple):
+    """The reference another process left at ``path`` for ``key``, or None (absent,
+    unreadable, or left for another key)."""
+    import pickle
+
+    try:
+        with open(path, "rb") as fh:
+            got, ref = pickle.load(fh)
+    except (OSError, EOFError, pickle.UnpicklingError, ValueError, TypeError):
+        return None
+    return ref if got == key else None
+
+
+def _leave(path: Path, key: tuple, ref) -> None:
+    """Leave ``ref`` at ``path`` for the other processes (a temporary file renamed: whole or
+    absent); nothing when the folder cannot be written."""
+    import os
+    import pickle
+
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(tmp, "wb") as fh:
+            pickle.dump((key, ref), fh, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
 
 
 def _write(row, spec, traj, series, out: Path, fmt: str) -> None:
