@@ -153,7 +153,9 @@ def scorecard_figure(df, out: Path) -> list[Path]:
             for j, sc in enumerate(scens):
                 out_, text = texts.get(((eng, integ), sc), ("", ["-"]))
                 face = OUTCOME_COLOURS.get(out_, "white")
-                ax.add_patch(Rectangle((j, y), 1, h, fc=face, ec="white", lw=1.5))
+                # an artist, not a patch: the limits are set, so the data limits that
+                # add_patch would update for each of the hundreds of cells go unused
+                ax.add_artist(Rectangle((j, y), 1, h, fc=face, ec="white", lw=1.5))
                 # two texts per cell (drawing text is most of the figure's time): the
                 # verdict and error, then the cost and failing metrics in smaller type
                 mid = y + h / 2 - 0.1 * (len(text) - 1)
