@@ -176,22 +176,30 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if {"scorecard", "report"} & set(args.steps) and args.results is None:
         ap.error("--results is needed for the steps scorecard and report")
+    if "run" in args.steps and len(args.steps) > 1:
+        # its CPU time is that of every child this process waits for, so none other may live
+        ap.error("the step run is measured alone (--steps run)")
     from _checkout import CheckoutWorker
     from bench_first_run import _become_subreaper
 
     roots = {"before": args.before.resolve(), "after": ROOT}
     keep = args.keep or Path(tempfile.mkdtemp(prefix="warm-run-"))
     got: dict = {(s, side): [] for s in args.steps for side in roots}
-    workers = {side: CheckoutWorker(root, __file__) for side, root in roots.items()}
+    workers = {}
+    if "run" not in args.steps:  # one process per checkout, answering the steps measured in it
+        workers = {side: CheckoutWorker(root, __file__) for side, root in roots.items()}
     try:
         for side, w in workers.items():  # each imports its own checkout
             print(f"{side}: {w.ask({'step': 'where'}, 'where')['where']}")
         if "run" in args.steps:
             _become_subreaper()
-            cache = keep / "figure-cache"
             for side, root in roots.items():  # fills the figure cache: the runs below are warm
-                env = dict(_env(root), DIRECTOR_BENCH_CACHE=str(cache / side))
-                warm_run(root, keep / f"{side}-first", env)
+                cache = keep / "figure-cache" / side
+                if cache.is_dir() and any(cache.iterdir()):
+                    continue  # filled by an earlier call with this --keep
+                warm_run(
+                    root, keep / f"{side}-first", dict(_env(root), DIRECTOR_BENCH_CACHE=str(cache))
+                )
         for r in range(args.rounds):
             order = list(roots) if r % 2 == 0 else list(reversed(roots))
             for step in args.steps:
