@@ -44,7 +44,7 @@ Rows: joint constraint rows (see model.py) with, per row, the 12 numbers
 State per body (``S`` rows, length NS): x (0:3) and its compensation (3:6), v (6:9) and
 (9:12), the unnormalised attitude quaternion p (12:16) with D = D_0 R(p/|p|) and (16:20),
 Pi = I W (20:23) and (23:26). Sums into x, v, p, Pi are compensated (Kahan). ``mu`` holds
-the last velocity multipliers and the position multipliers of each sub-step of the two last
+the last velocity multipliers and the position multipliers of each sub-step of the last
 steps (force units; layout in :func:`_run_system`): the start values of the next position
 multipliers, so a stepper restarted from (S, mu) continues bit for bit.
 
@@ -1010,7 +1010,8 @@ def _run_system(
     that history (0 to 3) at kp0 - 1 = nr (1 + 2 ns), the loop solver's row pattern
     (kp0 ... kp0 + nr - 1: 1 kept, 0 dropped) and whether it is set (kp0 + nr), then the
     position multipliers of each sub-step j three steps back (kp0 + nr + 1 + nr j ...): the
-    integrator state besides S.
+    integrator state besides S. The block solver keeps in the three histories the position
+    multipliers less the velocity multipliers at the sub-step's start instead.
 
     The solver of the multiplier equations: ``minnorm`` (an int) the banded rank-revealing
     factorisations with the SVD where a pivot ratio drops (:data:`MODE_PIVOTED`) or the SVD
@@ -1130,13 +1131,16 @@ def _run_system(
                     for c in range(3):
                         VC[i, c] = S[i, 6 + c]
                 _ext(fint, fvec, S, Dn, VC, WD, FE, TE)
-            # start value: in the block and banded solvers the position multipliers of this
-            # sub-step extrapolated from the same sub-step of the previous steps, by the
-            # polynomial through the last three in the block solver (error O(h^3): hanging
-            # chains of 10 and 100 rods then take 1.00 and 1.07 Newton iterations per
-            # sub-step, against 1.12 and 1.49 through the last two), through the last two in
-            # the banded one (history in mu, see _run_system); else the last velocity
-            # multipliers (on the
+            # start value: in the banded solver the position multipliers of this sub-step
+            # extrapolated linearly from the same sub-step of the two previous steps; in the
+            # block solver the last velocity multipliers (those at this sub-step's start)
+            # plus the difference d = position - velocity multipliers of this sub-step,
+            # extrapolated by the polynomial through the last three steps (history in mu,
+            # see _run_system). d is O(h) smaller than the multipliers, so this start is
+            # O(h^4) off where the multipliers extrapolated by the same polynomial are
+            # O(h^3) off: hanging chains of 50 and 100 rods, rattle, 100000 body-steps, take
+            # 1.07 and 1.29 Newton updates per sub-step against 1.27 and 1.46. The loop
+            # solver starts from the last velocity multipliers (on the
             # loops these close the joints more tightly in one iteration: on the four-bar
             # through its singular configuration, residuals ~5e-16 m against ~3e-15 m from
             # the extrapolated ones, and the crank and rocker parallel to 3e-13, not 2e-12)
@@ -1146,12 +1150,14 @@ def _run_system(
             for r in range(nrow):
                 if minnorm or nhist == 0:
                     lam[r] = mu[r]
+                elif banded:
+                    lam[r] = mu[ho1 + r] if nhist == 1 else 2.0 * mu[ho1 + r] - mu[ho2 + r]
                 elif nhist == 1:
-                    lam[r] = mu[ho1 + r]
-                elif nhist == 2 or banded:
-                    lam[r] = 2.0 * mu[ho1 + r] - mu[ho2 + r]
+                    lam[r] = mu[r] + mu[ho1 + r]
+                elif nhist == 2:
+                    lam[r] = mu[r] + (2.0 * mu[ho1 + r] - mu[ho2 + r])
                 else:
-                    lam[r] = 3.0 * (mu[ho1 + r] - mu[ho2 + r]) + mu[ho3 + r]
+                    lam[r] = mu[r] + (3.0 * (mu[ho1 + r] - mu[ho2 + r]) + mu[ho3 + r])
             if minnorm == MODE_PIVOTED and nrow > 0 and not havepat:
                 # no row pattern yet (the first sub-step, or the last velocity stage went to
                 # the SVD): that of the velocity stage's matrix at q_n
@@ -1464,10 +1470,10 @@ def _run_system(
                         Tn[i, c] += hh * TE2[i, c]
             h2i = 2.0 / h
             for r in range(nrow):
-                mu[r] = _ftz(dl[r] * h2i)
                 mu[ho3 + r] = mu[ho2 + r]
                 mu[ho2 + r] = mu[ho1 + r]
-                mu[ho1 + r] = _ftz(lam[r])
+                mu[ho1 + r] = _ftz(lam[r] if banded or minnorm else lam[r] - mu[r])
+                mu[r] = _ftz(dl[r] * h2i)
                 mu[kp0 + r] = kn[r]
             mu[kp0 + nr] = 1.0 if havepat else 0.0
             for i in range(nb):
