@@ -9,8 +9,14 @@ matrix: zero diagonal), keeping every other operation and the order of every sum
 results are bit for bit those of the general code (x + 0 * y = x and x - 0 * y = x for every
 finite nonzero x; only the sign of a zero result could differ, and a zero compares equal to
 zero in every later use). Measured side by side with a copy of the kernel without them
-(thread CPU time, rattle): 11-18 % of a chain's step at 1 to 100 bodies. The kernels of
-_kernels.py inline them; its disk cache is tied to this file.
+(thread CPU time, rattle): 11-18 % of a chain's step at 1 to 100 bodies.
+
+The velocity stage's matrix G M^-1 G^T is symmetric: :func:`_sym_factor` forms only the upper
+triangles of its diagonal blocks and the blocks above them, joint by joint, and eliminates
+each joint as soon as its blocks are known (L D L^T; no pass over stored blocks), and
+:func:`_sym_solve` solves with it. These are not the general LU's numbers (other products,
+other order): the results move at round-off. The kernels of _kernels.py inline these
+functions; its disk cache is tied to this file.
 """
 
 from __future__ import annotations
@@ -177,3 +183,131 @@ def _hat_blk(J, r, o):
         J[r1, o0], 0.0, J[r1, o2],
         J[r2, o0], J[r2, o1], 0.0,
     )  # fmt: skip
+
+
+@njit(forceinline=True)
+def _sym_inv3(p00, p01, p02, p11, p12, p22):
+    """(det P, P^{-1}) of the symmetric 3x3 P from its upper triangle; the inverse as a
+    row-major 9-tuple (garbage if det = 0)."""
+    c00 = p11 * p22 - p12 * p12
+    c01 = p02 * p12 - p01 * p22
+    c02 = p01 * p12 - p02 * p11
+    det = p00 * c00 + p01 * c01 + p02 * c02
+    r = 1.0 / det if det != 0.0 else 0.0
+    c00 *= r
+    c01 *= r
+    c02 *= r
+    c11 = (p00 * p22 - p02 * p02) * r
+    c12 = (p01 * p02 - p00 * p12) * r
+    c22 = (p00 * p11 - p01 * p01) * r
+    return det, (c00, c01, c02, c01, c11, c12, c02, c12, c22)
+
+
+@njit(forceinline=True)
+def _sym_factor(rint, J, Mx, Mth, Pi, Y):
+    """The velocity stage's matrix A = G blockdiag(Mx 1, Mth) G^T (J = G; Mth symmetric) of
+    joints of three POINT rows listed along a chain, assembled joint by joint and factorised
+    as A = L D L^T in the same pass: the pivot P_k = A_kk - A_{k-1,k}^T Y_{k-1} (its upper
+    triangle; A is symmetric, so only the diagonal blocks' upper triangles and the blocks
+    above them are formed), Pi[k] = P_k^{-1}, Y[k] = P_k^{-1} A_{k,k+1}, each a row-major
+    9-vector; L_{k+1,k} = Y_k^T. The blocks of joint k: for each body i of it, sigma^2 Mx_i 1
+    + C Mth_i C^T on the diagonal and, if body i is in joint k + 1 as well,
+    sigma sigma' Mx_i 1 + C Mth_i C'^T above it (C, C' the joints' rotation blocks on body i,
+    sigma, sigma' = +-1 their translation parts). False on a singular pivot (the test of
+    ``_kernels._blk_lu``)."""
+    K = rint.shape[0] // 3
+    u0 = u1 = u2 = u3 = u4 = u5 = u6 = u7 = u8 = 0.0  # A_{k-1,k}
+    y0 = y1 = y2 = y3 = y4 = y5 = y6 = y7 = y8 = 0.0  # Y_{k-1}
+    for k in range(K):
+        r = 3 * k
+        p00 = p01 = p02 = p11 = p12 = p22 = 0.0
+        if k > 0:  # - A_{k-1,k}^T Y_{k-1}, upper triangle
+            p00 = -(u0 * y0 + u3 * y3 + u6 * y6)
+            p01 = -(u0 * y1 + u3 * y4 + u6 * y7)
+            p02 = -(u0 * y2 + u3 * y5 + u6 * y8)
+            p11 = -(u1 * y1 + u4 * y4 + u7 * y7)
+            p12 = -(u1 * y2 + u4 * y5 + u7 * y8)
+            p22 = -(u2 * y2 + u5 * y5 + u8 * y8)
+        u0 = u1 = u2 = u3 = u4 = u5 = u6 = u7 = u8 = 0.0
+        for s in range(2):
+            i = rint[_U(r), _U(1 + s)]
+            if i < 0:
+                continue
+            ui = _U(i)
+            M = (Mth[ui, 0], Mth[ui, 1], Mth[ui, 2], Mth[ui, 3], Mth[ui, 4], Mth[ui, 5],
+                 Mth[ui, 6], Mth[ui, 7], Mth[ui, 8])  # fmt: skip
+            mx = Mx[ui]
+            C = _hat_blk(J, r, 6 * s + 3)
+            X = _mm_z(C, M)
+            p00 += (X[1] * C[1] + X[2] * C[2]) + mx
+            p01 += X[0] * C[3] + X[2] * C[5]
+            p02 += X[0] * C[6] + X[1] * C[7]
+            p11 += (X[3] * C[3] + X[5] * C[5]) + mx
+            p12 += X[3] * C[6] + X[4] * C[7]
+            p22 += (X[6] * C[6] + X[7] * C[7]) + mx
+            if k + 1 < K:
+                for s2 in range(2):
+                    if rint[_U(r + 3), _U(1 + s2)] == i:
+                        B = _mmt_z(X, _hat_blk(J, r + 3, 6 * s2 + 3))
+                        d = (J[_U(r), _U(6 * s)] * J[_U(r + 3), _U(6 * s2)]) * mx
+                        u0 += B[0] + d
+                        u1 += B[1]
+                        u2 += B[2]
+                        u3 += B[3]
+                        u4 += B[4] + d
+                        u5 += B[5]
+                        u6 += B[6]
+                        u7 += B[7]
+                        u8 += B[8] + d
+        nrm = max(abs(p00), abs(p01), abs(p02), abs(p11), abs(p12), abs(p22))
+        det, P = _sym_inv3(p00, p01, p02, p11, p12, p22)
+        if not abs(det) > 1e-36 * nrm * nrm * nrm:
+            return False
+        uk = _U(k)
+        for c in range(9):
+            Pi[uk, _U(c)] = P[c]
+        if k + 1 < K:
+            y0 = P[0] * u0 + P[1] * u3 + P[2] * u6
+            y1 = P[0] * u1 + P[1] * u4 + P[2] * u7
+            y2 = P[0] * u2 + P[1] * u5 + P[2] * u8
+            y3 = P[3] * u0 + P[4] * u3 + P[5] * u6
+            y4 = P[3] * u1 + P[4] * u4 + P[5] * u7
+            y5 = P[3] * u2 + P[4] * u5 + P[5] * u8
+            y6 = P[6] * u0 + P[7] * u3 + P[8] * u6
+            y7 = P[6] * u1 + P[7] * u4 + P[8] * u7
+            y8 = P[6] * u2 + P[7] * u5 + P[8] * u8
+            Y[uk, 0], Y[uk, 1], Y[uk, 2] = y0, y1, y2
+            Y[uk, 3], Y[uk, 4], Y[uk, 5] = y3, y4, y5
+            Y[uk, 6], Y[uk, 7], Y[uk, 8] = y6, y7, y8
+    return True
+
+
+@njit(forceinline=True)
+def _sym_solve(Pi, Y, b, x):
+    """x = A^{-1} b with the factors of :func:`_sym_factor`: L y = b (y_k = b_k -
+    Y_{k-1}^T y_{k-1}), then x_k = P_k^{-1} y_k - Y_k x_{k+1} from the last joint back."""
+    K = Pi.shape[0]
+    t0 = t1 = t2 = 0.0
+    for k in range(K):
+        uk = _U(3 * k)
+        y0, y1, y2 = b[uk], b[uk + 1], b[uk + 2]
+        if k > 0:
+            q = _U(k - 1)
+            y0 -= Y[q, 0] * t0 + Y[q, 3] * t1 + Y[q, 6] * t2
+            y1 -= Y[q, 1] * t0 + Y[q, 4] * t1 + Y[q, 7] * t2
+            y2 -= Y[q, 2] * t0 + Y[q, 5] * t1 + Y[q, 8] * t2
+        x[uk], x[uk + 1], x[uk + 2] = y0, y1, y2
+        t0, t1, t2 = y0, y1, y2
+    for k in range(K - 1, -1, -1):
+        uk = _U(3 * k)
+        q = _U(k)
+        y0, y1, y2 = x[uk], x[uk + 1], x[uk + 2]
+        z0 = Pi[q, 0] * y0 + Pi[q, 1] * y1 + Pi[q, 2] * y2
+        z1 = Pi[q, 3] * y0 + Pi[q, 4] * y1 + Pi[q, 5] * y2
+        z2 = Pi[q, 6] * y0 + Pi[q, 7] * y1 + Pi[q, 8] * y2
+        if k < K - 1:
+            z0 -= Y[q, 0] * t0 + Y[q, 1] * t1 + Y[q, 2] * t2
+            z1 -= Y[q, 3] * t0 + Y[q, 4] * t1 + Y[q, 5] * t2
+            z2 -= Y[q, 6] * t0 + Y[q, 7] * t1 + Y[q, 8] * t2
+        x[uk], x[uk + 1], x[uk + 2] = z0, z1, z2
+        t0, t1, t2 = z0, z1, z2

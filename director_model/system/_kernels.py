@@ -26,8 +26,9 @@ first iterate,
 assembled row pair by row pair over the rows that share a body (block tridiagonal for a
 chain: solved by banded LU without pivoting, cost linear in the number of bodies; for chains
 of spherical joints assembled and eliminated as 3x3 blocks in straight-line code, their rows,
-forces and rates computed without the zeros of POINT rows, director_model/system/_block3.py,
-with the same numbers). Closed
+forces and rates computed without the zeros of POINT rows with the same numbers, and the
+velocity stage's symmetric matrix assembled and factorised as L D L^T joint by joint in one
+pass from the upper triangles, director_model/system/_block3.py). Closed
 loops (redundant rows) are factorised in the same band, with the joints ordered along the
 loops (model.band_order), rank-revealing in the row order: the velocity stage's L D L^T drops
 each row dependent on the rows before it, the Newton matrix's LU drops the same rows (a basic
@@ -99,6 +100,8 @@ from director_model.system._block3 import (  # _U: unsigned array indices, see t
     _mm_z,
     _mmt_z,
     _rows3,
+    _sym_factor,
+    _sym_solve,
     _vres3,
 )
 
@@ -1339,7 +1342,18 @@ def _run_system(
                     DI = (Dj[0] * B[i, 4], Dj[1] * B[i, 5], Dj[2] * B[i, 6],
                           Dj[3] * B[i, 4], Dj[4] * B[i, 5], Dj[5] * B[i, 6],
                           Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
-                    _put9(Mth, i, _mmt(DI, Dj))
+                    if banded or minnorm:
+                        _put9(Mth, i, _mmt(DI, Dj))
+                    else:
+                        # the block solver's factorisation is symmetric: Mth = D I^-1 D^T
+                        # from its upper triangle
+                        m00 = DI[0] * Dj[0] + DI[1] * Dj[1] + DI[2] * Dj[2]
+                        m01 = DI[0] * Dj[3] + DI[1] * Dj[4] + DI[2] * Dj[5]
+                        m02 = DI[0] * Dj[6] + DI[1] * Dj[7] + DI[2] * Dj[8]
+                        m11 = DI[3] * Dj[3] + DI[4] * Dj[4] + DI[5] * Dj[5]
+                        m12 = DI[3] * Dj[6] + DI[4] * Dj[7] + DI[5] * Dj[8]
+                        m22 = DI[6] * Dj[6] + DI[7] * Dj[7] + DI[8] * Dj[8]
+                        _put9(Mth, i, (m00, m01, m02, m01, m11, m12, m02, m12, m22))
             # the velocity stage's matrix G M^-1 G^T at q_{n+1}, factorised once
             vsvd = False
             if nrow > 0:
@@ -1386,11 +1400,9 @@ def _run_system(
                     if not _band_ldl(Ab, bw):
                         _fail(info, n, h)
                         return FAIL_SINGULAR
-                else:
-                    _blk_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Dg, Up, Lo)
-                    if not _blk_lu(Dg, Up, Lo):
-                        _fail(info, n, h)
-                        return FAIL_SINGULAR
+                elif not _sym_factor(rint, Jnew, Mx, Mth, Dg, Up):
+                    _fail(info, n, h)
+                    return FAIL_SINGULAR
             # the second half kick of the force elements at q_{n+1}: with dampers implicit in
             # the velocities (the trapezoidal rule on them, so the step stays symmetric), by a
             # fixed-point iteration from u0 that reuses the factorisation
@@ -1429,7 +1441,7 @@ def _run_system(
                     elif banded:
                         _band_ldl_solve(Ab, bw, r0, dl)
                     else:
-                        _blk_solve(Dg, Up, Lo, r0, dl)
+                        _sym_solve(Dg, Up, r0, dl)
                     if r5:
                         _r5_forces(rint, Jnew, dl, Fn, Tn)
                     elif banded or minnorm:

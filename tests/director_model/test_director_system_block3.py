@@ -92,6 +92,62 @@ def test_block3_kernels_equal_the_general_ones_bit_for_bit(hang):
     assert np.count_nonzero(Up) > 0 and np.count_nonzero(Lo) > 0
 
 
+def _dense_g(asm, J, n):
+    """G (nrow, 6 n): each row's translation and rotation entries in its bodies' columns."""
+    G = np.zeros((J.shape[0], 6 * n))
+    for r, (_, a, b, _) in enumerate(asm.rint):
+        G[r, 6 * a : 6 * a + 6] = J[r, 0:6]
+        if b >= 0:
+            G[r, 6 * b : 6 * b + 6] = J[r, 6:12]
+    return G
+
+
+@pytest.mark.parametrize("hang, reverse", [(True, False), (False, False), (True, True)])
+def test_symmetric_factor_solves_the_velocity_stage_matrix(hang, reverse):
+    # the velocity stage's A = G blockdiag(Mx 1, Mth) G^T (Mth symmetric positive definite)
+    # factorised joint by joint (_sym_factor) and solved (_sym_solve), against numpy's dense
+    # solve of the same A formed from the Jacobian rows; bodies listed along the chain or
+    # against it (the joints' order is the chain's either way)
+    n = 8
+    asm, X, D, rng = _state(n, hang, seed=5 if hang else 6)
+    if reverse:
+        bodies, joints = rod_chain(n, hang, seed=5)
+        asm = assemble(bodies[::-1], joints)
+        assert asm.block3 and asm.rint[0, 1] == n - 1
+    nr = asm.rint.shape[0]
+    gv, J = np.zeros(nr), np.zeros((nr, 12))
+    B3._rows3(asm.rint, asm.rvec, X, D, gv, J)
+    Mx = rng.uniform(0.5, 2.0, n)
+    Mth = np.empty((n, 9))
+    Minv = np.zeros((6 * n, 6 * n))
+    for i in range(n):
+        Q = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+        S = Q @ np.diag(rng.uniform(0.2, 5.0, 3)) @ Q.T
+        Mth[i] = S.ravel()
+        Minv[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = Mx[i] * np.eye(3)
+        Minv[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = S
+    G = _dense_g(asm, J, n)
+    A = G @ Minv @ G.T
+    b = rng.standard_normal(nr)
+    want = np.linalg.solve(A, b)
+    nK = nr // 3
+    Pi, Y = np.zeros((nK, 9)), np.zeros((nK, 9))
+    assert B3._sym_factor(asm.rint, J, Mx, Mth, Pi, Y)
+    x = np.zeros(nr)
+    B3._sym_solve(Pi, Y, b, x)
+    # a backward-stable solve: error <= a few eps x condition number (cond ~ 1e2 .. 1e4 here)
+    bound = 64 * np.finfo(float).eps * np.linalg.cond(A) * np.abs(want).max()
+    assert np.abs(x - want).max() <= bound
+    # the pivots' inverses are symmetric; a zero matrix is refused as singular
+    assert np.allclose(
+        Pi.reshape(nK, 3, 3),
+        Pi.reshape(nK, 3, 3).transpose(0, 2, 1),
+        rtol=0,
+        atol=1e-9 * np.abs(Pi).max(),
+    )
+    assert not B3._sym_factor(asm.rint, J, 0 * Mx, 0 * Mth, Pi, Y)
+
+
 @pytest.mark.parametrize("scheme, steps, bound", [("rattle", 1000, 1.2), ("rattle4", 600, 1.1)])
 def test_hanging_chain_takes_about_one_newton_update_per_sub_step(scheme, steps, bound):
     # the start value of the position multipliers (the last velocity multipliers plus their
