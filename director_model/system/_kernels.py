@@ -138,6 +138,18 @@ PIVOT_CHECK = 1e-8
 #: where a pivot ratio drops, 2 the SVD at every solve (the ``svd`` solver, kept to compare)
 MODE_PIVOTED = 1
 MODE_SVD = 2
+#: a step of the loop solver with a sub-step landing inside it (not at its end) where the
+#: velocity stage's SVD drops a direction the joint rows have at t = 0 (sigma_rank_nominal of
+#: G M^-1 G^T below SOLVE_TOL sigma_1: within rounding of a singular configuration of the
+#: loop, where its branches meet) is done again from its start as m = 2, 3, ... steps of
+#: dt / m (msp in the kernel), whose landings are elsewhere: at such a landing the solves
+#: cannot resolve the direction in which the branches part, and rounding of the rows,
+#: amplified by the inverse of that singular value, goes into the velocities and the energy
+#: (iftomm_a02_n2: 1e-8 J in one step, docs/scenarios.md). Up to m = MAXSPLIT; if every split
+#: has such a landing (the step's end lands near the singular configuration too, so the
+#: landings just before it come nearer as m grows), the step of dt is taken as it comes and
+#: counted (D_KEPT). The work of such a step is bounded by 1 + 2 + ... + MAXSPLIT + 1 steps
+MAXSPLIT = 4
 
 OK = 0
 FAIL_NEWTON = 1  # the joint multipliers did not converge
@@ -176,7 +188,9 @@ D_SMIN = 2  # smallest sigma_{rank_nominal} / sigma_1 of that matrix (minnorm so
 D_TSMIN = 3  # step index where it occurred
 D_MAXIT = 4  # largest iteration count of one substep
 D_SVD = 5  # factorisations done by SVD (loop solver: a pivot ratio below PIVOT_CHECK)
-NDIAG = 6
+D_SPLIT = 6  # steps done again as more steps of a fraction of dt (loop solver, MAXSPLIT)
+D_KEPT = 7  # steps kept as they came after MAXSPLIT splits, each with such a landing
+NDIAG = 8
 
 
 @njit(forceinline=True)
@@ -1108,9 +1122,30 @@ def _run_system(
     if saves.shape[0] > 0 and saves[0] == 0:
         _store(B, D0, S, X, V, D, W, saves[0])
         ks = 1
+    # a step whose sub-steps land where the velocity stage's solve drops a direction (see
+    # MAXSPLIT) is done again as m steps of dt / m from its start, restored from these
+    split = minnorm > 0 and nrow > 0
+    S0 = np.empty((nb if split else 0, NS))
+    mu0 = np.empty(nr if split else 0)
+    kn0 = np.empty(nr if split else 0, dtype=np.int64)
+    hp0 = havepat
     for n in range(1, nstep + 1):
-        for j in range(coef.shape[0]):
-            h = coef[j] * dt
+        if split:
+            for i in range(nb):
+                for c in range(NS):
+                    S0[i, c] = S[i, c]
+            for r in range(nr):
+                mu0[r] = mu[r]
+                kn0[r] = kn[r]
+            hp0 = havepat
+        msp = 1
+        keep = False
+        hs = dt
+        js = 0
+        while js < msp * ns:
+            j = js % ns
+            js += 1
+            h = coef[j] * hs
             hh = 0.5 * h
             xmax = Lsc
             for i in range(nb):
@@ -1390,6 +1425,28 @@ def _run_system(
                         # bound on sigma_rank / sigma_1 it is not: that one the SVD gives)
                         nrank = int(pb[1])
                         rel = pb[0]
+                    if vsvd and rank < rank_nom and js < msp * ns and not keep:
+                        # a landing inside the step where the solve drops a direction the
+                        # rows have away from singular configurations: the step again, as
+                        # msp + 1 steps of dt / (msp + 1) from its start (other landing
+                        # times); after MAXSPLIT, the step of dt as it comes
+                        for i in range(nb):
+                            for c in range(NS):
+                                S[i, c] = S0[i, c]
+                        for r in range(nr):
+                            mu[r] = mu0[r]
+                            kn[r] = kn0[r]
+                        havepat = hp0
+                        js = 0
+                        if msp >= MAXSPLIT:
+                            diag[D_KEPT] += 1
+                            keep = True
+                            msp = 1
+                        else:
+                            diag[D_SPLIT] += 1
+                            msp += 1
+                        hs = dt / msp
+                        continue
                     if nrank < rank_nom:
                         diag[D_RANKDROP] += 1
                     if rel < diag[D_SMIN]:

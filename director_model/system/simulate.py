@@ -76,8 +76,13 @@ class SystemTrajectory:
     diagonal entry, at least PIVOT_CHECK = 1e-8; NaN for the banded and block solvers,
     which do not compute it),
     ``min_singular_step`` (the absolute step index where it occurred; -1 for the banded
-    solver) and ``svd_factorisations`` (multiplier matrices decomposed by SVD: every one with
-    "svd", near singular configurations with "minnorm").
+    solver), ``svd_factorisations`` (multiplier matrices decomposed by SVD: every one with
+    "svd", near singular configurations with "minnorm") and ``split_steps`` (loop solvers:
+    steps done again from their start as 2, 3, ... steps of dt/2, dt/3, ..., because a
+    sub-step inside them landed where the velocity stage's solve dropped a direction of the
+    joint rows, _kernels.MAXSPLIT; the singularity diagnostics count the landings kept) and
+    ``kept_singular_steps`` (steps taken as they came after every split up to MAXSPLIT had
+    such a landing too).
     The invariants and residuals are computed from the saved states in numpy, independently
     of the compiled step.
     """
@@ -108,6 +113,8 @@ class SystemTrajectory:
     min_singular_value: float
     min_singular_step: int
     svd_factorisations: int
+    split_steps: int = 0
+    kept_singular_steps: int = 0
 
     def __len__(self) -> int:
         return self.t.shape[0]
@@ -364,6 +371,8 @@ class SystemStepper:
                 int(diag[K.D_TSMIN]) + self.nstep_done - nstep if math.isfinite(smin) else -1
             ),
             svd_factorisations=int(diag[K.D_SVD]),
+            split_steps=int(diag[K.D_SPLIT]),
+            kept_singular_steps=int(diag[K.D_KEPT]),
         )  # fmt: skip
 
 

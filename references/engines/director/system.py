@@ -85,6 +85,17 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         )
     if tuple(tr.joint_names) != tuple(j.name for j in scenario.joints):
         raise EngineError(f"director_model.system built joints {tr.joint_names}")
+    settings = {
+        "scheme": integrator,
+        "constraint solver": tr.solver,
+        "constraint rows (nominal rank)": int(tr.rank_nominal),
+        "steps with a rank drop": int(tr.rank_drop_steps),
+        "smallest relative singular value": float(tr.min_singular_value),
+        "Newton iterations": int(tr.newton_iterations),
+    }
+    if tr.solver in ("minnorm", "svd"):  # the loop solvers' steps redone at singular landings
+        settings["steps split at a singular landing"] = int(tr.split_steps)
+        settings["singular landings kept"] = int(tr.kept_singular_steps)
     return SystemResult(
         t=tr.t,
         x=tr.position,
@@ -92,13 +103,6 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         v=tr.velocity,
         W=tr.omega_body,
         engine_time_s=float(tr.wall_time_s),
-        settings={
-            "scheme": integrator,
-            "constraint solver": tr.solver,
-            "constraint rows (nominal rank)": int(tr.rank_nominal),
-            "steps with a rank drop": int(tr.rank_drop_steps),
-            "smallest relative singular value": float(tr.min_singular_value),
-            "Newton iterations": int(tr.newton_iterations),
-        },
+        settings=settings,
         stats={"largest constraint row residual": float(np.max(tr.constraint_position))},
     )
