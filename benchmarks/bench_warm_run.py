@@ -184,6 +184,7 @@ def main(argv=None) -> int:
 
     roots = {"before": args.before.resolve(), "after": ROOT}
     keep = args.keep or Path(tempfile.mkdtemp(prefix="warm-run-"))
+    keep.mkdir(parents=True, exist_ok=True)
     got: dict = {(s, side): [] for s in args.steps for side in roots}
     workers = {}
     if "run" not in args.steps:  # one process per checkout, answering the steps measured in it
