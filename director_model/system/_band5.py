@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from director_model.system._block3 import _U
+from director_model.system._block3 import _U, _point3
 
 #: rows of a joint block
 JB = 5
@@ -241,6 +241,23 @@ def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
 
 
 @njit(forceinline=True)
+def _dot_row(r, sa0, sa1, sa2, p0, p1, p2, rvec, gv, Jc):
+    """One DOT row r of a revolute joint: a's axis sa (world) against b's fixed vector p
+    (world), its target rvec[r, 9], and the nonzero entries of Jc, with the operations of
+    ``_kernels._rows``."""
+    gv[r] = (sa0 * p0 + sa1 * p1 + sa2 * p2) - rvec[r, 9]
+    c0 = sa1 * p2 - sa2 * p1
+    c1 = sa2 * p0 - sa0 * p2
+    c2 = sa0 * p1 - sa1 * p0
+    Jc[r, 3] = c0
+    Jc[r, 4] = c1
+    Jc[r, 5] = c2
+    Jc[r, 9] = -c0
+    Jc[r, 10] = -c1
+    Jc[r, 11] = -c2
+
+
+@njit(forceinline=True)
 def _r5_rows(rint, rvec, X, D, gv, Jc):
     """The row values gv and Jacobians Jc of ``_kernels._rows`` for revolute joints
     (:func:`_is_revolute5`, joint k in rows 5k .. 5k + 4): the lever arms and the axis once per
@@ -283,47 +300,9 @@ def _r5_rows(rint, rvec, X, D, gv, Jc):
             xb0, xb1, xb2 = 0.0, 0.0, 0.0
             p0, p1, p2 = m0, m1, m2
             q0, q1, q2 = n0, n1, n2
-        gv[r] = (X[a, 0] + ra0) - (xb0 + rb0)
-        gv[r1] = (X[a, 1] + ra1) - (xb1 + rb1)
-        gv[r2] = (X[a, 2] + ra2) - (xb2 + rb2)
-        Jc[r, 0] = 1.0
-        Jc[r, 4] = ra2
-        Jc[r, 5] = -ra1
-        Jc[r, 6] = -1.0
-        Jc[r, 10] = -rb2
-        Jc[r, 11] = rb1
-        Jc[r1, 1] = 1.0
-        Jc[r1, 3] = -ra2
-        Jc[r1, 5] = ra0
-        Jc[r1, 7] = -1.0
-        Jc[r1, 9] = rb2
-        Jc[r1, 11] = -rb0
-        Jc[r2, 2] = 1.0
-        Jc[r2, 3] = ra1
-        Jc[r2, 4] = -ra0
-        Jc[r2, 8] = -1.0
-        Jc[r2, 9] = -rb1
-        Jc[r2, 10] = rb0
-        gv[r3] = (sa0 * p0 + sa1 * p1 + sa2 * p2) - rvec[r3, 9]
-        c0 = sa1 * p2 - sa2 * p1
-        c1 = sa2 * p0 - sa0 * p2
-        c2 = sa0 * p1 - sa1 * p0
-        Jc[r3, 3] = c0
-        Jc[r3, 4] = c1
-        Jc[r3, 5] = c2
-        Jc[r3, 9] = -c0
-        Jc[r3, 10] = -c1
-        Jc[r3, 11] = -c2
-        gv[r4] = (sa0 * q0 + sa1 * q1 + sa2 * q2) - rvec[r4, 9]
-        c0 = sa1 * q2 - sa2 * q1
-        c1 = sa2 * q0 - sa0 * q2
-        c2 = sa0 * q1 - sa1 * q0
-        Jc[r4, 3] = c0
-        Jc[r4, 4] = c1
-        Jc[r4, 5] = c2
-        Jc[r4, 9] = -c0
-        Jc[r4, 10] = -c1
-        Jc[r4, 11] = -c2
+        _point3(r, r1, r2, X, a, ra0, ra1, ra2, xb0, xb1, xb2, rb0, rb1, rb2, gv, Jc)
+        _dot_row(r3, sa0, sa1, sa2, p0, p1, p2, rvec, gv, Jc)
+        _dot_row(r4, sa0, sa1, sa2, q0, q1, q2, rvec, gv, Jc)
 
 
 @njit(forceinline=True)

@@ -33,6 +33,35 @@ _U = np.uint64
 
 
 @njit(forceinline=True)
+def _point3(r, r1, r2, X, a, ra0, ra1, ra2, xb0, xb1, xb2, rb0, rb1, rb2, gv, Jc):
+    """One joint's three POINT rows r, r1, r2: the gap between a's anchor (centre X[a] plus
+    lever arm ra) and b's (xb plus rb; the ground's: xb 0), and the nonzero entries of Jc,
+    each with the operations of ``_kernels._rows`` (shared by :func:`_rows3` and the revolute
+    joint blocks of ``_band5``)."""
+    gv[r] = (X[a, 0] + ra0) - (xb0 + rb0)
+    gv[r1] = (X[a, 1] + ra1) - (xb1 + rb1)
+    gv[r2] = (X[a, 2] + ra2) - (xb2 + rb2)
+    Jc[r, 0] = 1.0
+    Jc[r, 4] = ra2
+    Jc[r, 5] = -ra1
+    Jc[r, 6] = -1.0
+    Jc[r, 10] = -rb2
+    Jc[r, 11] = rb1
+    Jc[r1, 1] = 1.0
+    Jc[r1, 3] = -ra2
+    Jc[r1, 5] = ra0
+    Jc[r1, 7] = -1.0
+    Jc[r1, 9] = rb2
+    Jc[r1, 11] = -rb0
+    Jc[r2, 2] = 1.0
+    Jc[r2, 3] = ra1
+    Jc[r2, 4] = -ra0
+    Jc[r2, 8] = -1.0
+    Jc[r2, 9] = -rb1
+    Jc[r2, 10] = rb0
+
+
+@njit(forceinline=True)
 def _rows3(rint, rvec, X, D, gv, Jc):
     """The row values gv and Jacobians Jc of ``_kernels._rows`` for joints of three POINT rows
     (components 0, 1, 2 in rows 3k .. 3k + 2): the lever arms once per joint, only the
@@ -58,27 +87,7 @@ def _rows3(rint, rvec, X, D, gv, Jc):
         else:
             rb0, rb1, rb2 = vb0, vb1, vb2
             xb0, xb1, xb2 = 0.0, 0.0, 0.0
-        gv[r] = (X[a, 0] + ra0) - (xb0 + rb0)
-        gv[r1] = (X[a, 1] + ra1) - (xb1 + rb1)
-        gv[r2] = (X[a, 2] + ra2) - (xb2 + rb2)
-        Jc[r, 0] = 1.0
-        Jc[r, 4] = ra2
-        Jc[r, 5] = -ra1
-        Jc[r, 6] = -1.0
-        Jc[r, 10] = -rb2
-        Jc[r, 11] = rb1
-        Jc[r1, 1] = 1.0
-        Jc[r1, 3] = -ra2
-        Jc[r1, 5] = ra0
-        Jc[r1, 7] = -1.0
-        Jc[r1, 9] = rb2
-        Jc[r1, 11] = -rb0
-        Jc[r2, 2] = 1.0
-        Jc[r2, 3] = ra1
-        Jc[r2, 4] = -ra0
-        Jc[r2, 8] = -1.0
-        Jc[r2, 9] = -rb1
-        Jc[r2, 10] = rb0
+        _point3(r, r1, r2, X, a, ra0, ra1, ra2, xb0, xb1, xb2, rb0, rb1, rb2, gv, Jc)
 
 
 @njit(forceinline=True)
