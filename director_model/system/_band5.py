@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from director_model.system._block3 import _U, _point3
+from director_model.system._block3 import _U, _dot_row, _point3
 
 #: rows of a joint block
 JB = 5
@@ -238,23 +238,6 @@ def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
                 _r5_add(A, bw, R1 + 2, R2, upper, 2, L2, S, U)
                 _r5_add(A, bw, R1 + 3, R2, upper, 3, L3, S, U)
                 _r5_add(A, bw, R1 + 4, R2, upper, 4, L4, S, U)
-
-
-@njit(forceinline=True)
-def _dot_row(r, sa0, sa1, sa2, p0, p1, p2, rvec, gv, Jc):
-    """One DOT row r of a revolute joint: a's axis sa (world) against b's fixed vector p
-    (world), its target rvec[r, 9], and the nonzero entries of Jc, with the operations of
-    ``_kernels._rows``."""
-    gv[r] = (sa0 * p0 + sa1 * p1 + sa2 * p2) - rvec[r, 9]
-    c0 = sa1 * p2 - sa2 * p1
-    c1 = sa2 * p0 - sa0 * p2
-    c2 = sa0 * p1 - sa1 * p0
-    Jc[r, 3] = c0
-    Jc[r, 4] = c1
-    Jc[r, 5] = c2
-    Jc[r, 9] = -c0
-    Jc[r, 10] = -c1
-    Jc[r, 11] = -c2
 
 
 @njit(forceinline=True)

@@ -62,6 +62,23 @@ def _point3(r, r1, r2, X, a, ra0, ra1, ra2, xb0, xb1, xb2, rb0, rb1, rb2, gv, Jc
 
 
 @njit(forceinline=True)
+def _dot_row(r, sa0, sa1, sa2, p0, p1, p2, rvec, gv, Jc):
+    """One DOT row r: a's vector sa (world) against b's p (world), its target rvec[r, 9],
+    and the nonzero entries of Jc, with the operations of ``_kernels._rows`` (shared by the
+    general rows and the revolute joint blocks of ``_band5``)."""
+    gv[r] = (sa0 * p0 + sa1 * p1 + sa2 * p2) - rvec[r, 9]
+    c0 = sa1 * p2 - sa2 * p1
+    c1 = sa2 * p0 - sa0 * p2
+    c2 = sa0 * p1 - sa1 * p0
+    Jc[r, 3] = c0
+    Jc[r, 4] = c1
+    Jc[r, 5] = c2
+    Jc[r, 9] = -c0
+    Jc[r, 10] = -c1
+    Jc[r, 11] = -c2
+
+
+@njit(forceinline=True)
 def _rows3(rint, rvec, X, D, gv, Jc):
     """The row values gv and Jacobians Jc of ``_kernels._rows`` for joints of three POINT rows
     (components 0, 1, 2 in rows 3k .. 3k + 2): the lever arms once per joint, only the

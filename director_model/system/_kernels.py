@@ -95,6 +95,7 @@ from director_model.system._band5 import (
 )
 from director_model.system._block3 import (  # _U: unsigned array indices, see there
     _U,
+    _dot_row,
     _forces3,
     _hat_blk,
     _mm_z,
@@ -392,16 +393,7 @@ def _rows(rint, rvec, X, D, gv, Jc):
                 Jc[r, 9] = -rb1
                 Jc[r, 10] = rb0
         elif prim == 1:  # DOT
-            gv[r] = (ra0 * rb0 + ra1 * rb1 + ra2 * rb2) - rvec[r, 9]
-            c0 = ra1 * rb2 - ra2 * rb1
-            c1 = ra2 * rb0 - ra0 * rb2
-            c2 = ra0 * rb1 - ra1 * rb0
-            Jc[r, 3] = c0
-            Jc[r, 4] = c1
-            Jc[r, 5] = c2
-            Jc[r, 9] = -c0
-            Jc[r, 10] = -c1
-            Jc[r, 11] = -c2
+            _dot_row(r, ra0, ra1, ra2, rb0, rb1, rb2, rvec, gv, Jc)
         else:  # LINE
             p0, p1, p2 = rvec[r, 6], rvec[r, 7], rvec[r, 8]
             u0 = D[a, 0] * p0 + D[a, 1] * p1 + D[a, 2] * p2
@@ -423,6 +415,19 @@ def _rows(rint, rvec, X, D, gv, Jc):
             Jc[r, 9] = rb1 * u2 - rb2 * u1
             Jc[r, 10] = rb2 * u0 - rb0 * u2
             Jc[r, 11] = rb0 * u1 - rb1 * u0
+
+
+@njit(forceinline=True)
+def _copy_step_state(nb, nr, S, mu, kn, S_to, mu_to, kn_to):
+    """Copy a step's state (S: the nb bodies' states; mu, kn: the nr rows' last velocity
+    multipliers and pattern) into S_to, mu_to, kn_to: a step split at a singular landing
+    keeps its start this way and is restored from it."""
+    for i in range(nb):
+        for c in range(NS):
+            S_to[i, c] = S[i, c]
+    for r in range(nr):
+        mu_to[r] = mu[r]
+        kn_to[r] = kn[r]
 
 
 @njit(forceinline=True)
@@ -1131,12 +1136,7 @@ def _run_system(
     hp0 = havepat
     for n in range(1, nstep + 1):
         if split:
-            for i in range(nb):
-                for c in range(NS):
-                    S0[i, c] = S[i, c]
-            for r in range(nr):
-                mu0[r] = mu[r]
-                kn0[r] = kn[r]
+            _copy_step_state(nb, nr, S, mu, kn, S0, mu0, kn0)
             hp0 = havepat
         msp = 1
         keep = False
@@ -1430,12 +1430,7 @@ def _run_system(
                         # rows have away from singular configurations: the step again, as
                         # msp + 1 steps of dt / (msp + 1) from its start (other landing
                         # times); after MAXSPLIT, the step of dt as it comes
-                        for i in range(nb):
-                            for c in range(NS):
-                                S[i, c] = S0[i, c]
-                        for r in range(nr):
-                            mu[r] = mu0[r]
-                            kn[r] = kn0[r]
+                        _copy_step_state(nb, nr, S0, mu0, kn0, S, mu, kn)
                         havepat = hp0
                         js = 0
                         if msp >= MAXSPLIT:
