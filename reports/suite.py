@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenarios.schema import InputError
+from scenarios.schema import InputError, did_you_mean
 
 DEFAULT_BASELINE = Path(__file__).resolve().parent / "baselines" / "default.json"
 #: the default output folder of ``run`` and, apart from it, of ``ensemble``
@@ -239,15 +239,6 @@ def reference_problem(sc) -> str | None:
     return None
 
 
-def _did_you_mean(word: str, candidates) -> str:
-    """The hint `` (did you mean 'x'?)`` naming the candidates closest to ``word`` (difflib),
-    or "" when none is close."""
-    import difflib
-
-    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
-    return f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""
-
-
 def default_engines(every: bool = False) -> tuple[list[str], dict[str, str]]:
     """(the engines of the default suite on this machine, {engine left out: why}): every
     registered engine but those whose adapter says they do not belong here
@@ -283,7 +274,7 @@ def check_engines(engines) -> list[str]:
     by_lower = {k.lower(): k for k in known}
     bad = [e for e in engines if e.lower() not in by_lower]
     if bad:
-        hint = _did_you_mean(bad[0].lower(), by_lower)
+        hint = did_you_mean(bad[0], known)
         raise InputError(
             f"--engines: unknown {', '.join(map(repr, bad))}{hint}; known: {', '.join(known)}"
         )
@@ -305,7 +296,7 @@ def check_engine_settings(scs) -> None:
             if engine not in known_engines:
                 raise InputError(
                     f"invalid scenario file {sc.path}: engine_settings.{engine} = {values!r}: "
-                    f"not a registered engine{_did_you_mean(engine, known_engines)}; known: "
+                    f"not a registered engine{did_you_mean(engine, known_engines)}; known: "
                     f"{', '.join(known_engines)}"
                 )
             if sc.kind == "contact":
@@ -322,7 +313,7 @@ def check_engine_settings(scs) -> None:
                     raise InputError(
                         f"invalid scenario file {sc.path}: engine_settings.{engine}.{name} = "
                         f"{value!r}: not a setting of {engine}'s {what}"
-                        f"{hint or _did_you_mean(name, known)}; known: "
+                        f"{hint or did_you_mean(name, known)}; known: "
                         f"{', '.join(known) or 'none'}"
                     )
 
@@ -369,7 +360,7 @@ def check_integrators(integrators, engines: list[str], named: bool = False) -> l
         raise InputError(f"--integrators: an empty list; give one or more of {', '.join(offered)}")
     bad = [i for i in integrators if slug(i) not in offered]
     if bad:
-        hint = _did_you_mean(slug(bad[0]), offered)
+        hint = did_you_mean(slug(bad[0]), offered)
         raise InputError(
             f"--integrators: {', '.join(map(repr, bad))} offered by none of the engines "
             f"{', '.join(engines)}{hint}; they offer: {', '.join(offered)}"
@@ -379,7 +370,7 @@ def check_integrators(integrators, engines: list[str], named: bool = False) -> l
         names = [i.name for i in get_engine(e).integrators]
         own = list(dict.fromkeys(slug(n) for n in names + importers.variants(e, names)))
         if not asked & set(own):
-            hint = _did_you_mean(slug(integrators[0]), own)
+            hint = did_you_mean(slug(integrators[0]), own)
             raise InputError(
                 f"--engines {e}: offers none of the integrators asked for (--integrators "
                 f"{','.join(integrators)}), so it would run nothing; {e} offers "

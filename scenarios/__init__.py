@@ -21,7 +21,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from scenarios.model import REFERENCE_KINDS, SCENE_KINDS, Scenario
-from scenarios.schema import ScenarioError
+from scenarios.schema import ScenarioError, did_you_mean
 from scenarios.system import SystemBody, SystemJoint, SystemScenario
 from scenarios.system_file import validate as _validate_body_or_system
 
@@ -156,16 +156,6 @@ def default_contact() -> list[str]:
     return [name for name in list_contact() if "default" in load(name).tags]
 
 
-def _did_you_mean(word: str, names: list[str]) -> str:
-    """`` (did you mean 'x'?)`` naming the names closest to ``word`` in spelling (difflib's
-    ratio of at least 0.6, case ignored), or "" when none is close."""
-    import difflib
-
-    by_lower = {n.lower(): n for n in names}
-    close = difflib.get_close_matches(word.lower(), list(by_lower), n=3, cutoff=0.6)
-    return f" (did you mean {' or '.join(repr(by_lower[c]) for c in close)}?)" if close else ""
-
-
 def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     """Load a scenario: a library name (e.g. ``"dzhanibekov"``) or the path of a ``.toml`` file.
 
@@ -188,7 +178,7 @@ def load(name_or_path: str | Path) -> Scenario | SystemScenario:
     if not path.is_file():
         known = list_scenarios() + list_systems() + list_robots() + list_contact()
         raise ScenarioError(
-            f"no scenario named {s!r} in the library{_did_you_mean(s, known)}; available: "
+            f"no scenario named {s!r} in the library{did_you_mean(s, known)}; available: "
             f"{', '.join(known)} ({library_path()}). To load a file of your own, pass its path "
             "(ending in .toml)."
         )

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.model import frozen
+from scenarios.schema import did_you_mean
 
 SHAPE_KINDS = ("sphere", "box", "capsule", "cylinder")
 #: the body-body pairs the suite's geometry measures (unordered)
@@ -428,7 +429,8 @@ def read_contact_parts(data: dict, bodies, bad) -> tuple[tuple, tuple, tuple]:
                 bad(
                     f"{p}.pair",
                     pair,
-                    f"{nm!r} is neither a body nor a plane of this file; known: {known}",
+                    f"{nm!r} is neither a body nor a plane of this file"
+                    f"{did_you_mean(nm, [*names, *plane_names])}; known: {known}",
                 )
                 problem = True
         if problem:

@@ -87,6 +87,17 @@ class ScenarioError(InputError):
 # -- rotations ------------------------------------------------------------------------------
 
 
+def did_you_mean(word: str, names) -> str:
+    """`` (did you mean 'x'?)`` naming the ``names`` closest to ``word`` in spelling (difflib's
+    ratio of at least 0.6, case ignored), or "" when none is close: the one hint every misspelt
+    name gets (a scenario, an engine, a setting, a reference kind, a body of a contact pair)."""
+    import difflib
+
+    by_lower = {str(n).lower(): str(n) for n in names}
+    close = difflib.get_close_matches(str(word).lower(), list(by_lower), n=3, cutoff=0.6)
+    return f" (did you mean {' or '.join(repr(by_lower[c]) for c in close)}?)" if close else ""
+
+
 def rotation_from_vector(r) -> np.ndarray:
     """R = exp(hat(r)) by Rodrigues' formula, r = angle * unit axis (3,), rad: (3, 3). Exact to
     round-off for any angle, including 0 (Taylor series below 1e-4 rad). The suite's one
@@ -356,7 +367,11 @@ def validate(data: dict, path: str | None = None) -> Scenario:
     sweep, save_every = _check_run(run, bad)
     kind = ref.get("kind", "auto")
     if kind not in REFERENCE_KINDS:
-        bad("reference.kind", kind, f"must be one of {', '.join(REFERENCE_KINDS)}")
+        bad(
+            "reference.kind",
+            kind,
+            f"must be one of {', '.join(REFERENCE_KINDS)}{did_you_mean(kind, REFERENCE_KINDS)}",
+        )
     tolerances = _check_tolerances(data.get("tolerances"), bad)
     if probs:
         raise ScenarioError(_message(where, probs), path=path, problems=probs)

@@ -160,7 +160,12 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
     sweep, save_every = sch._check_run(good_run, bad)
     kind = ref.get("kind", "auto")
     if kind not in SYSTEM_REFERENCE_KINDS:
-        bad("reference.kind", kind, f"must be one of {', '.join(SYSTEM_REFERENCE_KINDS)}")
+        bad(
+            "reference.kind",
+            kind,
+            f"must be one of {', '.join(SYSTEM_REFERENCE_KINDS)}"
+            f"{sch.did_you_mean(kind, SYSTEM_REFERENCE_KINDS)}",
+        )
     params = {}
     for key, value in ref.items():
         if key == "kind":
@@ -199,7 +204,11 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
             bad("reference.kind", kind, "a system with force elements ([[torques]], "
                 "[[springs]]) takes the numerical reference (auto) or none: the closed forms "
                 "know no force elements")  # fmt: skip
-    if contacts and kind not in (*CONTACT_CLOSED_FORMS, "none", "auto"):
+    if (
+        contacts
+        and kind in SYSTEM_REFERENCE_KINDS
+        and kind not in (*CONTACT_CLOSED_FORMS, "none", "auto")
+    ):
         bad("reference.kind", kind, "a scene with [[contacts]] takes a contact closed form ("
             f"{', '.join(CONTACT_CLOSED_FORMS)}) or none")  # fmt: skip
     elif kind in CONTACT_CLOSED_FORMS and not contacts and not listed:
@@ -211,7 +220,15 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
         )
     touching = {n for c in contacts for n in (c.a, c.b)}
     touching |= {n for pair in listed for n in pair if isinstance(n, str)}
-    probs.extend(chk.unjoined_problems(bodies, joints, touching))
+    # a pair naming an unknown body is reported as such; the body it meant is not also
+    # reported as joined to nothing
+    if not any(
+        n not in {b.name for b in bodies} | {pl.name for pl in planes}
+        for pair in listed
+        for n in pair
+        if isinstance(n, str)
+    ):
+        probs.extend(chk.unjoined_problems(bodies, joints, touching))
     if not probs:
         probs.extend(chk.step_problems(bodies, good_run["dt"], sweep))
     if probs:

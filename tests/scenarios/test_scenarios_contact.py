@@ -241,6 +241,18 @@ def test_penetration_at_start_named():
             "numerical",
             "contact closed form",
         ),
+        (  # a misspelt body: the hint, and its body not also "joined to nothing"
+            lambda d: d["contacts"][0].update(pair=["blok", "ground"]),
+            "contacts[0].pair",
+            ["blok", "ground"],
+            "(did you mean 'block'?)",
+        ),
+        (  # a misspelt kind: the hint, and not also "takes a contact closed form"
+            lambda d: d["reference"].update(kind="slidng_block"),
+            "reference.kind",
+            "slidng_block",
+            "(did you mean 'sliding_block'",
+        ),
         (
             lambda d: d["contacts"][0].update(friction=0.3),
             "contacts[0].friction",
