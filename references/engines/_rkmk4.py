@@ -225,6 +225,51 @@ def unpack_dart(z, pivoted, a, acc):
     acc[3], acc[4], acc[5] = a[3], a[4], a[5]
 
 
+# -- a stage and the engine's packing in one call ------------------------------------------------
+# Per stage the stepper makes one compiled call before the engine's (the previous stage's
+# accelerations unpacked from the engine's vector ``a``, this stage's state, packed into the
+# engine's buffers) instead of three: each call from Python costs ~0.2 us, a tenth of an
+# engine's call. The same functions in the same order as the separate calls.
+
+
+@njit(cache=True)
+def pinocchio_stage(i, w, K, h, pivoted, a, qp, vp):
+    """:func:`unpack_pinocchio` of ``a`` (i > 0), :func:`stage` i, :func:`pack_pinocchio`
+    of its state into (qp, vp) when it succeeded. Returns what :func:`stage` returns."""
+    if i > 0:
+        unpack_pinocchio(w[Z], pivoted, a, w[ACC])
+    r = stage(i, w, K, h, pivoted)
+    if r == OK:
+        pack_pinocchio(w[Z], pivoted, qp, vp)
+    return r
+
+
+@njit(cache=True)
+def pinocchio_finish(w, K, h, pivoted, a):
+    """:func:`unpack_pinocchio` of the last stage's ``a``, then :func:`finish`."""
+    unpack_pinocchio(w[Z], pivoted, a, w[ACC])
+    return finish(w, K, h, pivoted)
+
+
+@njit(cache=True)
+def dart_stage(i, w, K, h, pivoted, a, pos, vel):
+    """:func:`unpack_dart` of ``a`` (i > 0), :func:`stage` i, :func:`pack_dart` of its state
+    into (pos, vel) when it succeeded. Returns what :func:`stage` returns."""
+    if i > 0:
+        unpack_dart(w[Z], pivoted, a, w[ACC])
+    r = stage(i, w, K, h, pivoted)
+    if r == OK:
+        pack_dart(w[Z], pivoted, pos, vel)
+    return r
+
+
+@njit(cache=True)
+def dart_finish(w, K, h, pivoted, a):
+    """:func:`unpack_dart` of the last stage's ``a``, then :func:`finish`."""
+    unpack_dart(w[Z], pivoted, a, w[ACC])
+    return finish(w, K, h, pivoted)
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every function once, outside any timed region."""
     w = np.zeros(WORKSPACE)
@@ -241,3 +286,7 @@ def warm_up() -> None:
         unpack_pinocchio(z, pivoted, np.zeros(m), acc)
         pack_dart(z, pivoted, np.zeros(m), np.zeros(m))
         unpack_dart(z, pivoted, np.zeros(m), acc)
+        pinocchio_stage(1, w, K, 1e-3, pivoted, np.zeros(m), np.zeros(n), np.zeros(m))
+        pinocchio_finish(w, K, 1e-3, pivoted, np.zeros(m))
+        dart_stage(1, w, K, 1e-3, pivoted, np.zeros(m), np.zeros(m), np.zeros(m))
+        dart_finish(w, K, 1e-3, pivoted, np.zeros(m))

@@ -353,9 +353,9 @@ class Engine(EngineBase):
         place with (dW/dt, dv_G/dt), zeros for dv_G/dt of a pivoted body. The default's
         ``fd`` builds a ``BodyState`` from ``z`` and calls :meth:`forward_dynamics`. An
         adapter may return one that hands ``z`` to its engine directly, with its engine's
-        calls and buffers bound here, so that a stage costs no ``BodyState`` and no
-        attribute look-ups (Pinocchio, DART); it must time only the engine's calls on
-        ``ctx.clock``, as :meth:`forward_dynamics` does."""
+        calls and buffers bound here; it must time only the engine's calls on ``ctx.clock``,
+        as :meth:`forward_dynamics` does. Not called when :meth:`staged_dynamics` gives the
+        stages (Pinocchio, DART)."""
         model, forward_dynamics = ctx.model, self.forward_dynamics
         pivoted = model.pivoted
 
@@ -365,6 +365,14 @@ class Engine(EngineBase):
             acc[3:6] = 0.0 if pivoted else a
 
         return fd
+
+    def staged_dynamics(self, ctx: RunContext):
+        """None, or the engine bound for the compiled RKMK4 with its packing compiled into
+        the stages (a :class:`~references.engines.liegroup.StagedDynamics`, made once per
+        run), which the stepper then uses instead of :meth:`packed_dynamics`: per stage one
+        compiled call and the engine's, for engines whose calls take a microsecond or two
+        (Pinocchio, DART). Its ``call`` must time only the engine's calls on ``ctx.clock``."""
+        return None
 
     def guard(self, ctx: RunContext, state: cv.BodyState) -> str | None:
         """A reason if the engine reached one of its own limits (e.g. a velocity clamp): the

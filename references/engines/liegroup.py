@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -233,14 +234,39 @@ def unpack_state(model, y: np.ndarray) -> BodyState:
     return BodyState(y[4:7].copy(), y[10:13].copy(), R, W)
 
 
+class StagedDynamics(NamedTuple):
+    """An adapter's engine bound for :class:`CompiledRKMK4Stepper` with the packing of its
+    stages compiled into the stage arithmetic (:meth:`Engine.staged_dynamics
+    <references.engines.interface.Engine.staged_dynamics>`): per stage one compiled call and
+    the engine's.
+
+    - ``stage(i, w, K, h, pivoted, a, *buffers)``: the previous stage's accelerations
+      unpacked from the engine's vector ``a`` (i > 0), stage i's state computed and packed
+      into ``buffers``; returns ``_rkmk4.OK`` or ``TOO_LARGE`` (e.g. ``_rkmk4.dart_stage``);
+    - ``finish(w, K, h, pivoted, a)``: the last stage's ``a`` unpacked, the step finished;
+    - ``call()``: the engine's calls on ``buffers`` (timed on the run's clock, and only
+      they), returning its accelerations ``a``;
+    - ``size``, ``what``: the length of ``a``, and the engine call's name, for the check
+      of its layout (:func:`check_engine_vector`) on the run's first call."""
+
+    stage: Callable
+    finish: Callable
+    call: Callable
+    buffers: tuple
+    size: int
+    what: str
+
+
 class CompiledRKMK4Stepper:
     """The same RKMK4 with the state in one flat array (rotation as a unit quaternion) and the
     stage arithmetic compiled (:mod:`references.engines._rkmk4`): per step four calls of the
     engine and five small compiled calls, so that the cost is the engine's, not the suite's
-    Python. It calls the function ``fd(z, acc)`` of the adapter's ``packed_dynamics(ctx)``
-    (z the flat stage state, acc the 6 accelerations to fill), whose default builds a
-    BodyState per stage for ``forward_dynamics``. The run loop uses this stepper;
-    RKMK4Stepper is the readable reference it is tested against."""
+    Python. With the adapter's :class:`StagedDynamics` (``staged_dynamics(ctx)``), each
+    compiled stage also packs the engine's input and unpacks its accelerations; otherwise
+    it calls the function ``fd(z, acc)`` of the adapter's ``packed_dynamics(ctx)`` (z the
+    flat stage state, acc the 6 accelerations to fill), whose default builds a BodyState
+    per stage for ``forward_dynamics``. The run loop uses this stepper; RKMK4Stepper is the
+    readable reference it is tested against."""
 
     def __init__(self, engine, ctx):
         from references.engines import _rkmk4
@@ -252,7 +278,9 @@ class CompiledRKMK4Stepper:
         self.w = np.zeros(_rkmk4.WORKSPACE)
         self.y, self.z, self.acc = self.w[_rkmk4.Y], self.w[_rkmk4.Z], self.w[_rkmk4.ACC]
         self.K = np.zeros((4, 12))
-        self.fd = engine.packed_dynamics(ctx)
+        self.staged = engine.staged_dynamics(ctx)
+        self.fd = engine.packed_dynamics(ctx) if self.staged is None else None
+        self.checked = False
 
     def start(self, state: BodyState) -> None:
         from references.conventions import matrix_to_quat_wxyz
@@ -268,6 +296,8 @@ class CompiledRKMK4Stepper:
         return unpack_state(self.ctx.model, y)
 
     def run(self, steps: list[int]) -> BodyState:
+        if self.staged is not None:
+            return self._run_staged(steps)
         stage, finish = direct(self.k.stage), direct(self.k.finish)  # w and K are ours
         w, y, z, K, acc = self.w, self.y, self.z, self.K, self.acc
         h, piv = self.ctx.dt, self.pivoted
@@ -289,6 +319,41 @@ class CompiledRKMK4Stepper:
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 fd(z, acc)
                 if finish(w, K, h, piv):
+                    raise self._failure("a Runge-Kutta step rotation >= pi", taken, rows[:j])
+                taken += 1
+            ctx.nevals += 4 * n
+            rows[j] = y
+        return self._as_block(rows)
+
+    def _run_staged(self, steps: list[int]) -> BodyState:
+        """:meth:`run` with the adapter's :class:`StagedDynamics`: the same stages, the
+        packing done inside the compiled stage call."""
+        sd = self.staged
+        # the compiled entries: w, K and the buffers are ours, ``a`` is checked on the first
+        # call of the run (the engine binding fixes its layout)
+        stage, finish, call, (b0, b1) = direct(sd.stage), direct(sd.finish), sd.call, sd.buffers
+        w, y, K = self.w, self.y, self.K
+        h, piv, ctx = self.ctx.dt, self.pivoted, self.ctx
+        a0 = np.zeros(sd.size)  # stage 0 unpacks nothing
+        rows = np.empty((len(steps), 13))
+        taken = 0
+        for j, n in enumerate(steps):
+            for _ in range(n):
+                stage(0, w, K, h, piv, a0, b0, b1)  # never fails: it only copies y
+                a = call()
+                if not self.checked:
+                    check_engine_vector(a, sd.size, sd.what)
+                    self.checked = True
+                if stage(1, w, K, h, piv, a, b0, b1):
+                    raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
+                a = call()
+                if stage(2, w, K, h, piv, a, b0, b1):
+                    raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
+                a = call()
+                if stage(3, w, K, h, piv, a, b0, b1):
+                    raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
+                a = call()
+                if finish(w, K, h, piv, a):
                     raise self._failure("a Runge-Kutta step rotation >= pi", taken, rows[:j])
                 taken += 1
             ctx.nevals += 4 * n

@@ -30,7 +30,7 @@ from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine, SceneBuilder
-from references.engines.liegroup import check_engine_vector, direct
+from references.engines.liegroup import StagedDynamics
 from references.engines.native import import_engine
 
 
@@ -235,33 +235,24 @@ class DartEngine(Engine):
             return a, None
         return state.rotation.T @ a[:3], a[3:]
 
-    def packed_dynamics(self, ctx):
-        """The RKMK4's per-stage call ``fd(z, acc)`` with DART's methods and the buffers
-        bound once: the state packed and the accelerations unpacked by compiled code, the
-        stopwatch around the four DART calls only."""
+    def staged_dynamics(self, ctx) -> StagedDynamics:
+        """The compiled RKMK4's stages packing DART's positions and velocities
+        (``_rkmk4.dart_stage``), and the engine's calls on them bound once: the stopwatch
+        around the four DART calls only."""
         skel = ctx.handle[1]
         pos, vel = ctx.dart_buffers
-        piv = bool(ctx.model.pivoted)
         clock, now = ctx.clock, time.perf_counter
-        # the compiled entries without numba's type dispatch: the stage state and buffers are
-        # ours; the engine's accelerations are checked once (the binding fixes their layout)
-        pack, unpack = direct(_rkmk4.pack_dart), direct(_rkmk4.unpack_dart)
         set_pos, set_vel = skel.setPositions, skel.setVelocities
         compute, accelerations = skel.computeForwardDynamics, skel.getAccelerations
-        checked = False
 
-        def fd(z, acc) -> None:
-            nonlocal checked
-            pack(z, piv, pos, vel)
+        def call():
             t0 = now()
             set_pos(pos)
             set_vel(vel)
             compute()
             a = accelerations()
             clock.lap(t0)
-            if not checked:
-                check_engine_vector(a, len(pos), "DART's getAccelerations")
-                checked = True
-            unpack(z, piv, a, acc)
+            return a
 
-        return fd
+        return StagedDynamics(_rkmk4.dart_stage, _rkmk4.dart_finish, call, (pos, vel),
+                              len(pos), "DART's getAccelerations")  # fmt: skip

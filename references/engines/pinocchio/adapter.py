@@ -27,7 +27,7 @@ from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine, SceneBuilder
-from references.engines.liegroup import check_engine_vector, direct
+from references.engines.liegroup import StagedDynamics
 from references.engines.native import import_engine
 
 
@@ -194,31 +194,22 @@ class PinocchioEngine(Engine):
         v_local = R.T @ state.velocity
         return a[3:], R @ (a[:3] + np.cross(state.omega_body, v_local))
 
-    def packed_dynamics(self, ctx):
-        """The RKMK4's per-stage call ``fd(z, acc)`` with aba, the model, data and buffers
-        bound once: the state packed and the accelerations unpacked by compiled code, the
-        stopwatch around the aba call only."""
+    def staged_dynamics(self, ctx) -> StagedDynamics:
+        """The compiled RKMK4's stages packing Pinocchio's q and v (``_rkmk4.pinocchio_stage``),
+        and aba with the model, data and buffers bound once: the stopwatch around the aba
+        call only."""
         h = ctx.handle
         aba, model, data, qbuf, vbuf, tau = h.pin.aba, h.model, h.data, h.qbuf, h.vbuf, h.tau
-        piv = bool(ctx.model.pivoted)
         clock, now = ctx.clock, time.perf_counter
-        # the compiled entries without numba's type dispatch: the stage state and buffers are
-        # ours; the engine's accelerations are checked once (the binding fixes their layout)
-        pack, unpack = direct(_rkmk4.pack_pinocchio), direct(_rkmk4.unpack_pinocchio)
-        checked = False
 
-        def fd(z, acc) -> None:
-            nonlocal checked
-            pack(z, piv, qbuf, vbuf)
+        def call():
             t0 = now()
             a = aba(model, data, qbuf, vbuf, tau)
             clock.lap(t0)
-            if not checked:
-                check_engine_vector(a, len(vbuf), "Pinocchio's aba")
-                checked = True
-            unpack(z, piv, a, acc)
+            return a
 
-        return fd
+        return StagedDynamics(_rkmk4.pinocchio_stage, _rkmk4.pinocchio_finish, call,
+                              (qbuf, vbuf), len(vbuf), "Pinocchio's aba")  # fmt: skip
 
 
 class _Handle:

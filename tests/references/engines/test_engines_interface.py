@@ -178,9 +178,12 @@ def test_director_batch_refused_when_a_member_cannot_be_stepped():
 @pytest.mark.parametrize("pivoted", [False, True])
 def test_default_packed_dynamics_is_the_engine_s_forward_dynamics(pivoted):
     """The interface's default packed_dynamics (a BodyState from the flat stage state, then
-    forward_dynamics) agrees with Pinocchio's own packed call to round-off: 1e-12 of the
-    accelerations' size, a few ulps of the two conversions (rotation matrix against the
-    compiled packing). Both time the engine's call on the run's clock."""
+    forward_dynamics) agrees with Pinocchio's staged call (the compiled packing of its
+    stages, aba, the compiled unpacking) to round-off: 1e-12 of the accelerations' size, a
+    few ulps of the two conversions (rotation matrix against the compiled packing). Both
+    time the engine's call on the run's clock."""
+    from references.engines import _rkmk4
+
     engine = engine_or_skip("pinocchio")
     sc = scenarios.load("heavy_top" if pivoted else "dzhanibekov")
     integ = engine.integrator("RKMK4")
@@ -189,8 +192,13 @@ def test_default_packed_dynamics_is_the_engine_s_forward_dynamics(pivoted):
     rng = np.random.default_rng(1)
     q = rng.normal(size=4)
     z = np.concatenate([q / np.linalg.norm(q), rng.normal(size=9)])
-    own_fd, default_fd = engine.packed_dynamics(ctx), Engine.packed_dynamics(engine, ctx)
-    assert own_fd is not default_fd
+    sd, default_fd = engine.staged_dynamics(ctx), Engine.packed_dynamics(engine, ctx)
+    assert engine.packed_dynamics(ctx) is not None and sd is not None
+
+    def own_fd(z, acc):
+        _rkmk4.pack_pinocchio(z, pivoted, *sd.buffers)
+        _rkmk4.unpack_pinocchio(z, pivoted, sd.call(), acc)
+
     own, default = np.full(6, np.nan), np.full(6, np.nan)
     own_fd(z, own)
     assert ctx.clock.elapsed > 0
