@@ -59,7 +59,9 @@ constraint would be ignored by ``computeForwardDynamics``), as is any other clos
 Integrators: ``semi-implicit Euler`` is ``World.step`` (DART's only stepper); ``RKMK4`` is the
 suite's Runge-Kutta-Munthe-Kaas of order 4 (:mod:`references.engines.liegroup`) on the product
 of each joint's group (SO(3) for a ball joint, R for a hinge, SO(3) x R^3 for a free root with
-body-axes W and world v_G), accelerations from ``Skeleton.computeForwardDynamics``.
+body-axes W and world v_G), accelerations from ``Skeleton.computeForwardDynamics``; its stages
+compiled (:mod:`references.engines._rkmk4_tree`, rotations as quaternions), the skeleton's
+positions and velocities set in one call each.
 
 Neutralised and read back: deactivation (sleeping) off, joint damping, spring stiffness, Coulomb
 friction 0, limit enforcement off, no shape nodes (nothing collides), gravity set (DART's default
@@ -80,13 +82,14 @@ from contextlib import contextmanager
 import numpy as np
 
 from references import conventions as cv
-from references.engines import reduced, timing
+from references.engines import _rkmk4, reduced, timing
+from references.engines import _rkmk4_tree as _tree
 from references.engines.dart import forces
 from references.engines.dart.sleeve import Cylinder, sleeve_read_back
-from references.engines.liegroup import so3_right_jacobian_inverse
+from references.engines.liegroup import StageRotationTooLarge, check_engine_vector, direct
 from references.engines.native import import_engine
 from references.engines.system import SystemResult
-from references.errors import Diverged, Unsupported
+from references.errors import Diverged, EngineError, Unsupported
 from scenarios.force_elements import has_elements
 
 INTEGRATORS = ("semi-implicit Euler", "RKMK4")
@@ -364,101 +367,98 @@ class _Model:
         return points, axes
 
     # -- RKMK4 on the product of the joints' groups (trees) ------------------------------------
-    def pack(self):
-        """(q, u): q a list of per-joint group elements (R, angle, or (R, x)), u the velocities
-        with each free root's angular part in body axes."""
-        q, u = [], []
-        for _, kind, _, j, _ in self.blocks:
-            p, v = j.getPositions(), j.getVelocities()
-            if kind == "free":
-                st = cv.dart_free_to_state(p, v)
-                q.append((st.rotation, st.position))
-                u.append(np.concatenate([st.omega_body, st.velocity]))
-            elif kind == "spherical":
-                R, W = cv.dart_ball_to_state(p, v)
-                q.append((R,))
-                u.append(W)
-            else:  # revolute, prismatic, universal, cylindrical: a vector space
-                q.append((np.array(p, float),))
-                u.append(np.array(v, float))
-        return q, np.concatenate(u)
+    def staged(self) -> _Staged:
+        """The compiled RKMK4 (:mod:`references.engines._rkmk4_tree`) on this tree, from
+        DART's state now."""
+        return _Staged(self)
 
-    def integrate(self, q, theta):
-        out = []
-        for (_, kind, s, _, _), g in zip(self.blocks, q, strict=True):
-            th = theta[s]
-            if kind in ("revolute", "prismatic", "universal", "cylindrical"):
-                out.append((g[0] + th,))
-            elif kind == "spherical":
-                out.append((g[0] @ cv.rotvec_to_matrix(th),))
+
+class _Staged:
+    """The suite's RKMK4 on a tree's product group, its stages compiled
+    (:mod:`references.engines._rkmk4_tree`): per stage one compiled call (the previous
+    stage's accelerations unpacked, this stage's state packed into DART's positions and
+    velocities) and DART's calls, timed alone (the skeleton's setters, computeForwardDynamics,
+    getAccelerations); the force elements, when there are any, applied between the setters
+    and the dynamics (forces.py), not timed."""
+
+    def __init__(self, dm: _Model):
+        _tree.warm_up()
+        kinds = {"free": _tree.FREE, "spherical": _tree.BALL}
+        rows, y, u, yo = [], [], [], 0
+        for _, kind, s, j, idx in dm.blocks:
+            p, v = np.asarray(j.getPositions(), float), np.asarray(j.getVelocities(), float)
+            code = kinds.get(kind, _tree.VECTOR)
+            rows.append((code, yo, s.start, s.stop - s.start, idx))
+            if code == _tree.VECTOR:
+                y.append(p)
+                u.append(v)
             else:
-                out.append((g[0] @ cv.rotvec_to_matrix(th[:3]), g[1] + th[3:]))
-        return out
+                q = np.zeros(4)
+                _tree.quat_of_rotvec(p[:3], q)
+                y.append(q if code == _tree.BALL else np.concatenate([q, p[3:]]))
+                if code == _tree.FREE:  # DART's world angular velocity -> body axes
+                    W = np.zeros(3)
+                    _rkmk4.rotate(q, v[:3], W, _rkmk4.INVERSE)
+                    v = np.concatenate([W, v[3:]])
+                u.append(v)
+            yo += len(y[-1])
+        self.J = np.array(rows, dtype=np.int64)
+        self.y, self.u = np.concatenate(y), np.concatenate(u)
+        nu = len(self.u)
+        if dm.skel.getNumDofs() != nu:
+            raise EngineError(f"dart: the RKMK4's blocks hold {nu} degrees of freedom, the "
+                              f"skeleton {dm.skel.getNumDofs()}")  # fmt: skip
+        self.zy, self.zu, self.K = self.y.copy(), self.u.copy(), np.zeros((4, 2 * nu))
+        self.pos, self.vel = np.zeros(nu), np.zeros(nu)
+        self.dm = dm
+        self.call, self.checked = self.engine_call(), False
 
-    def dexpinv(self, theta, u):
-        out = np.array(u, float)
-        for r in self.rot_slices:
-            out[r] = so3_right_jacobian_inverse(theta[r]) @ out[r]
-        return out
+    def engine_call(self):
+        """``call()``: DART's accelerations at the state packed in (pos, vel)."""
+        dm, pos, vel = self.dm, self.pos, self.vel
+        skel, now, lap = dm.skel, time.perf_counter, timing.lap
+        set_pos, set_vel = skel.setPositions, skel.setVelocities
+        compute, accelerations = skel.computeForwardDynamics, skel.getAccelerations
 
-    def _joint_states(self, q, u) -> list:
-        """(joint, positions, velocities) per tree joint of (q, u), in DART's coordinates."""
-        out = []
-        for (_, kind, s, j, _), g in zip(self.blocks, q, strict=True):
-            if kind == "free":
-                us = u[s]
-                pos, vel = cv.dart_free_from_state(g[1], us[3:], g[0], us[:3])
-            elif kind == "spherical":
-                pos, vel = cv.dart_ball_from_state(g[0], u[s])
-            else:
-                pos, vel = np.asarray(g[0], float), u[s]
-            out.append((j, pos, vel))
-        return out
+        def call():
+            t0 = now()
+            set_pos(pos)
+            set_vel(vel)
+            if dm.loads is not None:  # the force elements at this stage (forces.py), not timed
+                dm.clock += lap(t0)
+                forces.apply(dm, dm.loads)
+                t0 = now()
+            compute()
+            a = accelerations()
+            dm.clock += lap(t0)
+            return a
 
-    def unpack(self, q, u) -> None:
-        """Set DART's positions and velocities from (q, u)."""
-        for j, pos, vel in self._joint_states(q, u):
-            j.setPositions(pos)
-            j.setVelocities(vel)
+        return call
 
-    def accel(self, q, u):
-        """u' at (q, u) from computeForwardDynamics: the stopwatch runs around DART's calls
-        (the joints' setters, the dynamics, the accelerations' read-out), not around the
-        conversions into DART's coordinates and back."""
-        states = self._joint_states(q, u)
-        t0 = time.perf_counter()
-        for j, pos, vel in states:
-            j.setPositions(pos)
-            j.setVelocities(vel)
-        if self.loads is not None:  # the force elements at this stage (forces.py), not timed
-            self.clock += timing.lap(t0)
-            forces.apply(self, self.loads)
-            t0 = time.perf_counter()
-        self.skel.computeForwardDynamics()
-        a = self.skel.getAccelerations()
-        self.clock += timing.lap(t0)
-        out = np.empty_like(a)
-        for (_, kind, s, _, idx), g in zip(self.blocks, q, strict=True):
-            if kind == "free":  # world angular acceleration -> body: dW/dt = R^T dw/dt
-                out[s.start : s.start + 3] = g[0].T @ a[idx : idx + 3]
-                out[s.start + 3 : s.stop] = a[idx + 3 : idx + 6]
-            else:
-                out[s] = a[idx : idx + (s.stop - s.start)]
-        return out
-
-    def step_rkmk4(self, q, u, h):
-        k1t, k1v = u, self.accel(q, u)
-        th = 0.5 * h * k1t
-        u2 = u + 0.5 * h * k1v
-        k2t, k2v = self.dexpinv(th, u2), self.accel(self.integrate(q, th), u2)
-        th = 0.5 * h * k2t
-        u3 = u + 0.5 * h * k2v
-        k3t, k3v = self.dexpinv(th, u3), self.accel(self.integrate(q, th), u3)
-        th = h * k3t
-        u4 = u + h * k3v
-        k4t, k4v = self.dexpinv(th, u4), self.accel(self.integrate(q, th), u4)
-        theta = (h / 6.0) * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
-        return self.integrate(q, theta), u + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+    def steps(self, m: int, h: float) -> None:
+        """m steps of size h; then DART holds the state reached."""
+        # the compiled entries without numba's type dispatch: every array is ours but DART's
+        # accelerations, checked on the first (dartpy's binding fixes their layout)
+        stage, finish = direct(_tree.stage), direct(_tree.finish)
+        J, y, u, zy, zu, K, pos, vel = (self.J, self.y, self.u, self.zy, self.zu, self.K,
+                                        self.pos, self.vel)  # fmt: skip
+        call = self.call
+        for _ in range(m):
+            stage(0, J, y, u, zy, zu, K, h, pos, pos, vel)  # stage 0 unpacks nothing
+            a = call()
+            if not self.checked:
+                check_engine_vector(a, len(u), "DART's getAccelerations")
+                self.checked = True
+            for i in (1, 2, 3):
+                if stage(i, J, y, u, zy, zu, K, h, a, pos, vel):
+                    raise StageRotationTooLarge(
+                        "a Runge-Kutta stage rotation of half a turn or more (>= pi, or not finite)"
+                    )
+                a = call()
+            finish(J, y, u, zy, K, h, a)
+        _tree.pack(J, y, u, pos, vel)
+        self.dm.skel.setPositions(pos)
+        self.dm.skel.setVelocities(vel)
 
 
 def read_back(dm: _Model, scenario, dt: float) -> None:
@@ -610,7 +610,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
 
     Returns a :class:`~references.engines.system.SystemResult` with ``t, x, R, v, W`` (as
     :func:`references.engines.pinocchio.system.simulate_system`), ``engine_time_s`` (inside
-    World.step, or, for RKMK4, inside the joints' state setters, computeForwardDynamics and
+    World.step, or, for RKMK4, inside the skeleton's state setters, computeForwardDynamics and
     getAccelerations, not the conversions to and from DART's coordinates) and ``settings``.
     Raises :class:`Unsupported`, :class:`EngineError` (read-back or initial-state mismatch) and
     :class:`Diverged` (non-finite state, or one DART replaced)."""
@@ -619,9 +619,7 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     nb, n = len(dm.pl.bodies), len(steps)
     x, R, v, W = reduced.state_arrays(n, nb)
     x[0], R[0], v[0], W[0] = dm.states()
-    rk = integrator == "RKMK4"
-    if rk:
-        q, u = dm.pack()
+    rk = dm.staged() if integrator == "RKMK4" else None
     world, skel = dm.world, dm.skel
     done = 0
     h = float(dt)
@@ -630,10 +628,8 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
         for k in range(1, n):
             m = int(steps[k] - done)
             with dart_warnings(capture) as said:
-                if rk:
-                    for _ in range(m):
-                        q, u = dm.step_rkmk4(q, u, h)
-                    dm.unpack(q, u)
+                if rk is not None:
+                    rk.steps(m, h)
                 elif dm.loads is not None:  # set before each step (forces.py), not timed
                     for _ in range(m):
                         forces.apply(dm, dm.loads)
