@@ -18,16 +18,18 @@ rotational inertia about the COM (Pinocchio documentation, class Inertia).
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
+from numba import njit
 
 from references import conventions as cv
 from references.engines import _rkmk4
 from references.engines.context import ModelReadback
 from references.engines.integrators import Integrator
 from references.engines.interface import Engine, SceneBuilder
-from references.engines.liegroup import StagedDynamics
+from references.engines.liegroup import StagedDynamics, check_engine_vector, direct
 from references.engines.native import import_engine
 
 
@@ -164,21 +166,30 @@ class PinocchioEngine(Engine):
     # -- stepping ----------------------------------------------------------------------
     def advance(self, ctx, k: int) -> None:
         """Semi-implicit Euler: v += h aba(q, v); q = integrate(q, h v); the quaternion (the
-        last 4 entries of q for both joints) renormalised."""
+        last 4 entries of q for both joints) renormalised. The arithmetic between the two
+        Pinocchio calls is compiled (:func:`_euler_velocity`, :func:`_normalize_tail`: the
+        operations numpy did, bit for bit)."""
         h = ctx.handle
         model, data, tau, dt, clock = h.model, h.data, h.tau, ctx.dt, ctx.clock
-        aba, integrate, sqrt, now = h.pin.aba, h.pin.integrate, np.sqrt, time.perf_counter
-        q, v = h.q, h.v
+        aba, integrate, now = h.pin.aba, h.pin.integrate, time.perf_counter
+        # the compiled entries without numba's type dispatch: v and dv are ours, Pinocchio's
+        # a and q checked on the run's first step (the binding fixes their layout)
+        velocity, normalize = h.euler
+        q, v, dv, checked = h.q, np.array(h.v, dtype=float), h.dv, h.checked
         for _ in range(k):
             t0 = now()  # the stopwatch around the two Pinocchio calls only
             a = aba(model, data, q, v, tau)
             clock.lap(t0)
-            v = v + dt * a
+            if not checked:
+                check_engine_vector(a, len(v), "Pinocchio's aba")
+            velocity(v, a, dt, dv)  # v += dt a; dv = dt v
             t0 = now()
-            q = integrate(model, q, dt * v)
+            q = integrate(model, q, dv)
             clock.lap(t0)
-            quat = q[-4:]
-            q[-4:] = quat / sqrt(quat @ quat)
+            if not checked:
+                check_engine_vector(q, len(h.qbuf), "Pinocchio's integrate")
+                h.checked = checked = True
+            normalize(q)
         h.q, h.v = q, v
 
     def forward_dynamics(self, ctx, state):
@@ -221,3 +232,33 @@ class _Handle:
         self.q = self.v = None
         self.qbuf = np.zeros(model.nq)
         self.vbuf = np.zeros(model.nv)
+        # the semi-implicit Euler's compiled arithmetic (compiled or loaded from numba's
+        # cache here, at the build), its h v buffer, and whether Pinocchio's vectors were
+        # checked
+        _euler_velocity(self.vbuf, self.tau, 0.0, np.zeros(model.nv))
+        _normalize_tail(np.array([0.0, 0.0, 0.0, 1.0]))
+        self.euler = (direct(_euler_velocity), direct(_normalize_tail))
+        self.dv = np.zeros(model.nv)
+        self.checked = False
+
+
+@njit(cache=True)
+def _euler_velocity(v, a, dt, dv):
+    """v += dt a, then dv = dt v, in place: numpy's ``v + dt * a`` and ``dt * v``, element by
+    element, the same products and sums."""
+    for k in range(v.shape[0]):
+        v[k] = v[k] + dt * a[k]
+        dv[k] = dt * v[k]
+
+
+@njit(cache=True)
+def _normalize_tail(q):
+    """The last four entries of q (the quaternion, x y z w) divided by their norm, in place:
+    numpy's ``quat / np.sqrt(quat @ quat)``. numpy's ``@`` of two vectors and numba's
+    ``np.dot`` both call BLAS's ddot (the same sum bit for bit: OpenBLAS's fused
+    multiply-add chain for four entries, which plain products and sums do not reproduce in
+    one case in four); sqrt and the division are correctly rounded in both."""
+    t = q[q.shape[0] - 4 :]
+    s = math.sqrt(np.dot(t, t))
+    for k in range(4):
+        t[k] = t[k] / s
