@@ -151,6 +151,8 @@ class DrakeEngine(Engine):
         )  # fmt: skip
         h.R_WF, h.R_BM = np.asarray(R_WF, dtype=float), np.asarray(R_BM, dtype=float)
         h.charts.append((h.R_WF, h.R_BM))
+        # read_raw's last entry for a pivoted body: the chart's index; None for a free one
+        h.chart_entry = np.array([len(h.charts) - 1.0]) if ctx.model.pivoted else None
         if ctx.model.pivoted or h.mode == "error-controlled":
             sim.set_monitor(_monitor(h, ctx.model.pivoted))
 
@@ -252,10 +254,10 @@ class DrakeEngine(Engine):
     def read_raw(self, ctx) -> np.ndarray:
         """[q, v] and, for a pivoted body, the index of the chart q is in (h.charts)."""
         h = ctx.handle
-        q, v = h.plant.GetPositions(h.context), h.plant.GetVelocities(h.context)
-        if ctx.model.pivoted:
-            return np.concatenate((q, v, [len(h.charts) - 1]))
-        return np.concatenate((q, v))
+        x = h.plant.GetPositionsAndVelocities(h.context)  # a copy, [q, v]
+        if h.chart_entry is not None:
+            return np.concatenate((x, h.chart_entry))
+        return x
 
     def states_from_raw(self, ctx, raw) -> cv.BodyState:
         h = ctx.handle
