@@ -10,7 +10,8 @@ stepping's CPU time per step, our glue included: the row's ``ns_per_step``), the
 step (its engine calls alone: ``engine_ns_per_step``), the glue (their difference) and
 after/before, and whether the two sides' saved states are bit for bit the same (else their
 largest difference). Single bodies run through ``Engine.run``, systems through
-``references.engines.system.run_system``, as the suite runs them.
+``references.engines.system.run_system``, contact scenes through
+``references.engines.contact.run_contact``, as the suite runs them.
 
 Usage: ``python benchmarks/bench_engine_glue.py --before DIR [--rounds 3]
 [--configs dart:RKMK4:free_tumbling ...]``
@@ -51,6 +52,7 @@ def worker() -> int:
     engine CPU time per step (us); its saved states written to ``out`` (npz)."""
     import scenarios
     from references.engines import get_engine
+    from references.engines.contact import run_contact
     from references.engines.system import run_system
     from references.errors import Diverged
 
@@ -62,6 +64,8 @@ def worker() -> int:
         try:
             if sc.kind == "system":
                 out = run_system(rq["engine"], sc, rq["integrator"], sc.dt, t_end)
+            elif sc.kind == "contact":
+                out = run_contact(rq["engine"], sc, rq["integrator"], sc.dt, t_end)
             else:
                 eng = engines.setdefault(rq["engine"], get_engine(rq["engine"])())
                 out = eng.run(sc, rq["integrator"], sc.dt, t_end)
