@@ -228,8 +228,9 @@ def unpack_dart(z, pivoted, a, acc):
 # -- a stage and the engine's packing in one call ------------------------------------------------
 # Per stage the stepper makes one compiled call before the engine's (the previous stage's
 # accelerations unpacked from the engine's vector ``a``, this stage's state, packed into the
-# engine's buffers) instead of three: each call from Python costs ~0.2 us, a tenth of an
-# engine's call. The same functions in the same order as the separate calls.
+# engine's buffers) instead of three, and the step's end and the next step's stage 0 are one
+# call: each call from Python costs ~0.2 us, a tenth of an engine's call. The same functions
+# in the same order as the separate calls.
 
 
 @njit(cache=True)
@@ -245,10 +246,15 @@ def pinocchio_stage(i, w, K, h, pivoted, a, qp, vp):
 
 
 @njit(cache=True)
-def pinocchio_finish(w, K, h, pivoted, a):
-    """:func:`unpack_pinocchio` of the last stage's ``a``, then :func:`finish`."""
+def pinocchio_finish(w, K, h, pivoted, a, qp, vp):
+    """:func:`unpack_pinocchio` of the last stage's ``a``, :func:`finish`, then, when it
+    succeeded, the next step's stage 0 (:func:`pinocchio_stage`) packed into (qp, vp). Returns
+    what :func:`finish` returns."""
     unpack_pinocchio(w[Z], pivoted, a, w[ACC])
-    return finish(w, K, h, pivoted)
+    r = finish(w, K, h, pivoted)
+    if r == OK:
+        pinocchio_stage(0, w, K, h, pivoted, a, qp, vp)
+    return r
 
 
 @njit(cache=True)
@@ -264,10 +270,15 @@ def dart_stage(i, w, K, h, pivoted, a, pos, vel):
 
 
 @njit(cache=True)
-def dart_finish(w, K, h, pivoted, a):
-    """:func:`unpack_dart` of the last stage's ``a``, then :func:`finish`."""
+def dart_finish(w, K, h, pivoted, a, pos, vel):
+    """:func:`unpack_dart` of the last stage's ``a``, :func:`finish`, then, when it
+    succeeded, the next step's stage 0 (:func:`dart_stage`) packed into (pos, vel). Returns
+    what :func:`finish` returns."""
     unpack_dart(w[Z], pivoted, a, w[ACC])
-    return finish(w, K, h, pivoted)
+    r = finish(w, K, h, pivoted)
+    if r == OK:
+        dart_stage(0, w, K, h, pivoted, a, pos, vel)
+    return r
 
 
 def warm_up() -> None:
@@ -287,6 +298,6 @@ def warm_up() -> None:
         pack_dart(z, pivoted, np.zeros(m), np.zeros(m))
         unpack_dart(z, pivoted, np.zeros(m), acc)
         pinocchio_stage(1, w, K, 1e-3, pivoted, np.zeros(m), np.zeros(n), np.zeros(m))
-        pinocchio_finish(w, K, 1e-3, pivoted, np.zeros(m))
+        pinocchio_finish(w, K, 1e-3, pivoted, np.zeros(m), np.zeros(n), np.zeros(m))
         dart_stage(1, w, K, 1e-3, pivoted, np.zeros(m), np.zeros(m), np.zeros(m))
-        dart_finish(w, K, 1e-3, pivoted, np.zeros(m))
+        dart_finish(w, K, 1e-3, pivoted, np.zeros(m), np.zeros(m), np.zeros(m))

@@ -243,7 +243,8 @@ class StagedDynamics(NamedTuple):
     - ``stage(i, w, K, h, pivoted, a, *buffers)``: the previous stage's accelerations
       unpacked from the engine's vector ``a`` (i > 0), stage i's state computed and packed
       into ``buffers``; returns ``_rkmk4.OK`` or ``TOO_LARGE`` (e.g. ``_rkmk4.dart_stage``);
-    - ``finish(w, K, h, pivoted, a)``: the last stage's ``a`` unpacked, the step finished;
+    - ``finish(w, K, h, pivoted, a, *buffers)``: the last stage's ``a`` unpacked, the step
+      finished and, when it succeeded, the next step's stage 0 packed into ``buffers``;
     - ``call()``: the engine's calls on ``buffers`` (timed on the run's clock, and only
       they), returning its accelerations ``a``;
     - ``size``, ``what``: the length of ``a``, and the engine call's name, for the check
@@ -334,12 +335,12 @@ class CompiledRKMK4Stepper:
         stage, finish, call, (b0, b1) = direct(sd.stage), direct(sd.finish), sd.call, sd.buffers
         w, y, K = self.w, self.y, self.K
         h, piv, ctx = self.ctx.dt, self.pivoted, self.ctx
-        a0 = np.zeros(sd.size)  # stage 0 unpacks nothing
         rows = np.empty((len(steps), 13))
         taken = 0
+        # stage 0 (it never fails: it only copies y) of the first step; finish does the next's
+        stage(0, w, K, h, piv, np.zeros(sd.size), b0, b1)
         for j, n in enumerate(steps):
             for _ in range(n):
-                stage(0, w, K, h, piv, a0, b0, b1)  # never fails: it only copies y
                 a = call()
                 if not self.checked:
                     check_engine_vector(a, sd.size, sd.what)
@@ -353,7 +354,7 @@ class CompiledRKMK4Stepper:
                 if stage(3, w, K, h, piv, a, b0, b1):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 a = call()
-                if finish(w, K, h, piv, a):
+                if finish(w, K, h, piv, a, b0, b1):
                     raise self._failure("a Runge-Kutta step rotation >= pi", taken, rows[:j])
                 taken += 1
             ctx.nevals += 4 * n

@@ -145,7 +145,8 @@ def test_an_engine_vector_of_another_layout_is_refused():
 def test_a_staged_call_is_the_separate_calls_bit_for_bit(engine, pivoted):
     """The compiled stage that also unpacks the engine's accelerations and packs the next
     stage's state (``_rkmk4.<engine>_stage``, ``<engine>_finish``) computes what the
-    separate calls compute (unpack, stage, pack; unpack, finish), bit for bit, on random
+    separate calls compute (unpack, stage, pack; unpack, finish, the next stage 0 and its
+    pack), bit for bit, on random
     states, slopes and accelerations over a whole step, the failing half turn included."""
     from references.engines import _rkmk4
 
@@ -177,10 +178,13 @@ def test_a_staged_call_is_the_separate_calls_bit_for_bit(engine, pivoted):
                     if codes[-1] == _rkmk4.OK:
                         pack(ws[_rkmk4.Z], pivoted, b0, b1)
             if fused:
-                codes.append(finish(ws, K, h, pivoted, accs[3]))
+                codes.append(finish(ws, K, h, pivoted, accs[3], b0, b1))
             else:
                 unpack(ws[_rkmk4.Z], pivoted, accs[3], ws[_rkmk4.ACC])
                 codes.append(_rkmk4.finish(ws, K, h, pivoted))
+                if codes[-1] == _rkmk4.OK:  # the next step's stage 0
+                    _rkmk4.stage(0, ws, K, h, pivoted)
+                    pack(ws[_rkmk4.Z], pivoted, b0, b1)
             got.append((codes, ws, K, b0, b1))
         (c1, *arrays1), (c2, *arrays2) = got
         assert c1 == c2
