@@ -304,9 +304,11 @@ class DrakeEngine(Engine):
             target = (h.n + k) * ctx.dt
         while True:
             try:
-                with ctx.clock:
-                    h.simulator.AdvanceTo(target)
+                t0 = time.perf_counter()
+                h.simulator.AdvanceTo(target)
+                ctx.clock.lap(t0)
             except RuntimeError as exc:
+                ctx.clock.lap(t0)
                 if h.stop is not None:
                     raise Unsupported(h.stop) from exc
                 raise self._failure(ctx, exc) from exc
@@ -327,11 +329,12 @@ class DrakeEngine(Engine):
             if h.integrator is None:
                 taken = old.steps + h.simulator.get_num_steps_taken()
                 updates = old.updates + update_count(h.simulator)
-                what = f"{taken} steps and {updates} discrete updates"
             else:
                 taken = updates = old.steps + h.integrator.get_num_steps_taken()
-                what = f"{taken} steps"
             if taken != h.n or updates != h.n:
+                what = f"{taken} steps" + (
+                    f" and {updates} discrete updates" if h.integrator is None else ""
+                )
                 raise EngineError(
                     f"drake {h.scheme}: Drake took {what} where the plan had {h.n} fixed steps "
                     f"of {ctx.dt!r} s (up to t = {target!r}, over {len(h.charts)} chart(s)); "
