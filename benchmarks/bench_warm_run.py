@@ -10,8 +10,11 @@ Steps (each a median over ``--rounds`` rounds, the two checkouts in alternating 
   checkout: wall time and CPU time of the whole process tree (its workers and their fork
   server adopted and reaped, as benchmarks/bench_first_run.py does);
 - ``references``: every closed-form and numerical reference the default suite's systems of
-  bodies ask for, on every time grid their runs save on, in one process with its caches
-  emptied (what each worker process computes for itself);
+  bodies and single bodies ask for, on every time grid their runs save on, in one process
+  with its per-process caches emptied (what each worker process gets for itself: computed,
+  or read from the checkout's reference cache, references.cache, when it keeps one; each
+  checkout has its own cache folder under ``--keep``, filled by a first call not counted):
+  CPU s of the systems', the single bodies' and both;
 - ``scorecard``: the scorecard picture (PNG and SVG) of the results folder ``--results``;
 - ``report``: the report of a copy of ``--results`` whose figures are all current (the
   documents, summary.json and the scorecard's check);
@@ -46,7 +49,7 @@ STEPS = ("run", "references", "scorecard", "report", "drake-contact")
 
 
 def _grids(sc):
-    """The time grids the default suite's runs of the system ``sc`` save on."""
+    """The time grids the default suite's runs of the scenario ``sc`` save on."""
     import numpy as np
 
     from reports.run.plan import plan
@@ -63,23 +66,34 @@ def _grids(sc):
     return list(grids.values())
 
 
-def _references() -> float:
+def _references() -> list[float]:
+    """CPU s of [the systems' references, the single bodies', both] as a worker process gets
+    them, its per-process caches emptied (each checkout's own way: computed, or read from
+    its reference cache when it keeps one)."""
     import scenarios
     from references.engines.exact import system as ex
     from references.errors import Unsupported
+    from reports.run import body
 
-    scs = [scenarios.load(n) for n in scenarios.default_systems() + scenarios.default_robots()]
-    work = [(sc, t) for sc in scs if sc.kind == "system" for t in _grids(sc)]
-    for f in (getattr(ex, "_cached", None), getattr(ex, "_stability", None)):
+    names = scenarios.default_suite() + scenarios.default_systems() + scenarios.default_robots()
+    scs = [scenarios.load(n) for n in names]
+    work = [(sc, t) for sc in scs for t in _grids(sc)]
+    for f in (getattr(ex, "_cached", None), getattr(ex, "_stability", None),
+              body._reference_cached):  # fmt: skip
         if f is not None:
             f.cache_clear()
-    c0 = time.process_time()
+    got = {"system": 0.0, "body": 0.0}
     for sc, t in work:
+        c0 = time.process_time()
         try:
-            ex.reference(sc, t)
+            if sc.kind == "system":
+                ex.reference(sc, t)
+            else:
+                body.reference_for(sc, t)
         except Unsupported:
             pass
-    return time.process_time() - c0
+        got[sc.kind] += time.process_time() - c0
+    return [got["system"], got["body"], got["system"] + got["body"]]
 
 
 def _frame(results: str):
@@ -188,10 +202,14 @@ def main(argv=None) -> int:
     got: dict = {(s, side): [] for s in args.steps for side in roots}
     workers = {}
     if "run" not in args.steps:  # one process per checkout, answering the steps measured in it
-        workers = {side: CheckoutWorker(root, __file__) for side, root in roots.items()}
+        for side, root in roots.items():  # each with its own cache folder (references, figures)
+            os.environ["DIRECTOR_BENCH_CACHE"] = str(keep / "cache" / side)
+            workers[side] = CheckoutWorker(root, __file__)
     try:
         for side, w in workers.items():  # each imports its own checkout
             print(f"{side}: {w.ask({'step': 'where'}, 'where')['where']}")
+            if "references" in args.steps:  # a warm run's: the reference cache filled
+                w.ask({"step": "references", "results": ""}, "references")
         if "run" in args.steps:
             _become_subreaper()
             for side, root in roots.items():  # fills the figure cache: the runs below are warm
@@ -213,7 +231,8 @@ def main(argv=None) -> int:
                         value = (drake_contact(roots[side]),)
                     else:
                         req = {"step": step, "results": str(args.results)}
-                        value = (workers[side].ask(req, step)["cpu"],)
+                        cpu = workers[side].ask(req, step)["cpu"]
+                        value = tuple(cpu) if isinstance(cpu, list) else (cpu,)
                     got[step, side].append(value)
                     shown = " ".join(f"{v:.3f}" for v in value)
                     load = os.getloadavg()[0]
@@ -222,7 +241,10 @@ def main(argv=None) -> int:
         for w in workers.values():
             w.close()
     print("\nstep            before (median)   after (median)   after/before (CPU)")
-    print("(CPU s; the step run: wall s / CPU s of the process tree)")
+    print(
+        "(CPU s; the step run: wall s / CPU s of the process tree; the step references: "
+        "systems / single bodies / both)"
+    )
     for step in args.steps:
         b = [statistics.median(v) for v in zip(*got[step, "before"], strict=True)]
         a = [statistics.median(v) for v in zip(*got[step, "after"], strict=True)]

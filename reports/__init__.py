@@ -6,9 +6,8 @@ __version__ = "0.1.0"
 
 def cache_root():
     """The suite's cache folder: ``$DIRECTOR_BENCH_CACHE`` or ``~/.cache/director-bench``
-    (engine environments of ``versions``, figures reused across results folders)."""
-    import os
-    from pathlib import Path
+    (engine environments of ``versions``, figures reused across results folders, references
+    kept across runs), declared once in :func:`references.cache.cache_root`."""
+    from references.cache import cache_root as root
 
-    root = os.environ.get("DIRECTOR_BENCH_CACHE")
-    return Path(root).expanduser() if root else Path.home() / ".cache" / "director-bench"
+    return root()

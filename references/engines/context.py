@@ -166,3 +166,7 @@ class SystemResult:
     settings: dict = field(default_factory=dict)
     evals_per_step: float = math.nan
     stats: dict = field(default_factory=dict)
+    #: the run's timing (references.engines.timing.Timing) when the builder knows it better
+    #: than the run's stopwatch does (the exact reference: what its computation took, kept
+    #: with it in the reference cache); None: the stopwatch's, or the wall time
+    timing: object = None

@@ -188,7 +188,7 @@ def run_system(
         raise
     wall = time.perf_counter() - t0
     out = _output(engine, scenario, integrator, dt, t_end, saves, res, wall)
-    out.timing = _timing(watch)
+    out.timing = res.timing if res.timing is not None else _timing(watch)
     traj, n, want = out.trajectory, len(out.trajectory), saves * float(dt)
     bad = _first_divergence(scenario, traj)
     if bad is not None:

@@ -71,6 +71,7 @@ __all__ = [
     "ReferenceTrajectory",
     "expected_observables",
     "free_body_of",
+    "reference_kept",
     "reference_trajectory",
     "resolve_kind",
 ]
@@ -284,6 +285,55 @@ def reference_trajectory(scenario, t, kind: str | None = None) -> ReferenceTraje
     )
     base = Trajectory.from_states(scenario, t, x, v, R, W)
     return _wrap(base, "numerical", sol.accuracy, method, sol.omega_accuracy, reason)
+
+
+def reference_kept(scenario, t) -> tuple[ReferenceTrajectory, dict]:
+    """(:func:`reference_trajectory` of ``scenario`` at ``t``, the reference cache's word on
+    it: {"key", "source", "cpu_s", "wall_s"}): read from the reference cache
+    (:mod:`references.cache`) when an earlier run kept it, else computed and kept; its
+    arrays are read-only."""
+    from references import cache
+
+    t = _times(t)
+
+    def compute():
+        return reference_trajectory(scenario, t)
+
+    return cache.kept("body", scenario, t, tolerances(), compute, _to_entry, _from_entry)
+
+
+def tolerances() -> dict:
+    """The tolerances and bounds a single body's reference is computed with, for the
+    reference cache's key (those of the closed forms are in their source, whose digest the
+    key holds)."""
+    n = numerical
+    return {"ACCURACY_LIMIT": ACCURACY_LIMIT, "RTOL": n.RTOL, "SAFETY": n.SAFETY,
+            "MAX_STEPS": n.MAX_STEPS, "MAX_SECONDS": n.MAX_SECONDS,
+            "SOLUTIONS": n.SOLUTIONS}  # fmt: skip
+
+
+def _to_entry(ref: ReferenceTrajectory) -> tuple[dict, dict]:
+    arrays, rest = {}, {}
+    for f in fields(ReferenceTrajectory):
+        value = getattr(ref, f.name)
+        if isinstance(value, np.ndarray):
+            arrays[f.name] = value
+        else:
+            rest[f.name] = list(value) if isinstance(value, tuple) else value
+    return arrays, rest
+
+
+def _from_entry(arrays: dict, rest: dict) -> ReferenceTrajectory:
+    names = {f.name for f in fields(ReferenceTrajectory)}
+    if set(arrays) | set(rest) != names:
+        raise KeyError(f"fields {sorted(set(arrays) | set(rest))}, not {sorted(names)}")
+    ref = ReferenceTrajectory(**arrays, **{k: tuple(v) if isinstance(v, list) else v
+                                           for k, v in rest.items()})  # fmt: skip
+    for f in fields(ref):  # shared by the runs on this grid: nobody may change it
+        value = getattr(ref, f.name)
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+    return ref
 
 
 def _wrap(base: Trajectory, kind, acc, method, wacc, reason) -> ReferenceTrajectory:

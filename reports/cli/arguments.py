@@ -235,6 +235,12 @@ def _add_run(sub) -> None:
         "computed from the full run either way",
     )
     s.add_argument("--no-report", action="store_true", help="skip plots and reports")
+    s.add_argument(
+        "--no-reference-cache",
+        action="store_true",
+        help="compute every reference, neither reading nor keeping any in the reference "
+        "cache ($DIRECTOR_BENCH_CACHE/references; also DIRECTOR_BENCH_REFERENCE_CACHE=off)",
+    )
     s.add_argument("--strict", action="store_true", help="exit 1 if any run failed or errored")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument(

@@ -237,6 +237,12 @@ def cmd_compile(args) -> int:
 
 
 def cmd_run(args) -> int:
+    if args.no_reference_cache:  # before any worker starts: they inherit it
+        import os
+
+        from references.cache import SWITCH_ENV
+
+        os.environ[SWITCH_ENV] = "off"
     from reports.suite import run
 
     summary = run(

@@ -50,19 +50,15 @@ class _Content:
 
 @functools.lru_cache(maxsize=64)
 def _reference_cached(key: _Content, t_bytes: bytes):
-    from references.exact import reference_trajectory
+    from references.exact import reference_kept
 
-    ref = reference_trajectory(key.scenario, np.frombuffer(t_bytes, dtype=float))
-    for f in dataclasses.fields(ref):  # shared by the runs on this grid: nobody may change it
-        value = getattr(ref, f.name)
-        if isinstance(value, np.ndarray):
-            value.setflags(write=False)
-    return ref
+    return reference_kept(key.scenario, np.frombuffer(t_bytes, dtype=float))[0]
 
 
 def reference_for(scenario, t):
     """The scenario's reference at times ``t``, cached per process by the scenario's content
-    and the times (the engines of a scenario share a grid); its arrays are read-only."""
+    and the times (the engines of a scenario share a grid) and kept across runs in the
+    reference cache (references.cache); its arrays are read-only."""
     t_bytes = np.ascontiguousarray(t, dtype=float).tobytes()
     return _reference_cached(_Content(scenario), t_bytes)
 

@@ -21,6 +21,7 @@ import traceback
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
+from references import cache as reference_cache
 from reports.run.body import is_reference
 from reports.run.files import kept_less
 from reports.run.plan import UNAVAILABLE, offered
@@ -79,11 +80,41 @@ def execute(spec: RunSpec, out: Path | None = None, fmt: str = "parquet", progre
     # the run's seconds in its process, for the progress display's estimate (not a column:
     # the store keeps only RESULT_COLUMNS)
     row[RUN_SECONDS] = time.perf_counter() - started
+    row[REFERENCES] = reference_cache.drain()
     return row
 
 
 #: the key of a row (not a column) holding the seconds :func:`execute` took
 RUN_SECONDS = "_run_seconds"
+#: the key of a row (not a column) holding what the reference cache did for it in its
+#: process (references.cache.drain: keys read, keys computed, lines for the run's log)
+REFERENCES = "_references"
+
+
+def _tell_references(kept: dict, rows: list) -> None:
+    """Add what the reference cache did for ``rows`` to ``kept`` ({"read", "computed":
+    sets of keys, "lines": list})."""
+    for row in rows:
+        got = row.get(REFERENCES) or {}
+        kept["read"].update(got.get("read", ()))
+        kept["computed"].update(got.get("computed", ()))
+        kept["lines"] += got.get("lines", ())
+
+
+def _say_references(kept: dict, summary: bool) -> None:
+    """Print (stderr) each line of ``kept`` (an entry of the reference cache that could not
+    be read) and, with ``summary``, one line with the counts."""
+    import sys
+
+    for line in kept["lines"]:
+        print(f"director-bench: {line}", file=sys.stderr)
+    if summary and (kept["read"] or kept["computed"]):
+        print(
+            f"director-bench: references: {len(kept['read'])} read from the reference cache "
+            f"{reference_cache.folder()}, {len(kept['computed'])} computed and kept there "
+            f"(--no-reference-cache or {reference_cache.SWITCH_ENV}=off computes every one)",
+            file=sys.stderr,
+        )
 
 
 #: longest failure message a result row holds whole (characters; the suite's own messages
@@ -215,6 +246,7 @@ def run_suite(
                 return [execute(s, out, fmt, progress=_inner(bar, s)) for s in unit]
         else:
             fn = functools.partial(execute_unit, out=out, fmt=fmt)
+        refs = {"read": set(), "computed": set(), "lines": []}  # the reference cache's
         try:
             if passes:
                 rows_of = mapper(fn, units, unit_keys, _needs, _provides)
@@ -230,6 +262,7 @@ def run_suite(
                         key = ("timing", rows.scenario)
                         bar.update(0, item=key, seconds=rows.seconds, label="timing")
                     continue
+                _tell_references(refs, rows)
                 for row in rows:
                     store.put(row)
                     n_run += 1
@@ -251,6 +284,8 @@ def run_suite(
         finally:
             if bar is not None:
                 bar.close()
+            if refs["read"] or refs["computed"] or refs["lines"]:
+                _say_references(refs, progress)
             shutil.rmtree(out / SHARED, ignore_errors=True)
             df = _export_quietly(out)
     return df, n_run

@@ -121,7 +121,9 @@ def shared_reference(sc, t, out: Path | None):
     Floquet analysis takes 0.1-0.4 s of CPU per scenario and grid): read from the run's
     :data:`SHARED` folder when another process left it there, else computed and left there
     (written whole or not at all). Without an output folder, or when the folder cannot be
-    read or written, computed here. A refusal (Unsupported) is not kept: it is raised."""
+    read or written, computed here. A refusal (Unsupported) is not kept: it is raised.
+    "Computed" includes read from the reference cache, where an earlier run kept it
+    (:mod:`references.cache`); this folder shares it within the run when that cache is off."""
     import hashlib
 
     import numpy as np

@@ -4,13 +4,11 @@ drifts are the round-off floor of the measurement."""
 
 from __future__ import annotations
 
-import time
-
 from references.engines.context import RunOutput
 from references.engines.integrators import Integrator
 from references.engines.interface import EngineBase, SceneBuilder
 from references.engines.stepping import step_plan
-from references.engines.timing import Timing, cpu_clock
+from references.engines.timing import Timing
 
 
 class ExactEngine(EngineBase):
@@ -55,19 +53,17 @@ class ExactEngine(EngineBase):
         recorder=None,
         accuracy=None,
     ) -> RunOutput:
-        from references.exact import reference_trajectory
+        from references.exact import reference_kept
 
         self.integrator(integrator)
         t_end = scenario.t_end if t_end is None else t_end
         save_every = scenario.save_every if save_every is None else save_every
         nstep, saves = step_plan(dt, t_end, save_every)
-        # the calling thread's CPU clock, as every engine's (references.engines.timing): the
-        # process's also counts its other threads, e.g. OpenBLAS's pool spinning on after a
-        # LAPACK call of the run before (cone_top's 2 ms read as 6-10 ms after an SVD)
-        clock = cpu_clock()
-        t0, c0 = time.perf_counter(), clock()
-        ref = reference_trajectory(scenario, saves * dt)
-        wall, cpu = time.perf_counter() - t0, clock() - c0
+        # its cost: what computing the reference took, on the calling thread's CPU clock as
+        # every engine's (references.engines.timing), whether this run computed it or read
+        # it from the reference cache (references.cache), where it is kept with it
+        ref, kept = reference_kept(scenario, saves * dt)
+        wall, cpu = kept["wall_s"], kept["cpu_s"]
         settings = {
             "reference kind": ref.kind,
             "accuracy": ref.accuracy,

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from references.engines.system import SystemResult
+from references.engines.timing import Timing
 from references.errors import EngineError, Unsupported
 from references.trajectory import Trajectory
 
@@ -51,7 +52,9 @@ class SystemReference:
     """A system's reference at the times ``t``: ``trajectory`` (bodies in the scenario's
     order), ``kind``, ``accuracy`` (rad, the attitude error estimate over the trusted
     horizon), ``accuracy_position`` (m), ``horizon`` (s: trajectory errors are judged on
-    t <= horizon; t_end when the whole run is trusted), ``method`` and ``wall_time_s``."""
+    t <= horizon; t_end when the whole run is trusted), ``method``, ``wall_time_s`` and
+    ``cpu_time_s`` (what its computation took on the thread that computed it, in this
+    process or in the run that kept it in the reference cache, :mod:`references.cache`)."""
 
     trajectory: Trajectory
     kind: str
@@ -61,6 +64,7 @@ class SystemReference:
     method: str
     wall_time_s: float = 0.0
     notes: dict = field(default_factory=dict)
+    cpu_time_s: float = 0.0
 
 
 def reference_kind(scenario) -> str:
@@ -191,7 +195,45 @@ _BY_HASH: dict = {}
 
 @functools.lru_cache(maxsize=16)
 def _cached(scenario_hash: str, t_bytes: bytes) -> SystemReference:
-    return _compute(_BY_HASH[scenario_hash], np.frombuffer(t_bytes, dtype=float))
+    from references import cache
+
+    sc, t = _BY_HASH[scenario_hash], np.frombuffer(t_bytes, dtype=float)
+    ref, info = cache.kept("system", sc, t, tolerances(), lambda: _compute(sc, t),
+                           _to_entry, _from_entry)  # fmt: skip
+    ref.cpu_time_s, ref.wall_time_s = info["cpu_s"], info["wall_s"]
+    return ref
+
+
+def tolerances() -> dict:
+    """The tolerances and bounds a system's reference is computed with, for the reference
+    cache's key (:mod:`references.cache`; those of the multibody modules are in their
+    source, whose digest the key holds)."""
+    return {"INITIAL_TOL": INITIAL_TOL, "HORIZON_ATTITUDE": HORIZON_ATTITUDE,
+            "HORIZON_POSITION": HORIZON_POSITION, "REFERENCE_RUNS": REFERENCE_RUNS}  # fmt: skip
+
+
+#: the fields of a SystemReference kept as the JSON text of a reference cache entry
+_FIELDS = ("kind", "accuracy", "accuracy_position", "horizon", "method", "notes")
+
+
+def _to_entry(ref: SystemReference) -> tuple[dict, dict]:
+    tr = ref.trajectory
+    arrays = {"t": tr.t, "x": tr.position, "v": tr.velocity, "R": tr.rotation,
+              "W": tr.omega_body}  # fmt: skip
+    fields = {f: getattr(ref, f) for f in _FIELDS} | {"body_names": list(tr.body_names)}
+    return arrays, fields
+
+
+def _from_entry(arrays: dict, fields: dict) -> SystemReference:
+    a = arrays
+    traj = Trajectory(a["t"], a["x"], a["v"], a["R"], a["W"], tuple(fields["body_names"]))
+    for arr in (traj.t, traj.position, traj.velocity, traj.rotation, traj.omega_body):
+        arr.setflags(write=False)  # shared by the runs on this grid: nobody may change it
+    if not isinstance(fields["notes"], dict):
+        raise TypeError("notes is not a table")
+    return SystemReference(traj, str(fields["kind"]), float(fields["accuracy"]),
+                           float(fields["accuracy_position"]), float(fields["horizon"]),
+                           str(fields["method"]), notes=dict(fields["notes"]))  # fmt: skip
 
 
 @functools.lru_cache(maxsize=16)
@@ -205,8 +247,9 @@ def _stability(scenario_hash: str):
 def reference(scenario, t) -> SystemReference:
     """The reference of a system scenario at the times ``t`` (s), cached per process by the
     scenario's content (the engines of one scenario share a grid, and a worker process
-    receives a new copy of the scenario with each run). Raises :class:`Unsupported` when
-    there is none."""
+    receives a new copy of the scenario with each run) and kept across runs in the
+    reference cache (:mod:`references.cache`). Raises :class:`Unsupported` when there is
+    none (a refusal is not kept)."""
     _BY_HASH.setdefault(scenario.scenario_hash, scenario)
     return _cached(scenario.scenario_hash, np.ascontiguousarray(t, dtype=float).tobytes())
 
@@ -344,9 +387,12 @@ def simulate_system(scenario, integrator: str, dt: float, nstep: int, save_every
     _, saves = step_plan(dt, nstep * dt, save_every)
     ref = reference(scenario, saves * dt)
     tr = ref.trajectory
+    # its cost: what computing the reference took (its thread's CPU time), whether this
+    # process computed it or read it from the reference cache (references.cache)
+    cpu, wall = ref.cpu_time_s, ref.wall_time_s
     return SystemResult(
         t=tr.t, x=tr.position, R=tr.rotation, v=tr.velocity, W=tr.omega_body,
-        engine_time_s=ref.wall_time_s,
+        engine_time_s=cpu, timing=Timing(cpu, 0.0, cpu, wall, wall),
         settings={"reference kind": ref.kind, "accuracy": ref.accuracy,
                   "accuracy (position, m)": ref.accuracy_position,
                   "trusted horizon (s)": ref.horizon, "method": ref.method},

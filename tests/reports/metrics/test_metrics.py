@@ -507,7 +507,8 @@ def test_a_run_on_a_bodies_axis_gives_the_same_row_and_file(
     assert plain["status"] == "ok", plain["message"]
     timing = {"wall_time_s", "engine_time_s", "glue_time_s", "cpu_time_s", "ns_per_step",
               "engine_ns_per_step", "finished_at", "wall_time_max_s", "engine_time_max_s",
-              "cpu_time_max_s", "cpu_share", "timing_repeats", "_run_seconds"}  # fmt: skip
+              "cpu_time_max_s", "cpu_share", "timing_repeats", "_run_seconds",
+              "_references"}  # fmt: skip
     assert plain.keys() == bodies.keys()
     for c in plain.keys() - timing:
         a, b = plain[c], bodies[c]

@@ -99,3 +99,40 @@ def test_the_run_removes_the_shared_folder(tmp_path, four_bar):
     df, n = run_suite(specs, tmp_path, progress=False)
     assert n == 2 and list(df["reference_kind"]) == ["four_bar", "four_bar"]
     assert not stale.exists()
+
+
+def test_the_runs_log_counts_the_references_and_names_a_damaged_entry(
+    tmp_path, four_bar, monkeypatch, capsys
+):
+    """A run says how many references it read from the reference cache and computed
+    (references.cache), and gives one line for an entry it could not read and computed
+    again; the rows are the same either way."""
+    from references import cache
+
+    monkeypatch.setenv(cache.ROOT_ENV, str(tmp_path / "cache"))
+    specs = [
+        RunSpec(four_bar, "mujoco", "RK4", 1e-3),
+        RunSpec(four_bar, "exact", "reference", 1e-3),
+    ]
+
+    def run(out):
+        exact_system._cached.cache_clear()  # a new run's worker: nothing in its memory
+        run_system._SEEN.clear()
+        df, _ = run_suite(specs, tmp_path / out, progress=True)
+        return df.sort_values("run_id").reset_index(drop=True), capsys.readouterr().err
+
+    cold, said = run("cold")
+    assert "references: 0 read from the reference cache" in said and "1 computed" in said
+    warm, said = run("warm")
+    assert "references: 1 read from the reference cache" in said and "0 computed" in said
+    (entry,) = cache.folder().iterdir()
+    entry.write_bytes(b"damaged")
+    again, said = run("again")
+    damaged = [line for line in said.splitlines() if str(entry) in line]
+    assert len(damaged) == 1 and "computed again" in damaged[0], said
+    for df in (warm, again):  # every column but the timings and the clock
+        for c in ("reference_kind", "reference_accuracy", "attitude_error_max", "settings"):
+            assert df[c].equals(cold[c]), c
+    # the exact row costs what computing the reference took, read or computed
+    exact = [df.loc[df["engine"] == "exact", "engine_time_s"].item() for df in (cold, warm)]
+    assert exact[0] == exact[1] > 0
