@@ -229,14 +229,33 @@ def unpack_dart(z, pivoted, a, acc):
 # Per stage the stepper makes one compiled call before the engine's (the previous stage's
 # accelerations unpacked from the engine's vector ``a``, this stage's state, packed into the
 # engine's buffers) instead of three, and the step's end and the next step's stage 0 are one
-# call: each call from Python costs ~0.2 us, a tenth of an engine's call. The same functions
-# in the same order as the separate calls.
+# call: each call from Python costs ~0.2 us, a tenth of an engine's call, and each array
+# argument ~0.04 us of it, so the slopes K and the engine's buffers live in the workspace too
+# (:data:`STAGED_WORKSPACE`). The same functions in the same order as the separate calls.
+
+#: the staged workspace: y, z, acc (:data:`WORKSPACE`), then K (4 x 12, row-major) at KS, then
+#: the engine's two buffers from BUF (:func:`pinocchio_buffers`, :func:`dart_buffers`)
+KS = slice(32, 80)
+BUF = 80
+STAGED_WORKSPACE = BUF + 13
+
+
+def pinocchio_buffers(w, pivoted: bool):
+    """Pinocchio's (q, v) buffers in the staged workspace ``w``: views, (4, 3) entries for a
+    Spherical joint, (7, 6) for a FreeFlyer."""
+    nq, nv = (4, 3) if pivoted else (7, 6)
+    return w[BUF : BUF + nq], w[BUF + nq : BUF + nq + nv]
+
+
+def dart_buffers(w, pivoted: bool):
+    """DART's (positions, velocities) buffers in the staged workspace ``w``: views, 3 entries
+    each for a BallJoint, 6 for a FreeJoint."""
+    n = 3 if pivoted else 6
+    return w[BUF : BUF + n], w[BUF + n : BUF + 2 * n]
 
 
 @njit(cache=True)
-def pinocchio_stage(i, w, K, h, pivoted, a, qp, vp):
-    """:func:`unpack_pinocchio` of ``a`` (i > 0), :func:`stage` i, :func:`pack_pinocchio`
-    of its state into (qp, vp) when it succeeded. Returns what :func:`stage` returns."""
+def _pinocchio_stage(i, w, K, h, pivoted, a, qp, vp):
     if i > 0:
         unpack_pinocchio(w[Z], pivoted, a, w[ACC])
     r = stage(i, w, K, h, pivoted)
@@ -246,21 +265,30 @@ def pinocchio_stage(i, w, K, h, pivoted, a, qp, vp):
 
 
 @njit(cache=True)
-def pinocchio_finish(w, K, h, pivoted, a, qp, vp):
+def pinocchio_stage(i, w, h, pivoted, a):
+    """:func:`unpack_pinocchio` of ``a`` (i > 0), :func:`stage` i, :func:`pack_pinocchio`
+    of its state into the buffers when it succeeded; ``w`` the staged workspace. Returns what
+    :func:`stage` returns."""
+    nq, nv = (4, 3) if pivoted else (7, 6)
+    K = w[KS].reshape((4, 12))
+    return _pinocchio_stage(i, w, K, h, pivoted, a, w[BUF : BUF + nq], w[BUF + nq : BUF + nq + nv])
+
+
+@njit(cache=True)
+def pinocchio_finish(w, h, pivoted, a):
     """:func:`unpack_pinocchio` of the last stage's ``a``, :func:`finish`, then, when it
-    succeeded, the next step's stage 0 (:func:`pinocchio_stage`) packed into (qp, vp). Returns
-    what :func:`finish` returns."""
+    succeeded, the next step's stage 0 (:func:`pinocchio_stage`). Returns what :func:`finish`
+    returns."""
+    K = w[KS].reshape((4, 12))
     unpack_pinocchio(w[Z], pivoted, a, w[ACC])
     r = finish(w, K, h, pivoted)
     if r == OK:
-        pinocchio_stage(0, w, K, h, pivoted, a, qp, vp)
+        pinocchio_stage(0, w, h, pivoted, a)
     return r
 
 
 @njit(cache=True)
-def dart_stage(i, w, K, h, pivoted, a, pos, vel):
-    """:func:`unpack_dart` of ``a`` (i > 0), :func:`stage` i, :func:`pack_dart` of its state
-    into (pos, vel) when it succeeded. Returns what :func:`stage` returns."""
+def _dart_stage(i, w, K, h, pivoted, a, pos, vel):
     if i > 0:
         unpack_dart(w[Z], pivoted, a, w[ACC])
     r = stage(i, w, K, h, pivoted)
@@ -270,14 +298,25 @@ def dart_stage(i, w, K, h, pivoted, a, pos, vel):
 
 
 @njit(cache=True)
-def dart_finish(w, K, h, pivoted, a, pos, vel):
+def dart_stage(i, w, h, pivoted, a):
+    """:func:`unpack_dart` of ``a`` (i > 0), :func:`stage` i, :func:`pack_dart` of its state
+    into the buffers when it succeeded; ``w`` the staged workspace. Returns what :func:`stage`
+    returns."""
+    n = 3 if pivoted else 6
+    K = w[KS].reshape((4, 12))
+    return _dart_stage(i, w, K, h, pivoted, a, w[BUF : BUF + n], w[BUF + n : BUF + 2 * n])
+
+
+@njit(cache=True)
+def dart_finish(w, h, pivoted, a):
     """:func:`unpack_dart` of the last stage's ``a``, :func:`finish`, then, when it
-    succeeded, the next step's stage 0 (:func:`dart_stage`) packed into (pos, vel). Returns
-    what :func:`finish` returns."""
+    succeeded, the next step's stage 0 (:func:`dart_stage`). Returns what :func:`finish`
+    returns."""
+    K = w[KS].reshape((4, 12))
     unpack_dart(w[Z], pivoted, a, w[ACC])
     r = finish(w, K, h, pivoted)
     if r == OK:
-        dart_stage(0, w, K, h, pivoted, a, pos, vel)
+        dart_stage(0, w, h, pivoted, a)
     return r
 
 
@@ -297,7 +336,9 @@ def warm_up() -> None:
         unpack_pinocchio(z, pivoted, np.zeros(m), acc)
         pack_dart(z, pivoted, np.zeros(m), np.zeros(m))
         unpack_dart(z, pivoted, np.zeros(m), acc)
-        pinocchio_stage(1, w, K, 1e-3, pivoted, np.zeros(m), np.zeros(n), np.zeros(m))
-        pinocchio_finish(w, K, 1e-3, pivoted, np.zeros(m), np.zeros(n), np.zeros(m))
-        dart_stage(1, w, K, 1e-3, pivoted, np.zeros(m), np.zeros(m), np.zeros(m))
-        dart_finish(w, K, 1e-3, pivoted, np.zeros(m), np.zeros(m), np.zeros(m))
+        ws = np.zeros(STAGED_WORKSPACE)
+        ws[0] = 1.0
+        for staged in (pinocchio_stage, dart_stage):
+            staged(1, ws, 1e-3, pivoted, np.zeros(m))
+        pinocchio_finish(ws, 1e-3, pivoted, np.zeros(m))
+        dart_finish(ws, 1e-3, pivoted, np.zeros(m))

@@ -240,20 +240,22 @@ class StagedDynamics(NamedTuple):
     <references.engines.interface.Engine.staged_dynamics>`): per stage one compiled call and
     the engine's.
 
-    - ``stage(i, w, K, h, pivoted, a, *buffers)``: the previous stage's accelerations
-      unpacked from the engine's vector ``a`` (i > 0), stage i's state computed and packed
-      into ``buffers``; returns ``_rkmk4.OK`` or ``TOO_LARGE`` (e.g. ``_rkmk4.dart_stage``);
-    - ``finish(w, K, h, pivoted, a, *buffers)``: the last stage's ``a`` unpacked, the step
-      finished and, when it succeeded, the next step's stage 0 packed into ``buffers``;
-    - ``call()``: the engine's calls on ``buffers`` (timed on the run's clock, and only
+    - ``workspace``: the stepper's state, stage state, slopes and the engine's buffers in
+      one array (``_rkmk4.STAGED_WORKSPACE``; the buffers are views of it bound in ``call``);
+    - ``stage(i, workspace, h, pivoted, a)``: the previous stage's accelerations unpacked
+      from the engine's vector ``a`` (i > 0), stage i's state computed and packed into the
+      buffers; returns ``_rkmk4.OK`` or ``TOO_LARGE`` (e.g. ``_rkmk4.dart_stage``);
+    - ``finish(workspace, h, pivoted, a)``: the last stage's ``a`` unpacked, the step
+      finished and, when it succeeded, the next step's stage 0 packed into the buffers;
+    - ``call()``: the engine's calls on the buffers (timed on the run's clock, and only
       they), returning its accelerations ``a``;
     - ``size``, ``what``: the length of ``a``, and the engine call's name, for the check
       of its layout (:func:`check_engine_vector`) on the run's first call."""
 
+    workspace: np.ndarray
     stage: Callable
     finish: Callable
     call: Callable
-    buffers: tuple
     size: int
     what: str
 
@@ -276,11 +278,14 @@ class CompiledRKMK4Stepper:
         self.engine, self.ctx, self.k = engine, ctx, _rkmk4
         self.pivoted = bool(ctx.model.pivoted)
         # y (the state), z (a stage's state) and acc (its accelerations): views of one array
-        self.w = np.zeros(_rkmk4.WORKSPACE)
-        self.y, self.z, self.acc = self.w[_rkmk4.Y], self.w[_rkmk4.Z], self.w[_rkmk4.ACC]
-        self.K = np.zeros((4, 12))
         self.staged = engine.staged_dynamics(ctx)
-        self.fd = engine.packed_dynamics(ctx) if self.staged is None else None
+        if self.staged is None:
+            self.w, self.K = np.zeros(_rkmk4.WORKSPACE), np.zeros((4, 12))
+            self.fd = engine.packed_dynamics(ctx)
+        else:  # the slopes and the engine's buffers in the same array
+            self.w = self.staged.workspace
+            self.K, self.fd = self.w[_rkmk4.KS].reshape(4, 12), None
+        self.y, self.z, self.acc = self.w[_rkmk4.Y], self.w[_rkmk4.Z], self.w[_rkmk4.ACC]
         self.checked = False
 
     def start(self, state: BodyState) -> None:
@@ -330,31 +335,31 @@ class CompiledRKMK4Stepper:
         """:meth:`run` with the adapter's :class:`StagedDynamics`: the same stages, the
         packing done inside the compiled stage call."""
         sd = self.staged
-        # the compiled entries: w, K and the buffers are ours, ``a`` is checked on the first
-        # call of the run (the engine binding fixes its layout)
-        stage, finish, call, (b0, b1) = direct(sd.stage), direct(sd.finish), sd.call, sd.buffers
-        w, y, K = self.w, self.y, self.K
+        # the compiled entries: the workspace is ours, ``a`` is checked on the first call of
+        # the run (the engine binding fixes its layout)
+        stage, finish, call = direct(sd.stage), direct(sd.finish), sd.call
+        w, y = self.w, self.y
         h, piv, ctx = self.ctx.dt, self.pivoted, self.ctx
         rows = np.empty((len(steps), 13))
         taken = 0
         # stage 0 (it never fails: it only copies y) of the first step; finish does the next's
-        stage(0, w, K, h, piv, np.zeros(sd.size), b0, b1)
+        stage(0, w, h, piv, np.zeros(sd.size))
         for j, n in enumerate(steps):
             for _ in range(n):
                 a = call()
                 if not self.checked:
                     check_engine_vector(a, sd.size, sd.what)
                     self.checked = True
-                if stage(1, w, K, h, piv, a, b0, b1):
+                if stage(1, w, h, piv, a):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 a = call()
-                if stage(2, w, K, h, piv, a, b0, b1):
+                if stage(2, w, h, piv, a):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 a = call()
-                if stage(3, w, K, h, piv, a, b0, b1):
+                if stage(3, w, h, piv, a):
                     raise self._failure("a Runge-Kutta stage rotation >= pi", taken, rows[:j])
                 a = call()
-                if finish(w, K, h, piv, a, b0, b1):
+                if finish(w, h, piv, a):
                     raise self._failure("a Runge-Kutta step rotation >= pi", taken, rows[:j])
                 taken += 1
             ctx.nevals += 4 * n

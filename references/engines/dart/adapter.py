@@ -116,8 +116,6 @@ class DartEngine(Engine):
         joint.setLimitEnforcement(False)
         world.addSkeleton(skel)
         ctx.handle = (world, skel, joint, body)
-        # the compiled RKMK4's stage state is packed into these (no allocation per stage)
-        ctx.dart_buffers = (np.zeros(joint.getNumDofs()), np.zeros(joint.getNumDofs()))
 
     def read_model(self, ctx) -> ModelReadback:
         world, skel, joint, body = ctx.handle
@@ -240,7 +238,8 @@ class DartEngine(Engine):
         (``_rkmk4.dart_stage``), and the engine's calls on them bound once: the stopwatch
         around the four DART calls only."""
         skel = ctx.handle[1]
-        pos, vel = ctx.dart_buffers
+        w = np.zeros(_rkmk4.STAGED_WORKSPACE)
+        pos, vel = _rkmk4.dart_buffers(w, bool(ctx.model.pivoted))
         clock, now = ctx.clock, time.perf_counter
         set_pos, set_vel = skel.setPositions, skel.setVelocities
         compute, accelerations = skel.computeForwardDynamics, skel.getAccelerations
@@ -254,5 +253,5 @@ class DartEngine(Engine):
             clock.lap(t0)
             return a
 
-        return StagedDynamics(_rkmk4.dart_stage, _rkmk4.dart_finish, call, (pos, vel),
-                              len(pos), "DART's getAccelerations")  # fmt: skip
+        return StagedDynamics(w, _rkmk4.dart_stage, _rkmk4.dart_finish, call, len(pos),
+                              "DART's getAccelerations")  # fmt: skip

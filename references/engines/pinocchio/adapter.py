@@ -187,7 +187,7 @@ class PinocchioEngine(Engine):
             q = integrate(model, q, dv)
             clock.lap(t0)
             if not checked:
-                check_engine_vector(q, len(h.qbuf), "Pinocchio's integrate")
+                check_engine_vector(q, h.model.nq, "Pinocchio's integrate")
                 h.checked = checked = True
             normalize(q)
         h.q, h.v = q, v
@@ -210,7 +210,9 @@ class PinocchioEngine(Engine):
         and aba with the model, data and buffers bound once: the stopwatch around the aba
         call only."""
         h = ctx.handle
-        aba, model, data, qbuf, vbuf, tau = h.pin.aba, h.model, h.data, h.qbuf, h.vbuf, h.tau
+        w = np.zeros(_rkmk4.STAGED_WORKSPACE)
+        qbuf, vbuf = _rkmk4.pinocchio_buffers(w, bool(ctx.model.pivoted))
+        aba, model, data, tau = h.pin.aba, h.model, h.data, h.tau
         clock, now = ctx.clock, time.perf_counter
 
         def call():
@@ -219,8 +221,8 @@ class PinocchioEngine(Engine):
             clock.lap(t0)
             return a
 
-        return StagedDynamics(_rkmk4.pinocchio_stage, _rkmk4.pinocchio_finish, call,
-                              (qbuf, vbuf), len(vbuf), "Pinocchio's aba")  # fmt: skip
+        return StagedDynamics(w, _rkmk4.pinocchio_stage, _rkmk4.pinocchio_finish, call,
+                              len(vbuf), "Pinocchio's aba")  # fmt: skip
 
 
 class _Handle:
@@ -230,12 +232,10 @@ class _Handle:
         self.pin, self.model, self.data = pin, model, data
         self.tau = np.zeros(model.nv)
         self.q = self.v = None
-        self.qbuf = np.zeros(model.nq)
-        self.vbuf = np.zeros(model.nv)
         # the semi-implicit Euler's compiled arithmetic (compiled or loaded from numba's
         # cache here, at the build), its h v buffer, and whether Pinocchio's vectors were
         # checked
-        _euler_velocity(self.vbuf, self.tau, 0.0, np.zeros(model.nv))
+        _euler_velocity(np.zeros(model.nv), self.tau, 0.0, np.zeros(model.nv))
         _normalize_tail(np.array([0.0, 0.0, 0.0, 1.0]))
         self.euler = (direct(_euler_velocity), direct(_normalize_tail))
         self.dv = np.zeros(model.nv)

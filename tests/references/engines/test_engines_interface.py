@@ -196,7 +196,7 @@ def test_default_packed_dynamics_is_the_engine_s_forward_dynamics(pivoted):
     assert engine.packed_dynamics(ctx) is not None and sd is not None
 
     def own_fd(z, acc):
-        _rkmk4.pack_pinocchio(z, pivoted, *sd.buffers)
+        _rkmk4.pack_pinocchio(z, pivoted, *_rkmk4.pinocchio_buffers(sd.workspace, pivoted))
         _rkmk4.unpack_pinocchio(z, pivoted, sd.call(), acc)
 
     own, default = np.full(6, np.nan), np.full(6, np.nan)

@@ -144,54 +144,50 @@ def test_an_engine_vector_of_another_layout_is_refused():
 @pytest.mark.parametrize("engine", ["pinocchio", "dart"])
 def test_a_staged_call_is_the_separate_calls_bit_for_bit(engine, pivoted):
     """The compiled stage that also unpacks the engine's accelerations and packs the next
-    stage's state (``_rkmk4.<engine>_stage``, ``<engine>_finish``) computes what the
-    separate calls compute (unpack, stage, pack; unpack, finish, the next stage 0 and its
-    pack), bit for bit, on random
-    states, slopes and accelerations over a whole step, the failing half turn included."""
+    stage's state (``_rkmk4.<engine>_stage``, ``<engine>_finish``, on the staged workspace
+    holding the slopes and the engine's buffers) computes what the separate calls compute
+    (unpack, stage, pack; unpack, finish, the next stage 0 and its pack), bit for bit, on
+    random states, slopes and accelerations over a whole step, the failing half turn
+    included."""
     from references.engines import _rkmk4
 
     stage, finish = getattr(_rkmk4, f"{engine}_stage"), getattr(_rkmk4, f"{engine}_finish")
     pack, unpack = getattr(_rkmk4, f"pack_{engine}"), getattr(_rkmk4, f"unpack_{engine}")
-    n, m = (4, 3) if pivoted else (7, 6)
-    if engine == "dart":
-        n = m
+    buffers = getattr(_rkmk4, f"{engine}_buffers")
+    m = 3 if pivoted else 6
     rng = np.random.default_rng(7)
     for h in (1e-3, 0.3, 40.0):  # the last asks for rotations beyond half a turn
         w = np.zeros(_rkmk4.WORKSPACE)
         q = rng.normal(size=4)
         w[0:4] = q / np.linalg.norm(q)
         w[4:13] = rng.normal(size=9)
-        sides = [(w.copy(), np.zeros((4, 12)), np.zeros(n), np.zeros(m)) for _ in range(2)]
+        staged = np.zeros(_rkmk4.STAGED_WORKSPACE)
+        staged[: _rkmk4.WORKSPACE] = w
+        K = np.zeros((4, 12))
+        b0, b1 = (np.zeros(len(b)) for b in buffers(staged, pivoted))
         accs = [rng.normal(size=m) for _ in range(4)]
-        got = []
-        for fused in (True, False):
-            ws, K, b0, b1 = sides[fused]
-            codes = []
-            for i in range(4):
-                a = accs[i - 1] if i else np.zeros(m)
-                if fused:
-                    codes.append(stage(i, ws, K, h, pivoted, a, b0, b1))
-                else:
-                    if i:
-                        unpack(ws[_rkmk4.Z], pivoted, a, ws[_rkmk4.ACC])
-                    codes.append(_rkmk4.stage(i, ws, K, h, pivoted))
-                    if codes[-1] == _rkmk4.OK:
-                        pack(ws[_rkmk4.Z], pivoted, b0, b1)
-            if fused:
-                codes.append(finish(ws, K, h, pivoted, accs[3], b0, b1))
-            else:
-                unpack(ws[_rkmk4.Z], pivoted, accs[3], ws[_rkmk4.ACC])
-                codes.append(_rkmk4.finish(ws, K, h, pivoted))
-                if codes[-1] == _rkmk4.OK:  # the next step's stage 0
-                    _rkmk4.stage(0, ws, K, h, pivoted)
-                    pack(ws[_rkmk4.Z], pivoted, b0, b1)
-            got.append((codes, ws, K, b0, b1))
-        (c1, *arrays1), (c2, *arrays2) = got
-        assert c1 == c2
-        for x, y in zip(arrays1, arrays2, strict=True):
+        fused, separate = [], []
+        for i in range(4):
+            a = accs[i - 1] if i else np.zeros(m)
+            fused.append(stage(i, staged, h, pivoted, a))
+            if i:
+                unpack(w[_rkmk4.Z], pivoted, a, w[_rkmk4.ACC])
+            separate.append(_rkmk4.stage(i, w, K, h, pivoted))
+            if separate[-1] == _rkmk4.OK:
+                pack(w[_rkmk4.Z], pivoted, b0, b1)
+        fused.append(finish(staged, h, pivoted, accs[3]))
+        unpack(w[_rkmk4.Z], pivoted, accs[3], w[_rkmk4.ACC])
+        separate.append(_rkmk4.finish(w, K, h, pivoted))
+        if separate[-1] == _rkmk4.OK:  # the next step's stage 0
+            _rkmk4.stage(0, w, K, h, pivoted)
+            pack(w[_rkmk4.Z], pivoted, b0, b1)
+        assert fused == separate
+        got = (staged[: _rkmk4.WORKSPACE], staged[_rkmk4.KS].reshape(4, 12),
+               *buffers(staged, pivoted))  # fmt: skip
+        for x, y in zip(got, (w, K, b0, b1), strict=True):
             assert np.array_equal(x, y, equal_nan=True)
         if h == 40.0:
-            assert _rkmk4.TOO_LARGE in c1
+            assert _rkmk4.TOO_LARGE in fused
 
 
 def test_the_compiled_tree_rkmk4_is_the_readable_one_on_a_product_group():
