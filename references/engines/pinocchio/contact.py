@@ -39,6 +39,7 @@ body a. Engine time: the Pinocchio and coal calls; the loop and the constraint s
 
 from __future__ import annotations
 
+import functools
 import time
 
 import numpy as np
@@ -337,10 +338,17 @@ def _symmetric(M) -> np.ndarray:
     ``np.triu(M) + np.triu(M, 1).T`` bit for bit (every entry x + 0.0, which turns a -0.0
     into 0.0), without the two triu's ~10 us."""
     S = np.array(M, dtype=float)
-    il = np.tril_indices(len(S), -1)
+    il = _lower(len(S))
     S[il] = S.T[il]
     S += 0.0
     return S
+
+
+@functools.cache
+def _lower(n: int):
+    """The indices of the strict lower triangle of an n x n matrix (np.tril_indices builds
+    them from a mask: ~10 us a call)."""
+    return np.tril_indices(n, -1)
 
 
 def step_positions(pin, q, v, h, free, hinges=()):
@@ -425,7 +433,7 @@ def simulate_contact(scenario, configuration, dt, nstep, save_every, _plant=None
                 # about the joint frame's origin (a hinged body's is at the hinge)
                 c = -sc._com_offset(names[i])
                 Fb, tb = Rs[i].T @ F, Rs[i].T @ tau
-                fext[sc.jid[names[i]]] = pin.Force(Fb, tb + np.cross(c, Fb))
+                fext[sc.jid[names[i]]] = pin.Force(Fb, tb + _cross(c, Fb))
         fext = pin.StdVec_Force(fext)
         tau0 = np.zeros(model.nv)
         t0 = time.perf_counter()
