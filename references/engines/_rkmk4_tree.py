@@ -20,10 +20,13 @@ state, packs it into the engine's positions and velocities (DART's: a rotation v
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
+from director_model import _cache
+from references.engines import _rkmk4 as _rkmk4_module
 from references.engines._rkmk4 import (
     FORWARD,
     INVERSE,
@@ -176,3 +179,9 @@ def warm_up() -> None:
         stage(i, J, y, u, zy, zu, K, 1e-3, a, pos, vel)
     finish(J, y, u, zy, K, 1e-3, a)
     quat_of_rotvec(np.zeros(3), np.zeros(4))
+
+
+# numba keys a function's disk cache on its own file only: the stage arithmetic compiled in from
+# _rkmk4.py (the quaternion exponential, dexp^-1, rotations) would stay stale after an edit
+# there; director_model._cache.tie adds that file's content to the key
+_cache.tie(globals(), Path(_rkmk4_module.__file__))

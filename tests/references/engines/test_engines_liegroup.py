@@ -259,3 +259,19 @@ def test_the_compiled_tree_rkmk4_is_the_readable_one_on_a_product_group():
     assert np.abs(yy[4:7] - q[0][1]).max() < 1e-12 and abs(yy[11] - q[2][0]) < 1e-12
     assert np.abs(uu - u).max() < 1e-12
     assert np.abs(compiled(1e-2, 200, world_slip=True)[3] - u).max() > 1e-6
+
+
+def test_the_tree_kernels_cache_is_keyed_on_the_stage_arithmetic_it_compiles_in():
+    """numba keys a disk cache on the function's own file; the tree RKMK4 compiles in the
+    quaternion and dexp^-1 arithmetic of _rkmk4.py, so its cache is tied to that file's
+    content too (director_model._cache.tie; the mechanism is tested by
+    tests/director_model/test_director_cache.py): every cached tree function's stamp holds
+    _rkmk4.py's digest."""
+    from pathlib import Path
+
+    from director_model import _cache
+    from references.engines import _rkmk4, _rkmk4_tree
+
+    want = _cache.digest([Path(_rkmk4.__file__)])
+    for fn in (_rkmk4_tree.stage, _rkmk4_tree.finish, _rkmk4_tree.pack, _rkmk4_tree.unpack):
+        assert fn._cache._cache_file._source_stamp[1] == want
