@@ -379,3 +379,58 @@ def test_computing_a_reference_runs_no_suite_code_outside_the_digest():
                          check=True, env=env).stdout  # fmt: skip
     assert "outside: []" in out, out
     assert int(out.split("ran:")[1]) > 10, out  # the hook saw the reference modules
+
+
+def test_two_processes_writing_one_key_while_a_third_reads_never_show_half_an_entry(tmp_path):
+    """Two writers keep the same key over and over (as two workers, or two suites, that
+    computed the same reference) while a reader reads it: every read is a whole entry (a
+    temporary file renamed over it), never a torn one. (Planted by hand: the entry written in
+    place, in 4 kB pieces, the reader saw torn entries: WRITER's "in-place".)"""
+    torn, whole = _race(tmp_path, "renamed")
+    assert torn == 0 and whole > 0
+
+
+WRITER = """
+import sys, numpy as np
+from references import cache
+if sys.argv[1] == "in-place":
+    def careless(k, data):
+        cache.folder().mkdir(parents=True, exist_ok=True)
+        with open(cache._path(k), "wb") as fh:
+            for i in range(0, len(data), 4096):
+                fh.write(data[i:i + 4096])
+                fh.flush()
+    cache._write = careless
+data = cache.encode("k" * 32, {"a": np.arange(100_000, dtype=float)}, {"n": 1}, 0.5, 0.5)
+for _ in range(40):
+    cache._write("k" * 32, data)
+"""
+
+READER = """
+import sys, time
+from references import cache
+torn = whole = 0
+end = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < end:
+    try:
+        data = cache._read("k" * 32)
+        if data is not None:
+            cache.decode("k" * 32, data)
+            whole += 1
+    except cache.Unreadable:
+        torn += 1
+print(torn, whole)
+"""
+
+
+def _race(tmp_path, how: str, seconds: float = 2.0) -> tuple[int, int]:
+    """(torn reads, whole reads) of a reader racing two writers of one key (``how``:
+    "renamed", the cache's own writes, or "in-place")."""
+    env = {**os.environ, cache.ROOT_ENV: str(tmp_path / how)}
+    writers = [subprocess.Popen([sys.executable, "-c", WRITER, how], env=env) for _ in range(2)]
+    out = subprocess.run([sys.executable, "-c", READER, str(seconds)], env=env,
+                         capture_output=True, text=True, check=True).stdout  # fmt: skip
+    for w in writers:
+        assert w.wait() == 0
+    torn, whole = map(int, out.split())
+    return torn, whole
