@@ -14,7 +14,12 @@ script asks the clone which ``reports`` it imports). Then the run again in the s
 into a new output folder (warm): the figures whose inputs do not change from run to run are
 cached now (all but the work-precision figures and the scorecard picture, which show the
 timings); the results are not. ``pip install`` itself is not timed (the engines are
-installed already); ``--no-compile``: no compile step (the cold run compiles).
+installed already); ``--no-compile``: no compile step (the cold run compiles). The commands
+run with the caches where a user's shell has them (:data:`UNSET`): numba's beside the clone's
+sources, and Python's bytecode too (``__pycache__``, written by the cold run and read by the
+warm one; without it every process compiles the suite's modules it imports again: 0.25 s of
+CPU for the 127 that the workers' fork server and the start of a run import, measured at load
+14).
 
 Each command runs with a probe (a ``sitecustomize`` on ``PYTHONPATH``, in every process of
 the command) that counts numba's top-level compilations (numba's ``numba:compile`` event; a
@@ -147,6 +152,21 @@ def _reap_orphans(timeout: float = 60.0) -> None:
 def _children_cpu() -> float:
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime + r.ru_stime
+
+
+#: variables of this process's environment that the commands run without, as in a user's
+#: shell: numba's cache beside the clone's sources and its compiler on; Python's bytecode
+#: written beside the sources (``__pycache__``: a warm run reads it, as a user's does)
+UNSET = ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT", "PYTHONDONTWRITEBYTECODE")
+
+
+def command_env(**extra: str) -> dict:
+    """The environment of the timed commands: this one without :data:`UNSET`, plus
+    ``extra``."""
+    env = dict(os.environ, **extra)
+    for name in UNSET:
+        env.pop(name, None)
+    return env
 
 
 def timed(cmd: list[str], cwd: Path, env: dict, log: Path, cpu_too=True) -> tuple[float, ...]:
@@ -308,6 +328,9 @@ def main(argv=None) -> int:
         first_cmd = "" if args.no_compile else f"{' '.join(COMPILE)}, then "
         print(f"commands: {first_cmd}{' '.join(COMMAND)} DIR, in a fresh clone (cold), then "
               "the run again (warm)")  # fmt: skip
+        unset = [v for v in UNSET if v in os.environ]
+        if unset:
+            print(f"run without {', '.join(unset)} (set here; a user's shell has none)")
         probe = base / "probe"
         probe.mkdir()
         (probe / "sitecustomize.py").write_text(PROBE)
@@ -315,18 +338,14 @@ def main(argv=None) -> int:
               f"{'load after':>11} {'yardstick s':>12} {'ETA off by':>12} "
               f"{'numba compiles':>15}")  # fmt: skip
         if args.beside and args.beside_clone is not None:
-            env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(base / "beside-jax-cache"),
-                       DIRECTOR_BENCH_CACHE=str(base / "beside-suite-cache"))  # fmt: skip
-            env.pop("NUMBA_CACHE_DIR", None)
-            env.pop("NUMBA_DISABLE_JIT", None)
+            env = command_env(JAX_COMPILATION_CACHE_DIR=str(base / "beside-jax-cache"),
+                              DIRECTOR_BENCH_CACHE=str(base / "beside-suite-cache"))  # fmt: skip
             first = (args.beside_clone.resolve(), env)
         elif args.beside and not args.rounds:  # the suite beside runs warm: warm a clone first
             where = base / "beside"
             where.mkdir()
-            env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"),
-                       DIRECTOR_BENCH_CACHE=str(where / "suite-cache"))  # fmt: skip
-            env.pop("NUMBA_CACHE_DIR", None)
-            env.pop("NUMBA_DISABLE_JIT", None)
+            env = command_env(JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"),
+                              DIRECTOR_BENCH_CACHE=str(where / "suite-cache"))  # fmt: skip
             first = (fresh_clone(args.repo, where), env)
             subprocess.run([*COMMAND, str(where / "results"), "--quiet"], cwd=first[0], env=env,
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
@@ -336,13 +355,10 @@ def main(argv=None) -> int:
             where = base / f"round{k}"
             where.mkdir()
             # JAX's compilation cache and the suite's (reused figures) start empty
-            env = dict(
-                os.environ,
+            env = command_env(
                 JAX_COMPILATION_CACHE_DIR=str(where / "jax-cache"),
                 DIRECTOR_BENCH_CACHE=str(where / "suite-cache"),
             )
-            env.pop("NUMBA_CACHE_DIR", None)  # numba's cache beside the clone's sources
-            env.pop("NUMBA_DISABLE_JIT", None)
             clone = fresh_clone(args.repo, where)
             check_imports(clone, env)
             if first is None:

@@ -161,7 +161,13 @@ print(time.process_time() - c0)
 
 
 def _env(root: Path) -> dict:
-    return dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    """The environment of a command in the checkout ``root``: as the first run's commands
+    (bench_first_run.command_env: Python's bytecode and numba's cache beside the sources),
+    the checkout first on the path."""
+    from bench_first_run import command_env
+
+    path = f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"
+    return command_env(PYTHONPATH=path)
 
 
 def drake_contact(root: Path) -> float:

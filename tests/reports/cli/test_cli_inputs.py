@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import scenarios
 from reports.cli import main
 
@@ -422,3 +424,35 @@ def test_ensemble_writes_apart_from_the_main_results(tmp_path, monkeypatch, caps
     assert code == 0, err
     assert (tmp_path / "results-ensemble" / "ensemble.csv").exists()
     assert not (tmp_path / "results").exists()
+
+
+# -- the program's end: output flushed, no interpreter teardown unless something needs it ------
+
+PROGRAM = (
+    "import atexit, sys, threading\n"
+    "atexit.register(lambda: print('teardown ran', file=sys.stderr))\n"
+    "if sys.argv[1] == 'thread':\n"
+    "    def wait():  # until the main thread has ended (the orderly end marks it so)\n"
+    "        while threading.main_thread().is_alive():\n"
+    "            threading.Event().wait(0.05)\n"
+    "    threading.Thread(target=wait).start()\n"
+    "if sys.argv[1] == 'profiler':\n"
+    "    sys.setprofile(lambda *a: None)\n"
+    "sys.argv = ['director-bench', 'list', '--json']\n"
+    "from reports.cli import program\n"
+    "program()\n"
+)
+
+
+@pytest.mark.parametrize("case", ["plain", "thread", "profiler"])
+def test_the_program_ends_at_once_with_its_output_flushed(case):
+    # the whole of `list --json` (tens of kB through a pipe: block-buffered) reaches the
+    # reader although the process ends without the interpreter's teardown (its atexit
+    # handlers do not run), except where a non-daemon thread or a profiler needs that end
+    proc = subprocess.run(
+        [sys.executable, "-c", PROGRAM, case], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert len(proc.stdout) > 16384 and proc.stdout.endswith("}\n")  # print's last write
+    assert {"scenarios", "engines"} <= set(json.loads(proc.stdout))
+    assert ("teardown ran" in proc.stderr) == (case != "plain")
