@@ -464,6 +464,7 @@ def run(
     from reports.report import junit
     from reports.report.build import build_report
     from reports.run.files import MODES, assign
+    from reports.run.importers import tables_unit
     from reports.run.parallel import make_mapper
     from reports.run.plan import max_states, plan
     from reports.run.progress import Clock
@@ -522,12 +523,13 @@ def run(
     removed = [out / n for n in VERDICT_FILES if (out / n).is_file()]
     for p in removed:
         p.unlink()
-    df, n_run = run_suite(specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper)
+    # robot models: each importer's table, written by a worker beside the last runs
+    tables = tables_unit(scs, engines, out)
+    df, n_run = run_suite(
+        specs, out, redo=redo, fmt=fmt, progress=progress, mapper=mapper,
+        extra=[tables] if tables else [],
+    )  # fmt: skip
     path = junit.write(df, out / "junit.xml")  # first: the verdicts never wait on the report
-    if any(getattr(sc, "model", None) is not None for sc in scs):
-        from reports.run.importers import write_tables  # robot models: each importer's table
-
-        write_tables(scs, engines, out)
     rep = build_report(out, progress=progress, results=df) if report else {}
     return RunSummary(
         out, n_run, len(specs) - n_run, df, rep, path, unloadable, left_out, moved, removed

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 #: the folder of the tables inside a results folder
@@ -78,6 +79,29 @@ def write_tables(scenarios, engines, out: Path) -> list[Path]:
         tmp.replace(path)
         paths.append(path)
     return paths
+
+
+@dataclass(frozen=True)
+class TablesUnit:
+    """The writing of the importer tables (:func:`write_tables`) as a unit of work a runner
+    hands a worker beside the runs (reports.run.runner.run_suite ``extra``): each engine's
+    importer loads the model files in a process that has the engines imported already,
+    while the main process stores rows, instead of importing them all into the main process
+    after the runs. Calling it writes the tables; it gives back the paths written."""
+
+    scenarios: tuple
+    engines: tuple[str, ...]
+    out: str
+
+    def __call__(self) -> list[Path]:
+        return write_tables(self.scenarios, self.engines, Path(self.out))
+
+
+def tables_unit(scenarios, engines, out: Path) -> TablesUnit | None:
+    """The :class:`TablesUnit` of the robot-model scenarios among ``scenarios``, or None when
+    there is none."""
+    models = tuple(sc for sc in scenarios if getattr(sc, "model", None) is not None)
+    return TablesUnit(models, tuple(engines), str(out)) if models else None
 
 
 def read_table(root: Path, scenario: str) -> dict | None:

@@ -19,6 +19,7 @@ import shutil
 import time
 import traceback
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 from references import cache as reference_cache
@@ -200,9 +201,15 @@ def run_suite(
     fmt: str = "parquet",
     progress: bool = True,
     mapper: Callable | None = None,
+    extra: Iterable[Callable] = (),
 ) -> tuple:
     """Execute ``specs``, committing each row to ``out``'s results store as it finishes;
     returns (the current results DataFrame, number of runs executed).
+
+    ``extra``: other work of the command, each a picklable callable taking no argument (e.g.
+    reports.run.importers.TablesUnit), handed to the mapper after the runs, so that a worker
+    does it while the last runs finish (in this process with the serial mapper); what it
+    returns is not kept, what it raises stops the work as a run's fault of the suite would.
 
     Runs whose identity is already in the store are skipped unless ``redo`` (except those
     whose status is in ``RETRY_STATUSES``). ``mapper`` (a :class:`reports.run.parallel.Mapper`)
@@ -236,13 +243,14 @@ def run_suite(
         passes = {}  # scenario -> its timing pass (a mapper that lets a unit wait for others)
         if mapper.waits:
             units, passes = with_timing_passes(units)
+        units += [Extra(job) for job in extra]
         bar = _bar(todo, passes) if progress and todo else None
         if mapper.in_process:
             # in this process: a long run shows its own progress in the bar
 
             def fn(unit):
-                if isinstance(unit, TimingUnit):
-                    return time_unit(unit)
+                if isinstance(unit, TimingUnit | Extra):
+                    return execute_unit(unit)
                 return [execute(s, out, fmt, progress=_inner(bar, s)) for s in unit]
         else:
             fn = functools.partial(execute_unit, out=out, fmt=fmt)
@@ -255,6 +263,8 @@ def run_suite(
             spec_of = {s.run_id: s for s in todo}
             stored = {}  # run_id -> its row, until its scenario's timing pass is back
             for rows in rows_of:
+                if isinstance(rows, Extra):  # other work of the command, done
+                    continue
                 if isinstance(rows, TimingResult):  # a scenario's timing pass is back
                     for run_id, cols in rows.columns.items():
                         store.put({**stored.pop(run_id), **cols})
@@ -296,11 +306,23 @@ def execute_bundle(specs, out: Path | None = None, fmt: str = "parquet") -> list
     return [execute(s, out, fmt) for s in specs]
 
 
+@dataclass
+class Extra:
+    """Other work of a command handed out with its runs (:func:`run_suite` ``extra``): a
+    picklable callable ``job``; the unit comes back (without its job) when done."""
+
+    job: Callable | None
+
+
 def execute_unit(unit, out: Path | None = None, fmt: str = "parquet"):
-    """A unit of work of :func:`run_suite`: a bundle's rows, or a timing pass's new cost
-    columns ({run_id: columns}, :func:`reports.run.timing.time_unit`)."""
+    """A unit of work of :func:`run_suite`: a bundle's rows, a timing pass's new cost
+    columns ({run_id: columns}, :func:`reports.run.timing.time_unit`), or an :class:`Extra`
+    done (given back empty)."""
     if isinstance(unit, TimingUnit):
         return time_unit(unit)
+    if isinstance(unit, Extra):
+        unit.job()
+        return Extra(None)
     return execute_bundle(unit, out, fmt)
 
 
@@ -330,7 +352,7 @@ def _needs(unit) -> set[str]:
 
 
 def _provides(unit) -> set[str]:
-    return set() if isinstance(unit, TimingUnit) else {s.run_id for s in unit}
+    return set() if isinstance(unit, TimingUnit | Extra) else {s.run_id for s in unit}
 
 
 @functools.cache
@@ -381,7 +403,7 @@ def unit_warm_ups(unit: list[RunSpec]) -> set[str]:
     (reports.run.parallel.process_pool). A bundle of several runs counts only its engine's
     own warm-ups: it would hold a shared one (a system of bodies' reference) for the whole
     bundle; its systems run last (:func:`bundles`), when that one is cached."""
-    if isinstance(unit, TimingUnit):  # it follows its scenario's runs: nothing to compile
+    if isinstance(unit, TimingUnit | Extra):  # a pass follows its scenario's runs
         return set()
     if len(unit) > 1:
         return {k for s in unit if (w := warm_up(s.engine, s.integrator)) for k in (w[0],)}
@@ -393,7 +415,7 @@ def unit_keys(unit) -> set[str]:
     its warm-ups (:func:`unit_warm_ups`) and the system references its runs share with
     other units (:func:`reports.run.system.shared_key`: one unit computes each, the others
     wait for it, while the workers take other units, and read it)."""
-    if isinstance(unit, TimingUnit):
+    if isinstance(unit, TimingUnit | Extra):
         return set()
     return unit_warm_ups(unit) | {k for s in unit if (k := shared_key(s)) is not None}
 

@@ -569,3 +569,25 @@ def test_a_scene_stepped_by_a_builder_refuses_a_target_accuracy_and_streaming():
         assert r["status"] == "unsupported", r["message"]
         assert f"{what} run at fixed steps" in r["message"], r["message"]
         assert "no target accuracy, no --segment streaming" in r["message"]
+
+
+@pytest.mark.parametrize("pool", [False, True])
+def test_other_work_is_handed_out_with_the_runs_and_done(tmp_path, dzh, pool):
+    """run_suite's ``extra`` (a command's other work, e.g. the importer tables): each job is
+    done once, in a worker when there are workers, and gives no row."""
+    import functools
+    import os
+
+    from reports.run.parallel import process_pool, serial
+
+    specs = specs_for(dzh, engines=("director",))
+    made = [tmp_path / "made-1", tmp_path / "made-2"]
+    df, n_run = run_suite(
+        specs,
+        tmp_path / "out",
+        progress=False,
+        mapper=process_pool(2) if pool else serial(tmp_path / "out"),
+        extra=[functools.partial(os.makedirs, p) for p in made],  # a second call would raise
+    )
+    assert all(p.is_dir() for p in made)
+    assert n_run == len(specs) == len(df)
