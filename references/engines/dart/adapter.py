@@ -216,6 +216,24 @@ class DartEngine(Engine):
             for _ in range(k):
                 world.step()
 
+    def advance_saving(self, ctx, steps: list[int]) -> cv.BodyState:
+        """:meth:`Engine.advance_saving` with World.step, the joint's getters and the
+        stopwatch bound once and each saved [positions, velocities] copied into one
+        preallocated block (a run saving every step reads a state per World.step)."""
+        world, _, joint, _ = ctx.handle
+        step, clock, now = world.step, ctx.clock, time.perf_counter
+        positions, velocities = joint.getPositions, joint.getVelocities
+        n = joint.getNumDofs()
+        rows = np.empty((len(steps), 2 * n))
+        for j, k in enumerate(steps):
+            t0 = now()
+            for _ in range(k):
+                step()
+            clock.lap(t0)
+            rows[j, :n] = positions()
+            rows[j, n:] = velocities()
+        return self.states_from_raw(ctx, rows)
+
     def forward_dynamics(self, ctx, state):
         """(dW/dt, a_G) from computeForwardDynamics. A FreeJoint's accelerations are world
         angular and linear; with w = R W, dW/dt = R^T dw/dt because R'^T w = -(W x W) = 0."""

@@ -166,9 +166,22 @@ class PinocchioEngine(Engine):
     # -- stepping ----------------------------------------------------------------------
     def advance(self, ctx, k: int) -> None:
         """Semi-implicit Euler: v += h aba(q, v); q = integrate(q, h v); the quaternion (the
-        last 4 entries of q for both joints) renormalised. The arithmetic between the two
-        Pinocchio calls is compiled (:func:`_euler_velocity`, :func:`_normalize_tail`: the
-        operations numpy did, bit for bit)."""
+        last 4 entries of q for both joints) renormalised (:meth:`_euler`)."""
+        self._euler(ctx, [k], None)
+
+    def advance_saving(self, ctx, steps: list[int]) -> cv.BodyState:
+        """:meth:`Engine.advance_saving` with the Euler loop's bindings made once per block
+        and each saved [q, v] copied into one preallocated block."""
+        h = ctx.handle
+        rows = np.empty((len(steps), h.model.nq + h.model.nv))
+        self._euler(ctx, steps, rows)
+        return self.states_from_raw(ctx, rows)
+
+    def _euler(self, ctx, steps, rows) -> None:
+        """The semi-implicit Euler steps of ``steps`` in turn, [q, v] after each count into
+        ``rows`` (when given). The arithmetic between the two Pinocchio calls is compiled
+        (:func:`_euler_velocity`, :func:`_normalize_tail`: the operations numpy did, bit for
+        bit)."""
         h = ctx.handle
         model, data, tau, dt, clock = h.model, h.data, h.tau, ctx.dt, ctx.clock
         aba, integrate, now = h.pin.aba, h.pin.integrate, time.perf_counter
@@ -176,20 +189,25 @@ class PinocchioEngine(Engine):
         # a and q checked on the run's first step (the binding fixes their layout)
         velocity, normalize = h.euler
         q, v, dv, checked = h.q, np.array(h.v, dtype=float), h.dv, h.checked
-        for _ in range(k):
-            t0 = now()  # the stopwatch around the two Pinocchio calls only
-            a = aba(model, data, q, v, tau)
-            clock.lap(t0)
-            if not checked:
-                check_engine_vector(a, len(v), "Pinocchio's aba")
-            velocity(v, a, dt, dv)  # v += dt a; dv = dt v
-            t0 = now()
-            q = integrate(model, q, dv)
-            clock.lap(t0)
-            if not checked:
-                check_engine_vector(q, h.model.nq, "Pinocchio's integrate")
-                h.checked = checked = True
-            normalize(q)
+        nq = model.nq
+        for j, k in enumerate(steps):
+            for _ in range(k):
+                t0 = now()  # the stopwatch around the two Pinocchio calls only
+                a = aba(model, data, q, v, tau)
+                clock.lap(t0)
+                if not checked:
+                    check_engine_vector(a, len(v), "Pinocchio's aba")
+                velocity(v, a, dt, dv)  # v += dt a; dv = dt v
+                t0 = now()
+                q = integrate(model, q, dv)
+                clock.lap(t0)
+                if not checked:
+                    check_engine_vector(q, nq, "Pinocchio's integrate")
+                    h.checked = checked = True
+                normalize(q)
+            if rows is not None:
+                rows[j, :nq] = q
+                rows[j, nq:] = v
         h.q, h.v = q, v
 
     def forward_dynamics(self, ctx, state):
