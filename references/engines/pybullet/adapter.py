@@ -29,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import importlib.metadata
 import math
+import time
 
 import numpy as np
 
@@ -386,6 +387,32 @@ class PybulletEngine(Engine):
         with ctx.clock:
             for _ in range(k):
                 step(physicsClientId=cid)
+
+    def advance_saving(self, ctx, steps: list[int]) -> cv.BodyState:
+        """:meth:`Engine.advance_saving` with stepSimulation, the state getters and the
+        stopwatch bound once; each saved state (:meth:`read_raw`'s row) kept as PyBullet's
+        floats and made one array per block (a run saving every step reads a state per
+        stepSimulation)."""
+        h = ctx.handle
+        p, cid, body = h.p, h.cid, h.body
+        step, clock, now = p.stepSimulation, ctx.clock, time.perf_counter
+        joint, pose = p.getJointStateMultiDof, p.getBasePositionAndOrientation
+        velocity = p.getBaseVelocity
+        pivoted = ctx.model.pivoted
+        rows = []
+        for k in steps:
+            t0 = now()
+            for _ in range(k):
+                step(physicsClientId=cid)
+            clock.lap(t0)
+            if pivoted:
+                q, W = joint(body, 0, physicsClientId=cid)[:2]
+                rows.append((*q, *W))
+            else:
+                x, q = pose(body, physicsClientId=cid)
+                v, w = velocity(body, physicsClientId=cid)
+                rows.append((*x, *q, *v, *w))
+        return self.states_from_raw(ctx, np.array(rows, dtype=float))
 
     def guard(self, ctx, state) -> str | None:
         speed = max(np.linalg.norm(state.omega_body), np.linalg.norm(state.velocity))
