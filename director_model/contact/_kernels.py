@@ -675,7 +675,9 @@ _cache.tie(
         __import__("pathlib").Path(__file__).parent.parent / rel
         for rel in (
             "_primitives.py",
-            "system/_kernels.py",
+            "system/_rows.py",
+            "system/_common.py",
+            "system/_block3.py",
             "contact/_geometry.py",
             "contact/_parts.py",
             "contact/_stage_rows.py",

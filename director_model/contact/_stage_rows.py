@@ -13,7 +13,7 @@ import sys
 from numba import njit
 
 from director_model.contact import _geometry as G
-from director_model.system._kernels import _rows
+from director_model.system._rows import _rows
 
 
 @njit(inline="always")

@@ -1,9 +1,15 @@
 """Compiled kernels of the system integrator: RATTLE on M q'' = f - G^T lambda, g(q) = 0.
 
-All numba code of director_model.system is in this module, apart from the primitives it shares
-with the single-body kernels (director_model/_primitives.py: the compensated sum and the
-attitude quaternion's rotation) and the block solver's joint rows (_block3.py); its disk cache
-is tied to those files (director_model/_cache.py).
+This module holds the step (:func:`_run_system`) and its compiled entries. The numba code it
+compiles in is in modules each importing only from those listed before it: ``_block3.py``
+(the block solver's joints of three POINT rows), ``_band5.py`` (the loop solver in 5 x 5
+joint blocks), ``_common.py`` (constants, status codes, diagnostics slots, 3x3 algebra),
+``_rows.py`` (the joint rows, forces and rates of every joint kind; force elements),
+``_solvers.py`` (the multiplier matrices: start value, assembly, factorisations) and
+``_bodies.py`` (the per-body work: DMV, responses, state update); and in
+director_model/_primitives.py (the compensated sum, the attitude quaternion's rotation),
+shared with the single-body kernels. Its disk cache is tied to those files (:data:`SOURCES`,
+director_model/_cache.py).
 
 Formulation. Body i has the director coordinates q_i = (x_i, d_1i, d_2i, d_3i) and the
 constant mass matrix blockdiag(m 1, J_1 1, J_2 1, J_3 1). RATTLE on the whole system splits
@@ -42,9 +48,7 @@ Rows: joint constraint rows (see model.py) with, per row, the 12 numbers
 (dg/dx_a, dg/dtheta_a, dg/dx_b, dg/dtheta_b), theta the world rotation increment
 (delta d = delta theta x d). The joint force on a body is -G^T lambda as (force, world torque).
 
-State per body (``S`` rows, length NS): x (0:3) and its compensation (3:6), v (6:9) and
-(9:12), the unnormalised attitude quaternion p (12:16) with D = D_0 R(p/|p|) and (16:20),
-Pi = I W (20:23) and (23:26). Sums into x, v, p, Pi are compensated (Kahan). ``mu`` holds
+State per body: ``S`` rows of length NS (layout in _common.py). ``mu`` holds
 the last velocity multipliers and the position multipliers of each sub-step of the last
 steps (force units; layout in :func:`_run_system`): the start values of the next position
 multipliers, so a stepper restarted from (S, mu) continues bit for bit.
@@ -53,8 +57,8 @@ The step is written out inside :func:`_run_system`: a call with some thirty arra
 per sub-step cost about 0.4 us (1 body: 540 ns per step with the call, 130 ns without).
 Compile time (a cold numba cache) decides how the helpers are joined to it:
 
-- the helpers of every sub-step and Newton iteration (rows, forces, DMV, assembly, block
-  and banded solvers, the 3x3 tuple algebra, storing a state) are
+- the helpers of every sub-step and Newton iteration (rows, forces, the per-body stages,
+  assembly, block and banded solvers, the 3x3 tuple algebra, storing a state) are
   ``njit(forceinline=True)``: each is typed and compiled once and LLVM inlines it into
   run_system (numba's ``inline="always"`` inlines at the IR level and types every call site
   again: about three times the compile time of run_system, with the same per-step cost);
@@ -79,11 +83,10 @@ import math
 from pathlib import Path
 
 import numpy as np
-from numba import njit, types
-from numba.np.linalg import _LAPACK, ensure_lapack
+from numba import njit
 
 from director_model import _cache
-from director_model._primitives import kahan, quat_matrix
+from director_model._primitives import quat_matrix
 from director_model.system._band5 import (
     _b5_ldl_solve_rr,
     _b5_solve_rr,
@@ -93,927 +96,108 @@ from director_model.system._band5 import (
     _r5_forces,
     _r5_rows,
 )
-from director_model.system._block3 import (  # _U: unsigned array indices, see there
-    _U,
-    _dot_row,
-    _forces3,
-    _hat_blk,
-    _mm_z,
-    _mmt_z,
-    _rows3,
-    _sym_factor,
-    _sym_solve,
-    _vres3,
+from director_model.system._block3 import _forces3, _rows3, _sym_factor, _sym_solve, _vres3
+from director_model.system._bodies import (
+    _advance,
+    _copy_step_state,
+    _directors,
+    _dmv,
+    _dmv_iterate,
+    _free_velocity,
+    _inv_inertia,
+    _inv_inertia_sym,
+    _store,
+)
+from director_model.system._common import (
+    D_ITER,
+    D_KEPT,
+    D_MAXIT,
+    D_RANKDROP,
+    D_SMIN,
+    D_SPLIT,
+    D_SVD,
+    D_TSMIN,
+    EPS,
+    FAIL_DAMP,
+    FAIL_DMV,
+    FAIL_NEWTON,
+    FAIL_NONFINITE,
+    FAIL_SINGULAR,
+    FAIL_SVD,
+    MAXIT,
+    MAXSPLIT,
+    MODE_PIVOTED,
+    MODE_SVD,
+    NDIAG,
+    NS,
+    OK,
+    SOLVE_TOL,
+    STATUS_TEXT,
+    _fail,
+    _ftz,
+    _mm,
+    _mmt,
+    _mul,
+    _put9,
+    _row9,
+    _tmul,
+    _zero2,
+)
+from director_model.system._rows import _ext, _forces, _rows, _vres
+from director_model.system._solvers import (
+    _assemble,
+    _band_ldl,
+    _band_ldl_rr,
+    _band_ldl_solve,
+    _band_ldl_solve_rr,
+    _band_lu,
+    _band_lu_rr,
+    _band_solve,
+    _band_solve_rr,
+    _blk_assemble,
+    _blk_lu,
+    _blk_solve,
+    _envelope,
+    _start_value,
+    _svd_factor,
+    _svd_solve,
 )
 
-ensure_lapack()
-#: LAPACK's dgesdd through numba's wrapper (numba_ez_gesdd: workspace query, then the call),
-#: the routine and arguments of numba's np.linalg.svd; calling it directly compiles in about
-#: a tenth of the time of np.linalg.svd and its checks
-_GESDD = _LAPACK().numba_ez_gesdd(types.float64)
-_KIND_D = ord("d")
-_JOBZ_A = ord("A")
-
-NS = 26
-EPS = 2.220446049250313e-16
-MAXIT = 50
-DMV_MAXIT = 40
-QUAT_BIG = 2.0**128
-QUAT_SHRINK = 2.0**-64
-
-#: the minimum-norm solves drop singular values below SOLVE_TOL sigma_1 (redundant rows give
-#: sigma ~ 1e-16 sigma_1; a configuration 1e-12 away from a singular one keeps its direction,
-#: so Newton still closes the constraints there)
-SOLVE_TOL = 1e-14
-#: the loop solver's banded factorisations reveal the rank in the row order: the pivot of
-#: row k over its diagonal entry before elimination is the squared sine of the angle between
-#: row k of G and the rows kept before it (M^-1 metric). A redundant row's ratio is rounding:
-#: each update of a_kk adds at most ~eps a_kk (the updates l_kj^2 d_j sum to at most a_kk),
-#: so over the band (<= 2 bw + 1 of them) at most ~2 bw eps with bw ~ 10..50, ~1e-14; rows
-#: below DROP_TOL = 1e-12 (a factor 100 over that) are dropped. A ratio between DROP_TOL and
-#: PIVOT_CHECK (an angle below 1e-4 rad: near a singular configuration, where rank and null
-#: space are no longer plain to see) sends the matrix to the SVD instead
-DROP_TOL = 1e-10
-PIVOT_CHECK = 1e-8
-#: ``minnorm`` modes of the kernel: 0 block or banded, 1 banded rank-revealing with the SVD
-#: where a pivot ratio drops, 2 the SVD at every solve (the ``svd`` solver, kept to compare)
-MODE_PIVOTED = 1
-MODE_SVD = 2
-#: a step of the loop solver with a sub-step landing inside it (not at its end) where the
-#: velocity stage's SVD drops a direction the joint rows have at t = 0 (sigma_rank_nominal of
-#: G M^-1 G^T below SOLVE_TOL sigma_1: within rounding of a singular configuration of the
-#: loop, where its branches meet) is done again from its start as m = 2, 3, ... steps of
-#: dt / m (msp in the kernel), whose landings are elsewhere: at such a landing the solves
-#: cannot resolve the direction in which the branches part, and rounding of the rows,
-#: amplified by the inverse of that singular value, goes into the velocities and the energy
-#: (iftomm_a02_n2: 1e-8 J in one step, docs/scenarios.md). Up to m = MAXSPLIT; if every split
-#: has such a landing (the step's end lands near the singular configuration too, so the
-#: landings just before it come nearer as m grows), the step of dt is taken as it comes and
-#: counted (D_KEPT). The work of such a step is bounded by 1 + 2 + ... + MAXSPLIT + 1 steps
-MAXSPLIT = 4
-
-OK = 0
-FAIL_NEWTON = 1  # the joint multipliers did not converge
-FAIL_DMV = 2  # a body's rotation equation has no admissible solution (step too large)
-FAIL_SINGULAR = 3  # singular multiplier matrix (banded solver)
-FAIL_NONFINITE = 4
-FAIL_SVD = 5  # the SVD of the multiplier matrix failed (minnorm solver)
-FAIL_DAMP = 6  # the dampers' implicit half step did not converge
-
-STATUS_TEXT = {
-    FAIL_NEWTON: "the Newton iteration for the joint multipliers did not converge",
-    FAIL_DMV: "a body's rotation equation (discrete Moser-Veselov) has no admissible solution "
-    "(rotation of 90 degrees or more in one step, or a singular Jacobian)",
-    FAIL_SINGULAR: "the multiplier matrix is singular (a singular configuration of the joints; "
-    "solver='minnorm' handles it)",
-    FAIL_NONFINITE: "a non-finite state",
-    FAIL_SVD: "the singular value decomposition of the multiplier matrix failed (non-finite "
-    "entries, or LAPACK's dgesdd did not converge)",
-    FAIL_DAMP: "the dampers' implicit half step did not converge (a damping time m/c near the "
-    "step or shorter)",
-}
-
-#: the smallest normal float64. The integrator state (S) and the multipliers kept in ``mu``
-#: are flushed to zero below it at every sub-step (:func:`_ftz`): subnormal numbers cost
-#: tens of cycles per operation, and a motion in a plane (the four-bar) tilts out of it by
-#: rounding (~1e-45 rad) and then carries subnormal out-of-plane components (~1e-322) in its
-#: quaternions and multipliers, which made its step 25 % dearer from t ~ 0.3 s. A state entry
-#: below it is zero on every scale a body or a force can have (an absolute change under
-#: 2.3e-308 in SI units).
-TINY = 2.2250738585072014e-308
-
-#: diagnostics slots
-D_ITER = 0  # Newton iterations (all substeps)
-D_RANKDROP = 1  # steps whose velocity-stage matrix lost rank below the nominal rank
-D_SMIN = 2  # smallest sigma_{rank_nominal} / sigma_1 of that matrix (minnorm solver)
-D_TSMIN = 3  # step index where it occurred
-D_MAXIT = 4  # largest iteration count of one substep
-D_SVD = 5  # factorisations done by SVD (loop solver: a pivot ratio below PIVOT_CHECK)
-D_SPLIT = 6  # steps done again as more steps of a fraction of dt (loop solver, MAXSPLIT)
-D_KEPT = 7  # steps kept as they came after MAXSPLIT splits, each with such a landing
-NDIAG = 8
-
-
-@njit(forceinline=True)
-def _ftz(x):
-    """x, or 0 if x is subnormal (|x| < TINY)."""
-    return 0.0 if abs(x) < TINY else x
-
-
-@njit(forceinline=True)
-def _zero2(A):
-    """A = 0 for a 2-d array."""
-    for i in range(A.shape[0]):
-        for j in range(A.shape[1]):
-            A[i, j] = 0.0
-
-
-@njit(forceinline=True)
-def _mm(A, B):
-    """A B for row-major 3x3 9-tuples."""
-    return (
-        A[0] * B[0] + A[1] * B[3] + A[2] * B[6],
-        A[0] * B[1] + A[1] * B[4] + A[2] * B[7],
-        A[0] * B[2] + A[1] * B[5] + A[2] * B[8],
-        A[3] * B[0] + A[4] * B[3] + A[5] * B[6],
-        A[3] * B[1] + A[4] * B[4] + A[5] * B[7],
-        A[3] * B[2] + A[4] * B[5] + A[5] * B[8],
-        A[6] * B[0] + A[7] * B[3] + A[8] * B[6],
-        A[6] * B[1] + A[7] * B[4] + A[8] * B[7],
-        A[6] * B[2] + A[7] * B[5] + A[8] * B[8],
-    )
-
-
-@njit(forceinline=True)
-def _mmt(A, B):
-    """A B^T for row-major 3x3 9-tuples."""
-    return (
-        A[0] * B[0] + A[1] * B[1] + A[2] * B[2],
-        A[0] * B[3] + A[1] * B[4] + A[2] * B[5],
-        A[0] * B[6] + A[1] * B[7] + A[2] * B[8],
-        A[3] * B[0] + A[4] * B[1] + A[5] * B[2],
-        A[3] * B[3] + A[4] * B[4] + A[5] * B[5],
-        A[3] * B[6] + A[4] * B[7] + A[5] * B[8],
-        A[6] * B[0] + A[7] * B[1] + A[8] * B[2],
-        A[6] * B[3] + A[7] * B[4] + A[8] * B[5],
-        A[6] * B[6] + A[7] * B[7] + A[8] * B[8],
-    )
-
-
-@njit(forceinline=True)
-def _inv3(A):
-    """(det A, A^{-1}) for a row-major 9-tuple (the inverse is garbage if det = 0)."""
-    c00 = A[4] * A[8] - A[5] * A[7]
-    c01 = A[5] * A[6] - A[3] * A[8]
-    c02 = A[3] * A[7] - A[4] * A[6]
-    det = A[0] * c00 + A[1] * c01 + A[2] * c02
-    r = 1.0 / det if det != 0.0 else 0.0
-    return det, (
-        c00 * r, (A[2] * A[7] - A[1] * A[8]) * r, (A[1] * A[5] - A[2] * A[4]) * r,
-        c01 * r, (A[0] * A[8] - A[2] * A[6]) * r, (A[2] * A[3] - A[0] * A[5]) * r,
-        c02 * r, (A[1] * A[6] - A[0] * A[7]) * r, (A[0] * A[4] - A[1] * A[3]) * r,
-    )  # fmt: skip
-
-
-@njit(forceinline=True)
-def _dmv_jac(I0, I1, I2, w0, w1, w2, p0, p1, p2, h):
-    """dF/dw of F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi: 2 (diag(I) + hat(w) diag(I) -
-    hat(I w)) - 2 h pi w^T, a row-major 9-tuple."""
-    Iw0 = I0 * w0
-    Iw1 = I1 * w1
-    Iw2 = I2 * w2
-    t = 2.0 * h
-    return (
-        2.0 * I0 - t * p0 * w0,
-        2.0 * (Iw2 - w2 * I1) - t * p0 * w1,
-        2.0 * (w1 * I2 - Iw1) - t * p0 * w2,
-        2.0 * (w2 * I0 - Iw2) - t * p1 * w0,
-        2.0 * I1 - t * p1 * w1,
-        2.0 * (Iw0 - w0 * I2) - t * p1 * w2,
-        2.0 * (Iw1 - w1 * I0) - t * p2 * w0,
-        2.0 * (w0 * I1 - Iw0) - t * p2 * w1,
-        2.0 * I2 - t * p2 * w2,
-    )
-
-
-@njit(forceinline=True)
-def _dmv(I0, I1, I2, iI0, iI1, iI2, p0, p1, p2, h):
-    """Solve the DMV equation F(w) = 2 (I w + w x I w) - h (1 + |w|^2) pi = 0 for the Gibbs
-    vector w: start w = h/2 I^{-1} pi, one fixed-point correction (iI = 1/I: products, not
-    quotients), then chord Newton with the Jacobian at that start (its error is O(|w|^2), so
-    each iteration gains about as many digits as h |W| has leading zeros, twice), in
-    :func:`_dmv_iterate`. Returns (ok, w0, w1, w2, Ai) with Ai the
-    inverse Jacobian at the start (for the multiplier matrix); ok is False without an
-    admissible solution (no convergence, det <= 0, or |w| >= 1: 90 degrees or more)."""
-    w0 = 0.5 * h * p0 * iI0
-    w1 = 0.5 * h * p1 * iI1
-    w2 = 0.5 * h * p2 * iI2
-    q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
-    c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
-    c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
-    c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-    w0 = (0.5 * h * q * p0 - c0) * iI0
-    w1 = (0.5 * h * q * p1 - c1) * iI1
-    w2 = (0.5 * h * q * p2 - c2) * iI2
-    det, Ai = _inv3(_dmv_jac(I0, I1, I2, w0, w1, w2, p0, p1, p2, h))
-    if not det > 0.0:
-        return False, w0, w1, w2, Ai
-    ok, w0, w1, w2 = _dmv_iterate(I0, I1, I2, p0, p1, p2, h, w0, w1, w2, Ai)
-    return ok, w0, w1, w2, Ai
-
-
-@njit(forceinline=True)
-def _dmv_iterate(I0, I1, I2, p0, p1, p2, h, w0, w1, w2, Ai):
-    """The chord Newton iteration of :func:`_dmv` from the Gibbs vector w with the inverse
-    Jacobian Ai. Returns (ok, w0, w1, w2), ok as :func:`_dmv`. The Newton iterations of the
-    joint multipliers after the first call it from the body's w of the iterate before, with
-    the Ai of the first: the momentum changes by the multipliers' correction only, and the
-    iteration ends at the same test (a correction at the rounding of w), a step or two
-    instead of :func:`_dmv`'s start value, its correction and the Jacobian's inverse (on
-    chains 5-10 % of a step; the w found differ from :func:`_dmv`'s at rounding)."""
-    ok = False
-    dprev = math.inf
-    for _ in range(DMV_MAXIT):
-        Iw0 = I0 * w0
-        Iw1 = I1 * w1
-        Iw2 = I2 * w2
-        q = 1.0 + (w0 * w0 + w1 * w1 + w2 * w2)
-        F0 = 2.0 * (Iw0 + (w1 * Iw2 - w2 * Iw1)) - h * q * p0
-        F1 = 2.0 * (Iw1 + (w2 * Iw0 - w0 * Iw2)) - h * q * p1
-        F2 = 2.0 * (Iw2 + (w0 * Iw1 - w1 * Iw0)) - h * q * p2
-        d0 = Ai[0] * F0 + Ai[1] * F1 + Ai[2] * F2
-        d1 = Ai[3] * F0 + Ai[4] * F1 + Ai[5] * F2
-        d2 = Ai[6] * F0 + Ai[7] * F1 + Ai[8] * F2
-        w0 -= d0
-        w1 -= d1
-        w2 -= d2
-        wn = abs(w0) + abs(w1) + abs(w2)
-        if not wn < math.inf:
-            break
-        dn = abs(d0) + abs(d1) + abs(d2)
-        # converged: a correction at the rounding of w, or no longer falling near it
-        if dn <= 4.0 * EPS * wn or (dn >= dprev and dn <= 64.0 * EPS * wn):
-            ok = True
-            break
-        dprev = dn
-    ok = ok and (w0 * w0 + w1 * w1 + w2 * w2) < 1.0
-    return ok, w0, w1, w2
-
-
-@njit(forceinline=True)
-def _rows(rint, rvec, X, D, gv, Jc):
-    """Row values gv (nrow,) and Jacobians Jc (nrow, 12) at positions X (nb, 3) and
-    directors D (nb, 9); body index -1 is the ground (x = 0, D = 1)."""
-    for r0 in range(rint.shape[0]):
-        r = _U(r0)
-        prim = rint[r, 0]
-        a = _U(rint[r, 1])
-        b = rint[r, 2]
-        k = rint[r, 3]
-        va0, va1, va2 = rvec[r, 0], rvec[r, 1], rvec[r, 2]
-        vb0, vb1, vb2 = rvec[r, 3], rvec[r, 4], rvec[r, 5]
-        ra0 = D[a, 0] * va0 + D[a, 1] * va1 + D[a, 2] * va2
-        ra1 = D[a, 3] * va0 + D[a, 4] * va1 + D[a, 5] * va2
-        ra2 = D[a, 6] * va0 + D[a, 7] * va1 + D[a, 8] * va2
-        if b >= 0:
-            ub = _U(b)
-            rb0 = D[ub, 0] * vb0 + D[ub, 1] * vb1 + D[ub, 2] * vb2
-            rb1 = D[ub, 3] * vb0 + D[ub, 4] * vb1 + D[ub, 5] * vb2
-            rb2 = D[ub, 6] * vb0 + D[ub, 7] * vb1 + D[ub, 8] * vb2
-            xb0, xb1, xb2 = X[ub, 0], X[ub, 1], X[ub, 2]
-        else:
-            rb0, rb1, rb2 = vb0, vb1, vb2
-            xb0, xb1, xb2 = 0.0, 0.0, 0.0
-        xa0, xa1, xa2 = X[a, 0], X[a, 1], X[a, 2]
-        for c in range(12):
-            Jc[r, c] = 0.0
-        if prim == 0:  # POINT component k
-            if k == 0:
-                gv[r] = (xa0 + ra0) - (xb0 + rb0)
-                Jc[r, 0] = 1.0
-                Jc[r, 4] = ra2
-                Jc[r, 5] = -ra1
-                Jc[r, 6] = -1.0
-                Jc[r, 10] = -rb2
-                Jc[r, 11] = rb1
-            elif k == 1:
-                gv[r] = (xa1 + ra1) - (xb1 + rb1)
-                Jc[r, 1] = 1.0
-                Jc[r, 3] = -ra2
-                Jc[r, 5] = ra0
-                Jc[r, 7] = -1.0
-                Jc[r, 9] = rb2
-                Jc[r, 11] = -rb0
-            else:
-                gv[r] = (xa2 + ra2) - (xb2 + rb2)
-                Jc[r, 2] = 1.0
-                Jc[r, 3] = ra1
-                Jc[r, 4] = -ra0
-                Jc[r, 8] = -1.0
-                Jc[r, 9] = -rb1
-                Jc[r, 10] = rb0
-        elif prim == 1:  # DOT
-            _dot_row(r, ra0, ra1, ra2, rb0, rb1, rb2, rvec, gv, Jc)
-        else:  # LINE
-            p0, p1, p2 = rvec[r, 6], rvec[r, 7], rvec[r, 8]
-            u0 = D[a, 0] * p0 + D[a, 1] * p1 + D[a, 2] * p2
-            u1 = D[a, 3] * p0 + D[a, 4] * p1 + D[a, 5] * p2
-            u2 = D[a, 6] * p0 + D[a, 7] * p1 + D[a, 8] * p2
-            s0 = (xb0 + rb0) - (xa0 + ra0)
-            s1 = (xb1 + rb1) - (xa1 + ra1)
-            s2 = (xb2 + rb2) - (xa2 + ra2)
-            gv[r] = s0 * u0 + s1 * u1 + s2 * u2
-            Jc[r, 0] = -u0
-            Jc[r, 1] = -u1
-            Jc[r, 2] = -u2
-            Jc[r, 3] = -(ra1 * u2 - ra2 * u1) + (u1 * s2 - u2 * s1)
-            Jc[r, 4] = -(ra2 * u0 - ra0 * u2) + (u2 * s0 - u0 * s2)
-            Jc[r, 5] = -(ra0 * u1 - ra1 * u0) + (u0 * s1 - u1 * s0)
-            Jc[r, 6] = u0
-            Jc[r, 7] = u1
-            Jc[r, 8] = u2
-            Jc[r, 9] = rb1 * u2 - rb2 * u1
-            Jc[r, 10] = rb2 * u0 - rb0 * u2
-            Jc[r, 11] = rb0 * u1 - rb1 * u0
-
-
-@njit(forceinline=True)
-def _copy_step_state(nb, nr, S, mu, kn, S_to, mu_to, kn_to):
-    """Copy a step's state (S: the nb bodies' states; mu, kn: the nr rows' last velocity
-    multipliers and pattern) into S_to, mu_to, kn_to: a step split at a singular landing
-    keeps its start this way and is restored from it."""
-    for i in range(nb):
-        for c in range(NS):
-            S_to[i, c] = S[i, c]
-    for r in range(nr):
-        mu_to[r] = mu[r]
-        kn_to[r] = kn[r]
-
-
-@njit(forceinline=True)
-def _forces(rint, Jc, lam, F, T):
-    """Joint forces -G^T lam per body: F (nb, 3) force, T (nb, 3) world torque."""
-    _zero2(F)
-    _zero2(T)
-    for r0 in range(rint.shape[0]):
-        r = _U(r0)
-        a = _U(rint[r, 1])
-        b = rint[r, 2]
-        lr = lam[r]
-        for c0 in range(3):
-            c = _U(c0)
-            F[a, c] -= Jc[r, c] * lr
-            T[a, c] -= Jc[r, _U(3 + c0)] * lr
-        if b >= 0:
-            ub = _U(b)
-            for c0 in range(3):
-                c = _U(c0)
-                F[ub, c] -= Jc[r, _U(6 + c0)] * lr
-                T[ub, c] -= Jc[r, _U(9 + c0)] * lr
-
-
-@njit(forceinline=True)
-def _vres(rint, Jc, vel, om, out):
-    """G u: the rows' rates at the velocities vel (nb, 3) and world angular velocities om
-    (nb, 3)."""
-    for rr in range(rint.shape[0]):
-        ur = _U(rr)
-        ua = _U(rint[ur, 1])
-        b = rint[ur, 2]
-        s = (Jc[ur, 0] * vel[ua, 0] + Jc[ur, 1] * vel[ua, 1]
-             + Jc[ur, 2] * vel[ua, 2])  # fmt: skip
-        s += (Jc[ur, 3] * om[ua, 0] + Jc[ur, 4] * om[ua, 1]
-              + Jc[ur, 5] * om[ua, 2])  # fmt: skip
-        if b >= 0:
-            ub = _U(b)
-            s += (Jc[ur, 6] * vel[ub, 0] + Jc[ur, 7] * vel[ub, 1]
-                  + Jc[ur, 8] * vel[ub, 2])  # fmt: skip
-            s += (Jc[ur, 9] * om[ub, 0] + Jc[ur, 10] * om[ub, 1]
-                  + Jc[ur, 11] * om[ub, 2])  # fmt: skip
-        out[ur] = s
-
-
-@njit(forceinline=True)
-def _ext(fint, fvec, X, D, V, Wd, FE, TE):
-    """The force elements' forces FE (nb, 3) and world torques TE (nb, 3) at positions X
-    (nb, 3), directors D (nb, 9), centre-of-mass velocities V and world angular velocities Wd
-    (nb, 3) (model.py, "Force elements"). Row e of ``fint`` (kind, body a, body b (-1: the
-    ground)), of ``fvec``: a spring (kind 0) anchor_a (0:3), anchor_b (3:6; world for the
-    ground), k, c, l0 (6:9), pulling point a by -(k (l - l0) + c l') e, e = (p_a - p_b) / l,
-    and b by the opposite; a torque (kind 1) the unit axis in a (0:3) and tau (6): tau u on
-    a, u = D_a axis, and -tau u on b."""
-    _zero2(FE)
-    _zero2(TE)
-    for e in range(fint.shape[0]):
-        a = fint[e, 1]
-        b = fint[e, 2]
-        if fint[e, 0] == 1:
-            u0, u1, u2 = _mul(_row9(D, a), fvec[e, 0], fvec[e, 1], fvec[e, 2])
-            tau = fvec[e, 6]
-            TE[a, 0] += tau * u0
-            TE[a, 1] += tau * u1
-            TE[a, 2] += tau * u2
-            if b >= 0:
-                TE[b, 0] -= tau * u0
-                TE[b, 1] -= tau * u1
-                TE[b, 2] -= tau * u2
-            continue
-        ra0, ra1, ra2 = _mul(_row9(D, a), fvec[e, 0], fvec[e, 1], fvec[e, 2])
-        va0 = V[a, 0] + (Wd[a, 1] * ra2 - Wd[a, 2] * ra1)
-        va1 = V[a, 1] + (Wd[a, 2] * ra0 - Wd[a, 0] * ra2)
-        va2 = V[a, 2] + (Wd[a, 0] * ra1 - Wd[a, 1] * ra0)
-        if b >= 0:
-            rb0, rb1, rb2 = _mul(_row9(D, b), fvec[e, 3], fvec[e, 4], fvec[e, 5])
-            d0 = (X[a, 0] + ra0) - (X[b, 0] + rb0)
-            d1 = (X[a, 1] + ra1) - (X[b, 1] + rb1)
-            d2 = (X[a, 2] + ra2) - (X[b, 2] + rb2)
-            vb0 = V[b, 0] + (Wd[b, 1] * rb2 - Wd[b, 2] * rb1)
-            vb1 = V[b, 1] + (Wd[b, 2] * rb0 - Wd[b, 0] * rb2)
-            vb2 = V[b, 2] + (Wd[b, 0] * rb1 - Wd[b, 1] * rb0)
-        else:
-            rb0, rb1, rb2 = 0.0, 0.0, 0.0
-            d0 = (X[a, 0] + ra0) - fvec[e, 3]
-            d1 = (X[a, 1] + ra1) - fvec[e, 4]
-            d2 = (X[a, 2] + ra2) - fvec[e, 5]
-            vb0, vb1, vb2 = 0.0, 0.0, 0.0
-        ln = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        e0, e1, e2 = d0 / ln, d1 / ln, d2 / ln
-        rate = e0 * (va0 - vb0) + e1 * (va1 - vb1) + e2 * (va2 - vb2)
-        f = -(fvec[e, 6] * (ln - fvec[e, 8]) + fvec[e, 7] * rate)
-        f0, f1, f2 = f * e0, f * e1, f * e2
-        FE[a, 0] += f0
-        FE[a, 1] += f1
-        FE[a, 2] += f2
-        TE[a, 0] += ra1 * f2 - ra2 * f1
-        TE[a, 1] += ra2 * f0 - ra0 * f2
-        TE[a, 2] += ra0 * f1 - ra1 * f0
-        if b >= 0:
-            FE[b, 0] -= f0
-            FE[b, 1] -= f1
-            FE[b, 2] -= f2
-            TE[b, 0] -= rb1 * f2 - rb2 * f1
-            TE[b, 1] -= rb2 * f0 - rb0 * f2
-            TE[b, 2] -= rb0 * f1 - rb1 * f0
-
-
-@njit(forceinline=True)
-def _assemble(ptr, idx, side, JL, JR, Mx, Mth, A, band, bw, upper):
-    """A = sum_i JL_i blockdiag(Mx_i 1, Mth_i) JR_i^T over the rows sharing body i; A dense
-    (nrow, nrow) or banded (nrow, 2 bw + 1) with A[r, bw + s - r]; with ``upper`` only the
-    entries s >= r (a symmetric A, JL = JR and Mth symmetric; the rows of a body are listed
-    in increasing order, model.assemble). Indices unsigned (:data:`_U`)."""
-    _zero2(A)
-    nb = ptr.shape[0] - 1
-    for i in range(nb):
-        ui = _U(i)
-        mx = Mx[ui]
-        M0, M1, M2 = Mth[ui, _U(0)], Mth[ui, _U(1)], Mth[ui, _U(2)]
-        M3, M4, M5 = Mth[ui, _U(3)], Mth[ui, _U(4)], Mth[ui, _U(5)]
-        M6, M7, M8 = Mth[ui, _U(6)], Mth[ui, _U(7)], Mth[ui, _U(8)]
-        e0 = ptr[ui]
-        e9 = ptr[_U(i + 1)]
-        for e1 in range(e0, e9):
-            r = idx[_U(e1)]
-            ur = _U(r)
-            o1 = 6 * side[_U(e1)]
-            l0 = JL[ur, _U(o1)] * mx
-            l1 = JL[ur, _U(o1 + 1)] * mx
-            l2 = JL[ur, _U(o1 + 2)] * mx
-            t0, t1, t2 = JL[ur, _U(o1 + 3)], JL[ur, _U(o1 + 4)], JL[ur, _U(o1 + 5)]
-            l3 = t0 * M0 + t1 * M3 + t2 * M6
-            l4 = t0 * M1 + t1 * M4 + t2 * M7
-            l5 = t0 * M2 + t1 * M5 + t2 * M8
-            for e2 in range(e1 if upper else e0, e9):
-                s = idx[_U(e2)]
-                us = _U(s)
-                o2 = 6 * side[_U(e2)]
-                v = (
-                    l0 * JR[us, _U(o2)] + l1 * JR[us, _U(o2 + 1)] + l2 * JR[us, _U(o2 + 2)]
-                    + l3 * JR[us, _U(o2 + 3)] + l4 * JR[us, _U(o2 + 4)]
-                    + l5 * JR[us, _U(o2 + 5)]
-                )  # fmt: skip
-                if band:
-                    A[ur, _U(bw + s - r)] += v
-                else:
-                    A[ur, us] += v
-
-
-@njit(forceinline=True)
-def _band_lu(A, bw):
-    """In-place LU without pivoting of the banded A (n, 2 bw + 1). Returns False on a pivot
-    below 1e-13 times the largest diagonal entry (a singular configuration)."""
-    n = A.shape[0]
-    big = 0.0
-    for k in range(n):
-        big = max(big, abs(A[k, bw]))
-    tiny = 1e-13 * big
-    for k in range(n):
-        piv = A[k, bw]
-        if not abs(piv) > tiny:
-            return False
-        ip = 1.0 / piv
-        for i in range(k + 1, min(k + bw + 1, n)):
-            li = A[i, bw + k - i] * ip
-            A[i, bw + k - i] = li
-            if li != 0.0:
-                for j in range(k + 1, min(k + bw + 1, n)):
-                    A[i, bw + j - i] -= li * A[k, bw + j - k]
-    return True
-
-
-@njit(forceinline=True)
-def _band_solve(A, bw, b, x):
-    """Solve with the factors of :func:`_band_lu`: x = A^{-1} b."""
-    n = A.shape[0]
-    for i in range(n):
-        s = b[i]
-        for k in range(max(0, i - bw), i):
-            s -= A[i, bw + k - i] * x[k]
-        x[i] = s
-    for i in range(n - 1, -1, -1):
-        s = x[i]
-        for j in range(i + 1, min(i + bw + 1, n)):
-            s -= A[i, bw + j - i] * x[j]
-        x[i] = s / A[i, bw]
-
-
-@njit(forceinline=True)
-def _band_ldl(A, bw):
-    """In-place L D L^T of the symmetric banded A, upper band stored (A[k, bw + j - k],
-    j >= k): D on the diagonal, L[i, k] in A[k, bw + i - k]. Returns False on a pivot
-    below 1e-13 times the largest diagonal entry (positive definite otherwise)."""
-    n = A.shape[0]
-    big = 0.0
-    for k in range(n):
-        big = max(big, abs(A[k, bw]))
-    tiny = 1e-13 * big
-    for k in range(n):
-        d = A[k, bw]
-        if not d > tiny:
-            return False
-        idd = 1.0 / d
-        for i in range(k + 1, min(k + bw + 1, n)):
-            aki = A[k, bw + i - k]
-            if aki != 0.0:
-                li = aki * idd
-                for j in range(i, min(k + bw + 1, n)):
-                    A[i, bw + j - i] -= li * A[k, bw + j - k]
-                A[k, bw + i - k] = li
-    return True
-
-
-@njit(forceinline=True)
-def _band_ldl_solve(A, bw, b, x):
-    """Solve with the factors of :func:`_band_ldl`: x = A^{-1} b."""
-    n = A.shape[0]
-    for i in range(n):
-        x[i] = b[i]
-    for k in range(n):
-        xk = x[k]
-        for i in range(k + 1, min(k + bw + 1, n)):
-            x[i] -= A[k, bw + i - k] * xk
-    for k in range(n):
-        x[k] /= A[k, bw]
-    for i in range(n - 1, -1, -1):
-        t = x[i]
-        for j in range(i + 1, min(i + bw + 1, n)):
-            t -= A[i, bw + j - i] * x[j]
-        x[i] = t
-
-
-@njit(forceinline=True)
-def _transpose(A):
-    """A = A^T in place (square A)."""
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(i + 1, n):
-            A[i, j], A[j, i] = A[j, i], A[i, j]
-
-
-@njit
-def _svd_factor(A, rank_tol, U, s, Vt):
-    """SVD A = U diag(s) Vt of the square C-ordered A (overwritten) by LAPACK's dgesdd with
-    jobz = 'A', through numba's own wrapper of it (the call np.linalg.svd makes, with the
-    same arguments, so the same numbers); returns rank = #(s > rank_tol s_0), or -1 if A is
-    not finite or dgesdd failed. The transposes pass the C arrays as column-major ones."""
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(n):
-            if not abs(A[i, j]) < math.inf:
-                return -1
-    _transpose(A)
-    r = _GESDD(_KIND_D, _JOBZ_A, n, n, A.ctypes, n, s.ctypes, U.ctypes, n, Vt.ctypes, n)
-    if r != 0:
-        return -1
-    _transpose(U)
-    _transpose(Vt)
-    rank = 0
-    if s.shape[0] > 0 and s[0] > 0.0:
-        for k in range(s.shape[0]):
-            if s[k] > rank_tol * s[0]:
-                rank += 1
-    return rank
-
-
-@njit
-def _svd_solve(U, s, Vt, rank, b, x):
-    """Minimum-norm x = V S^+ U^T b over the first ``rank`` singular values."""
-    n = x.shape[0]
-    for j in range(n):
-        x[j] = 0.0
-    for k in range(rank):
-        c = 0.0
-        for i in range(n):
-            c += U[i, k] * b[i]
-        c /= s[k]
-        for j in range(n):
-            x[j] += c * Vt[k, j]
-
-
-@njit(forceinline=True)
-def _envelope(ptr, idx, n, ext):
-    """ext[r] = the last row s >= r sharing a body with row r or with a row before it (non-
-    decreasing, so that the eliminations below fill nothing beyond it): the envelope of the
-    multiplier matrices, whose entry (r, s) is nonzero only for rows sharing a body. For a
-    loop of joints listed along it (blocks of rows, each sharing a body with the next) ext[r]
-    is the end of the next joint's rows: about 2/3 of the band of a block tridiagonal matrix."""
-    for r in range(n):
-        ext[r] = r
-    for i in range(ptr.shape[0] - 1):
-        hi = -1
-        for e in range(ptr[i], ptr[i + 1]):
-            hi = max(hi, idx[e])
-        for e in range(ptr[i], ptr[i + 1]):
-            ext[idx[e]] = max(ext[idx[e]], hi)
-    for r in range(1, n):
-        ext[r] = max(ext[r], ext[r - 1])
-
-
-@njit(forceinline=True)
-def _band_lu_rr(A, bw, ext, keep, out):
-    """In-place LU without pivoting of the banded A (n, 2 bw + 1), A[r, bw + s - r], within
-    the envelope ``ext`` (:func:`_envelope`), in the row order, over the rows with keep[k] = 1
-    (the others dropped: their unknowns 0, their equations taken as consistent; the pattern
-    of the velocity stage's :func:`_band_ldl_rr` at the sub-step's start). Returns 1 where a
-    kept pivot |u_kk| falls below PIVOT_CHECK times the largest diagonal entry (near a
-    singular configuration: the caller decomposes by SVD instead), -1 on a non-finite entry,
-    else 0; out[0] = the smallest kept pivot over that entry, out[1] = the rows kept.
-    Indices unsigned (:data:`_U`)."""
-    n = A.shape[0]
-    w = A.shape[1]
-    dmax = 0.0
-    bad = False
-    for k in range(n):
-        uk = _U(k)
-        for j in range(w):
-            bad |= not abs(A[uk, _U(j)]) < math.inf
-        dmax = max(dmax, abs(A[uk, _U(bw)]))
-    if bad:
-        return -1
-    rmin = 1.0
-    nk = 0
-    for k in range(n):
-        uk = _U(k)
-        e = ext[uk] + 1
-        if keep[uk] == 0:
-            for i in range(k + 1, e):
-                A[_U(i), _U(bw + k - i)] = 0.0
-            continue
-        piv = A[uk, _U(bw)]
-        if not abs(piv) >= PIVOT_CHECK * dmax:
-            return 1
-        rmin = min(rmin, abs(piv) / dmax)
-        nk += 1
-        ip = 1.0 / piv
-        for i in range(k + 1, e):
-            ui = _U(i)
-            li = A[ui, _U(bw + k - i)] * ip
-            A[ui, _U(bw + k - i)] = li
-            if li != 0.0:
-                for j in range(k + 1, e):
-                    A[ui, _U(bw + j - i)] -= li * A[uk, _U(bw + j - k)]
-    out[0] = rmin
-    out[1] = nk
-    return 0
-
-
-@njit(forceinline=True)
-def _band_solve_rr(A, bw, ext, keep, b, x):
-    """The basic solution x of A x = b from :func:`_band_lu_rr` (x_k = 0 for a dropped k)."""
-    n = A.shape[0]
-    for i in range(n):
-        x[_U(i)] = b[_U(i)]
-    for k in range(n):
-        uk = _U(k)
-        xk = x[uk]
-        for i in range(k + 1, ext[uk] + 1):
-            x[_U(i)] -= A[_U(i), _U(bw + k - i)] * xk
-    for i in range(n - 1, -1, -1):
-        ui = _U(i)
-        if keep[ui] == 0:
-            x[ui] = 0.0
-            continue
-        t = x[ui]
-        for j in range(i + 1, ext[ui] + 1):
-            t -= A[ui, _U(bw + j - i)] * x[_U(j)]
-        x[ui] = t / A[ui, _U(bw)]
-
-
-@njit(forceinline=True)
-def _band_ldl_rr(A, bw, ext, keep, d0, out):
-    """In-place L D L^T of the symmetric positive semi-definite banded A (upper band stored,
-    as :func:`_band_ldl`) within the envelope ``ext``, in the row order, rank-revealing: a
-    row whose pivot d_k is at most DROP_TOL times its diagonal entry a_kk before elimination
-    (d_k / a_kk: the squared sine of the angle between row k of G and the rows kept before
-    it, metric M^-1) is dependent on those rows, a redundant joint row, and is dropped
-    (keep[k] = 0, its L column 0; for a positive semi-definite A its whole remaining row is
-    negligible too, |s_kj| <= sqrt(s_kk s_jj)); the others are kept (keep[k] = 1). Returns 1
-    where a kept pivot falls below PIVOT_CHECK times the largest diagonal entry (near a
-    singular configuration: the caller decomposes by SVD instead), -1 on a non-finite entry,
-    else 0; out as :func:`_band_lu_rr`. ``d0`` (n,) is work space. Indices unsigned
-    (:data:`_U`)."""
-    n = A.shape[0]
-    dmax = 0.0
-    bad = False
-    for k in range(n):
-        uk = _U(k)
-        for j in range(bw, 2 * bw + 1):
-            bad |= not abs(A[uk, _U(j)]) < math.inf
-        d0[uk] = A[uk, _U(bw)]
-        dmax = max(dmax, A[uk, _U(bw)])
-    if bad:
-        return -1
-    rmin = 1.0
-    nk = 0
-    for k in range(n):
-        uk = _U(k)
-        e = ext[uk] + 1
-        d = A[uk, _U(bw)]
-        if not d > DROP_TOL * d0[uk]:
-            keep[uk] = 0
-            for i in range(k + 1, e):
-                A[uk, _U(bw + i - k)] = 0.0
-            continue
-        if d < PIVOT_CHECK * dmax:
-            return 1
-        rmin = min(rmin, d / dmax)
-        keep[uk] = 1
-        nk += 1
-        idd = 1.0 / d
-        for i in range(k + 1, e):
-            aki = A[uk, _U(bw + i - k)]
-            if aki != 0.0:
-                ui = _U(i)
-                li = aki * idd
-                for j in range(i, e):
-                    A[ui, _U(bw + j - i)] -= li * A[uk, _U(bw + j - k)]
-                A[uk, _U(bw + i - k)] = li
-    out[0] = rmin
-    out[1] = nk
-    return 0
-
-
-@njit(forceinline=True)
-def _band_ldl_solve_rr(A, bw, ext, keep, b, x):
-    """The basic solution x of A x = b from :func:`_band_ldl_rr` (x_k = 0 for a dropped k)."""
-    n = A.shape[0]
-    for i in range(n):
-        x[_U(i)] = b[_U(i)]
-    for k in range(n):
-        uk = _U(k)
-        xk = x[uk]
-        for i in range(k + 1, ext[uk] + 1):
-            x[_U(i)] -= A[uk, _U(bw + i - k)] * xk
-    for k in range(n):
-        uk = _U(k)
-        x[uk] = x[uk] / A[uk, _U(bw)] if keep[uk] else 0.0
-    for i in range(n - 1, -1, -1):
-        ui = _U(i)
-        t = x[ui]
-        for j in range(i + 1, ext[ui] + 1):
-            t -= A[ui, _U(bw + j - i)] * x[_U(j)]
-        x[ui] = t if keep[ui] else 0.0
-
-
-@njit(forceinline=True)
-def _row9(A, i):
-    u = _U(i)
-    return (A[u, 0], A[u, 1], A[u, 2], A[u, 3], A[u, 4], A[u, 5], A[u, 6], A[u, 7], A[u, 8])
-
-
-@njit(forceinline=True)
-def _put9(A, i, T):
-    u = _U(i)
-    for c in range(9):
-        A[u, _U(c)] = T[c]
-
-
-@njit(forceinline=True)
-def _tmul(D, t0, t1, t2):
-    """D^T t for a row-major 9-tuple D."""
-    return (
-        D[0] * t0 + D[3] * t1 + D[6] * t2,
-        D[1] * t0 + D[4] * t1 + D[7] * t2,
-        D[2] * t0 + D[5] * t1 + D[8] * t2,
-    )
-
-
-@njit(forceinline=True)
-def _mul(D, t0, t1, t2):
-    """D t for a row-major 9-tuple D."""
-    return (
-        D[0] * t0 + D[1] * t1 + D[2] * t2,
-        D[3] * t0 + D[4] * t1 + D[5] * t2,
-        D[6] * t0 + D[7] * t1 + D[8] * t2,
-    )
-
-
-@njit(forceinline=True)
-def _fail(info, n, h):
-    """Record a failure at sub-step h of step n: info[0] = steps completed, info[1] = h."""
-    info[0] = n - 1
-    info[1] = h
-
-
-@njit(forceinline=True)
-def _store(B, D0, S, X, V, D, W, k):
-    for i in range(S.shape[0]):
-        for c in range(3):
-            X[k, i, c] = S[i, c]
-            V[k, i, c] = S[i, 6 + c]
-            W[k, i, c] = S[i, 20 + c] * B[i, 4 + c]
-        R = _mm(_row9(D0, i), quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15])))
-        for c in range(9):
-            D[k, i, c // 3, c % 3] = R[c]
-
-
-@njit(forceinline=True)
-def _blk_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, Dg, Up, Lo):
-    """Block-tridiagonal assembly for joints of three point rows listed along a chain (joint
-    k has the rows 3k .. 3k + 2; joints sharing a body are adjacent): the blocks
-    sum_i (sigma sigma' Mx_i 1 + C_k Mth_i C_l^T), C the rotation part of a joint's rows on
-    body i (a cross-product matrix: zero diagonal, products without its zeros, _block3.py)
-    and sigma = +-1 its translation part (+-identity). Dg[k] = block (k, k),
-    Up[k] = (k, k + 1), Lo[k] = (k + 1, k), each a row-major 9-vector."""
-    _zero2(Dg)
-    _zero2(Up)
-    _zero2(Lo)
-    for i in range(jptr.shape[0] - 1):
-        M = _row9(Mth, i)
-        mx = Mx[i]
-        for e1 in range(jptr[i], jptr[i + 1]):
-            k = jidx[e1]
-            o1 = 6 * jside[e1]
-            CLM = _mm_z(_hat_blk(JL, 3 * k, o1 + 3), M)
-            sl = JL[3 * k, o1] * mx
-            for e2 in range(jptr[i], jptr[i + 1]):
-                m = jidx[e2]
-                o2 = 6 * jside[e2]
-                Bk = _mmt_z(CLM, _hat_blk(JR, 3 * m, o2 + 3))
-                d = sl * JR[3 * m, o2]
-                if m == k:
-                    for c in range(9):
-                        Dg[k, c] += Bk[c]
-                    Dg[k, 0] += d
-                    Dg[k, 4] += d
-                    Dg[k, 8] += d
-                elif m == k + 1:
-                    for c in range(9):
-                        Up[k, c] += Bk[c]
-                    Up[k, 0] += d
-                    Up[k, 4] += d
-                    Up[k, 8] += d
-                else:
-                    for c in range(9):
-                        Lo[m, c] += Bk[c]
-                    Lo[m, 0] += d
-                    Lo[m, 4] += d
-                    Lo[m, 8] += d
-
-
-@njit(forceinline=True)
-def _blk_lu(Dg, Up, Lo):
-    """In-place block LU of the block-tridiagonal matrix: Dg[k] becomes the inverse of the
-    k-th pivot block, Lo[k] the multiplier block L_{k+1,k}. False on a singular pivot."""
-    K = Dg.shape[0]
-    for k in range(K):
-        P = _row9(Dg, k)
-        if k > 0:
-            LU = _mm(_row9(Lo, k - 1), _row9(Up, k - 1))
-            P = (P[0] - LU[0], P[1] - LU[1], P[2] - LU[2], P[3] - LU[3], P[4] - LU[4],
-                 P[5] - LU[5], P[6] - LU[6], P[7] - LU[7], P[8] - LU[8])  # fmt: skip
-        nrm = 0.0
-        for c in range(9):
-            nrm = max(nrm, abs(P[c]))
-        det, Pi = _inv3(P)
-        if not abs(det) > 1e-36 * nrm * nrm * nrm:
-            return False
-        _put9(Dg, k, Pi)
-        if k < K - 1:
-            _put9(Lo, k, _mm(_row9(Lo, k), Pi))
-    return True
-
-
-@njit(forceinline=True)
-def _blk_solve(Dg, Up, Lo, b, x):
-    """Solve with the factors of :func:`_blk_lu`: x = A^{-1} b."""
-    K = Dg.shape[0]
-    for k in range(K):
-        y0, y1, y2 = b[3 * k], b[3 * k + 1], b[3 * k + 2]
-        if k > 0:
-            l0, l1, l2 = _mul(_row9(Lo, k - 1), x[3 * k - 3], x[3 * k - 2], x[3 * k - 1])
-            y0 -= l0
-            y1 -= l1
-            y2 -= l2
-        x[3 * k], x[3 * k + 1], x[3 * k + 2] = y0, y1, y2
-    for k in range(K - 1, -1, -1):
-        y0, y1, y2 = x[3 * k], x[3 * k + 1], x[3 * k + 2]
-        if k < K - 1:
-            u0, u1, u2 = _mul(_row9(Up, k), x[3 * k + 3], x[3 * k + 4], x[3 * k + 5])
-            y0 -= u0
-            y1 -= u1
-            y2 -= u2
-        x[3 * k], x[3 * k + 1], x[3 * k + 2] = _mul(_row9(Dg, k), y0, y1, y2)
+#: what director_model.system reads from here (simulate.py, batch.py): the entries, the state
+#: width, the tolerances' unit, the status codes and texts, the solver modes, the diagnostics
+__all__ = [
+    "D_ITER",
+    "D_KEPT",
+    "D_MAXIT",
+    "D_RANKDROP",
+    "D_SMIN",
+    "D_SPLIT",
+    "D_SVD",
+    "D_TSMIN",
+    "EPS",
+    "MODE_PIVOTED",
+    "MODE_SVD",
+    "NDIAG",
+    "NS",
+    "OK",
+    "SOURCES",
+    "STATUS_TEXT",
+    "run_system",
+    "run_system_banded",
+]
+
+_HERE = Path(__file__).parent
+#: the files the entries below compile from: their disk cache (and that of the batch kernels,
+#: batch.py, which compile them in) is tied to these besides the module's own file
+SOURCES = (
+    _HERE.parent / "_primitives.py",
+    _HERE / "_block3.py",
+    _HERE / "_band5.py",
+    _HERE / "_common.py",
+    _HERE / "_rows.py",
+    _HERE / "_solvers.py",
+    _HERE / "_bodies.py",
+)
 
 
 @njit
@@ -1147,13 +331,7 @@ def _run_system(
             js += 1
             h = coef[j] * hs
             hh = 0.5 * h
-            xmax = Lsc
-            for i in range(nb):
-                Ri = quat_matrix((S[i, 12], S[i, 13], S[i, 14], S[i, 15]))
-                _put9(Dn, i, _mm(_row9(D0, i), Ri))
-                for c in range(3):
-                    xmax = max(xmax, abs(S[i, c]))
-            tol = tol_rel * xmax
+            tol = tol_rel * _directors(S, D0, Dn, Lsc)
             if nrow > 0:
                 if r5:
                     _r5_rows(rint, rvec, S, Dn, gv, Jold)
@@ -1169,43 +347,14 @@ def _run_system(
                     for c in range(3):
                         VC[i, c] = S[i, 6 + c]
                 _ext(fint, fvec, S, Dn, VC, WD, FE, TE)
-            # start value: in the banded solver the position multipliers of this sub-step
-            # extrapolated linearly from the same sub-step of the two previous steps; in the
-            # block solver the last velocity multipliers (those at this sub-step's start)
-            # plus the difference d = position - velocity multipliers of this sub-step,
-            # extrapolated by the polynomial through the last three steps (history in mu,
-            # see _run_system). d is O(h) smaller than the multipliers, so this start is
-            # O(h^4) off where the multipliers extrapolated by the same polynomial are
-            # O(h^3) off: hanging chains of 50 and 100 rods, rattle, 100000 body-steps, take
-            # 1.07 and 1.29 Newton updates per sub-step against 1.27 and 1.46. The loop
-            # solver starts from the last velocity multipliers (on the
-            # loops these close the joints more tightly in one iteration: on the four-bar
-            # through its singular configuration, residuals ~5e-16 m against ~3e-15 m from
-            # the extrapolated ones, and the crank and rocker parallel to 3e-13, not 2e-12)
             ho1 = nr * (1 + j)
             ho2 = nr * (1 + ns + j)
             ho3 = kp0 + nr + 1 + nr * j
-            for r in range(nrow):
-                if minnorm or nhist == 0:
-                    lam[r] = mu[r]
-                elif banded:
-                    lam[r] = mu[ho1 + r] if nhist == 1 else 2.0 * mu[ho1 + r] - mu[ho2 + r]
-                elif nhist == 1:
-                    lam[r] = mu[r] + mu[ho1 + r]
-                elif nhist == 2:
-                    lam[r] = mu[r] + (2.0 * mu[ho1 + r] - mu[ho2 + r])
-                else:
-                    lam[r] = mu[r] + (3.0 * (mu[ho1 + r] - mu[ho2 + r]) + mu[ho3 + r])
+            _start_value(mu, nrow, nhist, ho1, ho2, ho3, minnorm, banded, lam)
             if minnorm == MODE_PIVOTED and nrow > 0 and not havepat:
                 # no row pattern yet (the first sub-step, or the last velocity stage went to
                 # the SVD): that of the velocity stage's matrix at q_n
-                for i in range(nb):
-                    Mx[i] = 1.0 / B[i, 0]
-                    Di = _row9(Dn, i)
-                    DI = (Di[0] * B[i, 4], Di[1] * B[i, 5], Di[2] * B[i, 6],
-                          Di[3] * B[i, 4], Di[4] * B[i, 5], Di[5] * B[i, 6],
-                          Di[6] * B[i, 4], Di[7] * B[i, 5], Di[8] * B[i, 6])  # fmt: skip
-                    _put9(Mth, i, _mmt(DI, Di))
+                _inv_inertia(B, Dn, Mx, Mth)
                 _assemble(ptr, idx, side, Jold, Jold, Mx, Mth, Ab, yes, bw, yes)
                 st = _band_ldl_rr(Ab, bw, ext, kn, d0, pb)
                 if st < 0:
@@ -1354,41 +503,13 @@ def _run_system(
             diag[D_MAXIT] = max(diag[D_MAXIT], it)
             # velocity stage: u0 = (v_half + h/2 g, Dnew I^{-1} Q^T pi), Q^T pi = pi - 4 c/(q h);
             # TW holds the world angular velocity of u0, VH its velocity
-            for i in range(nb):
-                w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
-                I0, I1, I2 = B[i, 1], B[i, 2], B[i, 3]
-                rq = 4.0 / ((1.0 + (w0 * w0 + w1 * w1 + w2 * w2)) * h)
-                c0 = w1 * (I2 * w2) - w2 * (I1 * w1)
-                c1 = w2 * (I0 * w0) - w0 * (I2 * w2)
-                c2 = w0 * (I1 * w1) - w1 * (I0 * w0)
-                RC[i, 0] = rq * c0
-                RC[i, 1] = rq * c1
-                RC[i, 2] = rq * c2
-                W0 = (PI[i, 0] - RC[i, 0]) * B[i, 4]
-                W1 = (PI[i, 1] - RC[i, 1]) * B[i, 5]
-                W2 = (PI[i, 2] - RC[i, 2]) * B[i, 6]
-                TW[i, 0], TW[i, 1], TW[i, 2] = _mul(_row9(Dnew, i), W0, W1, W2)
-                for c in range(3):
-                    VH[i, c] = VH[i, c] + hh * g[c]
+            _free_velocity(B, WG, PI, Dnew, g, h, hh, RC, TW, VH)
             if nrow > 0 or nfe > 0:
-                for i in range(nb):
-                    Mx[i] = 1.0 / B[i, 0]
-                    Dj = _row9(Dnew, i)
-                    DI = (Dj[0] * B[i, 4], Dj[1] * B[i, 5], Dj[2] * B[i, 6],
-                          Dj[3] * B[i, 4], Dj[4] * B[i, 5], Dj[5] * B[i, 6],
-                          Dj[6] * B[i, 4], Dj[7] * B[i, 5], Dj[8] * B[i, 6])  # fmt: skip
-                    if banded or minnorm:
-                        _put9(Mth, i, _mmt(DI, Dj))
-                    else:
-                        # the block solver's factorisation is symmetric: Mth = D I^-1 D^T
-                        # from its upper triangle
-                        m00 = DI[0] * Dj[0] + DI[1] * Dj[1] + DI[2] * Dj[2]
-                        m01 = DI[0] * Dj[3] + DI[1] * Dj[4] + DI[2] * Dj[5]
-                        m02 = DI[0] * Dj[6] + DI[1] * Dj[7] + DI[2] * Dj[8]
-                        m11 = DI[3] * Dj[3] + DI[4] * Dj[4] + DI[5] * Dj[5]
-                        m12 = DI[3] * Dj[6] + DI[4] * Dj[7] + DI[5] * Dj[8]
-                        m22 = DI[6] * Dj[6] + DI[7] * Dj[7] + DI[8] * Dj[8]
-                        _put9(Mth, i, (m00, m01, m02, m01, m11, m12, m02, m12, m22))
+                if banded or minnorm:
+                    _inv_inertia(B, Dnew, Mx, Mth)
+                else:
+                    # the block solver's factorisation is symmetric: Mth from its upper triangle
+                    _inv_inertia_sym(B, Dnew, Mx, Mth)
             # the velocity stage's matrix G M^-1 G^T at q_{n+1}, factorised once
             vsvd = False
             if nrow > 0:
@@ -1540,41 +661,9 @@ def _run_system(
                 mu[r] = _ftz(dl[r] * h2i)
                 mu[kp0 + r] = kn[r]
             mu[kp0 + nr] = 1.0 if havepat else 0.0
-            for i in range(nb):
-                w0, w1, w2 = WG[i, 0], WG[i, 1], WG[i, 2]
-                # x += h v_half; v += h/2 (g + F/m) + h/2 g + Fn/m  (VH holds v_half + h/2 g)
-                for c in range(3):
-                    vh = VH[i, c] - hh * g[c]
-                    S[i, c], S[i, 3 + c] = kahan(S[i, c], S[i, 3 + c], h * vh, True)
-                    dv = HK[i, c] + hh * g[c] + Fn[i, c] * IM[i]
-                    S[i, 6 + c], S[i, 9 + c] = kahan(S[i, 6 + c], S[i, 9 + c], dv, True)
-                # Pi += h/2 Dn^T T - 4 c/(q h) + Dnew^T Tn
-                a0, a1, a2 = _tmul(_row9(Dn, i), T[i, 0], T[i, 1], T[i, 2])
-                b0, b1, b2 = _tmul(_row9(Dnew, i), Tn[i, 0], Tn[i, 1], Tn[i, 2])
-                S[i, 20], S[i, 23] = kahan(S[i, 20], S[i, 23], (hh * a0 - RC[i, 0]) + b0, True)
-                S[i, 21], S[i, 24] = kahan(S[i, 21], S[i, 24], (hh * a1 - RC[i, 1]) + b1, True)
-                S[i, 22], S[i, 25] = kahan(S[i, 22], S[i, 25], (hh * a2 - RC[i, 2]) + b2, True)
-                # p += p (x) (0, w)
-                p0, p1, p2, p3 = S[i, 12], S[i, 13], S[i, 14], S[i, 15]
-                dp0 = -((p1 * w0 + p2 * w1) + p3 * w2)
-                dp1 = p0 * w0 + (p2 * w2 - p3 * w1)
-                dp2 = p0 * w1 + (p3 * w0 - p1 * w2)
-                dp3 = p0 * w2 + (p1 * w1 - p2 * w0)
-                S[i, 12], S[i, 16] = kahan(p0, S[i, 16], dp0, True)
-                S[i, 13], S[i, 17] = kahan(p1, S[i, 17], dp1, True)
-                S[i, 14], S[i, 18] = kahan(p2, S[i, 18], dp2, True)
-                S[i, 15], S[i, 19] = kahan(p3, S[i, 19], dp3, True)
-                nn = (S[i, 12] * S[i, 12] + S[i, 13] * S[i, 13]) + (
-                    S[i, 14] * S[i, 14] + S[i, 15] * S[i, 15]
-                )
-                if nn > QUAT_BIG:
-                    for c in range(12, 20):
-                        S[i, c] *= QUAT_SHRINK
-                for c in range(NS):
-                    if not abs(S[i, c]) < math.inf:
-                        _fail(info, n, h)
-                        return FAIL_NONFINITE
-                    S[i, c] = _ftz(S[i, c])
+            if not _advance(S, WG, VH, HK, Fn, Tn, IM, Dn, Dnew, T, RC, g, h, hh):
+                _fail(info, n, h)
+                return FAIL_NONFINITE
 
         nhist = min(nhist + 1, 3)
         mu[nr * (1 + 2 * ns)] = nhist
@@ -1612,11 +701,4 @@ def run_system_banded(
                        jidx, jside, fint, fvec, True)  # fmt: skip
 
 
-_cache.tie(
-    globals(),
-    *[
-        Path(__file__).parent.parent / "_primitives.py",
-        Path(__file__).with_name("_block3.py"),
-        Path(__file__).with_name("_band5.py"),
-    ],
-)
+_cache.tie(globals(), *SOURCES)

@@ -247,10 +247,6 @@ __all__ = ["SystemBatchTrajectory", "run_batch", "simulate_system_batch"]
 # to the files it is compiled from (an edit of _kernels.py left them running the old step)
 _cache.tie(
     {"run_batch": run_batch, "run_batch_banded": run_batch_banded},
-    *[
-        Path(__file__).parent.parent / "_primitives.py",
-        Path(__file__).with_name("_kernels.py"),
-        Path(__file__).with_name("_block3.py"),
-        Path(__file__).with_name("_band5.py"),
-    ],
+    Path(K.__file__),
+    *K.SOURCES,
 )

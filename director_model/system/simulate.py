@@ -80,7 +80,7 @@ class SystemTrajectory:
     "svd", near singular configurations with "minnorm") and ``split_steps`` (loop solvers:
     steps done again from their start as 2, 3, ... steps of dt/2, dt/3, ..., because a
     sub-step inside them landed where the velocity stage's solve dropped a direction of the
-    joint rows, _kernels.MAXSPLIT; the singularity diagnostics count the landings kept) and
+    joint rows, _common.MAXSPLIT; the singularity diagnostics count the landings kept) and
     ``kept_singular_steps`` (steps taken as they came after every split up to MAXSPLIT had
     such a landing too).
     The invariants and residuals are computed from the saved states in numpy, independently

@@ -3,8 +3,9 @@ constraint Jacobian, the checks of an initial state, the projection of initial v
 onto the joints, energy and momenta, the force elements' potential.
 
 These serve the checks of the initial state and of saved states and the invariants written
-with a run; the compiled kernel (``_kernels.py``) has its own copy of the row formulas. The
-rows, their primitives and the conventions are those of :mod:`director_model.system.model`.
+with a run; the compiled kernel has its own copy of the row formulas (``_rows.py``,
+``_block3.py``, ``_band5.py``). The rows, their primitives and the conventions are those of
+:mod:`director_model.system.model`.
 """
 
 from __future__ import annotations

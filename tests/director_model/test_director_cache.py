@@ -17,18 +17,23 @@ import pytest
 
 from director_model import _cache
 
+#: the files the system kernel (director_model/system/_kernels.py) compiles in
+_SYSTEM = (
+    "_primitives.py",
+    "system/_block3.py",
+    "system/_band5.py",
+    "system/_common.py",
+    "system/_rows.py",
+    "system/_solvers.py",
+    "system/_bodies.py",
+)
 #: each kernel module and the files (in director_model/) its cache is tied to besides its own:
 #: the primitives, and the kernel modules whose code it compiles in (the system kernel's
 #: block-solver rows; the batch of systems: the system kernel)
 KERNEL_MODULES = {
     "director_model._kernels": ("_primitives.py",),
-    "director_model.system._kernels": ("_primitives.py", "system/_block3.py", "system/_band5.py"),
-    "director_model.system.batch": (
-        "_primitives.py",
-        "system/_kernels.py",
-        "system/_block3.py",
-        "system/_band5.py",
-    ),
+    "director_model.system._kernels": _SYSTEM,
+    "director_model.system.batch": ("system/_kernels.py", *_SYSTEM),
 }
 
 

@@ -268,14 +268,14 @@ def test_svd_factor_against_numpy(n):
     """The kernels' SVD (dgesdd called directly, A overwritten): the singular values of
     numpy's SVD, orthogonal U and Vt, U diag(s) Vt = A, the rank count; -1 for a non-finite
     A."""
-    from director_model.system import _kernels as K
+    from director_model.system import _solvers as SV
 
     rng = np.random.default_rng(n)
     A = rng.standard_normal((n, n))
     if n > 2:
         A[-1] = A[0] + A[1]  # rank n - 1
     U, s, Vt = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
-    rank = K._svd_factor(A.copy(), 1e-12, U, s, Vt)
+    rank = SV._svd_factor(A.copy(), 1e-12, U, s, Vt)
     s_ref = np.linalg.svd(A, compute_uv=False)
     np.testing.assert_allclose(s, s_ref, rtol=1e-13, atol=1e-14 * s_ref[0])
     np.testing.assert_allclose(U @ U.T, np.eye(n), atol=1e-14 * n)
@@ -283,4 +283,4 @@ def test_svd_factor_against_numpy(n):
     np.testing.assert_allclose((U * s) @ Vt, A, atol=1e-14 * n * s_ref[0])
     assert rank == (n - 1 if n > 2 else n)
     A[0, 0] = np.nan
-    assert K._svd_factor(A, 1e-12, U, s, Vt) == -1
+    assert SV._svd_factor(A, 1e-12, U, s, Vt) == -1

@@ -1,5 +1,5 @@
 """The loop solver's solves and assembly in 5 x 5 joint blocks (director_model/system/_band5.py)
-against the general banded ones of director_model/system/_kernels.py, bit for bit: each
+against the general banded ones of director_model/system/_solvers.py and _rows.py, bit for bit: each
 unknown gets the same subtractions in the same order, each matrix entry the same products
 (less those by an exact zero) summed in the same order, so every entry must be the same float.
 
@@ -18,7 +18,8 @@ import pytest
 import scenarios
 from director_model.system import Body, Joint, SystemStepper
 from director_model.system import _band5 as B5
-from director_model.system import _kernels as K
+from director_model.system import _rows as R
+from director_model.system import _solvers as SV
 
 
 def _stepper(name):
@@ -42,7 +43,7 @@ def _rows(st, rng, posed):
         D = np.array([np.linalg.qr(rng.standard_normal((3, 3)))[0].ravel() for _ in range(nb)])
     n = a.rint.shape[0]
     J = np.zeros((n, 12))
-    K._rows(a.rint, a.rvec, X, D, np.zeros(n), J)
+    R._rows(a.rint, a.rvec, X, D, np.zeros(n), J)
     return a, J
 
 
@@ -57,14 +58,14 @@ def _matrix(a, JL, JR, rng, upper):
         Mth[i] = (R @ R.T + np.eye(3)).ravel() if upper else (R + 2 * np.eye(3)).ravel()
     bw = a.bandwidth
     Ab = np.zeros((a.rint.shape[0], 2 * bw + 1))
-    K._assemble(a.brow_ptr, a.brow_idx, a.brow_side, JL, JR, Mx, Mth, Ab, True, bw, upper)
+    SV._assemble(a.brow_ptr, a.brow_idx, a.brow_side, JL, JR, Mx, Mth, Ab, True, bw, upper)
     return Ab, bw
 
 
 def _envelope(a):
     n = a.rint.shape[0]
     ext = np.zeros(n, dtype=np.int64)
-    K._envelope(a.brow_ptr, a.brow_idx, n, ext)
+    SV._envelope(a.brow_ptr, a.brow_idx, n, ext)
     return ext
 
 
@@ -81,24 +82,24 @@ def test_block_solves_equal_the_general_ones_bit_for_bit(name, redundant, seed, 
     # the velocity stage: L D L^T of G W G^T, then both solves of the same factors
     Ab, bw = _matrix(a, J0, J0, rng, upper=True)
     keep = np.zeros(n, dtype=np.int64)
-    assert K._band_ldl_rr(Ab, bw, ext, keep, np.zeros(n), np.zeros(2)) == 0
+    assert SV._band_ldl_rr(Ab, bw, ext, keep, np.zeros(n), np.zeros(2)) == 0
     # dropped: the loop's redundant rows, or at random poses the rows beyond the bodies' 6 nb
     # freedoms (the four-bar: 20 rows, 18 freedoms)
     assert n - keep.sum() == (max(0, n - 6 * a.bodies.shape[0]) if posed else redundant)
     for _ in range(3):
         b = rng.standard_normal(n)
         x, y = np.full(n, np.nan), np.full(n, np.nan)
-        K._band_ldl_solve_rr(Ab, bw, ext, keep, b, x)
+        SV._band_ldl_solve_rr(Ab, bw, ext, keep, b, x)
         B5._b5_ldl_solve_rr(Ab, bw, keep, b, y)
         assert np.array_equal(x, y)
     # the Newton matrix: LU of G1 W G0^T (G1 near G0) over the kept rows
     J1 = J0 + 1e-3 * rng.standard_normal(J0.shape) * (J0 != 0.0)
     Ab, bw = _matrix(a, J1, J0, rng, upper=False)
-    assert K._band_lu_rr(Ab, bw, ext, keep, np.zeros(2)) == 0
+    assert SV._band_lu_rr(Ab, bw, ext, keep, np.zeros(2)) == 0
     for _ in range(3):
         b = rng.standard_normal(n)
         x, y = np.full(n, np.nan), np.full(n, np.nan)
-        K._band_solve_rr(Ab, bw, ext, keep, b, x)
+        SV._band_solve_rr(Ab, bw, ext, keep, b, x)
         B5._b5_solve_rr(Ab, bw, keep, b, y)
         assert np.array_equal(x, y)
         assert np.all(y[keep == 0] == 0.0)
@@ -167,13 +168,13 @@ def test_revolute_rows_and_forces_equal_the_general_ones_bit_for_bit(name, seed,
         X = X + rng.standard_normal(X.shape)
         D = np.array([np.linalg.qr(rng.standard_normal((3, 3)))[0].ravel() for _ in range(nb)])
     g0, J0 = np.zeros(n), np.zeros((n, 12))
-    K._rows(a.rint, a.rvec, X, D, g0, J0)
+    R._rows(a.rint, a.rvec, X, D, g0, J0)
     g1, J1 = np.full(n, np.nan), np.zeros((n, 12))  # the zero entries are never written
     B5._r5_rows(a.rint, a.rvec, X, D, g1, J1)
     assert np.array_equal(g0, g1) and np.array_equal(J0, J1)
     lam = rng.standard_normal(n) * 10.0 ** rng.uniform(-3, 3, n)
     F0, T0 = np.zeros((nb, 3)), np.zeros((nb, 3))
-    K._forces(a.rint, J0, lam, F0, T0)
+    R._forces(a.rint, J0, lam, F0, T0)
     F1, T1 = np.full((nb, 3), np.nan), np.full((nb, 3), np.nan)
     B5._r5_forces(a.rint, J1, lam, F1, T1)
     assert np.array_equal(F0, F1) and np.array_equal(T0, T1)

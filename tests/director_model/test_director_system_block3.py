@@ -1,7 +1,7 @@
 """The block solver's joint kernels (director_model/system/_block3.py: chains of spherical
 joints, three POINT rows each) against the general kernels of director_model/system/
-_kernels.py, bit for bit: they leave out only terms with a factor 0 and factors 1, so every
-row value, Jacobian entry, joint force, rate and 3x3 block must be the same float. The
+(_rows.py, _solvers.py), bit for bit: they leave out only terms with a factor 0 and factors 1,
+so every row value, Jacobian entry, joint force, rate and 3x3 block must be the same float. The
 reference for the blocks is the general 3x3 products (``_mm``, ``_mmt``) on the full blocks
 of the Jacobian, zeros included, summed as the assembly sums them; a chain hanging from the
 ground (a joint to body -1) and a free one, random poses, velocities and multipliers."""
@@ -13,7 +13,9 @@ import pytest
 
 from director_model.system import SystemStepper
 from director_model.system import _block3 as B3
-from director_model.system import _kernels as K
+from director_model.system import _common as C
+from director_model.system import _rows as R
+from director_model.system import _solvers as SV
 from director_model.system.examples import rod_chain
 from director_model.system.model import assemble
 
@@ -42,11 +44,11 @@ def _blocks_reference(asm, JL, JR, Mx, Mth):
         M = tuple(float(v) for v in Mth[i])
         for e1 in range(asm.jptr[i], asm.jptr[i + 1]):
             k, o1 = asm.jidx[e1], 6 * asm.jside[e1]
-            CLM = K._mm(blk(JL, 3 * k, o1 + 3), M)
+            CLM = C._mm(blk(JL, 3 * k, o1 + 3), M)
             sl = JL[3 * k, o1] * Mx[i]
             for e2 in range(asm.jptr[i], asm.jptr[i + 1]):
                 m, o2 = asm.jidx[e2], 6 * asm.jside[e2]
-                Bk = K._mmt(CLM, blk(JR, 3 * m, o2 + 3))
+                Bk = C._mmt(CLM, blk(JR, 3 * m, o2 + 3))
                 d = sl * JR[3 * m, o2]
                 out, row = (Dg, k) if m == k else ((Up, k) if m == k + 1 else (Lo, m))
                 for c in range(9):
@@ -62,20 +64,20 @@ def test_block3_kernels_equal_the_general_ones_bit_for_bit(hang):
     asm, X, D, rng = _state(n, hang, seed=3 if hang else 4)
     nr = asm.rint.shape[0]
     gv, J = np.zeros(nr), np.zeros((nr, 12))
-    K._rows(asm.rint, asm.rvec, X, D, gv, J)
+    R._rows(asm.rint, asm.rvec, X, D, gv, J)
     gv3, J3 = np.zeros(nr), np.zeros((nr, 12))
     B3._rows3(asm.rint, asm.rvec, X, D, gv3, J3)
     assert np.array_equal(gv3, gv) and np.array_equal(J3, J)
 
     lam = rng.standard_normal(nr)
     F, T, F3, T3 = (np.full((n, 3), np.nan) for _ in range(4))
-    K._forces(asm.rint, J, lam, F, T)
+    R._forces(asm.rint, J, lam, F, T)
     B3._forces3(asm.rint, J, lam, F3, T3)
     assert np.array_equal(F3, F) and np.array_equal(T3, T)
 
     vel, om = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
     r, r3 = np.zeros(nr), np.zeros(nr)
-    K._vres(asm.rint, J, vel, om, r)
+    R._vres(asm.rint, J, vel, om, r)
     B3._vres3(asm.rint, J, vel, om, r3)
     assert np.array_equal(r3, r)
 
@@ -86,7 +88,7 @@ def test_block3_kernels_equal_the_general_ones_bit_for_bit(hang):
     Mth = rng.standard_normal((n, 9))
     nK = nr // 3
     Dg, Up, Lo = np.zeros((nK, 9)), np.zeros((nK, 9)), np.zeros((nK, 9))
-    K._blk_assemble(asm.jptr, asm.jidx, asm.jside, J2, J, Mx, Mth, Dg, Up, Lo)
+    SV._blk_assemble(asm.jptr, asm.jidx, asm.jside, J2, J, Mx, Mth, Dg, Up, Lo)
     for got, want in zip((Dg, Up, Lo), _blocks_reference(asm, J2, J, Mx, Mth), strict=True):
         assert np.array_equal(got, want)
     assert np.count_nonzero(Up) > 0 and np.count_nonzero(Lo) > 0

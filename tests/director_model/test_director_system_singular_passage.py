@@ -8,7 +8,7 @@ rows have everywhere else); without a remedy the run's energy, kept to rounding 
 passages, jumps there by 1e-8 J (-1.03e-8 J on main at fe8632d, +2.28e-8 J in an earlier
 kernel: rounding amplified by the inverse of that singular value, so its sign and size follow
 the rounding). The loop solver now does such a step again as two or more steps of a fraction
-of dt (_kernels.MAXSPLIT), whose landings are elsewhere.
+of dt (_common.MAXSPLIT), whose landings are elsewhere.
 
 The bound is what the exact motion allows, rounding: 1e-11 J per step on an energy scale of
 80 J (the jumps at the passages before 6.6 s whose landings stay above a relative singular

@@ -20,7 +20,8 @@ import pytest
 
 import scenarios
 from director_model.system import Body, Joint, SystemStepper, simulate_system
-from director_model.system import _kernels as K
+from director_model.system import _common as C
+from director_model.system import _solvers as SV
 
 N = 20
 
@@ -59,11 +60,11 @@ def test_band_ldl_drops_the_dependent_rows(seed, dep):
     Ab, bw, ext = _band(A, upper=True)
     keep = np.zeros(N, dtype=np.int64)
     out = np.zeros(2)
-    assert K._band_ldl_rr(Ab, bw, ext, keep, np.zeros(N), out) == 0
+    assert SV._band_ldl_rr(Ab, bw, ext, keep, np.zeros(N), out) == 0
     assert [k for k in range(N) if not keep[k]] == list(dep) and out[1] == N - len(dep)
-    assert out[0] >= K.PIVOT_CHECK
+    assert out[0] >= C.PIVOT_CHECK
     x = np.zeros(N)
-    K._band_ldl_solve_rr(Ab, bw, ext, keep, b, x)
+    SV._band_ldl_solve_rr(Ab, bw, ext, keep, b, x)
     assert np.all(x[list(dep)] == 0.0)
     assert np.max(np.abs(A @ x - b)) < 1e-11 * np.max(np.abs(b))
     xm = np.linalg.lstsq(A, b, rcond=None)[0]
@@ -80,9 +81,9 @@ def test_band_lu_solves_over_the_kept_rows(seed, dep):
     keep = np.ones(N, dtype=np.int64)
     keep[list(dep)] = 0
     out = np.zeros(2)
-    assert K._band_lu_rr(Ab, bw, ext, keep, out) == 0 and out[1] == N - len(dep)
+    assert SV._band_lu_rr(Ab, bw, ext, keep, out) == 0 and out[1] == N - len(dep)
     x = np.zeros(N)
-    K._band_solve_rr(Ab, bw, ext, keep, b, x)
+    SV._band_solve_rr(Ab, bw, ext, keep, b, x)
     assert np.all(x[list(dep)] == 0.0)
     assert np.max(np.abs(A @ x - b)) < 1e-10 * np.max(np.abs(b))
 
@@ -94,13 +95,13 @@ def test_a_nearly_dependent_row_goes_to_the_svd(seed):
     rng = np.random.default_rng(seed)
     A, b, G = _problem(rng, (12,), near=1e-4)
     Ab, bw, ext = _band(A, upper=True)
-    assert K._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == 1
+    assert SV._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == 1
     Ab, bw, ext = _band(A, upper=False)
-    assert K._band_lu_rr(Ab, bw, ext, np.ones(N, dtype=np.int64), np.zeros(2)) == 1
+    assert SV._band_lu_rr(Ab, bw, ext, np.ones(N, dtype=np.int64), np.zeros(2)) == 1
     # a non-finite entry is refused
     A[3, 7] = np.nan
     Ab, bw, ext = _band(A, upper=True)
-    assert K._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == -1
+    assert SV._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == -1
 
 
 def _system(name):
@@ -138,7 +139,7 @@ def test_joints_are_factorised_along_the_loop_and_their_listed_order_does_not_ma
     # the envelope: each row reaches to the end of the next joint's rows (the last to its own)
     a = st._kasm
     ext = np.zeros(20, dtype=np.int64)
-    K._envelope(a.brow_ptr, a.brow_idx, 20, ext)
+    SV._envelope(a.brow_ptr, a.brow_idx, 20, ext)
     assert ext.tolist() == [9] * 5 + [14] * 5 + [19] * 10
     runs = [simulate_system(bodies, js, gravity=g, scheme="rattle4", dt=1e-3, t_end=0.6,
                             save_every=50)
