@@ -71,6 +71,41 @@ class SceneBuilder:
         return getattr(importlib.import_module(module), func)
 
 
+def _check_slugs(owner: type, integrators) -> None:
+    """Two integrators of ``owner`` with the same typed name are a ValueError."""
+    slugs: dict[str, str] = {}
+    for integ in integrators:
+        prev = slugs.setdefault(integ.slug, integ.name)
+        if prev != integ.name:
+            raise ValueError(
+                f"{owner.__name__}: integrators {prev!r} and {integ.name!r} have the same "
+                f"typed name {integ.slug!r} (references.engines.slug); rename one"
+            )
+
+
+class LazyIntegrators:
+    """An adapter's ``integrators`` made by ``make()`` the first time they are asked for, for
+    an adapter whose list comes from a package that is slow to import (the director's, from
+    director_model): a command imports every adapter before it starts its workers' fork
+    server (reports.suite.run: the default engines, what the workers preload), and that
+    import then costs nothing of the package's."""
+
+    def __init__(self, make):
+        self.make = make
+        self.value: tuple[Integrator, ...] | None = None
+        self.owner: type | None = None
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.owner = owner
+
+    def __get__(self, obj, cls=None) -> tuple[Integrator, ...]:
+        if self.value is None:
+            value = tuple(self.make())
+            _check_slugs(self.owner or cls, value)
+            self.value = value
+        return self.value
+
+
 class EngineBase(ABC):
     """What the runner needs of anything that produces trajectories: a name, integrators, a
     version, and :meth:`run`. :class:`Engine` (an engine adapter) implements :meth:`run` with
@@ -180,14 +215,9 @@ class EngineBase(ABC):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        slugs: dict[str, str] = {}
-        for integ in cls.__dict__.get("integrators", ()):
-            prev = slugs.setdefault(integ.slug, integ.name)
-            if prev != integ.name:
-                raise ValueError(
-                    f"{cls.__name__}: integrators {prev!r} and {integ.name!r} have the same "
-                    f"typed name {integ.slug!r} (references.engines.slug); rename one"
-                )
+        own = cls.__dict__.get("integrators", ())
+        if not isinstance(own, LazyIntegrators):  # a lazy list is checked when it is made
+            _check_slugs(cls, own)
 
     @classmethod
     def integrator(cls, name: str) -> Integrator:

@@ -12,7 +12,7 @@ import numpy as np
 from references import conventions as cv
 from references.engines.context import ModelReadback, RunOutput
 from references.engines.integrators import Integrator
-from references.engines.interface import Engine, SceneBuilder, installed
+from references.engines.interface import Engine, LazyIntegrators, SceneBuilder, installed
 from references.engines.stepping import check_batch_members
 from references.errors import EngineError, EngineUnavailable, StepFailure, Unsupported
 
@@ -75,7 +75,9 @@ class DirectorEngine(Engine):
     scene_builder = SceneBuilder(
         "references.engines.director.system:simulate_system", ("solver",), force_elements=True
     )
-    integrators = _integrators()
+    #: made from director_model's schemes when first asked for (its import is the slow part
+    #: of importing this adapter)
+    integrators = LazyIntegrators(_integrators)
 
     @classmethod
     def version(cls) -> str:

@@ -539,6 +539,41 @@ def test_the_workers_fork_server_preloads_no_engine():
     assert _last_json_line_of_fresh_python(code) == []
 
 
+def test_what_the_workers_preload_is_known_before_director_model_is_imported():
+    """A run starts its workers' fork server once it knows the default engines and what
+    their adapters say the workers may preload (reports.suite.run): asking for both imports
+    every adapter, and none of them director_model (the director's integrators are made when
+    first asked for, references.engines.interface.LazyIntegrators), so that the server's
+    imports overlap the main process's own; the director's integrators are still there."""
+    code = (
+        "import sys, json\n"
+        "from reports.suite import default_engines, worker_preload\n"
+        "engines, _ = default_engines()\n"
+        "worker_preload(engines)\n"
+        "before = 'director_model' in sys.modules\n"
+        "from references.engines import get_engine\n"
+        "names = [i.slug for i in get_engine('director').integrators]\n"
+        "print(json.dumps([before, 'director' in engines, names[:2]]))\n"
+    )
+    assert _last_json_line_of_fresh_python(code) == [False, True, ["rattle", "rattle4"]]
+
+
+def test_a_lazy_integrator_list_refuses_two_integrators_of_one_typed_name():
+    from references.engines.integrators import Integrator
+    from references.engines.interface import Engine, LazyIntegrators
+
+    def two():
+        fam = "semi-implicit Euler"
+        return [Integrator("RK4", fam, 4, "one"), Integrator("rk4", fam, 4, "two")]
+
+    class Twice(Engine):
+        name = "twice"
+        integrators = LazyIntegrators(two)
+
+    with pytest.raises(ValueError, match="same typed name 'rk4'"):
+        Twice.integrators  # noqa: B018 - made on first use, and checked then
+
+
 def test_each_scene_declares_its_kind_and_every_kind_has_a_stepper():
     """The runner dispatches on the kind a scene declares (``sc.kind``): a single body, a
     system of bodies, bodies in contact; every kind has a stepper that imports."""
