@@ -14,9 +14,13 @@ passes: its rows. Then two measurements, each alternating, CPU time of this proc
    swapped each round, the scenario's runs in turns), the least per-step cost of each; the
    distribution of window over whole (below 1: the window prices the run cheaper), and the
    runs furthest from 1.
+3. **What a repeat adds to a run that ran clean** (``--clean``): every timed run once more
+   (its window, as the pass steps it, the scenario's runs in turns), the repeat's engine time
+   per step over the run's own, for the runs whose own timing ran clean
+   (reports.run.timing.ran_clean: the pass does not time them again) and for the others.
 
-Usage: ``python benchmarks/bench_timing_window.py [--before main] [--bias] [--repeats 3]
-[--scenarios a b ...]``
+Usage: ``python benchmarks/bench_timing_window.py [--before main] [--bias] [--clean]
+[--repeats 3] [--scenarios a b ...] [--rows FILE]``
 """
 
 from __future__ import annotations
@@ -186,11 +190,50 @@ def bias(specs, rows, repeats: int) -> None:
                   f"{steps}/{nstep}")  # fmt: skip
 
 
+def clean(specs, rows) -> None:
+    import numpy as np
+
+    from references.engines import get_engine
+    from reports.run import timing
+
+    by_scenario = collections.defaultdict(list)
+    for s in specs:
+        if timing.timed(rows[s.run_id]):
+            by_scenario[s.scenario.name].append(s)
+    got = {True: [], False: []}  # own timing ran clean -> [(share, repeat/own per step)]
+    for ss in by_scenario.values():
+        for s in ss:
+            row = rows[s.run_id]
+            nstep = int(row["nstep"])
+            steps = timing.window(s, nstep, float(row["cpu_time_s"]))
+            own = timing._from_row(row)
+            t = timing._run_again(get_engine(s.engine), s, nstep, steps)
+            if t is None or t.starved or own.starved or own.engine <= 0:
+                continue
+            ratio = (t.engine / steps) / (own.engine / nstep)
+            got[timing.ran_clean(own)].append((own.share, ratio))
+    print("\nrepeat over the run's own timing, engine time per step (one window each):")
+    for ran, what in ((True, "own timing ran clean (not timed again)"), (False, "the others")):
+        q = np.array([r for _, r in got[ran]])
+        if not len(q):
+            print(f"  {what}: none")
+            continue
+        lo, med, hi = np.quantile(q, [0.05, 0.5, 0.95])
+        print(f"  {what}: {len(q)} runs; 5 %, median, 95 %: {lo:.3f} {med:.3f} {hi:.3f}; "
+              f"least {q.min():.3f}, most {q.max():.3f}")  # fmt: skip
+    shares = np.array([sh for ran in got for sh, _ in got[ran]])
+    if len(shares):
+        print(f"  the runs' own CPU share: 10 %, median: "
+              f"{np.quantile(shares, 0.1):.3f} {np.median(shares):.3f}; ran clean "
+              f"{len(got[True])} of {len(shares)}")  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--before", default="main")
     p.add_argument("--bias", action="store_true")
     p.add_argument("--no-cost", action="store_true", help="skip measurement 1")
+    p.add_argument("--clean", action="store_true", help="measurement 3")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--scenarios", nargs="*")
     p.add_argument("--rows", type=Path, help="keep the rows in this file, or reuse them")
@@ -208,6 +251,8 @@ def main() -> None:
         cost_of_passes(specs, rows, args.before)
     if args.bias:
         bias(specs, rows, args.repeats)
+    if args.clean:
+        clean(specs, rows)
     sys.stdout.flush()
 
 

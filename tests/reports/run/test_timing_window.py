@@ -85,12 +85,41 @@ def test_a_window_is_no_timing_when_the_engine_steps_another_number_of_steps(mon
     assert timing._run_again(Short, s, 1000, 120) is None
 
 
-def unit_with(spec, row_engine_s: float, nstep: int, cpu_s: float):
+def unit_with(spec, row_engine_s: float, nstep: int, cpu_s: float, wall_s: float | None = None):
+    """A timing unit of ``spec`` whose run's own timing is the one given; by default its
+    stepping waited half its wall time for a CPU (it did not run clean: it is timed again)."""
     row = runner.execute(spec)
     assert row["status"] == "ok", row["message"]
     row.update(nstep=nstep, engine_time_s=row_engine_s, engine_time_spread_s=0.0,
-               cpu_time_s=cpu_s, wall_time_s=cpu_s)  # fmt: skip
+               cpu_time_s=cpu_s, wall_time_s=2 * cpu_s if wall_s is None else wall_s)  # fmt: skip
     return timing.TimingUnit(spec.scenario.name, [spec], {spec.run_id: row})
+
+
+def test_a_run_whose_own_timing_ran_clean_is_not_timed_again(monkeypatch):
+    """Not starved and its CPU time at least CLEAN of its wall time: its own timing stands;
+    one that waited longer for a CPU, or whose timing starved, is timed again."""
+    from references.engines.timing import CLEAN
+
+    s = spec_of()
+    asked = []
+
+    def again(cls, spec, nstep, steps):
+        asked.append(steps)
+        return Timing(1e-4, 0.0, 4e-4, 4e-4, 1e-4)
+
+    monkeypatch.setattr(timing, "_run_again", again)
+    clean = unit_with(s, 3e-3, 10_000, 0.1, wall_s=0.1 / CLEAN)
+    assert timing.time_unit(clean).columns == {} and not asked
+    waited = unit_with(s, 3e-3, 10_000, 0.1, wall_s=0.1 / CLEAN * 1.01)
+    assert timing.time_unit(waited).columns[s.run_id]["timing_repeats"] == 2
+    assert len(asked) == 1
+    starved = unit_with(s, 3e-3, 10_000, 0.1, wall_s=0.1)
+    starved.rows[s.run_id]["engine_time_spread_s"] = 3e-3  # its uncertainty its estimate
+    assert timing.time_unit(starved).columns[s.run_id]["timing_repeats"] == 2
+    assert len(asked) == 2
+    assert timing.ran_clean(Timing(1e-3, 0.0, 0.1, 0.1, 1e-3))
+    assert not timing.ran_clean(Timing(1e-3, 1e-3, 0.1, 0.1, 1e-3))  # starved
+    assert not timing.ran_clean(Timing(1e-3, 0.0, 0.1, 0.2, 1e-3))  # waited half its time
 
 
 def test_a_windows_timing_is_priced_over_the_whole_run(monkeypatch):
