@@ -17,6 +17,7 @@ trajectory, once per file; :func:`_hash_code` hashes the code that decides what 
 from __future__ import annotations
 
 import importlib.util
+import io
 import json
 import math
 import re
@@ -335,16 +336,14 @@ def _write_png(fig, path: Path, **kw) -> None:
     full-colour one, the same to the eye for line art). Without ``kw`` (savefig's keywords,
     e.g. ``bbox_inches``) the canvas is drawn once and its pixels quantized directly: the
     same pixels ``savefig`` would write, without encoding and decoding a full-colour PNG
-    in between."""
-    import io
-
+    in between. With ``kw``, savefig's pixels are taken as they are written
+    (:class:`_Pixels`), also without a full-colour PNG."""
     from PIL import Image
 
     if kw:
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=DPI, **kw)
-        buf.seek(0)
-        im = Image.open(buf)
+        sink = _Pixels(fig)
+        fig.savefig(sink, format="rgba", dpi=DPI, **kw)
+        im = Image.frombuffer("RGBA", sink.size, sink.getbuffer(), "raw", "RGBA", 0, 1)
     else:
         fig.set_dpi(DPI)  # what savefig(dpi=DPI) draws at
         fig.canvas.draw()
@@ -354,6 +353,20 @@ def _write_png(fig, path: Path, **kw) -> None:
         im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(
             path, format="PNG"
         )
+
+
+class _Pixels(io.BytesIO):
+    """A file for ``savefig(format="rgba")`` that also keeps the size in pixels of the canvas
+    writing into it (``savefig``'s, e.g. cropped to ``bbox_inches``, which the figure loses
+    once savefig returns)."""
+
+    def __init__(self, fig):
+        super().__init__()
+        self.fig, self.size = fig, (0, 0)
+
+    def write(self, data) -> int:
+        self.size = self.fig.canvas.get_width_height(physical=True)
+        return super().write(data)
 
 
 def figure_meta(png: Path) -> dict:

@@ -61,7 +61,7 @@ from reports.report.labels import (
     suite_sep,
 )
 from reports.report.precision import cost_of, measure_of, outlook
-from reports.store.format import fmt, fmt_step
+from reports.store.format import fmt, fmt_step, num
 from reports.store.results import records, reference_rows
 from reports.store.runs import slug
 
@@ -529,36 +529,39 @@ def work_precision_plot(df, out: Path, scenario: str, styles: Styles):
         return None
     col, unit = measure_of(sub.iloc[0])
     sub = sub[np.isfinite(sub[col])]
-    cost = [cost_of(r) for r in records(sub)]
+    rows = records(sub)  # converted once: a configuration's rows are a few of them
+    cost = [cost_of(r) for r in rows]
     sub = sub.assign(cost=cost)
-    sub = sub[sub["cost"] > 0]
+    keep = [c > 0 for c in cost]
+    sub = sub[keep]
     if sub.empty:
         return None
     fig, (ax,) = _new_figure(height=4.4)
     left_out = []
     engine = engine_key(sub)
+    by_config: dict[tuple, list] = {}  # (engine, integrator) -> [(row, cost)], in table order
+    for r, c, k in zip(rows, cost, keep, strict=True):
+        if k:
+            by_config.setdefault((r["engine"], r["integrator"]), []).append((r, c))
     configs = sorted(
-        sub.groupby(["engine", "integrator"]),
-        key=lambda kv: (
-            family_key(kv[1]["family"].iloc[0]),
-            engine(kv[0][0]),
-            kv[0][1],
-        ),
+        by_config.items(),
+        key=lambda kv: (family_key(kv[1][0][0]["family"]), engine(kv[0][0]), kv[0][1]),
     )
     bottom = max(FLOOR, float(sub[col].clip(lower=FLOOR).min()) / 3.0)
     drawn = []
     for _config, g in configs:
-        first = g.iloc[0]
+        first = g[0][0]
         name = _wp_name(first)
-        if not (g[col] <= WP_RELEVANT).any():
-            left_out.append(f"{name} (best {fmt(g[col].min())} {unit})")
+        if not any(r[col] <= WP_RELEVANT for r, _ in g):
+            left_out.append(f"{name} (best {fmt(min(r[col] for r, _ in g))} {unit})")
             continue
         st = styles.of(first, always_marker=True)
-        adaptive = g["target_accuracy"].notna().any()
-        g = g.sort_values("target_accuracy" if adaptive else "dt")
+        adaptive = any(not np.isnan(num(r["target_accuracy"])) for r, _ in g)
+        by = "target_accuracy" if adaptive else "dt"
+        g = sorted(g, key=lambda rc, by=by: rc[0][by])  # noqa: B023 - used here only
         (line,) = ax.loglog(
-            g["cost"],
-            np.maximum(g[col], bottom),
+            np.array([c for _, c in g]),
+            np.maximum(np.array([r[col] for r, _ in g], dtype=float), bottom),
             color=st["color"],
             linestyle=st["linestyle"],
             marker=st["marker"],
@@ -624,8 +627,10 @@ def _still_falling(every, drawn: list[str]) -> list[str]:
     """The drawn fixed-step configurations whose error was still falling at the smallest
     step they ran (reports.report.precision.outlook at a level below all their errors)."""
     out = []
-    for _config, g in every.groupby(["engine", "integrator"]):
-        rows = records(g)
+    by_config: dict[tuple, list] = {}
+    for r in records(every):
+        by_config.setdefault((r["engine"], r["integrator"]), []).append(r)
+    for _config, rows in sorted(by_config.items(), key=lambda kv: kv[0]):
         if rows[0]["target_accuracy"] == rows[0]["target_accuracy"]:  # error-controlled
             continue
         name = _wp_name(rows[0])
