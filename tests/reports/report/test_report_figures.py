@@ -486,3 +486,35 @@ def test_the_text_caching_backend_draws_the_pixels_agg_draws(tmp_path):
     assert want.shape == first.shape == second.shape
     assert (want != first).any(axis=-1).sum() == 0
     assert (want != second).any(axis=-1).sum() == 0
+
+
+def test_a_cropped_png_has_the_pixels_savefig_writes(tmp_path):
+    """canvas._write_png with ``bbox_inches`` (the scorecard picture) takes savefig's pixels
+    as written (canvas._Pixels) instead of a full-colour PNG: the same size and pixels as
+    savefig's own PNG of the same crop, quantized the same way, for a box reaching beyond
+    the figure and for one inside it."""
+    import numpy as np
+    from matplotlib.transforms import Bbox
+    from PIL import Image
+
+    from reports.report import canvas
+
+    plt = canvas._plt()
+    for box in (None, Bbox([[0.31, 0.27], [2.63, 1.91]])):
+        fig = plt.figure(figsize=(3.1, 2.2), dpi=canvas.DPI)
+        ax = fig.add_axes([0.2, 0.2, 0.6, 0.6])
+        ax.plot([0, 1], [0, 1], label="a line")
+        ax.text(-0.4, 1.3, "text beyond the figure's edge", fontsize=9)
+        ax.set_title("title")
+        crop = fig.get_tightbbox().padded(0.1) if box is None else box
+        got, want = tmp_path / "got.png", tmp_path / "want.png"
+        canvas._write_png(fig, got, bbox_inches=crop)
+        fig.savefig(want, format="png", dpi=canvas.DPI, bbox_inches=crop)
+        plt.close(fig)
+        with Image.open(want) as im:
+            ref = im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE)
+            ref_rgb = np.asarray(ref.convert("RGB"))
+        with Image.open(got) as im:
+            assert im.size == ref.size
+            assert np.array_equal(np.asarray(im.convert("RGB")), ref_rgb)
+            assert im.size != (310, 220)  # cropped: not the figure's own size
