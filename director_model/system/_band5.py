@@ -8,8 +8,10 @@ trip counts that are constants of the block (the general solves read each row's 
 envelope array). For revolute joints (three POINT rows, two DOT rows) the assembly of
 G1 W G0^T goes joint pair by joint pair without the products by the rows' exact zeros (a
 POINT row has one translation entry, +-1, and a zero rotation entry; a DOT row no
-translation entries), and so are the rows, their Jacobians and the joint forces (the lever
-arms and the axis once per joint), as _block3.py does for ball joints.
+translation entries), and so are the rows, their Jacobians, the joint forces and the rows'
+rates G u (the lever arms and the axis once per joint), as _block3.py does for ball joints;
+the velocity stage's symmetric matrix is computed in its upper triangle only, a joint's own
+block included.
 
 Each unknown receives the same subtractions in the same order as in the general solves
 (``_kernels._band_solve_rr``, ``_kernels._band_ldl_solve_rr``), each matrix entry the same
@@ -159,33 +161,31 @@ def _r5_add(A, bw, r, R2, upper, p, lv, S, U):
     """A[r, s] += the products of the row lv (:func:`_r5_l`, component p) with the rows
     s = R2 .. R2 + 4 of a revolute joint (translation entries S (3,), rotation entries U
     (15,)), each summed in the order of ``_kernels._assemble`` without its zero terms (only
-    s >= r if ``upper``)."""
+    s >= r, and only those computed, if ``upper``: a joint's own block is symmetric)."""
     lin, l3, l4, l5 = lv
-    if p == 0:
-        v0 = (lin * S[0] + l4 * U[1]) + l5 * U[2]
-    else:
-        v0 = l4 * U[1] + l5 * U[2]
-    if p == 1:
-        v1 = (lin * S[1] + l3 * U[3]) + l5 * U[5]
-    else:
-        v1 = l3 * U[3] + l5 * U[5]
-    if p == 2:
-        v2 = (lin * S[2] + l3 * U[6]) + l4 * U[7]
-    else:
-        v2 = l3 * U[6] + l4 * U[7]
-    v3 = l3 * U[9] + l4 * U[10] + l5 * U[11]
-    v4 = l3 * U[12] + l4 * U[13] + l5 * U[14]
     ur = _U(r)
     if not upper or R2 >= r:
+        if p == 0:
+            v0 = (lin * S[0] + l4 * U[1]) + l5 * U[2]
+        else:
+            v0 = l4 * U[1] + l5 * U[2]
         A[ur, _U(bw + R2 - r)] += v0
     if not upper or R2 + 1 >= r:
+        if p == 1:
+            v1 = (lin * S[1] + l3 * U[3]) + l5 * U[5]
+        else:
+            v1 = l3 * U[3] + l5 * U[5]
         A[ur, _U(bw + R2 + 1 - r)] += v1
     if not upper or R2 + 2 >= r:
+        if p == 2:
+            v2 = (lin * S[2] + l3 * U[6]) + l4 * U[7]
+        else:
+            v2 = l3 * U[6] + l4 * U[7]
         A[ur, _U(bw + R2 + 2 - r)] += v2
     if not upper or R2 + 3 >= r:
-        A[ur, _U(bw + R2 + 3 - r)] += v3
+        A[ur, _U(bw + R2 + 3 - r)] += l3 * U[9] + l4 * U[10] + l5 * U[11]
     if not upper or R2 + 4 >= r:
-        A[ur, _U(bw + R2 + 4 - r)] += v4
+        A[ur, _U(bw + R2 + 4 - r)] += l3 * U[12] + l4 * U[13] + l5 * U[14]
 
 
 @njit(forceinline=True)
@@ -195,9 +195,12 @@ def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
     joint pair by joint pair, without the products by the exact zeros of POINT and DOT rows
     (a POINT row's translation entries off its component and its rotation entry at it, a
     DOT row's translation entries), the other products summed in the same order, the bodies
-    in the same order: the same floats."""
+    in the same order: the same floats. With ``upper`` the columns below the diagonal
+    (A[r, c], c < bw) are neither cleared nor written: the L D L^T and its solves do not read
+    them."""
+    c0 = bw if upper else 0
     for r in range(A.shape[0]):
-        for c in range(A.shape[1]):
+        for c in range(c0, A.shape[1]):
             A[_U(r), _U(c)] = 0.0
     for i in range(jptr.shape[0] - 1):
         ui = _U(i)
@@ -339,3 +342,47 @@ def _r5_forces(rint, Jc, lam, F, T):
             T[ub, 0] -= Jc[r4, 9] * l4
             T[ub, 1] -= Jc[r4, 10] * l4
             T[ub, 2] -= Jc[r4, 11] * l4
+
+
+@njit(forceinline=True)
+def _r5_vres(rint, Jc, vel, om, out):
+    """``_kernels._vres`` (G u: the rows' rates at the velocities vel and world angular
+    velocities om, per body) for revolute joints (:func:`_is_revolute5`), without the
+    products by the exact zeros of the rows (a POINT row's translation entries off its
+    component and rotation entry at it, a DOT row's translation entries); the other terms
+    summed in the same order."""
+    for k0 in range(rint.shape[0] // JB):
+        r = _U(JB * k0)
+        r1 = _U(JB * k0 + 1)
+        r2 = _U(JB * k0 + 2)
+        r3 = _U(JB * k0 + 3)
+        r4 = _U(JB * k0 + 4)
+        a = _U(rint[r, 1])
+        b = rint[r, 2]
+        v0, v1, v2 = vel[a, 0], vel[a, 1], vel[a, 2]
+        w0, w1, w2 = om[a, 0], om[a, 1], om[a, 2]
+        s0 = Jc[r, 0] * v0
+        s0 += Jc[r, 4] * w1 + Jc[r, 5] * w2
+        s1 = Jc[r1, 1] * v1
+        s1 += Jc[r1, 3] * w0 + Jc[r1, 5] * w2
+        s2 = Jc[r2, 2] * v2
+        s2 += Jc[r2, 3] * w0 + Jc[r2, 4] * w1
+        s3 = Jc[r3, 3] * w0 + Jc[r3, 4] * w1 + Jc[r3, 5] * w2
+        s4 = Jc[r4, 3] * w0 + Jc[r4, 4] * w1 + Jc[r4, 5] * w2
+        if b >= 0:
+            ub = _U(b)
+            v0, v1, v2 = vel[ub, 0], vel[ub, 1], vel[ub, 2]
+            w0, w1, w2 = om[ub, 0], om[ub, 1], om[ub, 2]
+            s0 += Jc[r, 6] * v0
+            s0 += Jc[r, 10] * w1 + Jc[r, 11] * w2
+            s1 += Jc[r1, 7] * v1
+            s1 += Jc[r1, 9] * w0 + Jc[r1, 11] * w2
+            s2 += Jc[r2, 8] * v2
+            s2 += Jc[r2, 9] * w0 + Jc[r2, 10] * w1
+            s3 += Jc[r3, 9] * w0 + Jc[r3, 10] * w1 + Jc[r3, 11] * w2
+            s4 += Jc[r4, 9] * w0 + Jc[r4, 10] * w1 + Jc[r4, 11] * w2
+        out[r] = s0
+        out[r1] = s1
+        out[r2] = s2
+        out[r3] = s3
+        out[r4] = s4

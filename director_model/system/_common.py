@@ -33,9 +33,30 @@ SOLVE_TOL = 1e-14
 #: so over the band (<= 2 bw + 1 of them) at most ~2 bw eps with bw ~ 10..50, ~1e-14; rows
 #: below DROP_TOL = 1e-12 (a factor 100 over that) are dropped. A ratio between DROP_TOL and
 #: PIVOT_CHECK (an angle below 1e-4 rad: near a singular configuration, where rank and null
-#: space are no longer plain to see) sends the matrix to the SVD instead
+#: space are no longer plain to see) sends the matrix to the SVD instead, except where the
+#: envelope is block tridiagonal in 5-row joints (_band5.py: a single loop, the four-bar,
+#: Bricard's linkage): there the velocity stage's symmetric matrix keeps its L D L^T where its
+#: singular values (_sigma.py, without the vectors) show the nominal rank, the rank the
+#: factorisation kept (the minimum-norm SVD solve would keep every direction it keeps: the
+#: same joint forces), and sigma_rank_nominal / sigma_1 >= SIGMA_LDL, and the Newton
+#: matrix's LU, which needs no rank decision beyond its row pattern (the velocity stage's),
+#: is used as it is; a kept pivot below PIVOT_FLOOR of the largest diagonal entry (two
+#: orders above the SVD's SOLVE_TOL: the four-bar's smallest relative singular value is about
+#: 1/16 of its smallest pivot ratio) sends either matrix to the SVD. Below SIGMA_LDL rounding,
+#: amplified by the inverse singular value, reaches the energy (IFToMM A02, two four-bars at
+#: dt 1e-3: landings within 1e-13 .. 1e-12 of sigma_1 jump by up to 1.8e-11 J, within
+#: 1e-12 .. 1e-11 by at most 2.8e-13 J). On A02 (two loops, not block tridiagonal) the
+#: singular values' check moved the energy jumps of its landings within 1e-13 of sigma_1 to
+#: 1.1e-11 .. 1.8e-11 J (three variants) against 6.1e-12 J with the SVD, across the bound of
+#: tests/director_model/test_director_system_singular_passage.py: rounding either way, but
+#: not shown to be no worse there, so it keeps the SVD. On the four-bar (rattle, 2000 steps
+#: through three collinear passages) the pivot ratios below PIVOT_CHECK were 1e-11 .. 9e-9,
+#: the singular values 1.2e-11 .. 2e-9 of sigma_1: 14 SVDs (about 60 us each in the step)
+#: became 5 eigenvalue computations
 DROP_TOL = 1e-10
 PIVOT_CHECK = 1e-8
+PIVOT_FLOOR = 1e-12
+SIGMA_LDL = 1e-12
 #: ``minnorm`` modes of the kernel: 0 block or banded, 1 banded rank-revealing with the SVD
 #: where a pivot ratio drops, 2 the SVD at every solve (the ``svd`` solver, kept to compare)
 MODE_PIVOTED = 1
@@ -89,7 +110,7 @@ D_RANKDROP = 1  # steps whose velocity-stage matrix lost rank below the nominal 
 D_SMIN = 2  # smallest sigma_{rank_nominal} / sigma_1 of that matrix (minnorm solver)
 D_TSMIN = 3  # step index where it occurred
 D_MAXIT = 4  # largest iteration count of one substep
-D_SVD = 5  # factorisations done by SVD (loop solver: a pivot ratio below PIVOT_CHECK)
+D_SVD = 5  # factorisations done by SVD (loop solver: see PIVOT_CHECK)
 D_SPLIT = 6  # steps done again as more steps of a fraction of dt (loop solver, MAXSPLIT)
 D_KEPT = 7  # steps kept as they came after MAXSPLIT splits, each with such a landing
 NDIAG = 8

@@ -6,7 +6,8 @@ compiles in is in modules each importing only from those listed before it: ``_bl
 joint blocks), ``_common.py`` (constants, status codes, diagnostics slots, 3x3 algebra),
 ``_rows.py`` (the joint rows, forces and rates of every joint kind; force elements),
 ``_solvers.py`` (the multiplier matrices: start value, assembly, factorisations) and
-``_bodies.py`` (the per-body work: DMV, responses, state update); and in
+``_bodies.py`` (the per-body work: DMV, responses, state update), ``_sigma.py`` (the
+velocity stage's singular values without vectors, near singular configurations); and in
 director_model/_primitives.py (the compensated sum, the attitude quaternion's rotation),
 shared with the single-body kernels. Its disk cache is tied to those files (:data:`SOURCES`,
 director_model/_cache.py).
@@ -95,6 +96,7 @@ from director_model.system._band5 import (
     _r5_assemble,
     _r5_forces,
     _r5_rows,
+    _r5_vres,
 )
 from director_model.system._block3 import _forces3, _rows3, _sym_factor, _sym_solve, _vres3
 from director_model.system._bodies import (
@@ -131,6 +133,9 @@ from director_model.system._common import (
     NDIAG,
     NS,
     OK,
+    PIVOT_CHECK,
+    PIVOT_FLOOR,
+    SIGMA_LDL,
     SOLVE_TOL,
     STATUS_TEXT,
     _fail,
@@ -144,6 +149,7 @@ from director_model.system._common import (
     _zero2,
 )
 from director_model.system._rows import _ext, _forces, _rows, _vres
+from director_model.system._sigma import _sym_sigma
 from director_model.system._solvers import (
     _assemble,
     _band_ldl,
@@ -197,6 +203,7 @@ SOURCES = (
     _HERE / "_rows.py",
     _HERE / "_solvers.py",
     _HERE / "_bodies.py",
+    _HERE / "_sigma.py",
 )
 
 
@@ -299,6 +306,9 @@ def _run_system(
     # (_band5.py), and for revolute joints the rows, forces and assembly too
     b5 = minnorm == MODE_PIVOTED and _is_band5(ext, nrow)
     r5 = b5 and _is_revolute5(rint, nrow)
+    # the factorisations' pivot floor: PIVOT_FLOOR with the singular values' check on such a
+    # loop, PIVOT_CHECK (the SVD below it) on the others (see PIVOT_CHECK)
+    pfl = PIVOT_FLOOR if b5 else PIVOT_CHECK
     d0 = np.zeros(nr)
     pb = np.zeros(2)
     ns = coef.shape[0]
@@ -356,7 +366,7 @@ def _run_system(
                 # the SVD): that of the velocity stage's matrix at q_n
                 _inv_inertia(B, Dn, Mx, Mth)
                 _assemble(ptr, idx, side, Jold, Jold, Mx, Mth, Ab, yes, bw, yes)
-                st = _band_ldl_rr(Ab, bw, ext, kn, d0, pb)
+                st = _band_ldl_rr(Ab, bw, ext, kn, d0, pb, pfl)
                 if st < 0:
                     _fail(info, n, h)
                     return FAIL_SVD
@@ -460,7 +470,7 @@ def _run_system(
                                 _r5_assemble(jptr, jidx, jside, Jnew, Jold, Mx, Mth, Ab, bw, no)
                             else:
                                 _assemble(ptr, idx, side, Jnew, Jold, Mx, Mth, Ab, yes, bw, no)
-                            st = _band_lu_rr(Ab, bw, ext, kn, pb)
+                            st = _band_lu_rr(Ab, bw, ext, kn, pb, pfl)
                             if st < 0:
                                 _fail(info, n, h)
                                 return FAIL_SVD
@@ -515,16 +525,35 @@ def _run_system(
             if nrow > 0:
                 if minnorm:
                     vsvd = minnorm == MODE_SVD
+                    vsig = False
                     if not vsvd:
                         if r5:
                             _r5_assemble(jptr, jidx, jside, Jnew, Jnew, Mx, Mth, Ab, bw, yes)
                         else:
                             _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ab, yes, bw, yes)
-                        st = _band_ldl_rr(Ab, bw, ext, kv, d0, pb)
+                        st = _band_ldl_rr(Ab, bw, ext, kv, d0, pb, pfl)
                         if st < 0:
                             _fail(info, n, h)
                             return FAIL_SVD
                         vsvd = st > 0
+                        if not vsvd and b5 and pb[0] < PIVOT_CHECK:
+                            # near a singular configuration: the factorisation stands where the
+                            # singular values show the rank it kept, the nominal one (see
+                            # PIVOT_CHECK)
+                            _assemble(ptr, idx, side, Jnew, Jnew, Mx, Mth, Ad, no, bw, no)
+                            if _sym_sigma(Ad, sv) < 0:
+                                _fail(info, n, h)
+                                return FAIL_SVD
+                            srank = 0
+                            for k in range(nd):
+                                if sv[k] > SOLVE_TOL * sv[0]:
+                                    srank += 1
+                            vsvd = (
+                                srank != rank_nom
+                                or srank != int(pb[1])
+                                or not sv[rank_nom - 1] >= SIGMA_LDL * sv[0]
+                            )
+                            vsig = True
                         # the pattern of the next sub-step's Newton matrix (at this q_{n+1})
                         havepat = not vsvd
                         for r in range(nrow):
@@ -536,6 +565,13 @@ def _run_system(
                         if rank < 0:
                             _fail(info, n, h)
                             return FAIL_SVD
+                        nrank = 0
+                        for k in range(nd):
+                            if sv[k] > rank_tol * sv[0]:
+                                nrank += 1
+                        rel = sv[rank_nom - 1] / sv[0] if rank_nom > 0 and sv[0] > 0.0 else 1.0
+                    elif vsig:
+                        # the singular values, from _sym_sigma
                         nrank = 0
                         for k in range(nd):
                             if sv[k] > rank_tol * sv[0]:
@@ -600,7 +636,9 @@ def _run_system(
                 else:
                     vel, om = VH, TW
                 if nrow > 0:
-                    if banded or minnorm:
+                    if r5:
+                        _r5_vres(rint, Jnew, vel, om, r0)
+                    elif banded or minnorm:
                         _vres(rint, Jnew, vel, om, r0)
                     else:
                         _vres3(rint, Jnew, vel, om, r0)

@@ -17,7 +17,6 @@ from numba.np.linalg import _LAPACK, ensure_lapack
 from director_model.system._block3 import _U, _hat_blk, _mm_z, _mmt_z
 from director_model.system._common import (
     DROP_TOL,
-    PIVOT_CHECK,
     _inv3,
     _mm,
     _mul,
@@ -229,12 +228,12 @@ def _envelope(ptr, idx, n, ext):
 
 
 @njit(forceinline=True)
-def _band_lu_rr(A, bw, ext, keep, out):
+def _band_lu_rr(A, bw, ext, keep, out, pchk):
     """In-place LU without pivoting of the banded A (n, 2 bw + 1), A[r, bw + s - r], within
     the envelope ``ext`` (:func:`_envelope`), in the row order, over the rows with keep[k] = 1
     (the others dropped: their unknowns 0, their equations taken as consistent; the pattern
     of the velocity stage's :func:`_band_ldl_rr` at the sub-step's start). Returns 1 where a
-    kept pivot |u_kk| falls below PIVOT_CHECK times the largest diagonal entry (near a
+    kept pivot |u_kk| falls below ``pchk`` times the largest diagonal entry (near a
     singular configuration: the caller decomposes by SVD instead), -1 on a non-finite entry,
     else 0; out[0] = the smallest kept pivot over that entry, out[1] = the rows kept.
     Indices unsigned (:data:`_U`)."""
@@ -259,7 +258,7 @@ def _band_lu_rr(A, bw, ext, keep, out):
                 A[_U(i), _U(bw + k - i)] = 0.0
             continue
         piv = A[uk, _U(bw)]
-        if not abs(piv) >= PIVOT_CHECK * dmax:
+        if not abs(piv) >= pchk * dmax:
             return 1
         rmin = min(rmin, abs(piv) / dmax)
         nk += 1
@@ -299,7 +298,7 @@ def _band_solve_rr(A, bw, ext, keep, b, x):
 
 
 @njit(forceinline=True)
-def _band_ldl_rr(A, bw, ext, keep, d0, out):
+def _band_ldl_rr(A, bw, ext, keep, d0, out, pchk):
     """In-place L D L^T of the symmetric positive semi-definite banded A (upper band stored,
     as :func:`_band_ldl`) within the envelope ``ext``, in the row order, rank-revealing: a
     row whose pivot d_k is at most DROP_TOL times its diagonal entry a_kk before elimination
@@ -307,7 +306,7 @@ def _band_ldl_rr(A, bw, ext, keep, d0, out):
     it, metric M^-1) is dependent on those rows, a redundant joint row, and is dropped
     (keep[k] = 0, its L column 0; for a positive semi-definite A its whole remaining row is
     negligible too, |s_kj| <= sqrt(s_kk s_jj)); the others are kept (keep[k] = 1). Returns 1
-    where a kept pivot falls below PIVOT_CHECK times the largest diagonal entry (near a
+    where a kept pivot falls below ``pchk`` times the largest diagonal entry (near a
     singular configuration: the caller decomposes by SVD instead), -1 on a non-finite entry,
     else 0; out as :func:`_band_lu_rr`. ``d0`` (n,) is work space. Indices unsigned
     (:data:`_U`)."""
@@ -333,7 +332,7 @@ def _band_ldl_rr(A, bw, ext, keep, d0, out):
             for i in range(k + 1, e):
                 A[uk, _U(bw + i - k)] = 0.0
             continue
-        if d < PIVOT_CHECK * dmax:
+        if d < pchk * dmax:
             return 1
         rmin = min(rmin, d / dmax)
         keep[uk] = 1

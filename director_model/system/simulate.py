@@ -71,9 +71,11 @@ class SystemTrajectory:
     (RATTLE sub-steps at which the velocity-stage matrix had a numerical rank, singular
     values above RANK_TOL sigma_1, below the nominal rank: a singular configuration),
     ``min_singular_value``
-    (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps where it was
-    decomposed by SVD; on the others, the loop solver's smallest kept pivot over the largest
-    diagonal entry, at least PIVOT_CHECK = 1e-8; NaN for the banded and block solvers,
+    (smallest sigma_rank_nominal / sigma_1 of that matrix over the steps where its singular
+    values were computed: by the SVD, or without vectors where the loop solver's L D L^T
+    kept a pivot below PIVOT_CHECK = 1e-8 of the largest diagonal entry on a single loop of
+    5-row joints; on the others, the loop solver's smallest kept pivot over that entry, at
+    least PIVOT_CHECK; NaN for the banded and block solvers,
     which do not compute it),
     ``min_singular_step`` (the absolute step index where it occurred; -1 for the banded
     solver), ``svd_factorisations`` (multiplier matrices decomposed by SVD: every one with
@@ -195,7 +197,12 @@ class SystemStepper:
         minimum-norm solution); where a kept pivot falls below PIVOT_CHECK = 1e-8 of the
         largest diagonal entry (near a singular configuration) the matrix goes to the SVD
         and the minimum-norm solution instead (the singularity diagnostics of
-        :class:`SystemTrajectory` then come from it); cost linear in the number of rows for
+        :class:`SystemTrajectory` then come from it), except on a single loop of 5-row
+        joints (the four-bar, Bricard's linkage): there the velocity stage's singular values
+        are computed without vectors (the diagnostics come from them) and its L D L^T
+        stands where they show the nominal rank, the one it kept, and sigma_rank /
+        sigma_1 >= 1e-12, and the Newton matrix's LU stands down to pivots of 1e-12; cost
+        linear in the number of rows for
         loops of bounded size. "svd": the SVD at every solve, with the minimum-norm
         multipliers (kept to compare; about 10x the cost of "minnorm" on the four-bar).
 

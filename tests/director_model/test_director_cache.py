@@ -26,6 +26,7 @@ _SYSTEM = (
     "system/_rows.py",
     "system/_solvers.py",
     "system/_bodies.py",
+    "system/_sigma.py",
 )
 #: each kernel module and the files (in director_model/) its cache is tied to besides its own:
 #: the primitives, and the kernel modules whose code it compiles in (the system kernel's

@@ -1,11 +1,13 @@
 """The loop solver of director_model.system ("minnorm": banded LU and L D L^T in the row
-order that drop the rows dependent on the rows before them and hand the matrix to the SVD
-where a kept pivot falls below PIVOT_CHECK) against numpy and against the SVD solver ("svd").
+order that drop the rows dependent on the rows before them; where a kept pivot falls below
+PIVOT_CHECK the SVD, or on a single loop of 5-row joints first the velocity stage's singular
+values) against numpy and against the SVD solver ("svd").
 
 - On random matrices G W G^T and G1 W G0^T whose dependent rows are known (redundant rows at
   the end and in the middle), the factorisations drop exactly those rows, their basic
   solutions solve every consistent system to round-off and give the joint forces G^T x of the
-  minimum-norm solution (numpy.linalg.lstsq); a nearly dependent row is sent to the SVD;
+  minimum-norm solution (numpy.linalg.lstsq); a nearly dependent row is reported (the
+  kernel then asks the singular values, computed without vectors as numpy's SVD gives them);
 - the joints are factorised in an order that keeps the rows sharing a body close (the
   four-bar listed A0, B0, A1, B1 is solved as A0, A1, B1, B0), and the motion does not depend
   on the order the joints are listed in;
@@ -60,7 +62,7 @@ def test_band_ldl_drops_the_dependent_rows(seed, dep):
     Ab, bw, ext = _band(A, upper=True)
     keep = np.zeros(N, dtype=np.int64)
     out = np.zeros(2)
-    assert SV._band_ldl_rr(Ab, bw, ext, keep, np.zeros(N), out) == 0
+    assert SV._band_ldl_rr(Ab, bw, ext, keep, np.zeros(N), out, C.PIVOT_CHECK) == 0
     assert [k for k in range(N) if not keep[k]] == list(dep) and out[1] == N - len(dep)
     assert out[0] >= C.PIVOT_CHECK
     x = np.zeros(N)
@@ -81,7 +83,7 @@ def test_band_lu_solves_over_the_kept_rows(seed, dep):
     keep = np.ones(N, dtype=np.int64)
     keep[list(dep)] = 0
     out = np.zeros(2)
-    assert SV._band_lu_rr(Ab, bw, ext, keep, out) == 0 and out[1] == N - len(dep)
+    assert SV._band_lu_rr(Ab, bw, ext, keep, out, C.PIVOT_CHECK) == 0 and out[1] == N - len(dep)
     x = np.zeros(N)
     SV._band_solve_rr(Ab, bw, ext, keep, b, x)
     assert np.all(x[list(dep)] == 0.0)
@@ -89,19 +91,57 @@ def test_band_lu_solves_over_the_kept_rows(seed, dep):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_a_nearly_dependent_row_goes_to_the_svd(seed):
+def test_a_nearly_dependent_row_is_reported(seed):
     # row 12 dependent up to 1e-4 of a row's size: pivot ratio ~1e-9 of its diagonal entry
-    # and of the largest, above DROP_TOL and below PIVOT_CHECK: neither kept nor dropped
+    # and of the largest, above DROP_TOL and below PIVOT_CHECK: kept, and reported
     rng = np.random.default_rng(seed)
     A, b, G = _problem(rng, (12,), near=1e-4)
-    Ab, bw, ext = _band(A, upper=True)
-    assert SV._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == 1
-    Ab, bw, ext = _band(A, upper=False)
-    assert SV._band_lu_rr(Ab, bw, ext, np.ones(N, dtype=np.int64), np.zeros(2)) == 1
+    z = np.zeros(N, dtype=np.int64)
+    for upper in (True, False):
+        Ab, bw, ext = _band(A, upper=upper)
+        if upper:
+            assert SV._band_ldl_rr(Ab, bw, ext, z, np.zeros(N), np.zeros(2), C.PIVOT_CHECK) == 1
+        else:
+            assert SV._band_lu_rr(Ab, bw, ext, z + 1, np.zeros(2), C.PIVOT_CHECK) == 1
+        # above PIVOT_FLOOR the factorisation is completed, its smallest pivot ratio in out[0]
+        Ab, bw, ext = _band(A, upper=upper)
+        out = np.zeros(2)
+        keep = z + (0 if upper else 1)
+        if upper:
+            assert SV._band_ldl_rr(Ab, bw, ext, keep, np.zeros(N), out, C.PIVOT_FLOOR) == 0
+            x = np.zeros(N)
+            SV._band_ldl_solve_rr(Ab, bw, ext, keep, b, x)
+        else:
+            assert SV._band_lu_rr(Ab, bw, ext, keep, out, C.PIVOT_FLOOR) == 0
+            x = np.zeros(N)
+            SV._band_solve_rr(Ab, bw, ext, keep, b, x)
+        assert C.PIVOT_FLOOR <= out[0] < C.PIVOT_CHECK and out[1] == N
+        # still a solution, to the rounding the small pivot amplifies (1e-9: 1e-16 / 1e-9)
+        assert np.max(np.abs(A @ x - b)) < 1e-6 * np.max(np.abs(b))
     # a non-finite entry is refused
     A[3, 7] = np.nan
     Ab, bw, ext = _band(A, upper=True)
-    assert SV._band_ldl_rr(Ab, bw, ext, np.zeros(N, dtype=np.int64), np.zeros(N), np.zeros(2)) == -1
+    assert SV._band_ldl_rr(Ab, bw, ext, z, np.zeros(N), np.zeros(2), C.PIVOT_FLOOR) == -1
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("dep", [(), (17, 18, 19), (4, 11, 19)])
+def test_symmetric_singular_values_are_numpys(seed, dep):
+    # the singular values without vectors (_sigma._sym_sigma: |eigenvalues| of the symmetric
+    # matrix, dsyevd) against numpy's SVD (dgesdd): both backward stable, so they agree to a
+    # few eps sigma_1 (bound 64 eps sigma_1), the redundant rows' zeros included
+    from director_model.system._sigma import _sym_sigma
+
+    rng = np.random.default_rng(seed)
+    A, b, G = _problem(rng, dep)
+    ref = np.linalg.svd(A, compute_uv=False)
+    s = np.zeros(N)
+    assert _sym_sigma(A.copy(), s) == 0
+    assert np.all(np.diff(s) <= 0.0)
+    assert np.max(np.abs(s - ref)) < 64 * np.finfo(float).eps * ref[0]
+    assert np.sum(s > C.SOLVE_TOL * s[0]) == N - len(dep)
+    A[2, 5] = np.inf
+    assert _sym_sigma(A, s) == -1
 
 
 def _system(name):
@@ -123,9 +163,14 @@ def test_pivoted_and_svd_solvers_agree(name, t_end):
     assert np.max(np.abs(a.position - b.position)) < 1e-10
     assert np.max(np.abs(a.rotation - b.rotation)) < 1e-10
     assert a.rank_nominal == b.rank_nominal
-    if name == "four_bar":  # the collinear passage: both see the rank drop, from the SVD
+    if name == "four_bar":  # the collinear passage: both see the rank drop, from the
+        # singular values (minnorm: without their vectors where the rank they show is the
+        # one the factorisations kept and sigma_17 / sigma_1 >= SIGMA_LDL; one landing here,
+        # at 6.6e-13, goes to the SVD; with the SVD wherever a pivot ratio is below
+        # PIVOT_CHECK: 5)
         assert a.rank_drop_steps >= 2 and b.rank_drop_steps >= 2
         assert a.min_singular_value < 1e-10 and b.min_singular_value < 1e-10
+        assert a.svd_factorisations <= 1 < b.svd_factorisations
     else:
         assert a.rank_drop_steps == b.rank_drop_steps == 0
 
