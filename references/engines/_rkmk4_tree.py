@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from director_model import _cache
 from references.engines import _rkmk4 as _rkmk4_module
 from references.engines._rkmk4 import (
     FORWARD,
@@ -168,8 +167,27 @@ def finish(J, y, u, zy, K, h, a):
     return OK
 
 
+_tied = False
+
+
+def _tie() -> None:
+    """numba keys a function's disk cache on its own file only: the stage arithmetic compiled
+    in from _rkmk4.py (the quaternion exponential, dexp^-1, rotations) would stay stale after
+    an edit there, so director_model._cache.tie adds that file's content to the key. Done at
+    the first warm-up (importing director_model for it costs ~0.35 s, which a module import
+    of a DART builder should not pay)."""
+    global _tied
+    if not _tied:
+        from director_model import _cache
+
+        _cache.tie(globals(), Path(_rkmk4_module.__file__))
+        _tied = True
+
+
 def warm_up() -> None:
-    """Compile (or load from numba's cache) every function once, outside any timed region."""
+    """Compile (or load from numba's cache) every function once, outside any timed region;
+    its cache keyed on _rkmk4.py too (:func:`_tie`)."""
+    _tie()
     J = np.array([[FREE, 0, 0, 6, 0], [BALL, 7, 6, 3, 6], [VECTOR, 11, 9, 1, 9]], np.int64)
     y, u = np.zeros(12), np.zeros(10)
     y[0] = y[7] = 1.0
@@ -179,9 +197,3 @@ def warm_up() -> None:
         stage(i, J, y, u, zy, zu, K, 1e-3, a, pos, vel)
     finish(J, y, u, zy, K, 1e-3, a)
     quat_of_rotvec(np.zeros(3), np.zeros(4))
-
-
-# numba keys a function's disk cache on its own file only: the stage arithmetic compiled in from
-# _rkmk4.py (the quaternion exponential, dexp^-1, rotations) would stay stale after an edit
-# there; director_model._cache.tie adds that file's content to the key
-_cache.tie(globals(), Path(_rkmk4_module.__file__))

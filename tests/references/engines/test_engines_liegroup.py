@@ -202,6 +202,7 @@ def test_the_compiled_tree_rkmk4_is_the_readable_one_on_a_product_group():
     from references.engines import _rkmk4_tree as tree
     from references.engines.liegroup import rkmk4_step, so3_right_jacobian_inverse
 
+    tree.warm_up()  # its cache tied to _rkmk4.py first, as the builder does
     rng = np.random.default_rng(3)
     M = rng.normal(size=(10, 20)) * 0.3
 
@@ -272,6 +273,7 @@ def test_the_tree_kernels_cache_is_keyed_on_the_stage_arithmetic_it_compiles_in(
     from director_model import _cache
     from references.engines import _rkmk4, _rkmk4_tree
 
+    _rkmk4_tree.warm_up()  # ties them (the first warm-up of a process)
     want = _cache.digest([Path(_rkmk4.__file__)])
     for fn in (_rkmk4_tree.stage, _rkmk4_tree.finish, _rkmk4_tree.pack, _rkmk4_tree.unpack):
         assert fn._cache._cache_file._source_stamp[1] == want
