@@ -2,7 +2,7 @@
 five rows each (revolute and prismatic joints) and each joint's rows share a body with the
 next joint's only: the multiplier matrix is block tridiagonal in joint blocks (a single loop
 closed through the ground, joints listed along it by model.band_order: the four-bar,
-Bricard's linkage; a chain of such joints). ``_kernels._envelope`` then gives every row of
+Bricard's linkage; a chain of such joints). ``_solvers._envelope`` then gives every row of
 joint k the envelope end of joint k + 1's rows, and the loops here run over the blocks with
 trip counts that are constants of the block (the general solves read each row's end from the
 envelope array). For revolute joints (three POINT rows, two DOT rows) the assembly of
@@ -14,8 +14,8 @@ the velocity stage's symmetric matrix is computed in its upper triangle only, a 
 block included.
 
 Each unknown receives the same subtractions in the same order as in the general solves
-(``_kernels._band_solve_rr``, ``_kernels._band_ldl_solve_rr``), each matrix entry the same
-products summed in the same order as in ``_kernels._assemble`` less those with a factor 0
+(``_solvers._band_solve_rr``, ``_solvers._band_ldl_solve_rr``), each matrix entry the same
+products summed in the same order as in ``_solvers._assemble`` less those with a factor 0
 (x + 0 * y = x for finite x; only the sign of a zero could differ): the results are bit for
 bit theirs (tests/director_model/test_director_system_band5.py). Measured on the four-bar's
 20 x 20 matrices at step 1000 (thread CPU time, best of 5 x 20000 calls, /tmp scripts):
@@ -37,7 +37,7 @@ JB = 5
 
 @njit(forceinline=True)
 def _is_band5(ext, n):
-    """Whether the envelope ``ext`` (``_kernels._envelope``) of an n-row matrix is block
+    """Whether the envelope ``ext`` (``_solvers._envelope``) of an n-row matrix is block
     tridiagonal in blocks of JB rows (row r's end: the last row of the next block)."""
     if n == 0 or n % JB != 0:
         return False
@@ -49,7 +49,7 @@ def _is_band5(ext, n):
 
 @njit(forceinline=True)
 def _b5_solve_rr(A, bw, keep, b, x):
-    """``_kernels._band_solve_rr`` (the basic solution from ``_band_lu_rr``'s factors) on a
+    """``_solvers._band_solve_rr`` (the basic solution from ``_band_lu_rr``'s factors) on a
     block tridiagonal envelope (:func:`_is_band5`)."""
     n = A.shape[0]
     nbk = n // JB
@@ -84,7 +84,7 @@ def _b5_solve_rr(A, bw, keep, b, x):
 
 @njit(forceinline=True)
 def _b5_ldl_solve_rr(A, bw, keep, b, x):
-    """``_kernels._band_ldl_solve_rr`` (the basic solution from ``_band_ldl_rr``'s factors,
+    """``_solvers._band_ldl_solve_rr`` (the basic solution from ``_band_ldl_rr``'s factors,
     upper band stored) on a block tridiagonal envelope (:func:`_is_band5`)."""
     n = A.shape[0]
     nbk = n // JB
@@ -133,7 +133,7 @@ def _is_revolute5(rint, n):
 def _r5_l(JL, r, o, mx, M, p):
     """Row r (component p of a revolute joint) of JL blockdiag(mx 1, M) on the side at column
     o: (its translation entry, at column p if p < 3, else 0; its rotation entries) as
-    ``_kernels._assemble`` computes them, without the terms with a factor 0 (the
+    ``_solvers._assemble`` computes them, without the terms with a factor 0 (the
     translation entries off p, a POINT row's rotation entry p)."""
     if p < 3:
         lin = JL[_U(r), _U(o + p)] * mx
@@ -160,7 +160,7 @@ def _r5_l(JL, r, o, mx, M, p):
 def _r5_add(A, bw, r, R2, upper, p, lv, S, U):
     """A[r, s] += the products of the row lv (:func:`_r5_l`, component p) with the rows
     s = R2 .. R2 + 4 of a revolute joint (translation entries S (3,), rotation entries U
-    (15,)), each summed in the order of ``_kernels._assemble`` without its zero terms (only
+    (15,)), each summed in the order of ``_solvers._assemble`` without its zero terms (only
     s >= r, and only those computed, if ``upper``: a joint's own block is symmetric)."""
     lin, l3, l4, l5 = lv
     ur = _U(r)
@@ -190,7 +190,7 @@ def _r5_add(A, bw, r, R2, upper, p, lv, S, U):
 
 @njit(forceinline=True)
 def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
-    """``_kernels._assemble`` (banded) for revolute joints (:func:`_is_revolute5`; joint k
+    """``_solvers._assemble`` (banded) for revolute joints (:func:`_is_revolute5`; joint k
     has the rows 5k .. 5k + 4, ``jptr``, ``jidx``, ``jside`` the joints touching each body):
     joint pair by joint pair, without the products by the exact zeros of POINT and DOT rows
     (a POINT row's translation entries off its component and its rotation entry at it, a
@@ -245,11 +245,11 @@ def _r5_assemble(jptr, jidx, jside, JL, JR, Mx, Mth, A, bw, upper):
 
 @njit(forceinline=True)
 def _r5_rows(rint, rvec, X, D, gv, Jc):
-    """The row values gv and Jacobians Jc of ``_kernels._rows`` for revolute joints
+    """The row values gv and Jacobians Jc of ``_rows._rows`` for revolute joints
     (:func:`_is_revolute5`, joint k in rows 5k .. 5k + 4): the lever arms and the axis once per
     joint (the three POINT rows share their anchors, the two DOT rows their axis in a), only
     the nonzero entries of Jc written (the others stay 0: where the kernel uses this, nothing
-    else writes Jc), each with the operations of ``_kernels._rows``."""
+    else writes Jc), each with the operations of ``_rows._rows``."""
     for k0 in range(rint.shape[0] // JB):
         r = _U(JB * k0)
         r1 = _U(JB * k0 + 1)
@@ -293,7 +293,7 @@ def _r5_rows(rint, rvec, X, D, gv, Jc):
 
 @njit(forceinline=True)
 def _r5_forces(rint, Jc, lam, F, T):
-    """``_kernels._forces`` (the joint forces -G^T lam: F force, T world torque per body) for
+    """``_rows._forces`` (the joint forces -G^T lam: F force, T world torque per body) for
     revolute joints (:func:`_is_revolute5`), without the products by the exact zeros of the
     rows; each entry's terms in the same order."""
     for i in range(F.shape[0]):
@@ -346,7 +346,7 @@ def _r5_forces(rint, Jc, lam, F, T):
 
 @njit(forceinline=True)
 def _r5_vres(rint, Jc, vel, om, out):
-    """``_kernels._vres`` (G u: the rows' rates at the velocities vel and world angular
+    """``_rows._vres`` (G u: the rows' rates at the velocities vel and world angular
     velocities om, per body) for revolute joints (:func:`_is_revolute5`), without the
     products by the exact zeros of the rows (a POINT row's translation entries off its
     component and rotation entry at it, a DOT row's translation entries); the other terms

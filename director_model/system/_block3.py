@@ -1,7 +1,7 @@
 """Kernels of the block solver's joints: three POINT rows each (spherical and fixed-point
 joints; model.assemble's ``block3``), rows 3k .. 3k + 2 the components 0, 1, 2 of joint k.
 
-The general code of director_model/system/_kernels.py reads each row's 12 Jacobian entries,
+The general code of director_model/system/_rows.py reads each row's 12 Jacobian entries,
 of which a POINT row has 6 exact zeros and two entries +-1, and computes the lever arms
 once per row. The functions here compute the lever arms once per joint and leave out the
 terms with a factor 0 and the factors 1 (a 3x3 rotation block of a joint is a cross-product
@@ -36,7 +36,7 @@ _U = np.uint64
 def _point3(r, r1, r2, X, a, ra0, ra1, ra2, xb0, xb1, xb2, rb0, rb1, rb2, gv, Jc):
     """One joint's three POINT rows r, r1, r2: the gap between a's anchor (centre X[a] plus
     lever arm ra) and b's (xb plus rb; the ground's: xb 0), and the nonzero entries of Jc,
-    each with the operations of ``_kernels._rows`` (shared by :func:`_rows3` and the revolute
+    each with the operations of ``_rows._rows`` (shared by :func:`_rows3` and the revolute
     joint blocks of ``_band5``)."""
     gv[r] = (X[a, 0] + ra0) - (xb0 + rb0)
     gv[r1] = (X[a, 1] + ra1) - (xb1 + rb1)
@@ -64,7 +64,7 @@ def _point3(r, r1, r2, X, a, ra0, ra1, ra2, xb0, xb1, xb2, rb0, rb1, rb2, gv, Jc
 @njit(forceinline=True)
 def _dot_row(r, sa0, sa1, sa2, p0, p1, p2, rvec, gv, Jc):
     """One DOT row r: a's vector sa (world) against b's p (world), its target rvec[r, 9],
-    and the nonzero entries of Jc, with the operations of ``_kernels._rows`` (shared by the
+    and the nonzero entries of Jc, with the operations of ``_rows._rows`` (shared by the
     general rows and the revolute joint blocks of ``_band5``)."""
     gv[r] = (sa0 * p0 + sa1 * p1 + sa2 * p2) - rvec[r, 9]
     c0 = sa1 * p2 - sa2 * p1
@@ -80,10 +80,10 @@ def _dot_row(r, sa0, sa1, sa2, p0, p1, p2, rvec, gv, Jc):
 
 @njit(forceinline=True)
 def _rows3(rint, rvec, X, D, gv, Jc):
-    """The row values gv and Jacobians Jc of ``_kernels._rows`` for joints of three POINT rows
+    """The row values gv and Jacobians Jc of ``_rows._rows`` for joints of three POINT rows
     (components 0, 1, 2 in rows 3k .. 3k + 2): the lever arms once per joint, only the
     nonzero entries of Jc written (the others stay 0: in the block solver nothing else
-    writes Jc), each with the operations of ``_kernels._rows``."""
+    writes Jc), each with the operations of ``_rows._rows``."""
     for k0 in range(rint.shape[0] // 3):
         r = _U(3 * k0)
         r1 = _U(3 * k0 + 1)
@@ -109,7 +109,7 @@ def _rows3(rint, rvec, X, D, gv, Jc):
 
 @njit(forceinline=True)
 def _forces3(rint, Jc, lam, F, T):
-    """The joint forces -G^T lam of ``_kernels._forces`` (F force, T world torque per body)
+    """The joint forces -G^T lam of ``_rows._forces`` (F force, T world torque per body)
     for the rows of :func:`_rows3`: each sum over the rows in the same order, without its
     terms 0 * lam (x - 0 = x) and with 1 * lam as lam."""
     for i in range(F.shape[0]):
@@ -142,7 +142,7 @@ def _forces3(rint, Jc, lam, F, T):
 @njit(forceinline=True)
 def _vres3(rint, Jc, vel, om, out):
     """G u for the rows of :func:`_rows3` (u = (vel, om) per body): the sums of
-    ``_kernels._vres`` in the same order, without their terms 0 * u and with 1 * u as u."""
+    ``_rows._vres`` in the same order, without their terms 0 * u and with 1 * u as u."""
     for k0 in range(rint.shape[0] // 3):
         r = _U(3 * k0)
         r1 = _U(3 * k0 + 1)
@@ -166,7 +166,7 @@ def _vres3(rint, Jc, vel, om, out):
 
 @njit(forceinline=True)
 def _mm_z(A, B):
-    """A B for row-major 3x3 9-tuples, A with a zero diagonal: the sums of ``_kernels._mm``
+    """A B for row-major 3x3 9-tuples, A with a zero diagonal: the sums of ``_common._mm``
     without their terms 0 * b."""
     return (
         A[1] * B[3] + A[2] * B[6],
@@ -183,7 +183,7 @@ def _mm_z(A, B):
 
 @njit(forceinline=True)
 def _mmt_z(A, B):
-    """A B^T for row-major 3x3 9-tuples, B with a zero diagonal: the sums of ``_kernels._mmt``
+    """A B^T for row-major 3x3 9-tuples, B with a zero diagonal: the sums of ``_common._mmt``
     without their terms a * 0."""
     return (
         A[1] * B[1] + A[2] * B[2],
@@ -240,7 +240,7 @@ def _sym_factor(rint, J, Mx, Mth, Pi, Y):
     + C Mth_i C^T on the diagonal and, if body i is in joint k + 1 as well,
     sigma sigma' Mx_i 1 + C Mth_i C'^T above it (C, C' the joints' rotation blocks on body i,
     sigma, sigma' = +-1 their translation parts). False on a singular pivot (the test of
-    ``_kernels._blk_lu``)."""
+    ``_solvers._blk_lu``)."""
     K = rint.shape[0] // 3
     u0 = u1 = u2 = u3 = u4 = u5 = u6 = u7 = u8 = 0.0  # A_{k-1,k}
     y0 = y1 = y2 = y3 = y4 = y5 = y6 = y7 = y8 = 0.0  # Y_{k-1}
