@@ -16,13 +16,15 @@ Steps (each a median over ``--rounds`` rounds, the two checkouts in alternating 
   checkout has its own cache folder under ``--keep``, filled by a first call not counted):
   CPU s of the systems', the single bodies' and both;
 - ``scorecard``: the scorecard picture (PNG and SVG) of the results folder ``--results``;
+- ``work-precision``: every scenario's work-precision figure of ``--results`` (the figures a
+  warm run draws again besides the scorecard: they show the run's timings);
 - ``report``: the report of a copy of ``--results`` whose figures are all current (the
   documents, summary.json and the scorecard's check);
 - ``drake-contact``: the first Drake contact scene a process builds (its imports), in a fresh
   process each time.
 
 Usage: python benchmarks/bench_warm_run.py --before DIR --results RESULTS [--rounds 3]
-[--steps run references scorecard report drake-contact] [--keep DIR]
+[--steps run references scorecard work-precision report drake-contact] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
-STEPS = ("run", "references", "scorecard", "report", "drake-contact")
+STEPS = ("run", "references", "scorecard", "work-precision", "report", "drake-contact")
 
 
 # -- the steps measured inside a checkout's own process ----------------------------------------
@@ -115,6 +117,23 @@ def _scorecard(results: str) -> float:
         return time.process_time() - c0
 
 
+def _work_precision(results: str) -> float:
+    from reports.report import figures
+    from reports.report.canvas import Styles
+    from reports.report.plots import work_precision_plot
+
+    df = _frame(results)
+    styles = Styles(df)
+    figures._warm_matplotlib()  # as the report's drawing process has it
+    names = [sc for sc in sorted(df["scenario"].unique())
+             if figures.draws("work_precision", df, sc)]  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
+        c0 = time.process_time()
+        for sc in names:
+            work_precision_plot(df, Path(tmp), sc, styles)
+        return time.process_time() - c0
+
+
 def _report(results: str) -> float:
     from reports.report.build import build_report
 
@@ -140,6 +159,8 @@ def worker() -> None:
             out = {"cpu": _references()}
         elif step == "scorecard":
             out = {"cpu": _scorecard(req["results"])}
+        elif step == "work-precision":
+            out = {"cpu": _work_precision(req["results"])}
         else:
             out = {"cpu": _report(req["results"])}
         print(json.dumps(out), flush=True)
@@ -194,8 +215,8 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", nargs="+", choices=STEPS, default=list(STEPS))
     ap.add_argument("--keep", type=Path, help="the runs' folders (default: a temporary one)")
     args = ap.parse_args(argv)
-    if {"scorecard", "report"} & set(args.steps) and args.results is None:
-        ap.error("--results is needed for the steps scorecard and report")
+    if {"scorecard", "work-precision", "report"} & set(args.steps) and args.results is None:
+        ap.error("--results is needed for the steps scorecard, work-precision and report")
     if "run" in args.steps and len(args.steps) > 1:
         # its CPU time is that of every child this process waits for, so none other may live
         ap.error("the step run is measured alone (--steps run)")
