@@ -180,7 +180,16 @@ def _tie() -> None:
     if not _tied:
         from director_model import _cache
 
-        _cache.tie(globals(), Path(_rkmk4_module.__file__))
+        # this module's own functions only: those imported from _rkmk4 (rotate, ...) are
+        # dispatchers shared with it, cached under _rkmk4.py's own stamp; tying them here
+        # would give them another stamp in a process that built a DART tree than in one
+        # that did not, and each would find the other's cache stale and compile them again
+        own = {
+            k: v
+            for k, v in globals().items()
+            if getattr(getattr(v, "py_func", None), "__module__", None) == __name__
+        }
+        _cache.tie({"__name__": __name__, **own}, Path(_rkmk4_module.__file__))
         _tied = True
 
 

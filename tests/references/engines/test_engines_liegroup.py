@@ -277,3 +277,7 @@ def test_the_tree_kernels_cache_is_keyed_on_the_stage_arithmetic_it_compiles_in(
     want = _cache.digest([Path(_rkmk4.__file__)])
     for fn in (_rkmk4_tree.stage, _rkmk4_tree.finish, _rkmk4_tree.pack, _rkmk4_tree.unpack):
         assert fn._cache._cache_file._source_stamp[1] == want
+    # the functions it imports from _rkmk4 keep _rkmk4's own stamp (tied, they would be
+    # stale in every process that did not build a DART tree, and compiled again there)
+    for fn in (_rkmk4.rotate, _rkmk4.rotvec, _rkmk4._dexpinv, _rkmk4._qexp_mul):
+        assert not isinstance(fn._cache._cache_file._source_stamp, tuple)
