@@ -211,6 +211,24 @@ def _mul(D, t0, t1, t2):
 
 
 @njit(forceinline=True)
+def _absmax(v, n):
+    """max(0, |v[0]|, ..., |v[n - 1]|) over the entries that are not NaN (a NaN never wins
+    numba's max, as in Python), as four running maxima over every fourth entry: the same value
+    as one running maximum (max is exact), in four independent compare chains instead of one
+    (one chain costs a compare and a select of latency per entry: ~1 % of a chain's step)."""
+    m0 = m1 = m2 = m3 = 0.0
+    n4 = n - n % 4
+    for r in range(0, n4, 4):
+        m0 = max(m0, abs(v[r]))
+        m1 = max(m1, abs(v[r + 1]))
+        m2 = max(m2, abs(v[r + 2]))
+        m3 = max(m3, abs(v[r + 3]))
+    for r in range(n4, n):
+        m0 = max(m0, abs(v[r]))
+    return max(max(m0, m1), max(m2, m3))
+
+
+@njit(forceinline=True)
 def _fail(info, n, h):
     """Record a failure at sub-step h of step n: info[0] = steps completed, info[1] = h."""
     info[0] = n - 1

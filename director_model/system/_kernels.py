@@ -138,6 +138,7 @@ from director_model.system._common import (
     SIGMA_LDL,
     SOLVE_TOL,
     STATUS_TEXT,
+    _absmax,
     _fail,
     _ftz,
     _mm,
@@ -446,9 +447,7 @@ def _run_system(
                     _rows(rint, rvec, XN, Dnew, gv, Jnew)
                 else:
                     _rows3(rint, rvec, XN, Dnew, gv, Jnew)
-                err = 0.0
-                for r in range(nrow):
-                    err = max(err, abs(gv[r]))
+                err = _absmax(gv, nrow)
                 if not err < math.inf:
                     _fail(info, n, h)
                     return FAIL_NONFINITE
