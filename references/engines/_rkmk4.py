@@ -53,8 +53,9 @@ def _dexpinv(t0, t1, t2, u0, u1, u2):
 
 
 @njit(cache=True, inline="always")
-def _qexp_mul(q, t0, t1, t2, out):
-    """out[0:4] = q (x) exp(theta) (right multiplication: body-frame increment)."""
+def half_angle(t0, t1, t2):
+    """(cos(a/2), sin(a/2)/a) of the rotation vector theta = (t0, t1, t2), a = |theta|: the
+    unit quaternion of theta is (w, s theta)."""
     a2 = t0 * t0 + t1 * t1 + t2 * t2
     if a2 < 1e-8:
         # sin(a/2)/a and cos(a/2) by their series, exact to double precision below 1e-4 rad
@@ -64,6 +65,13 @@ def _qexp_mul(q, t0, t1, t2, out):
         a = math.sqrt(a2)
         s = math.sin(0.5 * a) / a
         w = math.cos(0.5 * a)
+    return w, s
+
+
+@njit(cache=True, inline="always")
+def _qexp_mul(q, t0, t1, t2, out):
+    """out[0:4] = q (x) exp(theta) (right multiplication: body-frame increment)."""
+    w, s = half_angle(t0, t1, t2)
     e1, e2, e3 = s * t0, s * t1, s * t2
     q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
     out[0] = q0 * w - q1 * e1 - q2 * e2 - q3 * e3

@@ -33,6 +33,7 @@ from references.engines._rkmk4 import (
     TOO_LARGE,
     _dexpinv,
     _qexp_mul,
+    half_angle,
     rotate,
     rotvec,
 )
@@ -48,14 +49,7 @@ _C = np.array([0.0, 0.5, 0.5, 1.0])
 def quat_of_rotvec(r, out):
     """out[0:4] = the unit quaternion (w, x, y, z) of the rotation vector r (3,)."""
     t0, t1, t2 = r[0], r[1], r[2]
-    a2 = t0 * t0 + t1 * t1 + t2 * t2
-    if a2 < 1e-8:
-        s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
-        w = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-    else:
-        a = math.sqrt(a2)
-        s = math.sin(0.5 * a) / a
-        w = math.cos(0.5 * a)
+    w, s = half_angle(t0, t1, t2)
     out[0], out[1], out[2], out[3] = w, s * t0, s * t1, s * t2
 
 
