@@ -222,12 +222,7 @@ def validate_system(data: dict, path: str | None = None) -> SystemScenario:
     touching |= {n for pair in listed for n in pair if isinstance(n, str)}
     # a pair naming an unknown body is reported as such; the body it meant is not also
     # reported as joined to nothing
-    if not any(
-        n not in {b.name for b in bodies} | {pl.name for pl in planes}
-        for pair in listed
-        for n in pair
-        if isinstance(n, str)
-    ):
+    if touching <= {b.name for b in bodies} | {pl.name for pl in planes}:
         probs.extend(chk.unjoined_problems(bodies, joints, touching))
     if not probs:
         probs.extend(chk.step_problems(bodies, good_run["dt"], sweep))
